@@ -1,0 +1,64 @@
+/* Calibration loader: validates a common/ps_table.h blob and derives its runtime tables. */
+#ifndef CALIB_H
+#define CALIB_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "lut.h"
+#include "ps_table.h"
+
+#ifndef CALIB_DERIVED_MAX
+/* CALIB_DERIVED_MAX: entries of each table the loader derives (f^-1, z_up, z_down). Default 512. */
+#define CALIB_DERIVED_MAX 512
+#endif
+
+/* Why a table was refused. Every refusal leaves the calib_t it was loaded into untouched. */
+typedef enum {
+    CALIB_OK = 0,
+    CALIB_ERR_SIZE,              /* shorter than a header, or than total_size, or above PST_MAX_TABLE_SIZE */
+    CALIB_ERR_MAGIC,             /* not a playscope table */
+    CALIB_ERR_VERSION,           /* layout version or header size unknown */
+    CALIB_ERR_CRC,               /* CRC-32 mismatch: corrupted or truncated */
+    CALIB_ERR_FORMAT,            /* Q formats, unit or f kind not supported */
+    CALIB_ERR_GRID,              /* a grid: count, power-of-two step, offset or range invalid */
+    CALIB_ERR_B_NEGATIVE,        /* a backlash width below zero */
+    CALIB_ERR_B_SLOPE,           /* |B'| >= 2 somewhere: the envelopes f1, f2 would fold back (eq. 2) */
+    CALIB_ERR_F_NOT_MONOTONE,    /* f not strictly monotone: f^-1 would not exist */
+    CALIB_ERR_Q_RANGE,           /* q_min >= q_max */
+} calib_status_t;
+
+/* Everything the direct model and the compensator read, derived once per load. */
+typedef struct {
+    lut_t b;                     /* B(q): backlash width, actuator units (Q16) over q */
+    lut_t f;                     /* f(q): deg over q (f_coarse or f_remain) */
+    lut_t f_inv;                 /* f^-1(c): q over deg */
+    lut_t z_up;                  /* centre z with z + B(z)/2 = q: the play taken up going up (eq. 2 reindexing) */
+    lut_t z_down;                /* centre z with z - B(z)/2 = q: going down */
+    int32_t q_min_q16;           /* actuator travel */
+    int32_t q_max_q16;
+    int8_t f_sign;               /* +1: f increasing, -1: decreasing (selects eq. 5 or eq. 9 signs) */
+    uint8_t f_kind;              /* enum pst_f_kind */
+    uint8_t q_unit;              /* enum pst_q_unit */
+    uint32_t generation;         /* from the header */
+    uint32_t crc32;              /* from the header */
+    int32_t f_inv_err_q16;       /* worst-case |f^-1 table - exact inverse of the f table| (raw) */
+    int32_t z_err_q16;           /* same for z_up / z_down (raw, max of the two) */
+    int32_t f_inv_buf[CALIB_DERIVED_MAX];
+    int32_t z_up_buf[CALIB_DERIVED_MAX];
+    int32_t z_down_buf[CALIB_DERIVED_MAX];
+} calib_t;
+
+/* Compute the CRC a table of total_size bytes must carry in its header (crc32 field
+ * taken as zero, seed PST_LAYOUT_VERSION). blob must hold total_size >= sizeof(pst_header_t) bytes. */
+uint32_t calib_table_crc(const uint8_t *blob, uint32_t total_size);
+
+/* Validate blob[0..len) and derive f^-1 and the reindexed envelopes into *out.
+ * The B and f entries are read in place: blob must stay valid (and 4-aligned) while
+ * *out is in use. On any error *out is left unchanged, so a running calibration
+ * survives a bad upload. Not per tick: O(n) with 64-bit divides. */
+calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len);
+
+/* A short English name for a status, for logs and error frames. */
+const char *calib_status_str(calib_status_t st);
+
+#endif /* CALIB_H */

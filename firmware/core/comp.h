@@ -1,0 +1,47 @@
+/* Inverse model: backlash compensator q*[k] from c*[k] (paper eqs. 4, 5 and 9). */
+#ifndef COMP_H
+#define COMP_H
+
+#include <stdint.h>
+#include "calib.h"
+
+/* Limits of the optional transition smoothing, per control tick.
+ * The backlash step at a reversal (a jump of B in q*) is replaced by a ramp whose
+ * velocity and acceleration stay within these limits, as LinuxCNC ramps its backlash
+ * correction; the nominal part f^-1(c*) is passed through untouched. Q32.32 in actuator
+ * units per tick (per tick^2) because a 20 kHz tick moves far less than one Q16 LSB of
+ * acceleration. Zero velocity limit means no smoothing (the step of eq. 4 as written). */
+typedef struct {
+    int64_t v_max_q32;           /* actuator units per tick, Q32.32, >= 0 */
+    int64_t a_max_q32;           /* actuator units per tick^2, Q32.32, > 0 when v_max_q32 > 0 */
+} comp_smoothing_t;
+
+typedef struct {
+    const calib_t *cal;
+    comp_smoothing_t lim;
+    int32_t c_prev_q16;          /* c*[k-1] */
+    int8_t dir;                  /* sign of the last non-zero change of c*: +1, -1, 0 before any */
+    int64_t off_q32;             /* applied backlash offset (q* - f^-1(c*)), Q32.32 */
+    int64_t off_v_q32;           /* its rate, per tick */
+    int32_t q_ref_q16;           /* q*[k-1], for reading back */
+} comp_t;
+
+/* Convert limits to per-tick Q32.32: v_q16 in actuator units/s, a_q16 in units/s^2
+ * (both Q16.16, >= 0), tick_hz > 0. v_q16 = 0 disables smoothing. Init time only
+ * (64-bit divides; lives in comp_config.c so the per-tick object stays divide-free). */
+comp_smoothing_t comp_smoothing_from_rates(int32_t v_q16, int32_t a_q16, uint32_t tick_hz);
+
+/* Start from reference c0_q16 with no direction known: the offset is 0 (play centred)
+ * until c* first moves. lim may be NULL for no smoothing. */
+void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int32_t c0_q16);
+
+/* One step of eq. 4: q*[k] for reference c*[k] (deg, Q16).
+ *   q_c = f^-1(c*)                         (f_coarse^-1 of eq. 5 or f_remain^-1 of eq. 9)
+ *   q*  = q_c + dir * s_f * B(q_c) / 2      dir = sign(c*[k] - c*[k-1]), held when equal;
+ *                                           s_f = sign(f'), which turns eq. 5 into eq. 9
+ *                                           when f is decreasing
+ * then the offset is ramped within the smoothing limits and q* saturated to
+ * [q_min, q_max]. O(1), integer-only, no divide. */
+int32_t comp_step(comp_t *cp, int32_t c_ref_q16);
+
+#endif /* COMP_H */

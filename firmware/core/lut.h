@@ -1,0 +1,51 @@
+/* Uniform-grid lookup tables with linear interpolation, and their numerical inverses. */
+#ifndef LUT_H
+#define LUT_H
+
+#include <stdint.h>
+
+/* y(x) sampled at x_i = x0 + i * 2^step_log2 (raw Q16.16 units), i = 0..n-1.
+ * The grid step is a power of two so that evaluation shifts and masks: no divide.
+ * Entries are not owned (flash, a table blob, or a calib_t buffer). */
+typedef struct {
+    const int32_t *y_q16;        /* n entries, Q16.16 */
+    int32_t x0_q16;              /* abscissa of y_q16[0] */
+    int32_t x_last_q16;          /* abscissa of y_q16[n-1] (cached) */
+    uint16_t n;                  /* >= 2 */
+    uint8_t step_log2;           /* step = 1 << step_log2 raw units, 0..24 */
+} lut_t;
+
+/* Status of lut_init() and lut_build_inverse(). */
+typedef enum {
+    LUT_OK = 0,
+    LUT_ERR_SIZE,                /* n < 2, or n above the capacity given */
+    LUT_ERR_STEP,                /* step not a power of two in 1..2^24 raw units */
+    LUT_ERR_RANGE,               /* grid does not fit int32 Q16.16 */
+    LUT_ERR_NOT_MONOTONE,        /* inverse asked of a function that is not strictly monotone */
+} lut_status_t;
+
+/* Describe entries y_q16[0..n-1] on the grid x0_q16 + i * step_q16.
+ * Errors: LUT_ERR_SIZE (n < 2), LUT_ERR_STEP (step not 2^k, 1 <= step <= 2^24),
+ * LUT_ERR_RANGE (x0 + (n-1)*step overflows int32). Not per tick. */
+lut_status_t lut_init(lut_t *lut, const int32_t *y_q16, uint16_t n, int32_t x0_q16, int32_t step_q16);
+
+/* y(x) by linear interpolation between the two neighbouring entries, saturating to
+ * y_q16[0] below x0 and to y_q16[n-1] above the last abscissa.
+ * Bound: |lut_eval(x) - L(x)| <= 1/2 LSB (2^-17) where L is the exact piecewise-linear
+ * interpolant of the entries (round half up of the exact product; no index error since
+ * the step is a power of two). O(1), integer-only, per tick. */
+int32_t lut_eval(const lut_t *lut, int32_t x_q16);
+
+/* Build the table of the inverse x = g^-1(y) of the piecewise-linear g given by src,
+ * on a uniform y grid whose power-of-two step is the smallest that covers
+ * [min g, max g] in at most cap entries; entries go to out_y_q16[0..cap-1].
+ * g must be strictly monotone (increasing or decreasing), else LUT_ERR_NOT_MONOTONE
+ * and *out is untouched. On success *err_q16 receives the exact worst-case error of
+ * lut_eval(out, .) against the exact inverse of g over g's range, in raw units: the
+ * error is piecewise linear between breakpoints of g and grid points of out, so its
+ * maximum is found by evaluating at every breakpoint (plus the 1/2 LSB of lut_eval).
+ * O(n + cap), uses 64-bit divides: load time only, never per tick. */
+lut_status_t lut_build_inverse(const lut_t *src, int32_t *out_y_q16, uint16_t cap, lut_t *out,
+                               int32_t *err_q16);
+
+#endif /* LUT_H */

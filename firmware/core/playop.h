@@ -1,0 +1,27 @@
+/* Direct model: play operator with position-dependent width B(q) then f (paper eqs. 2, 3). */
+#ifndef PLAYOP_H
+#define PLAYOP_H
+
+#include <stdint.h>
+#include "calib.h"
+
+/* State of eq. 3 written in actuator space. z is the actuator position with the play
+ * taken out ("centre"), so c = f(z). Going up, q pushes z once q - z exceeds B(z)/2, and
+ * then z + B(z)/2 = q, i.e. c = f(z_up(q)) = f2(q) of eq. 2; going down c = f(z_down(q)) =
+ * f1(q). Inside the band z stays and c[k] = c[k-1]. With z_up <= z_down this is
+ *   z[k] = min(z_down(q[k]), max(z_up(q[k]), z[k-1])),   c[k] = f(z[k]),
+ * the play operator of eq. 3 for a monotone f (either sign). */
+typedef struct {
+    const calib_t *cal;
+    int32_t z_q16;               /* centre position, actuator units */
+} playop_t;
+
+/* Start at centre z0_q16 (e.g. the first q, with the play assumed centred). */
+void playop_reset(playop_t *p, const calib_t *cal, int32_t z0_q16);
+
+/* One step of eq. 3: the bending angle c[k] (deg, Q16) for actuator position q_q16.
+ * Error against the exact operator on the same tables: <= cal->z_err_q16 on z, then
+ * through f (|f'| * z error + 1/2 LSB). O(1), integer-only. */
+int32_t playop_step(playop_t *p, int32_t q_q16);
+
+#endif /* PLAYOP_H */
