@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Every test suite, each ending with one summary line; exits non-zero if any failed.
+# Usage: tools/run-tests.sh            (does set-up first, then all runners)
+set -uo pipefail
+cd "$(dirname "$0")/.."
+./tools/setup.sh || { echo "SUMMARY setup: FAILED"; exit 1; }
+
+declare -a summary
+status=0
+run() {  # run NAME CMD...: run one suite, record one summary line
+  local name=$1; shift
+  local t0=$SECONDS
+  echo "==== $name: $*"
+  if "$@"; then
+    summary+=("PASS  $name ($((SECONDS - t0)) s)")
+  else
+    summary+=("FAIL  $name ($((SECONDS - t0)) s)"); status=1
+  fi
+}
+
+run "C unit tests, desktop, ASan+UBSan" ctest --preset desktop
+run "C core tests, Cortex-M4 under QEMU" ctest --preset stm32f405
+if [ -d tests/python ] && [ -x .venv/bin/pytest ]; then
+  run "Python tests" .venv/bin/pytest -q tests/python
+fi
+
+echo
+for line in "${summary[@]}"; do echo "SUMMARY $line"; done
+exit $status
