@@ -1,0 +1,1 @@
+"""The built-in `playscope` subcommands, one module each with add_parser(subparsers)."""

@@ -1,0 +1,352 @@
+"""Session folders (format playscope-session/1): load, validate and write atomically.
+
+A session is a folder (docs/session-format.md):
+  session.json   metadata: "format", actuator.unit, distal.kind, camera, hand_eye, robot, t_delay_s
+  encoder.csv    t_s,q[,q_cmd]       high-rate actuator log (s, actuator units)
+  marker.csv     t_s,u_px,v_px       one row per frame, empty u/v for a lost marker (image sessions)
+  frames.csv     frame,t_s           with video.* when the marker is still to be tracked
+  distal.csv     t_s,c_deg           angle sessions (external sensor, e.g. EM tracker)
+  truth.csv      t_s,c_deg[,...]     simulated sessions only: ground truth, any extra columns
+Every error is an InputError naming the file and, for CSV content, the row (header = row 1).
+"""
+
+from __future__ import annotations
+
+import copy
+import csv
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .atomic import atomic_path
+from .errors import InputError
+
+FORMAT = "playscope-session/1"
+ACTUATOR_UNITS = ("mm", "deg")
+DISTAL_KINDS = ("image", "angle")
+VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov", ".m4v")
+
+
+# --------------------------------------------------------------------------- metadata
+@dataclass
+class Camera:
+    """Pinhole camera with OpenCV distortion (eq. 6, h).
+
+    K: (3, 3) intrinsics in px; dist: (5,) k1 k2 p1 p2 k3 (OpenCV order); fps in Hz;
+    width, height in px.
+    """
+
+    width: int
+    height: int
+    fps: float
+    K: np.ndarray
+    dist: np.ndarray = field(default_factory=lambda: np.zeros(5))
+
+    def to_json(self) -> dict:
+        return {"width": int(self.width), "height": int(self.height), "fps": float(self.fps),
+                "K": np.asarray(self.K, float).tolist(), "dist": np.asarray(self.dist, float).tolist()}
+
+
+@dataclass
+class HandEye:
+    """cam_T_base: P_cam = R @ P_base + t_mm. R: (3, 3) rotation; t_mm: (3,) mm."""
+
+    R: np.ndarray
+    t_mm: np.ndarray
+
+    def to_json(self) -> dict:
+        return {"R": np.asarray(self.R, float).tolist(), "t_mm": np.asarray(self.t_mm, float).tolist()}
+
+
+@dataclass
+class Robot:
+    """Geometric model g (constant curvature) and f_coarse: c [rad] = q / q_per_rad.
+
+    bend_length_mm: arc length of the bending section; tip_length_mm: rigid tip beyond it
+    (the marker sits at its end); q_per_rad: actuator units per radian of bending (signed:
+    negative when pulling the cable decreases c).
+    """
+
+    model: str
+    bend_length_mm: float
+    tip_length_mm: float
+    q_per_rad: float
+
+    def to_json(self) -> dict:
+        return {"model": self.model, "bend_length_mm": float(self.bend_length_mm),
+                "tip_length_mm": float(self.tip_length_mm), "q_per_rad": float(self.q_per_rad)}
+
+
+@dataclass
+class Session:
+    """An in-memory session. Arrays are float64, 1-D, one entry per CSV row.
+
+    encoder: {"t_s", "q"[, "q_cmd"]}; marker: {"t_s", "u_px", "v_px"} (NaN = lost) or None;
+    distal: {"t_s", "c_deg"} or None; truth: {"t_s", "c_deg", ...} or None;
+    frames: {"frame", "t_s"} with ``video`` (a path) when the marker is not tracked yet.
+    ``meta`` keeps any extra keys of session.json (e.g. "source") for round trips.
+    """
+
+    actuator_unit: str
+    distal_kind: str
+    robot: Robot
+    encoder: dict[str, np.ndarray]
+    camera: Camera | None = None
+    hand_eye: HandEye | None = None
+    t_delay_s: float | None = None
+    marker: dict[str, np.ndarray] | None = None
+    distal: dict[str, np.ndarray] | None = None
+    truth: dict[str, np.ndarray] | None = None
+    frames: dict[str, np.ndarray] | None = None
+    video: Path | None = None
+    path: Path | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    # Observations used by the estimator, whichever the distal kind.
+    def observations(self) -> tuple[np.ndarray, np.ndarray]:
+        """Distal observations: (t_s (N,), obs (N, 2)) with obs = (u_px, v_px) for image
+        sessions, (c_deg, 0) for angle sessions; NaN rows are lost frames."""
+        if self.distal_kind == "angle":
+            t = self.distal["t_s"]
+            return t, np.column_stack([self.distal["c_deg"], np.zeros_like(t)])
+        if self.marker is None:
+            raise InputError(self.path, "no marker.csv: run `playscope track` on the video first")
+        return self.marker["t_s"], np.column_stack([self.marker["u_px"], self.marker["v_px"]])
+
+    def to_json(self) -> dict:
+        d: dict[str, Any] = {"format": FORMAT, "actuator": {"unit": self.actuator_unit},
+                             "distal": {"kind": self.distal_kind}, "robot": self.robot.to_json()}
+        if self.camera is not None:
+            d["camera"] = self.camera.to_json()
+        if self.hand_eye is not None:
+            d["hand_eye"] = self.hand_eye.to_json()
+        if self.t_delay_s is not None:
+            d["t_delay_s"] = float(self.t_delay_s)
+        for k, v in self.meta.items():
+            d.setdefault(k, v)
+        return d
+
+    def slice_time(self, t0: float, t1: float) -> "Session":
+        """A copy keeping rows with t0 <= t_s < t1 in every table (for in situ halves)."""
+        s = copy.copy(self)
+        for name in ("encoder", "marker", "distal", "truth", "frames"):
+            tab = getattr(self, name)
+            if tab is not None:
+                m = (tab["t_s"] >= t0) & (tab["t_s"] < t1)
+                setattr(s, name, {k: v[m] for k, v in tab.items()})
+        s.path = None
+        return s
+
+
+# --------------------------------------------------------------------------- CSV
+def read_csv(path: Path, required: list[str], optional: list[str] = (), nullable: set[str] = frozenset(),
+             time_col: str | None = "t_s") -> dict[str, np.ndarray]:
+    """Read a numeric CSV with a header row into float64 arrays.
+
+    required/optional: column names (others are kept too). nullable: columns whose empty
+    fields mean "lost" (NaN); anywhere else an empty, non-numeric, NaN or infinite field is
+    an error. time_col must be strictly increasing.
+    Errors: InputError(file, message, row) with the 1-based line number.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    with open(path, newline="") as fh:
+        reader = csv.reader(fh)
+        try:
+            header = [h.strip() for h in next(reader)]
+        except StopIteration:
+            raise InputError(path, "empty file (no header row)", 1) from None
+        for name in required:
+            if name not in header:
+                raise InputError(path, f"missing column {name!r} (header: {','.join(header)})", 1)
+        rows = list(reader)
+    ncol = len(header)
+    data = np.full((len(rows), ncol), np.nan)
+    null_idx = {header.index(n) for n in nullable if n in header}
+    for i, row in enumerate(rows):
+        lineno = i + 2
+        if len(row) != ncol:
+            raise InputError(path, f"expected {ncol} fields, found {len(row)} (truncated or malformed row)", lineno)
+        for j, cell in enumerate(row):
+            cell = cell.strip()
+            if cell == "":
+                if j in null_idx:
+                    continue
+                raise InputError(path, f"empty value in column {header[j]!r}", lineno)
+            try:
+                x = float(cell)
+            except ValueError:
+                raise InputError(path, f"not a number in column {header[j]!r}: {cell!r}", lineno) from None
+            if not math.isfinite(x):
+                raise InputError(path, f"non-finite value in column {header[j]!r}: {cell!r}", lineno)
+            data[i, j] = x
+    if len(rows) == 0:
+        raise InputError(path, "no data rows", 2)
+    out = {h: data[:, j].copy() for j, h in enumerate(header)}
+    if time_col is not None:
+        t = out[time_col]
+        bad = np.nonzero(np.diff(t) <= 0)[0]
+        if bad.size:
+            k = int(bad[0]) + 1
+            raise InputError(path, f"time {t_col_fmt(t[k])} s not after the previous row's "
+                             f"{t_col_fmt(t[k - 1])} s (time must increase)", k + 2)
+    return out
+
+
+def t_col_fmt(x: float) -> str:
+    return f"{x:.9g}"
+
+
+def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str] | None = None) -> None:
+    """Write equal-length 1-D arrays as a CSV with a header; NaN becomes an empty field."""
+    names = list(columns)
+    arrays = [np.asarray(columns[n], float) for n in names]
+    n = len(arrays[0]) if arrays else 0
+    formats = formats or {}
+    fmts = [formats.get(nm, "{:.9g}") for nm in names]
+    with open(path, "w", newline="") as fh:
+        fh.write(",".join(names) + "\n")
+        for i in range(n):
+            fh.write(",".join("" if not math.isfinite(a[i]) else f.format(a[i])
+                              for a, f in zip(arrays, fmts)) + "\n")
+
+
+# --------------------------------------------------------------------------- JSON
+def _get(d: dict, key: str, path: Path, where: str, kind=None):
+    if not isinstance(d, dict) or key not in d:
+        raise InputError(path, f"missing key {where}{key}")
+    v = d[key]
+    if kind is float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise InputError(path, f"{where}{key} must be a finite number, got {v!r}")
+        return float(v)
+    if kind is not None and not isinstance(v, kind):
+        raise InputError(path, f"{where}{key} has the wrong type ({type(v).__name__})")
+    return v
+
+
+def _matrix(v, shape, path: Path, name: str) -> np.ndarray:
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(path, f"{name} must be numeric of shape {shape}") from None
+    if a.shape != shape or not np.all(np.isfinite(a)):
+        raise InputError(path, f"{name} must be finite of shape {shape}, got {a.shape}")
+    return a
+
+
+def parse_meta(d: dict, path: Path) -> dict[str, Any]:
+    """Validate a session.json dict; returns the typed pieces for Session(**...)."""
+    if not isinstance(d, dict):
+        raise InputError(path, "session.json must hold a JSON object")
+    fmt = d.get("format")
+    if fmt != FORMAT:
+        raise InputError(path, f"format is {fmt!r}, expected {FORMAT!r}")
+    unit = _get(_get(d, "actuator", path, "", dict), "unit", path, "actuator.")
+    if unit not in ACTUATOR_UNITS:
+        raise InputError(path, f"actuator.unit must be one of {ACTUATOR_UNITS}, got {unit!r}")
+    kind = _get(_get(d, "distal", path, "", dict), "kind", path, "distal.")
+    if kind not in DISTAL_KINDS:
+        raise InputError(path, f"distal.kind must be one of {DISTAL_KINDS}, got {kind!r}")
+    r = _get(d, "robot", path, "", dict)
+    model = _get(r, "model", path, "robot.")
+    if model != "constant_curvature":
+        raise InputError(path, f"robot.model {model!r} not supported (only 'constant_curvature')")
+    robot = Robot(model, _get(r, "bend_length_mm", path, "robot.", float),
+                  _get(r, "tip_length_mm", path, "robot.", float), _get(r, "q_per_rad", path, "robot.", float))
+    if robot.q_per_rad == 0 or robot.bend_length_mm <= 0:
+        raise InputError(path, "robot.q_per_rad must be non-zero and robot.bend_length_mm positive")
+    out: dict[str, Any] = {"actuator_unit": unit, "distal_kind": kind, "robot": robot}
+    if "camera" in d or kind == "image":
+        c = _get(d, "camera", path, "", dict)
+        K = _matrix(_get(c, "K", path, "camera."), (3, 3), path, "camera.K")
+        dist = _matrix(c.get("dist", [0, 0, 0, 0, 0]), (5,), path, "camera.dist")
+        out["camera"] = Camera(int(_get(c, "width", path, "camera.", float)), int(_get(c, "height", path, "camera.", float)),
+                               _get(c, "fps", path, "camera.", float), K, dist)
+        if out["camera"].fps <= 0:
+            raise InputError(path, "camera.fps must be positive")
+    if "hand_eye" in d or kind == "image":
+        h = _get(d, "hand_eye", path, "", dict)
+        R = _matrix(_get(h, "R", path, "hand_eye."), (3, 3), path, "hand_eye.R")
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+            raise InputError(path, "hand_eye.R is not a rotation matrix")
+        out["hand_eye"] = HandEye(R, _matrix(_get(h, "t_mm", path, "hand_eye."), (3,), path, "hand_eye.t_mm"))
+    if d.get("t_delay_s") is not None:
+        out["t_delay_s"] = _get(d, "t_delay_s", path, "", float)
+        if out["t_delay_s"] < 0:
+            raise InputError(path, "t_delay_s must be >= 0")
+    known = {"format", "actuator", "distal", "robot", "camera", "hand_eye", "t_delay_s"}
+    out["meta"] = {k: v for k, v in d.items() if k not in known}
+    return out
+
+
+# --------------------------------------------------------------------------- load / write
+def load_session(folder: str | os.PathLike) -> Session:
+    """Load and validate a session folder.
+
+    Errors: InputError naming the file (and row for CSV content): missing folder or file,
+    bad JSON, unknown format, NaN/empty/non-numeric fields, non-increasing time, missing
+    distal data for the declared kind.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(folder, "session folder not found")
+    jpath = folder / "session.json"
+    if not jpath.is_file():
+        raise InputError(jpath, "file not found")
+    try:
+        d = json.loads(jpath.read_text())
+    except json.JSONDecodeError as e:
+        raise InputError(jpath, f"invalid JSON: {e.msg}", e.lineno) from None
+    kw = parse_meta(d, jpath)
+    enc = read_csv(folder / "encoder.csv", ["t_s", "q"], ["q_cmd"])
+    if len(enc["t_s"]) < 2:
+        raise InputError(folder / "encoder.csv", "fewer than two samples")
+    s = Session(encoder=enc, path=folder, **kw)
+    if kw["distal_kind"] == "angle":
+        s.distal = read_csv(folder / "distal.csv", ["t_s", "c_deg"], nullable={"c_deg"})
+    else:
+        if (folder / "marker.csv").is_file():
+            s.marker = read_csv(folder / "marker.csv", ["t_s", "u_px", "v_px"], nullable={"u_px", "v_px"})
+            if np.any(np.isnan(s.marker["u_px"]) != np.isnan(s.marker["v_px"])):
+                k = int(np.nonzero(np.isnan(s.marker["u_px"]) != np.isnan(s.marker["v_px"]))[0][0])
+                raise InputError(folder / "marker.csv", "u_px and v_px must be both present or both empty", k + 2)
+        videos = sorted(p for p in folder.glob("video.*") if p.suffix.lower() in VIDEO_SUFFIXES)
+        if videos:
+            s.video = videos[0]
+            s.frames = read_csv(folder / "frames.csv", ["frame", "t_s"])
+        if s.marker is None and s.video is None:
+            raise InputError(folder / "marker.csv", "file not found (and no video.* with frames.csv)")
+    if (folder / "truth.csv").is_file():
+        s.truth = read_csv(folder / "truth.csv", ["t_s", "c_deg"])
+    return s
+
+
+def write_session(s: Session, folder: str | os.PathLike, overwrite: bool = False) -> Path:
+    """Write ``s`` as a session folder, atomically (temporary folder, then rename).
+
+    Errors: FileExistsError when the folder exists and overwrite is False.
+    Returns the folder path. A video is not copied: write_session keeps marker.csv only.
+    """
+    folder = Path(folder)
+    if folder.exists() and not overwrite:
+        raise FileExistsError(f"{folder}: exists (use overwrite)")
+    with atomic_path(folder) as tmp:
+        tmp.mkdir()
+        (tmp / "session.json").write_text(json.dumps(s.to_json(), indent=2) + "\n")
+        write_csv(tmp / "encoder.csv", s.encoder)
+        if s.marker is not None:
+            write_csv(tmp / "marker.csv", {k: s.marker[k] for k in ("t_s", "u_px", "v_px")})
+        if s.distal is not None:
+            write_csv(tmp / "distal.csv", {k: s.distal[k] for k in ("t_s", "c_deg")})
+        if s.truth is not None:
+            write_csv(tmp / "truth.csv", s.truth)
+        if s.frames is not None and s.video is not None:
+            write_csv(tmp / "frames.csv", s.frames, {"frame": "{:.0f}"})
+    return folder
