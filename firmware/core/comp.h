@@ -12,8 +12,9 @@
  * units per tick (per tick^2) because a 20 kHz tick moves far less than one Q16 LSB of
  * acceleration. Zero velocity limit means no smoothing (the step of eq. 4 as written). */
 typedef struct {
-    int64_t v_max_q32;           /* actuator units per tick, Q32.32, >= 0 */
-    int64_t a_max_q32;           /* actuator units per tick^2, Q32.32, > 0 when v_max_q32 > 0 */
+    int64_t v_max_q32;           /* actuator units per tick, Q32.32, 0..2^31 */
+    int64_t a_max_q32;           /* actuator units per tick^2, Q32.32, 1..2^31 when v_max_q32 > 0 */
+    int64_t far_q32;             /* INT64_MAX / a_max_q32: beyond it no braking is needed (derived) */
 } comp_smoothing_t;
 
 typedef struct {
@@ -27,7 +28,9 @@ typedef struct {
 } comp_t;
 
 /* Convert limits to per-tick Q32.32: v_q16 in actuator units/s, a_q16 in units/s^2
- * (both Q16.16, >= 0), tick_hz > 0. v_q16 = 0 disables smoothing. Init time only
+ * (both Q16.16, >= 0), tick_hz > 0. v_q16 = 0 disables smoothing. Limits are clamped
+ * to 2^31 per tick (products stay in int64). The only way to make a comp_smoothing_t
+ * with smoothing on, since far_q32 is derived here. Init time only
  * (64-bit divides; lives in comp_config.c so the per-tick object stays divide-free). */
 comp_smoothing_t comp_smoothing_from_rates(int32_t v_q16, int32_t a_q16, uint32_t tick_hz);
 

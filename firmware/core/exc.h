@@ -30,7 +30,7 @@ typedef struct {
     exc_config_t cfg;
     int64_t q_q32;               /* current set-point, Q32.32 */
     int64_t target_q32;          /* next turning point */
-    int64_t low_q32;             /* base of the current cycle */
+    int64_t base_q32;            /* forward sweep: bottom of the current cycle; return sweep: its top */
     int8_t dir;                  /* +1 up, -1 down, 0 done */
     int8_t sweep;                /* +1 forward sweep, -1 return sweep */
 } exc_t;

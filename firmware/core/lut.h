@@ -40,11 +40,14 @@ int32_t lut_eval(const lut_t *lut, int32_t x_q16);
  * on a uniform y grid whose power-of-two step is the smallest that covers
  * [min g, max g] in at most cap entries; entries go to out_y_q16[0..cap-1].
  * g must be strictly monotone (increasing or decreasing), else LUT_ERR_NOT_MONOTONE
- * and *out is untouched. On success *err_q16 receives the exact worst-case error of
+ * and nothing is written (out_y_q16 included). On success *err_q16 receives the exact worst-case error of
  * lut_eval(out, .) against the exact inverse of g over g's range, in raw units: the
  * error is piecewise linear between breakpoints of g and grid points of out, so its
  * maximum is found by evaluating at every breakpoint (plus the 1/2 LSB of lut_eval).
  * O(n + cap), uses 64-bit divides: load time only, never per tick. */
+/* The checks of lut_build_inverse() alone, writing nothing: LUT_OK if it would succeed. */
+lut_status_t lut_check_inverse(const lut_t *src, uint16_t cap);
+
 lut_status_t lut_build_inverse(const lut_t *src, int32_t *out_y_q16, uint16_t cap, lut_t *out,
                                int32_t *err_q16);
 

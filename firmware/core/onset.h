@@ -67,6 +67,7 @@ typedef struct {
     int32_t q1_q16;
     uint16_t settle_left;
     uint16_t lost_run;           /* consecutive lost frames */
+    uint16_t still_pairs;        /* still frame pairs seen since the reversal */
     bool have_prev;              /* a previous valid frame in this episode */
     uint32_t prev_t_us;
     int32_t prev_u_q16, prev_v_q16;

@@ -1,0 +1,23 @@
+/* Direct model: play operator with position-dependent width (eq. 3 in actuator space). */
+#include "playop.h"
+
+void playop_reset(playop_t *p, const calib_t *cal, int32_t z0_q16)
+{
+    p->cal = cal;
+    p->z_q16 = z0_q16;
+}
+
+int32_t playop_step(playop_t *p, int32_t q_q16)
+{
+    /* The band of centres compatible with q: [z_up(q), z_down(q)] (eq. 2 reindexed).
+     * Inside it the play absorbs the motion; outside, q drags the centre to the edge. */
+    int32_t lo = lut_eval(&p->cal->z_up, q_q16);
+    int32_t hi = lut_eval(&p->cal->z_down, q_q16);
+    int32_t z = p->z_q16;
+    if (z < lo)
+        z = lo;
+    else if (z > hi)
+        z = hi;
+    p->z_q16 = z;
+    return lut_eval(&p->cal->f, z);
+}

@@ -1,0 +1,74 @@
+/* Test fixture: calibration-table blobs from double functions, written field by field. */
+#include "table_fixture.h"
+
+#include <math.h>
+#include <string.h>
+#include "calib.h"
+
+static int32_t to_q16(double x)
+{
+    return (int32_t)llround(x * 65536.0);
+}
+
+size_t fixture_build(fixture_blob_t *blob, const fixture_grid_t *g, fixture_fn b, const void *b_ctx,
+                     fixture_fn f, const void *f_ctx)
+{
+    pst_header_t hd;
+    memset(&hd, 0, sizeof hd);
+    memset(blob, 0, sizeof *blob);
+    hd.magic = PST_MAGIC;
+    hd.layout_version = PST_LAYOUT_VERSION;
+    hd.header_size = sizeof hd;
+    hd.generation = g->generation;
+    hd.q_frac_bits = 16;
+    hd.c_frac_bits = 16;
+    hd.q_unit = PST_Q_UNIT_MM;
+    hd.f_kind = g->f_kind;
+    hd.q_min_q16 = to_q16(g->q_min);
+    hd.q_max_q16 = to_q16(g->q_max);
+    int32_t x0 = to_q16(g->q0);
+    int32_t step = (int32_t)1 << g->step_log2;
+    hd.b = (pst_grid_t){.x0_q16 = x0, .step_q16 = step, .n = g->n, .offset = sizeof hd};
+    hd.f = (pst_grid_t){.x0_q16 = x0, .step_q16 = step, .n = g->n, .offset = (uint16_t)(sizeof hd + 4u * g->n)};
+    hd.total_size = (uint32_t)(sizeof hd + 8u * g->n);
+    int32_t *bb = (int32_t *)(void *)(blob->bytes + hd.b.offset);
+    int32_t *ff = (int32_t *)(void *)(blob->bytes + hd.f.offset);
+    for (int i = 0; i < g->n; i++) {
+        double q = (x0 + (double)i * step) / 65536.0;
+        bb[i] = to_q16(b(q, b_ctx));
+        ff[i] = to_q16(f(q, f_ctx));
+    }
+    memcpy(blob->bytes, &hd, sizeof hd);
+    fixture_reseal(blob);
+    return hd.total_size;
+}
+
+void fixture_reseal(fixture_blob_t *blob)
+{
+    pst_header_t hd;
+    memcpy(&hd, blob->bytes, sizeof hd);
+    uint32_t size = hd.total_size <= sizeof blob->bytes ? hd.total_size : (uint32_t)sizeof blob->bytes;
+    hd.crc32 = calib_table_crc(blob->bytes, size);
+    memcpy(blob->bytes, &hd, sizeof hd);
+}
+
+static double entry(const fixture_blob_t *blob, const pst_grid_t *gr, int i)
+{
+    int32_t v;
+    memcpy(&v, blob->bytes + gr->offset + 4 * i, 4);
+    return v / 65536.0;
+}
+
+double fixture_b(const fixture_blob_t *blob, int i)
+{
+    pst_header_t hd;
+    memcpy(&hd, blob->bytes, sizeof hd);
+    return entry(blob, &hd.b, i);
+}
+
+double fixture_f(const fixture_blob_t *blob, int i)
+{
+    pst_header_t hd;
+    memcpy(&hd, blob->bytes, sizeof hd);
+    return entry(blob, &hd.f, i);
+}

@@ -1,0 +1,39 @@
+/* Test fixture: builds calibration-table blobs (common/ps_table.h) from double functions. */
+#ifndef TABLE_FIXTURE_H
+#define TABLE_FIXTURE_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "ps_table.h"
+
+/* A double function of q with a context, e.g. B(q) in actuator units or f(q) in deg. */
+typedef double (*fixture_fn)(double q, const void *ctx);
+
+typedef struct {
+    double q0;                   /* first grid abscissa, actuator units */
+    int step_log2;               /* grid step = 2^step_log2 / 65536 units */
+    uint16_t n;                  /* entries per grid (B and f share the grid here) */
+    double q_min, q_max;         /* actuator travel */
+    uint8_t f_kind;              /* enum pst_f_kind */
+    uint32_t generation;
+} fixture_grid_t;
+
+/* Storage with the alignment calib_load() requires. */
+typedef union {
+    uint32_t align;
+    uint8_t bytes[PST_MAX_TABLE_SIZE];
+} fixture_blob_t;
+
+/* Fill blob with B and f sampled on the grid (rounded to Q16) and a valid CRC.
+ * Returns the table size in bytes. */
+size_t fixture_build(fixture_blob_t *blob, const fixture_grid_t *g, fixture_fn b, const void *b_ctx,
+                     fixture_fn f, const void *f_ctx);
+
+/* Recompute the CRC after a test edited the blob on purpose. */
+void fixture_reseal(fixture_blob_t *blob);
+
+/* Entry i of the B or f grid, as double (units, deg). */
+double fixture_b(const fixture_blob_t *blob, int i);
+double fixture_f(const fixture_blob_t *blob, int i);
+
+#endif /* TABLE_FIXTURE_H */
