@@ -1,0 +1,163 @@
+/* Cortex-M4 bench ELF: core clock cycles for N control ticks, printed as BENCH lines; run under QEMU -icount. */
+#include <stdbool.h>
+#include <stdint.h>
+#include <string.h>
+
+#include "bench_tick.h"
+#include "port_board.h"
+
+/* Under `-icount shift=0` QEMU advances virtual time 1 ns per instruction, and SysTick
+ * counts virtual core cycles (168 MHz), so cycles * 1000 / 168 = instructions. The
+ * calibration loop (2 instructions per iteration) checks that ratio on every run. */
+
+#ifndef BENCH_TICKS
+/* BENCH_TICKS: control ticks per measurement. Default 100000. */
+#define BENCH_TICKS 100000u
+#endif
+
+enum {
+    BENCH_TICK_HZ = 20000,       /* what the reference speed and smoothing assume */
+    BENCH_TIMEBASE_HZ = 1000,    /* SysTick period of the cycle counter (ISR cost ~0.003 %) */
+    CAL_ITERATIONS = 1000000,
+    REF_LEN = 1024,              /* precomputed c* samples, a power of two */
+};
+
+static ctl_loop_t loop;
+static int32_t c_ref_q16[REF_LEN];  /* a triangle sampled as the demo's, so comp_step sees reversals */
+static volatile int32_t sink_q16;
+
+static void put_str(const char *s)
+{
+    port_uart_write(s, strlen(s));
+}
+
+static void put_u32(uint32_t v)
+{
+    char buf[10];
+    int n = 0;
+    do {
+        buf[sizeof buf - 1 - n++] = (char)('0' + v % 10u);
+        v /= 10u;
+    } while (v != 0u);
+    port_uart_write(buf + sizeof buf - n, (size_t)n);
+}
+
+/* One result line: "BENCH <name> cycles=<c> iterations=<n>". */
+static void report(const char *name, uint32_t cycles, uint32_t iterations)
+{
+    put_str("BENCH ");
+    put_str(name);
+    put_str(" cycles=");
+    put_u32(cycles);
+    put_str(" iterations=");
+    put_u32(iterations);
+    put_str("\r\n");
+}
+
+/* Exactly 2 instructions per iteration (subs, bne), to calibrate cycles against instructions. */
+static uint32_t measure_calibration(void)
+{
+    uint64_t c0 = port_cycles();
+    uint32_t n = CAL_ITERATIONS;
+    __asm volatile("1: subs %0, %0, #1\n\tbne 1b" : "+r"(n) : : "cc");
+    return (uint32_t)(port_cycles() - c0);
+}
+
+/* The loop around the chain alone (time step, reference load, store): subtracted below. */
+__attribute__((noinline)) static uint32_t measure_overhead(void)
+{
+    uint32_t t_us = 0;
+    int32_t q = 0;
+    uint64_t c0 = port_cycles();
+    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
+        t_us += 1000000u / BENCH_TICK_HZ;
+        q = c_ref_q16[i % REF_LEN];
+        __asm volatile("" : "+r"(q), "+r"(t_us));  /* keep the loop, as if calls used them */
+    }
+    sink_q16 = q;
+    return (uint32_t)(port_cycles() - c0);
+}
+
+/* onset_tick (records the encoder sample in the history, checks the timeout) + comp_step. */
+__attribute__((noinline)) static uint32_t measure_core_chain(void)
+{
+    uint32_t t_us = 0;
+    int32_t q = 0;
+    onset_event_t ev;
+    uint64_t c0 = port_cycles();
+    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
+        t_us += 1000000u / BENCH_TICK_HZ;
+        (void)onset_tick(&loop.onset, t_us, q, &ev);
+        q = comp_step(&loop.comp, c_ref_q16[i % REF_LEN]);
+        __asm volatile("" : "+r"(q), "+r"(t_us));
+    }
+    sink_q16 = q;
+    return (uint32_t)(port_cycles() - c0);
+}
+
+__attribute__((noinline)) static uint32_t measure_onset_tick(void)
+{
+    uint32_t t_us = 0;
+    int32_t q = 0;
+    onset_event_t ev;
+    uint64_t c0 = port_cycles();
+    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
+        t_us += 1000000u / BENCH_TICK_HZ;
+        q = c_ref_q16[i % REF_LEN];
+        (void)onset_tick(&loop.onset, t_us, q, &ev);
+        __asm volatile("" : "+r"(q), "+r"(t_us));
+    }
+    sink_q16 = q;
+    return (uint32_t)(port_cycles() - c0);
+}
+
+__attribute__((noinline)) static uint32_t measure_comp_step(void)
+{
+    uint32_t t_us = 0;
+    int32_t q = 0;
+    uint64_t c0 = port_cycles();
+    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
+        t_us += 1000000u / BENCH_TICK_HZ;
+        q = comp_step(&loop.comp, c_ref_q16[i % REF_LEN]);
+        __asm volatile("" : "+r"(q), "+r"(t_us));
+    }
+    sink_q16 = q;
+    return (uint32_t)(port_cycles() - c0);
+}
+
+/* The demo's whole tick (reference generation, reversal bookkeeping, onset_tick, comp_step). */
+__attribute__((noinline)) static uint32_t measure_demo_tick(void)
+{
+    uint32_t t_us = 0;
+    uint64_t c0 = port_cycles();
+    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
+        t_us += 1000000u / BENCH_TICK_HZ;
+        sink_q16 = ctl_loop_tick(&loop, t_us);
+    }
+    return (uint32_t)(port_cycles() - c0);
+}
+
+int main(void)
+{
+    port_init();
+    if (ctl_loop_init(&loop, BENCH_TICK_HZ) != 0 || !port_tick_start(BENCH_TIMEBASE_HZ, NULL)) {
+        put_str("BENCH setup failed\r\n");
+        return 1;
+    }
+    /* +-30 deg triangle over REF_LEN ticks: a reversal every 512 ticks. */
+    for (int i = 0; i < REF_LEN; i++) {
+        int32_t phase = i < REF_LEN / 2 ? i : REF_LEN - i;
+        c_ref_q16[i] = -30 * 65536 + phase * (60 * 65536 / (REF_LEN / 2));
+    }
+    put_str("BENCH core_hz=");
+    put_u32(port_core_hz());
+    put_str("\r\n");
+    report("calibration_2insn", measure_calibration(), CAL_ITERATIONS);
+    report("overhead", measure_overhead(), BENCH_TICKS);
+    report("core_chain", measure_core_chain(), BENCH_TICKS);
+    report("onset_tick", measure_onset_tick(), BENCH_TICKS);
+    report("comp_step", measure_comp_step(), BENCH_TICKS);
+    report("demo_tick", measure_demo_tick(), BENCH_TICKS);
+    put_str("BENCH done\r\n");
+    return 0;
+}
