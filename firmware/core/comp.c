@@ -63,7 +63,7 @@ int32_t comp_step(comp_t *cp, int32_t c_ref_q16)
     int32_t q_c = lut_eval(&cal->f_inv, c_ref_q16);
     int32_t half_b = lut_eval(&cal->b, q_c) >> 1;
     int32_t off_target = cp->dir * cal->f_sign * half_b;
-    int64_t target_q32 = (int64_t)off_target << 16;
+    int64_t target_q32 = (int64_t)off_target * 65536; /* not << : off_target may be negative */
 
     if (cp->lim.v_max_q32 > 0)
         ramp(cp, target_q32);

@@ -1,7 +1,7 @@
 /* Excitation trajectory (section III-B): back-and-forth on a ramp, one set-point per tick. */
 #include "exc.h"
 
-#define Q32(x_q16) ((int64_t)(x_q16) << 16)
+#define Q32(x_q16) ((int64_t)(x_q16) * 65536) /* not << : x may be negative */
 
 static int64_t min64(int64_t a, int64_t b) { return a < b ? a : b; }
 static int64_t max64(int64_t a, int64_t b) { return a > b ? a : b; }
