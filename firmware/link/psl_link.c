@@ -1,0 +1,475 @@
+/* Board-side protocol handler: every request is checked (version, type, length, seq) before it acts. */
+#include "psl_link.h"
+
+#include <string.h>
+#include "lut.h"
+#include "ps_fixed.h"
+#include "ps_crc32.h"
+
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
+#error "payload structs are copied as-is: the wire is little-endian"
+#endif
+
+psl_config_t psl_default_config(uint32_t tick_hz)
+{
+    psl_config_t c;
+    memset(&c, 0, sizeof(c));
+    c.fw_version = (0u << 16) | (1u << 8) | 0u;
+    c.exc.q_start_q16 = 0;
+    c.exc.q_end_q16 = 10 * PS_Q16_ONE;
+    c.exc.amplitude_q16 = PS_Q16_ONE;
+    c.exc.advance_q16 = PS_Q16_ONE / 4;
+    /* 10 units/s as Q32.32 per tick; init time, so the divide is fine. */
+    c.exc.v_q32 = (int64_t)(((uint64_t)10 << 32) / (tick_hz ? tick_hz : 1000u));
+    c.exc.return_sweep = true;
+    c.onset = onset_default_config();
+    return c;
+}
+
+static void send(psl_t *l, uint8_t type, uint16_t seq, const void *payload, uint16_t len)
+{
+    size_t n = psf_encode(l->tx, sizeof(l->tx), type, seq, payload, len);
+    if (n > 0 && l->write)
+        l->write(l->write_ctx, l->tx, n);
+}
+
+static void send_error(psl_t *l, uint16_t seq, uint8_t ref_type, uint16_t code, uint8_t detail)
+{
+    psp_error_t e = {.code = code, .ref_type = ref_type, .detail = detail};
+    send(l, PSP_MSG_ERROR, seq, &e, sizeof(e));
+}
+
+static const uint8_t *table_bytes(const psl_t *l, uint8_t buf)
+{
+    return (const uint8_t *)l->tables[buf];
+}
+
+static uint32_t table_size(const psl_t *l)
+{
+    if (l->active_buf == PSS_NO_SLOT)
+        return 0;
+    return l->store.slot[l->store.active].size;
+}
+
+void psl_info(const psl_t *l, psp_info_t *info)
+{
+    memset(info, 0, sizeof(*info));
+    info->fw_version = l->cfg.fw_version;
+    info->proto_version = PSP_VERSION;
+    info->table_layout_version = PST_LAYOUT_VERSION;
+    memcpy(info->board_id, l->cfg.board_id, sizeof(info->board_id));
+    if (l->active_buf != PSS_NO_SLOT) {
+        info->active_generation = l->cal[l->active_buf].generation;
+        info->active_crc32 = l->cal[l->active_buf].crc32;
+        info->active_slot = l->store.active;
+    } else {
+        info->active_slot = PSS_NO_SLOT;
+    }
+    info->mode = l->mode;
+    /* reserved carries the last accepted seq so a host that (re)connects can continue
+     * above it without being refused as a replay (docs/protocol.md). */
+    info->reserved = l->last_seq;
+}
+
+/* Load slot into tables[buf] and cal[buf]; true if the loader accepted it. */
+static bool load_slot(psl_t *l, uint8_t slot, uint8_t buf)
+{
+    uint32_t size = l->store.slot[slot].size;
+    if (size > PST_MAX_TABLE_SIZE)
+        return false;
+    if (pss_read_slot(&l->store, slot, 0, (uint8_t *)l->tables[buf], size) != PSS_OK)
+        return false;
+    return calib_load(&l->cal[buf], table_bytes(l, buf), size) == CALIB_OK;
+}
+
+void psl_init(psl_t *l, const psl_config_t *cfg, const pss_flash_t *flash, psl_write_fn write,
+              void *write_ctx)
+{
+    memset(l, 0, sizeof(*l));
+    l->cfg = *cfg;
+    l->write = write;
+    l->write_ctx = write_ctx;
+    psf_parser_reset(&l->parser);
+    onset_init(&l->onset, &l->cfg.onset);
+    l->mode = PSP_MODE_IDLE;
+    l->active_buf = PSS_NO_SLOT;
+    pss_mount(&l->store, flash);
+    if (l->store.active != PSS_NO_SLOT) {
+        uint8_t first = l->store.active;
+        if (load_slot(l, first, 0)) {
+            l->active_buf = 0;
+        } else if (pss_select(&l->store, (uint8_t)(1 - first)) && load_slot(l, l->store.active, 0)) {
+            /* The newest record is intact but refused by this firmware's loader: run the older. */
+            l->active_buf = 0;
+        } else {
+            l->store.active = PSS_NO_SLOT;
+        }
+    }
+}
+
+/* Expected payload length for a request type, or -1 if the type is unknown.
+ * TABLE_CHUNK is variable (12 + data bytes) and checked by its handler. */
+static int expected_len(uint8_t type)
+{
+    switch (type) {
+    case PSP_MSG_INFO: return 0;
+    case PSP_MSG_SET_MODE: return (int)sizeof(psp_set_mode_t);
+    case PSP_MSG_TABLE_BEGIN: return (int)sizeof(psp_table_begin_t);
+    case PSP_MSG_TABLE_CHUNK: return -2;
+    case PSP_MSG_TABLE_COMMIT: return (int)sizeof(psp_table_commit_t);
+    case PSP_MSG_TABLE_READ: return (int)sizeof(psp_table_read_t);
+    case PSP_MSG_ENC_STREAM: return (int)sizeof(psp_stream_ctl_t);
+    case PSP_MSG_REVERSAL: return (int)sizeof(psp_reversal_t);
+    case PSP_MSG_MARKER_OBS: return (int)sizeof(psp_marker_obs_t);
+    case PSP_MSG_COMP_STEP: return (int)sizeof(psp_comp_req_t);
+    default: return -1;
+    }
+}
+
+enum { CHUNK_HDR = 12 }; /* psp_table_chunk_t bytes before data[] */
+
+static void b_sample_from(const onset_event_t *ev, psp_b_sample_t *b)
+{
+    memset(b, 0, sizeof(*b));
+    b->reason = (uint8_t)ev->reason;
+    b->t1_us = ev->t1_us;
+    b->t2_us = ev->t2_us;
+    b->q1_q16 = ev->q1_q16;
+    b->q2_q16 = ev->q2_q16;
+    b->q_mean_q16 = ev->q_mean_q16;
+    b->b_q16 = ev->b_q16;
+}
+
+/* An onset outcome not tied to a request: sent with seq 0, which requests never use. */
+static void send_event(psl_t *l, const onset_event_t *ev)
+{
+    psp_b_sample_t b;
+    b_sample_from(ev, &b);
+    l->n_b_events++;
+    send(l, PSP_MSG_MARKER_OBS | PSP_RESPONSE, 0, &b, sizeof(b));
+}
+
+static bool have_table(const psl_t *l)
+{
+    return l->active_buf != PSS_NO_SLOT;
+}
+
+/* Start the excitation over the table's travel, or over cfg.exc without a table. */
+static bool start_excitation(psl_t *l)
+{
+    exc_config_t c = l->cfg.exc;
+    if (have_table(l)) {
+        const calib_t *cal = &l->cal[l->active_buf];
+        c.q_start_q16 = cal->q_min_q16;
+        c.q_end_q16 = cal->q_max_q16;
+    }
+    if (exc_init(&l->exc, &c) != EXC_OK)
+        return false;
+    /* A fresh detector per run; the noise estimate restarts with the run. */
+    onset_init(&l->onset, &l->cfg.onset);
+    return true;
+}
+
+/* Returns a psp_error_code; on PSP_OK the answer has been sent. */
+static uint16_t do_set_mode(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *detail)
+{
+    psp_set_mode_t m;
+    memcpy(&m, pl, sizeof(m));
+    (void)detail;
+    switch (m.mode) {
+    case PSP_MODE_IDLE:
+        break;
+    case PSP_MODE_EXCITATION:
+        if (!start_excitation(l))
+            return PSP_ERR_STATE;
+        break;
+    case PSP_MODE_COMPENSATION:
+    case PSP_MODE_PASSTHROUGH:
+        if (!have_table(l))
+            return PSP_ERR_STATE;
+        l->comp_armed = true;
+        break;
+    default:
+        return PSP_ERR_RANGE;
+    }
+    l->mode = m.mode;
+    send(l, PSP_MSG_SET_MODE | PSP_RESPONSE, seq, NULL, 0);
+    return PSP_OK;
+}
+
+static uint8_t upload_buf(const psl_t *l)
+{
+    return l->active_buf == 0 ? 1 : 0;
+}
+
+static uint16_t do_table_begin(psl_t *l, uint16_t seq, const uint8_t *pl)
+{
+    psp_table_begin_t b;
+    memcpy(&b, pl, sizeof(b));
+    if (b.total_size < sizeof(pst_header_t) || b.total_size > PST_MAX_TABLE_SIZE)
+        return PSP_ERR_RANGE;
+    l->up_open = true;
+    l->up_size = b.total_size;
+    l->up_crc32 = b.crc32;
+    l->up_have = 0;
+    send(l, PSP_MSG_TABLE_BEGIN | PSP_RESPONSE, seq, NULL, 0);
+    return PSP_OK;
+}
+
+static uint16_t do_table_chunk(psl_t *l, uint16_t seq, const uint8_t *pl, uint16_t len)
+{
+    if (len < CHUNK_HDR)
+        return PSP_ERR_LENGTH;
+    uint32_t off = psf_get_u32(&pl[0]);
+    uint16_t n = psf_get_u16(&pl[4]);
+    uint32_t crc = psf_get_u32(&pl[8]);
+    if (n > PSP_CHUNK_MAX || len != CHUNK_HDR + n)
+        return PSP_ERR_LENGTH;
+    if (!l->up_open)
+        return PSP_ERR_STATE;
+    /* Chunks may repeat or overlap what came before but must not leave a hole. */
+    if (off > l->up_have || off > l->up_size || n > l->up_size - off)
+        return PSP_ERR_RANGE;
+    if (ps_crc32_update(0, &pl[CHUNK_HDR], n) != crc)
+        return PSP_ERR_CRC;
+    memcpy((uint8_t *)l->tables[upload_buf(l)] + off, &pl[CHUNK_HDR], n);
+    if (off + n > l->up_have)
+        l->up_have = off + n;
+    send(l, PSP_MSG_TABLE_CHUNK | PSP_RESPONSE, seq, NULL, 0);
+    return PSP_OK;
+}
+
+static uint16_t do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *detail)
+{
+    psp_table_commit_t c;
+    memcpy(&c, pl, sizeof(c));
+    if (l->mode != PSP_MODE_IDLE || !l->up_open || l->up_have != l->up_size)
+        return PSP_ERR_STATE;
+    uint8_t nb = upload_buf(l);
+    const uint8_t *blob = table_bytes(l, nb);
+    if (c.crc32 != l->up_crc32 || calib_table_crc(blob, l->up_size) != l->up_crc32)
+        return PSP_ERR_CRC;
+    calib_status_t st = calib_load(&l->cal[nb], blob, l->up_size);
+    if (st != CALIB_OK) {
+        *detail = (uint8_t)st;
+        return PSP_ERR_TABLE;
+    }
+    uint32_t gen = l->cal[nb].generation;
+    if (have_table(l) && gen <= l->cal[l->active_buf].generation) {
+        *detail = PSL_DETAIL_GENERATION;
+        return PSP_ERR_TABLE;
+    }
+    pss_status_t ps = pss_commit(&l->store, gen, blob, l->up_size);
+    if (ps != PSS_OK) {
+        *detail = (uint8_t)ps;
+        return PSP_ERR_FLASH;
+    }
+    l->active_buf = nb;
+    l->up_open = false;
+    psp_info_t info;
+    psl_info(l, &info);
+    send(l, PSP_MSG_TABLE_COMMIT | PSP_RESPONSE, seq, &info, sizeof(info));
+    return PSP_OK;
+}
+
+static uint16_t do_table_read(psl_t *l, uint16_t seq, const uint8_t *pl)
+{
+    psp_table_read_t r;
+    memcpy(&r, pl, sizeof(r));
+    if (!have_table(l))
+        return PSP_ERR_STATE;
+    uint32_t size = table_size(l);
+    if (r.len > PSP_CHUNK_MAX || r.offset > size)
+        return PSP_ERR_RANGE;
+    uint16_t n = (uint16_t)(size - r.offset < r.len ? size - r.offset : r.len);
+    psp_table_chunk_t ch;
+    ch.offset = r.offset;
+    ch.len = n;
+    ch.reserved = 0;
+    /* Read back from flash, not from RAM: the host checks what the board will boot. */
+    if (pss_read_active(&l->store, r.offset, ch.data, n) != PSS_OK)
+        return PSP_ERR_FLASH;
+    ch.chunk_crc32 = ps_crc32_update(0, ch.data, n);
+    send(l, PSP_MSG_TABLE_READ | PSP_RESPONSE, seq, &ch, (uint16_t)(CHUNK_HDR + n));
+    return PSP_OK;
+}
+
+static uint16_t do_stream(psl_t *l, uint16_t seq, const uint8_t *pl)
+{
+    psp_stream_ctl_t s;
+    memcpy(&s, pl, sizeof(s));
+    if (s.enable > 1 || (s.enable && s.decimation == 0))
+        return PSP_ERR_RANGE;
+    l->stream_on = s.enable != 0;
+    l->stream_decim = s.decimation;
+    l->stream_left = 1;
+    l->batch.count = 0;
+    send(l, PSP_MSG_ENC_STREAM | PSP_RESPONSE, seq, NULL, 0);
+    return PSP_OK;
+}
+
+static uint16_t do_reversal(psl_t *l, uint16_t seq, const uint8_t *pl)
+{
+    psp_reversal_t r;
+    onset_event_t ev;
+    memcpy(&r, pl, sizeof(r));
+    if (onset_reversal(&l->onset, r.t1_us, r.q1_q16, &ev)) {
+        psp_b_sample_t b;
+        b_sample_from(&ev, &b);
+        send(l, PSP_MSG_REVERSAL | PSP_RESPONSE, seq, &b, sizeof(b));
+    } else {
+        send(l, PSP_MSG_REVERSAL | PSP_RESPONSE, seq, NULL, 0);
+    }
+    return PSP_OK;
+}
+
+static uint16_t do_marker(psl_t *l, uint16_t seq, const uint8_t *pl)
+{
+    psp_marker_obs_t m;
+    onset_event_t ev;
+    bool done;
+    memcpy(&m, pl, sizeof(m));
+    if (m.kind > 1 || m.valid > 1)
+        return PSP_ERR_RANGE;
+    if (m.kind == 0)
+        done = onset_observe_px(&l->onset, m.t_us, m.u_q16, m.v_q16, m.valid != 0, &ev);
+    else
+        done = onset_observe_deg(&l->onset, m.t_us, m.u_q16, m.valid != 0, &ev);
+    if (done) {
+        psp_b_sample_t b;
+        b_sample_from(&ev, &b);
+        send(l, PSP_MSG_MARKER_OBS | PSP_RESPONSE, seq, &b, sizeof(b));
+    } else {
+        send(l, PSP_MSG_MARKER_OBS | PSP_RESPONSE, seq, NULL, 0);
+    }
+    return PSP_OK;
+}
+
+static uint16_t do_comp(psl_t *l, uint16_t seq, const uint8_t *pl)
+{
+    psp_comp_req_t r;
+    psp_comp_resp_t a;
+    memcpy(&r, pl, sizeof(r));
+    if (!have_table(l))
+        return PSP_ERR_STATE;
+    const calib_t *cal = &l->cal[l->active_buf];
+    if (l->mode == PSP_MODE_COMPENSATION) {
+        /* The first set-point after entering the mode starts the compensator at it, so
+         * a host replaying the same sequence through comp_reset/comp_step matches. */
+        if (l->comp_armed) {
+            comp_reset(&l->comp, cal, NULL, r.c_ref_q16);
+            l->comp_armed = false;
+        }
+        a.q_ref_q16 = comp_step(&l->comp, r.c_ref_q16);
+    } else if (l->mode == PSP_MODE_PASSTHROUGH) {
+        int32_t q = lut_eval(&cal->f_inv, r.c_ref_q16);
+        a.q_ref_q16 = q < cal->q_min_q16 ? cal->q_min_q16 : q > cal->q_max_q16 ? cal->q_max_q16 : q;
+    } else {
+        return PSP_ERR_STATE;
+    }
+    l->q_ref_q16 = a.q_ref_q16;
+    send(l, PSP_MSG_COMP_STEP | PSP_RESPONSE, seq, &a, sizeof(a));
+    return PSP_OK;
+}
+
+/* Serial-number comparison (RFC 1982 style): seq is newer than last within half the space. */
+static bool seq_newer(uint16_t seq, uint16_t last)
+{
+    uint16_t d = (uint16_t)(seq - last);
+    return d != 0 && d < 0x8000u;
+}
+
+void psl_handle(psl_t *l, const psp_frame_header_t *hdr, const uint8_t *payload)
+{
+    uint8_t type = hdr->type;
+    uint16_t seq = hdr->seq;
+    uint8_t detail = 0;
+    uint16_t err;
+    if (hdr->version != PSP_VERSION) {
+        send_error(l, seq, type, PSP_ERR_VERSION, PSP_VERSION);
+        return;
+    }
+    int want = expected_len(type);
+    if (want == -1) {
+        send_error(l, seq, type, PSP_ERR_TYPE, 0);
+        return;
+    }
+    if (want >= 0 && hdr->len != (uint16_t)want) {
+        send_error(l, seq, type, PSP_ERR_LENGTH, 0);
+        return;
+    }
+    if (type == PSP_MSG_INFO) {
+        /* Read-only, so exempt from the replay check: it is how a host learns last_seq. */
+        psp_info_t info;
+        psl_info(l, &info);
+        send(l, PSP_MSG_INFO | PSP_RESPONSE, seq, &info, sizeof(info));
+        return;
+    }
+    if (seq == 0 || !seq_newer(seq, l->last_seq)) {
+        send_error(l, seq, type, PSP_ERR_SEQ, 0);
+        return;
+    }
+    switch (type) {
+    case PSP_MSG_SET_MODE: err = do_set_mode(l, seq, payload, &detail); break;
+    case PSP_MSG_TABLE_BEGIN: err = do_table_begin(l, seq, payload); break;
+    case PSP_MSG_TABLE_CHUNK: err = do_table_chunk(l, seq, payload, hdr->len); break;
+    case PSP_MSG_TABLE_COMMIT: err = do_table_commit(l, seq, payload, &detail); break;
+    case PSP_MSG_TABLE_READ: err = do_table_read(l, seq, payload); break;
+    case PSP_MSG_ENC_STREAM: err = do_stream(l, seq, payload); break;
+    case PSP_MSG_REVERSAL: err = do_reversal(l, seq, payload); break;
+    case PSP_MSG_MARKER_OBS: err = do_marker(l, seq, payload); break;
+    case PSP_MSG_COMP_STEP: err = do_comp(l, seq, payload); break;
+    default: err = PSP_ERR_TYPE; break;
+    }
+    if (err != PSP_OK) {
+        send_error(l, seq, type, err, detail);
+        return;
+    }
+    /* Only a request that took effect moves the window: a refused one changes nothing. */
+    l->last_seq = seq;
+}
+
+void psl_rx(psl_t *l, const uint8_t *data, size_t len)
+{
+    while (len > 0) {
+        psf_result_t res;
+        size_t used = psf_parser_push(&l->parser, data, len, &res);
+        data += used;
+        len -= used;
+        if (res == PSF_FRAME)
+            psl_handle(l, &l->parser.hdr, psf_parser_payload(&l->parser));
+        else if (res == PSF_BAD_CRC)
+            send_error(l, l->parser.hdr.seq, l->parser.hdr.type, PSP_ERR_CRC, 0);
+        else if (res == PSF_BAD_LENGTH)
+            send_error(l, l->parser.hdr.seq, l->parser.hdr.type, PSP_ERR_LENGTH, 0);
+        else if (used == 0)
+            break;
+    }
+}
+
+int32_t psl_tick(psl_t *l, uint32_t t_us, int32_t q_meas_q16)
+{
+    onset_event_t ev;
+    if (l->mode == PSP_MODE_EXCITATION) {
+        bool rev = false;
+        l->q_ref_q16 = exc_step(&l->exc, &rev);
+        if (rev && onset_reversal(&l->onset, t_us, l->q_ref_q16, &ev))
+            send_event(l, &ev);
+        if (exc_done(&l->exc))
+            l->mode = PSP_MODE_IDLE;
+    }
+    if (onset_tick(&l->onset, t_us, q_meas_q16, &ev))
+        send_event(l, &ev);
+    if (l->stream_on && --l->stream_left == 0) {
+        l->stream_left = l->stream_decim;
+        psp_enc_sample_t *s = &l->batch.s[l->batch.count++];
+        s->t_us = t_us;
+        s->q_q16 = q_meas_q16;
+        if (l->batch.count == PSP_ENC_SAMPLES_MAX) {
+            send(l, PSP_MSG_ENC_STREAM | PSP_RESPONSE, 0, &l->batch,
+                 (uint16_t)(4 + 8 * l->batch.count));
+            l->batch.count = 0;
+        }
+    }
+    return l->q_ref_q16;
+}

@@ -1,0 +1,81 @@
+/* Board-side protocol handler: dispatch, replay check, modes, table upload/commit/read-back, streaming, onset, compensation. */
+#ifndef PSL_LINK_H
+#define PSL_LINK_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include "calib.h"
+#include "comp.h"
+#include "exc.h"
+#include "onset.h"
+#include "ps_frame.h"
+#include "ps_proto.h"
+#include "ps_table.h"
+#include "pss_store.h"
+
+/* psp_error_t.detail for PSP_ERR_TABLE when calib_load accepted the table but its
+ * generation is not newer than the running one (calib_status_t values stay below it). */
+enum { PSL_DETAIL_GENERATION = 0x80 };
+
+/* Sends one complete frame (on a UART, a USB bulk IN pipe, stdout...). Must take the
+ * whole frame; the handler keeps no transmit queue. */
+typedef void (*psl_write_fn)(void *ctx, const uint8_t *frame, size_t len);
+
+typedef struct {
+    uint32_t fw_version;         /* major << 16 | minor << 8 | patch */
+    uint32_t board_id[3];        /* unique id reported by PSP_MSG_INFO */
+    exc_config_t exc;            /* excitation used when no table is loaded (with a table: its q range) */
+    onset_config_t onset;        /* on-board onset detector */
+} psl_config_t;
+
+typedef struct {
+    psl_config_t cfg;
+    psf_parser_t parser;
+    psl_write_fn write;
+    void *write_ctx;
+    pss_t store;
+    uint8_t mode;                /* enum psp_mode */
+    uint16_t last_seq;           /* last accepted request; 0 = none since boot */
+    /* Table upload into tables[1 - active_buf] (or tables[0] with none active). */
+    bool up_open;
+    uint32_t up_size, up_crc32, up_have;
+    uint8_t active_buf;          /* index of the running table, PSS_NO_SLOT if none */
+    uint32_t tables[2][(PST_MAX_TABLE_SIZE + 3) / 4]; /* uint32_t: calib_load reads entries in place, 4-aligned */
+    calib_t cal[2];
+    comp_t comp;
+    bool comp_armed;             /* next COMP_STEP resets the compensator to its c* */
+    exc_t exc;
+    onset_t onset;
+    int32_t q_ref_q16;           /* set-point to the motor */
+    bool stream_on;
+    uint8_t stream_decim, stream_left;
+    psp_enc_samples_t batch;
+    uint32_t n_b_events;         /* B samples (or failures) sent unsolicited */
+    uint8_t tx[PSF_MAX_FRAME];
+} psl_t;
+
+/* Defaults: version 0.1.0, board id 0, onset_default_config(), an excitation over
+ * [0, 10] actuator units with amplitude 1 and advance 0.25 at 10 units/s for tick_hz. */
+psl_config_t psl_default_config(uint32_t tick_hz);
+
+/* Mount the store, load the newest table the loader accepts (falling back to the
+ * other slot), start idle. flash must outlive l. Boot time. */
+void psl_init(psl_t *l, const psl_config_t *cfg, const pss_flash_t *flash, psl_write_fn write,
+              void *write_ctx);
+
+/* Feed received bytes; every complete frame is handled and answered through write. */
+void psl_rx(psl_t *l, const uint8_t *data, size_t len);
+
+/* Handle one decoded frame (header fields already checked by the CRC). */
+void psl_handle(psl_t *l, const psp_frame_header_t *hdr, const uint8_t *payload);
+
+/* One control tick at t_us with the measured actuator position q_meas_q16: runs the
+ * excitation in that mode, records the encoder sample for the onset detector, streams.
+ * Returns the set-point q* for the motor. O(1) except when a batch or event is sent. */
+int32_t psl_tick(psl_t *l, uint32_t t_us, int32_t q_meas_q16);
+
+/* Fill an info record of the current state. */
+void psl_info(const psl_t *l, psp_info_t *info);
+
+#endif /* PSL_LINK_H */

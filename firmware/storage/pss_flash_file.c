@@ -1,0 +1,77 @@
+/* File-backed flash port: each erase/program is flushed so a killed process leaves a real partial write. */
+#include "pss_flash_file.h"
+
+#include <string.h>
+
+static int file_erase(void *ctx, uint8_t slot)
+{
+    pss_file_t *ff = ctx;
+    uint8_t ones[256];
+    memset(ones, 0xFF, sizeof(ones));
+    if (slot > 1 || fseek(ff->f, (long)slot * (long)ff->slot_size, SEEK_SET) != 0)
+        return -1;
+    for (uint32_t done = 0; done < ff->slot_size;) {
+        size_t n = ff->slot_size - done < sizeof(ones) ? ff->slot_size - done : sizeof(ones);
+        if (fwrite(ones, 1, n, ff->f) != n)
+            return -1;
+        done += (uint32_t)n;
+    }
+    return fflush(ff->f) == 0 ? 0 : -1;
+}
+
+static int file_read(void *ctx, uint8_t slot, uint32_t off, uint8_t *out, uint32_t len)
+{
+    pss_file_t *ff = ctx;
+    if (slot > 1 || off > ff->slot_size || len > ff->slot_size - off)
+        return -1;
+    if (fseek(ff->f, (long)slot * (long)ff->slot_size + (long)off, SEEK_SET) != 0)
+        return -1;
+    return fread(out, 1, len, ff->f) == len ? 0 : -1;
+}
+
+static int file_program(void *ctx, uint8_t slot, uint32_t off, const uint8_t *data, uint32_t len)
+{
+    pss_file_t *ff = ctx;
+    uint8_t cur[256];
+    /* Read-AND-write so the file behaves like NOR flash (bits only clear). */
+    for (uint32_t done = 0; done < len;) {
+        uint32_t n = len - done < sizeof(cur) ? len - done : (uint32_t)sizeof(cur);
+        if (file_read(ctx, slot, off + done, cur, n) != 0)
+            return -1;
+        for (uint32_t i = 0; i < n; i++)
+            cur[i] &= data[done + i];
+        if (fseek(ff->f, (long)slot * (long)ff->slot_size + (long)(off + done), SEEK_SET) != 0 ||
+            fwrite(cur, 1, n, ff->f) != n)
+            return -1;
+        done += n;
+    }
+    return fflush(ff->f) == 0 ? 0 : -1;
+}
+
+int pss_file_open(pss_file_t *ff, const char *path, uint32_t slot_size)
+{
+    memset(ff, 0, sizeof(*ff));
+    ff->slot_size = slot_size;
+    ff->f = fopen(path, "r+b");
+    if (!ff->f) {
+        ff->f = fopen(path, "w+b");
+        if (!ff->f)
+            return -1;
+        ff->port.ctx = ff;
+        if (file_erase(ff, 0) != 0 || file_erase(ff, 1) != 0)
+            return -1;
+    }
+    ff->port.slot_size = slot_size;
+    ff->port.erase = file_erase;
+    ff->port.program = file_program;
+    ff->port.read = file_read;
+    ff->port.ctx = ff;
+    return 0;
+}
+
+void pss_file_close(pss_file_t *ff)
+{
+    if (ff->f)
+        fclose(ff->f);
+    ff->f = NULL;
+}

@@ -1,0 +1,463 @@
+/* Tests of the board-side protocol handler over the real codec, store and core. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <math.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ps_crc32.h"
+#include "pss_flash_sim.h"
+#include "psl_link.h"
+#include "table_fixture.h"
+
+enum { SLOT = 4096 };
+
+static uint8_t mem[2 * SLOT];
+static pss_sim_t sim;
+static psl_t L;
+static uint8_t out[16384];
+static size_t out_n;
+static uint16_t seq;
+
+typedef struct {
+    uint8_t type;
+    uint16_t seq;
+    uint16_t len;
+    uint8_t pl[PSP_MAX_PAYLOAD];
+} resp_t;
+
+static void wr(void *ctx, const uint8_t *f, size_t n)
+{
+    (void)ctx;
+    assert_true(out_n + n <= sizeof out);
+    memcpy(out + out_n, f, n);
+    out_n += n;
+}
+
+/* Decode everything the board sent since the last call. */
+static int take(resp_t *r, int max)
+{
+    psf_parser_t p;
+    int k = 0;
+    psf_parser_reset(&p);
+    const uint8_t *d = out;
+    size_t left = out_n;
+    while (left > 0) {
+        psf_result_t res;
+        size_t used = psf_parser_push(&p, d, left, &res);
+        d += used;
+        left -= used;
+        if (res == PSF_FRAME) {
+            assert_true(k < max);
+            r[k].type = p.hdr.type;
+            r[k].seq = p.hdr.seq;
+            r[k].len = p.hdr.len;
+            memcpy(r[k].pl, psf_parser_payload(&p), p.hdr.len);
+            k++;
+        } else {
+            assert_int_equal(res, PSF_NEED_MORE);
+        }
+    }
+    out_n = 0;
+    return k;
+}
+
+/* Send one request with sequence number s, expect exactly one answer. */
+static resp_t req_seq(uint8_t type, uint16_t s, const void *pl, uint16_t len)
+{
+    uint8_t f[PSF_MAX_FRAME];
+    size_t n = psf_encode(f, sizeof f, type, s, pl, len);
+    assert_true(n > 0);
+    psl_rx(&L, f, n);
+    resp_t r[4];
+    assert_int_equal(take(r, 4), 1);
+    assert_int_equal(r[0].seq, s);
+    return r[0];
+}
+
+static resp_t req(uint8_t type, const void *pl, uint16_t len)
+{
+    return req_seq(type, ++seq, pl, len);
+}
+
+static void expect_ok(resp_t r, uint8_t type)
+{
+    if (r.type == PSP_MSG_ERROR)
+        fail_msg("type 0x%02x refused: code %u detail %u", type, psf_get_u16(r.pl), r.pl[3]);
+    assert_int_equal(r.type, type | PSP_RESPONSE);
+}
+
+static void expect_err(resp_t r, uint16_t code)
+{
+    assert_int_equal(r.type, PSP_MSG_ERROR);
+    assert_int_equal(r.len, sizeof(psp_error_t));
+    assert_int_equal(psf_get_u16(r.pl), code);
+}
+
+static psp_info_t info(void)
+{
+    resp_t r = req_seq(PSP_MSG_INFO, 0, NULL, 0);
+    expect_ok(r, PSP_MSG_INFO);
+    psp_info_t i;
+    memcpy(&i, r.pl, sizeof i);
+    return i;
+}
+
+static void boot(void)
+{
+    psl_config_t cfg = psl_default_config(1000);
+    psl_init(&L, &cfg, &sim.port, wr, NULL);
+    out_n = 0;
+    seq = info().reserved; /* continue above the board's last accepted seq */
+}
+
+static double b_fn(double q, const void *ctx)
+{
+    (void)ctx;
+    return 0.4 + 0.3 * exp(-q * q / 2.0);
+}
+static double f_fn(double q, const void *ctx)
+{
+    (void)ctx;
+    return 10.0 * q + 0.3 * q * q * q;
+}
+static double f_bad(double q, const void *ctx)
+{
+    (void)ctx;
+    return q * q;
+}
+
+static fixture_blob_t blob;
+
+static size_t make_table(uint32_t gen, fixture_fn f)
+{
+    fixture_grid_t g = {.q0 = -4.0, .step_log2 = 13, .n = 65, .q_min = -4.0, .q_max = 4.0,
+                        .f_kind = PST_F_REMAIN, .generation = gen};
+    return fixture_build(&blob, &g, b_fn, NULL, f, NULL);
+}
+
+/* BEGIN, chunks of PSP_CHUNK_MAX; returns the COMMIT answer. */
+static resp_t upload(const uint8_t *t, size_t n)
+{
+    psp_table_begin_t b = {.total_size = (uint32_t)n, .crc32 = psf_get_u32(t + 12)};
+    expect_ok(req(PSP_MSG_TABLE_BEGIN, &b, sizeof b), PSP_MSG_TABLE_BEGIN);
+    for (size_t off = 0; off < n; off += PSP_CHUNK_MAX) {
+        psp_table_chunk_t c = {.offset = (uint32_t)off};
+        c.len = (uint16_t)(n - off < PSP_CHUNK_MAX ? n - off : PSP_CHUNK_MAX);
+        memcpy(c.data, t + off, c.len);
+        c.chunk_crc32 = ps_crc32_update(0, c.data, c.len);
+        expect_ok(req(PSP_MSG_TABLE_CHUNK, &c, (uint16_t)(12 + c.len)), PSP_MSG_TABLE_CHUNK);
+    }
+    psp_table_commit_t cm = {.crc32 = b.crc32};
+    return req(PSP_MSG_TABLE_COMMIT, &cm, sizeof cm);
+}
+
+static size_t read_back(uint8_t *dst, size_t n)
+{
+    size_t off = 0;
+    for (;;) {
+        psp_table_read_t r = {.offset = (uint32_t)off, .len = PSP_CHUNK_MAX};
+        resp_t a = req(PSP_MSG_TABLE_READ, &r, sizeof r);
+        expect_ok(a, PSP_MSG_TABLE_READ);
+        psp_table_chunk_t c;
+        memcpy(&c, a.pl, a.len);
+        assert_int_equal(a.len, 12 + c.len);
+        assert_int_equal(c.chunk_crc32, ps_crc32_update(0, c.data, c.len));
+        if (c.len == 0)
+            return off;
+        assert_true(off + c.len <= n);
+        memcpy(dst + off, c.data, c.len);
+        off += c.len;
+    }
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    pss_sim_init(&sim, mem, SLOT, 1);
+    boot();
+    return 0;
+}
+
+static void test_info_fresh(void **state)
+{
+    (void)state;
+    psp_info_t i = info();
+    assert_int_equal(i.proto_version, PSP_VERSION);
+    assert_int_equal(i.table_layout_version, PST_LAYOUT_VERSION);
+    assert_int_equal(i.active_slot, 0xFF);
+    assert_int_equal(i.active_generation, 0);
+    assert_int_equal(i.mode, PSP_MODE_IDLE);
+}
+
+static void test_upload_commit_readback_reboot(void **state)
+{
+    (void)state;
+    size_t n = make_table(1, f_fn);
+    resp_t r = upload(blob.bytes, n);
+    expect_ok(r, PSP_MSG_TABLE_COMMIT);
+    psp_info_t i;
+    memcpy(&i, r.pl, sizeof i);
+    assert_int_equal(i.active_generation, 1);
+    assert_int_equal(i.active_crc32, psf_get_u32(blob.bytes + 12));
+    assert_int_equal(i.active_slot, 0);
+    uint8_t back[PST_MAX_TABLE_SIZE];
+    assert_int_equal(read_back(back, sizeof back), n);
+    assert_memory_equal(back, blob.bytes, n);
+    boot();
+    i = info();
+    assert_int_equal(i.active_generation, 1);
+    assert_int_equal(read_back(back, sizeof back), n);
+    assert_memory_equal(back, blob.bytes, n);
+    /* Second table goes to slot B. */
+    n = make_table(2, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    assert_int_equal(info().active_slot, 1);
+}
+
+static void test_refusals_change_nothing(void **state)
+{
+    (void)state;
+    size_t n = make_table(5, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    psp_info_t before = info();
+
+    /* Not newer generation. */
+    n = make_table(5, f_fn);
+    resp_t r = upload(blob.bytes, n);
+    expect_err(r, PSP_ERR_TABLE);
+    assert_int_equal(r.pl[3], PSL_DETAIL_GENERATION);
+    /* Refused by the loader: f not monotone. */
+    n = make_table(6, f_bad);
+    r = upload(blob.bytes, n);
+    expect_err(r, PSP_ERR_TABLE);
+    assert_int_equal(r.pl[3], CALIB_ERR_F_NOT_MONOTONE);
+    /* Whole-table CRC in COMMIT differs from the announced one. */
+    n = make_table(6, f_fn);
+    psp_table_begin_t b = {.total_size = (uint32_t)n, .crc32 = psf_get_u32(blob.bytes + 12)};
+    expect_ok(req(PSP_MSG_TABLE_BEGIN, &b, sizeof b), PSP_MSG_TABLE_BEGIN);
+    psp_table_commit_t cm = {.crc32 = b.crc32 ^ 1};
+    expect_err(req(PSP_MSG_TABLE_COMMIT, &cm, sizeof cm), PSP_ERR_STATE); /* nothing uploaded */
+    psp_table_chunk_t c = {.offset = 0, .len = 16};
+    memcpy(c.data, blob.bytes, 16);
+    c.chunk_crc32 = ps_crc32_update(0, c.data, 16) ^ 1;
+    expect_err(req(PSP_MSG_TABLE_CHUNK, &c, 12 + 16), PSP_ERR_CRC);
+    c.chunk_crc32 ^= 1;
+    c.offset = 32; /* a hole */
+    expect_err(req(PSP_MSG_TABLE_CHUNK, &c, 12 + 16), PSP_ERR_RANGE);
+    c.offset = 0;
+    expect_err(req(PSP_MSG_TABLE_CHUNK, &c, 12 + 17), PSP_ERR_LENGTH);
+    /* Oversized and undersized BEGIN. */
+    psp_table_begin_t big = {.total_size = PST_MAX_TABLE_SIZE + 1};
+    expect_err(req(PSP_MSG_TABLE_BEGIN, &big, sizeof big), PSP_ERR_RANGE);
+    /* Unknown type, wrong length, wrong version, bad frame CRC, mode out of range. */
+    expect_err(req(0x55, NULL, 0), PSP_ERR_TYPE);
+    expect_err(req(PSP_MSG_SET_MODE, &cm, 2), PSP_ERR_LENGTH);
+    psp_set_mode_t m = {.mode = 9};
+    expect_err(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_ERR_RANGE);
+    uint8_t f[PSF_MAX_FRAME];
+    size_t fn = psf_encode(f, sizeof f, PSP_MSG_INFO, ++seq, NULL, 0);
+    f[2] = 2;
+    f[fn - 4] = 0; /* CRC now wrong too; fix it after the version edit */
+    uint32_t crc = ps_crc32_update(0, f, fn - 4);
+    memcpy(f + fn - 4, &crc, 4);
+    psl_rx(&L, f, fn);
+    resp_t rr[2];
+    assert_int_equal(take(rr, 2), 1);
+    expect_err(rr[0], PSP_ERR_VERSION);
+    fn = psf_encode(f, sizeof f, PSP_MSG_SET_MODE, ++seq, &m, sizeof m);
+    f[9] ^= 0x80;
+    psl_rx(&L, f, fn);
+    assert_int_equal(take(rr, 2), 1);
+    expect_err(rr[0], PSP_ERR_CRC);
+
+    psp_info_t after = info();
+    assert_memory_equal(&before.active_generation, &after.active_generation, 8);
+    assert_int_equal(after.active_slot, before.active_slot);
+    assert_int_equal(after.mode, PSP_MODE_IDLE);
+}
+
+static void test_replay_and_order(void **state)
+{
+    (void)state;
+    psp_set_mode_t ex = {.mode = PSP_MODE_EXCITATION}, idle = {.mode = PSP_MODE_IDLE};
+    uint16_t s = (uint16_t)(seq + 10);
+    expect_ok(req_seq(PSP_MSG_SET_MODE, s, &ex, sizeof ex), PSP_MSG_SET_MODE);
+    expect_ok(req_seq(PSP_MSG_SET_MODE, (uint16_t)(s + 1), &idle, sizeof idle), PSP_MSG_SET_MODE);
+    /* Replay of the first: refused, mode stays idle. */
+    expect_err(req_seq(PSP_MSG_SET_MODE, s, &ex, sizeof ex), PSP_ERR_SEQ);
+    expect_err(req_seq(PSP_MSG_SET_MODE, (uint16_t)(s - 5), &ex, sizeof ex), PSP_ERR_SEQ);
+    expect_err(req_seq(PSP_MSG_SET_MODE, 0, &ex, sizeof ex), PSP_ERR_SEQ);
+    expect_err(req_seq(PSP_MSG_SET_MODE, (uint16_t)(s + 1 + 0x8000), &ex, sizeof ex), PSP_ERR_SEQ);
+    psp_info_t i = info();
+    assert_int_equal(i.mode, PSP_MODE_IDLE);
+    assert_int_equal(i.reserved, (uint16_t)(s + 1));
+    /* Wrap-around is newer. */
+    L.last_seq = 0xFFFE;
+    expect_ok(req_seq(PSP_MSG_SET_MODE, 0xFFFF, &idle, sizeof idle), PSP_MSG_SET_MODE);
+    expect_ok(req_seq(PSP_MSG_SET_MODE, 1, &idle, sizeof idle), PSP_MSG_SET_MODE);
+    seq = 1;
+}
+
+static void test_commit_only_when_idle(void **state)
+{
+    (void)state;
+    size_t n = make_table(1, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    psp_set_mode_t m = {.mode = PSP_MODE_COMPENSATION};
+    expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
+    n = make_table(2, f_fn);
+    expect_err(upload(blob.bytes, n), PSP_ERR_STATE);
+    assert_int_equal(info().active_generation, 1);
+    m.mode = PSP_MODE_IDLE;
+    expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
+    psp_table_commit_t cm = {.crc32 = psf_get_u32(blob.bytes + 12)};
+    expect_ok(req(PSP_MSG_TABLE_COMMIT, &cm, sizeof cm), PSP_MSG_TABLE_COMMIT); /* upload kept */
+    assert_int_equal(info().active_generation, 2);
+}
+
+static void test_compensation_matches_core(void **state)
+{
+    (void)state;
+    psp_comp_req_t c = {0};
+    expect_err(req(PSP_MSG_COMP_STEP, &c, sizeof c), PSP_ERR_STATE); /* no table */
+    psp_set_mode_t m = {.mode = PSP_MODE_COMPENSATION};
+    expect_err(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_ERR_STATE);
+    size_t n = make_table(1, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
+    static calib_t cal;
+    assert_int_equal(calib_load(&cal, blob.bytes, n), CALIB_OK);
+    comp_t cp;
+    for (int k = 0; k < 400; k++) {
+        int32_t c_ref = (int32_t)(30.0 * sin(k * 0.05) * 65536.0);
+        if (k == 0)
+            comp_reset(&cp, &cal, NULL, c_ref);
+        int32_t want = comp_step(&cp, c_ref);
+        c.c_ref_q16 = c_ref;
+        resp_t r = req(PSP_MSG_COMP_STEP, &c, sizeof c);
+        expect_ok(r, PSP_MSG_COMP_STEP);
+        assert_int_equal((int32_t)psf_get_u32(r.pl), want);
+    }
+    m.mode = PSP_MODE_PASSTHROUGH;
+    expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
+    c.c_ref_q16 = 5 * 65536;
+    resp_t r = req(PSP_MSG_COMP_STEP, &c, sizeof c);
+    assert_int_equal((int32_t)psf_get_u32(r.pl), lut_eval(&cal.f_inv, c.c_ref_q16));
+}
+
+static void test_streaming(void **state)
+{
+    (void)state;
+    psp_stream_ctl_t s = {.enable = 1, .decimation = 2};
+    expect_ok(req(PSP_MSG_ENC_STREAM, &s, sizeof s), PSP_MSG_ENC_STREAM);
+    for (uint32_t k = 0; k < 2 * PSP_ENC_SAMPLES_MAX; k++)
+        psl_tick(&L, k * 1000u, (int32_t)k * 100);
+    resp_t r[4];
+    assert_int_equal(take(r, 4), 1);
+    assert_int_equal(r[0].type, PSP_MSG_ENC_STREAM | PSP_RESPONSE);
+    assert_int_equal(r[0].seq, 0);
+    assert_int_equal(r[0].len, 4 + 8 * PSP_ENC_SAMPLES_MAX);
+    psp_enc_samples_t b;
+    memcpy(&b, r[0].pl, r[0].len);
+    assert_int_equal(b.count, PSP_ENC_SAMPLES_MAX);
+    assert_int_equal(b.s[1].t_us - b.s[0].t_us, 2000);
+    assert_int_equal(b.s[29].q_q16, 58 * 100);
+    s.enable = 1;
+    s.decimation = 0;
+    expect_err(req(PSP_MSG_ENC_STREAM, &s, sizeof s), PSP_ERR_RANGE);
+}
+
+/* The detector sees a reversal, a still marker, then motion: one B sample comes back. */
+static void test_onset_over_the_link(void **state)
+{
+    (void)state;
+    const uint32_t frame_us = 40000;
+    /* Encoder: q ramps at 1 unit/s from t = 0; history every 1 ms. */
+    for (uint32_t t = 0; t <= 2000000; t += 1000)
+        psl_tick(&L, t, (int32_t)((int64_t)t * 65536 / 1000000));
+    out_n = 0;
+    psp_reversal_t rv = {.t1_us = 100000, .q1_q16 = (int32_t)(0.1 * 65536)};
+    resp_t r = req(PSP_MSG_REVERSAL, &rv, sizeof rv);
+    expect_ok(r, PSP_MSG_REVERSAL);
+    assert_int_equal(r.len, 0);
+    int got = 0;
+    psp_b_sample_t bs;
+    for (uint32_t t = 120000; t < 2000000 && !got; t += frame_us) {
+        /* Marker still until 1.2 s (image clock), then moving 2 px per frame. */
+        double u = 100.0 + (t > 1200000 ? (t - 1200000) / (double)frame_us * 2.0 : 0.0);
+        psp_marker_obs_t m = {.t_us = t, .u_q16 = (int32_t)(u * 65536), .v_q16 = 50 * 65536, .valid = 1};
+        r = req(PSP_MSG_MARKER_OBS, &m, sizeof m);
+        expect_ok(r, PSP_MSG_MARKER_OBS);
+        if (r.len == sizeof bs) {
+            memcpy(&bs, r.pl, sizeof bs);
+            got = 1;
+        }
+    }
+    assert_true(got);
+    assert_true(bs.reason == ONSET_OK || bs.reason == ONSET_OK_COARSE);
+    assert_int_equal(bs.t1_us, 100000);
+    assert_true(bs.b_q16 > 0);
+    psp_marker_obs_t bad = {.kind = 7};
+    expect_err(req(PSP_MSG_MARKER_OBS, &bad, sizeof bad), PSP_ERR_RANGE);
+}
+
+/* A power cut at every byte of a commit through the handler: reboot runs old or new. */
+static void test_power_cut_via_handler(void **state)
+{
+    (void)state;
+    static fixture_blob_t old_t, new_t;
+    size_t on = make_table(3, f_fn);
+    memcpy(&old_t, &blob, sizeof blob);
+    expect_ok(upload(old_t.bytes, on), PSP_MSG_TABLE_COMMIT);
+    static uint8_t base[2 * SLOT];
+    memcpy(base, mem, sizeof mem);
+    size_t nn = make_table(4, f_fn);
+    memcpy(&new_t, &blob, sizeof blob);
+    int n_old = 0, n_new = 0;
+    const int64_t total = SLOT + (int64_t)nn + 24;
+    for (int64_t cut = 0; cut <= total; cut += (cut < 40 || cut > total - 40) ? 1 : 97) {
+        memcpy(mem, base, sizeof mem);
+        pss_sim_init(&sim, mem, SLOT, 0);
+        boot();
+        pss_sim_power_on(&sim, cut);
+        resp_t r = upload(new_t.bytes, nn);
+        if (cut < total)
+            expect_err(r, PSP_ERR_FLASH);
+        pss_sim_power_on(&sim, -1);
+        boot();
+        psp_info_t i = info();
+        uint8_t back[PST_MAX_TABLE_SIZE];
+        size_t n = read_back(back, sizeof back);
+        if (i.active_generation == 4) {
+            assert_int_equal(n, nn);
+            assert_memory_equal(back, new_t.bytes, nn);
+            n_new++;
+        } else {
+            assert_int_equal(i.active_generation, 3);
+            assert_int_equal(n, on);
+            assert_memory_equal(back, old_t.bytes, on);
+            n_old++;
+        }
+    }
+    assert_int_equal(n_new, 1);
+    assert_true(n_old > 80);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test_setup(test_info_fresh, setup),
+        cmocka_unit_test_setup(test_upload_commit_readback_reboot, setup),
+        cmocka_unit_test_setup(test_refusals_change_nothing, setup),
+        cmocka_unit_test_setup(test_replay_and_order, setup),
+        cmocka_unit_test_setup(test_commit_only_when_idle, setup),
+        cmocka_unit_test_setup(test_compensation_matches_core, setup),
+        cmocka_unit_test_setup(test_streaming, setup),
+        cmocka_unit_test_setup(test_onset_over_the_link, setup),
+        cmocka_unit_test_setup(test_power_cut_via_handler, setup),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
