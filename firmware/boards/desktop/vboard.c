@@ -1,0 +1,190 @@
+/* Virtual board: the desktop build of core + link as a process, over stdio, a TCP socket or a pty. */
+#define _DEFAULT_SOURCE /* clock_gettime, posix_openpt and friends under -std=c11 */
+#define _XOPEN_SOURCE 600
+#include <errno.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <termios.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "pss_flash_file.h"
+#include "pss_flash_sim.h"
+#include "psl_link.h"
+
+enum {
+    VB_SLOT_SIZE = 128 * 1024, /* as one STM32F405 sector 10/11 */
+    VB_TICKS_MAX_PER_WAKE = 200, /* after a stall, catch up at most this many ticks at once */
+};
+
+static psl_t board;
+static int out_fd = 1;
+static volatile sig_atomic_t stop;
+
+static void on_signal(int sig)
+{
+    (void)sig;
+    stop = 1;
+}
+
+static void write_all(void *ctx, const uint8_t *frame, size_t len)
+{
+    (void)ctx;
+    while (len > 0) {
+        ssize_t n = write(out_fd, frame, len);
+        if (n < 0 && errno == EINTR)
+            continue;
+        if (n <= 0)
+            return; /* host gone: drop, as a UART would */
+        frame += n;
+        len -= (size_t)n;
+    }
+}
+
+static uint64_t now_us(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
+}
+
+static void usage(void)
+{
+    fprintf(stderr,
+            "usage: ps_vboard [--flash FILE] [--stdio | --listen PORT | --pty] [--tick-hz HZ]\n"
+            "  --flash FILE   file-backed A/B slots (2 x 128 KiB), kept across runs; default: RAM\n"
+            "  --stdio        frames on stdin/stdout (default)\n"
+            "  --listen PORT  TCP on 127.0.0.1:PORT, one host at a time (prints 'listening PORT')\n"
+            "  --pty          a pseudo-terminal (prints 'pty /dev/pts/N')\n"
+            "  --tick-hz HZ   control tick rate, default 1000\n");
+}
+
+/* Serve one connection until EOF: frames in, answers and unsolicited frames out, ticks
+ * run from the monotonic clock. The motor is ideal: q measured = last set-point. */
+static void serve(int in_fd, uint32_t tick_hz)
+{
+    uint8_t buf[4096];
+    uint64_t t0 = now_us(), ticks = 0;
+    int32_t q_q16 = 0;
+    uint64_t tick_ns = 1000000000ull / tick_hz; /* ns per tick */
+    while (!stop) {
+        struct pollfd p = {.fd = in_fd, .events = POLLIN};
+        int r = poll(&p, 1, 1);
+        if (r < 0 && errno != EINTR)
+            break;
+        if (r > 0) {
+            ssize_t n = read(in_fd, buf, sizeof buf);
+            if (n == 0 || (n < 0 && errno != EINTR && errno != EAGAIN))
+                break;
+            if (n > 0)
+                psl_rx(&board, buf, (size_t)n);
+        }
+        uint64_t due = (now_us() - t0) * 1000u / tick_ns;
+        for (int k = 0; ticks < due && k < VB_TICKS_MAX_PER_WAKE; k++, ticks++)
+            q_q16 = psl_tick(&board, (uint32_t)(ticks * tick_ns / 1000u), q_q16);
+        if (due > ticks + VB_TICKS_MAX_PER_WAKE)
+            ticks = due; /* drop the backlog rather than replay a long stall */
+    }
+}
+
+int main(int argc, char **argv)
+{
+    const char *flash_path = NULL;
+    int listen_port = -1, use_pty = 0;
+    uint32_t tick_hz = 1000;
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--flash") && i + 1 < argc)
+            flash_path = argv[++i];
+        else if (!strcmp(argv[i], "--listen") && i + 1 < argc)
+            listen_port = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--pty"))
+            use_pty = 1;
+        else if (!strcmp(argv[i], "--stdio"))
+            ;
+        else if (!strcmp(argv[i], "--tick-hz") && i + 1 < argc)
+            tick_hz = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else {
+            usage();
+            return 2;
+        }
+    }
+    if (tick_hz == 0 || tick_hz > 100000) {
+        usage();
+        return 2;
+    }
+    signal(SIGTERM, on_signal);
+    signal(SIGINT, on_signal);
+    signal(SIGPIPE, SIG_IGN);
+
+    static pss_file_t ff;
+    static pss_sim_t sim;
+    static uint8_t ram_flash[2 * VB_SLOT_SIZE];
+    const pss_flash_t *flash;
+    if (flash_path) {
+        if (pss_file_open(&ff, flash_path, VB_SLOT_SIZE) != 0) {
+            perror(flash_path);
+            return 1;
+        }
+        flash = &ff.port;
+    } else {
+        pss_sim_init(&sim, ram_flash, VB_SLOT_SIZE, 1);
+        flash = &sim.port;
+    }
+    psl_config_t cfg = psl_default_config(tick_hz);
+    cfg.board_id[0] = 0x56495254; /* "VIRT" */
+    cfg.board_id[2] = (uint32_t)getpid();
+    psl_init(&board, &cfg, flash, write_all, NULL);
+
+    if (listen_port >= 0) {
+        int s = socket(AF_INET, SOCK_STREAM, 0), one = 1;
+        setsockopt(s, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+        struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)listen_port),
+                                .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+        socklen_t al = sizeof a;
+        if (bind(s, (struct sockaddr *)&a, sizeof a) != 0 || listen(s, 1) != 0) {
+            perror("listen");
+            return 1;
+        }
+        getsockname(s, (struct sockaddr *)&a, &al);
+        printf("listening %u\n", ntohs(a.sin_port));
+        fflush(stdout);
+        while (!stop) {
+            int c = accept(s, NULL, NULL);
+            if (c < 0)
+                continue;
+            setsockopt(c, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+            out_fd = c;
+            serve(c, tick_hz);
+            close(c);
+        }
+    } else if (use_pty) {
+        int m = posix_openpt(O_RDWR | O_NOCTTY);
+        if (m < 0 || grantpt(m) != 0 || unlockpt(m) != 0) {
+            perror("pty");
+            return 1;
+        }
+        struct termios t;
+        int sl = open(ptsname(m), O_RDWR | O_NOCTTY);
+        tcgetattr(sl, &t);
+        cfmakeraw(&t);
+        tcsetattr(sl, TCSANOW, &t);
+        close(sl);
+        printf("pty %s\n", ptsname(m));
+        fflush(stdout);
+        out_fd = m;
+        serve(m, tick_hz);
+    } else {
+        out_fd = 1;
+        serve(0, tick_hz);
+    }
+    if (flash_path)
+        pss_file_close(&ff);
+    return 0;
+}
