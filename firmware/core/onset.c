@@ -8,10 +8,9 @@ onset_config_t onset_default_config(void)
         .t_delay_us = 80000,                 /* paper V-D: 2 frames at 25 Hz */
         .frame_period_us = 40000,
         .threshold_q16 = 0,                  /* automatic */
-        .threshold_init_q16 = 13107,         /* 0.2 px/frame, the paper's T */
         .threshold_floor_q16 = 3277,         /* 0.05 px/frame */
+        .threshold_max_q16 = 65536,          /* 1 px/frame: a still marker never jitters that much */
         .noise_k2_q16 = 9u << 16,            /* k = 3: P(false onset) ~ e^-9 per frame for 2-D Gaussian noise */
-        .min_still_frames = 5,
         .settle_frames = 1,
         .max_lost_frames = 10,
         .timeout_us = 10000000,
@@ -37,11 +36,31 @@ int64_t onset_threshold2_q32(const onset_t *o)
     const onset_config_t *c = &o->cfg;
     if (c->threshold_q16 > 0)
         return (int64_t)c->threshold_q16 * c->threshold_q16;
-    if (o->noise_count < c->min_still_frames)
-        return (int64_t)c->threshold_init_q16 * c->threshold_init_q16;
+    int64_t max2 = (int64_t)c->threshold_max_q16 * c->threshold_max_q16;
+    if (o->noise_count < ONSET_NOISE_LEARN_PAIRS)
+        return max2; /* still learning the noise: only gross motion counts */
     int64_t t2 = ((o->noise_d2_q32 >> 8) * (int64_t)c->noise_k2_q16) >> 8;
     int64_t floor2 = (int64_t)c->threshold_floor_q16 * c->threshold_floor_q16;
-    return t2 > floor2 ? t2 : floor2;
+    return t2 < floor2 ? floor2 : (t2 > max2 ? max2 : t2);
+}
+
+/* Fold one still frame pair into the noise estimate: the exact mean of the first
+ * ONSET_NOISE_LEARN_PAIRS (a power of two, so the mean is a shift), then an EWMA of
+ * weight 1/16 that follows slow changes of lighting or focus. */
+static void learn_noise(onset_t *o, int64_t d2)
+{
+    int shift = 0;
+    while ((1u << shift) < ONSET_NOISE_LEARN_PAIRS)
+        shift++;
+    if (o->noise_count < ONSET_NOISE_LEARN_PAIRS) {
+        o->noise_d2_q32 = o->noise_count == 0 ? d2 : o->noise_d2_q32 + d2; /* running sum */
+        if (++o->noise_count == ONSET_NOISE_LEARN_PAIRS)
+            o->noise_d2_q32 >>= shift;
+        return;
+    }
+    o->noise_d2_q32 += (d2 - o->noise_d2_q32) >> 4;
+    if (o->noise_count < UINT32_MAX)
+        o->noise_count++;
 }
 
 /* Finish the pending reversal with a reason (no B sample). */
@@ -79,13 +98,15 @@ static bool emit(onset_t *o, uint32_t t2_us, onset_reason_t reason, onset_event_
     return true;
 }
 
+static bool finish_early(onset_t *o, onset_event_t *ev);
+
 bool onset_tick(onset_t *o, uint32_t t_us, int32_t q_q16, onset_event_t *ev)
 {
     enc_hist_push(&o->hist, t_us, q_q16);
     if (o->state == ONSET_ST_IDLE || t_us - o->t1_us <= o->cfg.timeout_us)
         return false;
-    if (o->state == ONSET_ST_CANDIDATE)
-        return emit(o, o->cand_t_us, ONSET_OK_COARSE, ev);
+    if (o->state >= ONSET_ST_CANDIDATE)
+        return finish_early(o, ev);
     return fail(o, ONSET_ERR_TIMEOUT, ev);
 }
 
@@ -108,29 +129,47 @@ static int32_t abs32(int32_t x)
     return x < 0 ? -x : x;
 }
 
-/* Sub-frame onset: the line through the first two moving samples (t_a, s_a), (t_b, s_b)
- * of the L1 distance from the still level crosses s = 0 at t_a - s_a (t_b - t_a) / (s_b - s_a).
+/* Sub-frame onset: the line through two moving samples (t_a, s_a), (t_b, s_b) of the L1
+ * distance from the still level crosses s = 0 at t_a - s_a (t_b - t_a) / (s_b - s_a).
  * L1 distance grows linearly in time along any straight image motion, so no sqrt is
- * needed. Clamped to [last still frame, t_a]. 32-bit divide only. */
-static uint32_t refine_t2(const onset_t *o, uint32_t t_b, int32_t s_b)
+ * needed. The result is clamped to [t_lo, t_a]. 32-bit divide only. */
+static uint32_t extrapolate_onset(uint32_t t_a, int32_t s_a_q16, uint32_t t_b, int32_t s_b_q16,
+                                  uint32_t t_lo)
 {
-    uint32_t t_a = o->cand_t_us;
     uint32_t span_ab = t_b - t_a;
-    uint32_t span_still = t_a - o->still_t_us;
-    uint32_t s_a = (uint32_t)o->cand_s_q16;
-    uint32_t den = (uint32_t)(s_b - o->cand_s_q16); /* > 0, checked by the caller */
-    uint32_t back;
-    if (s_a >= den) {
-        back = span_ab; /* ratio >= 1: at least one whole span back, clamped below */
-    } else {
-        while (den >= (1u << 15)) { /* keep s_a << 16 within 31 bits; s_a < den */
-            den >>= 1;
-            s_a >>= 1;
-        }
-        uint32_t r_q16 = (s_a << 16) / (den ? den : 1u);
-        back = (uint32_t)(((uint64_t)r_q16 * span_ab) >> 16);
+    uint32_t span_still = t_a - t_lo;
+    uint32_t s_a = (uint32_t)s_a_q16;
+    uint32_t den = (uint32_t)(s_b_q16 - s_a_q16); /* > 0, checked by the caller */
+    while (s_a >= (1u << 15)) { /* keep s_a << 16 within 31 bits, ratio unchanged */
+        s_a >>= 1;
+        den >>= 1;
     }
-    return back > span_still ? o->still_t_us : t_a - back;
+    uint64_t back = span_still + 1ull; /* den lost to the scaling: far back, clamped below */
+    if (den != 0) {
+        uint32_t r_q16 = (s_a << 16) / den;
+        back = ((uint64_t)r_q16 * span_ab) >> 16;
+    }
+    return back > span_still ? t_lo : t_a - (uint32_t)back;
+}
+
+/* Earliest admissible onset: two frames before the first moving frame A (the last frame
+ * judged still may already hold sub-threshold motion), never before the image can show
+ * the reversal at t1 + t_delay. */
+static uint32_t onset_floor(const onset_t *o)
+{
+    uint32_t two = 2u * o->cfg.frame_period_us;
+    uint32_t earliest = o->t1_us + o->cfg.t_delay_us;
+    uint32_t t = o->cand_t_us - two;
+    return (int32_t)(t - earliest) < 0 ? earliest : t;
+}
+
+/* The pending onset ends without its refining frame(s): use what was seen. */
+static bool finish_early(onset_t *o, onset_event_t *ev)
+{
+    if (o->state == ONSET_ST_CONFIRMED)
+        return emit(o, extrapolate_onset(o->cand_t_us, o->cand_s_q16, o->conf_t_us, o->conf_s_q16,
+                                         onset_floor(o)), ONSET_OK, ev);
+    return emit(o, o->cand_t_us, ONSET_OK_COARSE, ev);
 }
 
 static bool observe(onset_t *o, uint32_t t_us, int32_t u, int32_t v, bool valid, onset_event_t *ev)
@@ -140,15 +179,15 @@ static bool observe(onset_t *o, uint32_t t_us, int32_t u, int32_t v, bool valid,
     if (o->state == ONSET_ST_IDLE || (int32_t)(t_us - o->t1_us) < 0)
         return false;
     if (t_us - o->t1_us > c->timeout_us) {
-        if (o->state == ONSET_ST_CANDIDATE)
-            return emit(o, o->cand_t_us, ONSET_OK_COARSE, ev);
+        if (o->state >= ONSET_ST_CANDIDATE)
+            return finish_early(o, ev);
         return fail(o, ONSET_ERR_TIMEOUT, ev);
     }
     if (!valid) {
         if (++o->lost_run <= c->max_lost_frames)
             return false;
-        if (o->state == ONSET_ST_CANDIDATE)
-            return emit(o, o->cand_t_us, ONSET_OK_COARSE, ev);
+        if (o->state >= ONSET_ST_CANDIDATE)
+            return finish_early(o, ev);
         return fail(o, ONSET_ERR_MARKER_LOST, ev);
     }
     o->lost_run = 0;
@@ -189,15 +228,12 @@ static bool observe(onset_t *o, uint32_t t_us, int32_t u, int32_t v, bool valid,
 
     if (o->state == ONSET_ST_STILL) {
         if (!moving) {
-            /* Still: refine the level (EWMA 1/4) and the noise (EWMA 1/16 of |dQ|^2 per frame). */
+            /* Still: refine the level (EWMA 1/4) and the noise (per-frame pairs only). */
             o->ref_u_q16 += (u - o->ref_u_q16) >> 2;
             o->ref_v_q16 += (v - o->ref_v_q16) >> 2;
             o->still_t_us = t_us;
-            if (n == 1) {
-                o->noise_d2_q32 = o->noise_count == 0 ? d2 : o->noise_d2_q32 + ((d2 - o->noise_d2_q32) >> 4);
-                if (o->noise_count < UINT32_MAX)
-                    o->noise_count++;
-            }
+            if (n == 1)
+                learn_noise(o, d2);
             if (o->still_pairs < UINT16_MAX)
                 o->still_pairs++;
             return false;
@@ -210,13 +246,32 @@ static bool observe(onset_t *o, uint32_t t_us, int32_t u, int32_t v, bool valid,
         return false;
     }
 
-    /* CANDIDATE: confirmed if it keeps moving away from the still level. */
-    if (moving && s > o->cand_s_q16)
-        return emit(o, refine_t2(o, t_us, s), ONSET_OK, ev);
-    /* A lone outlier (specular flash, tracking glitch): back to watching. */
-    o->state = ONSET_ST_STILL;
-    o->still_t_us = t_us;
-    return false;
+    if (o->state == ONSET_ST_CANDIDATE) {
+        /* B confirms A if the marker keeps moving away from the still level. */
+        if (moving && s > o->cand_s_q16) {
+            /* A well clear of the noise (over 2 T from the still level) anchors the line
+             * closest to the onset; a marginal A may be noise, so wait for C. */
+            int64_t s_a = o->cand_s_q16;
+            if (s_a * s_a > 4 * onset_threshold2_q32(o))
+                return emit(o, extrapolate_onset(o->cand_t_us, o->cand_s_q16, t_us, s, onset_floor(o)),
+                            ONSET_OK, ev);
+            o->conf_t_us = t_us;
+            o->conf_s_q16 = s;
+            o->state = ONSET_ST_CONFIRMED;
+            return false;
+        }
+        /* A lone outlier (specular flash, tracking glitch): back to watching. */
+        o->state = ONSET_ST_STILL;
+        o->still_t_us = t_us;
+        return false;
+    }
+
+    /* CONFIRMED: the slope comes from B and C, both past the onset, rather than from A,
+     * which may be a noise excursion just before it; the line is then extrapolated back
+     * to the still level. */
+    if (s > o->conf_s_q16)
+        return emit(o, extrapolate_onset(o->conf_t_us, o->conf_s_q16, t_us, s, onset_floor(o)), ONSET_OK, ev);
+    return finish_early(o, ev);
 }
 
 bool onset_observe_px(onset_t *o, uint32_t t_us, int32_t u_q16, int32_t v_q16, bool valid,

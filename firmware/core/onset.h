@@ -9,7 +9,7 @@
 /* Outcome of one commanded reversal. Values travel in psp_b_sample_t.reason. */
 typedef enum {
     ONSET_OK = 0,                /* B sample valid, t2 refined below one frame period */
-    ONSET_OK_COARSE = 1,         /* B sample valid, t2 = first moving frame (no second frame to refine) */
+    ONSET_OK_COARSE = 1,         /* B sample valid, t2 = first moving frame (the frames that refine it were lost) */
     ONSET_ERR_MARKER_LOST = 2,   /* more than max_lost_frames consecutive frames without a marker */
     ONSET_ERR_REVERSAL = 3,      /* another reversal was commanded before motion appeared */
     ONSET_ERR_TIMEOUT = 4,       /* no motion within timeout_us of the reversal */
@@ -24,21 +24,26 @@ typedef enum {
     ONSET_INPUT_DEG = 1,         /* c in deg (Q16); v unused */
 } onset_input_t;
 
+#ifndef ONSET_NOISE_LEARN_PAIRS
+/* ONSET_NOISE_LEARN_PAIRS: still frame pairs averaged before the automatic T is used (power of two). Default 8. */
+#define ONSET_NOISE_LEARN_PAIRS 8
+#endif
+
 typedef struct {
     uint32_t t_delay_us;         /* image acquisition + processing delay (eq. 1) */
     uint32_t frame_period_us;    /* nominal camera period, > 0 (normalises gaps over lost frames) */
-    int32_t threshold_q16;       /* T in px (or deg) per frame; 0: set from measured still noise */
-    int32_t threshold_init_q16;  /* T used while the noise is not yet measured (auto mode) */
-    int32_t threshold_floor_q16; /* lower bound of the automatic T */
-    uint32_t noise_k2_q16;       /* automatic T^2 = k^2 * mean(|dQ|^2) over still frames */
-    uint16_t min_still_frames;   /* still frame pairs needed before the automatic T is used */
+    int32_t threshold_q16;       /* T in px (or deg) per frame; 0: automatic from the still noise */
+    int32_t threshold_floor_q16; /* automatic T never goes below this */
+    int32_t threshold_max_q16;   /* ...nor above this; also T while the noise is being learnt */
+    uint32_t noise_k2_q16;       /* automatic T^2 = k^2 * mean |dQ|^2 over still frame pairs */
     uint16_t settle_frames;      /* frames skipped after t1 + t_delay (exposure straddling the reversal) */
     uint16_t max_lost_frames;    /* consecutive lost frames tolerated */
     uint32_t timeout_us;         /* give up if no motion this long after t1 */
 } onset_config_t;
 
-/* Defaults from the paper's setup: 25 Hz camera, t_delay 80 ms, T 0.2 px/frame
- * initially then automatic with k = 3, timeout 10 s. */
+/* Defaults from the paper's setup (V-D): 25 Hz camera, t_delay 80 ms; T automatic with
+ * k = 3 between 0.05 and 1 px/frame (the paper fixed T = 0.2 px/frame for a still noise
+ * under 0.15 px); timeout 10 s. */
 onset_config_t onset_default_config(void);
 
 /* One B sample (eq. 1) or the reason there is none. */
@@ -56,7 +61,8 @@ typedef enum {
     ONSET_ST_IDLE = 0,           /* no reversal pending */
     ONSET_ST_SETTLING,           /* waiting for frames taken after t1 + t_delay */
     ONSET_ST_STILL,              /* marker still; watching for the first motion */
-    ONSET_ST_CANDIDATE,          /* one moving frame; the next confirms it and refines t2 */
+    ONSET_ST_CANDIDATE,          /* one moving frame (A); the next (B) must confirm it */
+    ONSET_ST_CONFIRMED,          /* A and B moving away; the next (C) gives the slope for t2 */
 } onset_state_t;
 
 typedef struct {
@@ -73,9 +79,12 @@ typedef struct {
     int32_t prev_u_q16, prev_v_q16;
     int32_t ref_u_q16, ref_v_q16; /* still level (EWMA of still frames) */
     uint32_t still_t_us;         /* time of the last still frame */
-    uint32_t cand_t_us;          /* first moving frame */
+    uint32_t cand_t_us;          /* first moving frame A */
     int32_t cand_s_q16;          /* its L1 distance from the still level */
-    int64_t noise_d2_q32;        /* EWMA of |dQ|^2 over still frame pairs, Q32 */
+    uint32_t conf_t_us;          /* confirming frame B */
+    int32_t conf_s_q16;
+    int64_t noise_d2_q32;        /* mean |dQ|^2 over still frame pairs, Q32: plain mean of the
+                                    first ONSET_NOISE_LEARN_PAIRS, then EWMA 1/16 */
     uint32_t noise_count;        /* still frame pairs seen (saturating) */
 } onset_t;
 

@@ -1,0 +1,324 @@
+/* Tests of the motion-onset detector (section III-A, eq. 1) on simulated encoder and camera
+ * streams: a play of known width, camera delay, frame quantisation, noise, lost frames. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <math.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "onset.h"
+#include "test_rng.h"
+
+#define Q16(x) ((int32_t)lround((x) * 65536.0))
+
+/* The simulated bench: q(t) is a triangle with reversals at given times, the tip follows a
+ * play of width b_mm (centre z), the image shows u = u0 + px_per_mm z, v = v0 + 0.4 px_per_mm z
+ * at capture time, delivered t_delay later, with Gaussian noise. */
+typedef struct {
+    double v_mm_s;               /* actuator speed */
+    double b_mm;                 /* true play width (constant here) */
+    double px_per_mm;            /* image gain of the tip */
+    double noise_px;             /* marker noise, per coordinate */
+    uint32_t tick_us;            /* encoder period */
+    uint32_t frame_us;           /* camera period */
+    uint32_t frame_phase_us;     /* first capture time */
+    uint32_t t_delay_us;
+    double t_rev_s[8];           /* reversal times */
+    int n_rev;
+    int lost_from, lost_to;      /* frame indices (capture order) with no marker */
+    int spike_frame;             /* one frame with a 6 px glitch, -1 for none */
+    int stuck;                   /* tip never moves (broken tendon) */
+    int angle_mode;              /* observe an angle (deg = 10 * z) instead of pixels */
+} bench_t;
+
+typedef struct {
+    onset_event_t ev[16];
+    int n;
+} events_t;
+
+static double q_of_t(const bench_t *b, double t)
+{
+    /* Up at v until the first reversal, then alternate. */
+    double q = 0, tp = 0;
+    int dir = 1;
+    for (int i = 0; i < b->n_rev && b->t_rev_s[i] < t; i++) {
+        q += dir * b->v_mm_s * (b->t_rev_s[i] - tp);
+        tp = b->t_rev_s[i];
+        dir = -dir;
+    }
+    return q + dir * b->v_mm_s * (t - tp);
+}
+
+/* Run the bench through the detector; reversals are announced at t_rev exactly. */
+static void run_bench(const bench_t *b, const onset_config_t *cfg, double t_end_s, events_t *out,
+                      uint64_t seed)
+{
+    static onset_t o;
+    onset_init(&o, cfg);
+    test_rng_t r;
+    test_rng_seed(&r, seed);
+    out->n = 0;
+    double z = -b->b_mm / 2; /* play taken up on the rising side at the start */
+    int next_rev = 0, frame = 0;
+    uint32_t next_frame_capture = b->frame_phase_us;
+    /* Frames captured but not yet delivered: the delay is shorter than 8 frames here. */
+    struct { uint32_t t_obs; double u, v; int valid; } pending[32];
+    int np = 0;
+    onset_event_t ev;
+    for (uint32_t t = 0; t <= (uint32_t)(t_end_s * 1e6); t += b->tick_us) {
+        double ts = t * 1e-6;
+        double q = q_of_t(b, ts);
+        if (!b->stuck) {
+            if (q - z > b->b_mm / 2) z = q - b->b_mm / 2;
+            if (z - q > b->b_mm / 2) z = q + b->b_mm / 2;
+        }
+        if (next_rev < b->n_rev && ts >= b->t_rev_s[next_rev]) {
+            if (onset_reversal(&o, t, Q16(q), &ev))
+                out->ev[out->n++] = ev;
+            next_rev++;
+        }
+        if (onset_tick(&o, t, Q16(q), &ev))
+            out->ev[out->n++] = ev;
+        if (t >= next_frame_capture) {
+            double noise_u = b->noise_px * test_rng_normal(&r), noise_v = b->noise_px * test_rng_normal(&r);
+            double u = 320 + b->px_per_mm * z + noise_u, v = 240 + 0.4 * b->px_per_mm * z + noise_v;
+            if (frame == b->spike_frame)
+                u += 6.0;
+            pending[np].t_obs = next_frame_capture + b->t_delay_us;
+            pending[np].u = b->angle_mode ? 10.0 * z + noise_u * 0.01 : u;
+            pending[np].v = v;
+            pending[np].valid = !(frame >= b->lost_from && frame < b->lost_to);
+            np++;
+            frame++;
+            next_frame_capture += b->frame_us;
+        }
+        while (np > 0 && t >= pending[0].t_obs) {
+            bool got = b->angle_mode
+                           ? onset_observe_deg(&o, pending[0].t_obs, Q16(pending[0].u), pending[0].valid, &ev)
+                           : onset_observe_px(&o, pending[0].t_obs, Q16(pending[0].u), Q16(pending[0].v),
+                                              pending[0].valid, &ev);
+            if (got)
+                out->ev[out->n++] = ev;
+            memmove(&pending[0], &pending[1], (size_t)(np - 1) * sizeof pending[0]);
+            np--;
+        }
+    }
+}
+
+static bench_t paper_bench(void)
+{
+    /* Paper V-D: 25 Hz, 80 ms delay, slow actuator; here 0.25 mm/s over a 0.5 mm play. */
+    bench_t b = {.v_mm_s = 0.25, .b_mm = 0.5, .px_per_mm = 80, .noise_px = 0.05, .tick_us = 1000,
+                 .frame_us = 40000, .frame_phase_us = 7000, .t_delay_us = 80000,
+                 .t_rev_s = {4.0, 8.0, 12.0}, .n_rev = 3, .lost_from = -1, .lost_to = -1, .spike_frame = -1};
+    return b;
+}
+
+static onset_config_t cfg_for(const bench_t *b)
+{
+    onset_config_t c = onset_default_config();
+    c.t_delay_us = b->t_delay_us;
+    c.frame_period_us = b->frame_us;
+    return c;
+}
+
+/* eq. 1 on clean-ish data: every reversal gives B within a small fraction of one frame of
+ * travel (v * T_frame = 0.01 mm), and q_mean is the middle of the dead band. */
+static void test_b_from_eq1(void **state)
+{
+    (void)state;
+    bench_t b = paper_bench();
+    onset_config_t c = cfg_for(&b);
+    events_t e;
+    run_bench(&b, &c, 15.0, &e, 1);
+    assert_int_equal(e.n, 3);
+    for (int i = 0; i < 3; i++) {
+        assert_int_equal(e.ev[i].reason, ONSET_OK);
+        assert_true(fabs(e.ev[i].b_q16 / 65536.0 - b.b_mm) < 0.004);
+        double q1 = q_of_t(&b, b.t_rev_s[i]);
+        double q_mean_true = q1 + (i % 2 ? 1 : -1) * b.b_mm / 2;
+        assert_true(fabs(e.ev[i].q_mean_q16 / 65536.0 - q_mean_true) < 0.003);
+        assert_int_equal(e.ev[i].q1_q16, Q16(q1));
+    }
+}
+
+/* Sub-frame refinement beats the paper's frame-quantised t2 over many frame phases. */
+static void test_refinement_beats_frame_quantisation(void **state)
+{
+    (void)state;
+    double err_fine = 0, err_coarse = 0;
+    int n = 0;
+    for (uint32_t phase = 0; phase < 40000; phase += 2500) {
+        bench_t b = paper_bench();
+        b.frame_phase_us = phase;
+        b.n_rev = 1;
+        onset_config_t c = cfg_for(&b);
+        events_t e;
+        run_bench(&b, &c, 7.0, &e, 100 + phase);
+        assert_int_equal(e.n, 1);
+        assert_int_equal(e.ev[0].reason, ONSET_OK);
+        err_fine += fabs(e.ev[0].b_q16 / 65536.0 - b.b_mm);
+        /* Frame-quantised estimate: t2 = the first frame whose image shows motion. */
+        double t_on = b.t_rev_s[0] + b.b_mm / b.v_mm_s; /* capture time of true onset */
+        double t_cap = ceil((t_on * 1e6 - phase) / b.frame_us) * b.frame_us + phase;
+        double b_coarse = b.v_mm_s * (t_cap * 1e-6 - b.t_rev_s[0]);
+        err_coarse += fabs(b_coarse - b.b_mm);
+        n++;
+    }
+    print_message("mean |B error|: refined %.4f mm, frame-quantised %.4f mm\n", err_fine / n, err_coarse / n);
+    assert_true(err_fine < 0.5 * err_coarse);
+}
+
+static void test_lost_frames_short_and_long(void **state)
+{
+    (void)state;
+    bench_t b = paper_bench();
+    b.n_rev = 1;
+    onset_config_t c = cfg_for(&b);
+    events_t e;
+    /* 5 frames lost in the still period (reversal at 4 s = frame ~100; onset ~ frame 150). */
+    b.lost_from = 120;
+    b.lost_to = 125;
+    run_bench(&b, &c, 7.0, &e, 2);
+    assert_int_equal(e.n, 1);
+    assert_int_equal(e.ev[0].reason, ONSET_OK);
+    assert_true(fabs(e.ev[0].b_q16 / 65536.0 - b.b_mm) < 0.004);
+    /* 20 frames lost: more than max_lost_frames (10). */
+    b.lost_from = 110;
+    b.lost_to = 130;
+    run_bench(&b, &c, 7.0, &e, 3);
+    assert_int_equal(e.n, 1);
+    assert_int_equal(e.ev[0].reason, ONSET_ERR_MARKER_LOST);
+}
+
+static void test_reversal_before_onset(void **state)
+{
+    (void)state;
+    bench_t b = paper_bench();
+    b.t_rev_s[0] = 4.0;
+    b.t_rev_s[1] = 5.0; /* only 0.25 mm of travel: the 0.5 mm play is not yet taken up */
+    b.n_rev = 2;
+    onset_config_t c = cfg_for(&b);
+    events_t e;
+    run_bench(&b, &c, 9.0, &e, 4);
+    assert_true(e.n >= 1);
+    assert_int_equal(e.ev[0].reason, ONSET_ERR_REVERSAL);
+    assert_int_equal(e.ev[0].t1_us, 4000000);
+}
+
+static void test_timeout_when_tip_never_moves(void **state)
+{
+    (void)state;
+    bench_t b = paper_bench();
+    b.stuck = 1;
+    b.n_rev = 1;
+    onset_config_t c = cfg_for(&b);
+    c.timeout_us = 3000000;
+    events_t e;
+    run_bench(&b, &c, 9.0, &e, 5);
+    assert_int_equal(e.n, 1);
+    assert_int_equal(e.ev[0].reason, ONSET_ERR_TIMEOUT);
+}
+
+/* 20 kHz encoder with the default 1024-sample history covers 51 ms < t_delay = 80 ms:
+ * q(t2 - t_delay) has been overwritten, and the detector says so instead of guessing. */
+static void test_history_wrapped(void **state)
+{
+    (void)state;
+    bench_t b = paper_bench();
+    b.tick_us = 50;
+    b.n_rev = 1;
+    onset_config_t c = cfg_for(&b);
+    events_t e;
+    run_bench(&b, &c, 7.0, &e, 6);
+    assert_int_equal(e.n, 1);
+    assert_int_equal(e.ev[0].reason, ONSET_ERR_HISTORY_WRAPPED);
+}
+
+static void test_no_play_gives_no_still(void **state)
+{
+    (void)state;
+    bench_t b = paper_bench();
+    b.b_mm = 0.0;
+    b.n_rev = 1;
+    onset_config_t c = cfg_for(&b);
+    c.threshold_q16 = Q16(0.2); /* fixed T, as in the paper */
+    events_t e;
+    run_bench(&b, &c, 7.0, &e, 7);
+    assert_int_equal(e.n, 1);
+    assert_int_equal(e.ev[0].reason, ONSET_ERR_NO_STILL);
+}
+
+static void test_single_glitch_ignored(void **state)
+{
+    (void)state;
+    bench_t b = paper_bench();
+    b.n_rev = 1;
+    b.spike_frame = 130; /* in the dead band */
+    onset_config_t c = cfg_for(&b);
+    events_t e;
+    run_bench(&b, &c, 7.0, &e, 8);
+    assert_int_equal(e.n, 1);
+    assert_int_equal(e.ev[0].reason, ONSET_OK);
+    assert_true(fabs(e.ev[0].b_q16 / 65536.0 - b.b_mm) < 0.004);
+}
+
+/* Automatic T follows the measured noise: with 0.3 px noise the paper's fixed 0.2 px/frame
+ * fires in the dead band, the automatic threshold does not. */
+static void test_auto_threshold_from_noise(void **state)
+{
+    (void)state;
+    bench_t b = paper_bench();
+    b.noise_px = 0.3;
+    b.px_per_mm = 400; /* 4 px/frame of motion after onset */
+    onset_config_t c = cfg_for(&b);
+    c.threshold_max_q16 = Q16(3.0);
+    events_t e;
+    run_bench(&b, &c, 15.0, &e, 9);
+    assert_int_equal(e.n, 3);
+    for (int i = 0; i < 3; i++) {
+        assert_int_equal(e.ev[i].reason, ONSET_OK);
+        assert_true(fabs(e.ev[i].b_q16 / 65536.0 - b.b_mm) < 0.01);
+    }
+    c.threshold_q16 = Q16(0.2);
+    run_bench(&b, &c, 15.0, &e, 9);
+    int bad = 0;
+    for (int i = 0; i < e.n; i++)
+        bad += e.ev[i].reason != ONSET_OK || fabs(e.ev[i].b_q16 / 65536.0 - b.b_mm) > 0.05;
+    assert_true(bad > 0);
+}
+
+static void test_angle_sensor_input(void **state)
+{
+    (void)state;
+    bench_t b = paper_bench();
+    b.angle_mode = 1;
+    onset_config_t c = cfg_for(&b);
+    c.threshold_floor_q16 = Q16(0.001);
+    events_t e;
+    run_bench(&b, &c, 15.0, &e, 10);
+    assert_int_equal(e.n, 3);
+    for (int i = 0; i < 3; i++) {
+        assert_int_equal(e.ev[i].reason, ONSET_OK);
+        assert_true(fabs(e.ev[i].b_q16 / 65536.0 - b.b_mm) < 0.004);
+    }
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_b_from_eq1),
+        cmocka_unit_test(test_refinement_beats_frame_quantisation),
+        cmocka_unit_test(test_lost_frames_short_and_long),
+        cmocka_unit_test(test_reversal_before_onset),
+        cmocka_unit_test(test_timeout_when_tip_never_moves),
+        cmocka_unit_test(test_history_wrapped),
+        cmocka_unit_test(test_no_play_gives_no_still),
+        cmocka_unit_test(test_single_glitch_ignored),
+        cmocka_unit_test(test_auto_threshold_from_noise),
+        cmocka_unit_test(test_angle_sensor_input),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
