@@ -128,35 +128,49 @@ void SysTick_Handler(void)
     }
 }
 
-/* Cycles elapsed in the current period. The counter counts down from RVR to 0. */
-static inline uint32_t tick_elapsed_cycles(void)
+/* Snapshot of the time base: the periods counted by the ISR, and the cycles elapsed in
+ * the current period. Correct in thread mode and inside the tick callback, even when a
+ * wrap has happened but its interrupt is still pending (callback longer than a period,
+ * or interrupts masked): PENDSTSET then says one period is missing from the base. */
+static void tick_snapshot(uint64_t *base_cycles, uint32_t *base_us, uint32_t *in_period_cycles)
 {
-    return SYST_RVR - SYST_CVR;
+    for (;;) {
+        uint64_t cycles = tick_cycles_base;
+        uint32_t us = tick_us_base;
+        uint32_t v1 = SYST_CVR;
+        bool pending = (SCB_ICSR & SCB_ICSR_PENDSTSET) != 0u;
+        uint32_t v2 = SYST_CVR;
+        if (cycles != tick_cycles_base || v2 > v1) {
+            continue;  /* the ISR ran, or the counter reloaded, between the reads */
+        }
+        if (pending) {
+            cycles += tick_period_cycles;
+            us += tick_period_us;
+        }
+        *base_cycles = cycles;
+        *base_us = us;
+        *in_period_cycles = SYST_RVR - v2;
+        return;
+    }
 }
 
 uint64_t port_cycles(void)
 {
-    /* Re-read if the SysTick interrupt advanced the base in between, so base and counter
-     * belong to the same period. Inside the tick callback the base is already current. */
     uint64_t base;
-    uint32_t in_period;
-    do {
-        base = tick_cycles_base;
-        in_period = tick_elapsed_cycles();
-    } while (base != tick_cycles_base);
+    uint32_t us, in_period;
+    tick_snapshot(&base, &us, &in_period);
     return base + in_period;
 }
 
 uint32_t port_ticks_us(void)
 {
-    uint32_t base;
-    uint32_t in_period;
-    do {
-        base = tick_us_base;
-        in_period = tick_elapsed_cycles();
-    } while (base != tick_us_base);
-    /* cycles_per_us is 0 before port_tick_start(); the M4 divides in hardware (UDIV). */
-    return cycles_per_us != 0u ? base + in_period / cycles_per_us : 0u;
+    if (cycles_per_us == 0u) {
+        return 0u;  /* before port_tick_start() */
+    }
+    uint64_t base;
+    uint32_t us, in_period;
+    tick_snapshot(&base, &us, &in_period);
+    return us + in_period / cycles_per_us;  /* the M4 divides in hardware (UDIV) */
 }
 
 size_t port_uart_write(const void *buf, size_t len)

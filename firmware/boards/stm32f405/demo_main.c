@@ -27,9 +27,11 @@ static void control_tick(void)
     uint64_t c0 = port_cycles();
     last_q_ref_q16 = ctl_loop_tick(&loop, port_ticks_us());
     tick_count = tick_count + 1u;
-    uint32_t spent = (uint32_t)(port_cycles() - c0);
-    if (spent > tick_cycles_max) {
-        tick_cycles_max = spent;
+    int64_t spent = (int64_t)(port_cycles() - c0);
+    /* Only QEMU without -icount yields spent < 0: its counter follows host time and the
+     * host may stall mid-tick; such samples say nothing about the firmware. */
+    if (spent >= 0 && spent > (int64_t)tick_cycles_max) {
+        tick_cycles_max = (uint32_t)spent;
     }
 }
 

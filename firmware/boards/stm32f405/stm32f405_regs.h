@@ -64,6 +64,8 @@
 #define SYST_RVR_MAX 0x00FFFFFFu
 
 /* System control block and NVIC. */
+#define SCB_ICSR REG32(0xE000ED04u)
+#define SCB_ICSR_PENDSTSET (1u << 26)
 #define SCB_VTOR REG32(0xE000ED08u)
 #define SCB_SHPR3 REG32(0xE000ED20u)
 #define SCB_CPACR REG32(0xE000ED88u)
