@@ -26,7 +26,7 @@ from pathlib import Path
 REPO = Path(os.environ.get("PLAYSCOPE_SRC", Path(__file__).resolve().parents[2]))
 COMMON = REPO / "common"
 CORE = REPO / "firmware" / "core"
-CDEF_HEADERS = [COMMON / "ps_table.h", COMMON / "ps_proto.h"] + [
+CDEF_HEADERS = [COMMON / "ps_fixed.h", COMMON / "ps_table.h", COMMON / "ps_proto.h"] + [
     CORE / f"{n}.h" for n in ("lut", "calib", "playop", "comp", "enc_hist", "onset", "exc")]
 MODULE = "_playscope_core"
 

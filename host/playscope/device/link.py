@@ -114,11 +114,22 @@ class Link:
         s = (self.seq + 1) & 0xFFFF or 1
         return self._info_from(self.request(self.lib.PSP_MSG_INFO, seq=s))
 
-    def sync(self) -> dict:
-        """Read INFO and continue numbering above the board's last accepted request."""
+    def sync(self, attempts: int = 10) -> dict:
+        """Read INFO and continue numbering above the board's last accepted request.
+        Retried because a board just powered up (or QEMU just started) may drop the
+        first bytes before its UART is enabled."""
         self.seq = 0
-        self.pending.clear()
-        info = self._info_from(self.request(self.lib.PSP_MSG_INFO, seq=0xFFFF))
+        for k in range(attempts):
+            self.pending.clear()
+            self.lib.psf_parser_reset(self.parser)
+            try:
+                info = self._info_from(self.request(self.lib.PSP_MSG_INFO, seq=0xFFFF,
+                                                    timeout_s=min(self.timeout_s, 0.5)))
+                break
+            except TransportError:
+                if k == attempts - 1:
+                    raise
+                self.t.write(b"\0" * 16)  # flush a half-received frame on the board
         self.seq = info["last_seq"]
         return info
 

@@ -146,6 +146,7 @@ class QemuTransport(TcpTransport):
                                  "(target playscope-link-fw) or set PLAYSCOPE_LINK_ELF")
         port = _free_port()
         argv = ["qemu-system-arm", "-M", "netduinoplus2", "-nographic", "-monitor", "none",
+                "-semihosting-config", "enable=on,target=native",
                 "-kernel", str(elf), "-serial", f"tcp:127.0.0.1:{port},server=on,wait=on,nodelay=on"]
         try:
             self.proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,

@@ -1,0 +1,159 @@
+"""Calibration: session -> B(q) spline + f_remain (Fig. 4 blocks 1-6), and its JSON file.
+
+The calibration file (docs/calibration-format.md), "format": "playscope-calibration/1":
+  actuator_unit, q_range [min, max] (actuator travel seen), t_delay_s (+ t_delay_source),
+  fps_frames (frame rate the onset detector saw), onset: {config, reasons},
+  b_samples: {t1_s, t2_s, q1, q2, q_mean, b, weight}, B: spline (SplineFn.to_json),
+  f_remain: spline + "sign" + "method" ("lsq" or "morph"), f_coarse: {q_per_rad},
+  f_remain_alt: the other estimator, for comparison.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import estimate as E
+from . import model
+from .atomic import write_text_atomic
+from .errors import InputError
+from .session import Session
+
+FORMAT = "playscope-calibration/1"
+
+
+@dataclass
+class Calibration:
+    """Estimated model: B and f are callables on arrays (actuator units -> units, deg)."""
+
+    B: E.SplineFn
+    f: E.SplineFn
+    f_sign: int
+    q_per_rad: float
+    doc: dict
+
+    def predict(self, q: np.ndarray, z0: float | None = None) -> np.ndarray:
+        """Direct model c = f_remain(play(q; B)) (eqs. 2, 3), deg."""
+        return model.direct_model(q, self.B, self.f, z0)
+
+    def f_coarse(self, q):
+        return model.f_coarse(q, self.q_per_rad)
+
+    def save(self, path) -> None:
+        write_text_atomic(path, json.dumps(self.doc, indent=1) + "\n")
+
+    @classmethod
+    def load(cls, path) -> "Calibration":
+        """Errors: InputError naming the file for a missing file or a wrong format."""
+        path = Path(path)
+        if not path.is_file():
+            raise InputError(path, "file not found")
+        try:
+            d = json.loads(path.read_text())
+        except json.JSONDecodeError as e:
+            raise InputError(path, f"invalid JSON: {e.msg}", e.lineno) from None
+        if d.get("format") != FORMAT:
+            raise InputError(path, f"format is {d.get('format')!r}, expected {FORMAT!r}")
+        try:
+            return cls(E.SplineFn.from_json(d["B"]), E.SplineFn.from_json(d["f_remain"]),
+                       int(d["f_remain"]["sign"]), float(d["f_coarse"]["q_per_rad"]), d)
+        except (KeyError, TypeError, ValueError) as e:
+            raise InputError(path, f"malformed calibration: {e}") from None
+
+
+def auto_fps(t1: np.ndarray, fps_max: float = 50.0, fps_min: float = 10.0) -> float:
+    """Frame rate for decimating a high-rate angle log: about 125 frames per stroke (median
+    time between reversals), so the dead band after a reversal (typically a tenth of a
+    stroke) spans several frames while motion per frame stays above the sensor noise."""
+    if t1.size < 2:
+        return 25.0
+    return float(np.clip(125.0 / np.median(np.diff(t1)), fps_min, fps_max))
+
+
+def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
+              t_delay_s: float | None = None, hysteresis: float | None = None,
+              onset_cfg: dict | None = None, source: str | None = None) -> Calibration:
+    """Run the chain on a session (image or angle).
+
+    1 reversals (q_cmd if logged, else the encoder with hysteresis, default 1 % of the
+      travel); 2 onsets by the C detector; 3 B spline (N = n_ctrl); 4 c per frame (angle
+      sensor, or LM pose estimation eqs. 6-8 seeded with f_coarse); 5 f_remain by
+      f_method "lsq" (play-consistent) or "morph" (paper); the other one is kept as
+      f_remain_alt. t_delay: argument, else session.json, else estimated (image
+      sessions; 0 for angle sessions, whose sensor shares the encoder clock).
+    Errors: InputError (naming ``source``) for too few reversals/onsets or lost markers.
+    """
+    src = source or (str(s.path) if s.path else None)
+    t_enc, q = s.encoder["t_s"], s.encoder["q"]
+    q_rev = s.encoder.get("q_cmd", q)
+    span = float(np.ptp(q))
+    if span <= 0:
+        raise InputError(src, "the actuator never moves (encoder.csv q constant)")
+    hyst = 0.01 * span if hysteresis is None else hysteresis
+    rt, rq, _ = E.detect_reversals(t_enc, q_rev, hyst)
+    if "q_cmd" in s.encoder:
+        rq = np.interp(rt, t_enc, q)  # q1 is the measured position at the commanded reversal
+    if rt.size < 4:
+        raise InputError(src, f"only {rt.size} direction reversals in encoder.csv (need >= 4 for B(q))")
+
+    if s.distal_kind == "angle":
+        fr = fps or auto_fps(rt)
+        t_f, c_f = E.frames_from_angle(s.distal["t_s"], s.distal["c_deg"], fr)
+        obs = np.column_stack([c_f, np.zeros_like(c_f)])
+        td, td_src = (t_delay_s, "argument") if t_delay_s is not None else (
+            (s.t_delay_s, "session") if s.t_delay_s is not None else (0.0, "angle sensor on the encoder clock"))
+        defaults = {"threshold_floor": 0.01, "threshold_max": 0.1}
+    else:
+        t_f, obs = s.observations()
+        fr = s.camera.fps
+        lost = ~np.all(np.isfinite(obs), axis=1)
+        if lost.mean() > 0.5:
+            raise InputError(Path(s.path or ".") / "marker.csv", f"marker lost in {lost.mean():.0%} of the frames")
+        if t_delay_s is not None:
+            td, td_src = t_delay_s, "argument"
+        elif s.t_delay_s is not None:
+            td, td_src = s.t_delay_s, "session"
+        else:
+            td, td_src = E.estimate_t_delay(t_enc, q, t_f, obs), "estimated (speed cross-correlation)"
+        defaults = {}
+    cfg = E.OnsetConfig(t_delay_s=td, fps=fr, **{**defaults, **(onset_cfg or {})})
+    on = E.run_onsets(t_enc, q, rt, rq, t_f, obs, s.distal_kind, cfg)
+    B, w = E.fit_backlash(on.q_mean, on.b, n_ctrl, source=src)
+
+    # c per frame: the sensor, or LM pose estimation through h(g(c)) (eqs. 6-8).
+    if s.distal_kind == "angle":
+        c_f = obs[:, 0]
+        lm = None
+    else:
+        im = model.ImageModel(s.robot, s.camera, s.hand_eye)
+        q_f = np.interp(t_f - td, t_enc, q)
+        c_f, res = im.estimate_c(obs, model.f_coarse(q_f, s.robot.q_per_rad))
+        lm = {"residual_px_median": float(np.nanmedian(res)), "residual_px_max": float(np.nanmax(res))}
+    q_c, c_c = E.characteristic(t_enc, q, t_f, c_f, td)
+    fits = {}
+    fits["lsq"] = E.f_remain_lsq(q_c, c_c, B, n_ctrl)[:2]
+    fits["morph"] = E.f_remain_morph(q_c, c_c, n_ctrl)[:2]
+    if f_method not in fits:
+        raise ValueError(f"f_method must be 'lsq' or 'morph', not {f_method!r}")
+    f, sign = fits[f_method]
+    alt = "morph" if f_method == "lsq" else "lsq"
+    doc = {
+        "format": FORMAT, "actuator_unit": s.actuator_unit, "source": src,
+        "q_range": [float(q.min()), float(q.max())],
+        "t_delay_s": float(td), "t_delay_source": td_src, "fps_frames": float(fr),
+        "reversal_hysteresis": float(hyst), "reversals": int(rt.size),
+        "onset": {"config": cfg.effective(), "reasons": on.reasons},
+        "b_samples": {"t1_s": on.t1_s, "t2_s": on.t2_s, "q1": on.q1, "q2": on.q2, "q_mean": on.q_mean,
+                      "b": on.b, "weight": w},
+        "B": B.to_json(),
+        "f_remain": {**f.to_json(), "sign": sign, "method": f_method},
+        "f_remain_alt": {**fits[alt][0].to_json(), "sign": fits[alt][1], "method": alt},
+        "f_coarse": {"q_per_rad": s.robot.q_per_rad},
+        "pose_estimation": lm,
+    }
+    from .commands.common import _plain
+
+    return Calibration(B, f, sign, s.robot.q_per_rad, _plain(doc))

@@ -1,0 +1,46 @@
+"""`playscope calibrate`: session -> calibration JSON (B(q) spline, f_remain)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..calibration import calibrate
+from ..session import load_session
+from .common import add_json_arg, dump_json
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("calibrate", help="estimate B(q) and f_remain from a session",
+                       description="Paper Fig. 4: reversals -> motion onsets (the firmware's C detector, eq. 1) "
+                       "-> B(q) robust cubic B-spline (N control points) -> f_remain (play-consistent least "
+                       "squares, or the paper's morphological median line) -> calibration JSON "
+                       "(docs/calibration-format.md). Example: playscope calibrate sessions/d21 -o d21.cal.json")
+    p.add_argument("session", help="session folder (playscope-session/1)")
+    p.add_argument("-o", "--out", required=True, help="calibration JSON to write")
+    p.add_argument("-N", "--control-points", type=int, default=14, help="B-spline control points (paper: 14)")
+    p.add_argument("--f-method", choices=["lsq", "morph"], default="lsq",
+                   help="f_remain estimator: lsq (default, play-consistent) or morph (paper, section IV)")
+    p.add_argument("--fps", type=float, help="frame rate for angle sessions (default: ~125 frames per stroke, 10-50 Hz)")
+    p.add_argument("--t-delay", type=float, help="image delay t_delay in s (default: session.json, else estimated)")
+    p.add_argument("--hysteresis", type=float, help="reversal detection hysteresis, actuator units (default 1%% of travel)")
+    p.add_argument("--threshold", type=float, help="onset threshold T per frame (px or deg); default automatic")
+    add_json_arg(p, "calibration (path), reversals, b_samples, onset_reasons {name: count}, t_delay_s, "
+                 "fps_frames, B_range [min,max], rms_fit_deg")
+    p.set_defaults(func=run)
+
+
+def run(a) -> int:
+    s = load_session(a.session)
+    ov = {"threshold": a.threshold} if a.threshold is not None else None
+    cal = calibrate(s, a.control_points, a.f_method, a.fps, a.t_delay, a.hysteresis, ov)
+    cal.save(a.out)
+    d = cal.doc
+    g = np.linspace(*d["q_range"], 200)
+    b = cal.B(g)
+    print(f"{a.out}: {len(d['b_samples']['b'])} B samples from {d['reversals']} reversals "
+          f"({', '.join(f'{k} {v}' for k, v in d['onset']['reasons'].items() if v)}); "
+          f"B {b.min():.3g}..{b.max():.3g} {d['actuator_unit']}, t_delay {d['t_delay_s']:.3f} s")
+    dump_json(a.json, {"calibration": a.out, "reversals": d["reversals"], "b_samples": len(d["b_samples"]["b"]),
+                       "onset_reasons": d["onset"]["reasons"], "t_delay_s": d["t_delay_s"],
+                       "fps_frames": d["fps_frames"], "B_range": [float(b.min()), float(b.max())]})
+    return 0

@@ -1,0 +1,24 @@
+"""`playscope evaluate-real`: acceptance tables on the real catheter recordings."""
+
+from __future__ import annotations
+
+from ..realeval import evaluate_real, format_tables
+from .common import add_json_arg, dump_json, progress
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("evaluate-real", help="in situ and across-session RMSE tables on the catheter recordings",
+                       description="Fits linear, constant play + degree-5 polynomial, ours (onset B(q) + "
+                       "play-consistent f_remain) and paper (onset B(q) + morphological f_remain) and prints "
+                       "two Markdown tables of bending-angle RMSE (deg). The recordings are read in place. "
+                       "Example: playscope evaluate-real ../shared/data/real/catheter")
+    p.add_argument("folder", help="folder holding data_2_*.txt")
+    add_json_arg(p, "in_situ {file: {model: rmse_deg}}, across {file: {model: rmse_deg}}, b_samples {file: n}")
+    p.set_defaults(func=run)
+
+
+def run(a) -> int:
+    res = evaluate_real(a.folder, progress=lambda it, **kw: progress(it, **kw))
+    print(format_tables(res))
+    dump_json(a.json, res)
+    return 0

@@ -1,0 +1,391 @@
+"""Parametric model of the bending DOF used by the diagnosis: play of width B(q) (eq. 3) then
+f_remain, plus any subset of the effect library, fitted by least squares on part of a session.
+
+The fitted quantity is the configuration c in deg (measured by an angle sensor, or estimated
+per frame from the marker by eq. 8 with the session's nominal camera and hand-eye). Linear
+parts are solved exactly for each value of the nonlinear ones (variable projection):
+  c(t) = sum_j a_j P_j(x(t)) + r_drift (t - t_mid)/60 + delta s(t)
+where P_j are cubic B-splines (8 interior knots) of the normalised play output after the play-stage
+and distal effects, x = (z' - q_mid)/q_half, s(t) = direction of distal motion (held sign of
+dz/dt), with an elongation low-pass and the extra delay applied to the basis columns.
+Nonlinear parameters: B at 7 knots (mm, piecewise linear in q) and those of the effects on.
+
+Units: q, z, B in actuator units (mm); c in deg; t in s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.optimize import least_squares
+
+from ..sim.core import lowpass
+
+N_KNOTS = 7
+N_FKNOTS = 8   # interior knots of the cubic B-spline f_remain
+INTERNAL_HZ = 50.0
+
+# Nonlinear parameters of each effect in the diagnostic model: (name, init, lo, hi); the scales
+# that depend on the data (q range) are filled by Data.bounds(). Linear ones are listed apart.
+NONLIN = {
+    "asymmetric_backlash": [("alpha", 0.0, -0.8, 0.8)],
+    "smooth_transition": [("spread", 0.5, 0.0, 0.95)],
+    "dead_zone": [("w_q", None, 0.0, None), ("z0_q", None, None, None)],
+    "stick_slip": [("step_q", None, 0.0, None)],
+    "cable_elongation": [("kappa", 0.3, 0.0, 0.95), ("log_tau", 0.0, np.log(0.05), np.log(10.0))],
+    "camera_delay": [("delay_s", 0.0, -0.2, 0.5)],
+    "handeye_direction": [],
+    "drift": [],
+}
+LINEAR = {"handeye_direction": "delta_deg", "drift": "rate_deg_per_min"}
+C_LIBRARY = list(NONLIN)  # effects visible in a record of c
+
+
+@dataclass
+class Data:
+    """A session reduced to what the model needs.
+
+    t_int, q_int: (Ni,) actuator log resampled at INTERNAL_HZ; t_m, y_m: (Nm,) measurement
+    times (s, stamped) and c (deg); t_delay_s: declared acquisition delay; extra: per-frame
+    image data (u, v, reprojection residual) for image sessions.
+    """
+
+    t_int: np.ndarray
+    q_int: np.ndarray
+    t_m: np.ndarray
+    y_m: np.ndarray
+    t_delay_s: float = 0.0
+    name: str = ""
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def q_lo(self):
+        return float(np.min(self.q_int))
+
+    @property
+    def q_hi(self):
+        return float(np.max(self.q_int))
+
+
+def knots(data: Data) -> np.ndarray:
+    return np.linspace(data.q_lo, data.q_hi, N_KNOTS)
+
+
+@dataclass
+class Fit:
+    """Result of fitting one model (a set of effects) on the rows ``fit_mask`` of a Data."""
+
+    effects: tuple
+    theta: np.ndarray          # nonlinear parameters (B knots, then effects in NONLIN order)
+    names: list
+    coef: np.ndarray           # linear coefficients (B-spline f_remain, then drift/handeye columns)
+    coef_names: list
+    pred: np.ndarray           # (Nm,) predicted c, deg, on every row
+    rss: float
+    n_fit: int
+    n_eff: float
+    k: int
+    cov_theta: np.ndarray | None = None
+    cov_coef: np.ndarray | None = None
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion on the fit rows with the effective sample size (the
+        residuals are autocorrelated, so n_eff < n keeps the penalty honest)."""
+        return self.n_eff * np.log(self.rss / self.n_fit) + self.k * np.log(self.n_eff)
+
+    def rmse(self, y: np.ndarray, mask: np.ndarray) -> float:
+        r = (y - self.pred)[mask]
+        r = r[np.isfinite(r)]
+        return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
+
+    def params(self) -> dict[str, tuple[float, float]]:
+        """{name: (value, 1-sigma)} for every parameter (nonlinear and named linear ones)."""
+        out = {}
+        sd = np.sqrt(np.diag(self.cov_theta)) if self.cov_theta is not None else np.full(len(self.theta), np.nan)
+        for n, v, s in zip(self.names, self.theta, sd):
+            out[n] = (float(v), float(s))
+        sdc = np.sqrt(np.diag(self.cov_coef)) if self.cov_coef is not None else np.full(len(self.coef), np.nan)
+        for n, v, s in zip(self.coef_names, self.coef, sdc):
+            if not n.startswith("P"):
+                out[n] = (float(v), float(s))
+        return out
+
+
+def _play(lo: list, hi: list, z0: float) -> np.ndarray:
+    """Play operator on precomputed band edges (eq. 3 with B evaluated at q): z stays where it
+    is unless pushed by an edge. lo, hi: lists (Python floats are ~5x faster here than numpy
+    scalars). Returns z (N,)."""
+    out = [0.0] * len(lo)
+    p = z0
+    for k in range(len(lo)):
+        a = lo[k]
+        if p < a:
+            p = a
+        else:
+            b = hi[k]
+            if p > b:
+                p = b
+        out[k] = p
+    return np.asarray(out)
+
+
+def _hold(z: np.ndarray, step: float) -> np.ndarray:
+    out = [0.0] * z.size
+    held = float(z[0])
+    for k, v in enumerate(z.tolist()):
+        if v - held >= step or held - v >= step:
+            held = v
+        out[k] = held
+    return np.asarray(out)
+
+
+def _direction(z: np.ndarray) -> np.ndarray:
+    d = np.diff(z, prepend=z[:1])
+    d = np.where(np.abs(d) > 1e-12, np.sign(d), 0.0)
+    idx = np.where(d != 0, np.arange(d.size), 0)
+    np.maximum.accumulate(idx, out=idx)
+    s = d[idx]
+    s[s == 0] = 1.0
+    return s
+
+
+class Model:
+    """The diagnostic model for one Data and one set of effects (names from C_LIBRARY)."""
+
+    def __init__(self, data: Data, effects=()):
+        self.d = data
+        self.effects = tuple(e for e in C_LIBRARY if e in effects)
+        span = data.q_hi - data.q_lo
+        self.q_mid = 0.5 * (data.q_hi + data.q_lo)
+        self.q_half = max(0.5 * span, 1e-9)
+        self.kn = knots(data)
+        self.zk = np.r_[self.kn[0] - 10 * span - 1, self.kn, self.kn[-1] + 10 * span + 1]
+        names, init, lo, hi = [], [], [], []
+        for i in range(N_KNOTS):
+            names.append(f"B{i}_q")
+            init.append(0.1 * span)
+            lo.append(0.0)
+            hi.append(0.6 * span)
+        for e in self.effects:
+            for (n, v0, l, h) in NONLIN[e]:
+                if n == "w_q":
+                    v0, h = 0.03 * span, 0.3 * span
+                elif n == "z0_q":
+                    v0, l, h = data.q_lo + 0.2 * span, data.q_lo - 0.1 * span, data.q_hi + 0.1 * span
+                elif n == "step_q":
+                    v0, h = 0.01 * span, 0.2 * span
+                names.append(f"{e}.{n}")
+                init.append(v0)
+                lo.append(l)
+                hi.append(h)
+        self.names, self.init = names, np.array(init, float)
+        self.lo, self.hi = np.array(lo, float), np.array(hi, float)
+        inner = np.linspace(-1, 1, N_FKNOTS + 2)
+        self.ftk = np.r_[[-1.5] * 4, inner[1:-1], [1.5] * 4]
+        self.coef_names = [f"P{j}" for j in range(self.ftk.size - 4)]
+        if "drift" in self.effects:
+            self.coef_names.append("drift.rate_deg_per_min")
+        if "handeye_direction" in self.effects:
+            self.coef_names.append("handeye_direction.delta_deg")
+
+    @staticmethod
+    def _edge(zk: np.ndarray, half: np.ndarray):
+        """(xp, fp) for np.interp inverting q = z + half(z), half given at the knots and held
+        beyond them; xp is made non-decreasing so an over-steep B cannot break np.interp."""
+        h = np.r_[half[0], half, half[-1]]
+        xp = np.maximum.accumulate(zk + h)
+        return xp, zk
+
+    def _get(self, theta, e, n):
+        return float(theta[self.names.index(f"{e}.{n}")])
+
+    def design(self, theta: np.ndarray) -> np.ndarray:
+        """Design matrix (Nm, n_coef) at the measurement rows for nonlinear parameters theta."""
+        d = self.d
+        q = d.q_int
+        Bk = np.maximum(theta[:N_KNOTS], 0.0)
+        alpha = self._get(theta, "asymmetric_backlash", "alpha") if "asymmetric_backlash" in self.effects else 0.0
+        z0 = float(q[0])
+        widths = [1.0]
+        if "smooth_transition" in self.effects:
+            s = self._get(theta, "smooth_transition", "spread")
+            widths = list(1 + s * np.linspace(-1, 1, 5))
+        zs = []
+        for r in widths:
+            # Band edges as in playscope.model (z + B(z)/2 = q going up, z - B(z)/2 = q going
+            # down); B piecewise linear in z, so both inverses are piecewise linear: np.interp.
+            zu = np.interp(q, *self._edge(self.zk, (1 + alpha) * r * Bk / 2))
+            zd = np.interp(q, *self._edge(self.zk, -(1 - alpha) * r * Bk / 2))
+            zs.append(_play(zu.tolist(), zd.tolist(), z0))
+        z = zs[0] if len(zs) == 1 else np.mean(zs, axis=0)
+        sdir = _direction(z)
+        if "dead_zone" in self.effects:
+            w = self._get(theta, "dead_zone", "w_q")
+            zc = self._get(theta, "dead_zone", "z0_q")
+            z = z - np.clip(z - zc, -w, w)
+        if "stick_slip" in self.effects:
+            z = _hold(z, max(self._get(theta, "stick_slip", "step_q"), 1e-9))
+        x = np.clip((z - self.q_mid) / self.q_half, -1.5, 1.5)
+        Phi = BSpline.design_matrix(x, self.ftk, 3).toarray()
+        if "cable_elongation" in self.effects:
+            kappa = self._get(theta, "cable_elongation", "kappa")
+            tau = np.exp(self._get(theta, "cable_elongation", "log_tau"))
+            lp = np.column_stack([lowpass(Phi[:, j], tau, INTERNAL_HZ) for j in range(Phi.shape[1])])
+            Phi = Phi + kappa * (lp - Phi)
+        delay = d.t_delay_s + (self._get(theta, "camera_delay", "delay_s") if "camera_delay" in self.effects else 0.0)
+        tq = d.t_m - delay
+        cols = [np.interp(tq, d.t_int, Phi[:, j]) for j in range(Phi.shape[1])]
+        if "drift" in self.effects:
+            cols.append((d.t_m - 0.5 * (d.t_m[0] + d.t_m[-1])) / 60.0)
+        if "handeye_direction" in self.effects:
+            idx = np.clip(np.searchsorted(d.t_int, tq) - 1, 0, d.t_int.size - 1)
+            cols.append(sdir[idx])
+        return np.column_stack(cols)
+
+    def _solve(self, theta, mask):
+        A = self.design(theta)
+        y = self.d.y_m
+        m = mask & np.isfinite(y)
+        coef, *_ = np.linalg.lstsq(A[m], y[m], rcond=None)
+        return A, coef, m
+
+    def residual(self, theta, mask):
+        A, coef, m = self._solve(theta, mask)
+        return self.d.y_m[m] - A[m] @ coef
+
+    def fit(self, mask: np.ndarray, theta0: np.ndarray | None = None, grid: bool = True,
+            uncertainty: bool = True) -> Fit:
+        """Least-squares fit on rows ``mask`` (bool (Nm,)). theta0: start (default: init, with a
+        small grid over the effect parameters that have several local minima)."""
+        th = self.init.copy() if theta0 is None else np.clip(np.asarray(theta0, float), self.lo, self.hi)
+        starts = [th]
+        if grid and theta0 is not None:
+            starts = self._grid(th)
+        elif grid:
+            starts = self._grid(th)
+        best = None
+        for s in starts:
+            c = float(np.sum(self.residual(s, mask) ** 2))
+            if best is None or c < best[0]:
+                best = (c, s)
+        th = best[1]
+        # stick-slip's step is piecewise constant in theta: FD gradients are zero, so it is
+        # chosen on the grid above and held fixed in the local refinement.
+        free = np.ones(th.size, bool)
+        for i, n in enumerate(self.names):
+            if n.endswith("step_q"):
+                free[i] = False
+        def fun(p):
+            full = th.copy()
+            full[free] = p
+            return self.residual(full, mask)
+        lo, hi = self.lo[free], self.hi[free]
+        p0 = np.clip(th[free], lo + 1e-12, hi - 1e-12)
+        res = least_squares(fun, p0, bounds=(lo, hi), diff_step=1e-3, x_scale="jac", max_nfev=60 * (1 + free.sum()))
+        th = th.copy()
+        th[free] = res.x
+        A, coef, m = self._solve(th, mask)
+        r = self.d.y_m[m] - A[m] @ coef
+        n = int(m.sum())
+        rho = float(np.corrcoef(r[:-1], r[1:])[0, 1]) if n > 3 else 0.0
+        rho = min(max(rho, 0.0), 0.98)
+        n_eff = max(n * (1 - rho) / (1 + rho), 10.0)
+        rss = float(np.sum(r * r))
+        k = int(free.sum()) + A.shape[1]
+        pred = A @ coef
+        fit = Fit(self.effects, th, list(self.names), coef, list(self.coef_names), pred, rss, n, n_eff, k)
+        if uncertainty:
+            s2 = rss / max(n - k, 1) * n / n_eff  # inflate for autocorrelated residuals
+            J = res.jac
+            cov_free = np.full((free.sum(), free.sum()), np.nan)
+            try:
+                cov_free = np.linalg.pinv(J.T @ J) * s2
+            except np.linalg.LinAlgError:
+                pass
+            cov = np.full((th.size, th.size), np.nan)
+            cov[np.ix_(free, free)] = cov_free
+            fit.cov_theta = cov
+            try:
+                fit.cov_coef = np.linalg.pinv(A[m].T @ A[m]) * s2
+            except np.linalg.LinAlgError:
+                pass
+        return fit
+
+    def _grid(self, th: np.ndarray) -> list[np.ndarray]:
+        """Starting points: th plus a small grid over multi-modal effect parameters."""
+        starts = [th]
+        span = self.d.q_hi - self.d.q_lo
+        for e in self.effects:
+            new = []
+            for s in starts:
+                if e == "dead_zone":
+                    for zc in np.linspace(self.d.q_lo + 0.05 * span, self.d.q_hi - 0.05 * span, 7):
+                        for w in (0.03 * span, 0.08 * span):
+                            x = s.copy()
+                            x[self.names.index("dead_zone.z0_q")] = zc
+                            x[self.names.index("dead_zone.w_q")] = w
+                            new.append(x)
+                elif e == "stick_slip":
+                    for st in span * np.array([0.003, 0.006, 0.01, 0.015, 0.02, 0.03, 0.045, 0.06]):
+                        x = s.copy()
+                        x[self.names.index("stick_slip.step_q")] = st
+                        new.append(x)
+                elif e == "cable_elongation":
+                    for lt in np.log([0.2, 1.0, 4.0]):
+                        x = s.copy()
+                        x[self.names.index("cable_elongation.log_tau")] = lt
+                        new.append(x)
+                elif e == "smooth_transition":
+                    for sp in (0.3, 0.7):
+                        x = s.copy()
+                        x[self.names.index("smooth_transition.spread")] = sp
+                        new.append(x)
+                elif e == "camera_delay":
+                    for dl in (-0.04, 0.04, 0.1):
+                        x = s.copy()
+                        x[self.names.index("camera_delay.delay_s")] = dl
+                        new.append(x)
+                else:
+                    new.append(s)
+            starts = new if new else starts
+        return starts
+
+
+def from_session(session, max_rate_hz: float = 50.0) -> Data:
+    """Reduce a playscope Session to Data: c measured (angle) or estimated per frame (eq. 8 with
+    the nominal camera and hand-eye, started from f_coarse(q)). Angle records faster than
+    max_rate_hz are block-averaged down (the fit needs shape, not rate)."""
+    from ..model import ImageModel, f_coarse
+
+    enc = session.encoder
+    t, q = enc["t_s"], enc["q"]
+    t_int = np.arange(t[0], t[-1], 1.0 / INTERNAL_HZ)
+    q_int = np.interp(t_int, t, q)
+    delay = float(session.t_delay_s or 0.0)
+    extra = {}
+    if session.distal_kind == "angle":
+        tm, y = session.distal["t_s"], session.distal["c_deg"]
+        rate = (tm.size - 1) / max(tm[-1] - tm[0], 1e-9)
+        k = int(rate // max_rate_hz)
+        if k > 1:
+            n = (tm.size // k) * k
+            tm = tm[:n].reshape(-1, k).mean(1)
+            y = y[:n].reshape(-1, k).mean(1)
+        extra["raw"] = (session.distal["t_s"], session.distal["c_deg"])
+    else:
+        tm = session.marker["t_s"]
+        Q = np.column_stack([session.marker["u_px"], session.marker["v_px"]])
+        im = ImageModel(session.robot, session.camera, session.hand_eye)
+        c0 = f_coarse(np.interp(tm - delay, t, q), session.robot.q_per_rad)
+        # Start from a coarse grid search so a poor f_coarse cannot send LM to a wrong branch.
+        grid = np.linspace(-150, 150, 601)
+        G = im(grid)
+        ok = np.all(np.isfinite(G), 1)
+        d2 = ((Q[:, None, :] - G[None, ok, :]) ** 2).sum(-1)
+        c0 = np.where(np.all(np.isfinite(Q), 1), grid[ok][np.argmin(np.nan_to_num(d2, nan=1e18), 1)], c0)
+        y, res = im.estimate_c(Q, c0)
+        extra.update({"u": Q[:, 0], "v": Q[:, 1], "reproj_px": res, "J": im.jacobian(np.nan_to_num(y))})
+    return Data(t_int, q_int, tm, y, delay, str(session.path or ""), extra)

@@ -1,0 +1,457 @@
+"""The estimation chain of Fig. 4: reversals, motion onsets (C detector), B(q) spline,
+f_remain (paper's morphological median line, or play-consistent least squares).
+
+Units: t in s, q and B in actuator units, c in deg, image points in px.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.optimize import lsq_linear
+
+from . import model
+from .errors import InputError
+from .native import core, from_q16, to_q16
+
+ONSET_REASONS = ["ok", "ok_coarse", "marker_lost", "reversal", "timeout", "history_wrapped",
+                 "history_missing", "no_still"]
+
+
+# --------------------------------------------------------------------------- reversals
+def detect_reversals(t: np.ndarray, q: np.ndarray, hysteresis: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Direction changes of q with hysteresis (section III-A, t1 and q1 of eq. 1).
+
+    A reversal is the last extremum of q before q has moved back from it by more than
+    ``hysteresis`` (actuator units), so encoder noise and dwell do not count. t, q: (N,).
+    Returns (t1 (M,), q1 (M,), new_dir (M,) of +1/-1). Uses q_cmd when given it instead of q.
+    """
+    t = np.asarray(t, float)
+    q = np.asarray(q, float)
+    t1, q1, dirs = [], [], []
+    d = 0
+    ext_i = 0
+    for i in range(1, q.size):  # one pass; run once per session
+        if d == 0:
+            if q[i] - q[0] > hysteresis:
+                d, ext_i = 1, i
+            elif q[0] - q[i] > hysteresis:
+                d, ext_i = -1, i
+            continue
+        if d > 0:
+            if q[i] >= q[ext_i]:
+                ext_i = i
+            elif q[ext_i] - q[i] > hysteresis:
+                t1.append(t[ext_i]); q1.append(q[ext_i]); dirs.append(-1)
+                d, ext_i = -1, i
+        else:
+            if q[i] <= q[ext_i]:
+                ext_i = i
+            elif q[i] - q[ext_i] > hysteresis:
+                t1.append(t[ext_i]); q1.append(q[ext_i]); dirs.append(1)
+                d, ext_i = 1, i
+    return np.array(t1), np.array(q1), np.array(dirs, int)
+
+
+# --------------------------------------------------------------------------- frames
+def frames_from_angle(t: np.ndarray, c: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Decimate a high-rate angle log into camera-like frames by block averaging.
+
+    At ~500 Hz the motion per sample is below the sensor noise, so a per-frame threshold
+    needs frames of 25-50 Hz; the average over each frame period (like an exposure) also
+    lowers the noise by sqrt(samples per frame). Time of a frame = mean time of its block.
+    NaN samples are ignored; a block with none valid is a lost frame. Returns (t_f, c_f).
+    """
+    t = np.asarray(t, float)
+    idx = np.floor((t - t[0]) * fps).astype(np.int64)
+    n = int(idx[-1]) + 1
+    ok = np.isfinite(c)
+    cnt = np.bincount(idx[ok], minlength=n).astype(float)
+    s_c = np.bincount(idx[ok], weights=c[ok], minlength=n)
+    s_t = np.bincount(idx, weights=t, minlength=n)
+    cnt_t = np.bincount(idx, minlength=n)
+    keep = cnt_t > 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tf = s_t[keep] / cnt_t[keep]
+        cf = np.where(cnt[keep] > 0, s_c[keep] / np.maximum(cnt[keep], 1), np.nan)
+    return tf, cf
+
+
+def estimate_t_delay(t_enc: np.ndarray, q: np.ndarray, t_f: np.ndarray, obs: np.ndarray,
+                     max_delay_s: float = 0.5) -> float:
+    """t_delay (s) maximising the correlation of actuator speed |dq/dt| (shifted) with image
+    speed |dQ/dt|, both on the frame clock. Onsets happen where both start from zero, so
+    the speed magnitudes line up at the true delay even though the gains differ.
+    obs: (N, 2) px or (N, 2) with deg in column 0. Returns a delay in [0, max_delay_s]."""
+    ok = np.all(np.isfinite(obs), axis=1)
+    tf, o = t_f[ok], obs[ok]
+    if tf.size < 10:
+        return 0.0
+    sp_img = np.linalg.norm(np.diff(o, axis=0), axis=1) / np.diff(tf)
+    tm = 0.5 * (tf[1:] + tf[:-1])
+    period = float(np.median(np.diff(tf)))
+    lags = np.arange(0.0, max_delay_s + 1e-12, min(period / 8, 0.005))
+    best, best_lag = -np.inf, 0.0
+    a = sp_img - sp_img.mean()
+    for lag in lags:
+        qa = np.interp(tf - lag, t_enc, q)
+        sp_q = np.abs(np.diff(qa)) / np.diff(tf)
+        b = sp_q - sp_q.mean()
+        r = float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b) + 1e-300))
+        if r > best:
+            best, best_lag = r, float(lag)
+    return best_lag
+
+
+# --------------------------------------------------------------------------- onsets (C)
+@dataclass
+class OnsetConfig:
+    """Host view of onset_config_t (firmware/core/onset.h); units s, and px or deg per frame.
+
+    None keeps the C default (onset_default_config()), so the firmware's defaults are
+    defined once, in C. threshold 0 = automatic from the measured still noise (T = k *
+    rms frame-to-frame motion while still), bounded by threshold_floor and threshold_max.
+    """
+
+    t_delay_s: float = 0.08
+    fps: float = 25.0
+    threshold: float | None = None
+    threshold_floor: float | None = None
+    threshold_max: float | None = None
+    noise_k: float | None = None
+    settle_frames: int | None = None
+    max_lost_frames: int | None = None
+    timeout_s: float | None = None
+
+    def to_c(self, ffi, lib):
+        """onset_config_t with the overrides applied (fields the header lacks are skipped)."""
+        c = lib.onset_default_config()
+        fields = {f for f, _ in ffi.typeof("onset_config_t").fields}
+        conv = {
+            "t_delay_us": (self.t_delay_s, lambda x: int(round(x * 1e6))),
+            "frame_period_us": (self.fps, lambda x: max(1, int(round(1e6 / x)))),
+            "threshold_q16": (self.threshold, lambda x: int(to_q16(x))),
+            "threshold_floor_q16": (self.threshold_floor, lambda x: int(to_q16(x))),
+            "threshold_max_q16": (self.threshold_max, lambda x: int(to_q16(x))),
+            "noise_k2_q16": (self.noise_k, lambda x: int(round(x * x * 65536))),
+            "settle_frames": (self.settle_frames, int),
+            "max_lost_frames": (self.max_lost_frames, int),
+            "timeout_us": (self.timeout_s, lambda x: int(round(x * 1e6))),
+        }
+        for name, (val, fn) in conv.items():
+            if val is not None and name in fields:
+                setattr(c, name, fn(val))
+        return c
+
+    def effective(self) -> dict:
+        """The configuration the C detector runs with, in host units (for the calibration file)."""
+        ffi, lib = core()
+        c = self.to_c(ffi, lib)
+        out = {}
+        for f, _ in ffi.typeof("onset_config_t").fields:
+            v = getattr(c, f)
+            if f.endswith("_q16") and f != "noise_k2_q16":
+                out[f[:-4]] = v / 65536.0
+            elif f.endswith("_us"):
+                out[f[:-3] + "_s"] = v / 1e6
+            elif f == "noise_k2_q16":
+                out["noise_k"] = float(np.sqrt(v / 65536.0))
+            else:
+                out[f] = int(v)
+        return out
+
+
+@dataclass
+class Onsets:
+    """B samples of eq. 1 from the C detector. Arrays (M,), one per reversal that ended
+    with a sample; ``reasons`` counts every reversal's outcome by name."""
+
+    t1_s: np.ndarray
+    t2_s: np.ndarray
+    q1: np.ndarray
+    q2: np.ndarray
+    q_mean: np.ndarray
+    b: np.ndarray
+    reasons: dict[str, int] = field(default_factory=dict)
+
+
+def run_onsets(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.ndarray,
+               t_f: np.ndarray, obs: np.ndarray, kind: str, cfg: OnsetConfig) -> Onsets:
+    """Feed a session through the firmware's onset detector in time order.
+
+    Per encoder sample onset_tick(), at each reversal onset_reversal(), per frame
+    onset_observe_px() / onset_observe_deg() (kind "image" / "angle"), exactly as the
+    board does on-line. obs: (F, 2) px, or deg in column 0; NaN = lost. The encoder log
+    is thinned to <= 1 kHz because the detector keeps ENC_HIST_LEN samples, which must
+    span t_delay plus a frame. Times become uint32 microseconds from the first sample.
+    """
+    ffi, lib = core()
+    t_enc = np.asarray(t_enc, float)
+    hist_len = 1024
+    rate = (t_enc.size - 1) / max(t_enc[-1] - t_enc[0], 1e-9)
+    span_needed = cfg.t_delay_s + 3.0 / cfg.fps
+    if rate * span_needed > hist_len / 2:
+        step = int(np.ceil(rate * span_needed / (hist_len / 2)))
+        keep = np.zeros(t_enc.size, bool)
+        keep[::step] = True
+        keep[np.searchsorted(t_enc, rev_t)] = True  # keep the reversal samples exactly
+        t_enc, q = t_enc[keep], q[keep]
+    t0 = min(t_enc[0], t_f[0] if t_f.size else t_enc[0]) - 1e-3
+    us = lambda x: np.round((np.asarray(x, float) - t0) * 1e6).astype(np.int64)
+    te_us, tr_us, tf_us = us(t_enc), us(rev_t), us(t_f)
+    if max(te_us[-1], tf_us[-1] if tf_us.size else 0) >= 2**32:
+        raise InputError(None, "session longer than 71 min: split it (uint32 microsecond clock)")
+    q_raw = to_q16(q)
+    rq_raw = to_q16(rev_q)
+    ok = np.all(np.isfinite(obs), axis=1)
+    o_raw = to_q16(np.where(np.isfinite(obs), obs, 0.0))
+    # Merge: at equal times tick, then reversal, then frame.
+    times = np.concatenate([te_us, tr_us, tf_us])
+    kinds = np.concatenate([np.zeros(te_us.size, np.int8), np.ones(tr_us.size, np.int8), np.full(tf_us.size, 2, np.int8)])
+    idx = np.concatenate([np.arange(te_us.size), np.arange(tr_us.size), np.arange(tf_us.size)])
+    order = np.lexsort((kinds, times))
+    o = ffi.new("onset_t *")
+    lib.onset_init(o, ffi.new("onset_config_t *", cfg.to_c(ffi, lib)))
+    ev = ffi.new("onset_event_t *")
+    out = []
+    reasons = {r: 0 for r in ONSET_REASONS}
+    tick, rev = lib.onset_tick, lib.onset_reversal
+    obs_px, obs_deg = lib.onset_observe_px, lib.onset_observe_deg
+    times_l, kinds_l, idx_l = times[order].tolist(), kinds[order].tolist(), idx[order].tolist()
+    q_l, rq_l = q_raw.tolist(), rq_raw.tolist()
+    u_l, v_l, ok_l = o_raw[:, 0].tolist(), o_raw[:, 1].tolist(), ok.tolist()
+    angle = kind == "angle"
+    for tt, k, i in zip(times_l, kinds_l, idx_l):
+        if k == 0:
+            hit = tick(o, tt, q_l[i], ev)
+        elif k == 1:
+            hit = rev(o, tt, rq_l[i], ev)
+        elif angle:
+            hit = obs_deg(o, tt, u_l[i], ok_l[i], ev)
+        else:
+            hit = obs_px(o, tt, u_l[i], v_l[i], ok_l[i], ev)
+        if hit:
+            reasons[ONSET_REASONS[ev.reason]] += 1
+            if ev.reason in (lib.ONSET_OK, lib.ONSET_OK_COARSE):
+                out.append((ev.t1_us, ev.t2_us, ev.q1_q16, ev.q2_q16, ev.q_mean_q16, ev.b_q16))
+    a = np.array(out, dtype=np.int64).reshape(-1, 6)
+    ts = lambda x: x.astype(float) / 1e6 + t0
+    return Onsets(ts(a[:, 0]), ts(a[:, 1]), from_q16(a[:, 2]), from_q16(a[:, 3]), from_q16(a[:, 4]),
+                  from_q16(a[:, 5]), reasons)
+
+
+# --------------------------------------------------------------------------- B spline
+def clamped_knots(lo: float, hi: float, n_ctrl: int, degree: int = 3) -> np.ndarray:
+    """Knot vector of a clamped B-spline with n_ctrl control points spread evenly over
+    [lo, hi]: degree+1 repeated knots at each end and n_ctrl-degree-1 interior ones."""
+    inner = np.linspace(lo, hi, n_ctrl - degree + 1)
+    return np.concatenate([[lo] * degree, inner, [hi] * degree])
+
+
+def _diff_penalty(n: int, order: int = 2) -> np.ndarray:
+    return np.diff(np.eye(n), order, axis=0)
+
+
+def robust_spline(x: np.ndarray, y: np.ndarray, n_ctrl: int, lo: float, hi: float, smooth: float = 1e-3,
+                  monotone: int = 0, iters: int = 15, huber_k: float = 1.345):
+    """Robust cubic B-spline fit y ~ s(x) with n_ctrl control points on [lo, hi].
+
+    Least squares with a small second-difference penalty on the coefficients (P-spline,
+    Eilers & Marx) so that sparse samples (few reversals) still give a well-posed fit,
+    and iteratively reweighted with Huber weights on a MAD scale so that a spurious onset
+    does not bend the curve. monotone=+1/-1 constrains the coefficients to be
+    non-decreasing/non-increasing (sufficient for a monotone spline), solved by
+    scipy.optimize.lsq_linear. x, y: (M,). Returns (BSpline, weights (M,)).
+    """
+    x = np.asarray(x, float)
+    y = np.asarray(y, float)
+    t = clamped_knots(lo, hi, n_ctrl)
+    A = BSpline.design_matrix(np.clip(x, lo, hi), t, 3).toarray()
+    D = _diff_penalty(n_ctrl)
+    scale_A = np.trace(A.T @ A) / n_ctrl
+    lam = smooth * max(scale_A, 1e-12)
+    w = np.ones(x.size)
+    # Monotone: coef = T @ theta with theta[1:] >= 0 (sign-adjusted cumulative sum).
+    if monotone:
+        T = np.tril(np.ones((n_ctrl, n_ctrl))) * np.where(np.arange(n_ctrl) == 0, 1.0, float(monotone))[None, :]
+        lb = np.r_[-np.inf, np.zeros(n_ctrl - 1)]
+    coef = None
+    for _ in range(iters):
+        sw = np.sqrt(w)
+        M = np.vstack([A * sw[:, None], np.sqrt(lam) * D])
+        rhs = np.r_[y * sw, np.zeros(D.shape[0])]
+        if monotone:
+            th = lsq_linear(M @ T, rhs, bounds=(lb, np.full(n_ctrl, np.inf)), method="bvls").x
+            new = T @ th
+        else:
+            new = np.linalg.lstsq(M, rhs, rcond=None)[0]
+        r = y - A @ new
+        s = 1.4826 * np.median(np.abs(r - np.median(r))) + 1e-12
+        w = np.minimum(1.0, huber_k * s / np.maximum(np.abs(r), 1e-300))
+        if coef is not None and np.max(np.abs(new - coef)) < 1e-10 * (1 + np.max(np.abs(new))):
+            coef = new
+            break
+        coef = new
+    return BSpline(t, coef, 3, extrapolate=False), w
+
+
+class SplineFn:
+    """A spline held constant beyond [lo, hi] (B) or continued linearly with its end
+    slopes (f, so it stays strictly monotone for tables and inverses). Callable on arrays."""
+
+    def __init__(self, spl: BSpline, lo: float, hi: float, linear_ends: bool = False, floor: float | None = None):
+        self.spl, self.lo, self.hi, self.linear_ends, self.floor = spl, lo, hi, linear_ends, floor
+        d = spl.derivative()
+        self.s_lo, self.s_hi = float(d(lo)), float(d(hi - 1e-12 * max(1, abs(hi))))
+        self.y_lo, self.y_hi = float(spl(lo)), float(spl(hi - 1e-12 * max(1, abs(hi))))
+
+    def __call__(self, x):
+        x = np.asarray(x, float)
+        y = self.spl(np.clip(x, self.lo, np.nextafter(self.hi, -np.inf)))
+        if self.linear_ends:
+            y = np.where(x < self.lo, self.y_lo + self.s_lo * (x - self.lo), y)
+            y = np.where(x > self.hi, self.y_hi + self.s_hi * (x - self.hi), y)
+        if self.floor is not None:
+            y = np.maximum(y, self.floor)
+        return y
+
+    def to_json(self) -> dict:
+        return {"kind": "bspline", "degree": 3, "knots": self.spl.t.tolist(), "coef": self.spl.c.tolist(),
+                "range": [self.lo, self.hi], "ends": "linear" if self.linear_ends else "hold",
+                "floor": self.floor}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "SplineFn":
+        spl = BSpline(np.asarray(d["knots"], float), np.asarray(d["coef"], float), int(d["degree"]), extrapolate=False)
+        return cls(spl, d["range"][0], d["range"][1], d.get("ends") == "linear", d.get("floor"))
+
+
+def fit_backlash(q_mean: np.ndarray, b: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3,
+                 q_range: tuple[float, float] | None = None, source: str | None = None, max_slope: float = 1.5):
+    """B(q) from onset samples (section III-B): robust cubic B-spline, N control points.
+
+    N = 14 is the paper's setting; with fewer samples than control points the difference
+    penalty carries the fit (shape between samples is then the smoothest one). Widths are
+    floored at 0. Errors: InputError (naming ``source``) with fewer than 4 samples.
+    Returns (SplineFn, weights (M,)).
+    """
+    if q_mean.size < 4:
+        raise InputError(source, f"only {q_mean.size} valid backlash samples (need >= 4 reversals with a "
+                         f"detected onset); record a longer excitation")
+    lo, hi = (float(np.min(q_mean)), float(np.max(q_mean))) if q_range is None else q_range
+    if hi - lo <= 0:
+        raise InputError(source, "all backlash samples at the same actuator position")
+    # |B'| < 2 is physical (eq. 2: the envelopes would fold back) and the firmware's
+    # loader refuses steeper tables; sparse samples can make the spline wiggle that much,
+    # so the smoothing penalty is raised tenfold until the slope is below max_slope.
+    grid = np.linspace(lo, hi, 2001)
+    for _ in range(10):
+        spl, w = robust_spline(q_mean, b, n_ctrl, lo, hi, smooth)
+        if np.max(np.abs(spl.derivative()(grid[:-1]))) < max_slope:
+            break
+        smooth *= 10
+    return SplineFn(spl, lo, hi, linear_ends=False, floor=0.0), w
+
+
+# --------------------------------------------------------------------------- f_remain
+def characteristic(t_enc, q, t_f, c_f, t_delay_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (q, c) of the characteristic (Fig. 9): each valid frame with the actuator
+    position at its acquisition time t - t_delay. Returns (q (F,), c (F,))."""
+    ok = np.isfinite(c_f)
+    return np.interp(t_f[ok] - t_delay_s, t_enc, q), c_f[ok]
+
+
+def f_remain_lsq(q_c: np.ndarray, c: np.ndarray, B, n_ctrl: int = 14, smooth: float = 1e-3,
+                 z_range: tuple[float, float] | None = None):
+    """f_remain by play-consistent least squares (our estimator).
+
+    With B fixed from the onsets, the play operator gives the centre z[k] from q alone
+    (eq. 3), and the model says c[k] = f(z[k]); f is then a monotone robust spline
+    regression of c on z, using every frame (transitions included) instead of the loop's
+    outline only. q_c, c: (F,) in time order. Returns (SplineFn, sign of f', z (F,)).
+    """
+    z = model.play_operator(q_c, B)
+    sign = 1 if np.corrcoef(z, c)[0, 1] >= 0 else -1
+    lo, hi = (float(z.min()), float(z.max())) if z_range is None else z_range
+    spl, _ = robust_spline(z, c, n_ctrl, lo, hi, smooth, monotone=sign)
+    return SplineFn(spl, lo, hi, linear_ends=True), sign, z
+
+
+def f_remain_morph(q_c: np.ndarray, c: np.ndarray, n_ctrl: int = 14, size: int = 512, close_px: int = 7,
+                   smooth: float = 1e-3):
+    """f_remain by the paper's method (section IV): the characteristic drawn as an image,
+    holes filled by morphology, then for each row (a value of c) the middle between the
+    leftmost and rightmost filled pixels (extremal horizontal values), then a spline.
+
+    The polyline through consecutive (q, c) pairs is drawn at size x size px, closed with
+    a close_px elliptic kernel (joins the loop's outline where samples are sparse), and
+    the inside of each loop filled by flood-filling the background from the border.
+    Returns (SplineFn, sign of f', (q_mid, c_row) samples).
+    """
+    import cv2
+
+    qlo, qhi = float(q_c.min()), float(q_c.max())
+    clo, chi = float(c.min()), float(c.max())
+    sx = (size - 1) / max(qhi - qlo, 1e-12)
+    sy = (size - 1) / max(chi - clo, 1e-12)
+    pts = np.column_stack([(q_c - qlo) * sx, (chi - c) * sy])  # row 0 = largest c
+    # A free margin wider than the kernel keeps the background ring connected, so the
+    # flood fill from a corner reaches every outside pixel.
+    m = close_px + 2
+    img = np.zeros((size + 2 * m, size + 2 * m), np.uint8)
+    cv2.polylines(img, [np.round(pts + m).astype(np.int32).reshape(-1, 1, 2)], False, 255, 1)
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (close_px, close_px))
+    img = cv2.morphologyEx(img, cv2.MORPH_CLOSE, k)
+    flood = img.copy()
+    mask = np.zeros((img.shape[0] + 2, img.shape[1] + 2), np.uint8)
+    cv2.floodFill(flood, mask, (0, 0), 255)
+    filled = img | cv2.bitwise_not(flood)
+    rows = np.nonzero(filled.any(axis=1))[0]
+    q_mid, c_row = [], []
+    for r in rows:
+        cols = np.nonzero(filled[r])[0]
+        q_mid.append(0.5 * (cols[0] + cols[-1] - 2 * m) / sx + qlo)
+        c_row.append(chi - (r - m) / sy)
+    q_mid, c_row = np.array(q_mid), np.array(c_row)
+    sign = 1 if np.corrcoef(q_c, c)[0, 1] >= 0 else -1
+    spl, _ = robust_spline(q_mid, c_row, n_ctrl, qlo, qhi, smooth, monotone=sign)
+    return SplineFn(spl, qlo, qhi, linear_ends=True), sign, (q_mid, c_row)
+
+
+# --------------------------------------------------------------------------- baselines
+def fit_linear(q: np.ndarray, c: np.ndarray):
+    """Baseline: c = a q + b by least squares, no backlash. Returns a callable q -> c."""
+    a, b = np.polyfit(q, c, 1)
+    return lambda x: a * np.asarray(x, float) + b
+
+
+def fit_constant_play(q_c: np.ndarray, c: np.ndarray, degree: int = 5, w_max: float | None = None):
+    """Baseline: constant-width play operator + degree-5 polynomial, both by least squares.
+
+    For a width w the centre z(q; w) is known (eq. 3), the polynomial is then linear least
+    squares; w minimises the residual (bounded scalar search, after a coarse grid so a
+    local minimum is not taken). q_c, c: (F,) in time order. Returns (w, f, B callable).
+    """
+    from scipy.optimize import minimize_scalar
+
+    span = float(q_c.max() - q_c.min())
+    w_max = 0.5 * span if w_max is None else w_max
+    zsc = max(span, 1e-12)
+
+    def fit(w):
+        z = model.play_operator(q_c, model.constant(w), b_max=w)
+        V = np.vander((z - q_c.min()) / zsc, degree + 1)
+        coef, *_ = np.linalg.lstsq(V, c, rcond=None)
+        return float(np.sum((V @ coef - c) ** 2)), coef
+
+    grid = np.linspace(0, w_max, 41)
+    costs = [fit(w)[0] for w in grid]
+    i = int(np.argmin(costs))
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    w = float(minimize_scalar(lambda w: fit(w)[0], bounds=(lo, hi), method="bounded",
+                              options={"xatol": 1e-6 * max(span, 1)}).x) if hi > lo else float(grid[i])
+    coef = fit(w)[1]
+    q0 = float(q_c.min())
+    return w, (lambda x: np.polyval(coef, (np.asarray(x, float) - q0) / zsc)), model.constant(w)
