@@ -4,6 +4,7 @@
 #include <math.h>
 #include <string.h>
 #include "calib.h"
+#include "table_write.h"
 
 static int32_t to_q16(double x)
 {
@@ -13,34 +14,25 @@ static int32_t to_q16(double x)
 size_t fixture_build(fixture_blob_t *blob, const fixture_grid_t *g, fixture_fn b, const void *b_ctx,
                      fixture_fn f, const void *f_ctx)
 {
+    static int32_t bb[PST_MAX_ENTRIES], ff[PST_MAX_ENTRIES];
     pst_header_t hd;
     memset(&hd, 0, sizeof hd);
     memset(blob, 0, sizeof *blob);
-    hd.magic = PST_MAGIC;
-    hd.layout_version = PST_LAYOUT_VERSION;
-    hd.header_size = sizeof hd;
     hd.generation = g->generation;
-    hd.q_frac_bits = 16;
-    hd.c_frac_bits = 16;
     hd.q_unit = PST_Q_UNIT_MM;
     hd.f_kind = g->f_kind;
     hd.q_min_q16 = to_q16(g->q_min);
     hd.q_max_q16 = to_q16(g->q_max);
     int32_t x0 = to_q16(g->q0);
     int32_t step = (int32_t)1 << g->step_log2;
-    hd.b = (pst_grid_t){.x0_q16 = x0, .step_q16 = step, .n = g->n, .offset = sizeof hd};
-    hd.f = (pst_grid_t){.x0_q16 = x0, .step_q16 = step, .n = g->n, .offset = (uint16_t)(sizeof hd + 4u * g->n)};
-    hd.total_size = (uint32_t)(sizeof hd + 8u * g->n);
-    int32_t *bb = (int32_t *)(void *)(blob->bytes + hd.b.offset);
-    int32_t *ff = (int32_t *)(void *)(blob->bytes + hd.f.offset);
+    hd.b = (pst_grid_t){.x0_q16 = x0, .step_q16 = step, .n = g->n};
+    hd.f = hd.b;
     for (int i = 0; i < g->n; i++) {
         double q = (x0 + (double)i * step) / 65536.0;
         bb[i] = to_q16(b(q, b_ctx));
         ff[i] = to_q16(f(q, f_ctx));
     }
-    memcpy(blob->bytes, &hd, sizeof hd);
-    fixture_reseal(blob);
-    return hd.total_size;
+    return table_write(blob->bytes, sizeof blob->bytes, &hd, bb, ff);
 }
 
 void fixture_reseal(fixture_blob_t *blob)
