@@ -1,0 +1,21 @@
+# STM32F405 link firmware images (included from firmware/link/CMakeLists.txt in the cross build).
+#   playscope-link-fw     table slots in RAM: runs under QEMU (no flash controller there)
+#   playscope-link-fw-hw  table slots in flash sectors 10/11 via the FLASH registers: compiled only
+add_library(ps_storage_stm32f4 STATIC ${PS_ROOT}/firmware/storage/pss_flash_stm32f4.c)
+target_link_libraries(ps_storage_stm32f4 PUBLIC ps_storage)
+
+foreach(variant IN ITEMS ram hw)
+  if(variant STREQUAL "ram")
+    set(t playscope-link-fw)
+  else()
+    set(t playscope-link-fw-hw)
+  endif()
+  add_executable(${t} ${CMAKE_CURRENT_SOURCE_DIR}/stm32f405/link_main.c)
+  target_link_libraries(${t} PRIVATE ps_link ps_board_stm32f405)
+  if(variant STREQUAL "hw")
+    target_compile_definitions(${t} PRIVATE PSL_FLASH_HW=1)
+    target_link_libraries(${t} PRIVATE ps_storage_stm32f4)
+  endif()
+  set_target_properties(${t} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/link-fw)
+  ps_firmware_image(${t})
+endforeach()
