@@ -23,6 +23,7 @@ enum {
 };
 
 static ctl_loop_t loop;
+static comp_t comp_plain;           /* same table, no smoothing: eq. 4 as written */
 static int32_t c_ref_q16[REF_LEN];  /* a triangle sampled as the demo's, so comp_step sees reversals */
 static volatile int32_t sink_q16;
 
@@ -125,6 +126,35 @@ __attribute__((noinline)) static uint32_t measure_comp_step(void)
     return (uint32_t)(port_cycles() - c0);
 }
 
+__attribute__((noinline)) static uint32_t measure_comp_step_plain(void)
+{
+    uint32_t t_us = 0;
+    int32_t q = 0;
+    uint64_t c0 = port_cycles();
+    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
+        t_us += 1000000u / BENCH_TICK_HZ;
+        q = comp_step(&comp_plain, c_ref_q16[i % REF_LEN]);
+        __asm volatile("" : "+r"(q), "+r"(t_us));
+    }
+    sink_q16 = q;
+    return (uint32_t)(port_cycles() - c0);
+}
+
+/* One lut_eval (f^-1 at c*): comp_step makes two. */
+__attribute__((noinline)) static uint32_t measure_lut_eval(void)
+{
+    uint32_t t_us = 0;
+    int32_t q = 0;
+    uint64_t c0 = port_cycles();
+    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
+        t_us += 1000000u / BENCH_TICK_HZ;
+        q = lut_eval(&loop.cal.f_inv, c_ref_q16[i % REF_LEN]);
+        __asm volatile("" : "+r"(q), "+r"(t_us));
+    }
+    sink_q16 = q;
+    return (uint32_t)(port_cycles() - c0);
+}
+
 /* The demo's whole tick (reference generation, reversal bookkeeping, onset_tick, comp_step). */
 __attribute__((noinline)) static uint32_t measure_demo_tick(void)
 {
@@ -149,6 +179,7 @@ int main(void)
         int32_t phase = i < REF_LEN / 2 ? i : REF_LEN - i;
         c_ref_q16[i] = -30 * 65536 + phase * (60 * 65536 / (REF_LEN / 2));
     }
+    comp_reset(&comp_plain, &loop.cal, NULL, 0);
     put_str("BENCH core_hz=");
     put_u32(port_core_hz());
     put_str("\r\n");
@@ -157,6 +188,8 @@ int main(void)
     report("core_chain", measure_core_chain(), BENCH_TICKS);
     report("onset_tick", measure_onset_tick(), BENCH_TICKS);
     report("comp_step", measure_comp_step(), BENCH_TICKS);
+    report("comp_step_plain", measure_comp_step_plain(), BENCH_TICKS);
+    report("lut_eval", measure_lut_eval(), BENCH_TICKS);
     report("demo_tick", measure_demo_tick(), BENCH_TICKS);
     put_str("BENCH done\r\n");
     return 0;
