@@ -93,7 +93,15 @@ void reset_continue(void)
  * so a test under QEMU fails fast instead of hanging until its timeout. */
 void Default_Handler(void)
 {
-    static const char msg[] = "\r\n*** FAULT or unexpected interrupt, halting\r\n";
+    /* IPSR holds the exception number: 3 HardFault, 4 MemManage, 5 BusFault, 6 UsageFault,
+     * 16 + n external IRQ n. Printed in decimal without printf (no heap, no stack hunger). */
+    uint32_t ipsr;
+    __asm volatile("mrs %0, ipsr" : "=r"(ipsr));
+    char msg[] = "\r\n*** FAULT or unexpected interrupt: exception 000, halting\r\n";
+    char *digits = strchr(msg, '0');
+    digits[0] = (char)('0' + ipsr / 100u % 10u);
+    digits[1] = (char)('0' + ipsr / 10u % 10u);
+    digits[2] = (char)('0' + ipsr % 10u);
     port_uart_write(msg, sizeof msg - 1);
     port_exit(99);
 }
