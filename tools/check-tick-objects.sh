@@ -6,8 +6,9 @@
 #   source is not a tick source (loader, init-time conversions) are skipped: they may divide.
 # Like Klipper's scripts/check-software-div.sh, on undefined symbols (nm -u): on the
 # Cortex-M4 a 32-bit divide is one UDIV/SDIV instruction, anything else is a libgcc call.
+# Also fails on FPU instructions in those objects (objdump -d beside NM).
 set -euo pipefail
-cd "$(dirname "$0")/.."
+repo=$(cd "$(dirname "$0")/.." && pwd)
 
 nm=arm-none-eabi-nm
 tick_sources=""
@@ -20,15 +21,16 @@ while [ $# -gt 0 ]; do
   esac
 done
 if [ -z "$tick_sources" ]; then
-  tick_sources=$(sed -n 's/^set(PS_CORE_TICK_SOURCES \(.*\))$/\1/p' firmware/core/CMakeLists.txt)
+  tick_sources=$(sed -n 's/^set(PS_CORE_TICK_SOURCES \(.*\))$/\1/p' "$repo/firmware/core/CMakeLists.txt")
 fi
 tick_sources=${tick_sources//;/ }
+objdump=${nm%nm}objdump
 [ -n "$tick_sources" ] || { echo "check-tick-objects: no tick sources found" >&2; exit 2; }
 
 objects=("$@")
 if [ ${#objects[@]} -eq 0 ]; then
   shopt -s nullglob
-  objects=(build/stm32f405/firmware/core/CMakeFiles/ps_core.dir/*.o*)
+  objects=("$repo"/build/stm32f405/firmware/core/CMakeFiles/ps_core.dir/*.o*)
 fi
 
 # Forbidden undefined symbols (ERE):
@@ -53,14 +55,30 @@ for src in $tick_sources; do
     status=1
     continue
   fi
-  bad=$("$nm" -u "$found" | awk '{print $NF}' | grep -E "$forbidden" || true)
+  # nm failing (missing or foreign object) must fail the check, not pass it silently.
+  if ! undefined=$("$nm" -u "$found"); then
+    echo "check-tick-objects: FAIL: $nm could not read $found"
+    status=1
+    continue
+  fi
+  bad=$(awk '{print $NF}' <<<"$undefined" | grep -E "$forbidden" || true)
   checked=$((checked + 1))
   if [ -n "$bad" ]; then
     echo "check-tick-objects: FAIL: $src references: $(echo "$bad" | tr '\n' ' ')"
     status=1
   fi
+  # With -mfloat-abi=hard single-precision maths compiles to inline FPU instructions, not
+  # calls: look for them too, since the tick is integer-only (and FPU use costs a lazy
+  # context save in every interrupt).
+  # Every FPU instruction of the M4 (vadd, vmov, vldr, vpush, ...) starts with v; no
+  # integer one does. objdump puts a tab before each mnemonic.
+  fpu=$("$objdump" -d "$found" | grep -cE "$(printf '\t')v[a-z]" || true)
+  if [ "$fpu" != 0 ]; then
+    echo "check-tick-objects: FAIL: $src contains $fpu FPU instructions"
+    status=1
+  fi
 done
 if [ $status -eq 0 ]; then
-  echo "check-tick-objects: OK: $checked per-tick objects ($tick_sources) free of software divide, float and heap calls"
+  echo "check-tick-objects: OK: $checked per-tick objects ($tick_sources) free of software divide, float and heap calls and of FPU instructions"
 fi
 exit $status
