@@ -76,7 +76,7 @@ typedef struct PS_PACKED psp_info {
     uint32_t active_crc32;       /* its CRC */
     uint8_t mode;                /* enum psp_mode */
     uint8_t active_slot;         /* 0 = A, 1 = B, 0xFF = none */
-    uint16_t reserved;
+    uint16_t last_seq;           /* last accepted request seq: a reconnecting host continues above it */
 } psp_info_t;
 PS_STATIC_ASSERT(sizeof(psp_info_t) == 32, "psp_info_t must be 32 bytes");
 

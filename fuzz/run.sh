@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Build the libFuzzer targets with clang and run each for a bounded time on the kept corpus.
 # Usage: fuzz/run.sh [SECONDS_PER_TARGET]   (default 30; CI uses 30, ~1.5 min with the build)
-# Needs clang and libclang-rt-14-dev (Debian 12). New interesting inputs are added to fuzz/corpus/.
+# Needs clang and libclang-rt-14-dev (Debian 12). The kept corpus fuzz/corpus/ is read, not
+# written: new inputs go to build/fuzz/new-<target>/ (copy the good ones into the corpus by hand).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 secs=${1:-30}
@@ -16,7 +17,8 @@ for t in fuzz_frame fuzz_table; do
   mkdir -p "fuzz/corpus/$t"
   exe=$(find "$build" -name "$t" -type f -perm -u+x | head -1)
   echo "[fuzz] $t for ${secs} s"
-  "$exe" -max_total_time="$secs" -max_len=2200 -print_final_stats=1 "fuzz/corpus/$t" 2>&1 \
+  rm -rf "$build/new-$t" && mkdir -p "$build/new-$t"
+  "$exe" -max_total_time="$secs" -max_len=2200 -print_final_stats=1 "$build/new-$t" "fuzz/corpus/$t" 2>&1 \
     | grep -E "^(stat::number_of_executed_units|stat::new_units_added)|ERROR|SUMMARY" || status=$?
   [ "${PIPESTATUS[0]}" -eq 0 ] || status=1
 done

@@ -20,6 +20,7 @@ run() {  # run NAME CMD...: run one suite, record one summary line
 
 run "C unit tests, desktop, ASan+UBSan" ctest --preset desktop
 run "C core tests, Cortex-M4 under QEMU" ctest --preset stm32f405
+run "Fuzzers, bounded (30 s per target)" ./fuzz/run.sh 30
 if [ -d tests/python ] && [ -x .venv/bin/pytest ]; then
   run "Python tests" .venv/bin/pytest -q tests/python
 fi

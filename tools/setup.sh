@@ -6,7 +6,7 @@ cd "$(dirname "$0")/.."
 
 APT_PKGS=(cmake ninja-build gcc libcmocka-dev gcc-arm-none-eabi libnewlib-arm-none-eabi
           qemu-system-arm libusb-1.0-0-dev umockdev libumockdev-dev pkg-config
-          python3-venv clang)
+          python3-venv clang libclang-rt-14-dev)
 missing=()
 for p in "${APT_PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -66,9 +66,9 @@ void psl_info(const psl_t *l, psp_info_t *info)
         info->active_slot = PSS_NO_SLOT;
     }
     info->mode = l->mode;
-    /* reserved carries the last accepted seq so a host that (re)connects can continue
+    /* last_seq carries the last accepted seq so a host that (re)connects can continue
      * above it without being refused as a replay (docs/protocol.md). */
-    info->reserved = l->last_seq;
+    info->last_seq = l->last_seq;
 }
 
 /* Load slot into tables[buf] and cal[buf]; true if the loader accepted it. */

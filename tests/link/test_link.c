@@ -110,7 +110,7 @@ static void boot(void)
     psl_config_t cfg = psl_default_config(1000);
     psl_init(&L, &cfg, &sim.port, wr, NULL);
     out_n = 0;
-    seq = info().reserved; /* continue above the board's last accepted seq */
+    seq = info().last_seq; /* continue above the board's last accepted seq */
 }
 
 static double b_fn(double q, const void *ctx)
@@ -293,7 +293,7 @@ static void test_replay_and_order(void **state)
     expect_err(req_seq(PSP_MSG_SET_MODE, (uint16_t)(s + 1 + 0x8000), &ex, sizeof ex), PSP_ERR_SEQ);
     psp_info_t i = info();
     assert_int_equal(i.mode, PSP_MODE_IDLE);
-    assert_int_equal(i.reserved, (uint16_t)(s + 1));
+    assert_int_equal(i.last_seq, (uint16_t)(s + 1));
     /* Wrap-around is newer. */
     L.last_seq = 0xFFFE;
     expect_ok(req_seq(PSP_MSG_SET_MODE, 0xFFFF, &idle, sizeof idle), PSP_MSG_SET_MODE);

@@ -107,7 +107,7 @@ class Link:
                 "board_id": "-".join(f"{i.board_id[k]:08x}" for k in range(3)),
                 "active_generation": i.active_generation, "active_crc32": i.active_crc32,
                 "mode": MODE_NAMES.get(i.mode, str(i.mode)),
-                "active_slot": {0: "A", 1: "B"}.get(i.active_slot, "none"), "last_seq": i.reserved}
+                "active_slot": {0: "A", 1: "B"}.get(i.active_slot, "none"), "last_seq": i.last_seq}
 
     def info(self) -> dict:
         # INFO is answered whatever its seq; use the next one so answers stay distinct.
