@@ -18,8 +18,11 @@ from .errors import InputError
 # Command modules in help order; optional ones are skipped when their package is absent.
 COMMAND_MODULES = [
     ("playscope.commands.import_cmd", False),
+    ("playscope.commands.track", False),
     ("playscope.commands.calibrate", False),
     ("playscope.commands.tables", False),
+    ("playscope.commands.evaluate", False),
+    ("playscope.commands.report", False),
     ("playscope.commands.evaluate_real", False),
     ("playscope.sim.cli", True),
     ("playscope.diagnose.cli", True),

@@ -1,0 +1,52 @@
+"""`playscope evaluate`: Table I (prediction errors) and the compensation test on a test session."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..calibration import Calibration
+from ..evaluate import evaluate, format_table
+from ..session import load_session
+from .common import add_json_arg, dump_json
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("evaluate", help="prediction (Table I) and compensation errors on a test session",
+                       description="Direct models f_coarse, f_coarse+B, f_remain+B (float, eqs. 2-3) and "
+                       "f_remain+B through the firmware's playop_step on Q16.16 tables, projected with h(g(c)) "
+                       "(eq. 6) and compared with the marker (|Qx|, |Qy|, distance: mean ± std, max) or with the "
+                       "angle sensor (RMSE); then an open-loop reference through f_coarse^-1, eq. 4+5, eq. 4+9 "
+                       "and comp_step, run on the simulator's truth model when the session records it. "
+                       "Example: playscope evaluate sim_test cal.json --json eval.json")
+    p.add_argument("session", help="test session folder (not the one calibrated on, for a fair test)")
+    p.add_argument("calibration", help="calibration JSON from `playscope calibrate`")
+    p.add_argument("--table", help="table blob from `playscope tables` for the fixed-point rows "
+                   "(default: built from the calibration)")
+    p.add_argument("--comp-duration", type=float, default=60.0, help="length of the compensation reference, s (default 60)")
+    add_json_arg(p, "format, session, calibration, distal_kind, t_delay_s, frames_scored, table, "
+                 "prediction {model: {Qx_px|Qy_px|dist_px|c_deg: {mean,std,max}, c_rmse_deg, c_rmse_truth_deg}}, "
+                 "compensation {plant, note, reference {duration_s, rate_hz, c_min_deg, c_max_deg}, "
+                 "methods {method: {c_rmse_deg, c_max_deg, dist_px {mean,std,max}}}}, notes "
+                 "(docs/calibration-format.md)")
+    p.set_defaults(func=run)
+
+
+def run(a) -> int:
+    cal = Calibration.load(a.calibration)
+    s = load_session(a.session)
+    tab = None
+    if a.table:
+        from ..errors import InputError
+        from ..tables import CalibTable
+
+        path = Path(a.table)
+        if not path.is_file():
+            raise InputError(path, "file not found")
+        tab = CalibTable(path.read_bytes(), source=path)
+    ev = evaluate(cal, s, table=tab, comp_duration_s=a.comp_duration, source=a.session)
+    ev.summary["calibration"] = a.calibration
+    if a.table:
+        ev.summary["table"] = a.table
+    print(format_table(ev.summary))
+    dump_json(a.json, ev.summary)
+    return 0

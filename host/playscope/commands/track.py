@@ -1,0 +1,62 @@
+"""`playscope track`: a session's video.* + frames.csv -> marker.csv (coloured marker)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..errors import InputError
+from ..track import HUE_PRESETS, TrackConfig, find_video, single_thread, track_video, write_marker_csv
+from .common import add_json_arg, dump_json, progress
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("track", help="find the coloured marker in a session's video -> marker.csv",
+                       description="HSV colour threshold, largest blob within area bounds and circular enough, "
+                       "sub-pixel centroid from image moments (soft rim weights); ROI around the last position, "
+                       "whole-frame search (1/4 scale) when lost. Lost frames get empty u_px,v_px. A truncated "
+                       "video gives marker.csv up to the last decoded frame and a one-line warning. "
+                       "Example: playscope track sessions/s1 --marker green")
+    p.add_argument("session", help="session folder holding video.* and frames.csv")
+    p.add_argument("-o", "--out", help="marker CSV to write (default: <session>/marker.csv)")
+    p.add_argument("--marker", choices=sorted(HUE_PRESETS), default="green",
+                   help="marker colour preset (OpenCV hue ranges %s); default green" %
+                   ", ".join(f"{k} {a}-{b}" for k, (a, b) in HUE_PRESETS.items()))
+    p.add_argument("--hue", type=int, nargs=2, metavar=("LO", "HI"),
+                   help="hue range in OpenCV units 0-179 (overrides --marker; LO > HI wraps through red)")
+    p.add_argument("--s-min", type=int, default=80, help="minimum saturation 0-255 (default 80; highlights are below)")
+    p.add_argument("--v-min", type=int, default=40, help="minimum value 0-255 (default 40)")
+    p.add_argument("--area", type=float, nargs=2, metavar=("MIN", "MAX"),
+                   help="blob area bounds in px^2 (default 12 and 5%% of the frame)")
+    p.add_argument("--circ-min", type=float, default=0.45, help="minimum circularity 4 pi A/P^2 (default 0.45)")
+    p.add_argument("--roi", type=int, default=48, help="ROI half-size around the last position, px (default 48)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing marker CSV")
+    add_json_arg(p, "marker_csv (path), video (path), frames_listed, frames_decoded, frames_tracked, lost, "
+                 "lost_fraction, truncated (bool), reasons {reason: count}, seconds, fps, warning (str|null)")
+    p.set_defaults(func=run)
+
+
+def run(a) -> int:
+    folder = Path(a.session)
+    if not folder.is_dir():
+        raise InputError(folder, "session folder not found")
+    video = find_video(folder)
+    out = Path(a.out) if a.out else folder / "marker.csv"
+    if out.exists() and not a.overwrite:
+        raise FileExistsError(f"{out}: exists (use --overwrite)")
+    lo, hi = a.hue if a.hue else HUE_PRESETS[a.marker]
+    try:
+        cfg = TrackConfig(lo, hi, a.s_min, a.v_min, *(a.area or (12.0, None)), a.circ_min, a.roi)
+        cfg.check()
+    except ValueError as e:
+        raise InputError(None, f"track options: {e}") from None
+    single_thread()
+    res = track_video(video, folder / "frames.csv", cfg, progress=lambda **kw: progress(**kw))
+    write_marker_csv(out, res)
+    sm = res.summary()
+    if res.warning:
+        print(f"playscope: warning: {res.warning}", file=sys.stderr)
+    print(f"{out}: {sm['frames_tracked']} frames, {sm['lost']} lost ({100 * (sm['lost_fraction'] or 0):.1f} %), "
+          f"{sm['fps']:.0f} frames/s")
+    dump_json(a.json, {"marker_csv": str(out), "video": str(video), **sm})
+    return 0
