@@ -1,6 +1,8 @@
 # STM32F405 link firmware images (included from firmware/link/CMakeLists.txt in the cross build).
 #   playscope-link-fw     table slots in RAM: runs under QEMU (no flash controller there)
 #   playscope-link-fw-hw  table slots in flash sectors 10/11 via the FLASH registers: compiled only
+#   playscope-link-fw-usb the link on USB (OTG FS port of the portable USB core), flash slots:
+#                         compiled only (QEMU does not emulate the OTG peripheral)
 add_library(ps_storage_stm32f4 STATIC ${PS_ROOT}/firmware/storage/pss_flash_stm32f4.c)
 target_link_libraries(ps_storage_stm32f4 PUBLIC ps_storage)
 
@@ -19,3 +21,10 @@ foreach(variant IN ITEMS ram hw)
   set_target_properties(${t} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/link-fw)
   ps_firmware_image(${t})
 endforeach()
+
+add_library(ps_usb_stm32f4 STATIC ${CMAKE_CURRENT_SOURCE_DIR}/usb/dcd_stm32f4_otgfs.c)
+target_link_libraries(ps_usb_stm32f4 PUBLIC ps_usb_core)
+add_executable(playscope-link-fw-usb ${CMAKE_CURRENT_SOURCE_DIR}/stm32f405/link_usb_main.c)
+target_link_libraries(playscope-link-fw-usb PRIVATE ps_link ps_usb_stm32f4 ps_storage_stm32f4 ps_board_stm32f405)
+set_target_properties(playscope-link-fw-usb PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/link-fw)
+ps_firmware_image(playscope-link-fw-usb)
