@@ -2,14 +2,19 @@
 round-trip latency per frame, over each transport that is available here.
 
 Usage: .venv/bin/python bench/bench_link.py [--repeat N]   (~15 s with QEMU)
-Transports: virtual (ps_vboard over pipes), qemu (link firmware, USART1 over TCP).
-USB is not measured: there is no hardware and the emulated device is not built yet."""
+Transports: virtual (ps_vboard over pipes), qemu (link firmware, USART1 over TCP),
+usb-emulated (pyusb/libusb -> umockdev testbed device -> firmware USB core -> ps_vboard; run
+as a child under ps_usbemu, because libumockdev-preload must be there from process start).
+Real USB hardware is not measured: there is none here."""
 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
+import sys
 import time
+from pathlib import Path
 
 from playscope.device.cli import flash
 from playscope.device.link import Link
@@ -40,6 +45,28 @@ def measure(name, make, repeat):
         link.close()
 
 
+def measure_usb_emulated(repeat):
+    from playscope.device import usbemu
+    from playscope.native import NativeBuildError
+
+    client = Path(__file__).resolve().parents[1] / "tests" / "python" / "link" / "usb_emu_client.py"
+    try:
+        r = usbemu.run([sys.executable, str(client), "bench", str(repeat)], timeout_s=300)
+    except (NativeBuildError, OSError) as e:
+        print(f"usb-emu  skipped: {e}")
+        return
+    if r.returncode != 0:
+        print(f"usb-emu  failed: {r.stderr.strip()[-300:]}")
+        return
+    d = json.loads(r.stdout.strip().splitlines()[-1])
+    up = [x * 1e3 for x in d["upload_s"]]
+    rb = [x * 1e3 for x in d["readback_s"]]
+    rt = [x * 1e6 for x in d["info_rt_s"]]
+    print(f"usb-emu  flash 2108 B (begin+10 chunks+commit): median {statistics.median(up):7.1f} ms, "
+          f"read-back {statistics.median(rb):6.1f} ms, INFO round trip median "
+          f"{statistics.median(rt):7.0f} us (p95 {sorted(rt)[int(0.95 * len(rt))]:.0f} us)")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=10)
@@ -49,6 +76,7 @@ def main():
         measure("qemu", QemuTransport, a.repeat)
     else:
         print("qemu     skipped: no playscope-link-fw image")
+    measure_usb_emulated(a.repeat)
 
 
 if __name__ == "__main__":
