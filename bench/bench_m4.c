@@ -20,6 +20,7 @@ enum {
     BENCH_TIMEBASE_HZ = 1000,    /* SysTick period of the cycle counter (ISR cost ~0.003 %) */
     CAL_ITERATIONS = 1000000,
     REF_LEN = 1024,              /* precomputed c* samples, a power of two */
+    REF_HOLD_LOG2 = 5,           /* each held 32 ticks: a +-30 deg triangle of 1.6 s at 20 kHz */
 };
 
 static ctl_loop_t loop;
@@ -72,7 +73,7 @@ __attribute__((noinline)) static uint32_t measure_overhead(void)
     uint64_t c0 = port_cycles();
     for (uint32_t i = 0; i < BENCH_TICKS; i++) {
         t_us += 1000000u / BENCH_TICK_HZ;
-        q = c_ref_q16[i % REF_LEN];
+        q = c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN];
         __asm volatile("" : "+r"(q), "+r"(t_us));  /* keep the loop, as if calls used them */
     }
     sink_q16 = q;
@@ -89,7 +90,7 @@ __attribute__((noinline)) static uint32_t measure_core_chain(void)
     for (uint32_t i = 0; i < BENCH_TICKS; i++) {
         t_us += 1000000u / BENCH_TICK_HZ;
         (void)onset_tick(&loop.onset, t_us, q, &ev);
-        q = comp_step(&loop.comp, c_ref_q16[i % REF_LEN]);
+        q = comp_step(&loop.comp, c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN]);
         __asm volatile("" : "+r"(q), "+r"(t_us));
     }
     sink_q16 = q;
@@ -104,7 +105,7 @@ __attribute__((noinline)) static uint32_t measure_onset_tick(void)
     uint64_t c0 = port_cycles();
     for (uint32_t i = 0; i < BENCH_TICKS; i++) {
         t_us += 1000000u / BENCH_TICK_HZ;
-        q = c_ref_q16[i % REF_LEN];
+        q = c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN];
         (void)onset_tick(&loop.onset, t_us, q, &ev);
         __asm volatile("" : "+r"(q), "+r"(t_us));
     }
@@ -119,7 +120,7 @@ __attribute__((noinline)) static uint32_t measure_comp_step(void)
     uint64_t c0 = port_cycles();
     for (uint32_t i = 0; i < BENCH_TICKS; i++) {
         t_us += 1000000u / BENCH_TICK_HZ;
-        q = comp_step(&loop.comp, c_ref_q16[i % REF_LEN]);
+        q = comp_step(&loop.comp, c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN]);
         __asm volatile("" : "+r"(q), "+r"(t_us));
     }
     sink_q16 = q;
@@ -133,7 +134,7 @@ __attribute__((noinline)) static uint32_t measure_comp_step_plain(void)
     uint64_t c0 = port_cycles();
     for (uint32_t i = 0; i < BENCH_TICKS; i++) {
         t_us += 1000000u / BENCH_TICK_HZ;
-        q = comp_step(&comp_plain, c_ref_q16[i % REF_LEN]);
+        q = comp_step(&comp_plain, c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN]);
         __asm volatile("" : "+r"(q), "+r"(t_us));
     }
     sink_q16 = q;
@@ -148,7 +149,7 @@ __attribute__((noinline)) static uint32_t measure_lut_eval(void)
     uint64_t c0 = port_cycles();
     for (uint32_t i = 0; i < BENCH_TICKS; i++) {
         t_us += 1000000u / BENCH_TICK_HZ;
-        q = lut_eval(&loop.cal.f_inv, c_ref_q16[i % REF_LEN]);
+        q = lut_eval(&loop.cal.f_inv, c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN]);
         __asm volatile("" : "+r"(q), "+r"(t_us));
     }
     sink_q16 = q;
@@ -174,7 +175,8 @@ int main(void)
         put_str("BENCH setup failed\r\n");
         return 1;
     }
-    /* +-30 deg triangle over REF_LEN ticks: a reversal every 512 ticks. */
+    /* +-30 deg triangle over REF_LEN << REF_HOLD_LOG2 ticks: a reversal every 0.82 s at
+     * 20 kHz, a plausible teleoperation reference (the offset ramp lasts ~17 ms of it). */
     for (int i = 0; i < REF_LEN; i++) {
         int32_t phase = i < REF_LEN / 2 ? i : REF_LEN - i;
         c_ref_q16[i] = -30 * 65536 + phase * (60 * 65536 / (REF_LEN / 2));

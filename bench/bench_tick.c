@@ -5,6 +5,7 @@
 
 #include "ps_fixed.h"
 #include "ps_table.h"
+#include "table_write.h"
 
 enum {
     DEMO_N = 33,                 /* grid entries, q = -16 .. +16 mm */
@@ -14,46 +15,39 @@ enum {
     DEMO_C_PERIOD_MS = 2000,     /* ... with a 2 s period */
 };
 
-/* Header then B then f entries, 4-aligned because calib_load reads the entries in place. */
-typedef struct {
-    pst_header_t h;
-    int32_t b_q16[DEMO_N];
-    int32_t f_q16[DEMO_N];
-} demo_table_t;
-
-static demo_table_t demo_table __attribute__((aligned(4)));
+/* The table blob, 4-aligned because calib_load reads the entries in place. */
+static union {
+    uint32_t align;
+    uint8_t bytes[PST_MAX_TABLE_SIZE];
+} demo_table;
+static size_t demo_table_size;
 
 /* B(q) = 1.5 mm + 0.02 q (|B'| well below 2), f(q) = 3 deg/mm q + 0.04 q^2 (f' >= 1.7 > 0
  * on the grid, so strictly increasing): small, plausible, and exercises both tables. */
 static void demo_table_build(void)
 {
-    demo_table_t *t = &demo_table;
-    memset(t, 0, sizeof *t);
+    int32_t b_q16[DEMO_N], f_q16[DEMO_N];
     for (int i = 0; i < DEMO_N; i++) {
         int32_t q_mm = i - 16;
-        t->b_q16[i] = 3 * PS_Q16_ONE / 2 + q_mm * (PS_Q16_ONE / 50);
-        t->f_q16[i] = 3 * q_mm * PS_Q16_ONE + q_mm * q_mm * (PS_Q16_ONE / 25);
+        b_q16[i] = 3 * PS_Q16_ONE / 2 + q_mm * (PS_Q16_ONE / 50);
+        f_q16[i] = 3 * q_mm * PS_Q16_ONE + q_mm * q_mm * (PS_Q16_ONE / 25);
     }
-    t->h.magic = PST_MAGIC;
-    t->h.layout_version = PST_LAYOUT_VERSION;
-    t->h.header_size = sizeof(pst_header_t);
-    t->h.total_size = sizeof *t;
-    t->h.generation = 1;
-    t->h.q_frac_bits = PS_FRAC_BITS;
-    t->h.c_frac_bits = PS_FRAC_BITS;
-    t->h.q_unit = PST_Q_UNIT_MM;
-    t->h.f_kind = PST_F_COARSE;
-    t->h.q_min_q16 = DEMO_X0_Q16;
-    t->h.q_max_q16 = DEMO_X0_Q16 + (DEMO_N - 1) * DEMO_STEP_Q16;
-    t->h.b = (pst_grid_t){DEMO_X0_Q16, DEMO_STEP_Q16, DEMO_N, (uint16_t)offsetof(demo_table_t, b_q16)};
-    t->h.f = (pst_grid_t){DEMO_X0_Q16, DEMO_STEP_Q16, DEMO_N, (uint16_t)offsetof(demo_table_t, f_q16)};
-    t->h.crc32 = calib_table_crc((const uint8_t *)t, sizeof *t);
+    pst_header_t h;
+    memset(&h, 0, sizeof h);
+    h.generation = 1;
+    h.q_unit = PST_Q_UNIT_MM;
+    h.f_kind = PST_F_COARSE;
+    h.q_min_q16 = DEMO_X0_Q16;
+    h.q_max_q16 = DEMO_X0_Q16 + (DEMO_N - 1) * DEMO_STEP_Q16;
+    h.b = (pst_grid_t){.x0_q16 = DEMO_X0_Q16, .step_q16 = DEMO_STEP_Q16, .n = DEMO_N};
+    h.f = h.b;
+    demo_table_size = table_write(demo_table.bytes, sizeof demo_table.bytes, &h, b_q16, f_q16);
 }
 
 int ctl_loop_init(ctl_loop_t *l, uint32_t tick_hz)
 {
     demo_table_build();
-    calib_status_t st = calib_load(&l->cal, (const uint8_t *)&demo_table, sizeof demo_table);
+    calib_status_t st = calib_load(&l->cal, demo_table.bytes, demo_table_size);
     if (st != CALIB_OK) {
         return (int)st;
     }

@@ -110,6 +110,12 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     }
     if (lut_check_inverse(&f, CALIB_DERIVED_MAX) != LUT_OK)
         return CALIB_ERR_F_NOT_MONOTONE;
+    /* q* = f^-1(c*) +- B/2 must fit int32 so that comp_step adds in 32 bits. */
+    int32_t b_max = 0;
+    for (uint16_t i = 0; i < b.n; i++)
+        b_max = b.y_q16[i] > b_max ? b.y_q16[i] : b_max;
+    if ((int64_t)f.x0_q16 - b_max / 2 < INT32_MIN || (int64_t)f.x_last_q16 + b_max / 2 > INT32_MAX)
+        return CALIB_ERR_GRID;
     int32_t scratch[PST_MAX_ENTRIES];
     if ((st = check_envelope(&b, +1, scratch)) != CALIB_OK || (st = check_envelope(&b, -1, scratch)) != CALIB_OK)
         return st;

@@ -2,13 +2,15 @@
 #ifndef COMP_H
 #define COMP_H
 
+#include <stdbool.h>
 #include <stdint.h>
 #include "calib.h"
 
 /* Limits of the optional transition smoothing, per control tick.
  * The backlash step at a reversal (a jump of B in q*) is replaced by a ramp whose
  * velocity and acceleration stay within these limits, as LinuxCNC ramps its backlash
- * correction; the nominal part f^-1(c*) is passed through untouched. Q32.32 in actuator
+ * correction; the nominal part f^-1(c*) and the slow change of B(q_c) along the way are
+ * passed through untouched, so between reversals the step costs no 64-bit work. Q32.32 in actuator
  * units per tick (per tick^2) because a 20 kHz tick moves far less than one Q16 LSB of
  * acceleration. Zero velocity limit means no smoothing (the step of eq. 4 as written). */
 typedef struct {
@@ -22,8 +24,10 @@ typedef struct {
     comp_smoothing_t lim;
     int32_t c_prev_q16;          /* c*[k-1] */
     int8_t dir;                  /* sign of the last non-zero change of c*: +1, -1, 0 before any */
-    int64_t off_q32;             /* applied backlash offset (q* - f^-1(c*)), Q32.32 */
-    int64_t off_v_q32;           /* its rate, per tick */
+    int32_t off_q16;             /* backlash offset of eq. 4, dir * s_f * B(q_c) / 2, last tick */
+    int64_t resid_q32;           /* part of the reversal step not yet applied (Q32.32); 0 when settled */
+    int64_t resid_v_q32;         /* its rate, per tick */
+    bool ramping;                /* resid or its rate non-zero: one flag for the per-tick test */
     int32_t q_ref_q16;           /* q*[k-1], for reading back */
 } comp_t;
 

@@ -10,14 +10,7 @@ void enc_hist_reset(enc_hist_t *h)
 
 void enc_hist_push(enc_hist_t *h, uint32_t t_us, int32_t q_q16)
 {
-    if (h->head > 0) {
-        uint32_t last = h->t_us[(h->head - 1u) & MASK];
-        if ((int32_t)(t_us - last) < 0)
-            return; /* out of order: keep the history sorted */
-    }
-    h->t_us[h->head & MASK] = t_us;
-    h->q_q16[h->head & MASK] = q_q16;
-    h->head++;
+    enc_hist_push_inline(h, t_us, q_q16);
 }
 
 enc_hist_status_t enc_hist_q_at(const enc_hist_t *h, uint32_t t_us, int32_t *q_q16)

@@ -35,6 +35,21 @@ void enc_hist_push(enc_hist_t *h, uint32_t t_us, int32_t q_q16);
 /* q at time t_us, linearly interpolated between the kept samples around it (Q16).
  * O(log ENC_HIST_LEN) binary search: called once per detected onset, not per tick.
  * Errors: ENC_HIST_EMPTY, ENC_HIST_TOO_OLD (history wrapped past it), ENC_HIST_TOO_NEW. */
+#ifndef PS_CDEF
+/* enc_hist_push() inlined for onset_tick(): same code, without the call. */
+__attribute__((always_inline)) static inline void enc_hist_push_inline(enc_hist_t *h, uint32_t t_us, int32_t q_q16)
+{
+    if (h->head > 0) {
+        uint32_t last = h->t_us[(h->head - 1u) & (ENC_HIST_LEN - 1u)];
+        if ((int32_t)(t_us - last) < 0)
+            return; /* out of order: keep the history sorted */
+    }
+    h->t_us[h->head & (ENC_HIST_LEN - 1u)] = t_us;
+    h->q_q16[h->head & (ENC_HIST_LEN - 1u)] = q_q16;
+    h->head++;
+}
+#endif
+
 enc_hist_status_t enc_hist_q_at(const enc_hist_t *h, uint32_t t_us, int32_t *q_q16);
 
 #endif /* ENC_HIST_H */

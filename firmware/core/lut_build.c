@@ -32,8 +32,9 @@ static lut_status_t inverse_plan(const lut_t *src, uint16_t cap, int *sgn, int32
     *y_lo = *sgn > 0 ? g[0] : g[n - 1];
     *y_hi = *sgn > 0 ? g[n - 1] : g[0];
     uint64_t span = (uint64_t)((int64_t)*y_hi - *y_lo);
-    /* Smallest power-of-two step with ceil(span / step) + 1 <= cap. */
-    uint8_t s = 0;
+    /* Smallest power-of-two step (>= 2 raw units, as lut_init asks) with
+     * ceil(span / step) + 1 <= cap. */
+    uint8_t s = 1;
     while (((span + ((1ull << s) - 1)) >> s) + 1 > cap) {
         if (++s > 24)
             return LUT_ERR_STEP;

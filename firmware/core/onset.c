@@ -102,7 +102,7 @@ static bool finish_early(onset_t *o, onset_event_t *ev);
 
 bool onset_tick(onset_t *o, uint32_t t_us, int32_t q_q16, onset_event_t *ev)
 {
-    enc_hist_push(&o->hist, t_us, q_q16);
+    enc_hist_push_inline(&o->hist, t_us, q_q16);
     if (o->state == ONSET_ST_IDLE || t_us - o->t1_us <= o->cfg.timeout_us)
         return false;
     if (o->state >= ONSET_ST_CANDIDATE)

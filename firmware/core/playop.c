@@ -11,13 +11,13 @@ int32_t playop_step(playop_t *p, int32_t q_q16)
 {
     /* The band of centres compatible with q: [z_up(q), z_down(q)] (eq. 2 reindexed).
      * Inside it the play absorbs the motion; outside, q drags the centre to the edge. */
-    int32_t lo = lut_eval(&p->cal->z_up, q_q16);
-    int32_t hi = lut_eval(&p->cal->z_down, q_q16);
+    int32_t lo = lut_eval_inline(&p->cal->z_up, q_q16);
+    int32_t hi = lut_eval_inline(&p->cal->z_down, q_q16);
     int32_t z = p->z_q16;
     if (z < lo)
         z = lo;
     else if (z > hi)
         z = hi;
     p->z_q16 = z;
-    return lut_eval(&p->cal->f, z);
+    return lut_eval_inline(&p->cal->f, z);
 }

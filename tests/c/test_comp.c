@@ -139,7 +139,7 @@ static void test_smoothing_limits(void **state)
         c += (k < 1000) ? 0.001 : -0.001; /* one reversal at k = 1000 */
         int32_t q = comp_step(&cp, Q16(c));
         int32_t q_raw = comp_step(&raw, Q16(c));
-        int64_t v = cp.off_v_q32;
+        int64_t v = cp.resid_v_q32;
         assert_true(llabs(v) <= lim.v_max_q32);
         if (v != 0)
             assert_true(llabs(v - v_prev) <= lim.a_max_q32);

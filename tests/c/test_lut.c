@@ -31,6 +31,7 @@ static void test_init_errors(void **state)
     lut_t l;
     assert_int_equal(lut_init(&l, y, 1, 0, 65536), LUT_ERR_SIZE);
     assert_int_equal(lut_init(&l, y, 4, 0, 3), LUT_ERR_STEP);
+    assert_int_equal(lut_init(&l, y, 4, 0, 1), LUT_ERR_STEP); /* 1 raw unit: below the 2-unit minimum */
     assert_int_equal(lut_init(&l, y, 4, 0, 0), LUT_ERR_STEP);
     assert_int_equal(lut_init(&l, y, 4, 0, -4), LUT_ERR_STEP);
     assert_int_equal(lut_init(&l, y, 4, 0, 1 << 25), LUT_ERR_STEP);
@@ -49,7 +50,7 @@ static void test_eval_matches_double_interpolation(void **state)
     static int32_t y[N_MAX];
     for (int trial = 0; trial < 200; trial++) {
         int n = 2 + (int)(test_rng_u64(&r) % (N_MAX - 1));
-        int s = (int)(test_rng_u64(&r) % 21);
+        int s = 1 + (int)(test_rng_u64(&r) % 20);
         int32_t x0 = (int32_t)test_rng_uniform(&r, -1e9, 1e9 - (double)n * (1 << s));
         for (int i = 0; i < n; i++)
             y[i] = (int32_t)test_rng_uniform(&r, -1e9, 1e9);
