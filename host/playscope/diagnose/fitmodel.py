@@ -5,10 +5,10 @@ The fitted quantity is the configuration c in deg (measured by an angle sensor, 
 per frame from the marker by eq. 8 with the session's nominal camera and hand-eye). Linear
 parts are solved exactly for each value of the nonlinear ones (variable projection):
   c(t) = sum_j a_j P_j(x(t)) + r_drift (t - t_mid)/60 + delta s(t)
-where P_j are cubic B-splines (8 interior knots) of the normalised play output after the play-stage
+where P_j are cubic B-splines (12 interior knots) of the normalised play output after the play-stage
 and distal effects, x = (z' - q_mid)/q_half, s(t) = direction of distal motion (held sign of
 dz/dt), with an elongation low-pass and the extra delay applied to the basis columns.
-Nonlinear parameters: B at 7 knots (mm, piecewise linear in q) and those of the effects on.
+Nonlinear parameters: B at 9 knots (natural cubic spline) (mm, piecewise linear in q) and those of the effects on.
 
 Units: q, z, B in actuator units (mm); c in deg; t in s.
 """
@@ -18,13 +18,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.interpolate import BSpline
+from scipy.interpolate import BSpline, CubicSpline
 from scipy.optimize import least_squares
 
 from ..sim.core import lowpass
 
-N_KNOTS = 7
-N_FKNOTS = 8   # interior knots of the cubic B-spline f_remain
+N_KNOTS = 9
+N_FKNOTS = 12  # interior knots of the cubic B-spline f_remain
 INTERNAL_HZ = 50.0
 
 # Nonlinear parameters of each effect in the diagnostic model: (name, init, lo, hi); the scales
@@ -162,7 +162,7 @@ class Model:
         self.q_mid = 0.5 * (data.q_hi + data.q_lo)
         self.q_half = max(0.5 * span, 1e-9)
         self.kn = knots(data)
-        self.zk = np.r_[self.kn[0] - 10 * span - 1, self.kn, self.kn[-1] + 10 * span + 1]
+        self.zg = np.r_[self.kn[0] - 10 * span - 1, np.linspace(self.kn[0], self.kn[-1], 600), self.kn[-1] + 10 * span + 1]
         names, init, lo, hi = [], [], [], []
         for i in range(N_KNOTS):
             names.append(f"B{i}_q")
@@ -193,10 +193,9 @@ class Model:
 
     @staticmethod
     def _edge(zk: np.ndarray, half: np.ndarray):
-        """(xp, fp) for np.interp inverting q = z + half(z), half given at the knots and held
-        beyond them; xp is made non-decreasing so an over-steep B cannot break np.interp."""
-        h = np.r_[half[0], half, half[-1]]
-        xp = np.maximum.accumulate(zk + h)
+        """(xp, fp) for np.interp inverting q = z + half(z) (half sampled on the grid zk); xp is
+        made non-decreasing so an over-steep B cannot break np.interp."""
+        xp = np.maximum.accumulate(zk + half)
         return xp, zk
 
     def _get(self, theta, e, n):
@@ -213,12 +212,14 @@ class Model:
         if "smooth_transition" in self.effects:
             s = self._get(theta, "smooth_transition", "spread")
             widths = list(1 + s * np.linspace(-1, 1, 5))
+        # B(z): natural cubic spline through the knots, held beyond them, on a fine z grid.
+        Bg = np.maximum(CubicSpline(self.kn, Bk, bc_type="natural")(np.clip(self.zg, self.kn[0], self.kn[-1])), 0.0)
         zs = []
         for r in widths:
             # Band edges as in playscope.model (z + B(z)/2 = q going up, z - B(z)/2 = q going
-            # down); B piecewise linear in z, so both inverses are piecewise linear: np.interp.
-            zu = np.interp(q, *self._edge(self.zk, (1 + alpha) * r * Bk / 2))
-            zd = np.interp(q, *self._edge(self.zk, -(1 - alpha) * r * Bk / 2))
+            # down), inverted on the z grid by np.interp (z + B(z)/2 is increasing for |B'| < 2).
+            zu = np.interp(q, *self._edge(self.zg, (1 + alpha) * r * Bg / 2))
+            zd = np.interp(q, *self._edge(self.zg, -(1 - alpha) * r * Bg / 2))
             zs.append(_play(zu.tolist(), zd.tolist(), z0))
         z = zs[0] if len(zs) == 1 else np.mean(zs, axis=0)
         sdir = _direction(z)
@@ -284,7 +285,8 @@ class Model:
             return self.residual(full, mask)
         lo, hi = self.lo[free], self.hi[free]
         p0 = np.clip(th[free], lo + 1e-12, hi - 1e-12)
-        res = least_squares(fun, p0, bounds=(lo, hi), diff_step=1e-3, x_scale="jac", max_nfev=60 * (1 + free.sum()))
+        res = least_squares(fun, p0, bounds=(lo, hi), diff_step=1e-3, x_scale="jac", max_nfev=40,
+                            ftol=1e-6, xtol=1e-6)
         th = th.copy()
         th[free] = res.x
         A, coef, m = self._solve(th, mask)

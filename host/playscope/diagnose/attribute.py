@@ -1,0 +1,158 @@
+"""Gap measurement and attribution: held-out error of the paper's model against the noise floor,
+then screening of every library effect, joint refit of the promising ones, and the decision rule.
+
+Decision rule (docs/diagnosis.md): an effect is kept only if adding it lowers the held-out RMSE
+by a practical margin (max(margin_frac * RMSE, margin_abs), 8 % and 0.05 deg by default) AND the BIC on the fit rows agrees
+(drop > bic_min). Effects whose single-effect screens come as close as the kept one, and that
+add nothing once it is in, are named as indistinguishable from it. When nothing is kept and
+the gap stands above the noise floor, or the kept effects remove less than half of the excess,
+the verdict is "unexplained".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .fitmodel import C_LIBRARY, Data, Fit, Model
+
+MARGIN_FRAC = 0.08    # practical margin: 8 % of the held-out RMSE ...
+MARGIN_ABS = 0.05     # ... and at least 0.05 deg (below that a bending error is of no practical use)
+BIC_MIN = 10.0        # "strong" evidence on the BIC scale (Kass & Raftery)
+MAX_EFFECTS = 3
+
+
+def halves(data: Data, split: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """(fit_mask, eval_mask): rows before / after ``split`` of the record's duration."""
+    t = data.t_m
+    cut = t[0] + split * (t[-1] - t[0])
+    return t < cut, t >= cut
+
+
+def noise_floor(data: Data, still_s: float = 0.5, settle_s: float = 0.25) -> tuple[float, str, int]:
+    """Noise floor of the c measurement, deg: pooled standard deviation over still periods
+    (actuator unmoved for still_s, skipping settle_s after it stops), each period's mean removed.
+    Falls back to the second-difference estimate std(y[k+1] - 2y[k] + y[k-1]) / sqrt(6) when the
+    record has fewer than 20 still samples (motion is smooth at the sample scale, noise is not).
+    Returns (sigma_deg, method, n_samples)."""
+    t, y = data.t_m, data.y_m
+    tq = data.t_int
+    dq = np.abs(np.diff(data.q_int, prepend=data.q_int[:1]))
+    moving = dq > 1e-6 * max(data.q_hi - data.q_lo, 1e-9)
+    last_move = np.maximum.accumulate(np.where(moving, tq, -np.inf))
+    idx = np.clip(np.searchsorted(tq, t - data.t_delay_s) - 1, 0, tq.size - 1)
+    since = (t - data.t_delay_s) - last_move[idx]
+    still = (since > settle_s) & (since < 1e9) & np.isfinite(y)
+    # Segment ids: a new segment whenever stillness breaks.
+    seg = np.cumsum(np.r_[True, ~still[:-1] | ~still[1:]])
+    if still.sum() >= 20:
+        ss, n, k = 0.0, 0, 0
+        for s_id in np.unique(seg[still]):
+            v = y[still & (seg == s_id)]
+            if v.size >= 3:
+                ss += float(np.sum((v - v.mean()) ** 2))
+                n += v.size
+                k += 1
+        if n - k >= 15:
+            return float(np.sqrt(ss / (n - k))), "still periods", int(n)
+    yy = y[np.isfinite(y)]
+    d2 = yy[2:] - 2 * yy[1:-1] + yy[:-2]
+    return float(np.std(d2) / np.sqrt(6)), "second differences", int(d2.size)
+
+
+def _start(model: Model, *fits: Fit) -> np.ndarray:
+    th = model.init.copy()
+    for f in fits:
+        if f is None:
+            continue
+        for n, v in zip(f.names, f.theta):
+            if n in model.names:
+                th[model.names.index(n)] = v
+    return th
+
+
+def excess(rmse: float, sigma: float) -> float:
+    """Part of an RMSE above the noise floor: sqrt(max(rmse^2 - sigma^2, 0))."""
+    return float(np.sqrt(max(rmse * rmse - sigma * sigma, 0.0)))
+
+
+def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidates=C_LIBRARY,
+              margin_frac: float = MARGIN_FRAC, margin_abs: float = MARGIN_ABS, bic_min: float = BIC_MIN,
+              max_effects: int = MAX_EFFECTS, sigma: float | None = None, progress=None) -> dict:
+    """Screen, refit and decide (module doc). Returns a JSON-able dict; the Fit objects of the
+    base and final models are under "_fits" (removed before writing JSON)."""
+    if sigma is None:
+        sigma, method, n_still = noise_floor(data)
+    else:
+        method, n_still = "given", 0
+    y = data.y_m
+    base = Model(data).fit(fit_mask)
+    r0 = base.rmse(y, eval_mask)
+    out = {"noise_floor_deg": sigma, "noise_method": method, "noise_samples": n_still,
+           "base": {"rmse_fit_deg": base.rmse(y, fit_mask), "rmse_heldout_deg": r0, "bic": base.bic},
+           "excess_before_deg": excess(r0, sigma), "screen": [], "kept": []}
+    margin = lambda r: max(margin_frac * r, margin_abs)
+    single: dict[str, Fit] = {}
+    for e in candidates:
+        m = Model(data, [e])
+        f = m.fit(fit_mask, _start(m, base))
+        single[e] = f
+        r = f.rmse(y, eval_mask)
+        row = {"effect": e, "rmse_heldout_deg": r, "delta_rmse_deg": r0 - r, "delta_bic": f.bic - base.bic,
+               "params": f.params()}
+        row["promising"] = bool(r0 - r >= margin(r0) and f.bic - base.bic < -bic_min)
+        out["screen"].append(row)
+        if progress:
+            progress(e)
+    promising = [row["effect"] for row in sorted(out["screen"], key=lambda z: z["rmse_heldout_deg"]) if row["promising"]]
+    current, cur_r, kept = base, r0, []
+    while promising and len(kept) < max_effects:
+        trials = []
+        for e in promising:
+            m = Model(data, kept + [e])
+            f = m.fit(fit_mask, _start(m, current, single[e]))
+            trials.append((f.rmse(y, eval_mask), e, f))
+        trials.sort(key=lambda z: z[0])
+        r, e, f = trials[0]
+        if not (cur_r - r >= margin(cur_r) and f.bic - current.bic < -bic_min):
+            break
+        kept.append(e)
+        promising.remove(e)
+        out["kept"].append({"effect": e, "rmse_before_deg": cur_r, "rmse_after_deg": r,
+                            "share_of_excess_removed": _share(cur_r, r, out["excess_before_deg"], sigma)})
+        current, cur_r = f, r
+        # Effects whose trial on top came out no better than the margin are done for.
+        promising = [p for (rr, p, _) in trials[1:] if cur_r - rr >= -1e9 and p in promising]
+    # Indistinguishable: promising alone about as well as the kept one, nothing more once it is in.
+    for k in out["kept"]:
+        e = k["effect"]
+        rk = single[e].rmse(y, eval_mask)
+        tol = max(margin(r0), 0.25 * (r0 - rk))
+        k["indistinguishable_from"] = [row["effect"] for row in out["screen"]
+                                       if row["effect"] not in kept and row["promising"]
+                                       and row["rmse_heldout_deg"] <= rk + tol]
+    fp = current.params()
+    for k in out["kept"]:
+        k["params"] = {n: v for n, v in fp.items() if n.startswith(k["effect"] + ".")}
+    out["final"] = {"effects": list(kept), "rmse_heldout_deg": cur_r, "rmse_fit_deg": current.rmse(y, fit_mask),
+                    "excess_after_deg": excess(cur_r, sigma),
+                    "share_of_excess_removed": _share(r0, cur_r, out["excess_before_deg"], sigma)}
+    out["verdict"] = verdict(out)
+    out["_fits"] = {"base": base, "final": current}
+    return out
+
+
+def _share(r_before: float, r_after: float, e0: float, sigma: float) -> float:
+    """Share of the excess over the noise floor that a step removes: (e(before) - e(after)) / e0."""
+    if e0 <= 0:
+        return 0.0
+    return float((excess(r_before, sigma) - excess(r_after, sigma)) / e0)
+
+
+def verdict(out: dict, unexplained_ratio: float = 1.5) -> str:
+    """One label: the first kept effect when the kept set removes at least half of the excess;
+    "none" when nothing is kept and the held-out RMSE is within unexplained_ratio x noise floor;
+    "unexplained" otherwise."""
+    if out["kept"]:
+        return out["kept"][0]["effect"] if out["final"]["share_of_excess_removed"] >= 0.5 else "unexplained"
+    r0 = out["base"]["rmse_heldout_deg"]
+    return "none" if r0 <= unexplained_ratio * max(out["noise_floor_deg"], 1e-9) else "unexplained"
