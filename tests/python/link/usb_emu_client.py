@@ -14,10 +14,12 @@ from playscope.device.tables import HostCalib, demo_table, set_generation, test_
 from playscope.device.transport import UsbTransport
 
 
-def check(link: Link, n_vectors: int) -> dict:
-    """Flash, then read back and rerun the compensator here, independently of flash()'s own checks."""
-    r = flash(link, demo_table(), n_vectors, log=lambda *_: None)
-    sent = set_generation(demo_table(), r["generation"])
+def check(link: Link, n_vectors: int, blob: bytes | None = None) -> dict:
+    """Flash blob (default: the demo table), then read back and rerun the compensator here,
+    independently of flash()'s own checks. q_board: the board's q* (Q16) for test_vector."""
+    blob = demo_table() if blob is None else blob
+    r = flash(link, blob, n_vectors, log=lambda *_: None)
+    sent = set_generation(blob, r["generation"])
     back = link.read_table()
     host = HostCalib(sent)
     c = test_vector(host, n_vectors)
@@ -26,7 +28,8 @@ def check(link: Link, n_vectors: int) -> dict:
     link.set_mode("idle")
     q_host = host.comp_run(c)
     out = {"flash": r, "readback_identical": back == sent, "bytes": len(back),
-           "comp_steps": len(c), "comp_mismatches": sum(a != b for a, b in zip(q_board, q_host))}
+           "comp_steps": len(c), "comp_mismatches": sum(a != b for a, b in zip(q_board, q_host)),
+           "readback_hex": back.hex(), "q_board": q_board}
     last = link.info()["last_seq"]
     try:  # a replayed request over USB is refused like on every transport
         link.request(link.lib.PSP_MSG_SET_MODE, bytes([0, 0, 0, 0]), seq=last)
@@ -54,7 +57,13 @@ def main() -> int:
     link = Link(UsbTransport())
     try:
         info = link.info()
-        res = check(link, 300) if mode == "check" else bench(link, int(sys.argv[2]))
+        if mode == "check":
+            res = check(link, 300)
+        elif mode == "flash":  # flash TABLE_FILE [N_VECTORS]
+            with open(sys.argv[2], "rb") as f:
+                res = check(link, int(sys.argv[3]) if len(sys.argv) > 3 else 300, f.read())
+        else:
+            res = bench(link, int(sys.argv[2]))
         res["info"] = info
     finally:
         link.close()
