@@ -75,7 +75,8 @@ def auto_fps(t1: np.ndarray, fps_max: float = 50.0, fps_min: float = 10.0) -> fl
 
 def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
               t_delay_s: float | None = None, hysteresis: float | None = None,
-              onset_cfg: dict | None = None, source: str | None = None) -> Calibration:
+              onset_cfg: dict | None = None, source: str | None = None,
+              onsets: E.Onsets | None = None) -> Calibration:
     """Run the chain on a session (image or angle).
 
     1 reversals (q_cmd if logged, else the encoder with hysteresis, default 1 % of the
@@ -84,6 +85,8 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
       f_method "lsq" (play-consistent) or "morph" (paper); the other one is kept as
       f_remain_alt. t_delay: argument, else session.json, else estimated (image
       sessions; 0 for angle sessions, whose sensor shares the encoder clock).
+    onsets: B samples measured elsewhere (e.g. by the board's own detector during
+      `playscope run-insitu`); steps 1-2 are then skipped and these are fitted instead.
     Errors: InputError (naming ``source``) for too few reversals/onsets or lost markers.
     """
     src = source or (str(s.path) if s.path else None)
@@ -120,7 +123,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
             td, td_src = E.estimate_t_delay(t_enc, q, t_f, obs), "estimated (speed cross-correlation)"
         defaults = {}
     cfg = E.OnsetConfig(t_delay_s=td, fps=fr, **{**defaults, **(onset_cfg or {})})
-    on = E.run_onsets(t_enc, q, rt, rq, t_f, obs, s.distal_kind, cfg)
+    on = onsets if onsets is not None else E.run_onsets(t_enc, q, rt, rq, t_f, obs, s.distal_kind, cfg)
     B, w = E.fit_backlash(on.q_mean, on.b, n_ctrl, source=src)
 
     # c per frame: the sensor, or LM pose estimation through h(g(c)) (eqs. 6-8).

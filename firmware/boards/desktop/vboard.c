@@ -63,12 +63,15 @@ static void usage(void)
             "  --stdio        frames on stdin/stdout (default)\n"
             "  --listen PORT  TCP on 127.0.0.1:PORT, one host at a time (prints 'listening PORT')\n"
             "  --pty          a pseudo-terminal (prints 'pty /dev/pts/N')\n"
-            "  --tick-hz HZ   control tick rate, default 1000\n");
+            "  --tick-hz HZ   control tick rate, default 1000\n"
+            "  --time-scale X board clock runs X times the wall clock (simulation only), default 1\n"
+            "  --exc Q0:Q1:AMP:ADV:V  excitation used without a table: range, amplitude, advance\n"
+            "                 (actuator units) and speed (units/s); default 0:10:1:0.25:10\n");
 }
 
 /* Serve one connection until EOF: frames in, answers and unsolicited frames out, ticks
  * run from the monotonic clock. The motor is ideal: q measured = last set-point. */
-static void serve(int in_fd, uint32_t tick_hz)
+static void serve(int in_fd, uint32_t tick_hz, double time_scale)
 {
     uint8_t buf[4096];
     uint64_t t0 = now_us(), ticks = 0;
@@ -86,7 +89,9 @@ static void serve(int in_fd, uint32_t tick_hz)
             if (n > 0)
                 psl_rx(&board, buf, (size_t)n);
         }
-        uint64_t due = (now_us() - t0) * 1000u / tick_ns;
+        /* time_scale != 1 only for closed-loop simulations (playscope run-insitu --sim-plant):
+         * board time = scale x wall time, so a long excitation runs in a fraction of it. */
+        uint64_t due = (uint64_t)((double)(now_us() - t0) * 1000.0 * time_scale / (double)tick_ns);
         for (int k = 0; ticks < due && k < VB_TICKS_MAX_PER_WAKE; k++, ticks++)
             q_q16 = psl_tick(&board, (uint32_t)(ticks * tick_ns / 1000u), q_q16);
         if (due > ticks + VB_TICKS_MAX_PER_WAKE)
@@ -99,6 +104,9 @@ int main(int argc, char **argv)
     const char *flash_path = NULL;
     int listen_port = -1, use_pty = 0;
     uint32_t tick_hz = 1000;
+    double time_scale = 1.0;
+    double exc[5];
+    int have_exc = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--flash") && i + 1 < argc)
             flash_path = argv[++i];
@@ -110,12 +118,17 @@ int main(int argc, char **argv)
             ;
         else if (!strcmp(argv[i], "--tick-hz") && i + 1 < argc)
             tick_hz = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--time-scale") && i + 1 < argc)
+            time_scale = strtod(argv[++i], NULL);
+        else if (!strcmp(argv[i], "--exc") && i + 1 < argc &&
+                 sscanf(argv[++i], "%lf:%lf:%lf:%lf:%lf", &exc[0], &exc[1], &exc[2], &exc[3], &exc[4]) == 5)
+            have_exc = 1;
         else {
             usage();
             return 2;
         }
     }
-    if (tick_hz == 0 || tick_hz > 100000) {
+    if (tick_hz == 0 || tick_hz > 100000 || !(time_scale > 0.0 && time_scale <= 100.0)) {
         usage();
         return 2;
     }
@@ -140,6 +153,19 @@ int main(int argc, char **argv)
     psl_config_t cfg = psl_default_config(tick_hz);
     cfg.board_id[0] = 0x56495254; /* "VIRT" */
     cfg.board_id[2] = (uint32_t)getpid();
+    if (have_exc) {
+        cfg.exc.q_start_q16 = (int32_t)(exc[0] * 65536.0);
+        cfg.exc.q_end_q16 = (int32_t)(exc[1] * 65536.0);
+        cfg.exc.amplitude_q16 = (int32_t)(exc[2] * 65536.0);
+        cfg.exc.advance_q16 = (int32_t)(exc[3] * 65536.0);
+        cfg.exc.v_q32 = (int64_t)(exc[4] / tick_hz * 4294967296.0); /* units per tick, Q32.32 */
+        exc_t probe;
+        if (exc_init(&probe, &cfg.exc) != EXC_OK) {
+            fprintf(stderr, "ps_vboard: --exc %g:%g:%g:%g:%g refused (need Q1 > Q0, AMP > ADV > 0, V > 0)\n",
+                    exc[0], exc[1], exc[2], exc[3], exc[4]);
+            return 2;
+        }
+    }
     psl_init(&board, &cfg, flash, write_all, NULL);
 
     if (listen_port >= 0) {
@@ -161,7 +187,7 @@ int main(int argc, char **argv)
                 continue;
             setsockopt(c, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
             out_fd = c;
-            serve(c, tick_hz);
+            serve(c, tick_hz, time_scale);
             close(c);
         }
     } else if (use_pty) {
@@ -179,10 +205,10 @@ int main(int argc, char **argv)
         printf("pty %s\n", ptsname(m));
         fflush(stdout);
         out_fd = m;
-        serve(m, tick_hz);
+        serve(m, tick_hz, time_scale);
     } else {
         out_fd = 1;
-        serve(0, tick_hz);
+        serve(0, tick_hz, time_scale);
     }
     if (flash_path)
         pss_file_close(&ff);

@@ -18,11 +18,12 @@ def _add_device_args(p) -> None:
     p.add_argument("--address", help="qemu: host:port of an already running QEMU serial")
 
 
-def _open(args):
+def _open(args, vboard_args=()):
     from .link import Link
     from .transport import open_transport
 
-    return Link(open_transport(args.device, flash_file=args.flash_file, elf=args.elf, address=args.address))
+    return Link(open_transport(args.device, flash_file=args.flash_file, elf=args.elf, address=args.address,
+                               vboard_args=vboard_args))
 
 
 def cmd_info(args) -> int:
@@ -107,7 +108,14 @@ def cmd_flash(args) -> int:
 def cmd_run_insitu(args) -> int:
     from .insitu import run_insitu
 
-    with _closing(_open(args)) as link:
+    vb = []
+    if args.sim_plant:
+        if args.device != "virtual":
+            print("playscope: --sim-plant needs --device virtual (the simulated instrument follows "
+                  "the virtual board's clock)", file=sys.stderr)
+            return 2
+        vb = ["--time-scale", f"{args.time_scale:g}", "--exc", args.exc]
+    with _closing(_open(args, vb)) as link:
         return run_insitu(link, args)
 
 
@@ -125,10 +133,23 @@ def add_parser(subparsers) -> None:
     _add_device_args(pi)
     pi.set_defaults(func=cmd_info)
 
-    p = subparsers.add_parser("run-insitu", help="excitation on the board, marker from a camera/video, "
-                              "B samples from the board's onset detector")
+    p = subparsers.add_parser("run-insitu", help="in-situ calibration on the board: excitation, marker from "
+                              "a camera/video, B samples from the board's onset detector, fit, tables, flash")
     p.add_argument("--video", help="video file or camera index for OpenCV VideoCapture")
-    p.add_argument("--seconds", type=float, default=20.0, help="longest run (default 20 s)")
-    p.add_argument("-o", "--output", help="write the B samples as CSV here")
+    p.add_argument("--geometry", help="session.json with robot, camera and hand-eye (to fit f_remain, eqs. 6-8)")
+    p.add_argument("--sim-plant", action="store_true",
+                   help="SIMULATION: no camera; a simulated instrument follows the virtual board's encoder "
+                        "stream and is rendered to frames (simulator preset 'ideal')")
+    p.add_argument("--time-scale", type=float, default=4.0,
+                   help="--sim-plant: virtual board clock speed-up over the wall clock (default 4)")
+    p.add_argument("--exc", default="-3:3:1.6:0.4:1.0",
+                   help="--sim-plant: virtual board excitation Q0:Q1:AMP:ADV:V in mm, mm/s (default -3:3:1.6:0.4:1.0)")
+    p.add_argument("--seed", type=int, default=0, help="--sim-plant: noise seed")
+    p.add_argument("--seconds", type=float, default=600.0, help="longest run in board seconds (default 600)")
+    p.add_argument("-N", "--control-points", type=int, default=14, help="B-spline control points (paper: 14)")
+    p.add_argument("--vectors", type=int, default=200, help="compensator test steps after flashing (default 200)")
+    p.add_argument("--no-flash", action="store_true", help="fit and write tables, do not flash")
+    p.add_argument("-o", "--output", help="folder for b_samples.csv, session/, calibration.json, table.bin, result.json")
+    p.add_argument("--json", action="store_true", help="print the result as JSON on the last line")
     _add_device_args(p)
     p.set_defaults(func=cmd_run_insitu)

@@ -1,52 +1,439 @@
-"""`playscope run-insitu`: board excitation, marker observations streamed to the board, B samples back."""
+"""`playscope run-insitu`: the paper's in-situ procedure (section III) end to end on a board.
+
+1. The board runs its excitation trajectory (mode EXCITATION, section III-B) and streams its
+   encoder samples (t_us, q) on the board clock (PSP_MSG_ENC_STREAM, 1 kHz).
+2. Frames come from a camera or a video (OpenCV VideoCapture), or, with ``--sim-plant``, from
+   a SIMULATED instrument (SimPlant below) driven in closed loop by the board's streamed q.
+   playscope.track.MarkerTracker finds the marker (u, v) px in each frame.
+3. Every frame goes to the board as PSP_MSG_MARKER_OBS stamped on the board clock (the
+   acquisition delay is not removed: the board's detector subtracts t_delay, eq. 1), and the
+   board's onset detector answers B samples (psp_b_sample_t) when a reversal's onset is found.
+4. The host fits B(q) to the board's samples (robust B-spline, estimate.fit_backlash, N = 14),
+   f_remain from the recorded characteristic (pose estimation eqs. 6-8, play-consistent least
+   squares; calibration.calibrate with the board's onsets), builds the fixed-point tables and
+   flashes them (upload, commit, read back, compensator bit for bit: device.cli.flash).
+
+Board clock. With --sim-plant, frames are rendered exactly at board times k / fps once the
+encoder stream has passed them (so the board's clock drives the simulation, whatever its
+speed). With a camera or a video, a frame is stamped when it is read: board time = host time +
+offset, where offset is the largest (t_last_sample - host receive time) over encoder batches,
+i.e. that of the least delayed batch (the board sends a batch the tick it fills).
+"""
 
 from __future__ import annotations
 
 import csv
+import json
+import math
 import sys
 import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+Q16 = 65536.0
+
+
+# --------------------------------------------------------------------------- board clock
+class BoardClock:
+    """Board time (us) from host time, learnt from encoder batches (module docstring).
+    Assumes the board and host clocks run at the same rate (no --time-scale)."""
+
+    def __init__(self):
+        self.offset_us: float | None = None
+
+    def batch(self, t_last_us: int, host_s: float) -> None:
+        off = t_last_us - host_s * 1e6
+        self.offset_us = off if self.offset_us is None else max(self.offset_us, off)
+
+    def now_us(self, host_s: float) -> int | None:
+        return None if self.offset_us is None else int(host_s * 1e6 + self.offset_us)
+
+
+# --------------------------------------------------------------------------- frame sources
+class VideoSource:
+    """Frames from cv2.VideoCapture: a camera index (read as fast as it delivers) or a file
+    (paced at its frame rate, as if it were a live camera). next() -> BGR frame or None at
+    the end; raises OSError when it cannot be opened."""
+
+    def __init__(self, spec: str):
+        import cv2
+
+        self.live = spec.isdigit()
+        self.cap = cv2.VideoCapture(int(spec) if self.live else spec)
+        if not self.cap.isOpened():
+            raise OSError(f"cannot open video {spec!r}")
+        fps = self.cap.get(cv2.CAP_PROP_FPS)
+        self.period_s = 1.0 / fps if fps and fps > 0 else 0.04
+        self.t_next = None
+
+    def due(self, host_s: float) -> bool:
+        return self.live or self.t_next is None or host_s >= self.t_next
+
+    def next(self, host_s: float):
+        ok, img = self.cap.read()
+        self.t_next = (self.t_next or host_s) + self.period_s
+        return img if ok else None
+
+    def close(self) -> None:
+        self.cap.release()
+
+
+@dataclass
+class SimPlantConfig:
+    """SIMULATED instrument for --sim-plant: the simulator's "ideal" preset (playscope.sim:
+    B(q) = base + peak exp(-((q - centre)/sigma)^2) mm, f_remain, constant curvature, pinhole
+    camera with distortion), the board's default camera timing (25 Hz, t_delay 80 ms, as
+    onset_default_config), a green disc of marker_radius_px drawn anti-aliased on a grey
+    noisy background. time_scale: the virtual board's clock runs this much faster than the
+    wall clock; exc: the board's excitation "Q0:Q1:AMP:ADV:V" (mm, mm/s)."""
+
+    seed: int = 0
+    fps: float = 25.0
+    t_delay_s: float = 0.08
+    marker_radius_px: float = 9.0
+    time_scale: float = 4.0
+    exc: str = "-3:3:1.6:0.4:1.0"
+    sim_overrides: dict = field(default_factory=dict)
+
+
+class SimPlant:
+    """SIMULATION ONLY: a tendon-driven instrument whose actuator follows the board's streamed
+    encoder samples, seen by a simulated camera. push(t_us, q) feeds (N,) board samples (q in
+    mm); frames(t_board_us) yields (t_us, BGR frame) for every frame time k / fps the encoder
+    stream has passed; a frame stamped t shows the tip at t - t_delay (acquisition delay)."""
+
+    def __init__(self, cfg: SimPlantConfig | None = None):
+        import cv2
+
+        from .. import model
+        from ..sim.core import preset
+
+        self.cfg = cfg or SimPlantConfig()
+        self.sim = preset("ideal", seed=self.cfg.seed, fps=self.cfg.fps, t_delay_s=self.cfg.t_delay_s,
+                          **self.cfg.sim_overrides)
+        self.B, self.f = self.sim.B_fn(), self.sim.f_fn()
+        self.im = model.ImageModel(self.sim.robot(), self.sim.camera(), self.sim.hand_eye())
+        # z_up/z_down (eq. 2 reindexed) tabulated once on a 0.5 um grid: the per-sample play
+        # update is then two interpolations, fast enough for a board clock several times
+        # real time (the bisection per batch of model.z_up costs ~3 ms).
+        self.qg = np.linspace(-12.0, 12.0, 48001)
+        self.zu_g, self.zd_g = model.z_up(self.qg, self.B), model.z_down(self.qg, self.B)
+        self.rng = np.random.default_rng(self.cfg.seed)
+        self.t_us = np.empty(0, np.int64)
+        self.zs = np.empty(0)
+        self.z = None
+        self.period_us = int(round(1e6 / self.cfg.fps))
+        self.next_us = self.period_us
+        self.delay_us = int(round(self.cfg.t_delay_s * 1e6))
+        W, H = self.sim.width, self.sim.height
+        # A bank of noisy grey backgrounds, cycled: drawing fresh noise per frame costs ~10 ms.
+        base = np.full((H, W, 3), (90, 100, 110), np.uint8)
+        self.bank = [cv2.add(base, self.rng.integers(0, 12, base.shape, dtype=np.uint8)) for _ in range(16)]
+        self.k = 0
+
+    def push(self, t_us: np.ndarray, q: np.ndarray) -> None:
+        q = np.asarray(q, float)
+        if q.min() < self.qg[0] or q.max() > self.qg[-1]:
+            raise ValueError(f"sim plant: q outside [{self.qg[0]:g}, {self.qg[-1]:g}] mm")
+        zu, zd = np.interp(q, self.qg, self.zu_g), np.interp(q, self.qg, self.zd_g)
+        z = np.empty_like(q)
+        prev = float(q[0]) if self.z is None else self.z
+        for k in range(q.size):  # play operator, eq. 3: z = min(z_down, max(z_up, z_prev))
+            prev = min(zd[k], max(zu[k], prev))
+            z[k] = prev
+        self.z = prev
+        self.t_us = np.concatenate([self.t_us[-4000:], np.asarray(t_us, np.int64)])
+        self.zs = np.concatenate([self.zs[-4000:], z])
+
+    def tip_px(self, t_us: float) -> tuple[float, float]:
+        """Marker (u, v) px at board time t_us (eqs. 2, 6: c = f_remain(z), Q = h(g(c)))."""
+        z = float(np.interp(t_us, self.t_us, self.zs))
+        u, v = self.im(self.f(np.array([z])))[0]
+        return float(u), float(v)
+
+    def truth_B(self, q):
+        return self.B(q)
+
+    def render(self, u: float, v: float) -> np.ndarray:
+        import cv2
+
+        img = self.bank[self.k % len(self.bank)].copy()
+        self.k += 1
+        s = 16  # cv2 draws with 4 fractional bits: sub-pixel centre
+        cv2.circle(img, (round(u * s), round(v * s)), round(self.cfg.marker_radius_px * s), (60, 200, 60),
+                   -1, cv2.LINE_AA, 4)
+        return img
+
+    def frames(self, t_board_us: int):
+        while self.t_us.size and self.next_us <= t_board_us:
+            t = self.next_us
+            self.next_us += self.period_us
+            ta = t - self.delay_us
+            if ta < self.t_us[0]:
+                continue  # before the stream began: nothing to show yet
+            yield t, self.render(*self.tip_px(ta))
+
+
+# --------------------------------------------------------------------------- the run
+@dataclass
+class InsituRun:
+    """What one run recorded: encoder (t_s, q) from the stream, marker (t_s, u_px, v_px) as
+    sent to the board (NaN = lost), the board's B samples (dicts of psp_b_sample_t, q/b in
+    actuator units), counts of their reasons, board seconds and wall seconds."""
+
+    enc_t_s: list = field(default_factory=list)
+    enc_q: list = field(default_factory=list)
+    mk_t_s: list = field(default_factory=list)
+    mk_u: list = field(default_factory=list)
+    mk_v: list = field(default_factory=list)
+    samples: list = field(default_factory=list)
+    board_s: float = 0.0
+    wall_s: float = 0.0
+    ended: str = ""
+
+    def valid(self) -> list:
+        return [s for s in self.samples if s["reason_code"] <= 1]  # ONSET_OK, ONSET_OK_COARSE
+
+
+REASONS = {0: "ok", 1: "ok_coarse", 2: "marker_lost", 3: "reversal", 4: "timeout", 5: "history_wrapped",
+           6: "history_missing", 7: "no_still"}
+
+
+def _b_dict(b: dict) -> dict:
+    return {"reason": REASONS.get(b["reason"], str(b["reason"])), "reason_code": b["reason"],
+            "t1_s": b["t1_us"] / 1e6, "t2_s": b["t2_us"] / 1e6, "q1": b["q1_q16"] / Q16,
+            "q2": b["q2_q16"] / Q16, "q_mean": b["q_mean_q16"] / Q16, "b": b["b_q16"] / Q16}
+
+
+def run_loop(link, source, max_board_s: float = 600.0, progress=None, tracker=None) -> InsituRun:
+    """Steps 1-3 of the module docstring. source: SimPlant or VideoSource. Ends when the
+    board's excitation ends (the board returns to idle), the video ends, or after
+    max_board_s of board time. progress(board_s, n_samples) is called about twice a second."""
+    from ..track import MarkerTracker
+
+    tracker = tracker or MarkerTracker()
+    run = InsituRun()
+    clock = BoardClock()
+    sim = isinstance(source, SimPlant)
+    t_wall0 = time.monotonic()
+    t_hi, t_prev = 0, None  # unwrap the board's 32-bit us clock
+    t_board = 0
+    link.set_mode("idle")
+    link.stream(True, 1)
+    link.set_mode("excitation")
+    next_check = time.monotonic() + 0.5
+    try:
+        while True:
+            now = time.monotonic()
+            for kind, ev in link.poll_events(0.002):
+                if kind == "b":
+                    run.samples.append(_b_dict(ev))
+                elif kind == "enc" and ev:
+                    t = []
+                    for tu, _ in ev:
+                        if t_prev is not None and tu < t_prev:
+                            t_hi += 1 << 32
+                        t_prev = tu
+                        t.append(t_hi + tu)
+                    q = np.array([qq for _, qq in ev], float) / Q16
+                    run.enc_t_s += [x / 1e6 for x in t]
+                    run.enc_q += q.tolist()
+                    t_board = t[-1]
+                    clock.batch(t_board, now)
+                    if sim:
+                        source.push(np.array(t), q)
+            if sim:
+                frames = list(source.frames(t_board))
+            elif source.due(now) and clock.now_us(now) is not None:
+                img = source.next(now)
+                if img is None:
+                    run.ended = "end of video"
+                    break
+                frames = [(clock.now_us(now), img)]
+            else:
+                frames = []
+            for t_f, img in frames:
+                d = tracker.track(img)
+                ok = not math.isnan(d.u)
+                b = link.marker(t_f, int(round(d.u * Q16)) if ok else 0, int(round(d.v * Q16)) if ok else 0,
+                                valid=ok)
+                run.mk_t_s.append(t_f / 1e6)
+                run.mk_u.append(d.u)
+                run.mk_v.append(d.v)
+                if b:
+                    run.samples.append(_b_dict(b))
+            run.board_s = t_board / 1e6
+            if now >= next_check:
+                next_check = now + 0.5
+                if progress:
+                    progress(run.board_s, len(run.valid()))
+                if link.info()["mode"] == "idle":
+                    run.ended = "excitation done"
+                    break
+            if run.board_s > max_board_s:
+                run.ended = f"stopped after {max_board_s:g} s of board time"
+                break
+    finally:
+        link.set_mode("idle")
+        link.stream(False)
+        run.wall_s = time.monotonic() - t_wall0
+    for kind, ev in link.poll_events(0.05):  # a last event still in flight
+        if kind == "b":
+            run.samples.append(_b_dict(ev))
+    return run
+
+
+def session_of(run: InsituRun, robot, camera, hand_eye, t_delay_s: float):
+    """The run as a playscope session (image kind): encoder from the board's stream, marker as
+    tracked; so it can be recalibrated offline (`playscope calibrate`)."""
+    from ..session import Session
+
+    enc = {"t_s": np.array(run.enc_t_s), "q": np.array(run.enc_q)}
+    mk = {"t_s": np.array(run.mk_t_s), "u_px": np.array(run.mk_u, float), "v_px": np.array(run.mk_v, float)}
+    return Session(actuator_unit="mm", distal_kind="image", robot=robot, encoder=enc, camera=camera,
+                   hand_eye=hand_eye, t_delay_s=t_delay_s, marker=mk, meta={"source": "playscope run-insitu"})
+
+
+def calibrate_run(run: InsituRun, session, n_ctrl: int = 14):
+    """Step 4: B from the board's samples, f_remain from the characteristic. Returns a
+    calibration.Calibration. Errors: InputError with too few valid B samples."""
+    from .. import estimate as E
+    from ..calibration import calibrate
+
+    v = run.valid()
+    reasons: dict[str, int] = {}
+    for s in run.samples:
+        reasons[s["reason"]] = reasons.get(s["reason"], 0) + 1
+    col = lambda k: np.array([s[k] for s in v], float)  # noqa: E731
+    on = E.Onsets(col("t1_s"), col("t2_s"), col("q1"), col("q2"), col("q_mean"), col("b"), reasons)
+    return calibrate(session, n_ctrl=n_ctrl, onsets=on, source="board onset detector (run-insitu)")
+
+
+def write_samples_csv(path, samples: list) -> None:
+    keys = ["reason", "reason_code", "t1_s", "t2_s", "q1", "q2", "q_mean", "b"]
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys)
+        w.writeheader()
+        w.writerows(samples)
+
+
+def _geometry(path: str):
+    """Robot, camera, hand-eye and t_delay from a session.json (playscope-session/1)."""
+    from ..errors import InputError
+    from ..session import parse_meta
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(p, "no such session.json")
+    m = parse_meta(json.loads(p.read_text()), p)
+    if m.get("camera") is None or m.get("hand_eye") is None:
+        raise InputError(p, "needs camera and hand_eye to estimate c from the marker (eqs. 6-8)")
+    return m["robot"], m["camera"], m["hand_eye"], m.get("t_delay_s") or 0.08
+
+
+def _bar(board_s: float, n: int, total_s: float | None) -> None:
+    if total_s:
+        k = int(30 * min(board_s / total_s, 1.0))
+        sys.stderr.write(f"\r[{'#' * k}{'.' * (30 - k)}] {board_s:6.1f}/{total_s:.0f} s board time, {n} B samples")
+    else:
+        sys.stderr.write(f"\r{board_s:6.1f} s board time, {n} B samples")
+    sys.stderr.flush()
+
+
+def exc_duration_s(exc: str) -> float:
+    """Board seconds of an excitation "Q0:Q1:AMP:ADV:V" (turning points as firmware/core/exc.h:
+    up AMP, down to the next base ADV higher until the up-turn would pass Q1, then the mirror
+    sweep back down to Q0)."""
+    q0, q1, amp, adv, v = (float(x) for x in exc.split(":"))
+    pts, low = [q0], q0
+    while low + amp <= q1 + 1e-9:
+        pts += [low + amp, low + adv]
+        low += adv
+    high = pts[-2]
+    while high - amp >= q0 - 1e-9:
+        pts += [high - amp, high - adv]
+        high -= adv
+    return float(np.sum(np.abs(np.diff(pts)))) / v
 
 
 def run_insitu(link, args) -> int:
-    """Drive the board's excitation and feed it marker positions from OpenCV VideoCapture.
+    """CLI body (see `playscope run-insitu --help`). Returns the exit status."""
+    from .cli import flash
+    from ..errors import InputError
+    from ..session import write_session
+    from ..tables import build_table
 
-    The marker tracker is the host's (playscope.track, owned by the host package); this
-    loop only moves data: frames -> (t, u, v) -> PSP_MSG_MARKER_OBS, B samples <- board.
-    Without a tracker or a video source it refuses with a message instead of guessing."""
+    out = Path(args.output) if args.output else None
+    if out:
+        out.mkdir(parents=True, exist_ok=True)
+    plant = None
+    if args.sim_plant:
+        plant = SimPlant(SimPlantConfig(seed=args.seed, time_scale=args.time_scale, exc=args.exc))
+        source = plant
+        sim = plant.sim
+        robot, camera, hand_eye, t_delay = sim.robot(), sim.camera(), sim.hand_eye(), sim.t_delay_s
+        total = exc_duration_s(args.exc)
+        print(f"SIMULATION: --sim-plant renders a simulated instrument (simulator preset 'ideal') "
+              f"from the board's encoder stream; board clock x{args.time_scale:g}", file=sys.stderr)
+    else:
+        if args.video is None:
+            print("playscope: run-insitu needs --video FILE, a camera index, or --sim-plant", file=sys.stderr)
+            return 2
+        if args.geometry is None:
+            print("playscope: run-insitu needs --geometry session.json (robot, camera, hand-eye) to fit f",
+                  file=sys.stderr)
+            return 2
+        robot, camera, hand_eye, t_delay = _geometry(args.geometry)
+        try:
+            source = VideoSource(args.video)
+        except OSError as e:
+            print(f"playscope: {e}", file=sys.stderr)
+            return 2
+        total = None
     try:
-        import cv2
-        from ..track import track_frame  # provided by the host package's tracker
-    except ImportError as e:
-        print(f"playscope: run-insitu needs OpenCV and playscope.track ({e.name} missing)", file=sys.stderr)
-        return 2
-    if args.video is None:
-        print("playscope: run-insitu needs --video FILE or a camera index", file=sys.stderr)
-        return 2
-    cap = cv2.VideoCapture(int(args.video) if args.video.isdigit() else args.video)
-    if not cap.isOpened():
-        print(f"playscope: cannot open video {args.video}", file=sys.stderr)
-        return 2
-    link.set_mode("excitation")
-    t0 = time.monotonic()
-    samples = []
-    while time.monotonic() - t0 < args.seconds:
-        ok, img = cap.read()
-        if not ok:
-            break
-        t_us = int((time.monotonic() - t0) * 1e6)
-        pt = track_frame(img)
-        u, v = (pt if pt is not None else (0.0, 0.0))
-        b = link.marker(t_us, int(u * 65536), int(v * 65536), valid=pt is not None)
-        if b:
-            samples.append(b)
-        samples += [e for k, e in link.poll_events() if k == "b"]
-        if link.info()["mode"] == "idle":
-            break
-    link.set_mode("idle")
-    if args.output:
-        with open(args.output, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(samples[0]) if samples else ["reason"])
-            w.writeheader()
-            w.writerows(samples)
-    print(f"{len(samples)} B samples ({sum(1 for s in samples if s['reason'] <= 1)} valid)")
+        run = run_loop(link, source, args.seconds, progress=lambda s, n: _bar(s, n, total))
+    finally:
+        sys.stderr.write("\n")
+        if not plant:
+            source.close()
+    valid = run.valid()
+    print(f"{run.ended}: {run.board_s:.1f} s board time in {run.wall_s:.1f} s, {len(run.mk_t_s)} frames, "
+          f"{len(run.samples)} B samples from the board ({len(valid)} valid)")
+    s = session_of(run, robot, camera, hand_eye, t_delay)
+    if out:
+        write_samples_csv(out / "b_samples.csv", run.samples)
+        write_session(s, out / "session", overwrite=True)
+    try:
+        cal = calibrate_run(run, s, args.control_points)
+    except InputError as e:
+        print(f"playscope: run-insitu: {e}", file=sys.stderr)
+        return 1
+    q_min, q_max = cal.doc["q_range"]
+    tab = build_table(cal.B, cal.f, q_min, q_max, "mm", "remain", 1)
+    result = {"board_s": run.board_s, "wall_s": run.wall_s, "frames": len(run.mk_t_s),
+              "b_samples": len(run.samples), "b_valid": len(valid), "q_range": [q_min, q_max]}
+    if plant:
+        g = np.linspace(q_min + 0.3, q_max - 0.3, 101)
+        e = np.abs(cal.B(g) - plant.truth_B(g))
+        qm = np.array([x["q_mean"] for x in valid])
+        eb = np.abs(np.array([x["b"] for x in valid]) - plant.truth_B(qm)) if valid else np.zeros(1)
+        result["sim_B_err_mm"] = {"mean": float(e.mean()), "max": float(e.max()),
+                                  "samples_mean": float(eb.mean()), "samples_max": float(eb.max())}
+        print(f"SIMULATION truth: |B_fit - B_true| mean {e.mean():.3f} mm, max {e.max():.3f} mm over "
+              f"q in [{g[0]:.2f}, {g[-1]:.2f}]; board samples mean {eb.mean():.3f} mm")
+    if out:
+        cal.save(out / "calibration.json")
+        (out / "table.bin").write_bytes(tab.blob)
+    if not args.no_flash:
+        try:
+            result["flash"] = flash(link, tab.blob, args.vectors)
+        except (RuntimeError, ValueError) as e:
+            print(f"playscope: run-insitu: flash failed: {e}", file=sys.stderr)
+            return 1
+    if out:
+        (out / "result.json").write_text(json.dumps(result, indent=1) + "\n")
+    if args.json:
+        print(json.dumps(result))
     return 0

@@ -78,13 +78,15 @@ class PipeTransport(Transport):
         self.proc.stdout.close()
 
 
-def virtual_transport(flash_file: str | os.PathLike | None = None) -> PipeTransport:
-    """Start the virtual board (compiled on first use) with an optional file-backed flash."""
+def virtual_transport(flash_file: str | os.PathLike | None = None, extra_args=()) -> PipeTransport:
+    """Start the virtual board (compiled on first use) with an optional file-backed flash.
+    extra_args: more ps_vboard options (e.g. --time-scale, --exc for run-insitu --sim-plant)."""
     from .native import vboard_path
 
     argv = [str(vboard_path()), "--stdio"]
     if flash_file:
         argv += ["--flash", str(flash_file)]
+    argv += list(extra_args)
     return PipeTransport(argv, "virtual")
 
 
@@ -222,10 +224,12 @@ class UsbTransport(Transport):
             pass
 
 
-def open_transport(kind: str, *, flash_file=None, elf=None, address: str | None = None) -> Transport:
-    """kind: 'virtual' | 'qemu' | 'usb' | 'tcp' (address host:port)."""
+def open_transport(kind: str, *, flash_file=None, elf=None, address: str | None = None,
+                   vboard_args=()) -> Transport:
+    """kind: 'virtual' | 'qemu' | 'usb' | 'tcp' (address host:port). vboard_args: extra
+    ps_vboard options, virtual only."""
     if kind == "virtual":
-        return virtual_transport(flash_file)
+        return virtual_transport(flash_file, vboard_args)
     if kind == "qemu":
         if address:
             host, port = address.rsplit(":", 1)
