@@ -70,6 +70,14 @@ def _start(model: Model, *fits: Fit) -> np.ndarray:
     return th
 
 
+def delta_bic(new: Fit, old: Fit) -> float:
+    """BIC(new) - BIC(old) on the same fit rows with one effective sample size, that of the richer
+    model's residuals (closer to white than the poorer model's, so n_eff is not crushed by the
+    very misfit the new model removes)."""
+    n = new.n_eff
+    return float(n * np.log(new.rss / old.rss) + (new.k - old.k) * np.log(n))
+
+
 def excess(rmse: float, sigma: float) -> float:
     """Part of an RMSE above the noise floor: sqrt(max(rmse^2 - sigma^2, 0))."""
     return float(np.sqrt(max(rmse * rmse - sigma * sigma, 0.0)))
@@ -97,9 +105,9 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
         f = m.fit(fit_mask, _start(m, base))
         single[e] = f
         r = f.rmse(y, eval_mask)
-        row = {"effect": e, "rmse_heldout_deg": r, "delta_rmse_deg": r0 - r, "delta_bic": f.bic - base.bic,
+        row = {"effect": e, "rmse_heldout_deg": r, "delta_rmse_deg": r0 - r, "delta_bic": delta_bic(f, base),
                "params": f.params()}
-        row["promising"] = bool(r0 - r >= margin(r0) and f.bic - base.bic < -bic_min)
+        row["promising"] = bool(r0 - r >= margin(r0) and delta_bic(f, base) < -bic_min)
         out["screen"].append(row)
         if progress:
             progress(e)
@@ -113,15 +121,13 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
             trials.append((f.rmse(y, eval_mask), e, f))
         trials.sort(key=lambda z: z[0])
         r, e, f = trials[0]
-        if not (cur_r - r >= margin(cur_r) and f.bic - current.bic < -bic_min):
+        if not (cur_r - r >= margin(cur_r) and delta_bic(f, current) < -bic_min):
             break
         kept.append(e)
         promising.remove(e)
         out["kept"].append({"effect": e, "rmse_before_deg": cur_r, "rmse_after_deg": r,
                             "share_of_excess_removed": _share(cur_r, r, out["excess_before_deg"], sigma)})
         current, cur_r = f, r
-        # Effects whose trial on top came out no better than the margin are done for.
-        promising = [p for (rr, p, _) in trials[1:] if cur_r - rr >= -1e9 and p in promising]
     # Indistinguishable: promising alone about as well as the kept one, nothing more once it is in.
     for k in out["kept"]:
         e = k["effect"]

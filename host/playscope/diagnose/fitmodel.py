@@ -293,7 +293,9 @@ class Model:
         r = self.d.y_m[m] - A[m] @ coef
         n = int(m.sum())
         rho = float(np.corrcoef(r[:-1], r[1:])[0, 1]) if n > 3 else 0.0
-        rho = min(max(rho, 0.0), 0.98)
+        # Correlation beyond 0.9 is model misfit rather than noise: it is not allowed to shrink the
+        # effective sample below n/19 (else a gross misfit would make every criterion blind).
+        rho = min(max(rho, 0.0), 0.9)
         n_eff = max(n * (1 - rho) / (1 + rho), 10.0)
         rss = float(np.sum(r * r))
         k = int(free.sum()) + A.shape[1]

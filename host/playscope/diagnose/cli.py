@@ -1,0 +1,92 @@
+"""`playscope diagnose`: sim-to-real gap diagnosis of sessions, and the blind self-test.
+
+Registered by playscope.cli through add_parser(subparsers).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+JSON_KEYS = ("sessions.<name>: noise_floor_deg, noise_method, base{rmse_fit_deg, rmse_heldout_deg, bic}, "
+             "screen[{effect, rmse_heldout_deg, delta_rmse_deg, delta_bic, promising, params}], "
+             "kept[{effect, params{name: [value, sd]}, rmse_before_deg, rmse_after_deg, share_of_excess_removed, "
+             "indistinguishable_from}], final{effects, rmse_heldout_deg, excess_after_deg, share_of_excess_removed}, "
+             "verdict, atlas_before, atlas_after; selftest: confusion, top1, false_discovery_nulls, cases")
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("diagnose", help="sim-to-real gap: held-out gap, localisation, attribution to library effects",
+                       description="Fit the paper's model (play of width B(q) then f_remain) on the first part of each "
+                                   "session, judge it on the rest, localise the residuals and attribute the gap to "
+                                   "effects of the simulator's library (docs/diagnosis.md).")
+    p.add_argument("sessions", nargs="*", help="session folders (playscope-session/1)")
+    p.add_argument("--catheter", metavar="FILE", nargs="+", default=[],
+                   help="catheter CSV recordings (data_2_*.txt) read in place through playscope.importer")
+    p.add_argument("--split", type=float, default=0.5, help="fraction of each record used to fit (default 0.5)")
+    p.add_argument("--html", metavar="PATH", help="write an HTML page with the plots")
+    p.add_argument("--json", metavar="PATH", help=f"write results as JSON. Keys: {JSON_KEYS}")
+    p.add_argument("--selftest", action="store_true", help="run the blind self-test instead (simulated cases)")
+    p.add_argument("--full", action="store_true", help="self-test at full size (2 strengths, 4 nulls, 2 out-of-library)")
+    p.add_argument("--workers", type=int, default=2, help="self-test processes (default 2)")
+    p.set_defaults(func=run)
+
+
+def _clean(res: dict) -> dict:
+    return {k: v for k, v in res.items() if not k.startswith("_")}
+
+
+def diagnose_data(data, split: float = 0.5, progress=None) -> dict:
+    """attribute() plus the residual atlas before/after, on the held-out rows."""
+    from .attribute import attribute, halves
+    from .localise import atlas
+
+    fm, em = halves(data, split)
+    res = attribute(data, fm, em, progress=progress)
+    res["atlas_before"] = atlas(data, res["_fits"]["base"].pred, em)
+    res["atlas_after"] = atlas(data, res["_fits"]["final"].pred, em)
+    res["_eval_mask"] = em
+    return res
+
+
+def run(args) -> int:
+    from ..commands.common import dump_json
+    from ..session import load_session
+    from .fitmodel import from_session
+
+    if args.selftest:
+        from . import selftest
+        sc = selftest.run(*((2, 4, 2) if args.full else (1, 2, 1)), workers=args.workers,
+                          log=lambda s: print(s, file=sys.stderr, flush=True))
+        print(selftest.format_report(sc))
+        dump_json(args.json, {"selftest": sc})
+        return 0
+    items = [(str(s), lambda s=s: load_session(s)) for s in args.sessions]
+    if args.catheter:
+        from ..importer import import_catheter
+        items += [(Path(f).stem, lambda f=f: import_catheter(f)) for f in args.catheter]
+    if not items:
+        print("playscope diagnose: give session folders, --catheter files, or --selftest", file=sys.stderr)
+        return 2
+    out, figs_all = {}, []
+    for name, load in items:
+        data = from_session(load())
+        res = diagnose_data(data, args.split)
+        r = res["final"]
+        print(f"{name}: noise floor {res['noise_floor_deg']:.3f} deg ({res['noise_method']}); held-out RMSE "
+              f"{res['base']['rmse_heldout_deg']:.3f} -> {r['rmse_heldout_deg']:.3f} deg; verdict {res['verdict']}")
+        for k in res["kept"]:
+            ps = ", ".join(f"{n.split('.', 1)[1]}={v[0]:.3g}±{v[1]:.2g}" for n, v in k["params"].items())
+            ind = f"; cannot tell apart from {', '.join(k['indistinguishable_from'])}" if k["indistinguishable_from"] else ""
+            print(f"  + {k['effect']} ({ps}): {k['rmse_before_deg']:.3f} -> {k['rmse_after_deg']:.3f} deg, "
+                  f"{100 * k['share_of_excess_removed']:.0f} % of the excess over the noise floor{ind}")
+        if args.html:
+            from .report import figures
+            figs_all += [(f"{name}: {t}", img) for t, img in figures(data, res, res["atlas_before"], res["atlas_after"])]
+        out[name] = _clean(res)
+    dump_json(args.json, {"sessions": out})
+    if args.html:
+        from ..atomic import write_text_atomic
+        from .report import html_page
+        write_text_atomic(args.html, html_page("playscope diagnose", out, figs_all))
+    return 0
