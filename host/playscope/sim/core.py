@@ -255,7 +255,9 @@ def observe_image(cfg: SimConfig, truth: dict, eff: EffectSet, rng: np.random.Ge
     """Marker track one row per frame: stamped times t_k = k/fps, scene captured at
     t_k - t_delay_s - delay_extra + N(0, jitter). Returns {"t_s", "u_px", "v_px", "t_capture_s", "c_deg"}."""
     t, c = truth["t_s"], truth["c_deg"]
-    tk = np.arange(np.ceil((t[0] + 0.2) * cfg.fps), np.floor(t[-1] * cfg.fps) + 1) / cfg.fps
+    # The camera runs on its own clock: a random phase of its frames against the encoder's.
+    phase = rng.uniform(0, 1.0 / cfg.fps)
+    tk = np.arange(np.ceil((t[0] + 0.2) * cfg.fps), np.floor(t[-1] * cfg.fps)) / cfg.fps + phase
     tcap = tk - cfg.t_delay_s - eff.get("camera_delay", "delay_s")
     jit = eff.get("camera_delay", "jitter_s")
     if jit > 0:
