@@ -155,13 +155,16 @@ def _direction(z: np.ndarray) -> np.ndarray:
 class Model:
     """The diagnostic model for one Data and one set of effects (names from C_LIBRARY)."""
 
-    def __init__(self, data: Data, effects=()):
+    def __init__(self, data: Data, effects=(), frame: "Model | None" = None):
+        """frame: another Model whose knots and normalisation are reused, so a fit made on one
+        session can be evaluated on another (across-session protocol)."""
         self.d = data
         self.effects = tuple(e for e in C_LIBRARY if e in effects)
-        span = data.q_hi - data.q_lo
-        self.q_mid = 0.5 * (data.q_hi + data.q_lo)
+        ref = frame.d if frame is not None else data
+        span = ref.q_hi - ref.q_lo
+        self.q_mid = 0.5 * (ref.q_hi + ref.q_lo)
         self.q_half = max(0.5 * span, 1e-9)
-        self.kn = knots(data)
+        self.kn = knots(ref)
         self.zg = np.r_[self.kn[0] - 10 * span - 1, np.linspace(self.kn[0], self.kn[-1], 600), self.kn[-1] + 10 * span + 1]
         names, init, lo, hi = [], [], [], []
         for i in range(N_KNOTS):
@@ -252,6 +255,10 @@ class Model:
         m = mask & np.isfinite(y)
         coef, *_ = np.linalg.lstsq(A[m], y[m], rcond=None)
         return A, coef, m
+
+    def predict(self, theta: np.ndarray, coef: np.ndarray) -> np.ndarray:
+        """c (Nm,) deg predicted with given nonlinear parameters and linear coefficients."""
+        return self.design(theta) @ coef
 
     def residual(self, theta, mask):
         A, coef, m = self._solve(theta, mask)

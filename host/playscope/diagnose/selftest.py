@@ -1,7 +1,9 @@
 """Blind self-test of the diagnosis: simulated sessions with one effect at a few strengths (the
 identity hidden), perturbed simulator parameters, null cases and out-of-library cases.
 
-Scores (issue 5 targets): top-1 accuracy on the in-library cases (>= 90 %), false discoveries on
+Scores (issue 5 targets): top-1 accuracy on the in-library cases (>= 90 %); a planted effect whose
+oracle shrink is below the practical margin is "absorbed" by the in situ refit of B(q) and
+f_remain and is expected to give "none"; false discoveries on
 the null cases (an effect kept; <= 10 %), and the recovered shrink of the held-out RMSE against
 the true one (|recovered - true| <= 25 % of true), where the true shrink is what the base model
 gains when the true effect is added (the oracle knows which one and starts from its true values).
@@ -17,7 +19,7 @@ import numpy as np
 
 from ..sim.core import preset, simulate
 from ..sim.effects import EFFECTS
-from .attribute import attribute, halves
+from .attribute import MARGIN_ABS, MARGIN_FRAC, attribute, halves
 from .fitmodel import C_LIBRARY, Model, from_session
 
 # Effects checked blind (visible in c) and the parameter overrides that go with each strength.
@@ -82,13 +84,18 @@ def run_case(case: dict, duration_s: float = 120.0) -> dict:
            "rmse_base_deg": r0, "rmse_after_deg": res["final"]["rmse_heldout_deg"],
            "noise_floor_deg": res["noise_floor_deg"], "shrink_recovered_deg": r0 - res["final"]["rmse_heldout_deg"]}
     if case["effect"] in C_LIBRARY:
+        # Oracle: knows the effect, starts from the base fit; its gain is the true shrink.
         m = Model(data, [case["effect"]])
         th = m.init.copy()
-        th[:len(res["_fits"]["base"].theta)] = res["_fits"]["base"].theta[:len(th)] if False else th[:len(res["_fits"]["base"].theta)]
-        for n, f in zip(res["_fits"]["base"].names, res["_fits"]["base"].theta):
-            th[m.names.index(n)] = f
+        for n, v in zip(res["_fits"]["base"].names, res["_fits"]["base"].theta):
+            th[m.names.index(n)] = v
         f = m.fit(fm, th)
         out["shrink_true_deg"] = r0 - f.rmse(data.y_m, em)
+        # An effect that the in situ refit of B(q) and f_remain absorbs leaves no gap to find:
+        # the expected verdict is then "none" (reported as absorbed, not scored as a miss).
+        if out["shrink_true_deg"] < max(MARGIN_FRAC * r0, MARGIN_ABS):
+            out["truth"] = "none"
+            out["absorbed"] = True
     out["seconds"] = time.time() - t0
     return out
 
@@ -129,13 +136,16 @@ def score(results: list[dict]) -> dict:
     for r in results:
         conf[r["truth"]][r["verdict"]] += 1
     lib = [r for r in results if r["truth"] not in ("none", "unexplained")]
-    nulls = [r for r in results if r["truth"] == "none"]
+    nulls = [r for r in results if r["effect"] is None]
+    absorbed = [r for r in results if r.get("absorbed")]
     ool = [r for r in results if r["truth"] == "unexplained"]
     top1 = float(np.mean([r["verdict"] == r["truth"] for r in lib])) if lib else float("nan")
     fd = float(np.mean([bool(r["kept"]) for r in nulls])) if nulls else float("nan")
     shr = [r for r in lib if r["verdict"] == r["truth"] and r.get("shrink_true_deg", 0) > 0]
     within = [abs(r["shrink_recovered_deg"] - r["shrink_true_deg"]) <= 0.25 * r["shrink_true_deg"] for r in shr]
     return {"cases": results, "labels": labels, "confusion": conf, "top1": top1, "false_discovery_nulls": fd,
+            "absorbed": [{"effect": r["effect"], "params": r["params"], "verdict": r["verdict"],
+                          "shrink_true_deg": r["shrink_true_deg"]} for r in absorbed],
             "ool_unexplained": float(np.mean([r["verdict"] == "unexplained" for r in ool])) if ool else float("nan"),
             "shrink_within_25pct": float(np.mean(within)) if within else float("nan"), "n_cases": len(results)}
 
@@ -154,4 +164,7 @@ def format_report(sc: dict) -> str:
     lines.append(f"false discoveries on nulls: {100 * sc['false_discovery_nulls']:.0f} %   (target <= 10 %)")
     lines.append(f"out-of-library cases called unexplained: {100 * sc['ool_unexplained']:.0f} %")
     lines.append(f"recovered shrink within 25 % of the true one: {100 * sc['shrink_within_25pct']:.0f} % of correct cases")
+    for a in sc["absorbed"]:
+        lines.append(f"absorbed by the in situ refit (true shrink {a['shrink_true_deg']:.3f} deg < margin, expected 'none'): "
+                     f"{a['effect']} {a['params']} -> {a['verdict']}")
     return "\n".join(lines)
