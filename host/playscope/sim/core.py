@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.integrate import simpson
 from scipy.signal import lfilter
 
 from .. import model as M
@@ -231,14 +232,14 @@ def transmission(cfg: SimConfig, t: np.ndarray, q: np.ndarray, eff: EffectSet,
 def tip_position(c_deg: np.ndarray, L: float, l_tip: float, gamma: float = 0.0) -> np.ndarray:
     """Tip position (..., 3) mm in the base frame. gamma = 0: model.constant_curvature (g).
     gamma != 0: curvature kappa(s) = c/L (1 + gamma (2 s/L - 1)), same total bend c, integrated
-    numerically along the arc (64 trapezoids)."""
+    numerically along the arc (Simpson, 64 intervals)."""
     if gamma == 0.0:
         return M.constant_curvature(c_deg, L, l_tip)
     c = np.radians(np.asarray(c_deg, float))[..., None]
     s = np.linspace(0.0, L, 65)
     theta = c / L * (s + gamma * (s * s / L - s))
-    x = np.trapz(np.sin(theta), s, axis=-1)
-    z = np.trapz(np.cos(theta), s, axis=-1)
+    x = simpson(np.sin(theta), x=s, axis=-1)
+    z = simpson(np.cos(theta), x=s, axis=-1)
     c = c[..., 0]
     return np.stack([x + l_tip * np.sin(c), np.zeros_like(x), z + l_tip * np.cos(c)], axis=-1)
 
