@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # One-time (idempotent) set-up on a fresh Debian 12: apt packages, a Python venv with the
 # host installed, and the firmware builds. Safe to re-run; skips what is already there.
+# Usage: tools/setup.sh [--main]   (--main: only the desktop-release build the main job uses)
 set -euo pipefail
+presets=(desktop desktop-release stm32f405)
+[ "${1:-}" = "--main" ] && presets=(desktop-release)
 cd "$(dirname "$0")/.."
 
 APT_PKGS=(cmake ninja-build gcc libcmocka-dev gcc-arm-none-eabi libnewlib-arm-none-eabi
@@ -33,7 +36,7 @@ if [ -f host/pyproject.toml ]; then
   fi
 fi
 
-for preset in desktop desktop-release stm32f405; do
+for preset in "${presets[@]}"; do
   [ -f "build/$preset/build.ninja" ] || cmake --preset "$preset" >/dev/null
   cmake --build --preset "$preset" >/dev/null
 done

@@ -134,12 +134,21 @@ static int32_t abs32(int32_t x)
  * L1 distance grows linearly in time along any straight image motion, so no sqrt is
  * needed. The result is clamped to [t_lo, t_a]. 32-bit divide only. */
 static uint32_t extrapolate_onset(uint32_t t_a, int32_t s_a_q16, uint32_t t_b, int32_t s_b_q16,
-                                  uint32_t t_lo)
+                                  uint32_t t_lo, uint32_t frames_back)
 {
     uint32_t span_ab = t_b - t_a;
     uint32_t span_still = t_a - t_lo;
     uint32_t s_a = (uint32_t)s_a_q16;
     uint32_t den = (uint32_t)(s_b_q16 - s_a_q16); /* > 0, checked by the caller */
+    /* Moving at a steady rate from an onset at most frames_back frames before t_a, the
+     * marker cannot be further from the still level at t_a than it moves in that many
+     * frames. Clearly more (x 1.5) is a jump at the onset, such as the instrument shifting
+     * in its channel (the paper's V-B registration error): the line would point far too
+     * early, and the middle of the last frame interval is the unbiased guess. */
+    if ((uint64_t)s_a * 2u > (uint64_t)den * 3u * frames_back) {
+        uint32_t half = span_ab / 2u;
+        return half > span_still ? t_lo : t_a - half;
+    }
     while (s_a >= (1u << 15)) { /* keep s_a << 16 within 31 bits, ratio unchanged */
         s_a >>= 1;
         den >>= 1;
@@ -168,7 +177,7 @@ static bool finish_early(onset_t *o, onset_event_t *ev)
 {
     if (o->state == ONSET_ST_CONFIRMED)
         return emit(o, extrapolate_onset(o->cand_t_us, o->cand_s_q16, o->conf_t_us, o->conf_s_q16,
-                                         onset_floor(o)), ONSET_OK, ev);
+                                         onset_floor(o), 1u), ONSET_OK, ev);
     return emit(o, o->cand_t_us, ONSET_OK_COARSE, ev);
 }
 
@@ -253,7 +262,7 @@ static bool observe(onset_t *o, uint32_t t_us, int32_t u, int32_t v, bool valid,
              * closest to the onset; a marginal A may be noise, so wait for C. */
             int64_t s_a = o->cand_s_q16;
             if (s_a * s_a > 4 * onset_threshold2_q32(o))
-                return emit(o, extrapolate_onset(o->cand_t_us, o->cand_s_q16, t_us, s, onset_floor(o)),
+                return emit(o, extrapolate_onset(o->cand_t_us, o->cand_s_q16, t_us, s, onset_floor(o), 1u),
                             ONSET_OK, ev);
             o->conf_t_us = t_us;
             o->conf_s_q16 = s;
@@ -270,7 +279,7 @@ static bool observe(onset_t *o, uint32_t t_us, int32_t u, int32_t v, bool valid,
      * which may be a noise excursion just before it; the line is then extrapolated back
      * to the still level. */
     if (s > o->conf_s_q16)
-        return emit(o, extrapolate_onset(o->conf_t_us, o->conf_s_q16, t_us, s, onset_floor(o)), ONSET_OK, ev);
+        return emit(o, extrapolate_onset(o->conf_t_us, o->conf_s_q16, t_us, s, onset_floor(o), 2u), ONSET_OK, ev);
     return finish_early(o, ev);
 }
 

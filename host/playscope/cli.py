@@ -27,6 +27,7 @@ COMMAND_MODULES = [
     ("playscope.sim.cli", True),
     ("playscope.diagnose.cli", True),
     ("playscope.device.cli", True),
+    ("playscope.mainjob", False),
 ]
 
 DESCRIPTION = """\
@@ -37,6 +38,7 @@ In situ backlash estimation for tendon-driven continuum robots (Fig. 4 of the pa
   tables      calibration JSON -> fixed-point table blob for the firmware (common/ps_table.h)
   evaluate    prediction (Table I) and compensation errors on a test session
   report      HTML report with the paper's figures
+  demo        the main job end to end on a simulated instrument (what tools/run-main.sh runs)
 Typical run:  playscope calibrate S -o cal.json && playscope tables cal.json -o cal.pstb
 """
 

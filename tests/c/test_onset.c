@@ -31,6 +31,8 @@ typedef struct {
     int spike_frame;             /* one frame with a 6 px glitch, -1 for none */
     int stuck;                   /* tip never moves (broken tendon) */
     int angle_mode;              /* observe an angle (deg = 10 * z) instead of pixels */
+    double jump_px;              /* image shift that follows the tip's direction of motion
+                                    (instrument play in its channel, paper V-B) */
 } bench_t;
 
 typedef struct {
@@ -61,6 +63,7 @@ static void run_bench(const bench_t *b, const onset_config_t *cfg, double t_end_
     test_rng_seed(&r, seed);
     out->n = 0;
     double z = -b->b_mm / 2; /* play taken up on the rising side at the start */
+    double tip_dir = 1;      /* sign of the tip's last motion */
     int next_rev = 0, frame = 0;
     uint32_t next_frame_capture = b->frame_phase_us;
     /* Frames captured but not yet delivered: the delay is shorter than 8 frames here. */
@@ -71,8 +74,11 @@ static void run_bench(const bench_t *b, const onset_config_t *cfg, double t_end_
         double ts = t * 1e-6;
         double q = q_of_t(b, ts);
         if (!b->stuck) {
+            double z_prev = z;
             if (q - z > b->b_mm / 2) z = q - b->b_mm / 2;
             if (z - q > b->b_mm / 2) z = q + b->b_mm / 2;
+            if (z != z_prev)
+                tip_dir = z > z_prev ? 1 : -1;
         }
         if (next_rev < b->n_rev && ts >= b->t_rev_s[next_rev]) {
             if (onset_reversal(&o, t, Q16(q), &ev))
@@ -83,7 +89,8 @@ static void run_bench(const bench_t *b, const onset_config_t *cfg, double t_end_
             out->ev[out->n++] = ev;
         if (t >= next_frame_capture) {
             double noise_u = b->noise_px * test_rng_normal(&r), noise_v = b->noise_px * test_rng_normal(&r);
-            double u = 320 + b->px_per_mm * z + noise_u, v = 240 + 0.4 * b->px_per_mm * z + noise_v;
+            double u = 320 + b->px_per_mm * z + b->jump_px * tip_dir + noise_u;
+            double v = 240 + 0.4 * b->px_per_mm * z + noise_v;
             if (frame == b->spike_frame)
                 u += 6.0;
             pending[np].t_obs = next_frame_capture + b->t_delay_us;
@@ -169,6 +176,32 @@ static void test_refinement_beats_frame_quantisation(void **state)
     }
     print_message("mean |B error|: refined %.4f mm, frame-quantised %.4f mm\n", err_fine / n, err_coarse / n);
     assert_true(err_fine < 0.5 * err_coarse);
+}
+
+/* A registration jump at the onset (the image shifts by 3 px the moment the tip changes
+ * direction) must not pull t2 back by the whole line extrapolation: B stays within about
+ * half a frame of travel (v T / 2 = 0.005 mm) instead of the up-to-two frames (0.02 mm) of
+ * a clamped extrapolation. */
+static void test_jump_at_onset(void **state)
+{
+    (void)state;
+    double err = 0;
+    int n = 0;
+    for (uint32_t phase = 0; phase < 40000; phase += 5000) {
+        bench_t b = paper_bench();
+        b.frame_phase_us = phase;
+        b.jump_px = 3.0;
+        onset_config_t c = cfg_for(&b);
+        events_t e;
+        run_bench(&b, &c, 15.0, &e, 200 + phase);
+        assert_int_equal(e.n, 3);
+        for (int i = 0; i < 3; i++) {
+            assert_int_equal(e.ev[i].reason, ONSET_OK);
+            err += e.ev[i].b_q16 / 65536.0 - b.b_mm;
+            n++;
+        }
+    }
+    assert_true(fabs(err / n) < 0.004); /* mean bias */
 }
 
 static void test_lost_frames_short_and_long(void **state)
@@ -311,6 +344,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_b_from_eq1),
         cmocka_unit_test(test_refinement_beats_frame_quantisation),
+        cmocka_unit_test(test_jump_at_onset),
         cmocka_unit_test(test_lost_frames_short_and_long),
         cmocka_unit_test(test_reversal_before_onset),
         cmocka_unit_test(test_timeout_when_tip_never_moves),
