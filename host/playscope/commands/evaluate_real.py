@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..realeval import evaluate_real, format_tables
+from ..realeval import evaluate_real, evaluate_real_reimaged, format_tables
 from .common import add_json_arg, dump_json, progress
 
 
@@ -13,12 +13,19 @@ def add_parser(sub) -> None:
                        "two Markdown tables of bending-angle RMSE (deg). The recordings are read in place. "
                        "Example: playscope evaluate-real ../shared/data/real/catheter")
     p.add_argument("folder", help="folder holding data_2_*.txt")
+    p.add_argument("--reimage", metavar="WORKDIR",
+                   help="render each recording through a virtual endoscope into WORKDIR first (video, "
+                   "then marker tracking), and run the chain on the images, judged against the measured "
+                   "angle (about 20 s per file; tracked folders are reused)")
     add_json_arg(p, "in_situ {file: {model: rmse_deg}}, across {file: {model: rmse_deg}}, b_samples {file: n}")
     p.set_defaults(func=run)
 
 
 def run(a) -> int:
-    res = evaluate_real(a.folder, progress=lambda it, **kw: progress(it, **kw))
+    if a.reimage:
+        res = evaluate_real_reimaged(a.folder, a.reimage, progress=lambda it, **kw: progress(it, **kw))
+    else:
+        res = evaluate_real(a.folder, progress=lambda it, **kw: progress(it, **kw))
     print(format_tables(res))
     dump_json(a.json, res)
     return 0
