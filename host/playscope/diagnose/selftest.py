@@ -70,13 +70,14 @@ def make_config(case: dict, duration_s: float = 120.0):
     return cfg
 
 
-def run_case(case: dict, duration_s: float = 120.0) -> dict:
-    """Simulate blind, diagnose, and score one case (also the oracle's true shrink)."""
+def run_case(case: dict, duration_s: float = 120.0, candidates=C_LIBRARY) -> dict:
+    """Simulate blind, diagnose (screening ``candidates``), and score one case (also the
+    oracle's true shrink)."""
     t0 = time.time()
     s = simulate(make_config(case, duration_s), blind=True)
     data = from_session(s)
     fm, em = halves(data)
-    res = attribute(data, fm, em)
+    res = attribute(data, fm, em, candidates=candidates)
     r0 = res["base"]["rmse_heldout_deg"]
     out = {"id": case["id"], "truth": case["truth"], "effect": case["effect"], "params": case["params"],
            "verdict": res["verdict"], "kept": [k["effect"] for k in res["kept"]],
@@ -91,10 +92,13 @@ def run_case(case: dict, duration_s: float = 120.0) -> dict:
             th[m.names.index(n)] = v
         f = m.fit(fm, th)
         out["shrink_true_deg"] = r0 - f.rmse(data.y_m, em)
-        # An effect that the in situ refit of B(q) and f_remain absorbs leaves no gap to find:
-        # the expected verdict is then "none" (reported as absorbed, not scored as a miss).
+        # When even the oracle cannot shrink the gap by the practical margin, the effect is not
+        # recoverable in this protocol (absorbed by the in situ refit of B(q) and f_remain, or
+        # beyond the library model's reach): the right verdict is then what the rule says of an
+        # unfitted gap -- "none" within 1.5x the noise floor, else "unexplained". Such cases are
+        # listed apart and left out of top-1.
         if out["shrink_true_deg"] < max(MARGIN_FRAC * r0, MARGIN_ABS):
-            out["truth"] = "none"
+            out["truth"] = "none" if r0 <= 1.5 * res["noise_floor_deg"] else "unexplained"
             out["absorbed"] = True
     out["seconds"] = time.time() - t0
     return out
@@ -135,10 +139,10 @@ def score(results: list[dict]) -> dict:
     conf = {t: {v: 0 for v in labels} for t in labels}
     for r in results:
         conf[r["truth"]][r["verdict"]] += 1
-    lib = [r for r in results if r["truth"] not in ("none", "unexplained")]
+    lib = [r for r in results if r["truth"] not in ("none", "unexplained") and not r.get("absorbed")]
     nulls = [r for r in results if r["effect"] is None]
     absorbed = [r for r in results if r.get("absorbed")]
-    ool = [r for r in results if r["truth"] == "unexplained"]
+    ool = [r for r in results if r["effect"] is not None and r["effect"] not in C_LIBRARY]
     top1 = float(np.mean([r["verdict"] == r["truth"] for r in lib])) if lib else float("nan")
     fd = float(np.mean([bool(r["kept"]) for r in nulls])) if nulls else float("nan")
     shr = [r for r in lib if r["verdict"] == r["truth"] and r.get("shrink_true_deg", 0) > 0]
@@ -165,6 +169,6 @@ def format_report(sc: dict) -> str:
     lines.append(f"out-of-library cases called unexplained: {100 * sc['ool_unexplained']:.0f} %")
     lines.append(f"recovered shrink within 25 % of the true one: {100 * sc['shrink_within_25pct']:.0f} % of correct cases")
     for a in sc["absorbed"]:
-        lines.append(f"absorbed by the in situ refit (true shrink {a['shrink_true_deg']:.3f} deg < margin, expected 'none'): "
+        lines.append(f"not recoverable (oracle shrink {a['shrink_true_deg']:.3f} deg < margin): "
                      f"{a['effect']} {a['params']} -> {a['verdict']}")
     return "\n".join(lines)
