@@ -13,6 +13,7 @@ onset_config_t onset_default_config(void)
         .noise_k2_q16 = 9u << 16,            /* k = 3: P(false onset) ~ e^-9 per frame for 2-D Gaussian noise */
         .settle_frames = 1,
         .max_lost_frames = 10,
+        .jump_ratio_q8 = 384,                /* 1.5 */
         .timeout_us = 10000000,
     };
     return c;
@@ -134,7 +135,7 @@ static int32_t abs32(int32_t x)
  * L1 distance grows linearly in time along any straight image motion, so no sqrt is
  * needed. The result is clamped to [t_lo, t_a]. 32-bit divide only. */
 static uint32_t extrapolate_onset(uint32_t t_a, int32_t s_a_q16, uint32_t t_b, int32_t s_b_q16,
-                                  uint32_t t_lo, uint32_t frames_back)
+                                  uint32_t t_lo, uint32_t frames_back, uint32_t jump_ratio_q8)
 {
     uint32_t span_ab = t_b - t_a;
     uint32_t span_still = t_a - t_lo;
@@ -142,10 +143,11 @@ static uint32_t extrapolate_onset(uint32_t t_a, int32_t s_a_q16, uint32_t t_b, i
     uint32_t den = (uint32_t)(s_b_q16 - s_a_q16); /* > 0, checked by the caller */
     /* Moving at a steady rate from an onset at most frames_back frames before t_a, the
      * marker cannot be further from the still level at t_a than it moves in that many
-     * frames. Clearly more (x 1.5) is a jump at the onset, such as the instrument shifting
-     * in its channel (the paper's V-B registration error): the line would point far too
-     * early, and the middle of the last frame interval is the unbiased guess. */
-    if ((uint64_t)s_a * 2u > (uint64_t)den * 3u * frames_back) {
+     * frames. Clearly more (jump_ratio, 1.5 by default) is a jump at the onset, such as the
+     * instrument shifting in its channel (the paper's V-B registration error): the line
+     * would point far too early, and the middle of the last frame interval is the unbiased
+     * guess. An angle sensor has no such shift; there a fast start is real motion. */
+    if (jump_ratio_q8 != 0 && ((uint64_t)s_a << 8) > (uint64_t)den * jump_ratio_q8 * frames_back) {
         uint32_t half = span_ab / 2u;
         return half > span_still ? t_lo : t_a - half;
     }
@@ -177,7 +179,7 @@ static bool finish_early(onset_t *o, onset_event_t *ev)
 {
     if (o->state == ONSET_ST_CONFIRMED)
         return emit(o, extrapolate_onset(o->cand_t_us, o->cand_s_q16, o->conf_t_us, o->conf_s_q16,
-                                         onset_floor(o), 1u), ONSET_OK, ev);
+                                         onset_floor(o), 1u, o->cfg.jump_ratio_q8), ONSET_OK, ev);
     return emit(o, o->cand_t_us, ONSET_OK_COARSE, ev);
 }
 
@@ -262,7 +264,8 @@ static bool observe(onset_t *o, uint32_t t_us, int32_t u, int32_t v, bool valid,
              * closest to the onset; a marginal A may be noise, so wait for C. */
             int64_t s_a = o->cand_s_q16;
             if (s_a * s_a > 4 * onset_threshold2_q32(o))
-                return emit(o, extrapolate_onset(o->cand_t_us, o->cand_s_q16, t_us, s, onset_floor(o), 1u),
+                return emit(o, extrapolate_onset(o->cand_t_us, o->cand_s_q16, t_us, s, onset_floor(o), 1u,
+                                                 o->cfg.jump_ratio_q8),
                             ONSET_OK, ev);
             o->conf_t_us = t_us;
             o->conf_s_q16 = s;
@@ -279,7 +282,7 @@ static bool observe(onset_t *o, uint32_t t_us, int32_t u, int32_t v, bool valid,
      * which may be a noise excursion just before it; the line is then extrapolated back
      * to the still level. */
     if (s > o->conf_s_q16)
-        return emit(o, extrapolate_onset(o->conf_t_us, o->conf_s_q16, t_us, s, onset_floor(o), 2u), ONSET_OK, ev);
+        return emit(o, extrapolate_onset(o->conf_t_us, o->conf_s_q16, t_us, s, onset_floor(o), 2u, o->cfg.jump_ratio_q8), ONSET_OK, ev);
     return finish_early(o, ev);
 }
 

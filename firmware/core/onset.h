@@ -38,6 +38,9 @@ typedef struct {
     uint32_t noise_k2_q16;       /* automatic T^2 = k^2 * mean |dQ|^2 over still frame pairs */
     uint16_t settle_frames;      /* frames skipped after t1 + t_delay (exposure straddling the reversal) */
     uint16_t max_lost_frames;    /* consecutive lost frames tolerated */
+    uint16_t jump_ratio_q8;      /* first moving frame further from the still level than this
+                                    many frames of motion = a jump at the onset (image
+                                    registration shift); Q8, 0 = never (external angle sensors) */
     uint32_t timeout_us;         /* give up if no motion this long after t1 */
 } onset_config_t;
 

@@ -123,6 +123,7 @@ class OnsetConfig:
     noise_k: float | None = None
     settle_frames: int | None = None
     max_lost_frames: int | None = None
+    jump_ratio: float | None = None
     timeout_s: float | None = None
 
     def to_c(self, ffi, lib):
@@ -138,6 +139,7 @@ class OnsetConfig:
             "noise_k2_q16": (self.noise_k, lambda x: int(round(x * x * 65536))),
             "settle_frames": (self.settle_frames, int),
             "max_lost_frames": (self.max_lost_frames, int),
+            "jump_ratio_q8": (self.jump_ratio, lambda x: int(round(x * 256))),
             "timeout_us": (self.timeout_s, lambda x: int(round(x * 1e6))),
         }
         for name, (val, fn) in conv.items():

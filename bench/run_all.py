@@ -1,0 +1,173 @@
+#!/usr/bin/env python3
+"""Every benchmark figure the issues ask for, in one Markdown table
+(figure | measured | target | paper or baseline | command).
+
+Runs, in order: bench/bench_firmware.sh (M4 instructions per tick, desktop ticks/s, image
+size), bench/bench_host.py (calibrate time, tracking frames/s), bench/bench_link.py (flash
+time and round trip per transport), bench/fig7_replica.py (B error, paper Fig. 7),
+`playscope demo` (main job: B error, Table I and compensation ratios, time),
+`playscope evaluate-real` (real-data RMSE) and bench/diagnose_selftest.py --quick
+(diagnosis self-test accuracy). Only figures measured in this run are printed; a part that
+fails or is skipped says so in its row.
+
+Usage: .venv/bin/python bench/run_all.py [--skip-selftest] [--catheter DIR]   (~5 min)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PY = sys.executable
+PLAYSCOPE = [PY, "-m", "playscope.cli"]
+
+
+def sh(cmd: list[str], timeout: float = 1800) -> str:
+    """stdout of cmd run from the repository root; raises RuntimeError with its stderr."""
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+    if r.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed ({r.returncode}): {r.stderr.strip()[-300:]}")
+    return r.stdout
+
+
+def md_rows(text: str) -> dict[str, list[str]]:
+    """Rows of the Markdown tables in text, keyed by their first cell."""
+    rows = {}
+    for line in text.splitlines():
+        if line.startswith("|") and not line.startswith("|---"):
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            rows[cells[0]] = cells[1:]
+    return rows
+
+
+def find(rows: dict, prefix: str) -> list[str]:
+    for k, v in rows.items():
+        if k.startswith(prefix):
+            return v
+    raise KeyError(prefix)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--skip-selftest", action="store_true", help="leave out the diagnosis self-test (the slowest part)")
+    ap.add_argument("--catheter", default=str(ROOT.parent / "shared/data/real/catheter"),
+                    help="folder of the real catheter recordings (read in place)")
+    a = ap.parse_args(argv)
+    table: list[tuple[str, str, str, str, str]] = []
+
+    def part(name, fn):
+        t0 = time.perf_counter()
+        print(f"[bench] {name} ...", file=sys.stderr, flush=True)
+        try:
+            fn()
+        except (RuntimeError, KeyError, ValueError, subprocess.TimeoutExpired, OSError) as e:
+            table.append((name, f"not measured: {e}".replace("|", "/")[:160], "", "", ""))
+        print(f"[bench] {name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+
+    def firmware():
+        r = md_rows(sh(["bench/bench_firmware.sh"]))
+        c = "bench/bench_firmware.sh"
+        row = find(r, "M4 instructions per control tick")
+        table.append(("M4 instructions per control tick (onset + history + compensator)", row[0], "<= 120", "", c))
+        row = find(r, "desktop throughput")
+        table.append(("desktop ticks per second", row[0].split(" (")[0], "", "", c))
+        row = find(r, "playscope-fw.elf flash")
+        table.append(("USART image flash", row[0], "< 24 KiB", "", c))
+        row = find(r, "playscope-fw.elf RAM, tables aside")
+        table.append(("USART image RAM, tables aside", row[0], "< 16 KiB", "", c))
+
+    def host():
+        r = md_rows(sh([PY, "bench/bench_host.py"]))
+        c = "bench/bench_host.py (one core)"
+        table.append(("calibrate a 3-min 25 Hz session (load + calibrate)", find(r, "load + calibrate")[0] + " s",
+                      "< 3 s", "", c))
+        table.append(("marker tracking 720x576, ROI", find(r, "tracker, ROI")[0] + " frames/s", ">= 800", "", c))
+        table.append(("tracking end to end with MJPEG decode", find(r, "track_video end to end")[0] + " frames/s", "", "", c))
+
+    def link():
+        out = sh([PY, "bench/bench_link.py"])
+        for m in re.finditer(r"^(\S+)\s+flash (\d+) B.*?median\s+([\d.]+) ms, read-back\s+([\d.]+) ms, INFO round trip median\s+(\d+) us",
+                             out, re.M):
+            table.append((f"flash a {m[2]} B table, {m[1]}", f"{m[3]} ms (read-back {m[4]} ms, round trip {m[5]} us)",
+                          "", "", "bench/bench_link.py"))
+
+    def fig7():
+        out = sh([PY, "bench/fig7_replica.py"])
+        m = re.search(r"two-step ([\d.]+) deg \(([\d.]+) %\), single-step ([\d.]+) deg", out)
+        table.append(("B error, Fig. 7 replica: two-step (ours) / single-step pose-based",
+                      f"{m[1]} deg / {m[3]} deg", "< 0.35 deg", "paper 0.7 deg / 6.6 deg", "bench/fig7_replica.py"))
+
+    def mainjob():
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            sh(PLAYSCOPE + ["demo", "--out", f"{tmp}/main", "--json", f"{tmp}/s.json"])
+            wall = time.perf_counter() - t0
+            s = json.loads(Path(f"{tmp}/s.json").read_text())
+        c = "playscope demo"
+        b = s["b_error"]
+        table.append(("main job: B(q) error vs truth, mean / max", f"{b['mean']:.4f} / {b['max']:.4f} mm", "", "", c))
+        p = s["prediction"]
+        ratio = p["f_remain+B"]["c_rmse_truth_deg"] / p["f_coarse"]["c_rmse_truth_deg"]
+        table.append(("main job: Table I, f_remain+B / f_coarse, bending-angle RMSE",
+                      f"{p['f_remain+B']['c_rmse_truth_deg']:.2f} / {p['f_coarse']['c_rmse_truth_deg']:.2f} deg ({ratio:.2f})",
+                      "", "paper, image distance: 40 / 89 px (0.45)", c))
+        qx = p["f_remain+B"]["Qx_px"]["mean"] / p["f_coarse"]["Qx_px"]["mean"]
+        table.append(("main job: Table I, f_remain+B / f_coarse, mean |Qx|",
+                      f"{p['f_remain+B']['Qx_px']['mean']:.1f} / {p['f_coarse']['Qx_px']['mean']:.1f} px ({qx:.2f})",
+                      "", "paper 17 / 78 px (0.22)", c))
+        comp = s["compensation"]
+        table.append(("main job: open-loop compensation RMSE, f_remain+B vs f_coarse^-1",
+                      f"{comp['f_remain+B']['c_rmse_deg']:.2f} vs {comp['f_coarse_inv']['c_rmse_deg']:.2f} deg", "", "", c))
+        table.append(("main job wall time, already installed", f"{wall:.1f} s", "< 30 s", "", c))
+
+    def real():
+        if not Path(a.catheter).is_dir():
+            raise RuntimeError(f"{a.catheter} not found")
+        with tempfile.TemporaryDirectory() as tmp:
+            sh(PLAYSCOPE + ["evaluate-real", a.catheter, "--json", f"{tmp}/r.json"])
+            r = json.loads(Path(f"{tmp}/r.json").read_text())
+        c = "playscope evaluate-real"
+        for key, label in (("in_situ", "in situ"), ("across", "across sessions")):
+            rows = r[key].values()
+            mean = {m: sum(x[m] for x in rows) / len(rows) for m in ("linear", "const_play", "ours")}
+            worse = sum(x["ours"] > x["const_play"] for x in rows)
+            table.append((f"real catheter data, {label}: mean RMSE ours", f"{mean['ours']:.2f} deg "
+                          f"(worse than constant play on {worse} of {len(rows)} files)",
+                          "<= constant play on every file, in situ" if key == "in_situ" else "",
+                          f"linear {mean['linear']:.2f}, constant play {mean['const_play']:.2f} deg", c))
+
+    def selftest():
+        with tempfile.TemporaryDirectory() as tmp:
+            sh([PY, "bench/diagnose_selftest.py", "--quick", "--json", f"{tmp}/d.json"], timeout=3600)
+            d = json.loads(Path(f"{tmp}/d.json").read_text())
+        sc = d["selftest"]
+        c = "bench/diagnose_selftest.py --quick"
+        table.append(("diagnosis self-test: top-1 accuracy / false discoveries on nulls",
+                      f"{100 * sc['top1']:.0f} % / {100 * sc['false_discovery_nulls']:.0f} % ({sc['n_cases']} cases)",
+                      ">= 90 % / <= 10 %", "", c))
+
+    part("firmware", firmware)
+    part("host", host)
+    part("link", link)
+    part("Fig. 7 replica", fig7)
+    part("main job", mainjob)
+    part("real data", real)
+    if not a.skip_selftest:
+        part("diagnosis self-test", selftest)
+
+    print("| figure | measured | target | paper / baseline | command |")
+    print("|---|---|---|---|---|")
+    for row in table:
+        print("| " + " | ".join(row) + " |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
