@@ -15,11 +15,14 @@ Usage: .venv/bin/python bench/diagnose_selftest.py [--quick] [--workers 2] [--js
 from __future__ import annotations
 
 import argparse
-import json
+import os
 import sys
 from pathlib import Path
 
-import numpy as np
+# One BLAS thread per process (set before numpy loads): the fits are small and 2 workers on
+# 2 cores with threaded BLAS ran an order of magnitude slower.
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
 
 from playscope.diagnose import selftest
 from playscope.diagnose.realdata import CATHETER_DIR, catheter_table, format_catheter

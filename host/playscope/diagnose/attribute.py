@@ -31,8 +31,9 @@ def halves(data: Data, split: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
 def noise_floor(data: Data, still_s: float = 0.5, settle_s: float = 0.25) -> tuple[float, str, int]:
     """Noise floor of the c measurement, deg: pooled standard deviation over still periods
     (actuator unmoved for still_s, skipping settle_s after it stops), each period's mean removed.
-    Falls back to the second-difference estimate std(y[k+1] - 2y[k] + y[k-1]) / sqrt(6) when the
-    record has fewer than 20 still samples (motion is smooth at the sample scale, noise is not).
+    Falls back to the second-difference estimate 1.4826 MAD(y[k+1] - 2y[k] + y[k-1]) / sqrt(6) when
+    the record has fewer than 20 still samples (motion is smooth at the sample scale, noise is not;
+    the MAD keeps the rare jumps at onsets, e.g. a hand-eye shift, out of the floor).
     Returns (sigma_deg, method, n_samples)."""
     t, y = data.t_m, data.y_m
     tq = data.t_int
@@ -56,7 +57,8 @@ def noise_floor(data: Data, still_s: float = 0.5, settle_s: float = 0.25) -> tup
             return float(np.sqrt(ss / (n - k))), "still periods", int(n)
     yy = y[np.isfinite(y)]
     d2 = yy[2:] - 2 * yy[1:-1] + yy[:-2]
-    return float(np.std(d2) / np.sqrt(6)), "second differences", int(d2.size)
+    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    return float(1.4826 * mad / np.sqrt(6)), "second differences (MAD)", int(d2.size)
 
 
 def _start(model: Model, *fits: Fit) -> np.ndarray:

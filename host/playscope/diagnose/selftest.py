@@ -11,7 +11,8 @@ gains when the true effect is added (the oracle knows which one and starts from 
 
 from __future__ import annotations
 
-import copy
+import multiprocessing
+import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 
@@ -110,7 +111,12 @@ def run(n_strengths: int = 2, nulls: int = 4, ool: int = 2, seed: int = 0, durat
     cl = cases(n_strengths, nulls, ool, seed, effects)
     results = []
     if workers > 1:
-        with ProcessPoolExecutor(workers) as ex:
+        # One BLAS thread per worker: small least-squares problems gain nothing from threads, and
+        # oversubscribed cores made the self-test an order of magnitude slower. Spawned workers
+        # read these variables when they import numpy.
+        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(var, "1")
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
             for r in ex.map(run_case, cl, [duration_s] * len(cl)):
                 results.append(r)
                 log(_line(r))
