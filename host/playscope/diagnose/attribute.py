@@ -156,11 +156,13 @@ def _share(r_before: float, r_after: float, e0: float, sigma: float) -> float:
     return float((excess(r_before, sigma) - excess(r_after, sigma)) / e0)
 
 
-def verdict(out: dict, unexplained_ratio: float = 1.5) -> str:
+def verdict(out: dict, unexplained_ratio: float = 1.5, negligible_deg: float = 2 * MARGIN_ABS) -> str:
     """One label: the first kept effect when the kept set removes at least half of the excess;
-    "none" when nothing is kept and the held-out RMSE is within unexplained_ratio x noise floor;
+    "none" when nothing is kept and the gap is negligible (held-out RMSE within
+    unexplained_ratio x the noise floor, or an excess over it below negligible_deg = 0.1 deg);
     "unexplained" otherwise."""
     if out["kept"]:
         return out["kept"][0]["effect"] if out["final"]["share_of_excess_removed"] >= 0.5 else "unexplained"
     r0 = out["base"]["rmse_heldout_deg"]
-    return "none" if r0 <= unexplained_ratio * max(out["noise_floor_deg"], 1e-9) else "unexplained"
+    small = r0 <= unexplained_ratio * max(out["noise_floor_deg"], 1e-9) or out["excess_before_deg"] < negligible_deg
+    return "none" if small else "unexplained"

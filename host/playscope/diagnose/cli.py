@@ -12,7 +12,7 @@ JSON_KEYS = ("sessions.<name>: noise_floor_deg, noise_method, base{rmse_fit_deg,
              "screen[{effect, rmse_heldout_deg, delta_rmse_deg, delta_bic, promising, params}], "
              "kept[{effect, params{name: [value, sd]}, rmse_before_deg, rmse_after_deg, share_of_excess_removed, "
              "indistinguishable_from}], final{effects, rmse_heldout_deg, excess_after_deg, share_of_excess_removed}, "
-             "verdict, atlas_before, atlas_after; selftest: confusion, top1, false_discovery_nulls, cases")
+             "verdict, atlas_before, atlas_after, geometry{base_px, screen, kept} (image sessions); selftest: confusion, top1, false_discovery_nulls, cases")
 
 
 def add_parser(sub) -> None:
@@ -36,13 +36,17 @@ def _clean(res: dict) -> dict:
     return {k: v for k, v in res.items() if not k.startswith("_")}
 
 
-def diagnose_data(data, split: float = 0.5, progress=None) -> dict:
-    """attribute() plus the residual atlas before/after, on the held-out rows."""
+def diagnose_data(data, split: float = 0.5, progress=None, session=None) -> dict:
+    """attribute() plus the residual atlas before/after, on the held-out rows; for image
+    sessions also the image-geometry screen (lens distortion, non-constant curvature)."""
     from .attribute import attribute, halves
     from .localise import atlas
+    from .selftest import combine_geometry
 
     fm, em = halves(data, split)
     res = attribute(data, fm, em, progress=progress)
+    if session is not None and session.distal_kind == "image":
+        combine_geometry(res, session, data, fm, em)
     res["atlas_before"] = atlas(data, res["_fits"]["base"].pred, em)
     res["atlas_after"] = atlas(data, res["_fits"]["final"].pred, em)
     res["_eval_mask"] = em
@@ -70,8 +74,9 @@ def run(args) -> int:
         return 2
     out, figs_all = {}, []
     for name, load in items:
-        data = from_session(load())
-        res = diagnose_data(data, args.split)
+        session = load()
+        data = from_session(session)
+        res = diagnose_data(data, args.split, session=session)
         r = res["final"]
         print(f"{name}: noise floor {res['noise_floor_deg']:.3f} deg ({res['noise_method']}); held-out RMSE "
               f"{res['base']['rmse_heldout_deg']:.3f} -> {r['rmse_heldout_deg']:.3f} deg; verdict {res['verdict']}")
@@ -80,6 +85,10 @@ def run(args) -> int:
             ind = f"; cannot tell apart from {', '.join(k['indistinguishable_from'])}" if k["indistinguishable_from"] else ""
             print(f"  + {k['effect']} ({ps}): {k['rmse_before_deg']:.3f} -> {k['rmse_after_deg']:.3f} deg, "
                   f"{100 * k['share_of_excess_removed']:.0f} % of the excess over the noise floor{ind}")
+        for g in res.get("geometry", {}).get("screen", []):
+            if g["kept"]:
+                print(f"  + {g['effect']} ({g['param']}={g['value']:.3g}): path residual "
+                      f"{res['geometry']['base_px']['heldout']:.3f} -> {g['heldout_px']:.3f} px (held out)")
         if args.html:
             from .report import figures
             figs_all += [(f"{name}: {t}", img) for t, img in figures(data, res, res["atlas_before"], res["atlas_after"])]

@@ -33,7 +33,7 @@ def test_planted_delay_is_found_with_its_value_and_shrink():
 def test_null_gives_no_discovery():
     res = diagnose({})
     assert res["kept"] == [] and res["verdict"] == "none"
-    assert res["base"]["rmse_heldout_deg"] < 1.5 * res["noise_floor_deg"]
+    assert res["excess_before_deg"] < 0.1
 
 
 def test_out_of_library_is_unexplained():
@@ -59,3 +59,17 @@ def test_catheter_gap_explained_in_situ(real_catheter_dir):
     assert res["base"]["rmse_heldout_deg"] > 1.0
     assert res["final"]["rmse_heldout_deg"] < 0.8
     assert res["kept"]
+
+
+@pytest.mark.parametrize("effect,param,value", [("lens_distortion", "dk1", -0.15), ("nonconstant_curvature", "gamma", 0.4)])
+def test_geometry_screen_recovers_image_only_effects(effect, param, value):
+    from playscope.diagnose.geometry import screen
+    s = simulate(preset("stras", effects={effect: {param: value}}, seed=5, trajectory=dict(TRAJ)))
+    d = from_session(s)
+    fm, em = halves(d)
+    g = screen(s, d, fm, em)
+    assert g["kept"] == [effect]
+    assert next(x["value"] for x in g["screen"] if x["effect"] == effect) == pytest.approx(value, abs=0.03)
+    s0 = simulate(preset("stras", effects={}, seed=5, trajectory=dict(TRAJ)))
+    d0 = from_session(s0)
+    assert screen(s0, d0, *halves(d0))["kept"] == []
