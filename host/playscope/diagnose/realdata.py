@@ -41,10 +41,11 @@ def catheter_table(files, log=print) -> dict:
             f"kept {[k['effect'] for k in res['kept']]}")
     ref = files[0].stem
     eff = [k["effect"] for k in out["in_situ"][ref]["kept"] if k["effect"] != "drift"]
+    union = sorted({k["effect"] for r in out["in_situ"].values() for k in r["kept"]} - {"drift"})
     d0 = datas[ref]
     full = np.ones(d0.t_m.size, bool)
     fits = {}
-    for label, effects in (("base", []), ("kept", eff)):
+    for label, effects in [("base", []), ("kept", eff)] + [(e, [e]) for e in union]:
         m = Model(d0, effects)
         fits[label] = (m, m.fit(full, uncertainty=False))
     rows = {}
@@ -59,7 +60,7 @@ def catheter_table(files, log=print) -> dict:
             row[f"rmse_{label}_deg"] = float(np.sqrt(np.mean(r * r)))
             row[f"rmse_{label}_offset_removed_deg"] = float(np.std(r))
         rows[name] = row
-    out["across"] = {"fit_on": ref, "effects": eff, "rows": rows}
+    out["across"] = {"fit_on": ref, "effects": eff, "single_effects": union, "rows": rows}
     return out
 
 
@@ -79,8 +80,12 @@ def format_catheter(tab: dict) -> str:
     if a.get("rows"):
         lines += ["", f"Across files (fit on all of {a['fit_on']}, judge on the others; kept effects: "
                       f"{', '.join(a['effects']) or 'none'}), RMSE [deg] (and with the per-session mean offset removed):", "",
-                  "| file | base | base, offset removed | + kept effects | + kept, offset removed |", "|---|---|---|---|---|"]
+                  "| file | base | base, offset removed | + kept effects | + kept, offset removed | "
+                  + " | ".join(f"+ {e} only (offset removed)" for e in a.get("single_effects", [])) + " |",
+                  "|---|---|---|---|---|" + "---|" * len(a.get("single_effects", []))]
         for name, r in a["rows"].items():
             lines.append(f"| {name} | {r['rmse_base_deg']:.3f} | {r['rmse_base_offset_removed_deg']:.3f} | "
-                         f"{r['rmse_kept_deg']:.3f} | {r['rmse_kept_offset_removed_deg']:.3f} |")
+                         f"{r['rmse_kept_deg']:.3f} | {r['rmse_kept_offset_removed_deg']:.3f} | "
+                         + " | ".join(f"{r[f'rmse_{e}_deg']:.3f} ({r[f'rmse_{e}_offset_removed_deg']:.3f})"
+                                      for e in a.get("single_effects", [])) + " |")
     return "\n".join(lines)
