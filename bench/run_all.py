@@ -152,6 +152,13 @@ def main(argv=None) -> int:
         table.append(("diagnosis self-test: top-1 accuracy / false discoveries on nulls",
                       f"{100 * sc['top1']:.0f} % / {100 * sc['false_discovery_nulls']:.0f} % ({sc['n_cases']} cases)",
                       ">= 90 % / <= 10 %", "", c))
+        cat = d.get("catheter", {}).get("in_situ", {})
+        if cat:
+            worst = max(v["rmse_kept_deg"] for v in cat.values())
+            base = [v["rmse_base_deg"] for v in cat.values()]
+            table.append(("catheter in situ, held-out RMSE with the effects the diagnosis keeps (worst file)",
+                          f"{worst:.2f} deg", "< 0.8 deg on every file",
+                          f"play + f_remain {min(base):.2f}-{max(base):.2f} deg", c))
 
     part("firmware", firmware)
     part("host", host)
