@@ -23,7 +23,6 @@ import numpy as np
 
 from . import cli
 from .calibration import Calibration
-from .errors import InputError
 
 DEFAULT_OUT = "out/main"
 

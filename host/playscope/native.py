@@ -115,16 +115,22 @@ def core():
         if not CORE.is_dir():
             raise NativeBuildError(f"{CORE}: firmware sources not found (set PLAYSCOPE_SRC)")
         base = Path(os.environ.get("PLAYSCOPE_CACHE", Path.home() / ".cache" / "playscope"))
-        target = base / f"native-{_fingerprint()}"
-        found = sorted(target.glob(f"{MODULE}*.so")) if target.is_dir() else []
-        if not found:
-            _build(target)
-            found = sorted(target.glob(f"{MODULE}*.so"))
-        spec = importlib.util.spec_from_file_location(MODULE, found[0])
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
-        _cached = (mod.ffi, mod.lib)
+        _cached = load_extension(base / f"native-{_fingerprint()}", MODULE, _build)
         return _cached
+
+
+def load_extension(target: Path, module: str, build) -> tuple:
+    """(ffi, lib) of the cffi extension `module` compiled into folder target, calling
+    build(target) first when no build is there yet (the folder name carries a hash of the
+    sources, so a stale build is never loaded)."""
+    found = sorted(target.glob(f"{module}*.so")) if target.is_dir() else []
+    if not found:
+        build(target)
+        found = sorted(target.glob(f"{module}*.so"))
+    spec = importlib.util.spec_from_file_location(module, found[0])
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.ffi, mod.lib
 
 
 # --------------------------------------------------------------------------- Q16.16

@@ -13,7 +13,6 @@ into the same cache, so ``--device virtual`` works without the CMake build.
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import os
 import shutil
 import subprocess
@@ -22,7 +21,7 @@ import tempfile
 import threading
 from pathlib import Path
 
-from ..native import REPO, NativeBuildError
+from ..native import REPO, NativeBuildError, load_extension
 
 COMMON = REPO / "common"
 CORE = REPO / "firmware" / "core"
@@ -94,15 +93,7 @@ def frame_codec():
         if _cached is None:
             files = [COMMON / n for n in ("ps_frame.c", "ps_frame.h", "ps_proto.h", "ps_defs.h",
                                           "ps_crc32.c", "ps_crc32.h")]
-            target = _cache_dir("frame", files)
-            found = sorted(target.glob(f"{MODULE}*.so")) if target.is_dir() else []
-            if not found:
-                _build(target)
-                found = sorted(target.glob(f"{MODULE}*.so"))
-            spec = importlib.util.spec_from_file_location(MODULE, found[0])
-            mod = importlib.util.module_from_spec(spec)
-            spec.loader.exec_module(mod)
-            _cached = (mod.ffi, mod.lib)
+            _cached = load_extension(_cache_dir("frame", files), MODULE, _build)
         return _cached
 
 
