@@ -5,6 +5,7 @@
 
 #include "bench_tick.h"
 #include "port_board.h"
+#include "port_console.h"
 
 /* Under `-icount shift=0` QEMU advances virtual time 1 ns per instruction, and SysTick
  * counts virtual core cycles (168 MHz), so cycles * 1000 / 168 = instructions. The
@@ -28,32 +29,17 @@ static comp_t comp_plain;           /* same table, no smoothing: eq. 4 as writte
 static int32_t c_ref_q16[REF_LEN];  /* a triangle sampled as the demo's, so comp_step sees reversals */
 static volatile int32_t sink_q16;
 
-static void put_str(const char *s)
-{
-    port_uart_write(s, strlen(s));
-}
-
-static void put_u32(uint32_t v)
-{
-    char buf[10];
-    int n = 0;
-    do {
-        buf[sizeof buf - 1 - n++] = (char)('0' + v % 10u);
-        v /= 10u;
-    } while (v != 0u);
-    port_uart_write(buf + sizeof buf - n, (size_t)n);
-}
 
 /* One result line: "BENCH <name> cycles=<c> iterations=<n>". */
 static void report(const char *name, uint32_t cycles, uint32_t iterations)
 {
-    put_str("BENCH ");
-    put_str(name);
-    put_str(" cycles=");
-    put_u32(cycles);
-    put_str(" iterations=");
-    put_u32(iterations);
-    put_str("\r\n");
+    console_put_str("BENCH ");
+    console_put_str(name);
+    console_put_str(" cycles=");
+    console_put_u32(cycles);
+    console_put_str(" iterations=");
+    console_put_u32(iterations);
+    console_put_str("\r\n");
 }
 
 /* Exactly 2 instructions per iteration (subs, bne), to calibrate cycles against instructions. */
@@ -172,7 +158,7 @@ int main(void)
 {
     port_init();
     if (ctl_loop_init(&loop, BENCH_TICK_HZ) != 0 || !port_tick_start(BENCH_TIMEBASE_HZ, NULL)) {
-        put_str("BENCH setup failed\r\n");
+        console_put_str("BENCH setup failed\r\n");
         return 1;
     }
     /* +-30 deg triangle over REF_LEN << REF_HOLD_LOG2 ticks: a reversal every 0.82 s at
@@ -182,9 +168,9 @@ int main(void)
         c_ref_q16[i] = -30 * 65536 + phase * (60 * 65536 / (REF_LEN / 2));
     }
     comp_reset(&comp_plain, &loop.cal, NULL, 0);
-    put_str("BENCH core_hz=");
-    put_u32(port_core_hz());
-    put_str("\r\n");
+    console_put_str("BENCH core_hz=");
+    console_put_u32(port_core_hz());
+    console_put_str("\r\n");
     report("calibration_2insn", measure_calibration(), CAL_ITERATIONS);
     report("overhead", measure_overhead(), BENCH_TICKS);
     report("core_chain", measure_core_chain(), BENCH_TICKS);
@@ -193,6 +179,6 @@ int main(void)
     report("comp_step_plain", measure_comp_step_plain(), BENCH_TICKS);
     report("lut_eval", measure_lut_eval(), BENCH_TICKS);
     report("demo_tick", measure_demo_tick(), BENCH_TICKS);
-    put_str("BENCH done\r\n");
+    console_put_str("BENCH done\r\n");
     return 0;
 }

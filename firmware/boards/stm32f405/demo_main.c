@@ -5,6 +5,7 @@
 
 #include "bench_tick.h"
 #include "port_board.h"
+#include "port_console.h"
 
 #ifndef DEMO_TICK_HZ
 /* DEMO_TICK_HZ: control tick rate in Hz. Default 20000 (50 us). */
@@ -35,32 +36,16 @@ static void control_tick(void)
     }
 }
 
-/* Console output without printf: keeps newlib's formatter out of a 24 KiB image. */
-static void put_str(const char *s)
-{
-    port_uart_write(s, strlen(s));
-}
-
-static void put_u32(uint32_t v)
-{
-    char buf[10];
-    int n = 0;
-    do {
-        buf[sizeof buf - 1 - n++] = (char)('0' + v % 10u);
-        v /= 10u;
-    } while (v != 0u);
-    port_uart_write(buf + sizeof buf - n, (size_t)n);
-}
 
 /* Q16.16 as a signed decimal with three fractional digits (truncated). */
 static void put_q16(int32_t v_q16)
 {
     uint32_t mag = v_q16 < 0 ? 0u - (uint32_t)v_q16 : (uint32_t)v_q16;
     if (v_q16 < 0) {
-        put_str("-");
+        console_put_str("-");
     }
-    put_u32(mag >> 16);
-    put_str(".");
+    console_put_u32(mag >> 16);
+    console_put_str(".");
     uint32_t milli = ((mag & 0xFFFFu) * 1000u) >> 16;
     char frac[3] = {(char)('0' + milli / 100u), (char)('0' + milli / 10u % 10u), (char)('0' + milli % 10u)};
     port_uart_write(frac, sizeof frac);
@@ -68,41 +53,41 @@ static void put_q16(int32_t v_q16)
 
 static void put_status(void)
 {
-    put_str("status: ticks=");
-    put_u32(tick_count);
-    put_str(" t_us=");
-    put_u32(port_ticks_us());
-    put_str(" c_ref=");
+    console_put_str("status: ticks=");
+    console_put_u32(tick_count);
+    console_put_str(" t_us=");
+    console_put_u32(port_ticks_us());
+    console_put_str(" c_ref=");
     put_q16(loop.c_ref_q16);
-    put_str(" q_ref=");
+    console_put_str(" q_ref=");
     put_q16(last_q_ref_q16);
-    put_str(" reversals=");
-    put_u32(loop.reversals);
-    put_str(" onset_events=");
-    put_u32(loop.onset_events);
-    put_str(" tick_cycles_max=");
-    put_u32(tick_cycles_max);
-    put_str("\r\n");
+    console_put_str(" reversals=");
+    console_put_u32(loop.reversals);
+    console_put_str(" onset_events=");
+    console_put_u32(loop.onset_events);
+    console_put_str(" tick_cycles_max=");
+    console_put_u32(tick_cycles_max);
+    console_put_str("\r\n");
 }
 
 int main(void)
 {
     port_init();
-    put_str("\r\nplayscope-fw " PS_FW_VERSION " on STM32F405: control tick ");
-    put_u32(DEMO_TICK_HZ);
-    put_str(" Hz, core ");
-    put_u32(port_core_hz());
-    put_str(" Hz; send 'q' to stop\r\n");
+    console_put_str("\r\nplayscope-fw " PS_FW_VERSION " on STM32F405: control tick ");
+    console_put_u32(DEMO_TICK_HZ);
+    console_put_str(" Hz, core ");
+    console_put_u32(port_core_hz());
+    console_put_str(" Hz; send 'q' to stop\r\n");
 
     int st = ctl_loop_init(&loop, DEMO_TICK_HZ);
     if (st != 0) {
-        put_str("built-in table refused by calib_load, status ");
-        put_u32((uint32_t)st);
-        put_str("\r\n");
+        console_put_str("built-in table refused by calib_load, status ");
+        console_put_u32((uint32_t)st);
+        console_put_str("\r\n");
         return 2;
     }
     if (!port_tick_start(DEMO_TICK_HZ, control_tick)) {
-        put_str("tick rate not reachable from the core clock\r\n");
+        console_put_str("tick rate not reachable from the core clock\r\n");
         return 3;
     }
 
@@ -116,7 +101,7 @@ int main(void)
         uint8_t cmd;
         if (port_uart_read(&cmd, 1) == 1 && cmd == 'q') {
             put_status();
-            put_str("bye\r\n");
+            console_put_str("bye\r\n");
             return 0;
         }
     }
