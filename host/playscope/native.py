@@ -27,7 +27,7 @@ REPO = Path(os.environ.get("PLAYSCOPE_SRC", Path(__file__).resolve().parents[2])
 COMMON = REPO / "common"
 CORE = REPO / "firmware" / "core"
 CDEF_HEADERS = [COMMON / "ps_fixed.h", COMMON / "ps_table.h", COMMON / "ps_proto.h"] + [
-    CORE / f"{n}.h" for n in ("lut", "calib", "playop", "comp", "enc_hist", "onset", "exc")]
+    CORE / f"{n}.h" for n in ("lut", "calib", "playop", "comp", "enc_hist", "onset", "exc", "table_write")]
 MODULE = "_playscope_core"
 
 _lock = threading.Lock()
