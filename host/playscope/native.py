@@ -1,11 +1,17 @@
-"""The firmware's own C core (firmware/core, common/) compiled for the host through cffi.
+"""The one loader for the firmware's C on the host: the core, the frame codec, the desktop boards.
 
-Host and board must agree bit for bit, so the host runs the same C sources: they are
-compiled into an extension module (cffi API mode) on first use and cached under
-$PLAYSCOPE_CACHE (default ~/.cache/playscope/native-<hash>), keyed by a hash of every
-source and header, so an edit of firmware/core rebuilds it. The cdef is the headers
-themselves, run through ``gcc -E -P -DPS_CDEF`` (PS_CDEF empties PS_PACKED, hence
-``cdef(packed=True)``): no struct, enum or constant is retyped here.
+Host and board must agree bit for bit, so the host runs the same C sources:
+- ``core()``: firmware/core and common/ (tables, play operator, compensator, onset detector,
+  frame codec, CRC) compiled into one cffi extension module (API mode) on first use and
+  cached under $PLAYSCOPE_CACHE (default ~/.cache/playscope/native-<hash>), keyed by a hash
+  of every source and header, so an edit rebuilds it. The cdef is the headers themselves, run
+  through ``gcc -E -P -DPS_CDEF`` (PS_CDEF empties PS_PACKED, hence ``cdef(packed=True)`` for
+  the packed wire and table structs): no struct, enum or constant is retyped in Python.
+  ``frame_codec()`` is the same module (kept as a name for the link code that only needs it).
+- ``executable(target)``: a desktop program of the CMake build (``ps_vboard``, ``ps_usbemu``).
+  CMake is the one list of their sources: the program is taken from build/desktop-release or
+  build/desktop after an incremental ``cmake --build --target``, or built in a private build
+  folder in the cache when the checkout has no build yet.
 
 Usage:  from playscope.native import core;  ffi, lib = core()
 """
@@ -15,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -26,19 +33,28 @@ from pathlib import Path
 REPO = Path(os.environ.get("PLAYSCOPE_SRC", Path(__file__).resolve().parents[2]))
 COMMON = REPO / "common"
 CORE = REPO / "firmware" / "core"
-CDEF_HEADERS = [COMMON / "ps_fixed.h", COMMON / "ps_table.h", COMMON / "ps_proto.h"] + [
+CDEF_HEADERS = [COMMON / n for n in ("ps_fixed.h", "ps_table.h", "ps_proto.h", "ps_frame.h")] + [
     CORE / f"{n}.h" for n in ("lut", "calib", "playop", "comp", "enc_hist", "onset", "exc", "table_write")]
-MODULE = "_playscope_core"
+# Headers whose structs are runtime state, not wire or table layout: cdef'd unpacked.
+UNPACKED_COMMON = {"ps_frame.h"}
+MODULE = "_playscope_native"
+# Environment overrides for the desktop programs (a build elsewhere, a sanitizer build, ...).
+EXE_ENV = {"ps_vboard": "PLAYSCOPE_VBOARD", "ps_usbemu": "PLAYSCOPE_USBEMU"}
 
 _lock = threading.Lock()
 _cached = None
 
 
 class NativeBuildError(RuntimeError):
-    """The C core could not be preprocessed or compiled (message carries the compiler output)."""
+    """The C could not be preprocessed, compiled or built (message carries the tool output)."""
+
+
+def cache_root() -> Path:
+    return Path(os.environ.get("PLAYSCOPE_CACHE", Path.home() / ".cache" / "playscope"))
 
 
 def _sources() -> list[Path]:
+    """Every C file of the core and common/: the rule is "all of them", so no list to keep."""
     return sorted(CORE.glob("*.c")) + sorted(COMMON.glob("*.c"))
 
 
@@ -52,12 +68,12 @@ def _fingerprint() -> str:
 
 
 def cdef_text() -> tuple[str, str]:
-    """The headers preprocessed for cffi, split by origin: (common/ text, firmware/core text).
+    """The headers preprocessed for cffi, split by layout: (packed text, unpacked text).
 
-    common/ structs are packed on the wire and in tables (cdef'd with packed=True); the
-    core's runtime structs are not, so they go through a second, unpacked cdef. System
-    headers are replaced by empty stubs (cffi knows int32_t, bool, size_t itself); gcc's
-    line markers tell which header each line came from."""
+    common/'s wire and table structs are packed (cdef'd with packed=True); the core's runtime
+    structs and the frame parser's state are not. System headers are replaced by empty stubs
+    (cffi knows int32_t, bool, size_t itself); gcc's line markers tell which header each line
+    came from. Errors: NativeBuildError when gcc fails."""
     with tempfile.TemporaryDirectory() as stub:
         for name in ("stdint.h", "stdbool.h", "stddef.h", "string.h"):
             Path(stub, name).write_text("")
@@ -67,29 +83,32 @@ def cdef_text() -> tuple[str, str]:
                 ["gcc", "-E", "-DPS_CDEF", "-nostdinc", "-I", stub, "-I", str(COMMON), "-I", str(CORE), "-"],
                 input=src, capture_output=True, text=True, check=True)
         except (OSError, subprocess.CalledProcessError) as e:
-            raise NativeBuildError(f"gcc -E over the core headers failed: {getattr(e, 'stderr', e)}") from None
-    parts = {"common": [], "core": []}
-    origin = None
+            raise NativeBuildError(f"gcc -E over the C headers failed: {getattr(e, 'stderr', e)}") from None
+    packed, plain = [], []
+    dest = None
     for line in out.stdout.splitlines():
         if line.startswith("# "):  # line marker: # <n> "<file>" <flags>
-            f = line.split('"')[1] if '"' in line else ""
-            origin = "common" if Path(f).parent == COMMON else "core" if Path(f).parent == CORE else None
+            f = Path(line.split('"')[1]) if '"' in line else Path("<none>")
+            if f.parent == COMMON:
+                dest = plain if f.name in UNPACKED_COMMON else packed
+            else:
+                dest = plain if f.parent == CORE else None
             continue
-        # Empty statements left where PS_STATIC_ASSERT(...); expanded to nothing.
-        if origin and line.strip() and line.strip() != ";":
-            parts[origin].append(line)
-    return "\n".join(parts["common"]), "\n".join(parts["core"])
+        # Empty statements are left where PS_STATIC_ASSERT(...); expanded to nothing.
+        if dest is not None and line.strip() and line.strip() != ";":
+            dest.append(line)
+    return "\n".join(packed), "\n".join(plain)
 
 
 def _build(target_dir: Path) -> None:
     import cffi
 
     ffi = cffi.FFI()
-    common_text, core_text = cdef_text()
-    ffi.cdef(common_text, packed=True)
-    ffi.cdef(core_text)
-    includes = "".join(f'#include "{h.name}"\n' for h in CDEF_HEADERS) + '#include "ps_crc32.h"\n'
+    packed, plain = cdef_text()
+    ffi.cdef(packed, packed=True)
+    ffi.cdef(plain)
     ffi.cdef("uint32_t ps_crc32_update(uint32_t crc, const void *buf, size_t len);")
+    includes = "".join(f'#include "{h.name}"\n' for h in CDEF_HEADERS) + '#include "ps_crc32.h"\n'
     ffi.set_source(MODULE, includes, sources=[str(p) for p in _sources()],
                    include_dirs=[str(COMMON), str(CORE)],
                    extra_compile_args=["-std=c11", "-O2", "-Wno-address-of-packed-member"])
@@ -103,8 +122,21 @@ def _build(target_dir: Path) -> None:
         os.replace(so, target_dir / Path(so).name)
 
 
+def _load(target: Path) -> tuple:
+    """(ffi, lib) of the extension in folder target, building it first when absent (the folder
+    name carries a hash of the sources, so a stale build is never loaded)."""
+    found = sorted(target.glob(f"{MODULE}*.so")) if target.is_dir() else []
+    if not found:
+        _build(target)
+        found = sorted(target.glob(f"{MODULE}*.so"))
+    spec = importlib.util.spec_from_file_location(MODULE, found[0])
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.ffi, mod.lib
+
+
 def core():
-    """Return (ffi, lib) of the compiled core, building it on first use.
+    """Return (ffi, lib) of the compiled core and frame codec, building it on first use.
 
     Errors: NativeBuildError when gcc or the sources are missing or do not compile.
     """
@@ -114,23 +146,63 @@ def core():
             return _cached
         if not CORE.is_dir():
             raise NativeBuildError(f"{CORE}: firmware sources not found (set PLAYSCOPE_SRC)")
-        base = Path(os.environ.get("PLAYSCOPE_CACHE", Path.home() / ".cache" / "playscope"))
-        _cached = load_extension(base / f"native-{_fingerprint()}", MODULE, _build)
+        _cached = _load(cache_root() / f"native-{_fingerprint()}")
         return _cached
 
 
-def load_extension(target: Path, module: str, build) -> tuple:
-    """(ffi, lib) of the cffi extension `module` compiled into folder target, calling
-    build(target) first when no build is there yet (the folder name carries a hash of the
-    sources, so a stale build is never loaded)."""
-    found = sorted(target.glob(f"{module}*.so")) if target.is_dir() else []
-    if not found:
-        build(target)
-        found = sorted(target.glob(f"{module}*.so"))
-    spec = importlib.util.spec_from_file_location(module, found[0])
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod.ffi, mod.lib
+def frame_codec():
+    """(ffi, lib) holding common/ps_frame.c's codec: the same module as core()."""
+    return core()
+
+
+def _cmake_build(build_dir: Path, target: str) -> None:
+    # Serialised across processes (tests start boards in parallel): two ninja runs in one
+    # build folder may both rebuild the same outputs.
+    import fcntl
+
+    with open(build_dir / ".playscope-build.lock", "w") as lk:
+        fcntl.flock(lk, fcntl.LOCK_EX)
+        r = subprocess.run(["cmake", "--build", str(build_dir), "--target", target],
+                           capture_output=True, text=True)
+    if r.returncode != 0:
+        raise NativeBuildError(f"cmake --build {build_dir} --target {target} failed:\n{r.stdout[-2000:]}{r.stderr[-2000:]}")
+
+
+def executable(target: str) -> Path:
+    """Path of the desktop program `target` (a CMake target of firmware/boards/desktop, e.g.
+    "ps_vboard", "ps_usbemu"), brought up to date first.
+
+    Order: $PLAYSCOPE_VBOARD / $PLAYSCOPE_USBEMU as given; the checkout's build/desktop-release
+    or build/desktop (incremental build, a no-op when current); else a private release build
+    configured in the cache. Errors: NativeBuildError when cmake is missing or the build fails
+    (ps_usbemu also needs libumockdev-dev and pkg-config)."""
+    env = os.environ.get(EXE_ENV.get(target, ""), "")
+    if env:
+        return Path(env)
+    with _lock:
+        for preset in ("desktop-release", "desktop"):
+            build = REPO / "build" / preset
+            if (build / "CMakeCache.txt").is_file():
+                _cmake_build(build, target)
+                exe = build / "link-desktop-board" / target
+                if exe.is_file():
+                    return exe
+        if not shutil.which("cmake"):
+            raise NativeBuildError(f"{target}: no build of the firmware and no cmake to make one "
+                                   "(run tools/setup.sh)")
+        build = cache_root() / "cmake-desktop"
+        build.mkdir(parents=True, exist_ok=True)
+        if not (build / "CMakeCache.txt").is_file():
+            gen = ["-G", "Ninja"] if shutil.which("ninja") else []
+            r = subprocess.run(["cmake", "-S", str(REPO), "-B", str(build), *gen, "-DCMAKE_BUILD_TYPE=Release",
+                                "-DPS_BUILD_TESTS=OFF"], capture_output=True, text=True)
+            if r.returncode != 0:
+                raise NativeBuildError(f"cmake configure failed:\n{r.stderr[-2000:]}")
+        _cmake_build(build, target)
+        exe = build / "link-desktop-board" / target
+        if not exe.is_file():
+            raise NativeBuildError(f"{target}: not built (missing dependency? see cmake output in {build})")
+        return exe
 
 
 # --------------------------------------------------------------------------- Q16.16

@@ -5,7 +5,7 @@ from __future__ import annotations
 import collections
 import time
 
-from .native import frame_codec
+from ..native import frame_codec
 from .transport import Transport, TransportError
 
 ERROR_NAMES = {0: "OK", 1: "CRC", 2: "LENGTH", 3: "TYPE", 4: "SEQ", 5: "VERSION", 6: "STATE",

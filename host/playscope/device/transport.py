@@ -81,9 +81,9 @@ class PipeTransport(Transport):
 def virtual_transport(flash_file: str | os.PathLike | None = None, extra_args=()) -> PipeTransport:
     """Start the virtual board (compiled on first use) with an optional file-backed flash.
     extra_args: more ps_vboard options (e.g. --time-scale, --exc for run-insitu --sim-plant)."""
-    from .native import vboard_path
+    from ..native import executable
 
-    argv = [str(vboard_path()), "--stdio"]
+    argv = [str(executable("ps_vboard")), "--stdio"]
     if flash_file:
         argv += ["--flash", str(flash_file)]
     argv += list(extra_args)
