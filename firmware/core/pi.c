@@ -11,7 +11,8 @@ void pi_reset(pi_state_t *s, const pi_params_t *pp, int32_t x0_q16)
     }
     for (uint8_t i = pp->n; i < PST_MAX_OPS; i++)
         s->p_q16[i] = 0;
-    s->c = c;
+    uint32_t sh = pp->w_frac;
+    s->c = pp->n ? c + ((int64_t)1 << (sh - 1)) : 0;
     s->a = 0;
     s->x_q16 = x;
     s->dir = 0;
@@ -21,8 +22,7 @@ void pi_reset(pi_state_t *s, const pi_params_t *pp, int32_t x0_q16)
         s->y_q16 = x0_q16;
         return;
     }
-    uint32_t sh = pp->w_frac;
-    s->y_q16 = (int32_t)((c + ((int64_t)1 << (sh - 1))) >> sh);
+    s->y_q16 = (int32_t)(s->c >> sh);
 }
 
 void pi_advance(pi_state_t *s, const pi_params_t *pp, int32_t x_q16, int8_t dir)

@@ -29,7 +29,8 @@ typedef struct {
  * reversals a tick costs one compare and one 32x32->64 multiply-accumulate whatever n. */
 typedef struct {
     int32_t p_q16[PST_MAX_OPS];  /* outputs of the operators not engaged (i >= m) */
-    int64_t c;                   /* sum_{i>=m} w_i p_i - dir * sum_{i<m} w_i r_i, Q(16 + w_frac) */
+    int64_t c;                   /* sum_{i>=m} w_i p_i - dir * sum_{i<m} w_i r_i + 2^(w_frac-1)
+                                    (the rounding constant rides along), Q(16 + w_frac) */
     int32_t a;                   /* sum_{i<m} w_i, Q(w_frac) */
     int32_t x_q16;               /* last input */
     int32_t y_q16;               /* last output */
@@ -100,7 +101,7 @@ __attribute__((always_inline)) static inline int32_t pi_step_inline(pi_state_t *
     /* The sum fits int32 after the shift (pi_build bounds it), so the 64-bit shift by
      * s in 16..30 is done on the two halves, as lut_eval does. */
     uint32_t sh = pp->w_frac;
-    int64_t acc = (int64_t)s->a * x_q16 + s->c + ((int64_t)1 << (sh - 1));
+    int64_t acc = (int64_t)s->a * x_q16 + s->c; /* c holds the 1/2 for rounding half up */
     int32_t y = (int32_t)(((uint32_t)(acc >> 32) << (32u - sh)) | ((uint32_t)acc >> sh));
     s->y_q16 = y;
     return y;
