@@ -48,8 +48,12 @@ pi_row() { # kind label reference
     "$2" "$tick" "$tickw" "$(verdict "$tick" 250)" "$(verdict "$tickw" 600)" "$3"
   printf '| of which comp_step (f^-1, PI^-1 with 16 operators, B/2 offset, ramp), %s: average / worst | %s / %s | | same, comp_step alone |\n' "$2" "$comp" "$compw"
 }
+pi_jumpw=$(pi_net "$(ipi pi_jump_tick_worst)" "$(ipi pi_jump_gen_worst)")
+pi_jumpcw=$(pi_net "$(ipi pi_jump_comp_worst)" "$(ipi pi_jump_gen_worst)")
 pi_rows=$(pi_row real "realistic reference" "c* in +-30 deg, a reversal every 5000-10000 ticks (0.25-0.5 s at 20 kHz)"; \
-          pi_row stress "stress reference" "a reversal every 512 ticks")
+          pi_row stress "stress reference" "a reversal every 512 ticks"; \
+          printf '| same, worst single tick when every tick reverses and jumps 12-54 deg (all operators released and re-engaged; no real reference does this) | %s (comp_step %s) | <= 600 (%s) | same worst-tick timing, 100000 such ticks |\n' \
+            "$pi_jumpw" "$pi_jumpcw" "$(verdict "$pi_jumpw" 600)")
 
 # --- Desktop, desktop-release core (CMAKE_BUILD_TYPE=Release flags). ---
 dr=build/desktop-release

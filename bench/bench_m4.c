@@ -168,15 +168,17 @@ __attribute__((noinline)) static uint32_t measure_demo_tick(void)
 static calib_t pi_cal;
 static comp_t pi_comp;
 
-enum { PI_REALISTIC = 0, PI_STRESS = 1 };
+enum { PI_REALISTIC = 0, PI_STRESS = 1, PI_JUMP = 2 };
 enum { PI_WORK_GEN = 0, PI_WORK_COMP = 1, PI_WORK_TICK = 2 };
 
 static void pi_ref_init(bench_ref_t *r, int kind)
 {
     if (kind == PI_REALISTIC)
         bench_ref_init(r, 17u, 5000u, 10000u); /* a reversal every 0.25-0.5 s at 20 kHz */
-    else
+    else if (kind == PI_STRESS)
         bench_ref_init(r, 17u, 512u, 512u);    /* a reversal every 512 ticks */
+    else
+        bench_ref_init(r, 17u, 1u, 1u);        /* a reversal and a 12-54 deg jump every tick */
 }
 
 static void pi_reset_all(void)
@@ -263,6 +265,11 @@ static void report_pi(void)
             report(worst_names[kind][work], measure_pi_worst(kind, work), 1);
         }
     }
+    /* Beyond any real reference, for the worst case alone: every tick reverses and jumps
+     * far enough to release and re-engage nearly all 16 operators. */
+    report("pi_jump_gen_worst", measure_pi_worst(PI_JUMP, PI_WORK_GEN), 1);
+    report("pi_jump_comp_worst", measure_pi_worst(PI_JUMP, PI_WORK_COMP), 1);
+    report("pi_jump_tick_worst", measure_pi_worst(PI_JUMP, PI_WORK_TICK), 1);
 }
 
 int main(void)

@@ -17,7 +17,7 @@ typedef struct {
     uint8_t w_frac;              /* fractional bits s of w: 16 (direct), 16..30 (inverse) */
     int32_t r_q16[PST_MAX_OPS];  /* thresholds, actuator units Q16.16, r[0] = 0, non-decreasing */
     int32_t w[PST_MAX_OPS];      /* weights, Q(w_frac); every partial sum w[0]+..+w[i] is > 0 */
-    int32_t x_min_q16;           /* input range the loader validated: x +- r stays in +-2^30 */
+    int32_t x_min_q16;           /* input range the loader validated: x +- 2 r stays in +-2^30 */
     int32_t x_max_q16;
 } pi_params_t;
 
@@ -45,7 +45,7 @@ typedef enum {
     PI_ERR_COUNT,                /* n > PST_MAX_OPS */
     PI_ERR_R0,                   /* r[0] != 0 */
     PI_ERR_R_ORDER,              /* r not strictly increasing */
-    PI_ERR_R_RANGE,              /* r[n-1] > q_max - q_min, or an input range +- r (or r') leaves +-2^30 */
+    PI_ERR_R_RANGE,              /* r[n-1] > q_max - q_min, or an input range +- 2 r (or 2 r') leaves +-2^30 */
     PI_ERR_W0,                   /* w[0] <= 0 */
     PI_ERR_W_NEGATIVE,           /* some w[i] < 0 */
     PI_ERR_W_SUM,                /* |sum w - 1| > 2^-8 (256 raw) */
