@@ -301,6 +301,36 @@ static void test_inverse_parameters(void **state)
     }
 }
 
+
+/* The range refusals that only huge tables reach (test_calib covers the others): an input
+ * range +- 2 r beyond +-2^30 raw, and an inverse whose output bound S |y| + sum |w'_i| r'_i
+ * passes 2^30 (small w_0, large thresholds, inputs near the limit). Nothing is written. */
+static void test_build_range_refusals(void **state)
+{
+    (void)state;
+    pi_params_t dir, inv, d0, i0;
+    memset(&d0, 0x5A, sizeof d0);
+    memset(&i0, 0x5A, sizeof i0);
+    dir = d0;
+    inv = i0;
+    int32_t err = -7;
+    const int32_t lim = (1 << 30) - (1 << 24);
+    const int32_t w[2] = {655, 65536 - 655};
+    int32_t r[2] = {0, 1 << 28};
+    /* z range +- 2 r_1 = +-2^29 + 1000 fits; the inverse's output does not. */
+    assert_int_equal(pi_build(r, w, 2, (int64_t)1 << 31, -1000, 1000, -lim, lim, &dir, &inv, &err), PI_ERR_INVERSE);
+    /* The same with a z range that +- 2 r_1 pushes past 2^30. */
+    assert_int_equal(pi_build(r, w, 2, (int64_t)1 << 31, -(1 << 29) - 1, 1000, -lim, lim, &dir, &inv, &err),
+                     PI_ERR_R_RANGE);
+    assert_memory_equal(&dir, &d0, sizeof d0);
+    assert_memory_equal(&inv, &i0, sizeof i0);
+    assert_int_equal(err, -7);
+    /* Smaller thresholds: the bound fits and the block is accepted. */
+    r[1] = 1 << 20;
+    assert_int_equal(pi_build(r, w, 2, (int64_t)1 << 31, -1000, 1000, -lim, lim, &dir, &inv, &err), PI_OK);
+    assert_int_equal(inv.w_frac, 24); /* 1/w_0 = 100 needs 7 integer bits */
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -311,6 +341,7 @@ int main(void)
         cmocka_unit_test(test_single_operator_is_identity),
         cmocka_unit_test(test_play_composition),
         cmocka_unit_test(test_inverse_parameters),
+        cmocka_unit_test(test_build_range_refusals),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
