@@ -80,13 +80,15 @@ static void test_property_decreasing_f(void **state) { (void)state; run_property
 /* With the transition (table v2, 1..16 operators): z from the play, y = PI[z], c = f(y),
  * against the same chain in double (ref_play_step, ref_pi_step). The PI is W-Lipschitz in
  * the sup norm of its input (W = sum w_i), so |y error| <= W tol_z + 1/2 and
- * |c error| <= 1/2 + |f'| |y error| + 1 raw (measured worst: 0.56 of that). */
+ * |c error| <= 1/2 + |f'| |y error| + 1 raw (measured worst: 0.22 of that here, 0.56 over
+ * 30 tables per sign). 15 tables per sign: the double reference's bisection is slow in
+ * software on the M4 (tests/target). */
 static void run_transition_property(int f_sign, uint64_t seed)
 {
     test_rng_t r;
     test_rng_seed(&r, seed);
     double ratio = 0;
-    for (int trial = 0; trial < 30; trial++) {
+    for (int trial = 0; trial < 15; trial++) {
         random_table_build(&r, &blob, &rb, &rf, f_sign);
         int n = 1 + (int)(test_rng_u64(&r) % PST_MAX_OPS);
         int32_t rq[PST_MAX_OPS], wq[PST_MAX_OPS];
