@@ -56,16 +56,16 @@ void pi_advance(pi_state_t *s, const pi_params_t *pp, int32_t x_q16, int8_t dir)
             e = s->p_q16[m] + pp->r_q16[m];
             if (x_q16 < e)
                 break;
-            a += pp->w[m];
-            c -= (int64_t)pp->w[m] * e;
+            a -= pp->w_neg[m];
+            c += (int64_t)pp->w_neg[m] * e;
         }
     } else {
         for (; m < n; m++) {
             e = s->p_q16[m] - pp->r_q16[m];
             if (x_q16 > e)
                 break;
-            a += pp->w[m];
-            c -= (int64_t)pp->w[m] * e;
+            a -= pp->w_neg[m];
+            c += (int64_t)pp->w_neg[m] * e;
         }
     }
     s->c = c;

@@ -17,6 +17,7 @@ typedef struct {
     uint8_t w_frac;              /* fractional bits s of w: 16 (direct), 16..30 (inverse) */
     int32_t r_q16[PST_MAX_OPS];  /* thresholds, actuator units Q16.16, r[0] = 0, non-decreasing */
     int32_t w[PST_MAX_OPS];      /* weights, Q(w_frac); every partial sum w[0]+..+w[i] is > 0 */
+    int32_t w_neg[PST_MAX_OPS];  /* -w (|w| <= INT32_MAX), so an engagement is one multiply-accumulate */
     int32_t x_min_q16;           /* input range the loader validated: x +- 2 r stays in +-2^30 */
     int32_t x_max_q16;
 } pi_params_t;

@@ -80,6 +80,8 @@ pi_status_t pi_build(const int32_t *r_q16, const int32_t *w_q16, uint16_t n, int
         s_prev = s_i;
         d.r_q16[i] = r_q16[i];
         d.w[i] = w_q16[i];
+        d.w_neg[i] = -d.w[i];
+        v.w_neg[i] = -v.w[i]; /* |w'_i| <= S_0 <= INT32_MAX */
     }
     const int64_t rp_max = v.r_q16[n - 1];
     if (!range_ok(y_min_q16, y_max_q16, rp_max))
