@@ -19,12 +19,19 @@ onset_config_t onset_default_config(void)
     return c;
 }
 
+uint32_t onset_history_span_us(const onset_config_t *cfg)
+{
+    uint64_t frames = 4u + 2u * (uint64_t)cfg->max_lost_frames;
+    uint64_t span = (uint64_t)cfg->t_delay_us + frames * cfg->frame_period_us + ONSET_HIST_MARGIN_US;
+    return span > UINT32_MAX ? UINT32_MAX : (uint32_t)span;
+}
+
 void onset_init(onset_t *o, const onset_config_t *cfg)
 {
     o->cfg = *cfg;
     if (o->cfg.frame_period_us == 0)
         o->cfg.frame_period_us = 1; /* avoid a divide by zero on a bad config; gaps then count in us */
-    enc_hist_reset(&o->hist);
+    enc_hist_set_span(&o->hist, onset_history_span_us(&o->cfg));
     o->state = ONSET_ST_IDLE;
     o->noise_d2_q32 = 0;
     o->noise_count = 0;

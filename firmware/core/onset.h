@@ -29,6 +29,12 @@ typedef enum {
 #define ONSET_NOISE_LEARN_PAIRS 8
 #endif
 
+#ifndef ONSET_HIST_MARGIN_US
+/* ONSET_HIST_MARGIN_US: history kept beyond the longest look-back an onset needs, for
+ * observations that reach the board late (link and tracking latency). Default 100 ms. */
+#define ONSET_HIST_MARGIN_US 100000u
+#endif
+
 typedef struct {
     uint32_t t_delay_us;         /* image acquisition + processing delay (eq. 1) */
     uint32_t frame_period_us;    /* nominal camera period, > 0 (normalises gaps over lost frames) */
@@ -90,6 +96,12 @@ typedef struct {
                                     first ONSET_NOISE_LEARN_PAIRS, then EWMA 1/16 */
     uint32_t noise_count;        /* still frame pairs seen (saturating) */
 } onset_t;
+
+/* The encoder history span an onset can need: the frame that completes it (C) comes at
+ * most 2 (max_lost_frames + 1) frame periods after the first moving frame (A), t2 lies at
+ * most 2 frame periods before A, and q is read at t2 - t_delay; plus ONSET_HIST_MARGIN_US.
+ * onset_init() sizes the history spacing from it (enc_hist_set_span). Saturates at 2^32-1. */
+uint32_t onset_history_span_us(const onset_config_t *cfg);
 
 /* Reset everything, including the history and the noise estimate. cfg is copied. */
 void onset_init(onset_t *o, const onset_config_t *cfg);

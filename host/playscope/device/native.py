@@ -25,6 +25,7 @@ from ..native import REPO, NativeBuildError, load_extension
 
 COMMON = REPO / "common"
 CORE = REPO / "firmware" / "core"
+APP = REPO / "firmware" / "app"
 LINK = REPO / "firmware" / "link"
 STORAGE = REPO / "firmware" / "storage"
 DESKTOP = REPO / "firmware" / "boards" / "desktop"
@@ -98,7 +99,7 @@ def frame_codec():
 
 
 def vboard_sources() -> list[Path]:
-    return (sorted(COMMON.glob("*.c")) + sorted(CORE.glob("*.c")) + [LINK / "psl_link.c"]
+    return (sorted(COMMON.glob("*.c")) + sorted(CORE.glob("*.c")) + [APP / "psa_loop.c", LINK / "psl_link.c"]
             + [STORAGE / n for n in ("pss_store.c", "pss_flash_sim.c", "pss_flash_file.c")]
             + [DESKTOP / "vboard.c"])
 
@@ -112,7 +113,7 @@ def vboard_path() -> Path:
         p = REPO / "build" / preset / "link-desktop-board" / "ps_vboard"
         if p.is_file() and all(p.stat().st_mtime >= s.stat().st_mtime for s in vboard_sources()):
             return p
-    headers = [p for d in (COMMON, CORE, LINK, STORAGE) for p in d.glob("*.h")]
+    headers = [p for d in (COMMON, CORE, APP, LINK, STORAGE) for p in d.glob("*.h")]
     target = _cache_dir("vboard", vboard_sources() + headers)
     exe = target / "ps_vboard"
     with _lock:
@@ -120,7 +121,7 @@ def vboard_path() -> Path:
             target.mkdir(parents=True, exist_ok=True)
             cc = os.environ.get("CC") or shutil.which("cc") or "gcc"
             tmp = target / f"ps_vboard.{os.getpid()}"
-            cmd = [cc, "-std=c11", "-O2", "-Wall", *[f"-I{d}" for d in (COMMON, CORE, LINK, STORAGE)],
+            cmd = [cc, "-std=c11", "-O2", "-Wall", *[f"-I{d}" for d in (COMMON, CORE, APP, LINK, STORAGE)],
                    *map(str, vboard_sources()), "-o", str(tmp)]
             r = subprocess.run(cmd, capture_output=True, text=True)
             if r.returncode != 0:
