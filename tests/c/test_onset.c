@@ -142,14 +142,20 @@ static void test_b_from_eq1(void **state)
     events_t e;
     run_bench(&b, &c, 15.0, &e, 1);
     assert_int_equal(e.n, 3);
+    double eb = 0, em = 0;
     for (int i = 0; i < 3; i++) {
         assert_int_equal(e.ev[i].reason, ONSET_OK);
-        assert_true(fabs(e.ev[i].b_q16 / 65536.0 - b.b_mm) < 0.004);
+        eb = fmax(eb, fabs(e.ev[i].b_q16 / 65536.0 - b.b_mm));
         double q1 = q_of_t(&b, b.t_rev_s[i]);
         double q_mean_true = q1 + (i % 2 ? 1 : -1) * b.b_mm / 2;
-        assert_true(fabs(e.ev[i].q_mean_q16 / 65536.0 - q_mean_true) < 0.003);
+        em = fmax(em, fabs(e.ev[i].q_mean_q16 / 65536.0 - q_mean_true));
         assert_int_equal(e.ev[i].q1_q16, Q16(q1));
     }
+    print_message("max |B error| %.4f mm, max |q_mean error| %.4f mm\n", eb, em);
+    /* Measured 0.0019 mm and 0.0010 mm: <= 3x margin. */
+    assert_true(eb < 0.005);
+    assert_true(em < 0.003);
+    
 }
 
 /* Sub-frame refinement beats the paper's frame-quantised t2 over many frame phases. */
@@ -186,7 +192,7 @@ static void test_refinement_beats_frame_quantisation(void **state)
 static void test_jump_at_onset(void **state)
 {
     (void)state;
-    double err = 0;
+    double err = 0, worst = 0;
     int n = 0;
     for (uint32_t phase = 0; phase < 40000; phase += 5000) {
         bench_t b = paper_bench();
@@ -199,10 +205,15 @@ static void test_jump_at_onset(void **state)
         for (int i = 0; i < 3; i++) {
             assert_int_equal(e.ev[i].reason, ONSET_OK);
             err += e.ev[i].b_q16 / 65536.0 - b.b_mm;
+            worst = fmax(worst, fabs(e.ev[i].b_q16 / 65536.0 - b.b_mm));
             n++;
         }
     }
-    assert_true(fabs(err / n) < 0.004); /* mean bias */
+    print_message("jump: mean B error %+.4f mm, max |B error| %.4f mm\n", err / n, worst);
+    /* Measured bias +0.0006 mm, spread (max |error|) 0.0050 mm: <= 3x margin on both. */
+    assert_true(fabs(err / n) < 0.0018);
+    assert_true(worst < 0.012);
+    
 }
 
 static void test_lost_frames_short_and_long(void **state)
@@ -218,7 +229,8 @@ static void test_lost_frames_short_and_long(void **state)
     run_bench(&b, &c, 7.0, &e, 2);
     assert_int_equal(e.n, 1);
     assert_int_equal(e.ev[0].reason, ONSET_OK);
-    assert_true(fabs(e.ev[0].b_q16 / 65536.0 - b.b_mm) < 0.004);
+    /* Measured 0.0006 mm: 3x margin. */
+    assert_true(fabs(e.ev[0].b_q16 / 65536.0 - b.b_mm) < 0.002);
     /* 20 frames lost: more than max_lost_frames (10). */
     b.lost_from = 110;
     b.lost_to = 130;
@@ -352,7 +364,8 @@ static void test_single_glitch_ignored(void **state)
     run_bench(&b, &c, 7.0, &e, 8);
     assert_int_equal(e.n, 1);
     assert_int_equal(e.ev[0].reason, ONSET_OK);
-    assert_true(fabs(e.ev[0].b_q16 / 65536.0 - b.b_mm) < 0.004);
+    /* Measured 0.0025 mm: 2.4x margin. */
+    assert_true(fabs(e.ev[0].b_q16 / 65536.0 - b.b_mm) < 0.006);
 }
 
 /* Automatic T follows the measured noise: with 0.3 px noise the paper's fixed 0.2 px/frame
@@ -370,7 +383,8 @@ static void test_auto_threshold_from_noise(void **state)
     assert_int_equal(e.n, 3);
     for (int i = 0; i < 3; i++) {
         assert_int_equal(e.ev[i].reason, ONSET_OK);
-        assert_true(fabs(e.ev[i].b_q16 / 65536.0 - b.b_mm) < 0.01);
+        /* Measured up to 0.0032 mm: 2.5x margin. */
+        assert_true(fabs(e.ev[i].b_q16 / 65536.0 - b.b_mm) < 0.008);
     }
     c.threshold_q16 = Q16(0.2);
     run_bench(&b, &c, 15.0, &e, 9);
@@ -392,7 +406,8 @@ static void test_angle_sensor_input(void **state)
     assert_int_equal(e.n, 3);
     for (int i = 0; i < 3; i++) {
         assert_int_equal(e.ev[i].reason, ONSET_OK);
-        assert_true(fabs(e.ev[i].b_q16 / 65536.0 - b.b_mm) < 0.004);
+        /* Measured up to 0.0001 mm (a few Q16 LSB): ~3x margin. */
+        assert_true(fabs(e.ev[i].b_q16 / 65536.0 - b.b_mm) < 0.0005);
     }
 }
 
