@@ -11,6 +11,7 @@
 #include "psa_loop.h"
 #include "stm32f405_regs.h"
 #include "bench_traj.h"
+#include "bench_pi.h"
 
 /* Under `-icount shift=N` QEMU advances virtual time 2^N ns per instruction and SysTick
  * counts virtual core cycles (168 MHz), so instructions = cycles * 1e9 / (168e6 * 2^N).
@@ -36,6 +37,7 @@ enum {
 
 static psa_loop_t loop;
 static calib_t cal[2];
+static calib_t cal_pi;           /* the transition model: 16 play operators (bench_pi.c, pi-fw) */
 static union {
     uint32_t align;
     uint8_t bytes[PST_MAX_TABLE_SIZE];
@@ -134,13 +136,13 @@ static psa_config_t loop_config(void)
     return c;
 }
 
-/* Compensation mode on a +-30 deg triangle with half-periods in [half_min, half_max]
- * ticks; ideal motor (q measured = last q*). Times psa_tick. */
-static void run_compensation(const char *name, uint32_t half_min, uint32_t half_max)
+/* Compensation mode with table tab on a +-30 deg triangle with half-periods in
+ * [half_min, half_max] ticks; ideal motor (q measured = last q*). Times psa_tick. */
+static void run_compensation(const char *name, const calib_t *tab, uint32_t half_min, uint32_t half_max)
 {
     psa_config_t c = loop_config();
     psa_init(&loop, &c);
-    if (!psa_set_table(&loop, &cal[0]) || !psa_set_mode(&loop, PSA_MODE_COMPENSATION)) {
+    if (!psa_set_table(&loop, tab) || !psa_set_mode(&loop, PSA_MODE_COMPENSATION)) {
         console_put_str("BENCH setup failed (compensation)\r\n");
         port_exit(1);
     }
@@ -299,9 +301,15 @@ int main(void)
     measure_pair();
     measure_calibration();
     stat_t obs = {0}, obs_stress = {0};
-    run_compensation("tick_comp_realistic", TICK_HZ / 4, TICK_HZ / 2);
+    run_compensation("tick_comp_realistic", &cal[0], TICK_HZ / 4, TICK_HZ / 2);
     run_parts();
-    run_compensation("tick_comp_stress", 512, 512);
+    run_compensation("tick_comp_stress", &cal[0], 512, 512);
+    if (bench_pi_load(&cal_pi) != CALIB_OK) {
+        console_put_str("BENCH setup failed (transition table)\r\n");
+        return 1;
+    }
+    run_compensation("tick_pi_realistic", &cal_pi, TICK_HZ / 4, TICK_HZ / 2);
+    run_compensation("tick_pi_stress", &cal_pi, 512, 512);
     run_excitation("tick_exc_realistic", PS_Q16_ONE * 13 / 10, PS_Q16_ONE * 35 / 100, true, &obs);
     report("observe_px", &obs);
     /* 512 ticks of travel at 3 mm/s up, 504 down. */

@@ -30,5 +30,5 @@ size_t psa_demo_table(uint8_t *buf, size_t cap)
     h.q_max_q16 = DEMO_X0_Q16 + (DEMO_N - 1) * DEMO_STEP_Q16;
     h.b = (pst_grid_t){.x0_q16 = DEMO_X0_Q16, .step_q16 = DEMO_STEP_Q16, .n = DEMO_N};
     h.f = h.b;
-    return table_write(buf, cap, &h, b_q16, f_q16);
+    return table_write(buf, cap, &h, b_q16, f_q16, NULL, NULL);
 }
