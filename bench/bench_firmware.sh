@@ -86,6 +86,7 @@ $(row observe_px "psa_observe_px (= onset_observe_px), 25 Hz frames of the excit
 $(row table_commit "table commit: calib_table_crc + calib_load + psa_set_table (the demo table; flash write aside)" "" "")
 $(row tick_pi_realistic "psa_tick, compensation with the transition model (table v2, 16 operators, bench_pi_load), realistic c* as above" 250 600)
 $(row tick_pi_stress "psa_tick, compensation with the transition model (16 operators), stress: c* reversing every 512 ticks" 250 600)
+$(row comp_step_pi "of which comp_step with the 16 operators (f^-1, PI^-1, B/2 offset, ramp), realistic c*" "" "")
 | instruction-count calibration (subs+bne loop) | $cal per iteration | 2.00 | same counter, a loop of exactly 2 instructions |
 | counts of the runs | $infos | | BENCH_INFO lines of bench-m4.elf |
 | desktop throughput of psa_tick (realistic compensation) | $desk_tps ticks/s ($desk_ns ns/tick) | | bench-desktop, best of 5 x 20e6 ticks, desktop-release flags \`$release_flags\`, $cpu |

@@ -170,12 +170,12 @@ static void run_compensation(const char *name, const calib_t *tab, uint32_t half
 
 /* The two core calls psa_tick makes in compensation, each timed alone on the same
  * trajectory: comp_step (eq. 4 with smoothing) and onset_tick (encoder history push). */
-static void run_parts(void)
+static void run_parts(const char *comp_name, const char *onset_name, const calib_t *tab)
 {
     psa_config_t c = loop_config();
     static comp_t comp;
     static onset_t onset;
-    comp_reset(&comp, &cal[0], &c.lim, -30 * PS_Q16_ONE);
+    comp_reset(&comp, tab, &c.lim, -30 * PS_Q16_ONE);
     onset_init(&onset, &c.onset);
     bench_tri_t ref;
     bench_tri_init(&ref, 30 * PS_Q16_ONE, TICK_HZ / 4, TICK_HZ / 2, 7u);
@@ -195,8 +195,9 @@ static void run_parts(void)
         stat_add(&sc, since(c1, c2));
         sink_q16 = r;
     }
-    report("comp_step", &sc);
-    report("onset_tick", &so);
+    report(comp_name, &sc);
+    if (onset_name)
+        report(onset_name, &so);
 }
 
 /* Excitation mode over the demo table's range (section III-B) at 3 mm/s with amplitude
@@ -302,7 +303,7 @@ int main(void)
     measure_calibration();
     stat_t obs = {0}, obs_stress = {0};
     run_compensation("tick_comp_realistic", &cal[0], TICK_HZ / 4, TICK_HZ / 2);
-    run_parts();
+    run_parts("comp_step", "onset_tick", &cal[0]);
     run_compensation("tick_comp_stress", &cal[0], 512, 512);
     if (bench_pi_load(&cal_pi) != CALIB_OK) {
         console_put_str("BENCH setup failed (transition table)\r\n");
@@ -310,6 +311,7 @@ int main(void)
     }
     run_compensation("tick_pi_realistic", &cal_pi, TICK_HZ / 4, TICK_HZ / 2);
     run_compensation("tick_pi_stress", &cal_pi, 512, 512);
+    run_parts("comp_step_pi", NULL, &cal_pi);
     run_excitation("tick_exc_realistic", PS_Q16_ONE * 13 / 10, PS_Q16_ONE * 35 / 100, true, &obs);
     report("observe_px", &obs);
     /* 512 ticks of travel at 3 mm/s up, 504 down. */
