@@ -98,7 +98,7 @@ int32_t psa_tick(psa_loop_t *l, uint32_t t_us, int32_t c_ref_q16, int32_t q_meas
     l->q_ref_q16 = q_ref_q16;
     /* A reversal on this tick restarted the detector, so its timeout cannot also end
      * here: at most one event per tick. */
-    if (onset_tick(&l->onset, t_us, q_meas_q16, ev))
+    if (onset_tick_inline(&l->onset, t_us, q_meas_q16, ev))
         ready = true;
     *ev_ready = ready;
     return q_ref_q16;

@@ -108,14 +108,16 @@ static bool emit(onset_t *o, uint32_t t2_us, onset_reason_t reason, onset_event_
 
 static bool finish_early(onset_t *o, onset_event_t *ev);
 
-bool onset_tick(onset_t *o, uint32_t t_us, int32_t q_q16, onset_event_t *ev)
+bool onset_tick_timed_out(onset_t *o, onset_event_t *ev)
 {
-    enc_hist_push_inline(&o->hist, t_us, q_q16);
-    if (o->state == ONSET_ST_IDLE || t_us - o->t1_us <= o->cfg.timeout_us)
-        return false;
     if (o->state >= ONSET_ST_CANDIDATE)
         return finish_early(o, ev);
     return fail(o, ONSET_ERR_TIMEOUT, ev);
+}
+
+bool onset_tick(onset_t *o, uint32_t t_us, int32_t q_q16, onset_event_t *ev)
+{
+    return onset_tick_inline(o, t_us, q_q16, ev);
 }
 
 bool onset_reversal(onset_t *o, uint32_t t1_us, int32_t q1_q16, onset_event_t *ev)

@@ -110,6 +110,23 @@ void onset_init(onset_t *o, const onset_config_t *cfg);
  * Returns true and fills *ev when a pending reversal times out. O(1). */
 bool onset_tick(onset_t *o, uint32_t t_us, int32_t q_q16, onset_event_t *ev);
 
+/* The pending reversal of onset_tick() timed out: end it (finish early or ONSET_ERR_TIMEOUT).
+ * Out of line: the rare path. */
+bool onset_tick_timed_out(onset_t *o, onset_event_t *ev);
+
+#ifndef PS_CDEF
+/* onset_tick() inlined for the control loop (psa_tick): the same code, so the same bits,
+ * without the call: the history push and the timeout test inline, the timeout out of line. */
+__attribute__((always_inline)) static inline bool onset_tick_inline(onset_t *o, uint32_t t_us, int32_t q_q16,
+                                                                    onset_event_t *ev)
+{
+    enc_hist_push_inline(&o->hist, t_us, q_q16);
+    if (o->state == ONSET_ST_IDLE || t_us - o->t1_us <= o->cfg.timeout_us)
+        return false;
+    return onset_tick_timed_out(o, ev);
+}
+#endif
+
 /* A direction change is commanded now: remember (t1, q1) and start watching.
  * If one was still pending, returns true with *ev = ONSET_ERR_REVERSAL for it. O(1). */
 bool onset_reversal(onset_t *o, uint32_t t1_us, int32_t q1_q16, onset_event_t *ev);
