@@ -54,11 +54,15 @@ class BoardClock:
 
 # --------------------------------------------------------------------------- frame sources
 class VideoSource:
-    """Frames from cv2.VideoCapture: a camera index (read as fast as it delivers, stamped when
-    read) or a file (played at its frame rate as if it were a live camera: frame k is due, and
-    stamped, at the start time + k / fps, so a slow host falls behind without shifting the
-    stamps). next(host_s) -> (BGR frame or None at the end, host time of the frame);
-    raises OSError when it cannot be opened."""
+    """Frames from cv2.VideoCapture, the same code for a camera and a file.
+
+    A camera index is read as fast as it delivers; each frame is stamped when read (host time,
+    turned into board time by BoardClock). A file has no link to the robot, so it is played as
+    the camera of the board's excitation: its frame k shows the instrument k / fps after the
+    excitation first moved the actuator (t0, taken from the encoder stream), and it is stamped
+    t0 + k / fps on the board clock and delivered once the board's clock has passed that time.
+    Host delays then never shift a stamp against the picture (as with a live camera, whose
+    picture is the robot's own state). Raises OSError when it cannot be opened."""
 
     def __init__(self, spec: str):
         import cv2
@@ -68,19 +72,24 @@ class VideoSource:
         if not self.cap.isOpened():
             raise OSError(f"cannot open video {spec!r}")
         fps = self.cap.get(cv2.CAP_PROP_FPS)
-        self.period_s = 1.0 / fps if fps and fps > 0 else 0.04
-        self.t_next = None
+        self.period_us = 1e6 / fps if fps and fps > 0 else 40000.0
+        self.t0_us: int | None = None  # file: board time of frame 0
+        self.k = 0
 
-    def due(self, host_s: float) -> bool:
-        return self.live or self.t_next is None or host_s >= self.t_next
+    def start(self, t0_us: int) -> None:
+        """File: frame 0 is at board time t0_us (when the excitation first moved q)."""
+        if self.t0_us is None:
+            self.t0_us = int(t0_us)
 
-    def next(self, host_s: float):
+    def due_us(self) -> int | None:
+        """File: board time of the next frame (None before start())."""
+        return None if self.t0_us is None else int(self.t0_us + self.k * self.period_us)
+
+    def read(self):
+        """The next frame (BGR) or None at the end of the video."""
         ok, img = self.cap.read()
-        if self.live:
-            return (img if ok else None), host_s
-        stamp = host_s if self.t_next is None else self.t_next
-        self.t_next = stamp + self.period_s
-        return (img if ok else None), stamp
+        self.k += 1
+        return img if ok else None
 
     def close(self) -> None:
         self.cap.release()
@@ -160,14 +169,28 @@ def run_loop(link, source, max_board_s: float = 600.0, progress=None, tracker=No
                         source.push(np.array(t), q)
             if sim:
                 frames = list(source.frames(t_board))
-            elif source.due(now) and clock.now_us(now) is not None:
-                img, stamp_s = source.next(now)
+            elif source.live:
+                t_now = clock.now_us(now)
+                img = source.read() if t_now is not None else False
                 if img is None:
                     run.ended = "end of video"
                     break
-                frames = [(clock.now_us(stamp_s), img)]
+                frames = [] if t_now is None else [(t_now, img)]
             else:
+                if source.t0_us is None and len(run.enc_q) > 1:
+                    moved = np.flatnonzero(np.asarray(run.enc_q) != run.enc_q[0])
+                    if moved.size:
+                        source.start(int(round(run.enc_t_s[moved[0]] * 1e6)))
                 frames = []
+                while source.due_us() is not None and source.due_us() <= t_board:
+                    t_f = source.due_us()
+                    img = source.read()
+                    if img is None:
+                        run.ended = "end of video"
+                        break
+                    frames.append((t_f, img))
+                if run.ended:
+                    break
             for t_f, img in frames:
                 d = tracker.track(img)
                 ok = not math.isnan(d.u)
