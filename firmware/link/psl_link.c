@@ -239,6 +239,18 @@ static uint16_t do_table_chunk(psl_t *l, uint16_t seq, const uint8_t *pl, uint16
     return PSP_OK;
 }
 
+/* Read the just-committed slot back over the upload buffer and check the table CRC on what
+ * the board will boot (the store's own CRC covers the record; this one is the table's,
+ * end to end from the host's file). calib_load already read this buffer, so on success
+ * cal[nb] stays valid over identical bytes. */
+static bool slot_holds_upload(psl_t *l, uint8_t nb)
+{
+    uint8_t *buf = (uint8_t *)l->tables[nb];
+    if (pss_read_active(&l->store, 0, buf, l->up_size) != PSS_OK)
+        return false;
+    return calib_table_crc(buf, l->up_size) == l->up_crc32 && psf_get_u32(buf + offsetof(pst_header_t, crc32)) == l->up_crc32;
+}
+
 static uint16_t do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *detail)
 {
     psp_table_commit_t c;
@@ -259,9 +271,21 @@ static uint16_t do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8
         *detail = PSL_DETAIL_GENERATION;
         return PSP_ERR_TABLE;
     }
+    uint8_t prev_slot = l->store.active;
     pss_status_t ps = pss_commit(&l->store, gen, blob, l->up_size);
     if (ps != PSS_OK) {
         *detail = (uint8_t)ps;
+        return PSP_ERR_FLASH;
+    }
+    if (!slot_holds_upload(l, nb)) {
+        /* What flash holds is not the table that was checked: unmake the commit so neither
+         * this session nor the next boot runs it, and keep the previous table. */
+        uint8_t bad = l->store.active;
+        (void)l->store.flash->erase(l->store.flash->ctx, bad);
+        pss_scan_slot(&l->store, bad);
+        if (prev_slot == PSS_NO_SLOT || !pss_select(&l->store, prev_slot))
+            l->store.active = PSS_NO_SLOT;
+        *detail = PSL_DETAIL_READBACK;
         return PSP_ERR_FLASH;
     }
     l->active_buf = nb;

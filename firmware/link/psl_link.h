@@ -18,6 +18,11 @@
  * generation is not newer than the running one (calib_status_t values stay below it). */
 enum { PSL_DETAIL_GENERATION = 0x80 };
 
+/* psp_error_t.detail for PSP_ERR_FLASH when the slot was written and verified by the store
+ * but the table read back from it fails the table CRC: the commit is undone (slot erased),
+ * the previous table stays active (pss_status_t values stay below it). */
+enum { PSL_DETAIL_READBACK = 0x81 };
+
 /* Sends one complete frame (on a UART, a USB bulk IN pipe, stdout...). Must take the
  * whole frame; the handler keeps no transmit queue. */
 typedef void (*psl_write_fn)(void *ctx, const uint8_t *frame, size_t len);

@@ -5,9 +5,6 @@ from __future__ import annotations
 import json
 import sys
 import time
-from pathlib import Path
-
-from ..errors import InputError
 
 
 def _add_device_args(p) -> None:
@@ -52,8 +49,10 @@ def flash(link, blob: bytes, n_vectors: int = 200, log=print) -> dict:
     """Upload with generation = active + 1, commit, read back, then run the test vector
     through the board's compensator and compare with the host's run of the same C code.
     Returns timings and the check results; raises RuntimeError when a check fails."""
+    from ..table_check import check_blob
     from .tables import HostCalib, set_generation, test_vector
 
+    check_blob(blob)  # names the damaged field; nothing is sent, nothing resealed
     before = link.info()
     blob = set_generation(blob, before["active_generation"] + 1)
     host = HostCalib(blob)  # refuses a bad table before anything is sent
@@ -92,10 +91,9 @@ def cmd_flash(args) -> int:
     if args.table == "demo":
         blob = demo_table()
     else:
-        p = Path(args.table)
-        if not p.is_file():
-            raise InputError(p, "no such table file")
-        blob = p.read_bytes()
+        from ..table_check import read_table_file
+
+        blob = read_table_file(args.table)  # checked before the board is even opened
     with _closing(_open(args)) as link:
         try:
             flash(link, blob, args.vectors)
