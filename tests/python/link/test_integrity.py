@@ -130,3 +130,4 @@ def test_usb_emulated_nothing_sent(tmp_path):
     assert [x["field"] for x in out["refused"]] == ["crc32", "crc32", "q_max"]
     assert all(x["requests_sent"] == 0 for x in out["refused"])
     assert out["generation_before"] == out["generation_after"] == 1
+
