@@ -10,10 +10,19 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from . import __version__
+from .atomic import check_output, output_guard
 from .errors import InputError
+
+# Argument dests that name what a command writes; every other path-valued argument that
+# exists is an input the output guard protects (atomic.output_guard). Not inputs either:
+# the virtual board's flash file, work folders and device addresses.
+OUTPUT_ARGS = ("out", "output", "json", "html")
+NOT_INPUT_ARGS = frozenset(OUTPUT_ARGS + ("flash_file", "reimage", "elf", "address", "device", "command",
+                                          "device_command", "func"))
 
 # Command modules in help order; optional ones are skipped when their package is absent.
 COMMAND_MODULES = [
@@ -57,7 +66,35 @@ def build_parser() -> argparse.ArgumentParser:
                 continue
             raise
         mod.add_parser(sub)
+    for sp in _all_subparsers(sub):
+        if "--force" not in sp._option_string_actions:
+            sp.add_argument("--force", action="store_true",
+                            help="replace existing outputs (never an input of the command)")
     return p
+
+
+def _all_subparsers(sub) -> list:
+    out = []
+    for sp in set(sub.choices.values()):
+        out.append(sp)
+        for a in sp._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                out += _all_subparsers(a)
+    return out
+
+
+def _paths(args) -> tuple[list[str], list[str]]:
+    """(inputs, outputs) named on the command line: see OUTPUT_ARGS / NOT_INPUT_ARGS."""
+    ins, outs = [], []
+    for k, v in vars(args).items():
+        for x in (v if isinstance(v, list) else [v]):
+            if not isinstance(x, str) or not x:
+                continue
+            if k in OUTPUT_ARGS:
+                outs.append(x)
+            elif k not in NOT_INPUT_ARGS and os.path.exists(x):
+                ins.append(x)
+    return ins, outs
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -67,7 +104,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        ins, outs = _paths(args)
+        force = bool(getattr(args, "force", False) or getattr(args, "overwrite", False))
+        with output_guard(ins, force):
+            for o in outs:  # before any work: a refused output costs nothing
+                check_output(o)
+            return int(args.func(args) or 0)
     except InputError as e:
         print(f"playscope: error: {e}", file=sys.stderr)
         return 2
