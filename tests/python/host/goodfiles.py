@@ -27,7 +27,7 @@ def make_good(root: Path) -> dict[str, Path]:
     import numpy as np
 
     c = np.interp(t, s.distal["t_s"], s.distal["c_deg"])
-    lines = ["Time (s),Tendon Disp.,Angle x"] + [f"{a:.4f},{b:.5f},{d:.4f}" for a, b, d in zip(t, q, c)]
+    lines = ["Time,Tendon Disp.,Angle x"] + [f"{a:.4f},{b:.5f},{d:.4f}" for a, b, d in zip(t, q, c)]
     (root / "rec.csv").write_text("\n".join(lines) + "\n")
     return {"session": root / "session", "cal": root / "cal.json", "table": root / "table.pstb",
             "csv": root / "rec.csv"}
@@ -42,3 +42,29 @@ def copy_good(good: dict[str, Path], dest: Path) -> dict[str, Path]:
         (shutil.copytree if p.is_dir() else shutil.copy2)(p, q)
         out[k] = q
     return out
+
+
+def table_damages() -> list:
+    """(name, damage(g)) for the table file: one field or byte each (offsets from the C header)."""
+    from playscope.native import core
+
+    ffi, _ = core()
+
+    def flip(field: str, byte: int, mask: int):
+        def f(g):
+            p = g["table"]
+            b = bytearray(p.read_bytes())
+            b[(ffi.offsetof("pst_header_t", field) if field else 0) + byte] ^= mask
+            p.write_bytes(bytes(b))
+        return f
+
+    def cut(n: int):
+        def f(g):
+            p = g["table"]
+            p.write_bytes(p.read_bytes()[:n])
+        return f
+
+    return [("data byte", flip(None, 200, 0x10)), ("crc field", flip("crc32", 0, 0x01)),
+            ("q_max bit, stale crc", flip("q_max_q16", 2, 0x40)), ("magic", flip("magic", 0, 0xFF)),
+            ("layout version", flip("layout_version", 0, 0x08)), ("header size", flip("header_size", 0, 0x01)),
+            ("total_size", flip("total_size", 1, 0x01)), ("truncated", cut(-4)), ("header only", cut(40))]

@@ -82,7 +82,7 @@ def test_cli_refuses_and_changes_nothing(argv, tmp_path, good, capsys):
     assert main([a.format(**names) for a in argv]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("playscope: error: ") and "\n" not in err
-    assert "elsewhere" in err or "--force" in err
+    assert "elsewhere" in err or "--force" in err or "is a folder" in err
     assert _digest(tmp_path) == before
 
 
