@@ -17,6 +17,7 @@ import csv
 import json
 import math
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -179,7 +180,9 @@ def _read_csv_fast(path: Path, required, nullable) -> dict[str, np.ndarray] | No
             header = [h.strip() for h in fh.readline().split(",")]
         if any(n not in header for n in required):
             return None
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
+        with warnings.catch_warnings():  # "no data": the checked reader reports it as one line
+            warnings.simplefilter("ignore")
+            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
     except (ValueError, OSError, IndexError):
         return None
     if data.shape[0] == 0 or data.shape[1] != len(header) or not np.all(np.isfinite(data)):

@@ -5,6 +5,7 @@ from __future__ import annotations
 from .. import argtypes as T
 from ..atomic import write_bytes_atomic
 from ..tables import build_table, table_errors
+from ..errors import InputError
 from .common import add_json_arg, dump_json, load_calibration
 
 
@@ -27,9 +28,14 @@ def run(a) -> int:
     cal = load_calibration(a.calibration)
     q_min, q_max = cal.doc["q_range"]
     f = cal.f_coarse if a.f_coarse else cal.f
-    tab = build_table(cal.B, f, q_min, q_max, cal.doc["actuator_unit"], "coarse" if a.f_coarse else "remain",
-                      a.generation, a.entries, source=a.calibration)
-    err = table_errors(tab, cal.B, f, q_min, q_max)
+    try:
+        tab = build_table(cal.B, f, q_min, q_max, cal.doc["actuator_unit"], "coarse" if a.f_coarse else "remain",
+                          a.generation, a.entries, source=a.calibration)
+        err = table_errors(tab, cal.B, f, q_min, q_max)
+    except (ValueError, OverflowError) as e:  # InputError passes through with its own file
+        if isinstance(e, InputError):
+            raise
+        raise InputError(a.calibration, f"cannot make a table of it: {' '.join(str(e).split())}") from None
     write_bytes_atomic(a.out, tab.blob)
     print(f"{a.out}: {len(tab.blob)} bytes, crc32 {tab.cal.crc32:#010x}, {tab.cal.b.n} entries per grid; "
           f"worst |c_fixed - c_float| {err['direct_c_deg_max']:.2e} deg, |q*_fixed - q*_float| {err['comp_q_max']:.2e}")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import warnings
 
 import pytest
 
@@ -90,7 +91,7 @@ def cases() -> list[tuple[str, list[str], object]]:
     def add(name, argv, damage=None):
         out.append((name, argv, damage))
 
-    # ---- command-line values (argparse types): 95 cases
+    # ---- command-line values (argparse types): 100 cases
     values = {
         ("calibrate", "-N"): ["0", "2", "3", "65", "100000", "abc", "1.5", "-1"],
         ("calibrate", "--fps"): ["0", "-1", "nan", "inf", "1e-9", "abc", "1e9"],
@@ -192,7 +193,7 @@ def cases() -> list[tuple[str, list[str], object]]:
     add("session folder missing", ["calibrate", "{root}/nope", "-o", "{root}/out.json"])
     add("session is a file", ["calibrate", "{cal}", "-o", "{root}/out.json"])
 
-    # ---- calibration JSON: 22 cases
+    # ---- calibration JSON: 29 cases
     for name, dmg in [
         ("missing", _delete("cal.json")), ("empty", _write("cal.json", "")), ("not JSON", _write("cal.json", "B = 1")),
         ("invalid utf-8", _write("cal.json", b'{"\xff": 1}')), ("binary", _write("cal.json", JUNK)),
@@ -209,6 +210,13 @@ def cases() -> list[tuple[str, list[str], object]]:
         ("B garbage", _json_edit("cal.json", _set("B", "spline"))),
         ("f_remain missing", _json_edit("cal.json", _set("f_remain", DELETE))),
         ("f_remain sign", _json_edit("cal.json", _set("f_remain.sign", "up"))),
+        ("B degree 7", _json_edit("cal.json", _set("B.degree", 7))),
+        ("B coef NaN", _json_edit("cal.json", lambda d: d["B"].__setitem__("coef", [float("nan")] * len(d["B"]["coef"])))),
+        ("B coef 1e30", _json_edit("cal.json", lambda d: d["B"].__setitem__("coef", [1e30] * len(d["B"]["coef"])))),
+        ("B range reversed", _json_edit("cal.json", _set("B.range", [2.0, -2.0]))),
+        ("f_remain sign 0", _json_edit("cal.json", _set("f_remain.sign", 0))),
+        ("q_per_rad 0", _json_edit("cal.json", _set("f_coarse.q_per_rad", 0))),
+        ("actuator unit", _json_edit("cal.json", _set("actuator_unit", "furlong"))),
     ]:
         add(f"cal.json {name}", TAB, dmg)
     for name, dmg in [("missing", _delete("cal.json")), ("list", _write("cal.json", "[]")),
@@ -286,8 +294,12 @@ def test_malformed_input(name, argv, damage, good, tmp_path, capsys):
         damage(g)
     names = {k: str(v) for k, v in g.items()}
     before = _digest(tmp_path)
-    rc = main([a.format(**names) for a in argv])
+    with warnings.catch_warnings(record=True) as caught:  # a warning would be a second stderr line
+        warnings.simplefilter("always")
+        rc = main([a.format(**names) for a in argv])
     err = capsys.readouterr().err
+    shown = [str(w.message) for w in caught if issubclass(w.category, (UserWarning, RuntimeWarning))]
+    assert not shown, shown
     lines = err.strip().splitlines()
     assert rc == 2, err
     assert len(lines) == 1 and lines[0].startswith("playscope: error: "), err

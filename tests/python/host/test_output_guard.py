@@ -96,3 +96,25 @@ def test_cli_force_replaces_an_output(tmp_path, good, capsys):
     assert main(["tables", str(g["cal"]), "-o", str(out), "--generation", "2", "--force"]) == 0
     assert out.read_bytes() != first
     write_text_atomic(tmp_path / "x", "y")  # library writes stay unguarded outside a command
+
+
+def test_unreadable_files_are_one_line(tmp_path, good, capsys, monkeypatch):
+    """Permission errors (tests run as root here, so chmod cannot make one: the read is made
+    to fail as the kernel would)."""
+    from pathlib import Path
+
+    g = copy_good(good, tmp_path)
+    real = Path.read_bytes
+
+    def denied(self):
+        if self.name in ("session.json", "cal.json"):
+            raise PermissionError(13, "Permission denied", str(self))
+        return real(self)
+
+    monkeypatch.setattr(Path, "read_bytes", denied)
+    for argv in (["calibrate", str(g["session"]), "-o", str(tmp_path / "o.json")],
+                 ["tables", str(g["cal"]), "-o", str(tmp_path / "o.pstb")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "cannot read: Permission denied; check the permissions" in err
+    assert not (tmp_path / "o.json").exists() and not (tmp_path / "o.pstb").exists()

@@ -131,3 +131,28 @@ def test_usb_emulated_nothing_sent(tmp_path):
     assert all(x["requests_sent"] == 0 for x in out["refused"])
     assert out["generation_before"] == out["generation_after"] == 1
 
+
+
+def test_generation_counter_at_maximum(tmp_path):
+    from playscope.device.link import Link as L
+
+    link = L(virtual_transport(tmp_path / "flash.bin"))
+    try:
+        link.upload_table(demo_table(generation=0xFFFFFFFF))
+        n0 = link.n_requests
+        with pytest.raises(RuntimeError, match="generation counter is at its maximum"):
+            flash(link, demo_table(), 5, log=lambda *_: None)
+        assert link.n_requests == n0 + 1  # only the INFO that read the counter
+    finally:
+        link.close()
+
+
+def test_cli_qemu_without_image_and_usb_without_device(tmp_path):
+    import os
+
+    env = dict(os.environ, PLAYSCOPE_LINK_ELF=str(tmp_path / "missing.elf"))
+    for extra in (["--device", "qemu"], ["--device", "usb"]):
+        r = subprocess.run([sys.executable, "-c", "import sys; from playscope.cli import main; sys.exit(main())",
+                            "flash", "demo", *extra], capture_output=True, text=True, env=env)
+        lines = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(lines) == 1 and lines[0].startswith("playscope: error: "), r.stderr
