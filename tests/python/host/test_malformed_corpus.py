@@ -91,7 +91,7 @@ def cases() -> list[tuple[str, list[str], object]]:
     def add(name, argv, damage=None):
         out.append((name, argv, damage))
 
-    # ---- command-line values (argparse types): 100 cases
+    # ---- command-line values (argparse types): 92 cases
     values = {
         ("calibrate", "-N"): ["0", "2", "3", "65", "100000", "abc", "1.5", "-1"],
         ("calibrate", "--fps"): ["0", "-1", "nan", "inf", "1e-9", "abc", "1e9"],
@@ -136,7 +136,7 @@ def cases() -> list[tuple[str, list[str], object]]:
     add("arg unknown command", ["frobnicate"])
     add("arg calibrate missing -o", ["calibrate", "{session}"])
 
-    # ---- session folders: 45 cases
+    # ---- session folders: 49 cases
     sj = S + "session.json"
     for name, dmg in [
         ("missing", _delete(sj)), ("empty", _write(sj, "")), ("truncated", _write(sj, '{"format": "playscope-se')),
