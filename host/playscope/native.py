@@ -150,6 +150,19 @@ def core():
         return _cached
 
 
+def enum_names(ctype: str, prefix: str, lower: bool = True) -> dict[int, str]:
+    """{value: name} of a C enum, names without `prefix` (lower-cased unless lower=False),
+    read from the compiled headers so Python never retypes them: e.g.
+    enum_names("enum psp_mode", "PSP_MODE_") -> {0: "idle", 1: "excitation", ...}."""
+    ffi, _ = core()
+    out = {}
+    for value, name in ffi.typeof(ctype).elements.items():
+        if name.startswith(prefix):
+            name = name[len(prefix):]
+            out[value] = name.lower() if lower else name
+    return out
+
+
 def frame_codec():
     """(ffi, lib) holding common/ps_frame.c's codec: the same module as core()."""
     return core()

@@ -1,37 +1,99 @@
-"""`playscope import`: a foreign CSV recording -> a session folder."""
+"""`playscope import`: a foreign recording (CSV, or a ROS 1/ROS 2 bag) -> a session folder."""
 
 from __future__ import annotations
 
+import argparse
+import math
+import sys
+
 from .. import argtypes as T
+from ..errors import InputError
 from ..importer import CATHETER, import_csv
 from ..session import write_session
 from .common import add_json_arg, dump_json
 
+EPILOG = """\
+examples:
+  playscope import data_2_1.txt -o sessions/d21
+  playscope import run.bag --q-topic /joint_states:joint=bend --c-topic /em_tracker/angle:data \\
+      --c-scale 57.29578 -o sessions/run            (angle in rad on the bag -> deg)
+  playscope import rosbag2_run/ --q-topic /motor/position --image-topic /endoscope/image_raw \\
+      --geometry sessions/sim/session.json -o sessions/cam   (then: playscope track sessions/cam)
+A bag is a ROS 1 .bag file or a ROS 2 bag folder (sqlite3 .db3 or MCAP), read with `rosbags`.
+TOPIC[:FIELD]: FIELD is a dotted path (pose.position.x, position[1]) or joint=NAME for
+sensor_msgs/JointState; default: 'data' for std_msgs numbers, position[0] for JointState.
+Time stamps come from header.stamp when present, else the bag's receive time.
+"""
+
+
+def _finite(kind):
+    def conv(s: str) -> float:
+        v = float(s)
+        if not math.isfinite(v) or v == 0:
+            raise ValueError
+        return v
+    conv.__name__ = kind
+    return conv
+
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("import", help="bring a CSV recording into a session folder",
+    p = sub.add_parser("import", help="bring a CSV recording or a ROS bag into a session folder",
                        description="Map a CSV with one header row onto a playscope-session/1 angle session "
-                       "(encoder.csv + distal.csv sharing the file's time base). Defaults fit the EM-tracked "
-                       "catheter set: Time (s), 'Tendon Disp.' (mm) -> q, 'Angle x' (deg) -> c. "
-                       "Example: playscope import data_2_1.txt -o sessions/d21")
-    p.add_argument("csv", type=T.existing_file, help="input CSV file")
+                       "(encoder.csv + distal.csv sharing the file's time base), or topics of a ROS bag onto an "
+                       "angle or image session. CSV defaults fit the EM-tracked catheter set: Time (s), "
+                       "'Tendon Disp.' (mm) -> q, 'Angle x' (deg) -> c.",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("source", help="input CSV file, ROS 1 .bag file or ROS 2 bag folder")
     p.add_argument("-o", "--out", required=True, help="session folder to create")
-    p.add_argument("--t-col", default=CATHETER["t"], help="time column (default %(default)r)")
-    p.add_argument("--q-col", default=CATHETER["q"], help="actuator column (default %(default)r)")
-    p.add_argument("--c-col", default=CATHETER["c"], help="bending-angle column, deg (default %(default)r)")
-    p.add_argument("--time-scale", type=T.float_range(1e-9, 1e9, lo_open=True), default=1.0, help="multiply time by this to get s (1e-3 for ms)")
-    p.add_argument("--q-scale", type=T.nonzero_float(), default=1.0, help="multiply q by this to get the actuator unit")
+    g = p.add_argument_group("CSV input")
+    g.add_argument("--t-col", default=CATHETER["t"], help="time column (default %(default)r)")
+    g.add_argument("--q-col", default=CATHETER["q"], help="actuator column (default %(default)r)")
+    g.add_argument("--c-col", default=CATHETER["c"], help="bending-angle column, deg (default %(default)r)")
+    g.add_argument("--time-scale", type=T.float_range(0.0, 1e9, lo_open=True), default=1.0,
+                   help="multiply time by this to get s (1e-3 for ms)")
+    b = p.add_argument_group("ROS bag input")
+    b.add_argument("--q-topic", metavar="TOPIC[:FIELD]", help="actuator position topic (required for a bag)")
+    b.add_argument("--c-topic", metavar="TOPIC[:FIELD]", help="distal bending angle topic: an angle session")
+    b.add_argument("--image-topic", metavar="TOPIC", help="camera topic (Image or CompressedImage): an image session")
+    b.add_argument("--geometry", metavar="SESSION_JSON", type=T.existing_file, help="image sessions: robot, camera and hand_eye from this file")
+    b.add_argument("--c-scale", type=_finite("non-zero number"), default=1.0,
+                   help="multiply the angle by this to get deg (57.29578 for rad)")
+    b.add_argument("--t-delay", type=T.T_DELAY_S, default=None, help="image sessions: acquisition delay, s (else estimated)")
+    p.add_argument("--q-scale", type=_finite("non-zero number"), default=1.0,
+                   help="multiply q by this to get the actuator unit")
     p.add_argument("--unit", choices=["mm", "deg"], default="mm", help="actuator unit (default mm)")
-    p.add_argument("--q-per-rad", type=T.nonzero_float(1e6), default=5.0, help="f_coarse: actuator units per rad (default 5)")
+    p.add_argument("--q-per-rad", type=_finite("non-zero number"), default=5.0,
+                   help="f_coarse: actuator units per rad (default 5)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing session folder")
-    add_json_arg(p, "session (path), rows (int), t_span_s (float)")
+    add_json_arg(p, "session (path), rows (int), t_span_s (float), streams (per-stream import notes, bags)")
     p.set_defaults(func=run)
 
 
 def run(a) -> int:
-    s = import_csv(a.csv, a.t_col, a.q_col, a.c_col, a.time_scale, a.q_scale, a.unit, a.q_per_rad)
-    write_session(s, a.out, overwrite=a.overwrite)
+    from ..rosbag import import_bag, is_bag, write_bag_session
+
+    notes = []
+    if is_bag(a.source):
+        if not a.q_topic:
+            print("playscope: error: a bag needs --q-topic (and --c-topic or --image-topic)", file=sys.stderr)
+            return 2
+        try:
+            s, report, frames = import_bag(a.source, a.q_topic, a.c_topic, a.image_topic, a.geometry, a.unit,
+                                           a.q_scale, a.c_scale, a.q_per_rad, a.t_delay)
+        except ValueError as e:
+            if isinstance(e, InputError):
+                raise
+            print(f"playscope: error: {e}", file=sys.stderr)
+            return 2
+        notes = report.lines()
+        for line in notes:
+            print(f"{a.source}: {line}", file=sys.stderr)
+        write_bag_session(s, frames, a.out, overwrite=a.overwrite)
+    else:
+        s = import_csv(a.source, a.t_col, a.q_col, a.c_col, a.time_scale, a.q_scale, a.unit, a.q_per_rad)
+        write_session(s, a.out, overwrite=a.overwrite)
     t = s.encoder["t_s"]
     print(f"{a.out}: {t.size} rows, {t[-1] - t[0]:.1f} s")
-    dump_json(a.json, {"session": str(a.out), "rows": int(t.size), "t_span_s": float(t[-1] - t[0])})
+    dump_json(a.json, {"session": str(a.out), "rows": int(t.size), "t_span_s": float(t[-1] - t[0]),
+                       "streams": notes})
     return 0

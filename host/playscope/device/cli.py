@@ -117,7 +117,9 @@ def cmd_run_insitu(args) -> int:
             print("playscope: --sim-plant needs --device virtual (the simulated instrument follows "
                   "the virtual board's clock)", file=sys.stderr)
             return 2
-        vb = ["--time-scale", f"{args.time_scale:g}", "--exc", args.exc]
+        vb = ["--time-scale", f"{args.time_scale:g}"]
+    if args.device == "virtual":
+        vb += ["--exc", args.exc]
     with _closing(_open(args, vb)) as link:
         return run_insitu(link, args)
 
@@ -148,7 +150,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--time-scale", type=T.TIME_SCALE, default=4.0,
                    help="--sim-plant: virtual board clock speed-up over the wall clock (default 4)")
     p.add_argument("--exc", default="-3:3:1.6:0.4:1.0", type=T.colon_floats(5, "Q0:Q1:AMP:ADV:V"),
-                   help="--sim-plant: virtual board excitation Q0:Q1:AMP:ADV:V in mm, mm/s (default -3:3:1.6:0.4:1.0)")
+                   help="virtual board: its excitation Q0:Q1:AMP:ADV:V in mm, mm/s (default -3:3:1.6:0.4:1.0); "
+                        "a real board runs the excitation it was built with")
     p.add_argument("--seed", type=T.SEED, default=0, help="--sim-plant: noise seed")
     p.add_argument("--seconds", type=T.DURATION_S, default=600.0, help="longest run in board seconds (default 600)")
     p.add_argument("-N", "--control-points", type=T.CONTROL_POINTS, default=14, help="B-spline control points (paper: 14)")

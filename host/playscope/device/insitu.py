@@ -3,7 +3,8 @@
 1. The board runs its excitation trajectory (mode EXCITATION, section III-B) and streams its
    encoder samples (t_us, q) on the board clock (PSP_MSG_ENC_STREAM, 1 kHz).
 2. Frames come from a camera or a video (OpenCV VideoCapture), or, with ``--sim-plant``, from
-   a SIMULATED instrument (SimPlant below) driven in closed loop by the board's streamed q.
+   a SIMULATED instrument (playscope.sim.plant.SimPlant) driven in closed loop by the board's
+   streamed q.
    playscope.track.MarkerTracker finds the marker (u, v) px in each frame.
 3. Every frame goes to the board as PSP_MSG_MARKER_OBS stamped on the board clock (the
    acquisition delay is not removed: the board's detector subtracts t_delay, eq. 1), and the
@@ -53,9 +54,11 @@ class BoardClock:
 
 # --------------------------------------------------------------------------- frame sources
 class VideoSource:
-    """Frames from cv2.VideoCapture: a camera index (read as fast as it delivers) or a file
-    (paced at its frame rate, as if it were a live camera). next() -> BGR frame or None at
-    the end; raises OSError when it cannot be opened."""
+    """Frames from cv2.VideoCapture: a camera index (read as fast as it delivers, stamped when
+    read) or a file (played at its frame rate as if it were a live camera: frame k is due, and
+    stamped, at the start time + k / fps, so a slow host falls behind without shifting the
+    stamps). next(host_s) -> (BGR frame or None at the end, host time of the frame);
+    raises OSError when it cannot be opened."""
 
     def __init__(self, spec: str):
         import cv2
@@ -73,107 +76,14 @@ class VideoSource:
 
     def next(self, host_s: float):
         ok, img = self.cap.read()
-        self.t_next = (self.t_next or host_s) + self.period_s
-        return img if ok else None
+        if self.live:
+            return (img if ok else None), host_s
+        stamp = host_s if self.t_next is None else self.t_next
+        self.t_next = stamp + self.period_s
+        return (img if ok else None), stamp
 
     def close(self) -> None:
         self.cap.release()
-
-
-@dataclass
-class SimPlantConfig:
-    """SIMULATED instrument for --sim-plant: the simulator's "ideal" preset (playscope.sim:
-    B(q) = base + peak exp(-((q - centre)/sigma)^2) mm, f_remain, constant curvature, pinhole
-    camera with distortion), the board's default camera timing (25 Hz, t_delay 80 ms, as
-    onset_default_config), a green disc of marker_radius_px drawn anti-aliased on a grey
-    noisy background. time_scale: the virtual board's clock runs this much faster than the
-    wall clock; exc: the board's excitation "Q0:Q1:AMP:ADV:V" (mm, mm/s)."""
-
-    seed: int = 0
-    fps: float = 25.0
-    t_delay_s: float = 0.08
-    marker_radius_px: float = 9.0
-    time_scale: float = 4.0
-    exc: str = "-3:3:1.6:0.4:1.0"
-    sim_overrides: dict = field(default_factory=dict)
-
-
-class SimPlant:
-    """SIMULATION ONLY: a tendon-driven instrument whose actuator follows the board's streamed
-    encoder samples, seen by a simulated camera. push(t_us, q) feeds (N,) board samples (q in
-    mm); frames(t_board_us) yields (t_us, BGR frame) for every frame time k / fps the encoder
-    stream has passed; a frame stamped t shows the tip at t - t_delay (acquisition delay)."""
-
-    def __init__(self, cfg: SimPlantConfig | None = None):
-        import cv2
-
-        from .. import model
-        from ..sim.core import preset
-
-        self.cfg = cfg or SimPlantConfig()
-        self.sim = preset("ideal", seed=self.cfg.seed, fps=self.cfg.fps, t_delay_s=self.cfg.t_delay_s,
-                          **self.cfg.sim_overrides)
-        self.B, self.f = self.sim.B_fn(), self.sim.f_fn()
-        self.im = model.ImageModel(self.sim.robot(), self.sim.camera(), self.sim.hand_eye())
-        # z_up/z_down (eq. 2 reindexed) tabulated once on a 0.5 um grid: the per-sample play
-        # update is then two interpolations, fast enough for a board clock several times
-        # real time (the bisection per batch of model.z_up costs ~3 ms).
-        self.qg = np.linspace(-12.0, 12.0, 48001)
-        self.zu_g, self.zd_g = model.z_up(self.qg, self.B), model.z_down(self.qg, self.B)
-        self.rng = np.random.default_rng(self.cfg.seed)
-        self.t_us = np.empty(0, np.int64)
-        self.zs = np.empty(0)
-        self.z = None
-        self.period_us = int(round(1e6 / self.cfg.fps))
-        self.next_us = self.period_us
-        self.delay_us = int(round(self.cfg.t_delay_s * 1e6))
-        W, H = self.sim.width, self.sim.height
-        # A bank of noisy grey backgrounds, cycled: drawing fresh noise per frame costs ~10 ms.
-        base = np.full((H, W, 3), (90, 100, 110), np.uint8)
-        self.bank = [cv2.add(base, self.rng.integers(0, 12, base.shape, dtype=np.uint8)) for _ in range(16)]
-        self.k = 0
-
-    def push(self, t_us: np.ndarray, q: np.ndarray) -> None:
-        q = np.asarray(q, float)
-        if q.min() < self.qg[0] or q.max() > self.qg[-1]:
-            raise ValueError(f"sim plant: q outside [{self.qg[0]:g}, {self.qg[-1]:g}] mm")
-        zu, zd = np.interp(q, self.qg, self.zu_g), np.interp(q, self.qg, self.zd_g)
-        z = np.empty_like(q)
-        prev = float(q[0]) if self.z is None else self.z
-        for k in range(q.size):  # play operator, eq. 3: z = min(z_down, max(z_up, z_prev))
-            prev = min(zd[k], max(zu[k], prev))
-            z[k] = prev
-        self.z = prev
-        self.t_us = np.concatenate([self.t_us[-4000:], np.asarray(t_us, np.int64)])
-        self.zs = np.concatenate([self.zs[-4000:], z])
-
-    def tip_px(self, t_us: float) -> tuple[float, float]:
-        """Marker (u, v) px at board time t_us (eqs. 2, 6: c = f_remain(z), Q = h(g(c)))."""
-        z = float(np.interp(t_us, self.t_us, self.zs))
-        u, v = self.im(self.f(np.array([z])))[0]
-        return float(u), float(v)
-
-    def truth_B(self, q):
-        return self.B(q)
-
-    def render(self, u: float, v: float) -> np.ndarray:
-        import cv2
-
-        img = self.bank[self.k % len(self.bank)].copy()
-        self.k += 1
-        s = 16  # cv2 draws with 4 fractional bits: sub-pixel centre
-        cv2.circle(img, (round(u * s), round(v * s)), round(self.cfg.marker_radius_px * s), (60, 200, 60),
-                   -1, cv2.LINE_AA, 4)
-        return img
-
-    def frames(self, t_board_us: int):
-        while self.t_us.size and self.next_us <= t_board_us:
-            t = self.next_us
-            self.next_us += self.period_us
-            ta = t - self.delay_us
-            if ta < self.t_us[0]:
-                continue  # before the stream began: nothing to show yet
-            yield t, self.render(*self.tip_px(ta))
 
 
 # --------------------------------------------------------------------------- the run
@@ -197,18 +107,22 @@ class InsituRun:
         return [s for s in self.samples if s["reason_code"] <= 1]  # ONSET_OK, ONSET_OK_COARSE
 
 
-REASONS = {0: "ok", 1: "ok_coarse", 2: "marker_lost", 3: "reversal", 4: "timeout", 5: "history_wrapped",
-           6: "history_missing", 7: "no_still"}
+def onset_reason_names() -> dict[int, str]:
+    """{value: name} of onset_reason_t (firmware/core/onset.h): 0 -> "ok", 2 -> "marker_lost", ..."""
+    from ..native import enum_names
+
+    return {k: v.removeprefix("err_") for k, v in enum_names("onset_reason_t", "ONSET_").items()}
 
 
 def _b_dict(b: dict) -> dict:
-    return {"reason": REASONS.get(b["reason"], str(b["reason"])), "reason_code": b["reason"],
+    return {"reason": onset_reason_names().get(b["reason"], str(b["reason"])), "reason_code": b["reason"],
             "t1_s": b["t1_us"] / 1e6, "t2_s": b["t2_us"] / 1e6, "q1": b["q1_q16"] / Q16,
             "q2": b["q2_q16"] / Q16, "q_mean": b["q_mean_q16"] / Q16, "b": b["b_q16"] / Q16}
 
 
 def run_loop(link, source, max_board_s: float = 600.0, progress=None, tracker=None) -> InsituRun:
-    """Steps 1-3 of the module docstring. source: SimPlant or VideoSource. Ends when the
+    """Steps 1-3 of the module docstring. source: VideoSource, or a simulated plant (anything
+    with push(t_us, q) and frames(t_board_us), e.g. playscope.sim.plant.SimPlant). Ends when the
     board's excitation ends (the board returns to idle), the video ends, or after
     max_board_s of board time. progress(board_s, n_samples) is called about twice a second."""
     from ..track import MarkerTracker
@@ -216,7 +130,7 @@ def run_loop(link, source, max_board_s: float = 600.0, progress=None, tracker=No
     tracker = tracker or MarkerTracker()
     run = InsituRun()
     clock = BoardClock()
-    sim = isinstance(source, SimPlant)
+    sim = hasattr(source, "push")  # a simulated plant follows the encoder stream; a video does not
     t_wall0 = time.monotonic()
     t_hi, t_prev = 0, None  # unwrap the board's 32-bit us clock
     t_board = 0
@@ -247,11 +161,11 @@ def run_loop(link, source, max_board_s: float = 600.0, progress=None, tracker=No
             if sim:
                 frames = list(source.frames(t_board))
             elif source.due(now) and clock.now_us(now) is not None:
-                img = source.next(now)
+                img, stamp_s = source.next(now)
                 if img is None:
                     run.ended = "end of video"
                     break
-                frames = [(clock.now_us(now), img)]
+                frames = [(clock.now_us(stamp_s), img)]
             else:
                 frames = []
             for t_f, img in frames:
@@ -370,6 +284,8 @@ def run_insitu(link, args) -> int:
         out.mkdir(parents=True, exist_ok=True)
     plant = None
     if args.sim_plant:
+        from ..sim.plant import SimPlant, SimPlantConfig
+
         plant = SimPlant(SimPlantConfig(seed=args.seed, time_scale=args.time_scale, exc=args.exc))
         source = plant
         sim = plant.sim

@@ -5,13 +5,18 @@ from __future__ import annotations
 import collections
 import time
 
-from ..native import frame_codec
+from ..native import enum_names, frame_codec
 from .transport import Transport, TransportError
 
-ERROR_NAMES = {0: "OK", 1: "CRC", 2: "LENGTH", 3: "TYPE", 4: "SEQ", 5: "VERSION", 6: "STATE",
-               7: "RANGE", 8: "TABLE", 9: "FLASH", 10: "BUSY"}
-ERR_BUSY = 10  # PSP_ERR_BUSY (ps_proto.h): another host holds the upload session
-MODE_NAMES = {0: "idle", 1: "excitation", 2: "compensation", 3: "passthrough"}
+
+def error_name(code: int) -> str:
+    """Name of a psp_error_code (common/ps_proto.h), e.g. 8 -> "TABLE"."""
+    return {0: "OK", **enum_names("enum psp_error_code", "PSP_ERR_", lower=False)}.get(code, str(code))
+
+
+def mode_names() -> dict[int, str]:
+    """{value: name} of enum psp_mode (common/ps_proto.h): 0 -> "idle", ..."""
+    return enum_names("enum psp_mode", "PSP_MODE_")
 
 
 class DeviceError(RuntimeError):
@@ -19,16 +24,17 @@ class DeviceError(RuntimeError):
 
     def __init__(self, code: int, ref_type: int, detail: int):
         self.code, self.ref_type, self.detail = code, ref_type, detail
-        if code == ERR_BUSY:
+        if self.busy:
             msg = (f"board busy: another host is uploading a table (its session ends when it commits or "
                    f"aborts, or after {detail} s without a request); try again then")
         else:
-            msg = f"board refused request 0x{ref_type:02x}: {ERROR_NAMES.get(code, code)} (detail {detail})"
+            msg = f"board refused request 0x{ref_type:02x}: {error_name(code)} (detail {detail})"
         super().__init__(msg)
 
     @property
     def busy(self) -> bool:
-        return self.code == ERR_BUSY
+        """PSP_ERR_BUSY: another host holds the board's upload session."""
+        return error_name(self.code) == "BUSY"
 
 
 def _struct_bytes(ffi, ctype: str, **fields) -> bytes:
@@ -115,7 +121,7 @@ class Link:
                 "table_layout_version": i.table_layout_version,
                 "board_id": "-".join(f"{i.board_id[k]:08x}" for k in range(3)),
                 "active_generation": i.active_generation, "active_crc32": i.active_crc32,
-                "mode": MODE_NAMES.get(i.mode, str(i.mode)),
+                "mode": mode_names().get(i.mode, str(i.mode)),
                 "active_slot": {0: "A", 1: "B"}.get(i.active_slot, "none"), "last_seq": i.last_seq}
 
     def info(self) -> dict:
@@ -143,7 +149,7 @@ class Link:
         return info
 
     def set_mode(self, mode: str | int) -> None:
-        m = mode if isinstance(mode, int) else {v: k for k, v in MODE_NAMES.items()}[mode]
+        m = mode if isinstance(mode, int) else {v: k for k, v in mode_names().items()}[mode]
         self.request(self.lib.PSP_MSG_SET_MODE, _struct_bytes(self.ffi, "psp_set_mode_t", mode=m))
 
     def begin_upload(self, size: int, crc32: int) -> int:
