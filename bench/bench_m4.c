@@ -1,184 +1,323 @@
-/* Cortex-M4 bench ELF: core clock cycles for N control ticks, printed as BENCH lines; run under QEMU -icount. */
+/* Cortex-M4 bench ELF: M4 instructions of the production loop's entry points, per call (average and
+ * worst single call), under QEMU -icount; printed as BENCH lines that bench_firmware.sh tabulates. */
 #include <stdbool.h>
 #include <stdint.h>
-#include <string.h>
 
-#include "bench_tick.h"
 #include "port_board.h"
 #include "port_console.h"
+#include "ps_fixed.h"
+#include "ps_table.h"
+#include "psa_demo_table.h"
+#include "psa_loop.h"
+#include "stm32f405_regs.h"
+#include "bench_traj.h"
+#include "bench_pi.h"
 
-/* Under `-icount shift=0` QEMU advances virtual time 1 ns per instruction, and SysTick
- * counts virtual core cycles (168 MHz), so cycles * 1000 / 168 = instructions. The
- * calibration loop (2 instructions per iteration) checks that ratio on every run. */
+/* Under `-icount shift=N` QEMU advances virtual time 2^N ns per instruction and SysTick
+ * counts virtual core cycles (168 MHz), so instructions = cycles * 1e9 / (168e6 * 2^N).
+ * Every call is timed on its own by two reads of the SysTick counter (its interrupt off,
+ * so nothing else runs in between); the cost of the read pair alone is measured and
+ * subtracted. A loop of exactly 2 instructions per iteration checks the conversion. */
 
 #ifndef BENCH_TICKS
-/* BENCH_TICKS: control ticks per measurement. Default 100000. */
-#define BENCH_TICKS 100000u
+/* BENCH_TICKS: control ticks per trajectory. Default 200000 (10 s at 20 kHz). */
+#define BENCH_TICKS 200000u
 #endif
 
 enum {
-    BENCH_TICK_HZ = 20000,       /* what the reference speed and smoothing assume */
-    BENCH_TIMEBASE_HZ = 1000,    /* SysTick period of the cycle counter (ISR cost ~0.003 %) */
-    CAL_ITERATIONS = 1000000,
-    REF_LEN = 1024,              /* precomputed c* samples, a power of two */
-    REF_HOLD_LOG2 = 5,           /* each held 32 ticks: a +-30 deg triangle of 1.6 s at 20 kHz */
+    TICK_HZ = 20000,             /* the rate the STM32 image runs the loop at */
+    TICK_US = 1000000 / TICK_HZ,
+    TIMEBASE_HZ = 20,            /* SysTick reload 8.4e6 cycles: one wrap at most per window */
+    CAL_ITERATIONS = 100000,
+    FRAME_TICKS = TICK_HZ / 25,  /* 25 Hz camera (paper V-D) */
+    DELAY_TICKS = 80000 / TICK_US, /* t_delay 80 ms, onset_default_config() */
+    FRAME_QUEUE = 4,             /* frames captured, not yet delivered: 2 at 80 ms */
+    COMMITS = 16,
 };
 
-static ctl_loop_t loop;
-static comp_t comp_plain;           /* same table, no smoothing: eq. 4 as written */
-static int32_t c_ref_q16[REF_LEN];  /* a triangle sampled as the demo's, so comp_step sees reversals */
+static psa_loop_t loop;
+static calib_t cal[2];
+static calib_t cal_pi;           /* the transition model: 16 play operators (bench_pi.c, pi-fw) */
+static union {
+    uint32_t align;
+    uint8_t bytes[PST_MAX_TABLE_SIZE];
+} blob;
+static size_t blob_size;
 static volatile int32_t sink_q16;
+static uint32_t pair_cycles;     /* two back-to-back counter reads */
 
+typedef struct {
+    uint32_t n, sum, max;        /* calls, total and largest single-call cycles (read pair included) */
+} stat_t;
 
-/* One result line: "BENCH <name> cycles=<c> iterations=<n>". */
-static void report(const char *name, uint32_t cycles, uint32_t iterations)
+static inline uint32_t cyc(void)
 {
+    return SYST_CVR;
+}
+
+/* SysTick counts down and reloads at 0. */
+static inline uint32_t since(uint32_t c0, uint32_t c1)
+{
+    return c0 >= c1 ? c0 - c1 : c0 + (SYST_RVR + 1u) - c1;
+}
+
+static void stat_add(stat_t *s, uint32_t cycles)
+{
+    s->n++;
+    s->sum += cycles;
+    if (cycles > s->max)
+        s->max = cycles;
+}
+
+static const char *run_name = "";  /* the last report()ed run, to label its counts */
+
+/* "BENCH <name> n=<calls> sum=<cycles> max=<cycles> pair=<cycles>" */
+static void report(const char *name, const stat_t *s)
+{
+    run_name = name;
     console_put_str("BENCH ");
     console_put_str(name);
-    console_put_str(" cycles=");
-    console_put_u32(cycles);
-    console_put_str(" iterations=");
-    console_put_u32(iterations);
+    console_put_str(" n=");
+    console_put_u32(s->n);
+    console_put_str(" sum=");
+    console_put_u32(s->sum);
+    console_put_str(" max=");
+    console_put_u32(s->max);
+    console_put_str(" pair=");
+    console_put_u32(pair_cycles);
     console_put_str("\r\n");
 }
 
+static void info(const char *name, uint32_t v)
+{
+    console_put_str("BENCH_INFO ");
+    console_put_str(run_name);
+    console_put_str(".");
+    console_put_str(name);
+    console_put_str("=");
+    console_put_u32(v);
+    console_put_str("\r\n");
+}
+
+static void measure_pair(void)
+{
+    pair_cycles = UINT32_MAX;
+    for (int i = 0; i < 64; i++) {
+        uint32_t c0 = cyc();
+        __asm volatile("" ::: "memory");
+        uint32_t c1 = cyc();
+        uint32_t d = since(c0, c1);
+        if (d < pair_cycles)
+            pair_cycles = d;
+    }
+}
+
 /* Exactly 2 instructions per iteration (subs, bne), to calibrate cycles against instructions. */
-static uint32_t measure_calibration(void)
+static void measure_calibration(void)
 {
-    uint64_t c0 = port_cycles();
+    stat_t s = {0};
     uint32_t n = CAL_ITERATIONS;
+    uint32_t c0 = cyc();
     __asm volatile("1: subs %0, %0, #1\n\tbne 1b" : "+r"(n) : : "cc");
-    return (uint32_t)(port_cycles() - c0);
+    uint32_t c1 = cyc();
+    stat_add(&s, since(c0, c1));
+    console_put_str("BENCH calibration_2insn iterations=");
+    console_put_u32(CAL_ITERATIONS);
+    console_put_str(" cycles=");
+    console_put_u32(s.sum - pair_cycles);
+    console_put_str("\r\n");
 }
 
-/* The loop around the chain alone (time step, reference load, store): subtracted below. */
-__attribute__((noinline)) static uint32_t measure_overhead(void)
+static psa_config_t loop_config(void)
 {
-    uint32_t t_us = 0;
+    psa_config_t c = {.onset = onset_default_config(), .smooth = true};
+    /* The demo image's smoothing: 200 mm/s, 20000 mm/s^2 (a 1.5 mm offset step in ~17 ms). */
+    c.lim = comp_smoothing_from_rates(200 * PS_Q16_ONE, 20000 * PS_Q16_ONE, TICK_HZ);
+    return c;
+}
+
+/* Compensation mode with table tab on a +-30 deg triangle with half-periods in
+ * [half_min, half_max] ticks; ideal motor (q measured = last q*). Times psa_tick. */
+static void run_compensation(const char *name, const calib_t *tab, uint32_t half_min, uint32_t half_max)
+{
+    psa_config_t c = loop_config();
+    psa_init(&loop, &c);
+    if (!psa_set_table(&loop, tab) || !psa_set_mode(&loop, PSA_MODE_COMPENSATION)) {
+        console_put_str("BENCH setup failed (compensation)\r\n");
+        port_exit(1);
+    }
+    bench_tri_t ref;
+    bench_tri_init(&ref, 30 * PS_Q16_ONE, half_min, half_max, 7u);
+    stat_t s = {0};
+    uint32_t t_us = 0, events = 0;
     int32_t q = 0;
-    uint64_t c0 = port_cycles();
-    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
-        t_us += 1000000u / BENCH_TICK_HZ;
-        q = c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN];
-        __asm volatile("" : "+r"(q), "+r"(t_us));  /* keep the loop, as if calls used them */
+    for (uint32_t k = 0; k < BENCH_TICKS; k++) {
+        int32_t c_ref = bench_tri_next(&ref);
+        t_us += TICK_US;
+        onset_event_t ev;
+        bool ready;
+        uint32_t c0 = cyc();
+        q = psa_tick(&loop, t_us, c_ref, q, &ev, &ready);
+        uint32_t c1 = cyc();
+        stat_add(&s, since(c0, c1));
+        events += ready;
     }
     sink_q16 = q;
-    return (uint32_t)(port_cycles() - c0);
+    report(name, &s);
+    info("reversals", ref.reversals);
+    info("onset_events", events);
 }
 
-/* onset_tick (records the encoder sample in the history, checks the timeout) + comp_step. */
-__attribute__((noinline)) static uint32_t measure_core_chain(void)
+/* The two core calls psa_tick makes in compensation, each timed alone on the same
+ * trajectory: comp_step (eq. 4 with smoothing) and onset_tick (encoder history push). */
+static void run_parts(const char *comp_name, const char *onset_name, const calib_t *tab)
 {
+    psa_config_t c = loop_config();
+    static comp_t comp;
+    static onset_t onset;
+    comp_reset(&comp, tab, &c.lim, -30 * PS_Q16_ONE);
+    onset_init(&onset, &c.onset);
+    bench_tri_t ref;
+    bench_tri_init(&ref, 30 * PS_Q16_ONE, TICK_HZ / 4, TICK_HZ / 2, 7u);
+    stat_t sc = {0}, so = {0};
     uint32_t t_us = 0;
     int32_t q = 0;
-    onset_event_t ev;
-    uint64_t c0 = port_cycles();
-    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
-        t_us += 1000000u / BENCH_TICK_HZ;
-        (void)onset_tick(&loop.onset, t_us, q, &ev);
-        q = comp_step(&loop.comp, c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN]);
-        __asm volatile("" : "+r"(q), "+r"(t_us));
+    for (uint32_t k = 0; k < BENCH_TICKS; k++) {
+        int32_t c_ref = bench_tri_next(&ref);
+        t_us += TICK_US;
+        onset_event_t ev;
+        uint32_t c0 = cyc();
+        bool r = onset_tick(&onset, t_us, q, &ev);
+        uint32_t c1 = cyc();
+        q = comp_step(&comp, c_ref);
+        uint32_t c2 = cyc();
+        stat_add(&so, since(c0, c1));
+        stat_add(&sc, since(c1, c2));
+        sink_q16 = r;
     }
-    sink_q16 = q;
-    return (uint32_t)(port_cycles() - c0);
+    report(comp_name, &sc);
+    if (onset_name)
+        report(onset_name, &so);
 }
 
-__attribute__((noinline)) static uint32_t measure_onset_tick(void)
+/* Excitation mode over the demo table's range (section III-B) at 3 mm/s with amplitude
+ * ampl and advance adv; the plant is a 0.5 mm play seen by a 25 Hz camera 80 ms late,
+ * when frames is set. Times psa_tick and, into *obs, every psa_observe_px. */
+static void run_excitation(const char *name, int32_t ampl_q16, int32_t adv_q16, bool frames, stat_t *obs)
 {
+    psa_config_t c = loop_config();
+    c.exc = (exc_config_t){.amplitude_q16 = ampl_q16, .advance_q16 = adv_q16,
+                           .v_q32 = (int64_t)(((uint64_t)3 << 32) / TICK_HZ), .return_sweep = true};
+    psa_init(&loop, &c);
+    if (!psa_set_table(&loop, &cal[0]) || !psa_set_mode(&loop, PSA_MODE_EXCITATION)) {
+        console_put_str("BENCH setup failed (excitation)\r\n");
+        port_exit(1);
+    }
+    bench_plant_t plant;
+    bench_plant_init(&plant, cal[0].q_min_q16, PS_Q16_ONE / 2, 8, 1966 /* 0.03 px */);
+    struct {
+        uint32_t t_us;
+        int32_t u_q16, v_q16;
+    } queue[FRAME_QUEUE];
+    uint32_t nq = 0, ok = 0, events = 0, reversals_seen = 0;
+    stat_t s = {0};
     uint32_t t_us = 0;
-    int32_t q = 0;
-    onset_event_t ev;
-    uint64_t c0 = port_cycles();
-    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
-        t_us += 1000000u / BENCH_TICK_HZ;
-        q = c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN];
-        (void)onset_tick(&loop.onset, t_us, q, &ev);
-        __asm volatile("" : "+r"(q), "+r"(t_us));
+    int32_t q = cal[0].q_min_q16;
+    for (uint32_t k = 0; k < BENCH_TICKS; k++) {
+        t_us += TICK_US;
+        onset_event_t ev;
+        bool ready;
+        uint32_t c0 = cyc();
+        q = psa_tick(&loop, t_us, 0, q, &ev, &ready);
+        uint32_t c1 = cyc();
+        stat_add(&s, since(c0, c1));
+        bench_plant_step(&plant, q);
+        if (ready) {
+            events++;
+            ok += ev.reason == ONSET_OK;
+            reversals_seen += ev.reason == ONSET_ERR_REVERSAL;
+        }
+        if (!frames)
+            continue;
+        if (k % FRAME_TICKS == 0 && nq < FRAME_QUEUE) {
+            queue[nq].t_us = t_us + DELAY_TICKS * TICK_US;
+            bench_plant_marker(&plant, &queue[nq].u_q16, &queue[nq].v_q16);
+            nq++;
+        }
+        if (nq > 0 && (int32_t)(t_us - queue[0].t_us) >= 0) {
+            uint32_t o0 = cyc();
+            bool done = psa_observe_px(&loop, queue[0].t_us, queue[0].u_q16, queue[0].v_q16, true, &ev);
+            uint32_t o1 = cyc();
+            stat_add(obs, since(o0, o1));
+            if (done) {
+                events++;
+                ok += ev.reason == ONSET_OK;
+            }
+            for (uint32_t i = 1; i < nq; i++)
+                queue[i - 1] = queue[i];
+            nq--;
+        }
     }
     sink_q16 = q;
-    return (uint32_t)(port_cycles() - c0);
+    report(name, &s);
+    info("onset_events", events);
+    info("onset_ok", ok);
+    info("onset_superseded", reversals_seen);
 }
 
-__attribute__((noinline)) static uint32_t measure_comp_step(void)
+/* What a table commit costs the loop: the CRC check, calib_load (f^-1 and envelope tables,
+ * section IV) and psa_set_table, as psl's do_table_commit runs them (its flash write aside). */
+static void run_commit(void)
 {
-    uint32_t t_us = 0;
-    int32_t q = 0;
-    uint64_t c0 = port_cycles();
-    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
-        t_us += 1000000u / BENCH_TICK_HZ;
-        q = comp_step(&loop.comp, c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN]);
-        __asm volatile("" : "+r"(q), "+r"(t_us));
+    psa_config_t c = loop_config();
+    psa_init(&loop, &c);
+    stat_t s = {0};
+    uint32_t bad = 0;
+    for (uint32_t i = 0; i < COMMITS; i++) {
+        calib_t *dst = &cal[1u - (i & 1u)];
+        uint32_t c0 = cyc();
+        uint32_t crc = calib_table_crc(blob.bytes, (uint32_t)blob_size);
+        calib_status_t st = calib_load(dst, blob.bytes, blob_size);
+        bool taken = psa_set_table(&loop, dst);
+        uint32_t c1 = cyc();
+        stat_add(&s, since(c0, c1));
+        bad += st != CALIB_OK || !taken || crc == 0u;
     }
-    sink_q16 = q;
-    return (uint32_t)(port_cycles() - c0);
-}
-
-__attribute__((noinline)) static uint32_t measure_comp_step_plain(void)
-{
-    uint32_t t_us = 0;
-    int32_t q = 0;
-    uint64_t c0 = port_cycles();
-    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
-        t_us += 1000000u / BENCH_TICK_HZ;
-        q = comp_step(&comp_plain, c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN]);
-        __asm volatile("" : "+r"(q), "+r"(t_us));
-    }
-    sink_q16 = q;
-    return (uint32_t)(port_cycles() - c0);
-}
-
-/* One lut_eval (f^-1 at c*): comp_step makes two. */
-__attribute__((noinline)) static uint32_t measure_lut_eval(void)
-{
-    uint32_t t_us = 0;
-    int32_t q = 0;
-    uint64_t c0 = port_cycles();
-    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
-        t_us += 1000000u / BENCH_TICK_HZ;
-        q = lut_eval(&loop.cal.f_inv, c_ref_q16[(i >> REF_HOLD_LOG2) % REF_LEN]);
-        __asm volatile("" : "+r"(q), "+r"(t_us));
-    }
-    sink_q16 = q;
-    return (uint32_t)(port_cycles() - c0);
-}
-
-/* The demo's whole tick (reference generation, reversal bookkeeping, onset_tick, comp_step). */
-__attribute__((noinline)) static uint32_t measure_demo_tick(void)
-{
-    uint32_t t_us = 0;
-    uint64_t c0 = port_cycles();
-    for (uint32_t i = 0; i < BENCH_TICKS; i++) {
-        t_us += 1000000u / BENCH_TICK_HZ;
-        sink_q16 = ctl_loop_tick(&loop, t_us);
-    }
-    return (uint32_t)(port_cycles() - c0);
+    report("table_commit", &s);
+    info("commit_failures", bad);
 }
 
 int main(void)
 {
     port_init();
-    if (ctl_loop_init(&loop, BENCH_TICK_HZ) != 0 || !port_tick_start(BENCH_TIMEBASE_HZ, NULL)) {
+    blob_size = psa_demo_table(blob.bytes, sizeof blob.bytes);
+    if (calib_load(&cal[0], blob.bytes, blob_size) != CALIB_OK || !port_tick_start(TIMEBASE_HZ, NULL)) {
         console_put_str("BENCH setup failed\r\n");
         return 1;
     }
-    /* +-30 deg triangle over REF_LEN << REF_HOLD_LOG2 ticks: a reversal every 0.82 s at
-     * 20 kHz, a plausible teleoperation reference (the offset ramp lasts ~17 ms of it). */
-    for (int i = 0; i < REF_LEN; i++) {
-        int32_t phase = i < REF_LEN / 2 ? i : REF_LEN - i;
-        c_ref_q16[i] = -30 * 65536 + phase * (60 * 65536 / (REF_LEN / 2));
-    }
-    comp_reset(&comp_plain, &loop.cal, NULL, 0);
+    SYST_CSR &= ~SYST_CSR_TICKINT; /* free-running counter: no interrupt inside a window */
     console_put_str("BENCH core_hz=");
     console_put_u32(port_core_hz());
     console_put_str("\r\n");
-    report("calibration_2insn", measure_calibration(), CAL_ITERATIONS);
-    report("overhead", measure_overhead(), BENCH_TICKS);
-    report("core_chain", measure_core_chain(), BENCH_TICKS);
-    report("onset_tick", measure_onset_tick(), BENCH_TICKS);
-    report("comp_step", measure_comp_step(), BENCH_TICKS);
-    report("comp_step_plain", measure_comp_step_plain(), BENCH_TICKS);
-    report("lut_eval", measure_lut_eval(), BENCH_TICKS);
-    report("demo_tick", measure_demo_tick(), BENCH_TICKS);
+    measure_pair();
+    measure_calibration();
+    stat_t obs = {0}, obs_stress = {0};
+    run_compensation("tick_comp_realistic", &cal[0], TICK_HZ / 4, TICK_HZ / 2);
+    run_parts("comp_step", "onset_tick", &cal[0]);
+    run_compensation("tick_comp_stress", &cal[0], 512, 512);
+    if (bench_pi_load(&cal_pi) != CALIB_OK) {
+        console_put_str("BENCH setup failed (transition table)\r\n");
+        return 1;
+    }
+    run_compensation("tick_pi_realistic", &cal_pi, TICK_HZ / 4, TICK_HZ / 2);
+    run_compensation("tick_pi_stress", &cal_pi, 512, 512);
+    run_parts("comp_step_pi", NULL, &cal_pi);
+    run_excitation("tick_exc_realistic", PS_Q16_ONE * 13 / 10, PS_Q16_ONE * 35 / 100, true, &obs);
+    report("observe_px", &obs);
+    /* 512 ticks of travel at 3 mm/s up, 504 down. */
+    run_excitation("tick_exc_stress", (int32_t)((512ull * 3u << 16) / TICK_HZ),
+                   (int32_t)((8ull * 3u << 16) / TICK_HZ), false, &obs_stress);
+    run_commit();
     console_put_str("BENCH done\r\n");
     return 0;
 }

@@ -11,14 +11,28 @@ if [ ! -f "$build/build.ninja" ]; then
   CC=clang cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPS_FUZZ=ON \
     -DPS_BUILD_TESTS=OFF >/dev/null
 fi
-cmake --build "$build" --target fuzz_frame fuzz_table >/dev/null
+cmake --build "$build" --target fuzz_frame fuzz_table fuzz_planted_ub >/dev/null
+# Any sanitizer report ends the process with a non-zero status (the targets are also built
+# with -fno-sanitize-recover=all); the status, not a grep of the log, decides the run.
+export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
+export ASAN_OPTIONS=halt_on_error=1
 status=0
+# Proof that it does: the planted overflow must kill fuzz_planted_ub on its trigger input.
+planted=$(find "$build" -name fuzz_planted_ub -type f -perm -u+x | head -1)
+printf 'UB' > "$build/planted-input"
+if "$planted" "$build/planted-input" >"$build/planted.log" 2>&1; then
+  echo "[fuzz] FAIL: the planted undefined behaviour did not stop fuzz_planted_ub"; status=1
+elif ! grep -q "runtime error: signed integer overflow" "$build/planted.log"; then
+  echo "[fuzz] FAIL: fuzz_planted_ub died without the UBSan report"; status=1
+else
+  echo "[fuzz] planted UB stops the run (as it must)"
+fi
 for t in fuzz_frame fuzz_table; do
   mkdir -p "fuzz/corpus/$t"
   exe=$(find "$build" -name "$t" -type f -perm -u+x | head -1)
   echo "[fuzz] $t for ${secs} s"
   rm -rf "$build/new-$t" && mkdir -p "$build/new-$t"
-  "$exe" -max_total_time="$secs" -max_len=2200 -print_final_stats=1 "$build/new-$t" "fuzz/corpus/$t" 2>&1 \
+  "$exe" -max_total_time="$secs" -max_len=2300 -print_final_stats=1 "$build/new-$t" "fuzz/corpus/$t" 2>&1 \
     | grep -E "^(stat::number_of_executed_units|stat::new_units_added)|ERROR|SUMMARY" || status=$?
   [ "${PIPESTATUS[0]}" -eq 0 ] || status=1
 done

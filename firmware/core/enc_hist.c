@@ -1,5 +1,7 @@
-/* Encoder history ring buffer: O(1) push per tick, binary search by time per onset. */
+/* Encoder history: O(1) time-decimated push per tick, binary search by time per onset. */
 #include "enc_hist.h"
+
+#include <stddef.h>
 
 #define MASK (ENC_HIST_LEN - 1u)
 
@@ -8,50 +10,29 @@ void enc_hist_reset(enc_hist_t *h)
     h->head = 0;
 }
 
+void enc_hist_set_span(enc_hist_t *h, uint32_t span_us)
+{
+    /* 32-bit divide (one UDIV on the M4); 64-bit sum so span_us near 2^32 cannot wrap. */
+    uint64_t keep = ((uint64_t)span_us + (ENC_HIST_LEN - 2u)) / (ENC_HIST_LEN - 1u);
+    h->keep_us = (uint32_t)keep;
+    h->head = 0;
+}
+
 void enc_hist_push(enc_hist_t *h, uint32_t t_us, int32_t q_q16)
 {
     enc_hist_push_inline(h, t_us, q_q16);
 }
 
-enc_hist_status_t enc_hist_q_at(const enc_hist_t *h, uint32_t t_us, int32_t *q_q16)
+/* Linear interpolation at t between (t0, q0) and (t1, q1), t0 <= t <= t1, rounded to
+ * nearest. dq * dt_at is 64-bit; the divide is a 32-bit hardware divide when it fits 32
+ * bits, which holds for encoder rates above ~1 Hz; otherwise both halve until it fits
+ * (exact to < 1 raw unit). The result stays between q0 and q1. */
+static int32_t interpolate(uint32_t t0, int32_t q0, uint32_t t1, int32_t q1, uint32_t t_us)
 {
-    uint32_t count = h->head < ENC_HIST_LEN ? h->head : ENC_HIST_LEN;
-    if (count < 2)
-        return ENC_HIST_EMPTY;
-    uint32_t first = h->head - count; /* logical index of the oldest kept sample */
-    uint32_t t_old = h->t_us[first & MASK];
-    uint32_t t_new = h->t_us[(h->head - 1u) & MASK];
-    /* Compare as offsets from the oldest sample: correct across the 2^32 us wrap. */
-    uint32_t rel = t_us - t_old;
-    if ((int32_t)rel < 0)
-        return ENC_HIST_TOO_OLD;
-    if (rel > t_new - t_old)
-        return ENC_HIST_TOO_NEW;
-    /* Largest logical index lo with t[lo] <= t (offsets are non-decreasing). */
-    uint32_t lo = first, hi = h->head - 1u;
-    while (lo < hi) {
-        uint32_t mid = lo + (hi - lo + 1u) / 2u;
-        if (h->t_us[mid & MASK] - t_old <= rel)
-            lo = mid;
-        else
-            hi = mid - 1u;
-    }
-    int32_t q0 = h->q_q16[lo & MASK];
-    if (lo == h->head - 1u) {
-        *q_q16 = q0;
-        return ENC_HIST_OK;
-    }
-    uint32_t t0 = h->t_us[lo & MASK], t1 = h->t_us[(lo + 1u) & MASK];
     uint32_t dt = t1 - t0, dt_at = t_us - t0;
-    if (dt == 0) {
-        *q_q16 = q0;
-        return ENC_HIST_OK;
-    }
-    /* Linear interpolation. dq * dt_at is 64-bit; the divide by dt is a 32-bit hardware
-     * divide when dq * dt_at fits 32 bits, which holds for encoder rates above ~1 Hz;
-     * otherwise fall back to halving both until it fits (exact to < 1 raw unit). */
-    int64_t dq = (int64_t)h->q_q16[(lo + 1u) & MASK] - q0;
-    int64_t num = dq * (int64_t)dt_at;
+    if (dt == 0 || dt_at == 0)
+        return q0;
+    int64_t num = ((int64_t)q1 - q0) * (int64_t)dt_at;
     uint32_t den = dt;
     while (num > INT32_MAX || num < -INT32_MAX) {
         num /= 2;
@@ -59,7 +40,56 @@ enc_hist_status_t enc_hist_q_at(const enc_hist_t *h, uint32_t t_us, int32_t *q_q
     }
     int32_t n32 = (int32_t)num;
     int32_t d32 = (int32_t)den;
-    int32_t step = (n32 >= 0 ? n32 + d32 / 2 : n32 - d32 / 2) / d32;
-    *q_q16 = q0 + step;
+    return q0 + (n32 >= 0 ? n32 + d32 / 2 : n32 - d32 / 2) / d32;
+}
+
+enc_hist_status_t enc_hist_q_at_bound(const enc_hist_t *h, uint32_t t_us, int32_t *q_q16, uint32_t *bound_q16)
+{
+    uint32_t count = h->head < ENC_HIST_LEN ? h->head : ENC_HIST_LEN;
+    if (count == 0)
+        return ENC_HIST_EMPTY;
+    uint32_t newest = h->head - 1u;      /* logical index of the newest kept sample */
+    uint32_t t_kept = h->t_us[newest & MASK];
+    int live = h->last_t_us != t_kept;   /* the newest push was not kept: one more point */
+    if (count + (uint32_t)live < 2u)
+        return ENC_HIST_EMPTY;
+    uint32_t first = h->head - count;    /* logical index of the oldest kept sample */
+    uint32_t t_old = h->t_us[first & MASK];
+    /* Compare as offsets from the oldest sample: correct across the 2^32 us wrap. */
+    uint32_t rel = t_us - t_old;
+    if ((int32_t)rel < 0)
+        return ENC_HIST_TOO_OLD;
+    if (rel > h->last_t_us - t_old)
+        return ENC_HIST_TOO_NEW;
+    uint32_t bound = 0;
+    if (rel > t_kept - t_old) {
+        /* Between the newest kept sample and the newest push. */
+        *q_q16 = interpolate(t_kept, h->q_q16[newest & MASK], h->last_t_us, h->last_q_q16, t_us);
+        bound = (uint32_t)h->hi_q16 - (uint32_t)h->lo_q16;
+    } else {
+        /* Largest logical index lo with t[lo] <= t (offsets are non-decreasing). */
+        uint32_t lo = first, hi = newest;
+        while (lo < hi) {
+            uint32_t mid = lo + (hi - lo + 1u) / 2u;
+            if (h->t_us[mid & MASK] - t_old <= rel)
+                lo = mid;
+            else
+                hi = mid - 1u;
+        }
+        uint32_t t0 = h->t_us[lo & MASK];
+        if (lo == newest || t0 == t_us) {
+            *q_q16 = h->q_q16[lo & MASK];
+        } else {
+            *q_q16 = interpolate(t0, h->q_q16[lo & MASK], h->t_us[(lo + 1u) & MASK], h->q_q16[(lo + 1u) & MASK], t_us);
+            bound = h->spread_q16[lo & MASK];
+        }
+    }
+    if (bound_q16)
+        *bound_q16 = bound;
     return ENC_HIST_OK;
+}
+
+enc_hist_status_t enc_hist_q_at(const enc_hist_t *h, uint32_t t_us, int32_t *q_q16)
+{
+    return enc_hist_q_at_bound(h, t_us, q_q16, NULL);
 }

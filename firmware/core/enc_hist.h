@@ -1,4 +1,4 @@
-/* Encoder history: ring buffer of timestamped actuator samples, read back by time. */
+/* Encoder history: time-decimated ring of actuator samples with exact interpolation bounds, read back by time. */
 #ifndef ENC_HIST_H
 #define ENC_HIST_H
 
@@ -6,17 +6,29 @@
 #include "ps_defs.h"
 
 #ifndef ENC_HIST_LEN
-/* ENC_HIST_LEN: samples kept, a power of two. Default 1024 (8 KiB); with a 1 kHz push
- * rate that is 1.02 s of history, which must exceed t_delay + one frame period. */
-#define ENC_HIST_LEN 1024
+/* ENC_HIST_LEN: samples kept, a power of two. Default 512 (10 B each: 5 KiB). The span
+ * they cover does not depend on the tick rate: a sample is kept only every keep_us
+ * (enc_hist_set_span), so 512 samples hold any span at 1/511 of it per sample. */
+#define ENC_HIST_LEN 512
 #endif
 PS_STATIC_ASSERT((ENC_HIST_LEN & (ENC_HIST_LEN - 1)) == 0 && ENC_HIST_LEN >= 4,
                  "ENC_HIST_LEN must be a power of two >= 4");
 
+/* Samples k and k+1 of the ring are keep_us or more apart; every push between them is
+ * folded into spread_q16[k] = max q - min q over the pushes from k to k+1 inclusive, so
+ * linear interpolation between two kept samples is within spread_q16[k] of every pushed
+ * sample in that interval: an exact bound, not an estimate (it saturates at 0xFFFF, which
+ * then reads "at least one actuator unit"). With keep_us = 0 every push is kept. */
 typedef struct {
     uint32_t t_us[ENC_HIST_LEN];
     int32_t q_q16[ENC_HIST_LEN];
-    uint32_t head;               /* total pushes; slot of the next push is head % ENC_HIST_LEN */
+    uint16_t spread_q16[ENC_HIST_LEN];
+    uint32_t head;               /* kept samples so far; slot of the next is head % ENC_HIST_LEN */
+    uint32_t keep_us;            /* minimum spacing of kept samples */
+    uint32_t next_keep_us;       /* newest kept time + keep_us: the next push at or after it is kept */
+    uint32_t last_t_us;          /* newest push, kept or not: the live end of the history */
+    int32_t last_q_q16;
+    int32_t lo_q16, hi_q16;      /* q range over the pushes since the newest kept sample (incl.) */
 } enc_hist_t;
 
 typedef enum {
@@ -26,30 +38,48 @@ typedef enum {
     ENC_HIST_TOO_NEW,            /* asked time follows the newest sample */
 } enc_hist_status_t;
 
+/* Empty the history; the spacing is kept (0, every push, after the first reset of a zeroed struct). */
 void enc_hist_reset(enc_hist_t *h);
 
-/* Append one sample. Times must not decrease (modulo-2^32 arithmetic; a sample older
- * than the newest is dropped). O(1), per tick. */
-void enc_hist_push(enc_hist_t *h, uint32_t t_us, int32_t q_q16);
+/* Size the spacing so the kept samples always cover span_us back from the newest push:
+ * keep_us = ceil(span_us / (ENC_HIST_LEN - 1)). Empties the history. Init time. */
+void enc_hist_set_span(enc_hist_t *h, uint32_t span_us);
 
-/* q at time t_us, linearly interpolated between the kept samples around it (Q16).
- * O(log ENC_HIST_LEN) binary search: called once per detected onset, not per tick.
- * Errors: ENC_HIST_EMPTY, ENC_HIST_TOO_OLD (history wrapped past it), ENC_HIST_TOO_NEW. */
+/* Append one sample. Times must not decrease (modulo-2^32 arithmetic; a sample older
+ * than the newest is dropped). O(1), per tick, no divide. */
 #ifndef PS_CDEF
 /* enc_hist_push() inlined for onset_tick(): same code, without the call. */
 __attribute__((always_inline)) static inline void enc_hist_push_inline(enc_hist_t *h, uint32_t t_us, int32_t q_q16)
 {
-    if (h->head > 0) {
-        uint32_t last = h->t_us[(h->head - 1u) & (ENC_HIST_LEN - 1u)];
-        if ((int32_t)(t_us - last) < 0)
-            return; /* out of order: keep the history sorted */
-    }
-    h->t_us[h->head & (ENC_HIST_LEN - 1u)] = t_us;
-    h->q_q16[h->head & (ENC_HIST_LEN - 1u)] = q_q16;
+    if ((int32_t)(t_us - h->last_t_us) < 0 && h->head != 0)
+        return; /* out of order: keep the history sorted */
+    h->last_t_us = t_us;
+    h->last_q_q16 = q_q16;
+    if (q_q16 < h->lo_q16)
+        h->lo_q16 = q_q16;
+    if (q_q16 > h->hi_q16)
+        h->hi_q16 = q_q16;
+    if ((int32_t)(t_us - h->next_keep_us) < 0 && h->head != 0)
+        return; /* between kept samples: only the range above changes */
+    /* Keep this push; the interval it closes gets its spread (none before the first). */
+    uint32_t spread = (uint32_t)h->hi_q16 - (uint32_t)h->lo_q16;
+    h->spread_q16[(h->head - 1u) & (ENC_HIST_LEN - 1u)] = (uint16_t)(spread > 0xFFFFu ? 0xFFFFu : spread);
+    uint32_t slot = h->head & (ENC_HIST_LEN - 1u);
+    h->t_us[slot] = t_us;
+    h->q_q16[slot] = q_q16;
+    h->lo_q16 = h->hi_q16 = q_q16;
+    h->next_keep_us = t_us + h->keep_us;
     h->head++;
 }
 #endif
+void enc_hist_push(enc_hist_t *h, uint32_t t_us, int32_t q_q16);
 
+/* q at time t_us (Q16), linearly interpolated between the two samples around it (kept,
+ * or the newest push); *bound_q16 (may be NULL) receives the exact bound above: every
+ * pushed sample between those two is within it of the interpolation line (0 at a sample).
+ * O(log ENC_HIST_LEN) binary search: called once per detected onset, not per tick.
+ * Errors: ENC_HIST_EMPTY, ENC_HIST_TOO_OLD (history wrapped past it), ENC_HIST_TOO_NEW. */
+enc_hist_status_t enc_hist_q_at_bound(const enc_hist_t *h, uint32_t t_us, int32_t *q_q16, uint32_t *bound_q16);
 enc_hist_status_t enc_hist_q_at(const enc_hist_t *h, uint32_t t_us, int32_t *q_q16);
 
 #endif /* ENC_HIST_H */

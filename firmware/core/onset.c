@@ -19,12 +19,19 @@ onset_config_t onset_default_config(void)
     return c;
 }
 
+uint32_t onset_history_span_us(const onset_config_t *cfg)
+{
+    uint64_t frames = 4u + 2u * (uint64_t)cfg->max_lost_frames;
+    uint64_t span = (uint64_t)cfg->t_delay_us + frames * cfg->frame_period_us + ONSET_HIST_MARGIN_US;
+    return span > UINT32_MAX ? UINT32_MAX : (uint32_t)span;
+}
+
 void onset_init(onset_t *o, const onset_config_t *cfg)
 {
     o->cfg = *cfg;
     if (o->cfg.frame_period_us == 0)
         o->cfg.frame_period_us = 1; /* avoid a divide by zero on a bad config; gaps then count in us */
-    enc_hist_reset(&o->hist);
+    enc_hist_set_span(&o->hist, onset_history_span_us(&o->cfg));
     o->state = ONSET_ST_IDLE;
     o->noise_d2_q32 = 0;
     o->noise_count = 0;
@@ -101,14 +108,16 @@ static bool emit(onset_t *o, uint32_t t2_us, onset_reason_t reason, onset_event_
 
 static bool finish_early(onset_t *o, onset_event_t *ev);
 
-bool onset_tick(onset_t *o, uint32_t t_us, int32_t q_q16, onset_event_t *ev)
+bool onset_tick_timed_out(onset_t *o, onset_event_t *ev)
 {
-    enc_hist_push_inline(&o->hist, t_us, q_q16);
-    if (o->state == ONSET_ST_IDLE || t_us - o->t1_us <= o->cfg.timeout_us)
-        return false;
     if (o->state >= ONSET_ST_CANDIDATE)
         return finish_early(o, ev);
     return fail(o, ONSET_ERR_TIMEOUT, ev);
+}
+
+bool onset_tick(onset_t *o, uint32_t t_us, int32_t q_q16, onset_event_t *ev)
+{
+    return onset_tick_inline(o, t_us, q_q16, ev);
 }
 
 bool onset_reversal(onset_t *o, uint32_t t1_us, int32_t q1_q16, onset_event_t *ev)

@@ -29,6 +29,12 @@ typedef enum {
 #define ONSET_NOISE_LEARN_PAIRS 8
 #endif
 
+#ifndef ONSET_HIST_MARGIN_US
+/* ONSET_HIST_MARGIN_US: history kept beyond the longest look-back an onset needs, for
+ * observations that reach the board late (link and tracking latency). Default 100 ms. */
+#define ONSET_HIST_MARGIN_US 100000u
+#endif
+
 typedef struct {
     uint32_t t_delay_us;         /* image acquisition + processing delay (eq. 1) */
     uint32_t frame_period_us;    /* nominal camera period, > 0 (normalises gaps over lost frames) */
@@ -91,12 +97,35 @@ typedef struct {
     uint32_t noise_count;        /* still frame pairs seen (saturating) */
 } onset_t;
 
+/* The encoder history span an onset can need: the frame that completes it (C) comes at
+ * most 2 (max_lost_frames + 1) frame periods after the first moving frame (A), t2 lies at
+ * most 2 frame periods before A, and q is read at t2 - t_delay; plus ONSET_HIST_MARGIN_US.
+ * onset_init() sizes the history spacing from it (enc_hist_set_span). Saturates at 2^32-1. */
+uint32_t onset_history_span_us(const onset_config_t *cfg);
+
 /* Reset everything, including the history and the noise estimate. cfg is copied. */
 void onset_init(onset_t *o, const onset_config_t *cfg);
 
 /* Per control tick: record the encoder sample and check the timeout.
  * Returns true and fills *ev when a pending reversal times out. O(1). */
 bool onset_tick(onset_t *o, uint32_t t_us, int32_t q_q16, onset_event_t *ev);
+
+/* The pending reversal of onset_tick() timed out: end it (finish early or ONSET_ERR_TIMEOUT).
+ * Out of line: the rare path. */
+bool onset_tick_timed_out(onset_t *o, onset_event_t *ev);
+
+#ifndef PS_CDEF
+/* onset_tick() inlined for the control loop (psa_tick): the same code, so the same bits,
+ * without the call: the history push and the timeout test inline, the timeout out of line. */
+__attribute__((always_inline)) static inline bool onset_tick_inline(onset_t *o, uint32_t t_us, int32_t q_q16,
+                                                                    onset_event_t *ev)
+{
+    enc_hist_push_inline(&o->hist, t_us, q_q16);
+    if (o->state == ONSET_ST_IDLE || t_us - o->t1_us <= o->cfg.timeout_us)
+        return false;
+    return onset_tick_timed_out(o, ev);
+}
+#endif
 
 /* A direction change is commanded now: remember (t1, q1) and start watching.
  * If one was still pending, returns true with *ev = ONSET_ERR_REVERSAL for it. O(1). */

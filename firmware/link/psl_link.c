@@ -6,6 +6,11 @@
 #include "ps_fixed.h"
 #include "ps_crc32.h"
 
+PS_STATIC_ASSERT((int)PSA_MODE_IDLE == (int)PSP_MODE_IDLE && (int)PSA_MODE_EXCITATION == (int)PSP_MODE_EXCITATION &&
+                     (int)PSA_MODE_COMPENSATION == (int)PSP_MODE_COMPENSATION &&
+                     (int)PSA_MODE_PASSTHROUGH == (int)PSP_MODE_PASSTHROUGH,
+                 "psa_mode_t carries the wire's mode values");
+
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
 #error "payload structs are copied as-is: the wire is little-endian"
 #endif
@@ -91,7 +96,8 @@ void psl_init(psl_t *l, const psl_config_t *cfg, const pss_flash_t *flash, psl_w
     l->write = write;
     l->write_ctx = write_ctx;
     psf_parser_reset(&l->parser);
-    onset_init(&l->onset, &l->cfg.onset);
+    psa_config_t lc = {.onset = l->cfg.onset, .exc = l->cfg.exc, .smooth = false};
+    psa_init(&l->loop, &lc);
     l->mode = PSP_MODE_IDLE;
     l->active_buf = PSS_NO_SLOT;
     pss_mount(&l->store, flash);
@@ -106,6 +112,8 @@ void psl_init(psl_t *l, const psl_config_t *cfg, const pss_flash_t *flash, psl_w
             l->store.active = PSS_NO_SLOT;
         }
     }
+    if (l->active_buf != PSS_NO_SLOT)
+        (void)psa_set_table(&l->loop, &l->cal[l->active_buf]);
 }
 
 /* Expected payload length for a request type, or -1 if the type is unknown.
@@ -156,44 +164,16 @@ static bool have_table(const psl_t *l)
     return l->active_buf != PSS_NO_SLOT;
 }
 
-/* Start the excitation over the table's travel, or over cfg.exc without a table. */
-static bool start_excitation(psl_t *l)
-{
-    exc_config_t c = l->cfg.exc;
-    if (have_table(l)) {
-        const calib_t *cal = &l->cal[l->active_buf];
-        c.q_start_q16 = cal->q_min_q16;
-        c.q_end_q16 = cal->q_max_q16;
-    }
-    if (exc_init(&l->exc, &c) != EXC_OK)
-        return false;
-    /* A fresh detector per run; the noise estimate restarts with the run. */
-    onset_init(&l->onset, &l->cfg.onset);
-    return true;
-}
-
 /* Returns a psp_error_code; on PSP_OK the answer has been sent. */
 static uint16_t do_set_mode(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *detail)
 {
     psp_set_mode_t m;
     memcpy(&m, pl, sizeof(m));
     (void)detail;
-    switch (m.mode) {
-    case PSP_MODE_IDLE:
-        break;
-    case PSP_MODE_EXCITATION:
-        if (!start_excitation(l))
-            return PSP_ERR_STATE;
-        break;
-    case PSP_MODE_COMPENSATION:
-    case PSP_MODE_PASSTHROUGH:
-        if (!have_table(l))
-            return PSP_ERR_STATE;
-        l->comp_armed = true;
-        break;
-    default:
+    if (m.mode > PSP_MODE_PASSTHROUGH)
         return PSP_ERR_RANGE;
-    }
+    if (!psa_set_mode(&l->loop, (psa_mode_t)m.mode))
+        return PSP_ERR_STATE;
     l->mode = m.mode;
     send(l, PSP_MSG_SET_MODE | PSP_RESPONSE, seq, NULL, 0);
     return PSP_OK;
@@ -343,6 +323,7 @@ static uint16_t do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8
         return PSP_ERR_FLASH;
     }
     l->active_buf = nb;
+    (void)psa_set_table(&l->loop, &l->cal[nb]); /* idle here (checked above): always taken */
     psp_info_t info;
     psl_info(l, &info);
     send(l, PSP_MSG_TABLE_COMMIT | PSP_RESPONSE, seq, &info, sizeof(info));
@@ -390,7 +371,7 @@ static uint16_t do_reversal(psl_t *l, uint16_t seq, const uint8_t *pl)
     psp_reversal_t r;
     onset_event_t ev;
     memcpy(&r, pl, sizeof(r));
-    if (onset_reversal(&l->onset, r.t1_us, r.q1_q16, &ev)) {
+    if (psa_reversal(&l->loop, r.t1_us, r.q1_q16, &ev)) {
         psp_b_sample_t b;
         b_sample_from(&ev, &b);
         send(l, PSP_MSG_REVERSAL | PSP_RESPONSE, seq, &b, sizeof(b));
@@ -409,9 +390,9 @@ static uint16_t do_marker(psl_t *l, uint16_t seq, const uint8_t *pl)
     if (m.kind > 1 || m.valid > 1)
         return PSP_ERR_RANGE;
     if (m.kind == 0)
-        done = onset_observe_px(&l->onset, m.t_us, m.u_q16, m.v_q16, m.valid != 0, &ev);
+        done = psa_observe_px(&l->loop, m.t_us, m.u_q16, m.v_q16, m.valid != 0, &ev);
     else
-        done = onset_observe_deg(&l->onset, m.t_us, m.u_q16, m.valid != 0, &ev);
+        done = psa_observe_deg(&l->loop, m.t_us, m.u_q16, m.valid != 0, &ev);
     if (done) {
         psp_b_sample_t b;
         b_sample_from(&ev, &b);
@@ -429,22 +410,11 @@ static uint16_t do_comp(psl_t *l, uint16_t seq, const uint8_t *pl)
     memcpy(&r, pl, sizeof(r));
     if (!have_table(l))
         return PSP_ERR_STATE;
-    const calib_t *cal = &l->cal[l->active_buf];
-    if (l->mode == PSP_MODE_COMPENSATION) {
-        /* The first set-point after entering the mode starts the compensator at it, so
-         * a host replaying the same sequence through comp_reset/comp_step matches. */
-        if (l->comp_armed) {
-            comp_reset(&l->comp, cal, NULL, r.c_ref_q16);
-            l->comp_armed = false;
-        }
-        a.q_ref_q16 = comp_step(&l->comp, r.c_ref_q16);
-    } else if (l->mode == PSP_MODE_PASSTHROUGH) {
-        int32_t q = lut_eval(&cal->f_inv, r.c_ref_q16);
-        a.q_ref_q16 = q < cal->q_min_q16 ? cal->q_min_q16 : q > cal->q_max_q16 ? cal->q_max_q16 : q;
-    } else {
+    /* The step runs now, so the answer is what a host replaying comp_reset/comp_step
+     * computes; the ticks after it hold this c*. */
+    a.q_ref_q16 = psa_set_reference(&l->loop, r.c_ref_q16);
+    if (a.q_ref_q16 == INT32_MIN)
         return PSP_ERR_STATE;
-    }
-    l->q_ref_q16 = a.q_ref_q16;
     send(l, PSP_MSG_COMP_STEP | PSP_RESPONSE, seq, &a, sizeof(a));
     return PSP_OK;
 }
@@ -528,17 +498,12 @@ void psl_rx(psl_t *l, const uint8_t *data, size_t len)
 int32_t psl_tick(psl_t *l, uint32_t t_us, int32_t q_meas_q16)
 {
     onset_event_t ev;
+    bool ev_ready;
     l->now_us = t_us;
-    if (l->mode == PSP_MODE_EXCITATION) {
-        bool rev = false;
-        l->q_ref_q16 = exc_step(&l->exc, &rev);
-        if (rev && onset_reversal(&l->onset, t_us, l->q_ref_q16, &ev))
-            send_event(l, &ev);
-        if (exc_done(&l->exc))
-            l->mode = PSP_MODE_IDLE;
-    }
-    if (onset_tick(&l->onset, t_us, q_meas_q16, &ev))
+    int32_t q_ref_q16 = psa_tick(&l->loop, t_us, l->loop.c_ref_q16, q_meas_q16, &ev, &ev_ready);
+    if (ev_ready)
         send_event(l, &ev);
+    l->mode = (uint8_t)l->loop.mode; /* the excitation ends by itself */
     if (l->stream_on && --l->stream_left == 0) {
         l->stream_left = l->stream_decim;
         psp_enc_sample_t *s = &l->batch.s[l->batch.count++];
@@ -550,5 +515,5 @@ int32_t psl_tick(psl_t *l, uint32_t t_us, int32_t q_meas_q16)
             l->batch.count = 0;
         }
     }
-    return l->q_ref_q16;
+    return q_ref_q16;
 }

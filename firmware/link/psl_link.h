@@ -6,9 +6,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "calib.h"
-#include "comp.h"
-#include "exc.h"
-#include "onset.h"
+#include "psa_loop.h"
 #include "ps_frame.h"
 #include "ps_proto.h"
 #include "ps_table.h"
@@ -60,11 +58,7 @@ typedef struct {
     uint8_t active_buf;          /* index of the running table, PSS_NO_SLOT if none */
     uint32_t tables[2][(PST_MAX_TABLE_SIZE + 3) / 4]; /* uint32_t: calib_load reads entries in place, 4-aligned */
     calib_t cal[2];
-    comp_t comp;
-    bool comp_armed;             /* next COMP_STEP resets the compensator to its c* */
-    exc_t exc;
-    onset_t onset;
-    int32_t q_ref_q16;           /* set-point to the motor */
+    psa_loop_t loop;             /* the control loop (firmware/app/psa_loop.h) runs cal[active_buf] */
     bool stream_on;
     uint8_t stream_decim, stream_left;
     psp_enc_samples_t batch;
@@ -88,9 +82,10 @@ void psl_rx(psl_t *l, const uint8_t *data, size_t len);
 /* Handle one decoded frame (header fields already checked by the CRC). */
 void psl_handle(psl_t *l, const psp_frame_header_t *hdr, const uint8_t *payload);
 
-/* One control tick at t_us with the measured actuator position q_meas_q16: runs the
- * excitation in that mode, records the encoder sample for the onset detector, streams.
- * Returns the set-point q* for the motor. O(1) except when a batch or event is sent. */
+/* One control tick at t_us with the measured actuator position q_meas_q16: psa_tick() with
+ * the last c* the host sent (excitation, compensation or passthrough by mode; the encoder
+ * sample into the onset history), then streaming. Returns the set-point q* for the motor.
+ * O(1) except when a batch or event is sent. */
 int32_t psl_tick(psl_t *l, uint32_t t_us, int32_t q_meas_q16);
 
 /* Fill an info record of the current state. */

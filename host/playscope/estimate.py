@@ -185,21 +185,13 @@ def run_onsets(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.nd
 
     Per encoder sample onset_tick(), at each reversal onset_reversal(), per frame
     onset_observe_px() / onset_observe_deg() (kind "image" / "angle"), exactly as the
-    board does on-line. obs: (F, 2) px, or deg in column 0; NaN = lost. The encoder log
-    is thinned to <= 1 kHz because the detector keeps ENC_HIST_LEN samples, which must
-    span t_delay plus a frame. Times become uint32 microseconds from the first sample.
+    board does on-line. obs: (F, 2) px, or deg in column 0; NaN = lost. Every encoder
+    sample goes in, as on the board: the detector's history keeps one per
+    onset_history_span_us() / ENC_HIST_LEN whatever the rate (firmware/core/enc_hist.h).
+    Times become uint32 microseconds from the first sample.
     """
     ffi, lib = core()
     t_enc = np.asarray(t_enc, float)
-    hist_len = 1024
-    rate = (t_enc.size - 1) / max(t_enc[-1] - t_enc[0], 1e-9)
-    span_needed = cfg.t_delay_s + 3.0 / cfg.fps
-    if rate * span_needed > hist_len / 2:
-        step = int(np.ceil(rate * span_needed / (hist_len / 2)))
-        keep = np.zeros(t_enc.size, bool)
-        keep[::step] = True
-        keep[np.searchsorted(t_enc, rev_t)] = True  # keep the reversal samples exactly
-        t_enc, q = t_enc[keep], q[keep]
     t0 = min(t_enc[0], t_f[0] if t_f.size else t_enc[0]) - 1e-3
     us = lambda x: np.round((np.asarray(x, float) - t0) * 1e6).astype(np.int64)
     te_us, tr_us, tf_us = us(t_enc), us(rev_t), us(t_f)

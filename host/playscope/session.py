@@ -341,7 +341,9 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
     if "hand_eye" in d or kind == "image":
         h = _get(d, "hand_eye", path, "", dict)
         R = _matrix(_get(h, "R", path, "hand_eye."), (3, 3), path, "hand_eye.R")
-        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        with np.errstate(all="ignore"):  # huge entries overflow: then not a rotation either
+            rotation = bool(np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0)
+        if not rotation:
             raise InputError(path, "hand_eye.R is not a rotation matrix")
         out["hand_eye"] = HandEye(R, _matrix(_get(h, "t_mm", path, "hand_eye."), (3,), path, "hand_eye.t_mm"))
     if d.get("t_delay_s") is not None:
@@ -382,13 +384,14 @@ def check_camera(cam: Camera, path) -> None:
         raise InputError(path, "camera.K puts the principal point at an infinite distance from the image")
     r = np.linspace(0.0, 4.0 * r_corner, 4001)
     r2 = r * r
-    rd = r * (1 + k1 * r2 + k2 * r2 ** 2 + k3 * r2 ** 3)
-    drd = 1 + 3 * k1 * r2 + 5 * k2 * r2 ** 2 + 7 * k3 * r2 ** 3
-    reach = np.nonzero(rd >= r_corner)[0]
+    with np.errstate(all="ignore"):  # absurd coefficients overflow: NaN/inf below count as a fold
+        rd = r * (1 + k1 * r2 + k2 * r2 ** 2 + k3 * r2 ** 3)
+        drd = 1 + 3 * k1 * r2 + 5 * k2 * r2 ** 2 + 7 * k3 * r2 ** 3
+    reach = np.nonzero(np.isfinite(rd) & (rd >= r_corner))[0]
     end = int(reach[0]) if reach.size else r.size - 1  # samples up to the corner (or all of them)
-    bad = np.nonzero(drd[: end + 1] <= 0)[0]
+    bad = np.nonzero(~(np.isfinite(drd[: end + 1]) & (drd[: end + 1] > 0)))[0]
     if bad.size or not reach.size:
-        r_fold = float(r[bad[0]]) if bad.size else float(r[int(np.argmax(rd))])
+        r_fold = float(r[bad[0]]) if bad.size else float(r[int(np.nanargmax(np.where(np.isfinite(rd), rd, -np.inf)))])
         raise InputError(path, f"camera.dist (k1 {k1:g}, k2 {k2:g}, k3 {k3:g}) folds the image: the radial model "
                          f"stops increasing at normalised radius {r_fold:.3g}, before the image corner "
                          f"({r_corner:.3g}); recalibrate the camera or check the coefficients' order "

@@ -85,7 +85,7 @@ def build_table(B, f, q_min: float, q_max: float, unit: str, f_kind: str = "rema
     h.q_min_q16, h.q_max_q16 = int(to_q16(q_min)), int(to_q16(q_max))
     for grid, off in ((h.b, hsize), (h.f, hsize + 4 * n)):
         grid.x0_q16, grid.step_q16, grid.n, grid.offset = x0, step, n, off
-    h.reserved = 0
+    h.pi.n, h.pi.offset = 0, 0  # no transition operators: the pure play (v2 with n = 0)
     entries = ffi.cast("int32_t *", buf + hsize)
     for i in range(n):
         entries[i] = int(b_raw[i])

@@ -4,8 +4,10 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
+#include <math.h>
 
 #include "enc_hist.h"
+#include "test_rng.h"
 
 static enc_hist_t h;
 
@@ -78,6 +80,70 @@ static void test_out_of_order_push_dropped(void **state)
     assert_int_equal(q, 25);
 }
 
+/* Decimated history at 20 kHz: a sample kept every keep_us; lookups at every pushed time
+ * of the last span are within the reported bound of the pushed value (the bound is exact,
+ * so this must hold for all of them), and the span asked for is covered. The signal is a
+ * noisy back-and-forth motion, so the bound is exercised at reversals and with jitter. */
+/* The pushed signal, regenerated sample by sample (too long to keep on the M4 target). */
+typedef struct {
+    test_rng_t r;
+    double q, v;
+} walk_t;
+
+static void walk_init(walk_t *w)
+{
+    test_rng_seed(&w->r, 11);
+    w->q = 0;
+    w->v = 5.0 / 20000; /* 5 mm/s at 20 kHz, reversing every 0.3 s */
+}
+
+static int32_t walk_next(walk_t *w, int k)
+{
+    if (k % 6000 == 0)
+        w->v = -w->v;
+    w->q += w->v;
+    return (int32_t)lround((w->q + 0.0005 * test_rng_normal(&w->r)) * 65536.0);
+}
+
+static void test_decimated_bound_exact_and_span_covered(void **state)
+{
+    (void)state;
+    enum { TICK_US = 50, N_TICKS = 60000 }; /* 3 s at 20 kHz */
+    const uint32_t span_us = 1140000;       /* the default onset config's history span */
+    enc_hist_set_span(&h, span_us);
+    assert_int_equal(h.keep_us, (span_us + ENC_HIST_LEN - 2) / (ENC_HIST_LEN - 1));
+    walk_t w;
+    walk_init(&w);
+    uint32_t t0 = UINT32_MAX - 1000000u;    /* and across the clock wrap */
+    for (int k = 0; k < N_TICKS; k++)
+        enc_hist_push(&h, t0 + (uint32_t)k * TICK_US, walk_next(&w, k));
+    uint32_t t_last = t0 + (uint32_t)(N_TICKS - 1) * TICK_US;
+    int32_t qa;
+    uint32_t bound, bound_max = 0;
+    int n_nonzero = 0, first = N_TICKS - 1 - (int)(span_us / TICK_US);
+    walk_init(&w);
+    for (int k = 0; k < N_TICKS; k++) {
+        int32_t q_true = walk_next(&w, k);
+        if (k < first)
+            continue;
+        assert_int_equal(enc_hist_q_at_bound(&h, t0 + (uint32_t)k * TICK_US, &qa, &bound), ENC_HIST_OK);
+        int64_t d = (int64_t)qa - q_true;
+        assert_true((d < 0 ? -d : d) <= (int64_t)bound);
+        bound_max = bound > bound_max ? bound : bound_max;
+        n_nonzero += bound > 0;
+    }
+    /* Not a vacuous bound: it is non-zero between kept samples and about one spacing of travel. */
+    print_message("keep %lu us, largest bound %.4f mm\n", (unsigned long)h.keep_us, bound_max / 65536.0);
+    assert_true(n_nonzero > 0);
+    /* 2.23 ms of travel at 5 mm/s (0.011 mm) plus the jitter range (~0.004 mm); measured 0.0137. */
+    assert_true(bound_max < 65536 / 50);
+    assert_int_equal(enc_hist_q_at(&h, t_last - span_us, &qa), ENC_HIST_OK);
+    assert_int_equal(enc_hist_q_at(&h, t_last + 1u, &qa), ENC_HIST_TOO_NEW);
+    /* Kept samples are at most keep_us + one tick apart: the ring reaches no further back. */
+    assert_int_equal(enc_hist_q_at(&h, t_last - ENC_HIST_LEN * (h.keep_us + TICK_US), &qa), ENC_HIST_TOO_OLD);
+    enc_hist_set_span(&h, 0); /* back to every push for the other tests */
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -86,6 +152,7 @@ int main(void)
         cmocka_unit_test(test_ring_wrap),
         cmocka_unit_test(test_clock_wrap),
         cmocka_unit_test(test_out_of_order_push_dropped),
+        cmocka_unit_test(test_decimated_bound_exact_and_span_covered),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

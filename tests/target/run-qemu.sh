@@ -3,6 +3,7 @@
 # Usage: tests/target/run-qemu.sh [--timeout SECONDS] [--icount] [--input TEXT] ELF
 #   --timeout  kill QEMU after SECONDS (default 120; exit 124 as timeout(1) does)
 #   --icount   -icount shift=0: one instruction = 1 ns of virtual time (for the bench)
+#   --icount-shift N  -icount shift=N: one instruction = 2^N ns (finer per-call timing)
 #   --input    bytes fed to USART1 RX one second after start (the model drops bytes that
 #              arrive before the guest enables the USART); default none, stdin /dev/null
 set -uo pipefail
@@ -13,6 +14,7 @@ while [ $# -gt 1 ]; do
   case $1 in
     --timeout) timeout_s=$2; shift 2 ;;
     --icount) icount=(-icount shift=0); shift ;;
+    --icount-shift) icount=(-icount "shift=$2"); shift 2 ;;
     --input) input=$2; shift 2 ;;
     *) echo "run-qemu.sh: unknown option $1" >&2; exit 2 ;;
   esac

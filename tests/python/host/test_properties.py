@@ -10,6 +10,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
@@ -21,6 +22,9 @@ except ImportError:
 from playscope.errors import PlayscopeError
 from playscope.session import load_session, parse_meta, read_csv
 from playscope.table_check import check_blob
+
+# A warning would print a second stderr line in the CLI: it fails the property too.
+pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning", "error::UserWarning")
 
 SETTINGS = settings(max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -1,0 +1,130 @@
+/* The production control loop: excitation or compensation set-point per tick, encoder history
+ * and onset detection (section III), table switch on commit. One code path for every image. */
+#include "psa_loop.h"
+
+#include <string.h>
+
+#include "lut.h"
+
+void psa_init(psa_loop_t *l, const psa_config_t *cfg)
+{
+    memset(l, 0, sizeof *l);
+    l->cfg = *cfg;
+    l->mode = PSA_MODE_IDLE;
+    l->c_ref_q16 = PSA_NO_REFERENCE;
+    onset_init(&l->onset, &l->cfg.onset);
+}
+
+bool psa_set_table(psa_loop_t *l, const calib_t *cal)
+{
+    if (l->mode == PSA_MODE_EXCITATION)
+        return false;
+    l->cal = cal;
+    if (cal == NULL && l->mode != PSA_MODE_IDLE)
+        l->mode = PSA_MODE_IDLE; /* nothing left to compensate with: hold */
+    l->comp_armed = true;
+    return true;
+}
+
+bool psa_set_mode(psa_loop_t *l, psa_mode_t mode)
+{
+    switch (mode) {
+    case PSA_MODE_IDLE:
+        break;
+    case PSA_MODE_EXCITATION: {
+        exc_config_t c = l->cfg.exc;
+        if (l->cal != NULL) {
+            c.q_start_q16 = l->cal->q_min_q16;
+            c.q_end_q16 = l->cal->q_max_q16;
+        }
+        if (exc_init(&l->exc, &c) != EXC_OK)
+            return false;
+        /* A fresh detector per run; the noise estimate restarts with the run. */
+        onset_init(&l->onset, &l->cfg.onset);
+        break;
+    }
+    case PSA_MODE_COMPENSATION:
+    case PSA_MODE_PASSTHROUGH:
+        if (l->cal == NULL)
+            return false;
+        l->comp_armed = true;
+        l->c_ref_q16 = PSA_NO_REFERENCE;
+        break;
+    default:
+        return false;
+    }
+    l->mode = mode;
+    return true;
+}
+
+/* q* for c* in compensation or passthrough (the caller checked the mode and the table). */
+static int32_t setpoint_for(psa_loop_t *l, int32_t c_ref_q16)
+{
+    const calib_t *cal = l->cal;
+    if (l->mode == PSA_MODE_COMPENSATION) {
+        if (l->comp_armed) {
+            comp_reset(&l->comp, cal, l->cfg.smooth ? &l->cfg.lim : NULL, c_ref_q16);
+            l->comp_armed = false;
+        }
+        return comp_step(&l->comp, c_ref_q16);
+    }
+    int32_t q = lut_eval(&cal->f_inv, c_ref_q16);
+    return q < cal->q_min_q16 ? cal->q_min_q16 : q > cal->q_max_q16 ? cal->q_max_q16 : q;
+}
+
+int32_t psa_tick(psa_loop_t *l, uint32_t t_us, int32_t c_ref_q16, int32_t q_meas_q16,
+                 onset_event_t *ev, bool *ev_ready)
+{
+    bool ready = false;
+    int32_t q_ref_q16 = l->q_ref_q16;
+    if (l->mode == PSA_MODE_COMPENSATION && !l->comp_armed && c_ref_q16 != PSA_NO_REFERENCE) {
+        /* The hot path, every tick while compensating: eq. 4 and nothing else. */
+        q_ref_q16 = comp_step(&l->comp, c_ref_q16);
+        l->c_ref_q16 = c_ref_q16;
+    } else if (l->mode >= PSA_MODE_COMPENSATION) {
+        if (c_ref_q16 != PSA_NO_REFERENCE) {
+            l->c_ref_q16 = c_ref_q16;
+            q_ref_q16 = setpoint_for(l, c_ref_q16);
+        }
+    } else if (l->mode == PSA_MODE_EXCITATION) {
+        bool rev = false;
+        q_ref_q16 = exc_step(&l->exc, &rev);
+        /* The commanded set-point at the turning point is q1 of eq. 1. */
+        if (rev)
+            ready = onset_reversal(&l->onset, t_us, q_ref_q16, ev);
+        if (exc_done(&l->exc))
+            l->mode = PSA_MODE_IDLE;
+    }
+    l->q_ref_q16 = q_ref_q16;
+    /* A reversal on this tick restarted the detector, so its timeout cannot also end
+     * here: at most one event per tick. */
+    if (onset_tick_inline(&l->onset, t_us, q_meas_q16, ev))
+        ready = true;
+    *ev_ready = ready;
+    return q_ref_q16;
+}
+
+int32_t psa_set_reference(psa_loop_t *l, int32_t c_ref_q16)
+{
+    if (l->mode < PSA_MODE_COMPENSATION || l->cal == NULL || c_ref_q16 == PSA_NO_REFERENCE)
+        return INT32_MIN;
+    l->c_ref_q16 = c_ref_q16;
+    l->q_ref_q16 = setpoint_for(l, c_ref_q16);
+    return l->q_ref_q16;
+}
+
+bool psa_reversal(psa_loop_t *l, uint32_t t1_us, int32_t q1_q16, onset_event_t *ev)
+{
+    return onset_reversal(&l->onset, t1_us, q1_q16, ev);
+}
+
+bool psa_observe_px(psa_loop_t *l, uint32_t t_us, int32_t u_q16, int32_t v_q16, bool valid,
+                    onset_event_t *ev)
+{
+    return onset_observe_px(&l->onset, t_us, u_q16, v_q16, valid, ev);
+}
+
+bool psa_observe_deg(psa_loop_t *l, uint32_t t_us, int32_t c_q16, bool valid, onset_event_t *ev)
+{
+    return onset_observe_deg(&l->onset, t_us, c_q16, valid, ev);
+}

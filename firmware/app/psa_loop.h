@@ -1,0 +1,87 @@
+/* The production control loop: one object per actuator, run once per control tick by the
+ * STM32 images, the virtual board and the benches alike (docs/firmware.md, "Control loop"). */
+#ifndef PSA_LOOP_H
+#define PSA_LOOP_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "calib.h"
+#include "comp.h"
+#include "exc.h"
+#include "onset.h"
+
+/* What the loop commands; the values are the protocol's PSP_MODE_* (ps_proto.h), checked
+ * by a static assertion in psl_link.c, so the link passes the wire value straight on. */
+typedef enum {
+    PSA_MODE_IDLE = 0,           /* hold the last set-point */
+    PSA_MODE_EXCITATION = 1,     /* excitation trajectory (section III-B), reversals to the onset detector */
+    PSA_MODE_COMPENSATION = 2,   /* q* from c* through the inverse model (eqs. 4, 5/9) */
+    PSA_MODE_PASSTHROUGH = 3,    /* q* = f^-1(c*) clamped to the table's q range, no backlash model */
+} psa_mode_t;
+
+typedef struct {
+    onset_config_t onset;        /* on-board onset detector (eq. 1) */
+    exc_config_t exc;            /* excitation without a table (with one: the table's q range) */
+    comp_smoothing_t lim;        /* transition smoothing of the compensator ... */
+    bool smooth;                 /* ... used when true; false: eq. 4 as written (what a host replays) */
+} psa_config_t;
+
+/* Everything the loop owns. calib_t is not in it: tables live where the caller loads them
+ * (the link double-buffers two), and the loop runs whichever psa_set_table() named last. */
+typedef struct {
+    psa_config_t cfg;
+    const calib_t *cal;          /* running table, NULL: none */
+    psa_mode_t mode;
+    bool comp_armed;             /* the next compensation step first resets the compensator at its c* */
+    int32_t c_ref_q16;           /* last reference c*, deg */
+    int32_t q_ref_q16;           /* last set-point q*, actuator units */
+    comp_t comp;
+    exc_t exc;
+    onset_t onset;               /* detector and encoder history */
+} psa_loop_t;
+
+/* Reset: idle, no table, q* = 0, a fresh onset detector (cfg copied). Boot time. */
+void psa_init(psa_loop_t *l, const psa_config_t *cfg);
+
+/* Table commit: from the next tick the loop runs cal (already accepted by calib_load; NULL
+ * = none). A running compensation restarts at its current c* with no direction known.
+ * Refused (false) in excitation mode, whose trajectory spans the old table's range. O(1). */
+bool psa_set_table(psa_loop_t *l, const calib_t *cal);
+
+/* Change mode. Excitation restarts the trajectory and the onset detector (range: the
+ * table's, else cfg.exc); compensation and passthrough need a table. False, nothing
+ * changed, when the mode is unknown, has no table or the excitation config is invalid. */
+bool psa_set_mode(psa_loop_t *l, psa_mode_t mode);
+
+/* c_ref_q16 of a tick with no reference yet (a host that has not sent its first c*): the
+ * set-point is held and an armed compensator stays armed for the first real one. */
+#define PSA_NO_REFERENCE INT32_MIN
+
+/* One control tick at board time t_us: reference c_ref_q16 (deg, Q16; used in compensation
+ * and passthrough; PSA_NO_REFERENCE holds), measured actuator position q_meas_q16 (encoder, Q16) in; the motor
+ * set-point q* (Q16) out. The encoder sample goes into the onset history in every mode.
+ * *ev_ready is set true with *ev filled when an onset ended on this tick (a B sample of
+ * eq. 1, or a reason: timeout, reversal superseded); at most one per tick.
+ * Integer-only, no divide, O(1) (docs/firmware.md gives the measured worst case). */
+int32_t psa_tick(psa_loop_t *l, uint32_t t_us, int32_t c_ref_q16, int32_t q_meas_q16,
+                 onset_event_t *ev, bool *ev_ready);
+
+/* A set-point request outside the tick (host-driven PSP_MSG_COMP_STEP): c* becomes
+ * c_ref_q16 and the compensation step runs now; the ticks that follow hold c*, which the
+ * rate-independent model leaves unchanged. Returns q*, or INT32_MIN (nothing changed) when
+ * not in compensation or passthrough mode. */
+int32_t psa_set_reference(psa_loop_t *l, int32_t c_ref_q16);
+
+/* A reversal commanded by someone else (the host's own excitation) at t1_us with q1_q16.
+ * True with *ev = ONSET_ERR_REVERSAL when it supersedes a pending one. O(1). */
+bool psa_reversal(psa_loop_t *l, uint32_t t1_us, int32_t q1_q16, onset_event_t *ev);
+
+/* One camera frame (marker at u, v px, Q16) or angle-sensor reading (c deg, Q16) taken at
+ * t_us on the board clock; valid = false when the marker was lost. True with *ev when the
+ * pending onset ended (section III-A). O(log ENC_HIST_LEN) on that frame, O(1) otherwise. */
+bool psa_observe_px(psa_loop_t *l, uint32_t t_us, int32_t u_q16, int32_t v_q16, bool valid,
+                    onset_event_t *ev);
+bool psa_observe_deg(psa_loop_t *l, uint32_t t_us, int32_t c_q16, bool valid, onset_event_t *ev);
+
+#endif /* PSA_LOOP_H */
