@@ -25,8 +25,10 @@ from .errors import InputError
 # exists is an input the output guard protects (atomic.output_guard). Not inputs either:
 # the virtual board's flash file, work folders and device addresses.
 OUTPUT_ARGS = ("out", "output", "json", "html")
-NOT_INPUT_ARGS = frozenset(OUTPUT_ARGS + ("flash_file", "reimage", "elf", "address", "device", "command",
+NOT_INPUT_ARGS = frozenset(OUTPUT_ARGS + ("flash_file", "elf", "address", "device", "command",
                                           "device_command", "func"))
+# Per command, arguments that name a work folder it writes into (not an input).
+WORK_ARGS = {"evaluate-real": ("reimage",)}
 
 # Command modules in help order; optional ones are skipped when their package is absent.
 COMMAND_MODULES = [
@@ -104,7 +106,8 @@ def _paths(args) -> tuple[list[str], list[str]]:
                 continue
             if k in OUTPUT_ARGS:
                 outs.append(x)
-            elif k not in NOT_INPUT_ARGS and os.path.exists(x):
+            elif k not in NOT_INPUT_ARGS and k not in WORK_ARGS.get(getattr(args, "command", None), ()) \
+                    and os.path.exists(x):
                 ins.append(x)
     return ins, outs
 

@@ -243,7 +243,7 @@ def cases() -> list[tuple[str, list[str], object]]:
                       ("binary", _write("rec.csv", JUNK)), ("a folder", _to_folder("rec.csv"))]:
         add(f"import {name}", IMPORT, dmg)
 
-    # ---- outputs aimed at inputs, or existing without --force: 7 cases
+    # ---- outputs aimed at inputs, or existing without --force: 8 cases
     add("out onto encoder.csv", ["calibrate", "{session}", "-o", "{session}/encoder.csv", "--force"])
     add("out onto session.json", ["calibrate", "{session}", "-o", "{session}/session.json"])
     add("out onto the calibration", ["tables", "{cal}", "-o", "{cal}", "--force"])
@@ -251,6 +251,7 @@ def cases() -> list[tuple[str, list[str], object]]:
     add("existing table no --force", ["tables", "{cal}", "-o", "{table}"])
     add("import over its own folder", ["import", "{csv}", "-o", "{root}", "--overwrite"])
     add("report onto the session", ["report", "{cal}", "{session}", "-o", "{session}/session.json", "--force"])
+    add("simulate over its --reimage source", ["simulate", "{session}", "--reimage", "{session}", "--overwrite"])
     return out
 
 
