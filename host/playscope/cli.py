@@ -27,8 +27,9 @@ from .errors import InputError
 OUTPUT_ARGS = ("out", "output", "json", "html")
 NOT_INPUT_ARGS = frozenset(OUTPUT_ARGS + ("flash_file", "elf", "address", "device", "command",
                                           "device_command", "func"))
-# Per command, arguments that name a work folder it writes into (not an input).
-WORK_ARGS = {"evaluate-real": ("reimage",)}
+# Per command, arguments naming a work folder or file the command manages itself (reuses or
+# replaces by design): neither an input nor an output the guard checks.
+WORK_ARGS = {"evaluate-real": ("reimage",), "demo": ("out", "json")}
 
 # Command modules in help order; optional ones are skipped when their package is absent.
 COMMAND_MODULES = [
@@ -100,14 +101,16 @@ def _all_subparsers(sub) -> list:
 def _paths(args) -> tuple[list[str], list[str]]:
     """(inputs, outputs) named on the command line: see OUTPUT_ARGS / NOT_INPUT_ARGS."""
     ins, outs = [], []
+    work = WORK_ARGS.get(getattr(args, "command", None), ())
     for k, v in vars(args).items():
+        if k in work:
+            continue
         for x in (v if isinstance(v, list) else [v]):
             if not isinstance(x, str) or not x:
                 continue
             if k in OUTPUT_ARGS:
                 outs.append(x)
-            elif k not in NOT_INPUT_ARGS and k not in WORK_ARGS.get(getattr(args, "command", None), ()) \
-                    and os.path.exists(x):
+            elif k not in NOT_INPUT_ARGS and os.path.exists(x):
                 ins.append(x)
     return ins, outs
 

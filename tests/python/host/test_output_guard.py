@@ -118,3 +118,17 @@ def test_unreadable_files_are_one_line(tmp_path, good, capsys, monkeypatch):
         err = capsys.readouterr().err.strip()
         assert "\n" not in err and "cannot read: Permission denied; check the permissions" in err
     assert not (tmp_path / "o.json").exists() and not (tmp_path / "o.pstb").exists()
+
+
+def test_work_folders_are_neither_inputs_nor_outputs(tmp_path, good):
+    """`demo --out` and `evaluate-real --reimage` manage their folder themselves (a rerun
+    replaces its own outputs); `simulate --reimage SRC` reads SRC, so SRC is an input."""
+    from playscope.cli import _paths, build_parser
+
+    g = copy_good(good, tmp_path)
+    p = build_parser()
+    assert _paths(p.parse_args(["demo", "--out", str(tmp_path), "--json", str(g["cal"])])) == ([], [])
+    ins, outs = _paths(p.parse_args(["evaluate-real", str(tmp_path), "--reimage", str(g["session"])]))
+    assert ins == [str(tmp_path)] and outs == []
+    ins, outs = _paths(p.parse_args(["simulate", str(tmp_path / "new"), "--reimage", str(g["session"])]))
+    assert ins == [str(g["session"])] and outs == [str(tmp_path / "new")]
