@@ -10,6 +10,8 @@ A table that fails is never resealed or sent: `flash` calls this first (issue 14
 
 from __future__ import annotations
 
+import os
+
 from .errors import InputError
 from .native import core
 
@@ -89,23 +91,21 @@ def check_blob(blob: bytes, source=None):
 def read_table_file(path) -> bytes:
     """Read and check a table file. Errors: InputError (missing, a folder, unreadable,
     or any check_blob refusal)."""
-    import os
-
     try:
         with open(path, "rb") as fh:
-            data = fh.read(ffi_max_size() + 1)
+            data = fh.read(max_table_size() + 1)
     except IsADirectoryError:
         raise InputError(path, "is a folder, not a table file") from None
     except FileNotFoundError:
         raise InputError(path, "no such table file") from None
     except OSError as e:
         raise InputError(path, f"cannot read: {e.strerror or e}") from None
-    if len(data) > ffi_max_size():
-        raise TableFileError(path, "size", f"file larger than the largest table ({ffi_max_size()} bytes)")
+    if len(data) > max_table_size():
+        raise TableFileError(path, "size", f"file larger than the largest table ({max_table_size()} bytes)")
     check_blob(data, os.fspath(path))
     return data
 
 
-def ffi_max_size() -> int:
+def max_table_size() -> int:
     """Largest table the C layout allows, bytes (PST_MAX_TABLE_SIZE)."""
     return int(core()[1].PST_MAX_TABLE_SIZE)
