@@ -26,10 +26,11 @@ enum {
 enum psp_msg_type {
     PSP_MSG_INFO = 0x01,         /* H->B empty; B->H psp_info_t */
     PSP_MSG_SET_MODE = 0x02,     /* H->B psp_set_mode_t; B->H empty */
-    PSP_MSG_TABLE_BEGIN = 0x10,  /* H->B psp_table_begin_t; B->H empty */
-    PSP_MSG_TABLE_CHUNK = 0x11,  /* H->B psp_table_chunk_t; B->H empty */
-    PSP_MSG_TABLE_COMMIT = 0x12, /* H->B psp_table_commit_t; B->H psp_info_t (new state) */
+    PSP_MSG_TABLE_BEGIN = 0x10,  /* H->B psp_table_begin_t; B->H psp_table_session_t (the upload's owner token) */
+    PSP_MSG_TABLE_CHUNK = 0x11,  /* H->B psp_table_chunk_t (with the session); B->H empty */
+    PSP_MSG_TABLE_COMMIT = 0x12, /* H->B psp_table_commit_t (with the session); B->H psp_info_t (new state) */
     PSP_MSG_TABLE_READ = 0x13,   /* H->B psp_table_read_t; B->H psp_table_chunk_t of the active table */
+    PSP_MSG_TABLE_ABORT = 0x14,  /* H->B psp_table_abort_t: give the upload session up; B->H empty */
     PSP_MSG_ENC_STREAM = 0x20,   /* H->B psp_stream_ctl_t; B->H psp_enc_samples_t batches */
     PSP_MSG_REVERSAL = 0x21,     /* H->B psp_reversal_t: a commanded direction change (t1, q1) */
     PSP_MSG_MARKER_OBS = 0x22,   /* H->B psp_marker_obs_t; B->H empty, or psp_b_sample_t on an onset */
@@ -48,6 +49,7 @@ enum psp_error_code {
     PSP_ERR_RANGE = 7,           /* offset/size outside the table being uploaded */
     PSP_ERR_TABLE = 8,           /* table refused by the loader (see calib_status) */
     PSP_ERR_FLASH = 9,           /* storage write or verify failed; old table kept */
+    PSP_ERR_BUSY = 10,           /* another host holds the upload session; detail = s until it expires (<= 255) */
 };
 
 enum psp_mode {
@@ -92,10 +94,20 @@ typedef struct PS_PACKED psp_table_begin {
 } psp_table_begin_t;
 PS_STATIC_ASSERT(sizeof(psp_table_begin_t) == 8, "psp_table_begin_t must be 8 bytes");
 
+/* One owner per upload: BEGIN opens a session and answers its token; CHUNK, COMMIT and
+ * ABORT must carry it. While a session is open, another BEGIN (another host) gets
+ * PSP_ERR_BUSY until the owner commits, aborts, or sends nothing for timeout_ms. */
+typedef struct PS_PACKED psp_table_session {
+    uint16_t session;            /* token, never 0 */
+    uint16_t reserved;
+    uint32_t timeout_ms;         /* the session expires after this long without an upload request */
+} psp_table_session_t;
+PS_STATIC_ASSERT(sizeof(psp_table_session_t) == 8, "psp_table_session_t must be 8 bytes");
+
 typedef struct PS_PACKED psp_table_chunk {
     uint32_t offset;             /* byte offset into the table */
     uint16_t len;                /* bytes used in data, <= PSP_CHUNK_MAX */
-    uint16_t reserved;
+    uint16_t session;            /* upload: psp_table_session_t.session; read-back answers: 0 */
     uint32_t chunk_crc32;        /* ps_crc32_update(0, data, len) */
     uint8_t data[PSP_CHUNK_MAX];
 } psp_table_chunk_t;
@@ -103,8 +115,16 @@ PS_STATIC_ASSERT(sizeof(psp_table_chunk_t) == 236, "psp_table_chunk_t must be 23
 
 typedef struct PS_PACKED psp_table_commit {
     uint32_t crc32;              /* must equal the announced whole-table CRC */
+    uint16_t session;            /* psp_table_session_t.session */
+    uint16_t reserved;
 } psp_table_commit_t;
-PS_STATIC_ASSERT(sizeof(psp_table_commit_t) == 4, "psp_table_commit_t must be 4 bytes");
+PS_STATIC_ASSERT(sizeof(psp_table_commit_t) == 8, "psp_table_commit_t must be 8 bytes");
+
+typedef struct PS_PACKED psp_table_abort {
+    uint16_t session;            /* psp_table_session_t.session */
+    uint16_t reserved;
+} psp_table_abort_t;
+PS_STATIC_ASSERT(sizeof(psp_table_abort_t) == 4, "psp_table_abort_t must be 4 bytes");
 
 typedef struct PS_PACKED psp_table_read {
     uint32_t offset;             /* byte offset into the active table */

@@ -28,6 +28,7 @@ psl_config_t psl_default_config(uint32_t tick_hz)
     c.exc.v_q32 = (int64_t)(((uint64_t)10 << 32) / (tick_hz ? tick_hz : 1000u));
     c.exc.return_sweep = true;
     c.onset = onset_default_config();
+    c.upload_timeout_us = PSL_UPLOAD_TIMEOUT_US;
     return c;
 }
 
@@ -126,6 +127,7 @@ static int expected_len(uint8_t type)
     case PSP_MSG_TABLE_CHUNK: return -2;
     case PSP_MSG_TABLE_COMMIT: return (int)sizeof(psp_table_commit_t);
     case PSP_MSG_TABLE_READ: return (int)sizeof(psp_table_read_t);
+    case PSP_MSG_TABLE_ABORT: return (int)sizeof(psp_table_abort_t);
     case PSP_MSG_ENC_STREAM: return (int)sizeof(psp_stream_ctl_t);
     case PSP_MSG_REVERSAL: return (int)sizeof(psp_reversal_t);
     case PSP_MSG_MARKER_OBS: return (int)sizeof(psp_marker_obs_t);
@@ -182,31 +184,77 @@ static uint8_t upload_buf(const psl_t *l)
     return l->active_buf == 0 ? 1 : 0;
 }
 
-static uint16_t do_table_begin(psl_t *l, uint16_t seq, const uint8_t *pl)
+/* True while an upload session is open and its owner has not been silent for the timeout. */
+static bool session_live(const psl_t *l)
+{
+    return l->up_open && (uint32_t)(l->now_us - l->up_last_us) < l->cfg.upload_timeout_us;
+}
+
+/* Check a request's session token: PSP_OK for the live owner, else BUSY (someone else's
+ * session is live, detail = whole seconds left) or STATE (no live session). */
+static uint16_t session_check(psl_t *l, uint16_t session, uint8_t *detail)
+{
+    if (!session_live(l)) {
+        l->up_open = false;
+        return PSP_ERR_STATE;
+    }
+    if (session != l->up_session) {
+        uint32_t left_s = (l->cfg.upload_timeout_us - (uint32_t)(l->now_us - l->up_last_us) + 999999u) / 1000000u;
+        *detail = (uint8_t)(left_s > 255u ? 255u : left_s);
+        return PSP_ERR_BUSY;
+    }
+    l->up_last_us = l->now_us;
+    return PSP_OK;
+}
+
+static uint16_t do_table_begin(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *detail)
 {
     psp_table_begin_t b;
     memcpy(&b, pl, sizeof(b));
     if (b.total_size < sizeof(pst_header_t) || b.total_size > PST_MAX_TABLE_SIZE)
         return PSP_ERR_RANGE;
+    if (session_live(l))
+        return session_check(l, 0, detail); /* 0 is never a token: BUSY */
+    /* Tokens differ from one session to the next and between boots that saw different
+     * timing, so a late request of a previous owner is not taken for the current one. */
+    l->up_sessions++;
+    uint16_t tok = (uint16_t)((l->up_sessions * 0x9E37u) ^ (l->now_us >> 4) ^ (l->last_seq << 3));
+    l->up_session = tok ? tok : 1;
     l->up_open = true;
+    l->up_last_us = l->now_us;
     l->up_size = b.total_size;
     l->up_crc32 = b.crc32;
     l->up_have = 0;
-    send(l, PSP_MSG_TABLE_BEGIN | PSP_RESPONSE, seq, NULL, 0);
+    psp_table_session_t r = {.session = l->up_session, .timeout_ms = l->cfg.upload_timeout_us / 1000u};
+    send(l, PSP_MSG_TABLE_BEGIN | PSP_RESPONSE, seq, &r, sizeof(r));
     return PSP_OK;
 }
 
-static uint16_t do_table_chunk(psl_t *l, uint16_t seq, const uint8_t *pl, uint16_t len)
+static uint16_t do_table_abort(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *detail)
+{
+    psp_table_abort_t a;
+    memcpy(&a, pl, sizeof(a));
+    uint16_t err = session_check(l, a.session, detail);
+    if (err != PSP_OK)
+        return err;
+    l->up_open = false;
+    send(l, PSP_MSG_TABLE_ABORT | PSP_RESPONSE, seq, NULL, 0);
+    return PSP_OK;
+}
+
+static uint16_t do_table_chunk(psl_t *l, uint16_t seq, const uint8_t *pl, uint16_t len, uint8_t *detail)
 {
     if (len < CHUNK_HDR)
         return PSP_ERR_LENGTH;
     uint32_t off = psf_get_u32(&pl[0]);
     uint16_t n = psf_get_u16(&pl[4]);
+    uint16_t session = psf_get_u16(&pl[6]);
     uint32_t crc = psf_get_u32(&pl[8]);
     if (n > PSP_CHUNK_MAX || len != CHUNK_HDR + n)
         return PSP_ERR_LENGTH;
-    if (!l->up_open)
-        return PSP_ERR_STATE;
+    uint16_t err = session_check(l, session, detail);
+    if (err != PSP_OK)
+        return err;
     /* Chunks may repeat or overlap what came before but must not leave a hole. */
     if (off > l->up_have || off > l->up_size || n > l->up_size - off)
         return PSP_ERR_RANGE;
@@ -219,12 +267,30 @@ static uint16_t do_table_chunk(psl_t *l, uint16_t seq, const uint8_t *pl, uint16
     return PSP_OK;
 }
 
+/* Read the just-committed slot back over the upload buffer and check the table CRC on what
+ * the board will boot (the store's own CRC covers the record; this one is the table's,
+ * end to end from the host's file). calib_load already read this buffer, so on success
+ * cal[nb] stays valid over identical bytes. */
+static bool slot_holds_upload(psl_t *l, uint8_t nb)
+{
+    uint8_t *buf = (uint8_t *)l->tables[nb];
+    if (pss_read_active(&l->store, 0, buf, l->up_size) != PSS_OK)
+        return false;
+    return calib_table_crc(buf, l->up_size) == l->up_crc32 && psf_get_u32(buf + offsetof(pst_header_t, crc32)) == l->up_crc32;
+}
+
 static uint16_t do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *detail)
 {
     psp_table_commit_t c;
     memcpy(&c, pl, sizeof(c));
-    if (l->mode != PSP_MODE_IDLE || !l->up_open || l->up_have != l->up_size)
+    uint16_t err = session_check(l, c.session, detail);
+    if (err != PSP_OK)
+        return err;
+    if (l->mode != PSP_MODE_IDLE || l->up_have != l->up_size)
         return PSP_ERR_STATE;
+    /* From here the upload is consumed, taken or refused: the session closes, and a host
+     * that wants to try again uploads anew (a STATE refusal above keeps it, to commit later). */
+    l->up_open = false;
     uint8_t nb = upload_buf(l);
     const uint8_t *blob = table_bytes(l, nb);
     if (c.crc32 != l->up_crc32 || calib_table_crc(blob, l->up_size) != l->up_crc32)
@@ -239,14 +305,25 @@ static uint16_t do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8
         *detail = PSL_DETAIL_GENERATION;
         return PSP_ERR_TABLE;
     }
+    uint8_t prev_slot = l->store.active;
     pss_status_t ps = pss_commit(&l->store, gen, blob, l->up_size);
     if (ps != PSS_OK) {
         *detail = (uint8_t)ps;
         return PSP_ERR_FLASH;
     }
+    if (!slot_holds_upload(l, nb)) {
+        /* What flash holds is not the table that was checked: unmake the commit so neither
+         * this session nor the next boot runs it, and keep the previous table. */
+        uint8_t bad = l->store.active;
+        (void)l->store.flash->erase(l->store.flash->ctx, bad);
+        pss_scan_slot(&l->store, bad);
+        if (prev_slot == PSS_NO_SLOT || !pss_select(&l->store, prev_slot))
+            l->store.active = PSS_NO_SLOT;
+        *detail = PSL_DETAIL_READBACK;
+        return PSP_ERR_FLASH;
+    }
     l->active_buf = nb;
     (void)psa_set_table(&l->loop, &l->cal[nb]); /* idle here (checked above): always taken */
-    l->up_open = false;
     psp_info_t info;
     psl_info(l, &info);
     send(l, PSP_MSG_TABLE_COMMIT | PSP_RESPONSE, seq, &info, sizeof(info));
@@ -266,7 +343,7 @@ static uint16_t do_table_read(psl_t *l, uint16_t seq, const uint8_t *pl)
     psp_table_chunk_t ch;
     ch.offset = r.offset;
     ch.len = n;
-    ch.reserved = 0;
+    ch.session = 0;
     /* Read back from flash, not from RAM: the host checks what the board will boot. */
     if (pss_read_active(&l->store, r.offset, ch.data, n) != PSS_OK)
         return PSP_ERR_FLASH;
@@ -381,10 +458,11 @@ void psl_handle(psl_t *l, const psp_frame_header_t *hdr, const uint8_t *payload)
     }
     switch (type) {
     case PSP_MSG_SET_MODE: err = do_set_mode(l, seq, payload, &detail); break;
-    case PSP_MSG_TABLE_BEGIN: err = do_table_begin(l, seq, payload); break;
-    case PSP_MSG_TABLE_CHUNK: err = do_table_chunk(l, seq, payload, hdr->len); break;
+    case PSP_MSG_TABLE_BEGIN: err = do_table_begin(l, seq, payload, &detail); break;
+    case PSP_MSG_TABLE_CHUNK: err = do_table_chunk(l, seq, payload, hdr->len, &detail); break;
     case PSP_MSG_TABLE_COMMIT: err = do_table_commit(l, seq, payload, &detail); break;
     case PSP_MSG_TABLE_READ: err = do_table_read(l, seq, payload); break;
+    case PSP_MSG_TABLE_ABORT: err = do_table_abort(l, seq, payload, &detail); break;
     case PSP_MSG_ENC_STREAM: err = do_stream(l, seq, payload); break;
     case PSP_MSG_REVERSAL: err = do_reversal(l, seq, payload); break;
     case PSP_MSG_MARKER_OBS: err = do_marker(l, seq, payload); break;
@@ -421,6 +499,7 @@ int32_t psl_tick(psl_t *l, uint32_t t_us, int32_t q_meas_q16)
 {
     onset_event_t ev;
     bool ev_ready;
+    l->now_us = t_us;
     int32_t q_ref_q16 = psa_tick(&l->loop, t_us, l->loop.c_ref_q16, q_meas_q16, &ev, &ev_ready);
     if (ev_ready)
         send_event(l, &ev);

@@ -16,6 +16,11 @@
  * generation is not newer than the running one (calib_status_t values stay below it). */
 enum { PSL_DETAIL_GENERATION = 0x80 };
 
+/* psp_error_t.detail for PSP_ERR_FLASH when the slot was written and verified by the store
+ * but the table read back from it fails the table CRC: the commit is undone (slot erased),
+ * the previous table stays active (pss_status_t values stay below it). */
+enum { PSL_DETAIL_READBACK = 0x81 };
+
 /* Sends one complete frame (on a UART, a USB bulk IN pipe, stdout...). Must take the
  * whole frame; the handler keeps no transmit queue. */
 typedef void (*psl_write_fn)(void *ctx, const uint8_t *frame, size_t len);
@@ -25,7 +30,14 @@ typedef struct {
     uint32_t board_id[3];        /* unique id reported by PSP_MSG_INFO */
     exc_config_t exc;            /* excitation used when no table is loaded (with a table: its q range) */
     onset_config_t onset;        /* on-board onset detector */
+    uint32_t upload_timeout_us;  /* an upload session with no request for this long is free again (board clock) */
 } psl_config_t;
+
+#ifndef PSL_UPLOAD_TIMEOUT_US
+/* PSL_UPLOAD_TIMEOUT_US: default psl_config_t.upload_timeout_us. Default 5 s: longer than a
+ * host's request timeout, short enough that a killed host does not lock the board out. */
+#define PSL_UPLOAD_TIMEOUT_US 5000000u
+#endif
 
 typedef struct {
     psl_config_t cfg;
@@ -35,9 +47,14 @@ typedef struct {
     pss_t store;
     uint8_t mode;                /* enum psp_mode */
     uint16_t last_seq;           /* last accepted request; 0 = none since boot */
-    /* Table upload into tables[1 - active_buf] (or tables[0] with none active). */
+    /* Table upload into tables[1 - active_buf] (or tables[0] with none active), owned by
+     * the host that holds session up_session (one owner per upload, docs/protocol.md). */
     bool up_open;
     uint32_t up_size, up_crc32, up_have;
+    uint16_t up_session;         /* token of the open session; never 0 */
+    uint16_t up_sessions;        /* sessions opened since boot: the next token derives from it */
+    uint32_t up_last_us;         /* board time of the owner's last upload request */
+    uint32_t now_us;             /* board time of the last tick (psl_tick) */
     uint8_t active_buf;          /* index of the running table, PSS_NO_SLOT if none */
     uint32_t tables[2][(PST_MAX_TABLE_SIZE + 3) / 4]; /* uint32_t: calib_load reads entries in place, 4-aligned */
     calib_t cal[2];
@@ -50,7 +67,8 @@ typedef struct {
 } psl_t;
 
 /* Defaults: version 0.1.0, board id 0, onset_default_config(), an excitation over
- * [0, 10] actuator units with amplitude 1 and advance 0.25 at 10 units/s for tick_hz. */
+ * [0, 10] actuator units with amplitude 1 and advance 0.25 at 10 units/s for tick_hz,
+ * upload sessions expiring after PSL_UPLOAD_TIMEOUT_US. */
 psl_config_t psl_default_config(uint32_t tick_hz);
 
 /* Mount the store, load the newest table the loader accepts (falling back to the

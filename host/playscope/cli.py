@@ -2,18 +2,34 @@
 
 Each command module exposes ``add_parser(subparsers)``, which adds its subparser and sets
 ``func=<callable(args) -> int>`` on it. Optional subpackages (sim, diagnose, device) register
-themselves the same way when they are importable. Bad input (playscope.errors.InputError)
-prints one line ``playscope: error: <file>:<row>: <message>`` and exits with status 2.
+themselves the same way when they are importable. Bad input prints one line
+``playscope: error: <file>:<row>: <message>`` and exits with status 2: an InputError, an
+OSError, a UnicodeDecodeError, a JSON or any other ValueError escaping a command, and a bad
+command-line value (argparse types in playscope.argtypes). PLAYSCOPE_DEBUG=1 re-raises them
+with the traceback, for bug reports.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import json
+import os
 import sys
 
 from . import __version__
+from .atomic import check_output, output_guard
 from .errors import InputError
+
+# Argument dests that name what a command writes; every other path-valued argument that
+# exists is an input the output guard protects (atomic.output_guard). Not inputs either:
+# the virtual board's flash file, work folders and device addresses.
+OUTPUT_ARGS = ("out", "output", "json", "html")
+NOT_INPUT_ARGS = frozenset(OUTPUT_ARGS + ("flash_file", "elf", "address", "device", "command",
+                                          "device_command", "func"))
+# Per command, arguments naming a work folder or file the command manages itself (reuses or
+# replaces by design): neither an input nor an output the guard checks.
+WORK_ARGS = {"evaluate-real": ("reimage",), "demo": ("out", "json")}
 
 # Command modules in help order; optional ones are skipped when their package is absent.
 COMMAND_MODULES = [
@@ -43,9 +59,17 @@ Typical run:  playscope calibrate S -o cal.json && playscope tables cal.json -o 
 """
 
 
+class Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line (no usage block), exit status 2; the
+    subcommand parsers inherit it."""
+
+    def error(self, message: str):
+        where = self.prog.partition(" ")[2]  # "playscope calibrate" -> "calibrate"
+        self.exit(2, f"playscope: error: {where + ': ' if where else ''}{message}; see `{self.prog} --help`\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="playscope", description=DESCRIPTION,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = Parser(prog="playscope", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action="version", version=f"playscope {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for name, optional in COMMAND_MODULES:
@@ -57,23 +81,82 @@ def build_parser() -> argparse.ArgumentParser:
                 continue
             raise
         mod.add_parser(sub)
+    for sp in _all_subparsers(sub):
+        if "--force" not in sp._option_string_actions:
+            sp.add_argument("--force", action="store_true",
+                            help="replace existing outputs (never an input of the command)")
     return p
+
+
+def _all_subparsers(sub) -> list:
+    out = []
+    for sp in set(sub.choices.values()):
+        out.append(sp)
+        for a in sp._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                out += _all_subparsers(a)
+    return out
+
+
+def _paths(args) -> tuple[list[str], list[str]]:
+    """(inputs, outputs) named on the command line: see OUTPUT_ARGS / NOT_INPUT_ARGS."""
+    ins, outs = [], []
+    work = WORK_ARGS.get(getattr(args, "command", None), ())
+    for k, v in vars(args).items():
+        if k in work:
+            continue
+        for x in (v if isinstance(v, list) else [v]):
+            if not isinstance(x, str) or not x:
+                continue
+            if k in OUTPUT_ARGS:
+                outs.append(x)
+            elif k not in NOT_INPUT_ARGS and os.path.exists(x):
+                ins.append(x)
+    return ins, outs
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # --help, --version, or a refused value (one line already printed)
+        return e.code if isinstance(e.code, int) else 2
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
-    except InputError as e:
-        print(f"playscope: error: {e}", file=sys.stderr)
+        ins, outs = _paths(args)
+        force = bool(getattr(args, "force", False) or getattr(args, "overwrite", False))
+        with output_guard(ins, force):
+            for o in outs:  # before any work: a refused output costs nothing
+                check_output(o)
+            return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print("playscope: interrupted", file=sys.stderr)
+        return 130
+    except (InputError, OSError, ValueError, OverflowError, RecursionError) as e:
+        if os.environ.get("PLAYSCOPE_DEBUG"):
+            raise
+        print(f"playscope: error: {_one_line(e, args)}", file=sys.stderr)
         return 2
-    except FileExistsError as e:
-        print(f"playscope: error: {e}", file=sys.stderr)
-        return 2
+
+
+def _one_line(e: BaseException, args) -> str:
+    """FILE[:ROW]: what, for an error that escaped a command (InputError already is that)."""
+    if isinstance(e, InputError):
+        msg = str(e)
+    elif isinstance(e, json.JSONDecodeError):
+        msg = f"<input>:{e.lineno}: invalid JSON: {e.msg}; check the file"
+    elif isinstance(e, UnicodeDecodeError):
+        msg = f"<input>: not UTF-8 text (byte {e.start}); a text file was expected"
+    elif isinstance(e, OSError) and e.filename is not None:
+        msg = f"{e.filename}: {e.strerror or e}; check the path and its permissions"
+    elif isinstance(e, OSError):
+        msg = f"{e}"  # a board or transport failure (TransportError) says what and where itself
+    else:
+        cmd = " ".join(x for x in (getattr(args, "command", None), getattr(args, "device_command", None)) if x)
+        msg = f"{cmd or 'playscope'}: {e}; check the inputs and options (PLAYSCOPE_DEBUG=1 for details)"
+    return " ".join(msg.split())  # one line, whatever the message held
 
 
 if __name__ == "__main__":

@@ -1,11 +1,15 @@
-"""One error type for bad input, so the CLI can print it as a single line naming file and row."""
+"""Error types of playscope: bad input prints as one line naming file and row (the CLI)."""
 
 from __future__ import annotations
 
 import os
 
 
-class InputError(ValueError):
+class PlayscopeError(Exception):
+    """Base of every error playscope raises on purpose (the CLI prints it as one line)."""
+
+
+class InputError(PlayscopeError, ValueError):
     """Bad input from outside (a session file, a table, a video).
 
     str(err) is one line: ``"<file>:<row>: <message>"`` (row omitted when unknown).

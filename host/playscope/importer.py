@@ -31,8 +31,15 @@ def import_csv(path, t_col: str, q_col: str, c_col: str, time_scale: float = 1.0
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
-    with open(path, newline="") as fh:
-        header = [h.strip() for h in next(csv.reader(fh), [])]
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            header = [h.strip() for h in next(csv.reader(fh), [])]
+    except UnicodeDecodeError as e:
+        raise InputError(path, f"not UTF-8 text (byte {e.start}): a CSV with a header row was expected", 1) from None
+    except csv.Error as e:
+        raise InputError(path, f"not a CSV file ({e})", 1) from None
+    except OSError as e:
+        raise InputError(path, f"cannot read: {e.strerror or e}; check the permissions") from None
     for col in (t_col, q_col, c_col):
         if col not in header:
             raise InputError(path, f"missing column {col!r} (header: {','.join(header)})", 1)

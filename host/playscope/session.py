@@ -17,6 +17,7 @@ import csv
 import json
 import math
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -179,7 +180,9 @@ def _read_csv_fast(path: Path, required, nullable) -> dict[str, np.ndarray] | No
             header = [h.strip() for h in fh.readline().split(",")]
         if any(n not in header for n in required):
             return None
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
+        with warnings.catch_warnings():  # "no data": the checked reader reports it as one line
+            warnings.simplefilter("ignore")
+            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
     except (ValueError, OSError, IndexError):
         return None
     if data.shape[0] == 0 or data.shape[1] != len(header) or not np.all(np.isfinite(data)):
@@ -188,16 +191,23 @@ def _read_csv_fast(path: Path, required, nullable) -> dict[str, np.ndarray] | No
 
 
 def _read_csv_checked(path: Path, required, nullable) -> dict[str, np.ndarray]:
-    with open(path, newline="") as fh:
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise InputError(path, "empty file (no header row)", 1) from None
-        for name in required:
-            if name not in header:
-                raise InputError(path, f"missing column {name!r} (header: {','.join(header)})", 1)
-        rows = list(reader)
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            reader = csv.reader(fh)
+            try:
+                header = [h.strip() for h in next(reader)]
+            except StopIteration:
+                raise InputError(path, "empty file (no header row)", 1) from None
+            for name in required:
+                if name not in header:
+                    raise InputError(path, f"missing column {name!r} (header: {','.join(header)})", 1)
+            rows = list(reader)
+    except UnicodeDecodeError as e:
+        raise InputError(path, f"not UTF-8 text (byte {e.start}): a CSV of numbers was expected") from None
+    except csv.Error as e:
+        raise InputError(path, f"not a CSV file ({e})", getattr(reader, "line_num", None) or None) from None
+    except OSError as e:
+        raise InputError(path, f"cannot read: {e.strerror or e}; check the permissions") from None
     ncol = len(header)
     data = np.full((len(rows), ncol), np.nan)
     null_idx = {header.index(n) for n in nullable if n in header}
@@ -242,6 +252,35 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str
 
 
 # --------------------------------------------------------------------------- JSON
+MAX_JSON_BYTES = 16 << 20  # a session.json or calibration is a few kB; refuse junk early
+
+
+def read_json(path: Path, what: str = "JSON file"):
+    """Read and parse a small JSON file a user gave. Errors: InputError naming the file (and
+    line) for a missing, unreadable, oversized, non-UTF-8, malformed or too deeply nested file."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes() if path.stat().st_size <= MAX_JSON_BYTES else None
+    except FileNotFoundError:
+        raise InputError(path, "file not found") from None
+    except IsADirectoryError:
+        raise InputError(path, f"is a folder, not a {what}") from None
+    except OSError as e:
+        raise InputError(path, f"cannot read: {e.strerror or e}; check the permissions") from None
+    if raw is None:
+        raise InputError(path, f"larger than {MAX_JSON_BYTES >> 20} MiB: not a {what}")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = raw[:e.start].count(b"\n") + 1
+        raise InputError(path, f"not UTF-8 text (byte {e.start}): not a {what}", line) from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise InputError(path, f"invalid JSON: {e.msg}", e.lineno) from None
+    except RecursionError:
+        raise InputError(path, f"JSON nested too deeply: not a {what}") from None
+
 def _get(d: dict, key: str, path: Path, where: str, kind=None):
     if not isinstance(d, dict) or key not in d:
         raise InputError(path, f"missing key {where}{key}")
@@ -291,14 +330,20 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
         c = _get(d, "camera", path, "", dict)
         K = _matrix(_get(c, "K", path, "camera."), (3, 3), path, "camera.K")
         dist = _matrix(c.get("dist", [0, 0, 0, 0, 0]), (5,), path, "camera.dist")
-        out["camera"] = Camera(int(_get(c, "width", path, "camera.", float)), int(_get(c, "height", path, "camera.", float)),
-                               _get(c, "fps", path, "camera.", float), K, dist)
-        if out["camera"].fps <= 0:
-            raise InputError(path, "camera.fps must be positive")
+        w, h_px = _get(c, "width", path, "camera.", float), _get(c, "height", path, "camera.", float)
+        if not (1 <= w <= MAX_IMAGE_PX and 1 <= h_px <= MAX_IMAGE_PX) or w != int(w) or h_px != int(h_px):
+            raise InputError(path, f"camera.width and camera.height must be whole pixels in 1..{MAX_IMAGE_PX}, "
+                             f"got {w!r} x {h_px!r}")
+        out["camera"] = Camera(int(w), int(h_px), _get(c, "fps", path, "camera.", float), K, dist)
+        if not 0 < out["camera"].fps <= MAX_FPS:
+            raise InputError(path, f"camera.fps must be in (0, {MAX_FPS:g}] Hz, got {out['camera'].fps!r}")
+        check_camera(out["camera"], path)
     if "hand_eye" in d or kind == "image":
         h = _get(d, "hand_eye", path, "", dict)
         R = _matrix(_get(h, "R", path, "hand_eye."), (3, 3), path, "hand_eye.R")
-        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        with np.errstate(all="ignore"):  # huge entries overflow: then not a rotation either
+            rotation = bool(np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0)
+        if not rotation:
             raise InputError(path, "hand_eye.R is not a rotation matrix")
         out["hand_eye"] = HandEye(R, _matrix(_get(h, "t_mm", path, "hand_eye."), (3,), path, "hand_eye.t_mm"))
     if d.get("t_delay_s") is not None:
@@ -308,6 +353,49 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
     known = {"format", "actuator", "distal", "robot", "camera", "hand_eye", "t_delay_s"}
     out["meta"] = {k: v for k, v in d.items() if k not in known}
     return out
+
+
+# --------------------------------------------------------------------------- camera sanity
+MAX_IMAGE_PX = 100_000   # px per side: beyond any sensor, and keeps the corner radius finite
+MAX_FPS = 100_000.0      # Hz
+
+
+def check_camera(cam: Camera, path) -> None:
+    """Refuse a camera that cannot be an OpenCV pinhole + distortion model of this image.
+
+    K must be an intrinsic matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0 (so
+    invertible; finiteness is checked by the reader). The radial part of the distortion,
+    r_d = r (1 + k1 r^2 + k2 r^4 + k3 r^6) in normalised coordinates (OpenCV's model,
+    the one the simulator renders and the estimator inverts), must be strictly increasing
+    from r = 0 until it reaches the image's farthest corner: where dr_d/dr <= 0 two scene
+    points land on one pixel (the image folds) and no inverse exists. The tangential p1, p2
+    do not fold an image of usual size and are not checked. Errors: InputError(path, one line).
+    """
+    K = np.asarray(cam.K, float)
+    fx, fy = K[0, 0], K[1, 1]
+    if not (fx > 0 and fy > 0) or np.any(np.abs(K[1, :1]) > 1e-9) or np.any(np.abs(K[2] - [0, 0, 1]) > 1e-9):
+        raise InputError(path, f"camera.K is singular or not an intrinsic matrix (need fx > 0, fy > 0 and rows "
+                         f"[0, fy, cy], [0, 0, 1]; got fx {fx:g}, fy {fy:g}, last row {K[2].tolist()})")
+    cx, cy = K[0, 2], K[1, 2]
+    k1, k2, _, _, k3 = (float(x) for x in np.asarray(cam.dist, float))
+    # Normalised radius of the farthest image corner (skew ignored: it only shears).
+    r_corner = max(math.hypot((u - cx) / fx, (v - cy) / fy) for u in (0, cam.width) for v in (0, cam.height))
+    if not math.isfinite(r_corner) or r_corner <= 0:
+        raise InputError(path, "camera.K puts the principal point at an infinite distance from the image")
+    r = np.linspace(0.0, 4.0 * r_corner, 4001)
+    r2 = r * r
+    with np.errstate(all="ignore"):  # absurd coefficients overflow: NaN/inf below count as a fold
+        rd = r * (1 + k1 * r2 + k2 * r2 ** 2 + k3 * r2 ** 3)
+        drd = 1 + 3 * k1 * r2 + 5 * k2 * r2 ** 2 + 7 * k3 * r2 ** 3
+    reach = np.nonzero(np.isfinite(rd) & (rd >= r_corner))[0]
+    end = int(reach[0]) if reach.size else r.size - 1  # samples up to the corner (or all of them)
+    bad = np.nonzero(~(np.isfinite(drd[: end + 1]) & (drd[: end + 1] > 0)))[0]
+    if bad.size or not reach.size:
+        r_fold = float(r[bad[0]]) if bad.size else float(r[int(np.nanargmax(np.where(np.isfinite(rd), rd, -np.inf)))])
+        raise InputError(path, f"camera.dist (k1 {k1:g}, k2 {k2:g}, k3 {k3:g}) folds the image: the radial model "
+                         f"stops increasing at normalised radius {r_fold:.3g}, before the image corner "
+                         f"({r_corner:.3g}); recalibrate the camera or check the coefficients' order "
+                         "(OpenCV: k1 k2 p1 p2 k3)")
 
 
 # --------------------------------------------------------------------------- load / write
@@ -324,10 +412,7 @@ def load_session(folder: str | os.PathLike) -> Session:
     jpath = folder / "session.json"
     if not jpath.is_file():
         raise InputError(jpath, "file not found")
-    try:
-        d = json.loads(jpath.read_text())
-    except json.JSONDecodeError as e:
-        raise InputError(jpath, f"invalid JSON: {e.msg}", e.lineno) from None
+    d = read_json(jpath, "session.json")
     kw = parse_meta(d, jpath)
     enc = read_csv(folder / "encoder.csv", ["t_s", "q"], ["q_cmd"])
     if len(enc["t_s"]) < 2:

@@ -138,19 +138,36 @@ static size_t make_table(uint32_t gen, fixture_fn f)
     return fixture_build(&blob, &g, b_fn, NULL, f, NULL);
 }
 
+static uint16_t up_session; /* token of the last BEGIN this test's host opened */
+
+/* BEGIN: opens an upload session; returns its token (also kept in up_session). */
+static uint16_t begin(size_t n, uint32_t crc)
+{
+    psp_table_begin_t b = {.total_size = (uint32_t)n, .crc32 = crc};
+    resp_t r = req(PSP_MSG_TABLE_BEGIN, &b, sizeof b);
+    expect_ok(r, PSP_MSG_TABLE_BEGIN);
+    assert_int_equal(r.len, sizeof(psp_table_session_t));
+    psp_table_session_t ss;
+    memcpy(&ss, r.pl, sizeof ss);
+    assert_true(ss.session != 0);
+    assert_int_equal(ss.timeout_ms, L.cfg.upload_timeout_us / 1000u);
+    up_session = ss.session;
+    return ss.session;
+}
+
 /* BEGIN, chunks of PSP_CHUNK_MAX; returns the COMMIT answer. */
 static resp_t upload(const uint8_t *t, size_t n)
 {
     psp_table_begin_t b = {.total_size = (uint32_t)n, .crc32 = psf_get_u32(t + 12)};
-    expect_ok(req(PSP_MSG_TABLE_BEGIN, &b, sizeof b), PSP_MSG_TABLE_BEGIN);
+    begin(n, b.crc32);
     for (size_t off = 0; off < n; off += PSP_CHUNK_MAX) {
-        psp_table_chunk_t c = {.offset = (uint32_t)off};
+        psp_table_chunk_t c = {.offset = (uint32_t)off, .session = up_session};
         c.len = (uint16_t)(n - off < PSP_CHUNK_MAX ? n - off : PSP_CHUNK_MAX);
         memcpy(c.data, t + off, c.len);
         c.chunk_crc32 = ps_crc32_update(0, c.data, c.len);
         expect_ok(req(PSP_MSG_TABLE_CHUNK, &c, (uint16_t)(12 + c.len)), PSP_MSG_TABLE_CHUNK);
     }
-    psp_table_commit_t cm = {.crc32 = b.crc32};
+    psp_table_commit_t cm = {.crc32 = b.crc32, .session = up_session};
     return req(PSP_MSG_TABLE_COMMIT, &cm, sizeof cm);
 }
 
@@ -236,11 +253,12 @@ static void test_refusals_change_nothing(void **state)
     assert_int_equal(r.pl[3], CALIB_ERR_F_NOT_MONOTONE);
     /* Whole-table CRC in COMMIT differs from the announced one. */
     n = make_table(6, f_fn);
+    /* A refused commit consumed its session: the next upload opens a new one. */
     psp_table_begin_t b = {.total_size = (uint32_t)n, .crc32 = psf_get_u32(blob.bytes + 12)};
-    expect_ok(req(PSP_MSG_TABLE_BEGIN, &b, sizeof b), PSP_MSG_TABLE_BEGIN);
-    psp_table_commit_t cm = {.crc32 = b.crc32 ^ 1};
+    begin(n, b.crc32);
+    psp_table_commit_t cm = {.crc32 = b.crc32 ^ 1, .session = up_session};
     expect_err(req(PSP_MSG_TABLE_COMMIT, &cm, sizeof cm), PSP_ERR_STATE); /* nothing uploaded */
-    psp_table_chunk_t c = {.offset = 0, .len = 16};
+    psp_table_chunk_t c = {.offset = 0, .len = 16, .session = up_session};
     memcpy(c.data, blob.bytes, 16);
     c.chunk_crc32 = ps_crc32_update(0, c.data, 16) ^ 1;
     expect_err(req(PSP_MSG_TABLE_CHUNK, &c, 12 + 16), PSP_ERR_CRC);
@@ -313,7 +331,7 @@ static void test_commit_only_when_idle(void **state)
     assert_int_equal(info().active_generation, 1);
     m.mode = PSP_MODE_IDLE;
     expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
-    psp_table_commit_t cm = {.crc32 = psf_get_u32(blob.bytes + 12)};
+    psp_table_commit_t cm = {.crc32 = psf_get_u32(blob.bytes + 12), .session = up_session};
     expect_ok(req(PSP_MSG_TABLE_COMMIT, &cm, sizeof cm), PSP_MSG_TABLE_COMMIT); /* upload kept */
     assert_int_equal(info().active_generation, 2);
 }
@@ -446,6 +464,100 @@ static void test_power_cut_via_handler(void **state)
     assert_true(n_old > 80);
 }
 
+/* One owner per upload: a second BEGIN, or a request carrying another token, is BUSY
+ * until the owner commits, aborts or has been silent for upload_timeout_us. */
+static void test_upload_session_one_owner(void **state)
+{
+    (void)state;
+    size_t n = make_table(1, f_fn);
+    uint32_t crc = psf_get_u32(blob.bytes + 12);
+    psl_tick(&L, 1000000, 0);
+    uint16_t a = begin(n, crc);
+    psp_table_begin_t b = {.total_size = (uint32_t)n, .crc32 = crc};
+    resp_t r = req(PSP_MSG_TABLE_BEGIN, &b, sizeof b);
+    expect_err(r, PSP_ERR_BUSY);
+    assert_int_equal(r.pl[3], 5); /* s until the session expires */
+    psp_table_chunk_t c = {.offset = 0, .len = PSP_CHUNK_MAX, .session = (uint16_t)(a + 1)};
+    memcpy(c.data, blob.bytes, c.len);
+    c.chunk_crc32 = ps_crc32_update(0, c.data, c.len);
+    expect_err(req(PSP_MSG_TABLE_CHUNK, &c, (uint16_t)(12 + c.len)), PSP_ERR_BUSY);
+    psp_table_commit_t cm = {.crc32 = crc, .session = 0};
+    expect_err(req(PSP_MSG_TABLE_COMMIT, &cm, sizeof cm), PSP_ERR_BUSY);
+    psp_table_abort_t ab = {.session = (uint16_t)(a ^ 0x8000)};
+    expect_err(req(PSP_MSG_TABLE_ABORT, &ab, sizeof ab), PSP_ERR_BUSY);
+    /* The owner goes on; 2 s later the others are still told to wait, now 3 s. */
+    c.session = a;
+    expect_ok(req(PSP_MSG_TABLE_CHUNK, &c, (uint16_t)(12 + c.len)), PSP_MSG_TABLE_CHUNK);
+    psl_tick(&L, 3000000, 0);
+    r = req(PSP_MSG_TABLE_BEGIN, &b, sizeof b);
+    expect_err(r, PSP_ERR_BUSY);
+    assert_int_equal(r.pl[3], 3);
+    /* Silent past the timeout: the session is free, the old token is dead. */
+    psl_tick(&L, 8000001, 0);
+    expect_err(req(PSP_MSG_TABLE_CHUNK, &c, (uint16_t)(12 + c.len)), PSP_ERR_STATE);
+    uint16_t b2 = begin(n, crc);
+    assert_true(b2 != a);
+    /* Abort by the owner frees it at once. */
+    ab.session = b2;
+    expect_ok(req(PSP_MSG_TABLE_ABORT, &ab, sizeof ab), PSP_MSG_TABLE_ABORT);
+    expect_err(req(PSP_MSG_TABLE_ABORT, &ab, sizeof ab), PSP_ERR_STATE);
+    assert_int_equal(info().active_generation, 0);
+    /* A whole upload by a third session goes in; after the commit BEGIN is free again. */
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    assert_int_equal(info().active_generation, 1);
+    begin(n, crc);
+}
+
+/* A flash whose whole-record reads (one call longer than the store's verify chunks: the
+ * handler's read-back) return one flipped bit while armed: the store's own verify passes,
+ * the table CRC on what was read back does not. */
+static int flaky_armed;
+static int flaky_read(void *ctx, uint8_t slot, uint32_t off, uint8_t *o, uint32_t len)
+{
+    int r = sim.port.read(ctx, slot, off, o, len);
+    if (flaky_armed && len > 64 && r == 0)
+        o[len / 2] ^= 0x01;
+    return r;
+}
+
+static void test_readback_mismatch_keeps_previous(void **state)
+{
+    (void)state;
+    static pss_flash_t flaky;
+    flaky = sim.port;
+    flaky.read = flaky_read;
+    psl_config_t cfg = psl_default_config(1000);
+    flaky_armed = 0;
+    psl_init(&L, &cfg, &flaky, wr, NULL);
+    out_n = 0;
+    seq = info().last_seq;
+    static fixture_blob_t old_t;
+    size_t on = make_table(1, f_fn);
+    memcpy(&old_t, &blob, sizeof blob);
+    expect_ok(upload(old_t.bytes, on), PSP_MSG_TABLE_COMMIT);
+    size_t nn = make_table(2, f_fn);
+    flaky_armed = 1;
+    resp_t r = upload(blob.bytes, nn);
+    flaky_armed = 0;
+    expect_err(r, PSP_ERR_FLASH);
+    assert_int_equal(r.pl[3], PSL_DETAIL_READBACK);
+    psp_info_t i = info();
+    assert_int_equal(i.active_generation, 1);
+    assert_int_equal(i.active_slot, 0);
+    uint8_t back[PST_MAX_TABLE_SIZE];
+    assert_int_equal(read_back(back, sizeof back), on);
+    assert_memory_equal(back, old_t.bytes, on);
+    /* The refused slot was erased: a reboot runs the previous table too. */
+    psl_init(&L, &cfg, &flaky, wr, NULL);
+    out_n = 0;
+    i = info();
+    assert_int_equal(i.active_generation, 1);
+    seq = i.last_seq;
+    /* With a sound flash the same table goes in. */
+    expect_ok(upload(blob.bytes, nn), PSP_MSG_TABLE_COMMIT);
+    assert_int_equal(info().active_generation, 2);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -458,6 +570,8 @@ int main(void)
         cmocka_unit_test_setup(test_streaming, setup),
         cmocka_unit_test_setup(test_onset_over_the_link, setup),
         cmocka_unit_test_setup(test_power_cut_via_handler, setup),
+        cmocka_unit_test_setup(test_readback_mismatch_keeps_previous, setup),
+        cmocka_unit_test_setup(test_upload_session_one_owner, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

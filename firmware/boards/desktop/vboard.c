@@ -22,7 +22,17 @@
 enum {
     VB_SLOT_SIZE = 128 * 1024, /* as one STM32F405 sector 10/11 */
     VB_TICKS_MAX_PER_WAKE = 200, /* after a stall, catch up at most this many ticks at once */
+    VB_MAX_HOSTS = 4,            /* --listen: hosts connected at once (like a UART and a USB port) */
 };
+
+/* One host port of --listen: its own frame parser and replay window, as a board with a
+ * UART and a USB port keeps per port. The board state (tables, upload session, mode) is
+ * shared: that is what two hosts contend for. */
+typedef struct {
+    int fd;                      /* -1: free */
+    psf_parser_t parser;
+    uint16_t last_seq;
+} vb_port_t;
 
 static psl_t board;
 static int out_fd = 1;
@@ -61,9 +71,10 @@ static void usage(void)
             "usage: ps_vboard [--flash FILE] [--stdio | --listen PORT | --pty] [--tick-hz HZ]\n"
             "  --flash FILE   file-backed A/B slots (2 x 128 KiB), kept across runs; default: RAM\n"
             "  --stdio        frames on stdin/stdout (default)\n"
-            "  --listen PORT  TCP on 127.0.0.1:PORT, one host at a time (prints 'listening PORT')\n"
+            "  --listen PORT  TCP on 127.0.0.1:PORT, up to 4 hosts at once (prints 'listening PORT')\n"
             "  --pty          a pseudo-terminal (prints 'pty /dev/pts/N')\n"
             "  --tick-hz HZ   control tick rate, default 1000\n"
+            "  --upload-timeout-ms MS  a table upload session silent this long is free again, default 5000\n"
             "  --time-scale X board clock runs X times the wall clock (simulation only), default 1\n"
             "  --exc Q0:Q1:AMP:ADV:V  excitation used without a table: range, amplitude, advance\n"
             "                 (actuator units) and speed (units/s); default 0:10:1:0.25:10\n");
@@ -99,12 +110,80 @@ static void serve(int in_fd, uint32_t tick_hz, double time_scale)
     }
 }
 
+/* --listen: up to VB_MAX_HOSTS connections at once. Each port's parser and replay window
+ * are swapped into the board around its bytes; answers go back on that port, unsolicited
+ * frames (stream, onset events) to the port that spoke last. */
+static void serve_ports(int listen_fd, uint32_t tick_hz, double time_scale)
+{
+    static vb_port_t port[VB_MAX_HOSTS];
+    uint8_t buf[4096];
+    int one = 1;
+    for (int k = 0; k < VB_MAX_HOSTS; k++)
+        port[k].fd = -1;
+    uint64_t t0 = now_us(), ticks = 0;
+    int32_t q_q16 = 0;
+    uint64_t tick_ns = 1000000000ull / tick_hz;
+    out_fd = -1;
+    while (!stop) {
+        struct pollfd p[1 + VB_MAX_HOSTS];
+        p[0] = (struct pollfd){.fd = listen_fd, .events = POLLIN};
+        for (int k = 0; k < VB_MAX_HOSTS; k++)
+            p[1 + k] = (struct pollfd){.fd = port[k].fd, .events = POLLIN};
+        int r = poll(p, 1 + VB_MAX_HOSTS, 1);
+        if (r < 0 && errno != EINTR)
+            break;
+        if (r > 0 && (p[0].revents & POLLIN)) {
+            int c = accept(listen_fd, NULL, NULL);
+            int k = 0;
+            while (k < VB_MAX_HOSTS && port[k].fd >= 0)
+                k++;
+            if (c >= 0 && k == VB_MAX_HOSTS) {
+                close(c); /* all ports taken */
+            } else if (c >= 0) {
+                setsockopt(c, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+                port[k].fd = c;
+                port[k].last_seq = 0;
+                psf_parser_reset(&port[k].parser);
+            }
+        }
+        for (int k = 0; r > 0 && k < VB_MAX_HOSTS; k++) {
+            if (port[k].fd < 0 || !(p[1 + k].revents & (POLLIN | POLLHUP | POLLERR)))
+                continue;
+            ssize_t n = read(port[k].fd, buf, sizeof buf);
+            if (n == 0 || (n < 0 && errno != EINTR && errno != EAGAIN)) {
+                if (out_fd == port[k].fd)
+                    out_fd = -1;
+                close(port[k].fd);
+                port[k].fd = -1;
+                continue;
+            }
+            if (n < 0)
+                continue;
+            board.parser = port[k].parser;
+            board.last_seq = port[k].last_seq;
+            out_fd = port[k].fd;
+            psl_rx(&board, buf, (size_t)n);
+            port[k].parser = board.parser;
+            port[k].last_seq = board.last_seq;
+        }
+        uint64_t due = (uint64_t)((double)(now_us() - t0) * 1000.0 * time_scale / (double)tick_ns);
+        for (int k = 0; ticks < due && k < VB_TICKS_MAX_PER_WAKE; k++, ticks++)
+            q_q16 = psl_tick(&board, (uint32_t)(ticks * tick_ns / 1000u), q_q16);
+        if (due > ticks + VB_TICKS_MAX_PER_WAKE)
+            ticks = due;
+    }
+    for (int k = 0; k < VB_MAX_HOSTS; k++)
+        if (port[k].fd >= 0)
+            close(port[k].fd);
+}
+
 int main(int argc, char **argv)
 {
     const char *flash_path = NULL;
     int listen_port = -1, use_pty = 0;
     uint32_t tick_hz = 1000;
     double time_scale = 1.0;
+    unsigned long upload_timeout_ms = PSL_UPLOAD_TIMEOUT_US / 1000u;
     double exc[5];
     int have_exc = 0;
     for (int i = 1; i < argc; i++) {
@@ -116,6 +195,8 @@ int main(int argc, char **argv)
             use_pty = 1;
         else if (!strcmp(argv[i], "--stdio"))
             ;
+        else if (!strcmp(argv[i], "--upload-timeout-ms") && i + 1 < argc)
+            upload_timeout_ms = strtoul(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--tick-hz") && i + 1 < argc)
             tick_hz = (uint32_t)strtoul(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--time-scale") && i + 1 < argc)
@@ -128,7 +209,8 @@ int main(int argc, char **argv)
             return 2;
         }
     }
-    if (tick_hz == 0 || tick_hz > 100000 || !(time_scale > 0.0 && time_scale <= 100.0)) {
+    if (tick_hz == 0 || tick_hz > 100000 || !(time_scale > 0.0 && time_scale <= 100.0) ||
+        upload_timeout_ms == 0 || upload_timeout_ms > 3600000ul) {
         usage();
         return 2;
     }
@@ -153,6 +235,7 @@ int main(int argc, char **argv)
     psl_config_t cfg = psl_default_config(tick_hz);
     cfg.board_id[0] = 0x56495254; /* "VIRT" */
     cfg.board_id[2] = (uint32_t)getpid();
+    cfg.upload_timeout_us = (uint32_t)(upload_timeout_ms * 1000u);
     if (have_exc) {
         cfg.exc.q_start_q16 = (int32_t)(exc[0] * 65536.0);
         cfg.exc.q_end_q16 = (int32_t)(exc[1] * 65536.0);
@@ -174,22 +257,14 @@ int main(int argc, char **argv)
         struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)listen_port),
                                 .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
         socklen_t al = sizeof a;
-        if (bind(s, (struct sockaddr *)&a, sizeof a) != 0 || listen(s, 1) != 0) {
+        if (bind(s, (struct sockaddr *)&a, sizeof a) != 0 || listen(s, VB_MAX_HOSTS) != 0) {
             perror("listen");
             return 1;
         }
         getsockname(s, (struct sockaddr *)&a, &al);
         printf("listening %u\n", ntohs(a.sin_port));
         fflush(stdout);
-        while (!stop) {
-            int c = accept(s, NULL, NULL);
-            if (c < 0)
-                continue;
-            setsockopt(c, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-            out_fd = c;
-            serve(c, tick_hz, time_scale);
-            close(c);
-        }
+        serve_ports(s, tick_hz, time_scale);
     } else if (use_pty) {
         int m = posix_openpt(O_RDWR | O_NOCTTY);
         if (m < 0 || grantpt(m) != 0 || unlockpt(m) != 0) {

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import argtypes as T
 from ..calibration import calibrate
 from ..session import load_session
 from .common import add_json_arg, dump_json
@@ -16,14 +17,14 @@ def add_parser(sub) -> None:
                        "squares, or the paper's morphological median line) -> calibration JSON "
                        "(docs/calibration-format.md). Example: playscope calibrate sessions/d21 -o d21.cal.json")
     p.add_argument("session", help="session folder (playscope-session/1)")
-    p.add_argument("-o", "--out", required=True, help="calibration JSON to write")
-    p.add_argument("-N", "--control-points", type=int, default=14, help="B-spline control points (paper: 14)")
+    p.add_argument("-o", "--out", required=True, type=T.file_path, help="calibration JSON to write")
+    p.add_argument("-N", "--control-points", type=T.CONTROL_POINTS, default=14, help="B-spline control points (paper: 14)")
     p.add_argument("--f-method", choices=["lsq", "morph"], default="lsq",
                    help="f_remain estimator: lsq (default, play-consistent) or morph (paper, section IV)")
-    p.add_argument("--fps", type=float, help="frame rate for angle sessions (default: ~125 frames per stroke, 10-50 Hz)")
-    p.add_argument("--t-delay", type=float, help="image delay t_delay in s (default: session.json, else estimated)")
-    p.add_argument("--hysteresis", type=float, help="reversal detection hysteresis, actuator units (default 1%% of travel)")
-    p.add_argument("--threshold", type=float, help="onset threshold T per frame (px or deg); default automatic")
+    p.add_argument("--fps", type=T.FPS, help="frame rate for angle sessions (default: ~125 frames per stroke, 10-50 Hz)")
+    p.add_argument("--t-delay", type=T.T_DELAY_S, help="image delay t_delay in s (default: session.json, else estimated)")
+    p.add_argument("--hysteresis", type=T.HYSTERESIS, help="reversal detection hysteresis, actuator units (default 1%% of travel)")
+    p.add_argument("--threshold", type=T.THRESHOLD, help="onset threshold T per frame (px or deg); default automatic")
     add_json_arg(p, "calibration (path), reversals, b_samples, onset_reasons {name: count}, t_delay_s, "
                  "fps_frames, B_range [min,max], rms_fit_deg")
     p.set_defaults(func=run)

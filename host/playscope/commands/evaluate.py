@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..calibration import Calibration
+from .. import argtypes as T
 from ..evaluate import evaluate, format_table
 from ..session import load_session
-from .common import add_json_arg, dump_json
+from .common import add_json_arg, dump_json, load_calibration
 
 
 def add_parser(sub) -> None:
@@ -20,9 +20,9 @@ def add_parser(sub) -> None:
                        "Example: playscope evaluate sim_test cal.json --json eval.json")
     p.add_argument("session", help="test session folder (not the one calibrated on, for a fair test)")
     p.add_argument("calibration", help="calibration JSON from `playscope calibrate`")
-    p.add_argument("--table", help="table blob from `playscope tables` for the fixed-point rows "
+    p.add_argument("--table", type=T.existing_file, help="table blob from `playscope tables` for the fixed-point rows "
                    "(default: built from the calibration)")
-    p.add_argument("--comp-duration", type=float, default=60.0, help="length of the compensation reference, s (default 60)")
+    p.add_argument("--comp-duration", type=T.float_range(0.1, 3600.0), default=60.0, help="length of the compensation reference, s (default 60)")
     add_json_arg(p, "format, session, calibration, distal_kind, t_delay_s, frames_scored, table, "
                  "prediction {model: {Qx_px|Qy_px|dist_px|c_deg: {mean,std,max}, c_rmse_deg, c_rmse_truth_deg}}, "
                  "compensation {plant, note, reference {duration_s, rate_hz, c_min_deg, c_max_deg}, "
@@ -32,7 +32,7 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    cal = Calibration.load(a.calibration)
+    cal = load_calibration(a.calibration)
     s = load_session(a.session)
     tab = None
     if a.table:

@@ -6,6 +6,7 @@ import argparse
 import math
 import sys
 
+from .. import argtypes as T
 from ..errors import InputError
 from ..importer import CATHETER, import_csv
 from ..session import write_session
@@ -48,16 +49,16 @@ def add_parser(sub) -> None:
     g.add_argument("--t-col", default=CATHETER["t"], help="time column (default %(default)r)")
     g.add_argument("--q-col", default=CATHETER["q"], help="actuator column (default %(default)r)")
     g.add_argument("--c-col", default=CATHETER["c"], help="bending-angle column, deg (default %(default)r)")
-    g.add_argument("--time-scale", type=_finite("non-zero number"), default=1.0,
+    g.add_argument("--time-scale", type=T.float_range(0.0, 1e9, lo_open=True), default=1.0,
                    help="multiply time by this to get s (1e-3 for ms)")
     b = p.add_argument_group("ROS bag input")
     b.add_argument("--q-topic", metavar="TOPIC[:FIELD]", help="actuator position topic (required for a bag)")
     b.add_argument("--c-topic", metavar="TOPIC[:FIELD]", help="distal bending angle topic: an angle session")
     b.add_argument("--image-topic", metavar="TOPIC", help="camera topic (Image or CompressedImage): an image session")
-    b.add_argument("--geometry", metavar="SESSION_JSON", help="image sessions: robot, camera and hand_eye from this file")
+    b.add_argument("--geometry", metavar="SESSION_JSON", type=T.existing_file, help="image sessions: robot, camera and hand_eye from this file")
     b.add_argument("--c-scale", type=_finite("non-zero number"), default=1.0,
                    help="multiply the angle by this to get deg (57.29578 for rad)")
-    b.add_argument("--t-delay", type=float, default=None, help="image sessions: acquisition delay, s (else estimated)")
+    b.add_argument("--t-delay", type=T.T_DELAY_S, default=None, help="image sessions: acquisition delay, s (else estimated)")
     p.add_argument("--q-scale", type=_finite("non-zero number"), default=1.0,
                    help="multiply q by this to get the actuator unit")
     p.add_argument("--unit", choices=["mm", "deg"], default="mm", help="actuator unit (default mm)")

@@ -5,12 +5,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..calibration import Calibration
+from .. import argtypes as T
 from ..errors import InputError
 from ..evaluate import evaluate, format_table
 from ..report import write_report
 from ..session import load_session
-from .common import add_json_arg, dump_json
+from .common import add_json_arg, dump_json, load_calibration
 
 
 def add_parser(sub) -> None:
@@ -20,7 +20,7 @@ def add_parser(sub) -> None:
                        "compensation (Fig. 12), and Table I. Example: playscope report cal.json sim_test -o report.html")
     p.add_argument("calibration", help="calibration JSON")
     p.add_argument("session", help="test session folder")
-    p.add_argument("-o", "--out", required=True, help="HTML file to write")
+    p.add_argument("-o", "--out", required=True, type=T.file_path, help="HTML file to write")
     p.add_argument("--eval", metavar="JSON", help="`playscope evaluate --json` output whose tables to show "
                    "(default: computed here; the figures are always computed from the inputs)")
     add_json_arg(p, "report (path), figures [names], bytes")
@@ -28,7 +28,7 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    cal = Calibration.load(a.calibration)
+    cal = load_calibration(a.calibration)
     s = load_session(a.session)
     ev = evaluate(cal, s, source=a.session)
     ev.summary["calibration"] = a.calibration

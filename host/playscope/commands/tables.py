@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+from .. import argtypes as T
 from ..atomic import write_bytes_atomic
-from ..calibration import Calibration
 from ..tables import build_table, table_errors
-from .common import add_json_arg, dump_json
+from ..errors import InputError
+from .common import add_json_arg, dump_json, load_calibration
 
 
 def add_parser(sub) -> None:
@@ -15,21 +16,26 @@ def add_parser(sub) -> None:
                        "calib_load(), and report the measured worst-case error of the fixed-point direct model "
                        "and compensator against the float model. Example: playscope tables d21.cal.json -o d21.pstb")
     p.add_argument("calibration", help="calibration JSON from `playscope calibrate`")
-    p.add_argument("-o", "--out", required=True, help="table blob to write")
-    p.add_argument("--entries", type=int, help="max entries per grid (default PST_MAX_ENTRIES = 256)")
-    p.add_argument("--generation", type=int, default=1, help="table generation number (default 1)")
+    p.add_argument("-o", "--out", required=True, type=T.file_path, help="table blob to write")
+    p.add_argument("--entries", type=T.int_range(2, 256), help="max entries per grid (default PST_MAX_ENTRIES = 256)")
+    p.add_argument("--generation", type=T.GENERATION, default=1, help="table generation number (default 1)")
     p.add_argument("--f-coarse", action="store_true", help="store f_coarse instead of f_remain (eq. 5 instead of 9)")
     add_json_arg(p, "table (path), bytes, crc32, entries, errors {direct_c_deg_max, comp_q_max, f_inv_err, z_err}")
     p.set_defaults(func=run)
 
 
 def run(a) -> int:
-    cal = Calibration.load(a.calibration)
+    cal = load_calibration(a.calibration)
     q_min, q_max = cal.doc["q_range"]
     f = cal.f_coarse if a.f_coarse else cal.f
-    tab = build_table(cal.B, f, q_min, q_max, cal.doc["actuator_unit"], "coarse" if a.f_coarse else "remain",
-                      a.generation, a.entries, source=a.calibration)
-    err = table_errors(tab, cal.B, f, q_min, q_max)
+    try:
+        tab = build_table(cal.B, f, q_min, q_max, cal.doc["actuator_unit"], "coarse" if a.f_coarse else "remain",
+                          a.generation, a.entries, source=a.calibration)
+        err = table_errors(tab, cal.B, f, q_min, q_max)
+    except (ValueError, OverflowError) as e:  # InputError passes through with its own file
+        if isinstance(e, InputError):
+            raise
+        raise InputError(a.calibration, f"cannot make a table of it: {' '.join(str(e).split())}") from None
     write_bytes_atomic(a.out, tab.blob)
     print(f"{a.out}: {len(tab.blob)} bytes, crc32 {tab.cal.crc32:#010x}, {tab.cal.b.n} entries per grid; "
           f"worst |c_fixed - c_float| {err['direct_c_deg_max']:.2e} deg, |q*_fixed - q*_float| {err['comp_q_max']:.2e}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from .. import argtypes as T
 from ..errors import InputError
 from ..track import HUE_PRESETS, TrackConfig, find_video, single_thread, track_video, write_marker_csv
 from .common import add_json_arg, dump_json, progress
@@ -18,18 +19,18 @@ def add_parser(sub) -> None:
                        "video gives marker.csv up to the last decoded frame and a one-line warning. "
                        "Example: playscope track sessions/s1 --marker green")
     p.add_argument("session", help="session folder holding video.* and frames.csv")
-    p.add_argument("-o", "--out", help="marker CSV to write (default: <session>/marker.csv)")
+    p.add_argument("-o", "--out", type=T.file_path, help="marker CSV to write (default: <session>/marker.csv)")
     p.add_argument("--marker", choices=sorted(HUE_PRESETS), default="green",
                    help="marker colour preset (OpenCV hue ranges %s); default green" %
                    ", ".join(f"{k} {a}-{b}" for k, (a, b) in HUE_PRESETS.items()))
-    p.add_argument("--hue", type=int, nargs=2, metavar=("LO", "HI"),
+    p.add_argument("--hue", type=T.int_range(0, 179), nargs=2, metavar=("LO", "HI"),
                    help="hue range in OpenCV units 0-179 (overrides --marker; LO > HI wraps through red)")
-    p.add_argument("--s-min", type=int, default=80, help="minimum saturation 0-255 (default 80; highlights are below)")
-    p.add_argument("--v-min", type=int, default=40, help="minimum value 0-255 (default 40)")
-    p.add_argument("--area", type=float, nargs=2, metavar=("MIN", "MAX"),
+    p.add_argument("--s-min", type=T.int_range(0, 255), default=80, help="minimum saturation 0-255 (default 80; highlights are below)")
+    p.add_argument("--v-min", type=T.int_range(0, 255), default=40, help="minimum value 0-255 (default 40)")
+    p.add_argument("--area", type=T.float_range(0.0, 1e8, lo_open=True), nargs=2, metavar=("MIN", "MAX"),
                    help="blob area bounds in px^2 (default 12 and 5%% of the frame)")
-    p.add_argument("--circ-min", type=float, default=0.45, help="minimum circularity 4 pi A/P^2 (default 0.45)")
-    p.add_argument("--roi", type=int, default=48, help="ROI half-size around the last position, px (default 48)")
+    p.add_argument("--circ-min", type=T.float_range(0.0, 1.0), default=0.45, help="minimum circularity 4 pi A/P^2 (default 0.45)")
+    p.add_argument("--roi", type=T.int_range(4, 4096), default=48, help="ROI half-size around the last position, px (default 48)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing marker CSV")
     add_json_arg(p, "marker_csv (path), video (path), frames_listed, frames_decoded, frames_tracked, lost, "
                  "lost_fraction, truncated (bool), reasons {reason: count}, seconds, fps, warning (str|null)")

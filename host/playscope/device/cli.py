@@ -5,17 +5,16 @@ from __future__ import annotations
 import json
 import sys
 import time
-from pathlib import Path
-
-from ..errors import InputError
 
 
 def _add_device_args(p) -> None:
+    from .. import argtypes as T
+
     p.add_argument("--device", choices=["virtual", "qemu", "usb"], default="virtual",
                    help="board to talk to (default: virtual, the desktop build as a process)")
-    p.add_argument("--flash-file", help="virtual: file-backed A/B flash kept across runs")
-    p.add_argument("--elf", help="qemu: link firmware image (default: build/stm32f405/link-fw)")
-    p.add_argument("--address", help="qemu: host:port of an already running QEMU serial")
+    p.add_argument("--flash-file", type=T.file_path, help="virtual: file-backed A/B flash kept across runs")
+    p.add_argument("--elf", type=T.existing_file, help="qemu: link firmware image (default: build/stm32f405/link-fw)")
+    p.add_argument("--address", type=T.host_port, help="qemu: host:port of an already running QEMU serial")
 
 
 def _open(args, vboard_args=()):
@@ -52,9 +51,14 @@ def flash(link, blob: bytes, n_vectors: int = 200, log=print) -> dict:
     """Upload with generation = active + 1, commit, read back, then run the test vector
     through the board's compensator and compare with the host's run of the same C code.
     Returns timings and the check results; raises RuntimeError when a check fails."""
+    from ..table_check import check_blob
     from .tables import HostCalib, set_generation, test_vector
 
+    check_blob(blob)  # names the damaged field; nothing is sent, nothing resealed
     before = link.info()
+    if before["active_generation"] >= 0xFFFFFFFF:  # pst_header_t.generation is a uint32
+        raise RuntimeError("the board's table generation counter is at its maximum (2^32 - 1): no newer "
+                           "table can be committed; erase the board's table store first")
     blob = set_generation(blob, before["active_generation"] + 1)
     host = HostCalib(blob)  # refuses a bad table before anything is sent
     t0 = time.perf_counter()
@@ -92,10 +96,9 @@ def cmd_flash(args) -> int:
     if args.table == "demo":
         blob = demo_table()
     else:
-        p = Path(args.table)
-        if not p.is_file():
-            raise InputError(p, "no such table file")
-        blob = p.read_bytes()
+        from ..table_check import read_table_file
+
+        blob = read_table_file(args.table)  # checked before the board is even opened
     with _closing(_open(args)) as link:
         try:
             flash(link, blob, args.vectors)
@@ -122,9 +125,11 @@ def cmd_run_insitu(args) -> int:
 
 
 def add_parser(subparsers) -> None:
+    from .. import argtypes as T
+
     p = subparsers.add_parser("flash", help="upload a table, commit, read back and check bit for bit")
     p.add_argument("table", help="table blob (from `playscope tables`), or 'demo' for a built-in one")
-    p.add_argument("--vectors", type=int, default=200, help="compensator test steps (default 200)")
+    p.add_argument("--vectors", type=T.VECTORS, default=200, help="compensator test steps (default 200)")
     _add_device_args(p)
     p.set_defaults(func=cmd_flash)
 
@@ -138,19 +143,19 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser("run-insitu", help="in-situ calibration on the board: excitation, marker from "
                               "a camera/video, B samples from the board's onset detector, fit, tables, flash")
     p.add_argument("--video", help="video file or camera index for OpenCV VideoCapture")
-    p.add_argument("--geometry", help="session.json with robot, camera and hand-eye (to fit f_remain, eqs. 6-8)")
+    p.add_argument("--geometry", type=T.existing_file, help="session.json with robot, camera and hand-eye (to fit f_remain, eqs. 6-8)")
     p.add_argument("--sim-plant", action="store_true",
                    help="SIMULATION: no camera; a simulated instrument follows the virtual board's encoder "
                         "stream and is rendered to frames (simulator preset 'ideal')")
-    p.add_argument("--time-scale", type=float, default=4.0,
+    p.add_argument("--time-scale", type=T.TIME_SCALE, default=4.0,
                    help="--sim-plant: virtual board clock speed-up over the wall clock (default 4)")
-    p.add_argument("--exc", default="-3:3:1.6:0.4:1.0",
+    p.add_argument("--exc", default="-3:3:1.6:0.4:1.0", type=T.colon_floats(5, "Q0:Q1:AMP:ADV:V"),
                    help="virtual board: its excitation Q0:Q1:AMP:ADV:V in mm, mm/s (default -3:3:1.6:0.4:1.0); "
                         "a real board runs the excitation it was built with")
-    p.add_argument("--seed", type=int, default=0, help="--sim-plant: noise seed")
-    p.add_argument("--seconds", type=float, default=600.0, help="longest run in board seconds (default 600)")
-    p.add_argument("-N", "--control-points", type=int, default=14, help="B-spline control points (paper: 14)")
-    p.add_argument("--vectors", type=int, default=200, help="compensator test steps after flashing (default 200)")
+    p.add_argument("--seed", type=T.SEED, default=0, help="--sim-plant: noise seed")
+    p.add_argument("--seconds", type=T.DURATION_S, default=600.0, help="longest run in board seconds (default 600)")
+    p.add_argument("-N", "--control-points", type=T.CONTROL_POINTS, default=14, help="B-spline control points (paper: 14)")
+    p.add_argument("--vectors", type=T.VECTORS, default=200, help="compensator test steps after flashing (default 200)")
     p.add_argument("--no-flash", action="store_true", help="fit and write tables, do not flash")
     p.add_argument("-o", "--output", help="folder for b_samples.csv, session/, calibration.json, table.bin, result.json")
     p.add_argument("--json", action="store_true", help="print the result as JSON on the last line")

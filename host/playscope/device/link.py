@@ -24,8 +24,17 @@ class DeviceError(RuntimeError):
 
     def __init__(self, code: int, ref_type: int, detail: int):
         self.code, self.ref_type, self.detail = code, ref_type, detail
-        super().__init__(f"board refused request 0x{ref_type:02x}: "
-                         f"{error_name(code)} (detail {detail})")
+        if self.busy:
+            msg = (f"board busy: another host is uploading a table (its session ends when it commits or "
+                   f"aborts, or after {detail} s without a request); try again then")
+        else:
+            msg = f"board refused request 0x{ref_type:02x}: {error_name(code)} (detail {detail})"
+        super().__init__(msg)
+
+    @property
+    def busy(self) -> bool:
+        """PSP_ERR_BUSY: another host holds the board's upload session."""
+        return error_name(self.code) == "BUSY"
 
 
 def _struct_bytes(ffi, ctype: str, **fields) -> bytes:
@@ -143,24 +152,44 @@ class Link:
         m = mode if isinstance(mode, int) else {v: k for k, v in mode_names().items()}[mode]
         self.request(self.lib.PSP_MSG_SET_MODE, _struct_bytes(self.ffi, "psp_set_mode_t", mode=m))
 
+    def begin_upload(self, size: int, crc32: int) -> int:
+        """TABLE_BEGIN: open the board's upload session; returns its token. Errors:
+        DeviceError (BUSY while another host holds a session, RANGE for a bad size)."""
+        pl = self.request(self.lib.PSP_MSG_TABLE_BEGIN,
+                          _struct_bytes(self.ffi, "psp_table_begin_t", total_size=size, crc32=crc32))
+        return self.ffi.from_buffer("psp_table_session_t *", pl).session
+
+    def abort_upload(self, session: int) -> None:
+        """TABLE_ABORT: give the session up (the board is free for another host at once)."""
+        self.request(self.lib.PSP_MSG_TABLE_ABORT, _struct_bytes(self.ffi, "psp_table_abort_t", session=session))
+
     def upload_table(self, blob: bytes, progress=None) -> dict:
-        """BEGIN, CHUNKs, COMMIT. Returns the board's INFO after the commit."""
+        """BEGIN (one owner per upload: the board's session token), CHUNKs, COMMIT. Returns
+        the board's INFO after the commit. A failure after BEGIN aborts the session so the
+        board is free again; errors: DeviceError, TransportError."""
         ffi, lib = self.ffi, self.lib
         crc = int.from_bytes(blob[12:16], "little")
-        self.request(lib.PSP_MSG_TABLE_BEGIN,
-                     _struct_bytes(ffi, "psp_table_begin_t", total_size=len(blob), crc32=crc))
+        session = self.begin_upload(len(blob), crc)
         hdr_len = ffi.offsetof("psp_table_chunk_t", "data")
-        for off in range(0, len(blob), lib.PSP_CHUNK_MAX):
-            data = blob[off:off + lib.PSP_CHUNK_MAX]
-            c = ffi.new("psp_table_chunk_t *")
-            c.offset, c.len = off, len(data)
-            c.chunk_crc32 = lib.ps_crc32_update(0, data, len(data))
-            ffi.memmove(c.data, data, len(data))
-            self.request(lib.PSP_MSG_TABLE_CHUNK, bytes(ffi.buffer(c, hdr_len + len(data))))
-            if progress:
-                progress(off + len(data), len(blob))
-        pl = self.request(lib.PSP_MSG_TABLE_COMMIT, _struct_bytes(ffi, "psp_table_commit_t", crc32=crc),
-                          timeout_s=max(self.timeout_s, 10.0))  # a sector erase takes ~1-2 s on the F405
+        try:
+            for off in range(0, len(blob), lib.PSP_CHUNK_MAX):
+                data = blob[off:off + lib.PSP_CHUNK_MAX]
+                c = ffi.new("psp_table_chunk_t *")
+                c.offset, c.len, c.session = off, len(data), session
+                c.chunk_crc32 = lib.ps_crc32_update(0, data, len(data))
+                ffi.memmove(c.data, data, len(data))
+                self.request(lib.PSP_MSG_TABLE_CHUNK, bytes(ffi.buffer(c, hdr_len + len(data))))
+                if progress:
+                    progress(off + len(data), len(blob))
+            pl = self.request(lib.PSP_MSG_TABLE_COMMIT,
+                              _struct_bytes(ffi, "psp_table_commit_t", crc32=crc, session=session),
+                              timeout_s=max(self.timeout_s, 10.0))  # a sector erase takes ~1-2 s on the F405
+        except (DeviceError, TransportError):
+            try:  # a refused commit already closed it; an interrupted upload still holds it
+                self.abort_upload(session)
+            except (DeviceError, TransportError):
+                pass
+            raise
         return self._info_from(pl)
 
     def read_table(self) -> bytes:

@@ -16,6 +16,8 @@ JSON_KEYS = ("sessions.<name>: noise_floor_deg, noise_method, base{rmse_fit_deg,
 
 
 def add_parser(sub) -> None:
+    from .. import argtypes  # range-checked values (issue 14)
+
     p = sub.add_parser("diagnose", help="sim-to-real gap: held-out gap, localisation, attribution to library effects",
                        description="Fit the paper's model (play of width B(q) then f_remain) on the first part of each "
                                    "session, judge it on the rest, localise the residuals and attribute the gap to "
@@ -23,12 +25,12 @@ def add_parser(sub) -> None:
     p.add_argument("sessions", nargs="*", help="session folders (playscope-session/1)")
     p.add_argument("--catheter", metavar="FILE", nargs="+", default=[],
                    help="catheter CSV recordings (data_2_*.txt) read in place through playscope.importer")
-    p.add_argument("--split", type=float, default=0.5, help="fraction of each record used to fit (default 0.5)")
+    p.add_argument("--split", type=argtypes.float_range(0.0, 1.0, lo_open=True, hi_open=True), default=0.5, help="fraction of each record used to fit (default 0.5)")
     p.add_argument("--html", metavar="PATH", help="write an HTML page with the plots")
     p.add_argument("--json", metavar="PATH", help=f"write results as JSON. Keys: {JSON_KEYS}")
     p.add_argument("--selftest", action="store_true", help="run the blind self-test instead (simulated cases)")
     p.add_argument("--full", action="store_true", help="self-test at full size (2 strengths, 4 nulls, 2 out-of-library)")
-    p.add_argument("--workers", type=int, default=2, help="self-test processes (default 2)")
+    p.add_argument("--workers", type=argtypes.int_range(1, 64), default=2, help="self-test processes (default 2)")
     p.set_defaults(func=run)
 
 

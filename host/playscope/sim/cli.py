@@ -14,6 +14,8 @@ import numpy as np
 
 
 def add_parser(sub) -> None:
+    from .. import argtypes  # range-checked values (issue 14)
+
     from .core import PRESETS
     from .effects import EFFECTS
 
@@ -28,8 +30,8 @@ def add_parser(sub) -> None:
                    help=f"switch an effect on (repeatable). Known: {eff_help}")
     p.add_argument("--no-preset-effects", action="store_true", help="drop the preset's own effects")
     p.add_argument("--trajectory", choices=["excitation", "test", "ellipse", "random_walk"], help="trajectory kind")
-    p.add_argument("--duration", type=float, help="duration in s")
-    p.add_argument("--seed", type=int, help="random seed")
+    p.add_argument("--duration", type=argtypes.float_range(0.0, 86_400.0, lo_open=True), help="duration in s")
+    p.add_argument("--seed", type=argtypes.SEED, help="random seed")
     p.add_argument("--kind", choices=["image", "angle"], help="distal measurement (default image)")
     p.add_argument("--video", action="store_true", help="also render video.avi (MJPG) + frames.csv")
     p.add_argument("--blind", action="store_true", help="leave the effect list out of session.json")

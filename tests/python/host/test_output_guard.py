@@ -1,0 +1,134 @@
+"""Issue 14, never overwrite inputs: every write goes through atomic.atomic_path, whose guard
+(armed by the CLI per command) refuses a file of the input session, an input itself or a
+folder holding one, and an existing output without --force; writes stay atomic."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+
+import pytest
+
+from playscope.atomic import check_output, output_guard, write_text_atomic
+from playscope.cli import main
+from playscope.errors import InputError
+
+from .goodfiles import copy_good, make_good
+
+
+@pytest.fixture(scope="module")
+def good(tmp_path_factory):
+    return make_good(tmp_path_factory.mktemp("good"))
+
+
+def _digest(root) -> dict:
+    out = {}
+    for dirpath, _, names in os.walk(root):
+        for n in names:
+            p = os.path.join(dirpath, n)
+            out[p] = hashlib.sha256(open(p, "rb").read()).hexdigest()
+    return out
+
+
+def test_guard_rules(tmp_path, good):
+    g = copy_good(good, tmp_path / "in")
+    s = g["session"]
+    with output_guard([s, g["cal"]], force=True):
+        for f in ("encoder.csv", "distal.csv", "session.json"):
+            with pytest.raises(InputError, match="is a file of the input"):
+                check_output(s / f)
+        with pytest.raises(InputError, match="is an input"):
+            check_output(g["cal"])
+        with pytest.raises(InputError, match="folder holding the input"):
+            check_output(tmp_path / "in")
+        check_output(s / "new.json")              # a new file beside the recording is fine
+        check_output(tmp_path / "in" / "table.pstb")  # not an input here: replaced with force
+    with output_guard([s], force=False):
+        with pytest.raises(InputError, match="exists; pass --force"):
+            check_output(g["table"])
+    check_output(s / "encoder.csv")  # unarmed (library use): no rule
+
+
+def test_atomic_write_failure_leaves_dest(tmp_path):
+    dest = tmp_path / "out.json"
+    dest.write_text("old\n")
+    from playscope.atomic import atomic_path
+
+    with pytest.raises(RuntimeError):
+        with atomic_path(dest) as tmp:
+            tmp.write_text("half")
+            raise RuntimeError("killed")
+    assert dest.read_text() == "old\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]
+
+
+@pytest.mark.parametrize("argv", [
+    ["calibrate", "{session}", "-o", "{session}/encoder.csv", "--fps", "25"],
+    ["calibrate", "{session}", "-o", "{session}/session.json", "--fps", "25", "--force"],
+    ["calibrate", "{session}", "-o", "{session}", "--fps", "25", "--force"],
+    ["calibrate", "{session}", "-o", "{cal}", "--fps", "25"],                 # exists, no --force
+    ["calibrate", "{session}", "-o", "{tmp}/c.json", "--json", "{session}/distal.csv", "--fps", "25"],
+    ["tables", "{cal}", "-o", "{cal}", "--force"],
+    ["tables", "{cal}", "-o", "{table}"],                                     # exists, no --force
+    ["evaluate", "{session}", "{cal}", "--json", "{cal}", "--force"],
+    ["report", "{cal}", "{session}", "-o", "{session}/encoder.csv", "--force"],
+    ["import", "{csv}", "-o", "{tmp}", "--overwrite"],                        # folder holding the CSV
+    ["import", "{csv}", "-o", "{session}"],                                   # exists, no --overwrite
+])
+def test_cli_refuses_and_changes_nothing(argv, tmp_path, good, capsys):
+    g = copy_good(good, tmp_path)
+    names = {k: str(v) for k, v in g.items()} | {"tmp": str(tmp_path)}
+    before = _digest(tmp_path)
+    assert main([a.format(**names) for a in argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("playscope: error: ") and "\n" not in err
+    assert "elsewhere" in err or "--force" in err or "is a folder" in err
+    assert _digest(tmp_path) == before
+
+
+def test_cli_force_replaces_an_output(tmp_path, good, capsys):
+    g = copy_good(good, tmp_path)
+    out = tmp_path / "t2.pstb"
+    assert main(["tables", str(g["cal"]), "-o", str(out)]) == 0
+    first = out.read_bytes()
+    assert main(["tables", str(g["cal"]), "-o", str(out), "--generation", "2"]) == 2
+    assert out.read_bytes() == first
+    assert main(["tables", str(g["cal"]), "-o", str(out), "--generation", "2", "--force"]) == 0
+    assert out.read_bytes() != first
+    write_text_atomic(tmp_path / "x", "y")  # library writes stay unguarded outside a command
+
+
+def test_unreadable_files_are_one_line(tmp_path, good, capsys, monkeypatch):
+    """Permission errors (tests run as root here, so chmod cannot make one: the read is made
+    to fail as the kernel would)."""
+    from pathlib import Path
+
+    g = copy_good(good, tmp_path)
+    real = Path.read_bytes
+
+    def denied(self):
+        if self.name in ("session.json", "cal.json"):
+            raise PermissionError(13, "Permission denied", str(self))
+        return real(self)
+
+    monkeypatch.setattr(Path, "read_bytes", denied)
+    for argv in (["calibrate", str(g["session"]), "-o", str(tmp_path / "o.json")],
+                 ["tables", str(g["cal"]), "-o", str(tmp_path / "o.pstb")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "cannot read: Permission denied; check the permissions" in err
+    assert not (tmp_path / "o.json").exists() and not (tmp_path / "o.pstb").exists()
+
+
+def test_work_folders_are_neither_inputs_nor_outputs(tmp_path, good):
+    """`demo --out` and `evaluate-real --reimage` manage their folder themselves (a rerun
+    replaces its own outputs); `simulate --reimage SRC` reads SRC, so SRC is an input."""
+    from playscope.cli import _paths, build_parser
+
+    g = copy_good(good, tmp_path)
+    p = build_parser()
+    assert _paths(p.parse_args(["demo", "--out", str(tmp_path), "--json", str(g["cal"])])) == ([], [])
+    ins, outs = _paths(p.parse_args(["evaluate-real", str(tmp_path), "--reimage", str(g["session"])]))
+    assert ins == [str(tmp_path)] and outs == []
+    ins, outs = _paths(p.parse_args(["simulate", str(tmp_path / "new"), "--reimage", str(g["session"])]))
+    assert ins == [str(g["session"])] and outs == [str(tmp_path / "new")]
