@@ -1,0 +1,332 @@
+"""Host refinement of the motion onsets (section III-A, eq. 1) by maximum likelihood.
+
+The board keeps its simple detector (firmware/core/onset.c); the host refines each of its
+onsets with a joint model of the marker around a reversal, fitted to the frames:
+
+    Q(t) = a + v0 min(t - tau0, 0)                       old motion, stops at tau0
+             + r e^(-alpha (t - tau0)) sin(w (t - tau0))  ringing after the stop (optional)
+             + s [t >= t_j]                               a step: registration / channel jump (optional)
+             + v1 max(t - tau, 0) + a1 max(t - tau, 0)^2  new motion from the onset tau
+
+Q is the 2-D marker (px); a, v0, r, s, v1, a1 are 2-vectors, linear given the change points
+(tau0, tau, frame j) and the ringing (w, alpha), so each candidate is one linear least-squares
+solve and the change points are found on grids (coordinate ascent: stop and ringing, then onset
+and step, then stop again). Gaussian noise of unknown variance gives the profile likelihood
+RSS^(-N/2); optional parts are kept by BIC (Schwarz 1978). The onset t2 is the posterior mean
+of tau under a flat prior on the grid, its uncertainty the posterior standard deviation: a
+step in the frame interval of the onset makes tau unidentifiable inside that interval, and the
+estimate is then its middle with sigma = T/sqrt(12), instead of the early crossing that a line
+through the jump gives.
+
+The stop tau0 is seen where the motor stopped plus the image delay, whatever the backlash, so
+the stop times give t_delay from the record (median of tau0 - motor stop), independent of the
+configured value.
+
+Units: t in s, image points in px. Arrays per reversal are (M,).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Ringing grid: 1.5-7 Hz (below Nyquist at 25 fps with margin; the issue's 2-5 Hz inside) and
+# decay rates 0.5-12 /s (damping ratio ~0.01-0.8 at 3 Hz).
+RING_HZ = np.arange(1.5, 7.01, 0.5)
+RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
+SUB = 8          # onset / stop grid points per frame period
+PRE_FRAMES = 3   # frames of old motion kept before the stop
+POST_FRAMES = 6  # frames of new motion kept after the onset (quadratic holds over ~0.25 s)
+
+
+@dataclass
+class Refined:
+    """Per reversal (M,): refined onset t2_s and its sigma_t2_s (s), stop time tau0_s (image
+    clock), step_px (|s|, 0 without a step), ring_hz / ring_alpha (0 without ringing) and
+    ring_px (|r|), ok (fit done)."""
+
+    t2_s: np.ndarray
+    sigma_t2_s: np.ndarray
+    tau0_s: np.ndarray
+    step_px: np.ndarray
+    ring_hz: np.ndarray
+    ring_alpha: np.ndarray
+    ring_px: np.ndarray
+    ok: np.ndarray
+
+
+def motor_stop_times(t: np.ndarray, q: np.ndarray, t1: np.ndarray, q1: np.ndarray, tol: float) -> np.ndarray:
+    """When the actuator reached each reversal's extremum: the first sample of the run within
+    ``tol`` of q1 that ends at t1 (t1 itself without a hold at the turn). t, q: (N,);
+    t1, q1: (M,). Returns (M,) s. The tip stops there (the play opens at once)."""
+    i1 = np.clip(np.searchsorted(t, t1), 0, t.size - 1)
+    out = np.empty(t1.size)
+    for r, (i, qq) in enumerate(zip(i1, q1)):  # one short backward walk per reversal
+        k = i
+        while k > 0 and abs(q[k - 1] - qq) <= tol:
+            k -= 1
+        out[r] = t[k]
+    return out
+
+
+def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, period: float, max_delay: float = 0.5) -> float:
+    """First guess of t_delay (s): the lag at which the image stops moving after the motor
+    stops, i.e. the maximum over lags of the median over reversals of (marker travel in the two
+    frame periods before t_stop + lag) - (travel in the two after). Good to about a frame (a
+    ringing tip keeps moving a little after the stop); ``stop_fit`` then refines each stop."""
+    ok = np.all(np.isfinite(obs), axis=1)
+    tf, o = t_f[ok], obs[ok]
+    lags = np.arange(0.0, max_delay + 1e-9, period / SUB)
+    best, best_lag = -np.inf, 0.0
+    for lag in lags:
+        tc = t_stop + lag
+        p = [np.column_stack([np.interp(tc + k * period, tf, o[:, 0]), np.interp(tc + k * period, tf, o[:, 1])])
+             for k in (-2, 0, 2)]
+        before = np.linalg.norm(p[1] - p[0], axis=1)
+        after = np.linalg.norm(p[2] - p[1], axis=1)
+        score = float(np.median(before - after))
+        if score > best:
+            best, best_lag = score, float(lag)
+    return best_lag
+
+
+def _solve(F: np.ndarray, V: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Batched least squares Y ~ [F, V_g]: F (n, f) columns shared by every candidate, V
+    (G, n, p) the candidate's own columns, Y (n, 2). F is projected out first (Frisch-Waugh-
+    Lovell), so each candidate is a p x p solve. Returns (RSS (G,), coef of V (G, p, 2)).
+    Columns that are identically zero (a part absent from a candidate) get a tiny ridge so the
+    solve stays regular without changing the fit."""
+    U, sv, _ = np.linalg.svd(F, full_matrices=False)  # orthonormal basis of F's span (rank-aware:
+    Qf = U[:, sv > 1e-9 * sv.max()]                   # absent parts are zero columns)
+    Yr = Y - Qf @ (Qf.T @ Y)
+    Vr = V - Qf[None] @ (Qf.T[None] @ V)
+    Vt = Vr.transpose(0, 2, 1)
+    A = Vt @ Vr
+    scale = np.maximum(np.diagonal(A, axis1=1, axis2=2).max(axis=1), 1.0)
+    A += (1e-10 * scale)[:, None, None] * np.eye(V.shape[2])[None]
+    coef = np.linalg.solve(A, Vt @ Yr)
+    R = Yr[None] - Vr @ coef
+    return np.einsum("gnc,gnc->g", R, R), coef
+
+
+def _col_old(tk, tau0):
+    """Old motion, stopping at tau0: min(t - tau0, 0). tau0 (G,) -> (G, n)."""
+    return np.minimum(tk[None, :] - np.asarray(tau0, float)[:, None], 0.0)
+
+
+def _col_ring(tk, tau0, om, al):
+    """Ringing from the stop: e^(-al d) sin(om d), d = t - tau0 > 0 (0 before). (G, n)."""
+    d = np.maximum(tk[None, :] - np.asarray(tau0, float)[:, None], 0.0)
+    return np.exp(-np.asarray(al, float)[:, None] * d) * np.sin(np.asarray(om, float)[:, None] * d)
+
+
+def _cols_new(tk, tau):
+    """New motion from tau: max(t - tau, 0) and its square / 4. tau (G,) -> (G, n) x 2."""
+    d = np.maximum(tk[None, :] - np.asarray(tau, float)[:, None], 0.0)
+    return d, d * d / 4.0
+
+
+def _col_step(k_idx, j):
+    """Step at frame j (applies from frame j on); j < 0: none. (G, n)."""
+    j = np.asarray(j, float)[:, None]
+    return ((k_idx[None, :] >= j) & (j >= 0)).astype(float)
+
+
+def _logw(rss: np.ndarray, n_obs: int, n_extra: np.ndarray) -> np.ndarray:
+    """Profile log-likelihood of a Gaussian fit with unknown variance, less the BIC penalty of
+    the optional parameters: -N/2 log RSS - k/2 log N."""
+    return -0.5 * n_obs * np.log(np.maximum(rss, 1e-300)) - 0.5 * n_extra * np.log(n_obs)
+
+
+def _posterior(x: np.ndarray, lw: np.ndarray, step: float) -> tuple[float, float]:
+    """Mean and standard deviation of x under weights exp(lw) (flat prior on a grid of
+    spacing ``step``); the sd is at least step/sqrt(12), the grid's own resolution."""
+    w = np.exp(lw - lw.max())
+    w /= w.sum()
+    m = float(np.sum(w * x))
+    sd = float(np.sqrt(max(np.sum(w * (x - m) ** 2), 0.0) + step * step / 12.0))
+    return m, sd
+
+
+class _Episode:
+    """The frames of one reversal in frame-period units and the current estimate."""
+
+    def __init__(self, tk, Y, k_idx, tau0, tau):
+        self.tk, self.Y, self.k = tk, Y, k_idx
+        self.tau0, self.tau, self.j, self.om, self.al = tau0, tau, -1, 0.0, 0.0
+        self.n_obs = 2 * tk.size
+
+    def _solve_stop(self, tau0, om, al):
+        """Candidates (tau0, ringing) with the onset and step held: (RSS, coef of [old, ring])."""
+        d, d2 = _cols_new(self.tk, [self.tau])
+        F = np.column_stack([np.ones(self.tk.size), d[0], d2[0], _col_step(self.k, [self.j])[0]])
+        V = np.stack([_col_old(self.tk, tau0), _col_ring(self.tk, tau0, om, al)], axis=2)
+        return _solve(F, V, self.Y)
+
+    def _solve_onset(self, tau, j):
+        """Candidates (onset, step frame) with the stop and ringing held: (RSS, coef of
+        [new, accel, step])."""
+        F = np.column_stack([np.ones(self.tk.size), _col_old(self.tk, [self.tau0])[0],
+                             _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
+        d, d2 = _cols_new(self.tk, tau)
+        V = np.stack([d, d2, _col_step(self.k, j)], axis=2)
+        return _solve(F, V, self.Y)
+
+    def fit_stop(self):
+        """Stop tau0 and ringing (w, alpha), onset and step held: a half-frame grid of tau0
+        with every ringing, then an eighth-frame grid around the best with its ringing."""
+        lo = max(self.tau0 - 3.0, self.tk[0] + 0.5)
+        hi = min(self.tau0 + 3.0, self.tau - 1.0)
+        if hi <= lo:
+            hi = lo + 0.5
+        g0 = np.arange(lo, hi + 1e-9, 0.5)
+        om = np.r_[0.0, np.repeat(2 * np.pi * RING_HZ, RING_ALPHA.size)] * self.period_s  # rad / frame
+        al = np.r_[0.0, np.tile(RING_ALPHA, RING_HZ.size)] * self.period_s
+        T0 = np.repeat(g0, om.size)
+        OM, AL = np.tile(om, g0.size), np.tile(al, g0.size)
+        rss, _ = self._solve_stop(T0, OM, AL)
+        lw = _logw(rss, self.n_obs, 4.0 * (OM > 0) + 3.0 * (self.j >= 0))
+        b = int(np.argmax(lw))
+        self.om, self.al = float(OM[b]), float(AL[b])
+        gf = np.arange(max(T0[b] - 1.0, lo), min(T0[b] + 1.0, hi) + 1e-9, 1.0 / SUB)
+        rss, coef = self._solve_stop(gf, np.full(gf.size, self.om), np.full(gf.size, self.al))
+        lw = _logw(rss, self.n_obs, np.zeros(gf.size))
+        b = int(np.argmax(lw))
+        self.ring_px = float(np.linalg.norm(coef[b, 1])) if self.om > 0 else 0.0
+        self.tau0, self.sd0 = _posterior(gf, lw, 1.0 / SUB)
+
+    def fit_onset(self, final: bool):
+        """Onset tau and step frame j, stop and ringing held: a half-frame grid of tau with a
+        step at any frame after the stop (or none), then an eighth-frame grid around the best
+        with the steps near it. final: t2 and its sd are the posterior of tau, marginalised
+        over the step's frame; otherwise the best tau."""
+        lo = self.tau0 + 0.25
+        hi = self.tk[-1] - 2.0
+        if hi <= lo:
+            self.ok = False
+            return
+        pen_ring = 4.0 * (self.om > 0)
+        gt = np.arange(lo, hi + 1e-9, 0.5)
+        js = np.r_[-1, self.k[self.tk > self.tau0]].astype(float)
+        TT, JJ = np.repeat(gt, js.size), np.tile(js, gt.size)
+        rss, _ = self._solve_onset(TT, JJ)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring)
+        b = int(np.argmax(lw))
+        tb, self.j = float(TT[b]), int(JJ[b])
+        gf = np.arange(max(tb - 1.5, lo), min(tb + 1.5, hi) + 1e-9, 1.0 / SUB)
+        near = self.k[np.abs(self.tk - tb) <= 2.5]
+        js = np.unique(np.r_[-1, self.j, near]).astype(float)
+        TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
+        rss, coef = self._solve_onset(TT, JJ)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring)
+        b = int(np.argmax(lw))
+        self.j = int(JJ[b])
+        self.step_px = float(np.linalg.norm(coef[b, 2])) if self.j >= 0 else 0.0
+        if final:
+            lw2 = lw.reshape(gf.size, js.size)
+            m = lw2.max()
+            marg = m + np.log(np.exp(lw2 - m).sum(axis=1))
+            self.tau, self.sd = _posterior(gf, marg, 1.0 / SUB)
+        else:
+            self.tau = float(TT[b])
+        self.ok = True
+
+
+def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np.ndarray,
+           t2_guess: np.ndarray, t_delay_s: float, period_s: float) -> Refined:
+    """Refine every reversal's onset with the joint model (module doc).
+
+    t_f (F,), obs (F, 2) px (NaN = lost) on the image clock; t_stop (M,) motor stops (s,
+    encoder clock); t_next_stop (M,) the next reversal's motor stop (bounds the episode);
+    t2_guess (M,) the board's onset candidates (NaN: none, e.g. ONSET_ERR_NO_STILL when the tip
+    rings); t_delay_s the current delay (its error may be a few frames: the stop is searched
+    +-3 frames around t_stop + t_delay_s); period_s the frame period. The window is grown
+    until the onset lies POST_FRAMES before its end, so a candidate fired by ringing or by a
+    jump is only a start. Returns Refined; ok False where no onset fits before the next stop.
+    """
+    ok_f = np.all(np.isfinite(obs), axis=1)
+    tf, o = t_f[ok_f], obs[ok_f]
+    kf = np.nonzero(ok_f)[0]
+    M = t_stop.size
+    res = {k: np.full(M, np.nan) for k in ("t2", "sd", "tau0", "step", "hz", "al", "ring")}
+    okm = np.zeros(M, bool)
+    for r in range(M):  # episodes are independent; each is a handful of batched solves
+        t0 = t_stop[r] + t_delay_s
+        t_lim = t_next_stop[r] + t_delay_s - 2 * period_s  # the next episode's old motion stays out
+        guess = t2_guess[r] if np.isfinite(t2_guess[r]) and t2_guess[r] > t0 + period_s else t0 + 4 * period_s
+        end = min(guess + POST_FRAMES * period_s, t_lim)
+        ep = None
+        for _ in range(12):  # grow the window until the onset sits well inside it
+            sel = (tf >= t0 - (PRE_FRAMES + 3) * period_s) & (tf <= end)
+            if sel.sum() < 8:
+                break
+            tk = (tf[sel] - t0) / period_s
+            prev = ep
+            ep = _Episode(tk, o[sel] - o[sel].mean(axis=0), kf[sel], 0.0, (guess - t0) / period_s)
+            ep.period_s = period_s
+            if prev is not None:
+                ep.tau, ep.tau0, ep.om, ep.al, ep.j = min(prev.tau, tk[-1] - 3), prev.tau0, prev.om, prev.al, prev.j
+            ep.fit_stop()
+            ep.fit_onset(final=False)
+            if not ep.ok:
+                break
+            if ep.tau * period_s + t0 < end - (POST_FRAMES - 1.5) * period_s or end >= t_lim:
+                break
+            end = min(ep.tau * period_s + t0 + POST_FRAMES * period_s, t_lim)
+        if ep is None or not ep.ok:
+            continue
+        # Trim to POST_FRAMES after the onset (the quadratic motion model's span), refit.
+        end = min(ep.tau * period_s + t0 + POST_FRAMES * period_s, t_lim)
+        sel = (tf >= t0 - (PRE_FRAMES + 3) * period_s) & (tf <= end)
+        tk = (tf[sel] - t0) / period_s
+        if tk.size < 8:
+            continue
+        e2 = _Episode(tk, o[sel] - o[sel].mean(axis=0), kf[sel], ep.tau0, ep.tau)
+        e2.period_s, e2.om, e2.al, e2.j = period_s, ep.om, ep.al, ep.j
+        e2.fit_stop()
+        e2.fit_onset(final=False)
+        if not e2.ok:
+            continue
+        e2.fit_stop()
+        e2.fit_onset(final=True)
+        if not e2.ok:
+            continue
+        okm[r] = True
+        res["t2"][r] = t0 + e2.tau * period_s
+        res["sd"][r] = e2.sd * period_s
+        res["tau0"][r] = t0 + e2.tau0 * period_s
+        res["step"][r] = e2.step_px
+        res["hz"][r] = e2.om / period_s / (2 * np.pi)
+        res["al"][r] = e2.al / period_s
+        res["ring"][r] = e2.ring_px
+    return Refined(res["t2"], res["sd"], res["tau0"], res["step"], res["hz"], res["al"], res["ring"], okm)
+
+
+def delay_from_stops(tau0_s: np.ndarray, t_stop: np.ndarray) -> tuple[float, float, int]:
+    """t_delay from the record: median over reversals of (image stop - motor stop), its
+    standard error (1.2533 MAD-sd / sqrt(n), for the median of a normal sample) and the count.
+    NaN entries (no fit) are left out. Returns (t_delay_s, se_s, n)."""
+    d = tau0_s - t_stop
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return float("nan"), float("nan"), 0
+    med = float(np.median(d))
+    sd = 1.4826 * float(np.median(np.abs(d - med)))
+    return med, 1.2533 * sd / np.sqrt(d.size), int(d.size)
+
+
+def ring_summary(ref: Refined) -> dict:
+    """The record's post-reversal ringing for the diagnosis: share of reversals where a ringing
+    was kept (BIC), and over those the median frequency (Hz), decay rate alpha (1/s), damping
+    ratio zeta = alpha / sqrt(alpha^2 + w^2) and amplitude (px)."""
+    ok = ref.ok & np.isfinite(ref.ring_hz)
+    has = ok & (ref.ring_hz > 0)
+    out = {"reversals_fitted": int(ok.sum()), "reversals_ringing": int(has.sum()),
+           "share": float(has.sum() / max(ok.sum(), 1))}
+    if has.any():
+        hz, al = np.median(ref.ring_hz[has]), np.median(ref.ring_alpha[has])
+        w = 2 * np.pi * hz
+        out.update({"freq_hz": float(hz), "decay_per_s": float(al), "damping_ratio": float(al / np.hypot(al, w)),
+                    "amplitude_px": float(np.median(ref.ring_px[has]))})
+    return out
