@@ -330,3 +330,103 @@ def ring_summary(ref: Refined) -> dict:
         out.update({"freq_hz": float(hz), "decay_per_s": float(al), "damping_ratio": float(al / np.hypot(al, w)),
                     "amplitude_px": float(np.median(ref.ring_px[has]))})
     return out
+
+
+@dataclass
+class RobustOnsets:
+    """What `robust_samples` gives calibrate: the B samples (estimate.Onsets with sigma_b), the
+    delay used and where it came from, and the record's diagnosis (JSON-ready dict)."""
+
+    onsets: "object"
+    t_delay_s: float
+    t_delay_source: str
+    report: dict
+    warnings: list
+
+
+def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.ndarray, rq: np.ndarray,
+                   t_f: np.ndarray, obs: np.ndarray, fps: float, t_delay_cfg: float | None,
+                   t_delay_from: str = "data", board=None, onset_cfg: dict | None = None,
+                   hysteresis: float = 0.0) -> RobustOnsets:
+    """B samples of eq. 1 for an image session: the board's detector, then the host refinement.
+
+    1. Motor stops (``motor_stop_times`` on q_rev, the signal the reversals came from) and a
+       coarse delay (``coarse_delay``).
+    2. Candidates: ``board`` (estimate.Onsets the board measured, e.g. run-insitu) or the
+       firmware's detector run here through cffi (estimate.run_onsets) with the configured
+       delay, as the board would have run it (the coarse one when none is configured).
+    3. ``refine`` every reversal; t_delay from the stop times (``delay_from_stops``).
+    4. t_delay_from "data" (default): use the record's delay; "config": the configured one.
+       They are compared either way; a gap over one frame period is a warning. A configured
+       delay is never needed: without one the record's delay is used.
+    5. b = |q(t2 - t_delay) - q1| with sigma_b = |dq/dt| sigma_t2. A reversal the refinement
+       could not fit keeps the board's sample, with sigma_b one frame period of travel.
+    t_enc, q, q_rev (N,); rt, rq (M,) reversals; t_f (F,), obs (F, 2) px. Returns RobustOnsets.
+    Errors: ValueError for an unknown t_delay_from.
+    """
+    from . import estimate as E
+
+    if t_delay_from not in ("data", "config"):
+        raise ValueError(f"t_delay_from must be 'data' or 'config', not {t_delay_from!r}")
+    period = 1.0 / fps
+    tol = max(0.02 * hysteresis, 1e-9 * max(float(np.ptp(q_rev)), 1.0))
+    t_stop = motor_stop_times(t_enc, q_rev, rt, rq, tol)
+    d0 = coarse_delay(t_f, obs, t_stop, period)
+    if board is None:
+        cfg = E.OnsetConfig(t_delay_s=d0 if t_delay_cfg is None else t_delay_cfg, fps=fps, **(onset_cfg or {}))
+        board = E.run_onsets(t_enc, q, rt, rq, t_f, obs, "image", cfg)
+    # The board's candidates by reversal (its t1 is the commanded reversal, up to rounding).
+    guess = np.full(rt.size, np.nan)
+    bidx = np.full(rt.size, -1)
+    if board.t1_s.size:
+        i = np.argmin(np.abs(rt[:, None] - board.t1_s[None, :]), axis=0)
+        near = np.abs(rt[i] - board.t1_s) < 0.5 * period
+        guess[i[near]] = board.t2_s[near]
+        bidx[i[near]] = np.nonzero(near)[0]
+    t_next = np.r_[t_stop[1:], t_enc[-1] + 1.0]
+    ref = refine(t_f, obs, t_stop, t_next, guess, d0, period)
+    d_data, d_se, n_d = delay_from_stops(ref.tau0_s, t_stop)
+    warnings = []
+    if n_d < 4:
+        d_data = d0  # too few stops fitted: the coarse lag is the record's best word
+    if t_delay_cfg is None:
+        td, src = d_data, "estimated from the record (image stop - motor stop, median)"
+    elif t_delay_from == "config":
+        td, src = t_delay_cfg, "configured (--t-delay-from config)"
+    else:
+        td, src = d_data, "estimated from the record (image stop - motor stop, median); configured value checked"
+    if t_delay_cfg is not None and abs(d_data - t_delay_cfg) > period:
+        warnings.append(f"t_delay: the record says {d_data:.3f} s (+-{d_se:.3f}, {n_d} stops), the configuration "
+                        f"{t_delay_cfg:.3f} s; using {'the configured' if t_delay_from == 'config' else 'the record'}'s "
+                        f"({'--t-delay-from data' if t_delay_from == 'config' else '--t-delay-from config'} to change)")
+    # B samples (eq. 1) at the refined onsets; the board's where the refinement failed.
+    v = np.gradient(q, t_enc)
+    rows = []
+    n_ref = n_board = 0
+    for r in range(rt.size):
+        if ref.ok[r]:
+            t2, sd = ref.t2_s[r], ref.sigma_t2_s[r]
+            n_ref += 1
+        elif bidx[r] >= 0:
+            t2, sd = board.t2_s[bidx[r]], period
+            n_board += 1
+        else:
+            continue
+        q2 = float(np.interp(t2 - td, t_enc, q))
+        sb = abs(float(np.interp(t2 - td, t_enc, v))) * sd
+        rows.append((rt[r], t2, rq[r], q2, 0.5 * (rq[r] + q2), abs(q2 - rq[r]), sb))
+    a = np.array(rows, float).reshape(-1, 7)
+    reasons = {"refined": n_ref, "board_only": n_board, "none": int(rt.size - n_ref - n_board)}
+    on = E.Onsets(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], a[:, 5], reasons, sigma_b=a[:, 6])
+    steps = ref.ok & (ref.step_px > 0)
+    report = {
+        "method": "joint ML change-point model per reversal (playscope.onset_refine)",
+        "board_reasons": board.reasons,
+        "t_delay": {"configured_s": t_delay_cfg, "record_s": d_data, "record_se_s": d_se, "stops_fitted": n_d,
+                    "coarse_s": d0, "used_s": td, "from": t_delay_from},
+        "ringing": ring_summary(ref),
+        "steps": {"reversals_with_step": int(steps.sum()),
+                  "median_step_px": float(np.median(ref.step_px[steps])) if steps.any() else 0.0},
+        "sigma_t2_s_median": float(np.nanmedian(ref.sigma_t2_s)) if ref.ok.any() else None,
+    }
+    return RobustOnsets(on, float(td), src, report, warnings)

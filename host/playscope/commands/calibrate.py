@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from ..calibration import calibrate
@@ -21,7 +23,11 @@ def add_parser(sub) -> None:
     p.add_argument("--f-method", choices=["lsq", "morph"], default="lsq",
                    help="f_remain estimator: lsq (default, play-consistent) or morph (paper, section IV)")
     p.add_argument("--fps", type=float, help="frame rate for angle sessions (default: ~125 frames per stroke, 10-50 Hz)")
-    p.add_argument("--t-delay", type=float, help="image delay t_delay in s (default: session.json, else estimated)")
+    p.add_argument("--t-delay", type=float, help="configured image delay t_delay in s (default: session.json); "
+                   "image sessions check it against the record's own delay")
+    p.add_argument("--t-delay-from", choices=["data", "config"], default="data",
+                   help="image sessions: use the delay measured from the record (data, default) or the configured "
+                   "one (config); a gap over one frame period is warned about either way")
     p.add_argument("--hysteresis", type=float, help="reversal detection hysteresis, actuator units (default 1%% of travel)")
     p.add_argument("--threshold", type=float, help="onset threshold T per frame (px or deg); default automatic")
     add_json_arg(p, "calibration (path), reversals, b_samples, onset_reasons {name: count}, t_delay_s, "
@@ -32,9 +38,11 @@ def add_parser(sub) -> None:
 def run(a) -> int:
     s = load_session(a.session)
     ov = {"threshold": a.threshold} if a.threshold is not None else None
-    cal = calibrate(s, a.control_points, a.f_method, a.fps, a.t_delay, a.hysteresis, ov)
+    cal = calibrate(s, a.control_points, a.f_method, a.fps, a.t_delay, a.hysteresis, ov, t_delay_from=a.t_delay_from)
     cal.save(a.out)
     d = cal.doc
+    for w in d.get("warnings", []):
+        print(f"playscope: warning: {w}", file=sys.stderr)
     g = np.linspace(*d["q_range"], 200)
     b = cal.B(g)
     print(f"{a.out}: {len(d['b_samples']['b'])} B samples from {d['reversals']} reversals "
