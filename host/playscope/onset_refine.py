@@ -6,9 +6,9 @@ onsets with a joint model of the marker around a reversal, fitted to the frames:
     Q(t) = a + v0 min(t - tau0, 0)                       old motion, stops at tau0
              + r e^(-alpha (t - tau0)) sin(w (t - tau0))  ringing after the stop (optional)
              + s [t >= t_j]                               a step: registration / channel jump (optional)
-             + v1 max(t - tau, 0) + a1 max(t - tau, 0)^2  new motion from the onset tau
+             + v1 max(t - tau, 0)                         new motion from the onset tau
 
-Q is the 2-D marker (px); a, v0, r, s, v1, a1 are 2-vectors, linear given the change points
+Q is the 2-D marker (px); a, v0, r, s, v1 are 2-vectors, linear given the change points
 (tau0, tau, frame j) and the ringing (w, alpha), so each candidate is one linear least-squares
 solve and the change points are found on grids (coordinate ascent: stop and ringing, then onset
 and step, then stop again). Gaussian noise of unknown variance gives the profile likelihood
@@ -36,8 +36,8 @@ import numpy as np
 RING_HZ = np.arange(1.5, 7.01, 0.5)
 RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
 SUB = 8          # onset / stop grid points per frame period
-PRE_FRAMES = 3   # frames of old motion kept before the stop
-POST_FRAMES = 6  # frames of new motion kept after the onset (quadratic holds over ~0.25 s)
+PRE_FRAMES = 3   # frames of old motion kept before the earliest stop searched
+POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line holds over ~0.25 s)
 
 
 @dataclass
@@ -70,25 +70,35 @@ def motor_stop_times(t: np.ndarray, q: np.ndarray, t1: np.ndarray, q1: np.ndarra
     return out
 
 
-def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, period: float, max_delay: float = 0.5) -> float:
-    """First guess of t_delay (s): the lag at which the image stops moving after the motor
-    stops, i.e. the maximum over lags of the median over reversals of (marker travel in the two
-    frame periods before t_stop + lag) - (travel in the two after). Good to about a frame (a
-    ringing tip keeps moving a little after the stop); ``stop_fit`` then refines each stop."""
+def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np.ndarray, q: np.ndarray,
+                 period: float, max_delay: float = 0.5) -> float:
+    """First guess of t_delay (s): cross-correlation of commanded and observed motion around
+    the motor stops. For each reversal the image velocity along the old motion's image
+    direction (from the half second before the motor stop) is multiplied by the sign of the
+    motor's velocity at t - lag (+1 on, -1 back, 0 held), over 8 frame periods before
+    t_stop + lag and 4 after; the sum over reversals peaks at the delay (earlier lags meet
+    the tip still going while the motor is back; later ones meet the dead band). A ringing tip
+    keeps going for up to a quarter period after the stop, so the guess may be late by that;
+    velocities are clipped at 3 median so a jump does not count. ``refine`` fits each stop
+    from 5 frames before the guess to 3 after."""
     ok = np.all(np.isfinite(obs), axis=1)
     tf, o = t_f[ok], obs[ok]
+    P = lambda tt: np.stack([np.interp(tt, tf, o[:, 0]), np.interp(tt, tf, o[:, 1])], axis=-1)  # noqa: E731
+    e = P(t_stop) - P(t_stop - 0.5)
+    e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-12)
+    sgn = np.sign(np.interp(t_stop, t_enc, q) - np.interp(t_stop - 0.1, t_enc, q))
+    dq = np.diff(q)
+    tm = 0.5 * (t_enc[1:] + t_enc[:-1])
+    ks = np.arange(-8, 4) + 0.5
     lags = np.arange(0.0, max_delay + 1e-9, period / SUB)
-    best, best_lag = -np.inf, 0.0
-    for lag in lags:
-        tc = t_stop + lag
-        p = [np.column_stack([np.interp(tc + k * period, tf, o[:, 0]), np.interp(tc + k * period, tf, o[:, 1])])
-             for k in (-2, 0, 2)]
-        before = np.linalg.norm(p[1] - p[0], axis=1)
-        after = np.linalg.norm(p[2] - p[1], axis=1)
-        score = float(np.median(before - after))
-        if score > best:
-            best, best_lag = score, float(lag)
-    return best_lag
+    score = np.empty(lags.size)
+    for i, lag in enumerate(lags):
+        tc = t_stop[:, None] + lag + ks[None, :] * period  # (M, 12) velocity sample times
+        vi = np.einsum("mkc,mc->mk", P(tc + period / 2) - P(tc - period / 2), e)
+        vm = np.sign(np.interp(tc - lag, tm, dq)) * sgn[:, None]
+        lim = 3.0 * np.median(np.abs(vi)) + 1e-12  # a jump is one huge velocity sample: clip it
+        score[i] = np.sum(np.clip(vi, -lim, lim) * vm)
+    return float(lags[int(np.argmax(score))])
 
 
 def _solve(F: np.ndarray, V: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -156,45 +166,87 @@ class _Episode:
         self.tk, self.Y, self.k = tk, Y, k_idx
         self.tau0, self.tau, self.j, self.om, self.al = tau0, tau, -1, 0.0, 0.0
         self.n_obs = 2 * tk.size
+        self.stop_back = 5.0  # frames searched before the stop guess (ringing makes it late)
+        self.fixed_ring = None  # (om, al) per frame period: the record's ringing, not searched
 
-    def _solve_stop(self, tau0, om, al):
-        """Candidates (tau0, ringing) with the onset and step held: (RSS, coef of [old, ring])."""
-        d, d2 = _cols_new(self.tk, [self.tau])
-        F = np.column_stack([np.ones(self.tk.size), d[0], d2[0], _col_step(self.k, [self.j])[0]])
-        V = np.stack([_col_old(self.tk, tau0), _col_ring(self.tk, tau0, om, al)], axis=2)
+    def _solve_stop(self, tau0, om, al, j):
+        """Candidates (tau0, ringing, step frame j) with the onset held: (RSS, coef of [old,
+        ring, step])."""
+        d, _ = _cols_new(self.tk, [self.tau])
+        F = np.column_stack([np.ones(self.tk.size), d[0]])
+        V = np.stack([_col_old(self.tk, tau0), _col_ring(self.tk, tau0, om, al), _col_step(self.k, j)], axis=2)
         return _solve(F, V, self.Y)
 
     def _solve_onset(self, tau, j):
         """Candidates (onset, step frame) with the stop and ringing held: (RSS, coef of
-        [new, accel, step])."""
+        [new, step])."""
         F = np.column_stack([np.ones(self.tk.size), _col_old(self.tk, [self.tau0])[0],
                              _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
-        d, d2 = _cols_new(self.tk, tau)
-        V = np.stack([d, d2, _col_step(self.k, j)], axis=2)
+        d, _ = _cols_new(self.tk, tau)
+        V = np.stack([d, _col_step(self.k, j)], axis=2)
         return _solve(F, V, self.Y)
 
     def fit_stop(self):
-        """Stop tau0 and ringing (w, alpha), onset and step held: a half-frame grid of tau0
-        with every ringing, then an eighth-frame grid around the best with its ringing."""
-        lo = max(self.tau0 - 3.0, self.tk[0] + 0.5)
+        """Stop tau0, ringing (w, alpha) and a step near the stop (a registration flipping at
+        the motor reversal), onset held. Half-frame grid of tau0 with every ringing (step
+        held), then with every step near the stop (ringing held); the ringing is then polished
+        by Nelder-Mead on the profile RSS (the grid is too coarse for a 10 px ring), and an
+        eighth-frame grid around the best gives tau0's posterior, marginalised over the step."""
+        from scipy.optimize import minimize
+
+        lo = max(self.tau0 - self.stop_back, self.tk[0] + 0.5)
         hi = min(self.tau0 + 3.0, self.tau - 1.0)
         if hi <= lo:
             hi = lo + 0.5
         g0 = np.arange(lo, hi + 1e-9, 0.5)
         om = np.r_[0.0, np.repeat(2 * np.pi * RING_HZ, RING_ALPHA.size)] * self.period_s  # rad / frame
         al = np.r_[0.0, np.tile(RING_ALPHA, RING_HZ.size)] * self.period_s
-        T0 = np.repeat(g0, om.size)
-        OM, AL = np.tile(om, g0.size), np.tile(al, g0.size)
-        rss, _ = self._solve_stop(T0, OM, AL)
-        lw = _logw(rss, self.n_obs, 4.0 * (OM > 0) + 3.0 * (self.j >= 0))
+        if self.fixed_ring is not None:  # the record's ringing (second pass)
+            om, al = np.array([self.fixed_ring[0]]), np.array([self.fixed_ring[1]])
+        T0, R_ = (x.ravel() for x in np.meshgrid(g0, np.arange(om.size), indexing="ij"))
+        J = np.full(T0.size, float(self.j))
+        rss, _ = self._solve_stop(T0, om[R_], al[R_], J)
+        lw = _logw(rss, self.n_obs, 4.0 * (om[R_] > 0) + 3.0 * (J >= 0))
         b = int(np.argmax(lw))
-        self.om, self.al = float(OM[b]), float(AL[b])
-        gf = np.arange(max(T0[b] - 1.0, lo), min(T0[b] + 1.0, hi) + 1e-9, 1.0 / SUB)
-        rss, coef = self._solve_stop(gf, np.full(gf.size, self.om), np.full(gf.size, self.al))
-        lw = _logw(rss, self.n_obs, np.zeros(gf.size))
+        self.om, self.al = float(om[R_[b]]), float(al[R_[b]])
+        js = np.unique(np.r_[-1, self.j, self.k[(self.tk >= lo - 1) & (self.tk <= hi + 1)]]).astype(float)
+        T0, J = (x.ravel() for x in np.meshgrid(g0, js, indexing="ij"))
+        rss, _ = self._solve_stop(T0, np.full(T0.size, self.om), np.full(T0.size, self.al), J)
+        lw = _logw(rss, self.n_obs, 3.0 * (J >= 0))
         b = int(np.argmax(lw))
+        self.j, t0b = int(J[b]), float(T0[b])
+        if self.om > 0 and self.fixed_ring is None:
+            f = lambda p: self._solve_stop([t0b], [abs(p[0])], [abs(p[1])], [self.j])[0][0]  # noqa: E731
+            p = minimize(f, [self.om, self.al], method="Nelder-Mead",
+                         options={"xatol": 1e-4, "fatol": 1e-9, "maxiter": 200}).x
+            self.om, self.al = float(abs(p[0])), float(abs(p[1]))
+        gf = np.arange(max(t0b - 1.0, lo), min(t0b + 1.0, hi) + 1e-9, 0.5 / SUB)
+        js = np.unique(np.r_[-1, self.j]).astype(float)
+        TT, JJ = (x.ravel() for x in np.meshgrid(gf, js, indexing="ij"))
+        rss, coef = self._solve_stop(TT, np.full(TT.size, self.om), np.full(TT.size, self.al), JJ)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0))
+        b = int(np.argmax(lw))
+        self.j = int(JJ[b])
         self.ring_px = float(np.linalg.norm(coef[b, 1])) if self.om > 0 else 0.0
-        self.tau0, self.sd0 = _posterior(gf, lw, 1.0 / SUB)
+        self.v0 = coef[b, 0]  # old velocity, px per frame period
+        lw2 = lw.reshape(gf.size, js.size)
+        m = lw2.max()
+        self.tau0, self.sd0 = _posterior(gf, m + np.log(np.exp(lw2 - m).sum(axis=1)), 0.5 / SUB)
+
+    def _back(self, coef: np.ndarray) -> np.ndarray:
+        """0 for onset candidates whose new motion goes back along the old one (after a reversal
+        the tip retraces its path at the actuator's speed: velocity 3 frames after the onset
+        within 45 deg of -v0 and between 0.3 and 3 |v0|; a ringing tip's swing back is faster),
+        -inf for the others. No constraint when the old motion is not
+        seen (|v0| below 0.05 px per frame)."""
+        v0 = getattr(self, "v0", np.zeros(2))
+        n0 = float(np.linalg.norm(v0))
+        if n0 < 0.05:
+            return np.zeros(coef.shape[0])
+        vel = coef[:, 0, :]
+        along = -(vel @ v0) / n0
+        ok = (along > 0.3 * n0) & (along < 3.0 * n0) & (along > 0.7071 * np.linalg.norm(vel, axis=1))
+        return np.where(ok, 0.0, -np.inf)
 
     def fit_onset(self, final: bool):
         """Onset tau and step frame j, stop and ringing held: a half-frame grid of tau with a
@@ -208,40 +260,80 @@ class _Episode:
             return
         pen_ring = 4.0 * (self.om > 0)
         gt = np.arange(lo, hi + 1e-9, 0.5)
-        js = np.r_[-1, self.k[self.tk > self.tau0]].astype(float)
+        js = np.r_[-1, self.k[self.tk > self.tau0 - 1.0]].astype(float)
         TT, JJ = np.repeat(gt, js.size), np.tile(js, gt.size)
-        rss, _ = self._solve_onset(TT, JJ)
-        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring)
+        rss, coef = self._solve_onset(TT, JJ)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef)
         b = int(np.argmax(lw))
         tb, self.j = float(TT[b]), int(JJ[b])
+        # No onset in the window unless new motion beats the still model (level, old motion,
+        # ringing, step) by BIC: its 3 parameters (v1 per axis, tau).
+        null = self._solve_onset(np.array([1e9]), np.array([self.j], float))[0][0]
+        self.found = lw[b] - 1.5 * np.log(self.n_obs) > _logw(np.array([null]), self.n_obs,
+                                                                3.0 * (self.j >= 0) + pen_ring)[0]
         gf = np.arange(max(tb - 1.5, lo), min(tb + 1.5, hi) + 1e-9, 1.0 / SUB)
         near = self.k[np.abs(self.tk - tb) <= 2.5]
         js = np.unique(np.r_[-1, self.j, near]).astype(float)
         TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
         rss, coef = self._solve_onset(TT, JJ)
-        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef)
         b = int(np.argmax(lw))
         self.j = int(JJ[b])
-        self.step_px = float(np.linalg.norm(coef[b, 2])) if self.j >= 0 else 0.0
+        self.step_px = float(np.linalg.norm(coef[b, 1])) if self.j >= 0 else 0.0
         if final:
             lw2 = lw.reshape(gf.size, js.size)
             m = lw2.max()
-            marg = m + np.log(np.exp(lw2 - m).sum(axis=1))
+            with np.errstate(divide="ignore"):  # onsets the direction rule excludes have weight 0
+                marg = m + np.log(np.exp(lw2 - m).sum(axis=1))
             self.tau, self.sd = _posterior(gf, marg, 1.0 / SUB)
         else:
             self.tau = float(TT[b])
         self.ok = True
 
 
+def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, ring=None, stop_back=5.0):
+    """Fit the frames in [t0 - (PRE_FRAMES + 5) periods, end] starting from ``state`` (tau0,
+    om, al, j, tau; in periods from t0, tau = inf when no onset is known): stop, onset, stop,
+    onset (the last one final when asked; stop=False: the stop held from ``state``, onset only,
+    while the window grows). Returns the _Episode or None (too few frames)."""
+    sel = (tf >= t0 - (PRE_FRAMES + 5) * period_s) & (tf <= end)
+    if sel.sum() < 8:
+        return None
+    tk = (tf[sel] - t0) / period_s
+    ep = _Episode(tk, o[sel] - o[sel].mean(axis=0), kf[sel], state[0], 1e9)
+    ep.period_s = period_s
+    ep.om, ep.al, ep.j = state[1], state[2], state[3]
+    ep.stop_back = stop_back
+    if ring is not None:
+        ep.fixed_ring = (2 * np.pi * ring[0] * period_s, ring[1] * period_s)
+    if np.isfinite(state[4]):
+        ep.tau = min(max(state[4], state[0] + 1.0), tk[-1] - 2.0)
+    if stop or len(state) < 6:
+        ep.fit_stop()
+    else:
+        ep.v0, ep.ring_px = state[5], state[6]
+    ep.fit_onset(final=False)
+    if not ep.ok:
+        return None
+    if ep.found and stop:
+        ep.fit_stop()
+        ep.fit_onset(final=final)
+        if not ep.ok:
+            return None
+    return ep
+
+
 def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np.ndarray,
-           t2_guess: np.ndarray, t_delay_s: float, period_s: float) -> Refined:
+           t2_guess: np.ndarray, t_delay_s: float, period_s: float, ring: tuple | None = None,
+           stop_back: float = 5.0) -> Refined:
     """Refine every reversal's onset with the joint model (module doc).
 
     t_f (F,), obs (F, 2) px (NaN = lost) on the image clock; t_stop (M,) motor stops (s,
     encoder clock); t_next_stop (M,) the next reversal's motor stop (bounds the episode);
     t2_guess (M,) the board's onset candidates (NaN: none, e.g. ONSET_ERR_NO_STILL when the tip
     rings); t_delay_s the current delay (its error may be a few frames: the stop is searched
-    +-3 frames around t_stop + t_delay_s); period_s the frame period. The window is grown
+    from stop_back frames before t_stop + t_delay_s to 3 after); period_s the frame period;
+    ring (hz, alpha 1/s) fixes the ringing (hz 0: none) instead of searching it. The window is grown
     until the onset lies POST_FRAMES before its end, so a candidate fired by ringing or by a
     jump is only a start. Returns Refined; ok False where no onset fits before the next stop.
     """
@@ -254,52 +346,38 @@ def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np
     for r in range(M):  # episodes are independent; each is a handful of batched solves
         t0 = t_stop[r] + t_delay_s
         t_lim = t_next_stop[r] + t_delay_s - 2 * period_s  # the next episode's old motion stays out
-        guess = t2_guess[r] if np.isfinite(t2_guess[r]) and t2_guess[r] > t0 + period_s else t0 + 4 * period_s
-        end = min(guess + POST_FRAMES * period_s, t_lim)
+        guess = t2_guess[r] if np.isfinite(t2_guess[r]) else -np.inf
+        # The first window ends 4 frames after the stop (the stop and ringing are fitted
+        # there, before any onset); the next one reaches past the board's candidate.
+        end = min(t0 + 4 * period_s, t_lim)
+        state = (0.0, 0.0, 0.0, -1, np.inf)  # tau0, om, al, j, tau (inf: no onset known yet)
         ep = None
-        for _ in range(12):  # grow the window until the onset sits well inside it
-            sel = (tf >= t0 - (PRE_FRAMES + 3) * period_s) & (tf <= end)
-            if sel.sum() < 8:
+        for _ in range(40):  # grow the window until an onset sits well inside it, then trim to it
+            ep = _fit_window(tf, o, kf, t0, end, period_s, state, stop=len(state) < 6, ring=ring, stop_back=stop_back)
+            if ep is None:
                 break
-            tk = (tf[sel] - t0) / period_s
-            prev = ep
-            ep = _Episode(tk, o[sel] - o[sel].mean(axis=0), kf[sel], 0.0, (guess - t0) / period_s)
-            ep.period_s = period_s
-            if prev is not None:
-                ep.tau, ep.tau0, ep.om, ep.al, ep.j = min(prev.tau, tk[-1] - 3), prev.tau0, prev.om, prev.al, prev.j
-            ep.fit_stop()
-            ep.fit_onset(final=False)
-            if not ep.ok:
+            state = (ep.tau0, ep.om, ep.al, ep.j, ep.tau if ep.found else np.inf, ep.v0, ep.ring_px)
+            if ep.found and ep.tau * period_s + t0 < end - (POST_FRAMES - 1.5) * period_s:
+                trim = min(ep.tau * period_s + t0 + POST_FRAMES * period_s, t_lim)
+                e2 = _fit_window(tf, o, kf, t0, trim, period_s, state, final=True, ring=ring, stop_back=stop_back)
+                if e2 is not None and e2.found and abs(e2.tau - ep.tau) < 2.0:
+                    ep = e2
+                    break
+            if end >= t_lim:
+                ep = None
                 break
-            if ep.tau * period_s + t0 < end - (POST_FRAMES - 1.5) * period_s or end >= t_lim:
-                break
-            end = min(ep.tau * period_s + t0 + POST_FRAMES * period_s, t_lim)
-        if ep is None or not ep.ok:
-            continue
-        # Trim to POST_FRAMES after the onset (the quadratic motion model's span), refit.
-        end = min(ep.tau * period_s + t0 + POST_FRAMES * period_s, t_lim)
-        sel = (tf >= t0 - (PRE_FRAMES + 3) * period_s) & (tf <= end)
-        tk = (tf[sel] - t0) / period_s
-        if tk.size < 8:
-            continue
-        e2 = _Episode(tk, o[sel] - o[sel].mean(axis=0), kf[sel], ep.tau0, ep.tau)
-        e2.period_s, e2.om, e2.al, e2.j = period_s, ep.om, ep.al, ep.j
-        e2.fit_stop()
-        e2.fit_onset(final=False)
-        if not e2.ok:
-            continue
-        e2.fit_stop()
-        e2.fit_onset(final=True)
-        if not e2.ok:
+            end = min(max(end, guess) + POST_FRAMES * period_s, t_lim)
+            guess = -np.inf
+        if ep is None or not ep.found or not hasattr(ep, "sd"):
             continue
         okm[r] = True
-        res["t2"][r] = t0 + e2.tau * period_s
-        res["sd"][r] = e2.sd * period_s
-        res["tau0"][r] = t0 + e2.tau0 * period_s
-        res["step"][r] = e2.step_px
-        res["hz"][r] = e2.om / period_s / (2 * np.pi)
-        res["al"][r] = e2.al / period_s
-        res["ring"][r] = e2.ring_px
+        res["t2"][r] = t0 + ep.tau * period_s
+        res["sd"][r] = ep.sd * period_s
+        res["tau0"][r] = t0 + ep.tau0 * period_s
+        res["step"][r] = ep.step_px
+        res["hz"][r] = ep.om / period_s / (2 * np.pi)
+        res["al"][r] = ep.al / period_s
+        res["ring"][r] = ep.ring_px
     return Refined(res["t2"], res["sd"], res["tau0"], res["step"], res["hz"], res["al"], res["ring"], okm)
 
 
@@ -313,6 +391,7 @@ def delay_from_stops(tau0_s: np.ndarray, t_stop: np.ndarray) -> tuple[float, flo
         return float("nan"), float("nan"), 0
     med = float(np.median(d))
     sd = 1.4826 * float(np.median(np.abs(d - med)))
+    sd = max(sd, 0.0025 / np.sqrt(12))  # the stops are on a grid of 1/16 frame
     return med, 1.2533 * sd / np.sqrt(d.size), int(d.size)
 
 
@@ -371,7 +450,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     period = 1.0 / fps
     tol = max(0.02 * hysteresis, 1e-9 * max(float(np.ptp(q_rev)), 1.0))
     t_stop = motor_stop_times(t_enc, q_rev, rt, rq, tol)
-    d0 = coarse_delay(t_f, obs, t_stop, period)
+    d0 = coarse_delay(t_f, obs, t_stop, t_enc, q_rev, period)
     if board is None:
         cfg = E.OnsetConfig(t_delay_s=d0 if t_delay_cfg is None else t_delay_cfg, fps=fps, **(onset_cfg or {}))
         board = E.run_onsets(t_enc, q, rt, rq, t_f, obs, "image", cfg)
@@ -384,11 +463,19 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         guess[i[near]] = board.t2_s[near]
         bidx[i[near]] = np.nonzero(near)[0]
     t_next = np.r_[t_stop[1:], t_enc[-1] + 1.0]
-    ref = refine(t_f, obs, t_stop, t_next, guess, d0, period)
+    # Pass 1 on up to 24 reversals spread over the record: the record's delay and ringing
+    # (searched per reversal); pass 2 on all with those, the stop searched +-1.5 frames.
+    sub = np.unique(np.linspace(0, rt.size - 1, min(rt.size, 24)).round().astype(int))
+    ref1 = refine(t_f, obs, t_stop[sub], t_next[sub], guess[sub], d0, period)
+    d1, _, n1 = delay_from_stops(ref1.tau0_s, t_stop[sub])
+    d1 = d1 if n1 >= 4 else d0
+    rs = ring_summary(ref1)
+    ring = (rs["freq_hz"], rs["decay_per_s"]) if rs["share"] > 0.5 else (0.0, 0.0)
+    ref = refine(t_f, obs, t_stop, t_next, guess, d1, period, ring=ring, stop_back=1.5)
     d_data, d_se, n_d = delay_from_stops(ref.tau0_s, t_stop)
     warnings = []
     if n_d < 4:
-        d_data = d0  # too few stops fitted: the coarse lag is the record's best word
+        d_data = d1  # too few stops fitted: the first pass is the record's best word
     if t_delay_cfg is None:
         td, src = d_data, "estimated from the record (image stop - motor stop, median)"
     elif t_delay_from == "config":
@@ -423,7 +510,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         "method": "joint ML change-point model per reversal (playscope.onset_refine)",
         "board_reasons": board.reasons,
         "t_delay": {"configured_s": t_delay_cfg, "record_s": d_data, "record_se_s": d_se, "stops_fitted": n_d,
-                    "coarse_s": d0, "used_s": td, "from": t_delay_from},
+                    "coarse_s": d0, "first_pass_s": d1, "used_s": td, "from": t_delay_from},
         "ringing": ring_summary(ref),
         "steps": {"reversals_with_step": int(steps.sum()),
                   "median_step_px": float(np.median(ref.step_px[steps])) if steps.any() else 0.0},
