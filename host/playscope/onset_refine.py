@@ -280,7 +280,9 @@ class _Episode:
         b = int(np.argmax(lw))
         self.j = int(JJ[b])
         self.step_px = float(np.linalg.norm(coef[b, 1])) if self.j >= 0 else 0.0
-        if final:
+        if not np.isfinite(lw[b]):  # no candidate moves back along the old motion
+            self.found = False
+        if final and self.found:
             lw2 = lw.reshape(gf.size, js.size)
             m = lw2.max()
             with np.errstate(divide="ignore"):  # onsets the direction rule excludes have weight 0
