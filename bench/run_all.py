@@ -4,7 +4,8 @@
 
 Runs, in order: bench/bench_firmware.sh (M4 instructions per tick, desktop ticks/s, image
 size), bench/bench_host.py (calibrate time, tracking frames/s), bench/bench_link.py (flash
-time and round trip per transport), bench/fig7_replica.py (B error on independently rendered records, paper Fig. 7),
+time and round trip per transport), bench/fig7_replica.py and fig7_sim_pose.py (B error on independently rendered records and
+the pose-based baseline, paper Fig. 7),
 `playscope demo` (main job: B error, Table I and compensation ratios, time),
 `playscope evaluate-real` (real-data RMSE) and bench/diagnose_selftest.py --quick
 (diagnosis self-test accuracy). Only figures measured in this run are printed; a part that
@@ -114,6 +115,10 @@ def main(argv=None) -> int:
             table.append((f"B error, independent Fig. 7 replica, {label}: worst case", f"{val} %", tgt,
                           "paper 0.7 deg (4.7 %)", c))
         table.append(("B negative in a fitted spline or table (Fig. 7 replica)", m[4], "no", "", c))
+        out = sh([PY, "bench/fig7_sim_pose.py"])
+        m = re.search(r"two-step ([\d.]+) deg \(([\d.]+) %\), single-step ([\d.]+) deg", out)
+        table.append(("B error, Fig. 7 on playscope's simulator: two-step (ours) / single-step pose-based",
+                      f"{m[1]} deg / {m[3]} deg", "< 0.35 deg", "paper 0.7 deg / 6.6 deg", "bench/fig7_sim_pose.py"))
 
     def mainjob():
         with tempfile.TemporaryDirectory() as tmp:

@@ -110,14 +110,16 @@ def _solve(F: np.ndarray, V: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.
     U, sv, _ = np.linalg.svd(F, full_matrices=False)  # orthonormal basis of F's span (rank-aware:
     Qf = U[:, sv > 1e-9 * sv.max()]                   # absent parts are zero columns)
     Yr = Y - Qf @ (Qf.T @ Y)
-    Vr = V - Qf[None] @ (Qf.T[None] @ V)
-    Vt = Vr.transpose(0, 2, 1)
-    A = Vt @ Vr
+    G, n, p = V.shape
+    Vt = np.ascontiguousarray(V.transpose(0, 2, 1)).reshape(G * p, n)  # 2-D products: BLAS, not stacks
+    Vt = (Vt - (Vt @ Qf) @ Qf.T).reshape(G, p, n)
+    A = Vt @ Vt.transpose(0, 2, 1)
     scale = np.maximum(np.diagonal(A, axis1=1, axis2=2).max(axis=1), 1.0)
-    A += (1e-10 * scale)[:, None, None] * np.eye(V.shape[2])[None]
-    coef = np.linalg.solve(A, Vt @ Yr)
-    R = Yr[None] - Vr @ coef
-    return np.einsum("gnc,gnc->g", R, R), coef
+    A += (1e-10 * scale)[:, None, None] * np.eye(p)[None]
+    rhs = (Vt.reshape(G * p, n) @ Yr).reshape(G, p, 2)
+    coef = np.linalg.solve(A, rhs)
+    rss = float(np.sum(Yr * Yr)) - (coef * rhs).sum(axis=(1, 2))
+    return np.maximum(rss, 1e-12 * max(float(np.sum(Yr * Yr)), 1e-300)), coef
 
 
 def _col_old(tk, tau0):
