@@ -196,8 +196,8 @@ class _Episode:
         eighth-frame grid around the best gives tau0's posterior, marginalised over the step."""
         from scipy.optimize import minimize
 
-        lo = max(self.tau0 - self.stop_back, self.tk[0] + 0.5)
-        hi = min(self.tau0 + 3.0, self.tau - 1.0)
+        lo = max(-self.stop_back, self.tk[0] + 0.5)  # around the first guess (t = 0): no drift
+        hi = min(3.0, self.tau - 1.0)
         if hi <= lo:
             hi = lo + 0.5
         g0 = np.arange(lo, hi + 1e-9, 0.5)
@@ -251,9 +251,9 @@ class _Episode:
         return np.where(ok, 0.0, -np.inf)
 
     def fit_onset(self, final: bool):
-        """Onset tau and step frame j, stop and ringing held: a half-frame grid of tau with a
-        step at any frame after the stop (or none), then an eighth-frame grid around the best
-        with the steps near it. final: t2 and its sd are the posterior of tau, marginalised
+        """Onset tau and step frame j, stop and ringing held: a half-frame grid of tau, a step
+        at any frame after the stop (or none), then an eighth-frame grid around the best with
+        the steps near it. final: t2 and its sd are the posterior of tau, marginalised
         over the step's frame; otherwise the best tau."""
         lo = self.tau0 + 0.25
         hi = self.tk[-1] - 2.0
@@ -261,18 +261,25 @@ class _Episode:
             self.ok = False
             return
         pen_ring = 4.0 * (self.om > 0)
+        # Coarse: tau on a half-frame grid; the step none, the current one (a step at the stop
+        # comes from fit_stop) or at a frame within 2 periods of tau (the onset's jump).
         gt = np.arange(lo, hi + 1e-9, 0.5)
-        js = np.r_[-1, self.k[self.tk > self.tau0 - 1.0]].astype(float)
-        TT, JJ = np.repeat(gt, js.size), np.tile(js, gt.size)
+        ks = self.k[self.tk > self.tau0 - 1.0]
+        tks = self.tk[self.tk > self.tau0 - 1.0]
+        band = np.abs(tks[None, :] - gt[:, None]) <= 2.0
+        ti, ki = np.nonzero(band)
+        TT = np.r_[gt, gt, gt[ti]]
+        JJ = np.r_[np.full(gt.size, -1.0), np.full(gt.size, float(self.j)), ks[ki].astype(float)]
         rss, coef = self._solve_onset(TT, JJ)
         lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef)
         b = int(np.argmax(lw))
         tb, self.j = float(TT[b]), int(JJ[b])
-        # No onset in the window unless new motion beats the still model (level, old motion,
-        # ringing, step) by BIC: its 3 parameters (v1 per axis, tau).
-        null = self._solve_onset(np.array([1e9]), np.array([self.j], float))[0][0]
-        self.found = lw[b] - 1.5 * np.log(self.n_obs) > _logw(np.array([null]), self.n_obs,
-                                                                3.0 * (self.j >= 0) + pen_ring)[0]
+        # No onset in the window unless new motion beats the best still model (level, old
+        # motion, ringing, and a step anywhere or none) by BIC: its 3 parameters (v1, tau).
+        jn = np.r_[-1, self.k[self.tk > self.tau0 - 1.0]].astype(float)
+        rn, _ = self._solve_onset(np.full(jn.size, 1e9), jn)
+        null = float(np.max(_logw(rn, self.n_obs, 3.0 * (jn >= 0) + pen_ring)))
+        self.found = lw[b] - 1.5 * np.log(self.n_obs) > null
         gf = np.arange(max(tb - 1.5, lo), min(tb + 1.5, hi) + 1e-9, 1.0 / SUB)
         near = self.k[np.abs(self.tk - tb) <= 2.5]
         js = np.unique(np.r_[-1, self.j, near]).astype(float)
@@ -370,7 +377,11 @@ def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np
             if end >= t_lim:
                 ep = None
                 break
-            end = min(max(end, guess) + POST_FRAMES * period_s, t_lim)
+            # Never shrink: an onset the longer window no longer supports was a jump or a swing.
+            if ep.found:
+                end = min(max(end + period_s, ep.tau * period_s + t0 + POST_FRAMES * period_s), t_lim)
+            else:
+                end = min(max(end, guess) + POST_FRAMES * period_s, t_lim)
             guess = -np.inf
         if ep is None or not ep.found or not hasattr(ep, "sd"):
             continue
