@@ -79,32 +79,6 @@ def frames_from_angle(t: np.ndarray, c: np.ndarray, fps: float) -> tuple[np.ndar
     return tf, cf
 
 
-def estimate_t_delay(t_enc: np.ndarray, q: np.ndarray, t_f: np.ndarray, obs: np.ndarray,
-                     max_delay_s: float = 0.5) -> float:
-    """t_delay (s) maximising the correlation of actuator speed |dq/dt| (shifted) with image
-    speed |dQ/dt|, both on the frame clock. Onsets happen where both start from zero, so
-    the speed magnitudes line up at the true delay even though the gains differ.
-    obs: (N, 2) px or (N, 2) with deg in column 0. Returns a delay in [0, max_delay_s]."""
-    ok = np.all(np.isfinite(obs), axis=1)
-    tf, o = t_f[ok], obs[ok]
-    if tf.size < 10:
-        return 0.0
-    sp_img = np.linalg.norm(np.diff(o, axis=0), axis=1) / np.diff(tf)
-    tm = 0.5 * (tf[1:] + tf[:-1])
-    period = float(np.median(np.diff(tf)))
-    lags = np.arange(0.0, max_delay_s + 1e-12, min(period / 8, 0.005))
-    best, best_lag = -np.inf, 0.0
-    a = sp_img - sp_img.mean()
-    for lag in lags:
-        qa = np.interp(tf - lag, t_enc, q)
-        sp_q = np.abs(np.diff(qa)) / np.diff(tf)
-        b = sp_q - sp_q.mean()
-        r = float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b) + 1e-300))
-        if r > best:
-            best, best_lag = r, float(lag)
-    return best_lag
-
-
 # --------------------------------------------------------------------------- onsets (C)
 @dataclass
 class OnsetConfig:
