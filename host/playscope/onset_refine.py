@@ -250,6 +250,15 @@ class _Episode:
         ok = (along > 0.3 * n0) & (along < 3.0 * n0) & (along > 0.7071 * np.linalg.norm(vel, axis=1))
         return np.where(ok, 0.0, -np.inf)
 
+    def _order(self, tau: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """0, or -inf for a step seen from a frame less than 1.5 periods before the onset. A
+        registration or channel jump comes with the reversal (at the stop, many frames
+        earlier) or with the onset (in its frame interval or after); a jump just before the
+        onset would leave that frame free of the line, and the fit would take it for any
+        curvature of the first moving frames, putting the onset late."""
+        tj = np.where(j >= 0, self.tk[np.clip(np.searchsorted(self.k, j), 0, self.k.size - 1)], -np.inf)
+        return np.where((tau - tj > 0) & (tau - tj < 1.5), -np.inf, 0.0)
+
     def fit_onset(self, final: bool):
         """Onset tau and step frame j, stop and ringing held: a half-frame grid of tau, a step
         at any frame after the stop (or none), then an eighth-frame grid around the best with
@@ -271,7 +280,7 @@ class _Episode:
         TT = np.r_[gt, gt, gt[ti]]
         JJ = np.r_[np.full(gt.size, -1.0), np.full(gt.size, float(self.j)), ks[ki].astype(float)]
         rss, coef = self._solve_onset(TT, JJ)
-        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
         b = int(np.argmax(lw))
         tb, self.j = float(TT[b]), int(JJ[b])
         # No onset in the window unless new motion beats the best still model (level, old
@@ -285,7 +294,7 @@ class _Episode:
         js = np.unique(np.r_[-1, self.j, near]).astype(float)
         TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
         rss, coef = self._solve_onset(TT, JJ)
-        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
         b = int(np.argmax(lw))
         self.j = int(JJ[b])
         self.step_px = float(np.linalg.norm(coef[b, 1])) if self.j >= 0 else 0.0
