@@ -13,7 +13,8 @@ from .common import add_json_arg, dump_json
 
 def add_parser(sub) -> None:
     p = sub.add_parser("calibrate", help="estimate B(q) and f_remain from a session",
-                       description="Paper Fig. 4: reversals -> motion onsets (the firmware's C detector, eq. 1) "
+                       description="Paper Fig. 4: reversals -> motion onsets (the firmware's C detector, eq. 1; image sessions: "
+                       "refined on the host by a joint ML model, t_delay measured from the record) "
                        "-> B(q) robust cubic B-spline (N control points) -> f_remain (play-consistent least "
                        "squares, or the paper's morphological median line) -> calibration JSON "
                        "(docs/calibration-format.md). Example: playscope calibrate sessions/d21 -o d21.cal.json")
@@ -31,7 +32,8 @@ def add_parser(sub) -> None:
     p.add_argument("--hysteresis", type=float, help="reversal detection hysteresis, actuator units (default 1%% of travel)")
     p.add_argument("--threshold", type=float, help="onset threshold T per frame (px or deg); default automatic")
     add_json_arg(p, "calibration (path), reversals, b_samples, onset_reasons {name: count}, t_delay_s, "
-                 "fps_frames, B_range [min,max], rms_fit_deg")
+                 "fps_frames, B_range [min,max], t_delay {configured_s, record_s, used_s, ...} and ringing "
+                 "{freq_hz, damping_ratio, ...} (image sessions, else null), b_inconsistent (count), warnings")
     p.set_defaults(func=run)
 
 
@@ -50,5 +52,8 @@ def run(a) -> int:
           f"B {b.min():.3g}..{b.max():.3g} {d['actuator_unit']}, t_delay {d['t_delay_s']:.3f} s")
     dump_json(a.json, {"calibration": a.out, "reversals": d["reversals"], "b_samples": len(d["b_samples"]["b"]),
                        "onset_reasons": d["onset"]["reasons"], "t_delay_s": d["t_delay_s"],
-                       "fps_frames": d["fps_frames"], "B_range": [float(b.min()), float(b.max())]})
+                       "fps_frames": d["fps_frames"], "B_range": [float(b.min()), float(b.max())],
+                       "t_delay": (d["onset"].get("refine") or {}).get("t_delay"),
+                       "ringing": (d["onset"].get("refine") or {}).get("ringing"),
+                       "b_inconsistent": len(d.get("b_inconsistent", [])), "warnings": d.get("warnings", [])})
     return 0

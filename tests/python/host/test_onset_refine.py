@@ -127,8 +127,10 @@ def test_cli_calibrate_t_delay_from(tmp_path, capsys):
     sc = MR.Scene(seed=2, duration=40.0, t_delay_config=0.18)
     MR.write(sc, tmp_path / "s")
     out = tmp_path / "c.json"
-    assert main(["calibrate", str(tmp_path / "s"), "-o", str(out)]) == 0
+    assert main(["calibrate", str(tmp_path / "s"), "-o", str(out), "--json", str(tmp_path / "r.json")]) == 0
     err = capsys.readouterr().err
+    r = json.loads((tmp_path / "r.json").read_text())
+    assert len(r["warnings"]) == 1 and r["t_delay"]["configured_s"] == 0.18
     assert err.count("playscope: warning: t_delay") == 1
     d = json.loads(out.read_text())
     assert d["t_delay_s"] == pytest.approx(0.084, abs=0.004)
