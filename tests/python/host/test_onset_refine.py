@@ -66,14 +66,14 @@ def plain():
 def test_planted_onsets_recovered_below_a_frame(plain):
     rob, err, _ = plain
     assert rob.onsets.t2_s.size >= 17  # of 19 reversals; the last has no onset in the record
-    # Measured (seeds 0-2): mean -0.03..-0.01, mean abs 0.04-0.06, max 0.2 frame.
-    assert abs(err.mean()) < 0.1 and np.abs(err).mean() < 0.15 and np.abs(err).max() < 0.5
+    # Measured (seeds 0-2): mean -0.04..-0.015, mean abs 0.04-0.07, max 0.1-0.37 frame.
+    assert abs(err.mean()) < 0.1 and np.abs(err).mean() < 0.15 and np.abs(err).max() < 0.8
 
 
 def test_registration_jump_at_onset_does_not_pull_onsets_early():
     rob, err, _ = refined(seed=1, form="rot_distal", size_deg=3.0)
     # A line through the first moving frames, jump included, comes 1-2 frames early (issue 15).
-    # Measured (seeds 0-2): mean -0.32..-0.17, mean abs 0.55-0.64 frame.
+    # Measured (seeds 0-2): mean -0.36..-0.08, mean abs 0.36-0.61 frame.
     assert abs(err.mean()) < 0.5 and np.abs(err).mean() < 1.0
     assert rob.report["steps"]["reversals_with_step"] >= 0.9 * rob.onsets.t2_s.size
     assert rob.report["steps"]["median_step_px"] == pytest.approx(2 * 600 * np.tan(np.radians(3.0)), rel=0.1)
@@ -92,11 +92,11 @@ def test_delay_measured_from_the_record_and_a_wrong_one_warned(plain):
 def test_ringing_reported_and_onsets_not_fooled():
     rob, err, sc = refined(seed=0, ring_px=8.0, ring_hz=3.0)
     ring = rob.report["ringing"]
-    # Measured: 2.99-3.00 Hz, damping ratio 0.078-0.081 (true 3 Hz, 0.08).
+    # Measured (seeds 0-2): 2.96 Hz, damping ratio 0.080-0.082 (true 3 Hz, 0.08).
     assert ring["freq_hz"] == pytest.approx(3.0, abs=0.1)
     assert ring["damping_ratio"] == pytest.approx(0.08, abs=0.02)
     assert ring["share"] > 0.9
-    # Measured mean abs 0.06 frame; the ringing swings 8 px against 1.3 px of motion per frame.
+    # Measured median abs 0.08-0.1 frame; the ringing swings 8 px against 4 px of motion per frame.
     assert np.median(np.abs(err)) < 0.2
 
 
