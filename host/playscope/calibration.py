@@ -76,7 +76,7 @@ def auto_fps(t1: np.ndarray, fps_max: float = 50.0, fps_min: float = 10.0) -> fl
 def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
               t_delay_s: float | None = None, hysteresis: float | None = None,
               onset_cfg: dict | None = None, source: str | None = None,
-              onsets: E.Onsets | None = None) -> Calibration:
+              onsets: E.Onsets | None = None, t_delay_from: str = "data") -> Calibration:
     """Run the chain on a session (image or angle).
 
     1 reversals (q_cmd if logged, else the encoder with hysteresis, default 1 % of the
@@ -85,8 +85,12 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
       f_method "lsq" (play-consistent) or "morph" (paper); the other one is kept as
       f_remain_alt. t_delay: argument, else session.json, else estimated (image
       sessions; 0 for angle sessions, whose sensor shares the encoder clock).
+    Image sessions: the onsets are refined on the host and t_delay is measured from the record
+      (playscope.onset_refine.robust_samples); t_delay_from "data" (default) uses the record's
+      delay, "config" the configured one; a gap over a frame is a warning (doc["warnings"]).
     onsets: B samples measured elsewhere (e.g. by the board's own detector during
-      `playscope run-insitu`); steps 1-2 are then skipped and these are fitted instead.
+      `playscope run-insitu`); they replace the detector run of step 2 (image sessions: as the
+      refinement's candidates; angle sessions: fitted as they are).
     Errors: InputError (naming ``source``) for too few reversals/onsets or lost markers.
     """
     src = source or (str(s.path) if s.path else None)
@@ -119,16 +123,26 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         lost = ~np.all(np.isfinite(obs), axis=1)
         if lost.mean() > 0.5:
             raise InputError(Path(s.path or ".") / "marker.csv", f"marker lost in {lost.mean():.0%} of the frames")
-        if t_delay_s is not None:
-            td, td_src = t_delay_s, "argument"
-        elif s.t_delay_s is not None:
-            td, td_src = s.t_delay_s, "session"
-        else:
-            td, td_src = E.estimate_t_delay(t_enc, q, t_f, obs), "estimated (speed cross-correlation)"
+        td = td_src = None  # set below from the record (onset_refine), checked against these
         defaults = {}
+    warnings, refine_doc = [], None
+    if s.distal_kind == "image":
+        from .onset_refine import robust_samples
+
+        cfg_td = t_delay_s if t_delay_s is not None else s.t_delay_s
+        rob = robust_samples(t_enc, q, q_rev, rt, rq, t_f, obs, fr, cfg_td, t_delay_from, onsets, onset_cfg, hyst)
+        td, warnings, refine_doc = rob.t_delay_s, rob.warnings, rob.report
+        td_src = "argument" if t_delay_s is not None and t_delay_from == "config" else rob.t_delay_source
     cfg = E.OnsetConfig(t_delay_s=td, fps=fr, **{**defaults, **(onset_cfg or {})})
-    on = onsets if onsets is not None else E.run_onsets(t_enc, q, rt, rq, t_f, obs, s.distal_kind, cfg)
-    B, w = E.fit_backlash(on.q_mean, on.b, n_ctrl, source=src)
+    if s.distal_kind == "image":
+        on = rob.onsets
+    else:
+        on = onsets if onsets is not None else E.run_onsets(t_enc, q, rt, rq, t_f, obs, s.distal_kind, cfg)
+    bfit = E.fit_backlash_samples(on.q_mean, on.b, n_ctrl, source=src, sigma=on.sigma_b)
+    B, w = bfit.B, bfit.weight
+    if bfit.inconsistent.any():
+        warnings.append(f"{int(bfit.inconsistent.sum())} B sample(s) inconsistent with their neighbours "
+                        f"(|z| > {E.Z_INCONSISTENT}): listed in b_inconsistent, down-weighted, not averaged in")
 
     # c per frame: the sensor, or LM pose estimation through h(g(c)) (eqs. 6-8).
     if s.distal_kind == "angle":
@@ -152,9 +166,12 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         "q_range": [float(q.min()), float(q.max())],
         "t_delay_s": float(td), "t_delay_source": td_src, "fps_frames": float(fr),
         "reversal_hysteresis": float(hyst), "reversals": int(rt.size),
-        "onset": {"config": cfg.effective(), "reasons": on.reasons},
+        "onset": {"config": cfg.effective(), "reasons": on.reasons, "refine": refine_doc},
         "b_samples": {"t1_s": on.t1_s, "t2_s": on.t2_s, "q1": on.q1, "q2": on.q2, "q_mean": on.q_mean,
-                      "b": on.b, "weight": w},
+                      "b": on.b, "weight": w, "sigma_b": on.sigma_b, "z": bfit.z},
+        "b_inconsistent": [{"index": int(i), "q_mean": float(on.q_mean[i]), "b": float(on.b[i]), "z": float(bfit.z[i])}
+                           for i in np.nonzero(bfit.inconsistent)[0]],
+        "warnings": warnings,
         "B": B.to_json(),
         "f_remain": {**f.to_json(), "sign": sign, "method": f_method},
         "f_remain_alt": {**fits[alt][0].to_json(), "sign": fits[alt][1], "method": alt},

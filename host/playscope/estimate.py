@@ -79,32 +79,6 @@ def frames_from_angle(t: np.ndarray, c: np.ndarray, fps: float) -> tuple[np.ndar
     return tf, cf
 
 
-def estimate_t_delay(t_enc: np.ndarray, q: np.ndarray, t_f: np.ndarray, obs: np.ndarray,
-                     max_delay_s: float = 0.5) -> float:
-    """t_delay (s) maximising the correlation of actuator speed |dq/dt| (shifted) with image
-    speed |dQ/dt|, both on the frame clock. Onsets happen where both start from zero, so
-    the speed magnitudes line up at the true delay even though the gains differ.
-    obs: (N, 2) px or (N, 2) with deg in column 0. Returns a delay in [0, max_delay_s]."""
-    ok = np.all(np.isfinite(obs), axis=1)
-    tf, o = t_f[ok], obs[ok]
-    if tf.size < 10:
-        return 0.0
-    sp_img = np.linalg.norm(np.diff(o, axis=0), axis=1) / np.diff(tf)
-    tm = 0.5 * (tf[1:] + tf[:-1])
-    period = float(np.median(np.diff(tf)))
-    lags = np.arange(0.0, max_delay_s + 1e-12, min(period / 8, 0.005))
-    best, best_lag = -np.inf, 0.0
-    a = sp_img - sp_img.mean()
-    for lag in lags:
-        qa = np.interp(tf - lag, t_enc, q)
-        sp_q = np.abs(np.diff(qa)) / np.diff(tf)
-        b = sp_q - sp_q.mean()
-        r = float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b) + 1e-300))
-        if r > best:
-            best, best_lag = r, float(lag)
-    return best_lag
-
-
 # --------------------------------------------------------------------------- onsets (C)
 @dataclass
 class OnsetConfig:
@@ -177,6 +151,7 @@ class Onsets:
     q_mean: np.ndarray
     b: np.ndarray
     reasons: dict[str, int] = field(default_factory=dict)
+    sigma_b: np.ndarray | None = None  # (M,) standard error of each b (host refinement), None: unknown
 
 
 def run_onsets(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.ndarray,
@@ -248,29 +223,57 @@ def _diff_penalty(n: int, order: int = 2) -> np.ndarray:
     return np.diff(np.eye(n), order, axis=0)
 
 
+def _slope_matrix(t: np.ndarray, n_ctrl: int, degree: int = 3) -> np.ndarray:
+    """G (n_ctrl-1, n_ctrl): the coefficients of s' (a degree-1 lower B-spline on the same
+    knots) are G @ coef, d_i = k (c_(i+1) - c_i) / (t_(i+k+1) - t_(i+1)) (de Boor, A Practical
+    Guide to Splines, ch. X). |d_i| <= m bounds |s'| <= m everywhere, since s' is a convex
+    combination of its coefficients."""
+    G = np.zeros((n_ctrl - 1, n_ctrl))
+    for i in range(n_ctrl - 1):
+        h = t[i + degree + 1] - t[i + 1]
+        G[i, i], G[i, i + 1] = -degree / h, degree / h
+    return G
+
+
 def robust_spline(x: np.ndarray, y: np.ndarray, n_ctrl: int, lo: float, hi: float, smooth: float = 1e-3,
-                  monotone: int = 0, iters: int = 15, huber_k: float = 1.345):
+                  monotone: int = 0, iters: int = 15, huber_k: float = 1.345, sigma: np.ndarray | None = None,
+                  lower: float | None = None, max_slope: float | None = None):
     """Robust cubic B-spline fit y ~ s(x) with n_ctrl control points on [lo, hi].
 
     Least squares with a small second-difference penalty on the coefficients (P-spline,
     Eilers & Marx) so that sparse samples (few reversals) still give a well-posed fit,
     and iteratively reweighted with Huber weights on a MAD scale so that a spurious onset
-    does not bend the curve. monotone=+1/-1 constrains the coefficients to be
+    does not bend the curve. sigma (M,): each sample's own standard error; the weights are
+    then 1 / (sigma^2 + s^2), s^2 the scatter the sigmas do not explain (MAD of the residuals
+    less the median sigma^2, a random-effects weighting), times the Huber weight of the
+    standardised residual. monotone=+1/-1 constrains the coefficients to be
     non-decreasing/non-increasing (sufficient for a monotone spline), solved by
-    scipy.optimize.lsq_linear. x, y: (M,). Returns (BSpline, weights (M,)).
+    scipy.optimize.lsq_linear. lower / max_slope: coefficients >= lower (so s >= lower) and
+    |s'| <= max_slope (through the derivative's coefficients, _slope_matrix), a quadratic
+    programme solved by scipy.optimize.minimize (SLSQP) from the unconstrained solution.
+    x, y: (M,). Returns (BSpline, weights (M,) normalised to max 1).
     """
     x = np.asarray(x, float)
     y = np.asarray(y, float)
     t = clamped_knots(lo, hi, n_ctrl)
     A = BSpline.design_matrix(np.clip(x, lo, hi), t, 3).toarray()
     D = _diff_penalty(n_ctrl)
-    scale_A = np.trace(A.T @ A) / n_ctrl
+    sig2 = None if sigma is None else np.asarray(sigma, float) ** 2
+    base = np.ones(x.size) if sig2 is None else 1.0 / np.maximum(sig2 + np.median(sig2), 1e-300)
+    base = base / base.mean()
+    scale_A = np.trace(A.T @ (A * base[:, None])) / n_ctrl
     lam = smooth * max(scale_A, 1e-12)
-    w = np.ones(x.size)
+    w = base.copy()
     # Monotone: coef = T @ theta with theta[1:] >= 0 (sign-adjusted cumulative sum).
     if monotone:
         T = np.tril(np.ones((n_ctrl, n_ctrl))) * np.where(np.arange(n_ctrl) == 0, 1.0, float(monotone))[None, :]
         lb = np.r_[-np.inf, np.zeros(n_ctrl - 1)]
+    constrained = lower is not None or max_slope is not None
+    if constrained:
+        from scipy.optimize import LinearConstraint, minimize
+
+        cons = [LinearConstraint(_slope_matrix(t, n_ctrl), -max_slope, max_slope)] if max_slope is not None else []
+        bounds = [(lower, None)] * n_ctrl if lower is not None else None
     coef = None
     for _ in range(iters):
         sw = np.sqrt(w)
@@ -281,9 +284,20 @@ def robust_spline(x: np.ndarray, y: np.ndarray, n_ctrl: int, lo: float, hi: floa
             new = T @ th
         else:
             new = np.linalg.lstsq(M, rhs, rcond=None)[0]
+            if constrained:
+                H, g = M.T @ M, M.T @ rhs
+                x0 = np.maximum(new, lower) if lower is not None else new
+                new = minimize(lambda c: 0.5 * c @ H @ c - g @ c, x0, jac=lambda c: H @ c - g, method="SLSQP",
+                               bounds=bounds, constraints=cons, options={"maxiter": 200, "ftol": 1e-12}).x
         r = y - A @ new
         s = 1.4826 * np.median(np.abs(r - np.median(r))) + 1e-12
-        w = np.minimum(1.0, huber_k * s / np.maximum(np.abs(r), 1e-300))
+        if sig2 is None:
+            w = np.minimum(1.0, huber_k * s / np.maximum(np.abs(r), 1e-300))
+        else:
+            var = sig2 + max(s * s - float(np.median(sig2)), 1e-6 * s * s)
+            z = np.abs(r) / np.sqrt(var)
+            w = np.minimum(1.0, huber_k / np.maximum(z, 1e-300)) / var
+            w = w / w.max()
         if coef is not None and np.max(np.abs(new - coef)) < 1e-10 * (1 + np.max(np.abs(new))):
             coef = new
             break
@@ -322,14 +336,34 @@ class SplineFn:
         return cls(spl, d["range"][0], d["range"][1], d.get("ends") == "linear", d.get("floor"))
 
 
-def fit_backlash(q_mean: np.ndarray, b: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3,
-                 q_range: tuple[float, float] | None = None, source: str | None = None, max_slope: float = 1.5):
-    """B(q) from onset samples (section III-B): robust cubic B-spline, N control points.
+@dataclass
+class BacklashFit:
+    """B(q) spline and what the fit made of each sample (M,): weight (normalised to max 1),
+    z the standardised residual (residual / its standard deviation: the sample's sigma and
+    the scatter between samples), and inconsistent = |z| > 3.5 (modified z-score rule of
+    Iglewicz & Hoaglin 1993), samples the fit disagrees with rather than averages."""
+
+    B: "SplineFn"
+    weight: np.ndarray
+    z: np.ndarray
+    inconsistent: np.ndarray
+    scatter: float
+
+
+Z_INCONSISTENT = 3.5
+
+
+def fit_backlash_samples(q_mean: np.ndarray, b: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3,
+                         q_range: tuple[float, float] | None = None, source: str | None = None,
+                         max_slope: float = 1.5, sigma: np.ndarray | None = None) -> BacklashFit:
+    """B(q) from onset samples (section III-B): robust cubic B-spline, N control points,
+    constrained to B >= 0 and |B'| <= max_slope, each sample weighted by its uncertainty.
 
     N = 14 is the paper's setting; with fewer samples than control points the difference
-    penalty carries the fit (shape between samples is then the smoothest one). Widths are
-    floored at 0. Errors: InputError (naming ``source``) with fewer than 4 samples.
-    Returns (SplineFn, weights (M,)).
+    penalty carries the fit (shape between samples is then the smoothest one). |B'| < 2 is
+    physical (eq. 2: the envelopes would fold back) and the firmware's loader refuses steeper
+    tables, so max_slope = 1.5 keeps a margin. q_mean, b, sigma: (M,) actuator units (sigma
+    None: equal weights). Errors: InputError (naming ``source``) with fewer than 4 samples.
     """
     if q_mean.size < 4:
         raise InputError(source, f"only {q_mean.size} valid backlash samples (need >= 4 reversals with a "
@@ -337,16 +371,25 @@ def fit_backlash(q_mean: np.ndarray, b: np.ndarray, n_ctrl: int = 14, smooth: fl
     lo, hi = (float(np.min(q_mean)), float(np.max(q_mean))) if q_range is None else q_range
     if hi - lo <= 0:
         raise InputError(source, "all backlash samples at the same actuator position")
-    # |B'| < 2 is physical (eq. 2: the envelopes would fold back) and the firmware's
-    # loader refuses steeper tables; sparse samples can make the spline wiggle that much,
-    # so the smoothing penalty is raised tenfold until the slope is below max_slope.
-    grid = np.linspace(lo, hi, 2001)
-    for _ in range(10):
-        spl, w = robust_spline(q_mean, b, n_ctrl, lo, hi, smooth)
-        if np.max(np.abs(spl.derivative()(grid[:-1]))) < max_slope:
-            break
-        smooth *= 10
-    return SplineFn(spl, lo, hi, linear_ends=False, floor=0.0), w
+    spl, w = robust_spline(q_mean, b, n_ctrl, lo, hi, smooth, sigma=sigma, lower=0.0, max_slope=max_slope)
+    r = b - spl(np.clip(q_mean, lo, np.nextafter(hi, -np.inf)))
+    s = 1.4826 * float(np.median(np.abs(r - np.median(r)))) + 1e-12
+    if sigma is None:
+        z = r / s
+        scatter = s
+    else:
+        sig2 = np.asarray(sigma, float) ** 2
+        scatter = float(np.sqrt(max(s * s - float(np.median(sig2)), 0.0)))
+        z = r / np.sqrt(sig2 + max(scatter * scatter, 1e-6 * s * s))
+    return BacklashFit(SplineFn(spl, lo, hi, linear_ends=False, floor=0.0), w, z, np.abs(z) > Z_INCONSISTENT, scatter)
+
+
+def fit_backlash(q_mean: np.ndarray, b: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3,
+                 q_range: tuple[float, float] | None = None, source: str | None = None, max_slope: float = 1.5,
+                 sigma: np.ndarray | None = None):
+    """fit_backlash_samples, returning (SplineFn, weights (M,)) only."""
+    f = fit_backlash_samples(q_mean, b, n_ctrl, smooth, q_range, source, max_slope, sigma)
+    return f.B, f.weight
 
 
 # --------------------------------------------------------------------------- f_remain

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from .. import argtypes as T
@@ -12,7 +14,8 @@ from .common import add_json_arg, dump_json
 
 def add_parser(sub) -> None:
     p = sub.add_parser("calibrate", help="estimate B(q) and f_remain from a session",
-                       description="Paper Fig. 4: reversals -> motion onsets (the firmware's C detector, eq. 1) "
+                       description="Paper Fig. 4: reversals -> motion onsets (the firmware's C detector, eq. 1; image sessions: "
+                       "refined on the host by a joint ML model, t_delay measured from the record) "
                        "-> B(q) robust cubic B-spline (N control points) -> f_remain (play-consistent least "
                        "squares, or the paper's morphological median line) -> calibration JSON "
                        "(docs/calibration-format.md). Example: playscope calibrate sessions/d21 -o d21.cal.json")
@@ -22,20 +25,27 @@ def add_parser(sub) -> None:
     p.add_argument("--f-method", choices=["lsq", "morph"], default="lsq",
                    help="f_remain estimator: lsq (default, play-consistent) or morph (paper, section IV)")
     p.add_argument("--fps", type=T.FPS, help="frame rate for angle sessions (default: ~125 frames per stroke, 10-50 Hz)")
-    p.add_argument("--t-delay", type=T.T_DELAY_S, help="image delay t_delay in s (default: session.json, else estimated)")
+    p.add_argument("--t-delay", type=T.T_DELAY_S, help="configured image delay t_delay in s (default: session.json); "
+                   "image sessions check it against the record's own delay")
+    p.add_argument("--t-delay-from", choices=["data", "config"], default="data",
+                   help="image sessions: use the delay measured from the record (data, default) or the configured "
+                   "one (config); a gap over one frame period is warned about either way")
     p.add_argument("--hysteresis", type=T.HYSTERESIS, help="reversal detection hysteresis, actuator units (default 1%% of travel)")
     p.add_argument("--threshold", type=T.THRESHOLD, help="onset threshold T per frame (px or deg); default automatic")
     add_json_arg(p, "calibration (path), reversals, b_samples, onset_reasons {name: count}, t_delay_s, "
-                 "fps_frames, B_range [min,max], rms_fit_deg")
+                 "fps_frames, B_range [min,max], t_delay {configured_s, record_s, used_s, ...} and ringing "
+                 "{freq_hz, damping_ratio, ...} (image sessions, else null), b_inconsistent (count), warnings")
     p.set_defaults(func=run)
 
 
 def run(a) -> int:
     s = load_session(a.session)
     ov = {"threshold": a.threshold} if a.threshold is not None else None
-    cal = calibrate(s, a.control_points, a.f_method, a.fps, a.t_delay, a.hysteresis, ov)
+    cal = calibrate(s, a.control_points, a.f_method, a.fps, a.t_delay, a.hysteresis, ov, t_delay_from=a.t_delay_from)
     cal.save(a.out)
     d = cal.doc
+    for w in d.get("warnings", []):
+        print(f"playscope: warning: {w}", file=sys.stderr)
     g = np.linspace(*d["q_range"], 200)
     b = cal.B(g)
     print(f"{a.out}: {len(d['b_samples']['b'])} B samples from {d['reversals']} reversals "
@@ -43,5 +53,8 @@ def run(a) -> int:
           f"B {b.min():.3g}..{b.max():.3g} {d['actuator_unit']}, t_delay {d['t_delay_s']:.3f} s")
     dump_json(a.json, {"calibration": a.out, "reversals": d["reversals"], "b_samples": len(d["b_samples"]["b"]),
                        "onset_reasons": d["onset"]["reasons"], "t_delay_s": d["t_delay_s"],
-                       "fps_frames": d["fps_frames"], "B_range": [float(b.min()), float(b.max())]})
+                       "fps_frames": d["fps_frames"], "B_range": [float(b.min()), float(b.max())],
+                       "t_delay": (d["onset"].get("refine") or {}).get("t_delay"),
+                       "ringing": (d["onset"].get("refine") or {}).get("ringing"),
+                       "b_inconsistent": len(d.get("b_inconsistent", [])), "warnings": d.get("warnings", [])})
     return 0

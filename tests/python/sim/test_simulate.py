@@ -53,7 +53,7 @@ def test_reimage_renders_a_measured_angle(tmp_path):
 def test_fig7_two_step_beats_pose_based():
     sys.path.insert(0, str(REPO / "bench"))
     try:
-        import fig7_replica as F
+        import fig7_sim_pose as F
     finally:
         sys.path.pop(0)
     r = F.run(0)

@@ -1,0 +1,543 @@
+"""Host refinement of the motion onsets (section III-A, eq. 1) by maximum likelihood.
+
+The board keeps its simple detector (firmware/core/onset.c); the host refines each of its
+onsets with a joint model of the marker around a reversal, fitted to the frames:
+
+    Q(t) = a + v0 min(t - tau0, 0)                       old motion, stops at tau0
+             + r e^(-alpha (t - tau0)) sin(w (t - tau0))  ringing after the stop (optional)
+             + s [t >= t_j]                               a step: registration / channel jump (optional)
+             + v1 max(t - tau, 0)                         new motion from the onset tau
+
+Q is the 2-D marker (px); a, v0, r, s, v1 are 2-vectors, linear given the change points
+(tau0, tau, frame j) and the ringing (w, alpha), so each candidate is one linear least-squares
+solve and the change points are found on grids (coordinate ascent: stop and ringing, then onset
+and step, then stop again). Gaussian noise of unknown variance gives the profile likelihood
+RSS^(-N/2); optional parts are kept by BIC (Schwarz 1978). The onset t2 is the posterior mean
+of tau under a flat prior on the grid, its uncertainty the posterior standard deviation: a
+step in the frame interval of the onset makes tau unidentifiable inside that interval, and the
+estimate is then its middle with sigma = T/sqrt(12), instead of the early crossing that a line
+through the jump gives.
+
+The stop tau0 is seen where the motor stopped plus the image delay, whatever the backlash, so
+the stop times give t_delay from the record (median of tau0 - motor stop), independent of the
+configured value.
+
+Units: t in s, image points in px. Arrays per reversal are (M,).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Ringing grid: 1.5-7 Hz (below Nyquist at 25 fps with margin; the issue's 2-5 Hz inside) and
+# decay rates 0.5-12 /s (damping ratio ~0.01-0.8 at 3 Hz).
+RING_HZ = np.arange(1.5, 7.01, 0.5)
+RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
+SUB = 8          # onset / stop grid points per frame period
+PRE_FRAMES = 3   # frames of old motion kept before the earliest stop searched
+POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line holds over ~0.25 s)
+
+
+@dataclass
+class Refined:
+    """Per reversal (M,): refined onset t2_s and its sigma_t2_s (s), stop time tau0_s (image
+    clock), step_px (|s|, 0 without a step), ring_hz / ring_alpha (0 without ringing) and
+    ring_px (|r|), ok (fit done)."""
+
+    t2_s: np.ndarray
+    sigma_t2_s: np.ndarray
+    tau0_s: np.ndarray
+    step_px: np.ndarray
+    ring_hz: np.ndarray
+    ring_alpha: np.ndarray
+    ring_px: np.ndarray
+    ok: np.ndarray
+
+
+def motor_stop_times(t: np.ndarray, q: np.ndarray, t1: np.ndarray, q1: np.ndarray, tol: float) -> np.ndarray:
+    """When the actuator reached each reversal's extremum: the first sample of the run within
+    ``tol`` of q1 that ends at t1 (t1 itself without a hold at the turn). t, q: (N,);
+    t1, q1: (M,). Returns (M,) s. The tip stops there (the play opens at once)."""
+    i1 = np.clip(np.searchsorted(t, t1), 0, t.size - 1)
+    out = np.empty(t1.size)
+    for r, (i, qq) in enumerate(zip(i1, q1)):  # one short backward walk per reversal
+        k = i
+        while k > 0 and abs(q[k - 1] - qq) <= tol:
+            k -= 1
+        out[r] = t[k]
+    return out
+
+
+def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np.ndarray, q: np.ndarray,
+                 period: float, max_delay: float = 0.5) -> float:
+    """First guess of t_delay (s): cross-correlation of commanded and observed motion around
+    the motor stops. For each reversal the image velocity along the old motion's image
+    direction (from the half second before the motor stop) is multiplied by the sign of the
+    motor's velocity at t - lag (+1 on, -1 back, 0 held), over 8 frame periods before
+    t_stop + lag and 4 after; the sum over reversals peaks at the delay (earlier lags meet
+    the tip still going while the motor is back; later ones meet the dead band). A ringing tip
+    keeps going for up to a quarter period after the stop, so the guess may be late by that;
+    velocities are clipped at 3 median so a jump does not count. ``refine`` fits each stop
+    from 5 frames before the guess to 3 after."""
+    ok = np.all(np.isfinite(obs), axis=1)
+    tf, o = t_f[ok], obs[ok]
+    P = lambda tt: np.stack([np.interp(tt, tf, o[:, 0]), np.interp(tt, tf, o[:, 1])], axis=-1)  # noqa: E731
+    e = P(t_stop) - P(t_stop - 0.5)
+    e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-12)
+    sgn = np.sign(np.interp(t_stop, t_enc, q) - np.interp(t_stop - 0.1, t_enc, q))
+    dq = np.diff(q)
+    tm = 0.5 * (t_enc[1:] + t_enc[:-1])
+    ks = np.arange(-8, 4) + 0.5
+    lags = np.arange(0.0, max_delay + 1e-9, period / SUB)
+    score = np.empty(lags.size)
+    for i, lag in enumerate(lags):
+        tc = t_stop[:, None] + lag + ks[None, :] * period  # (M, 12) velocity sample times
+        vi = np.einsum("mkc,mc->mk", P(tc + period / 2) - P(tc - period / 2), e)
+        vm = np.sign(np.interp(tc - lag, tm, dq)) * sgn[:, None]
+        lim = 3.0 * np.median(np.abs(vi)) + 1e-12  # a jump is one huge velocity sample: clip it
+        score[i] = np.sum(np.clip(vi, -lim, lim) * vm)
+    return float(lags[int(np.argmax(score))])
+
+
+def _solve(F: np.ndarray, V: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Batched least squares Y ~ [F, V_g]: F (n, f) columns shared by every candidate, V
+    (G, n, p) the candidate's own columns, Y (n, 2). F is projected out first (Frisch-Waugh-
+    Lovell), so each candidate is a p x p solve. Returns (RSS (G,), coef of V (G, p, 2)).
+    Columns that are identically zero (a part absent from a candidate) get a tiny ridge so the
+    solve stays regular without changing the fit."""
+    U, sv, _ = np.linalg.svd(F, full_matrices=False)  # orthonormal basis of F's span (rank-aware:
+    Qf = U[:, sv > 1e-9 * sv.max()]                   # absent parts are zero columns)
+    Yr = Y - Qf @ (Qf.T @ Y)
+    G, n, p = V.shape
+    Vt = np.ascontiguousarray(V.transpose(0, 2, 1)).reshape(G * p, n)  # 2-D products: BLAS, not stacks
+    Vt = (Vt - (Vt @ Qf) @ Qf.T).reshape(G, p, n)
+    A = Vt @ Vt.transpose(0, 2, 1)
+    scale = np.maximum(np.diagonal(A, axis1=1, axis2=2).max(axis=1), 1.0)
+    A += (1e-10 * scale)[:, None, None] * np.eye(p)[None]
+    rhs = (Vt.reshape(G * p, n) @ Yr).reshape(G, p, 2)
+    coef = np.linalg.solve(A, rhs)
+    rss = float(np.sum(Yr * Yr)) - (coef * rhs).sum(axis=(1, 2))
+    return np.maximum(rss, 1e-12 * max(float(np.sum(Yr * Yr)), 1e-300)), coef
+
+
+def _col_old(tk, tau0):
+    """Old motion, stopping at tau0: min(t - tau0, 0). tau0 (G,) -> (G, n)."""
+    return np.minimum(tk[None, :] - np.asarray(tau0, float)[:, None], 0.0)
+
+
+def _col_ring(tk, tau0, om, al):
+    """Ringing from the stop: e^(-al d) sin(om d), d = t - tau0 > 0 (0 before). (G, n)."""
+    d = np.maximum(tk[None, :] - np.asarray(tau0, float)[:, None], 0.0)
+    return np.exp(-np.asarray(al, float)[:, None] * d) * np.sin(np.asarray(om, float)[:, None] * d)
+
+
+def _cols_new(tk, tau):
+    """New motion from tau: max(t - tau, 0) and its square / 4. tau (G,) -> (G, n) x 2."""
+    d = np.maximum(tk[None, :] - np.asarray(tau, float)[:, None], 0.0)
+    return d, d * d / 4.0
+
+
+def _col_step(k_idx, j):
+    """Step at frame j (applies from frame j on); j < 0: none. (G, n)."""
+    j = np.asarray(j, float)[:, None]
+    return ((k_idx[None, :] >= j) & (j >= 0)).astype(float)
+
+
+def _logw(rss: np.ndarray, n_obs: int, n_extra: np.ndarray) -> np.ndarray:
+    """Profile log-likelihood of a Gaussian fit with unknown variance, less the BIC penalty of
+    the optional parameters: -N/2 log RSS - k/2 log N."""
+    return -0.5 * n_obs * np.log(np.maximum(rss, 1e-300)) - 0.5 * n_extra * np.log(n_obs)
+
+
+def _posterior(x: np.ndarray, lw: np.ndarray, step: float) -> tuple[float, float]:
+    """Mean and standard deviation of x under weights exp(lw) (flat prior on a grid of
+    spacing ``step``); the sd is at least step/sqrt(12), the grid's own resolution."""
+    w = np.exp(lw - lw.max())
+    w /= w.sum()
+    m = float(np.sum(w * x))
+    sd = float(np.sqrt(max(np.sum(w * (x - m) ** 2), 0.0) + step * step / 12.0))
+    return m, sd
+
+
+class _Episode:
+    """The frames of one reversal in frame-period units and the current estimate."""
+
+    def __init__(self, tk, Y, k_idx, tau0, tau):
+        self.tk, self.Y, self.k = tk, Y, k_idx
+        self.tau0, self.tau, self.j, self.om, self.al = tau0, tau, -1, 0.0, 0.0
+        self.n_obs = 2 * tk.size
+        self.stop_back = 5.0  # frames searched before the stop guess (ringing makes it late)
+        self.fixed_ring = None  # (om, al) per frame period: the record's ringing, not searched
+
+    def _solve_stop(self, tau0, om, al, j):
+        """Candidates (tau0, ringing, step frame j) with the onset held: (RSS, coef of [old,
+        ring, step])."""
+        d, _ = _cols_new(self.tk, [self.tau])
+        F = np.column_stack([np.ones(self.tk.size), d[0]])
+        V = np.stack([_col_old(self.tk, tau0), _col_ring(self.tk, tau0, om, al), _col_step(self.k, j)], axis=2)
+        return _solve(F, V, self.Y)
+
+    def _solve_onset(self, tau, j):
+        """Candidates (onset, step frame) with the stop and ringing held: (RSS, coef of
+        [new, step])."""
+        F = np.column_stack([np.ones(self.tk.size), _col_old(self.tk, [self.tau0])[0],
+                             _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
+        d, _ = _cols_new(self.tk, tau)
+        V = np.stack([d, _col_step(self.k, j)], axis=2)
+        return _solve(F, V, self.Y)
+
+    def fit_stop(self):
+        """Stop tau0, ringing (w, alpha) and a step near the stop (a registration flipping at
+        the motor reversal), onset held. Half-frame grid of tau0 with every ringing (step
+        held), then with every step near the stop (ringing held); the ringing is then polished
+        by Nelder-Mead on the profile RSS (the grid is too coarse for a 10 px ring), and an
+        eighth-frame grid around the best gives tau0's posterior, marginalised over the step."""
+        from scipy.optimize import minimize
+
+        lo = max(-self.stop_back, self.tk[0] + 0.5)  # around the first guess (t = 0): no drift
+        hi = min(3.0, self.tau - 1.0)
+        if hi <= lo:
+            hi = lo + 0.5
+        g0 = np.arange(lo, hi + 1e-9, 0.5)
+        om = np.r_[0.0, np.repeat(2 * np.pi * RING_HZ, RING_ALPHA.size)] * self.period_s  # rad / frame
+        al = np.r_[0.0, np.tile(RING_ALPHA, RING_HZ.size)] * self.period_s
+        if self.fixed_ring is not None:  # the record's ringing (second pass)
+            om, al = np.array([self.fixed_ring[0]]), np.array([self.fixed_ring[1]])
+        T0, R_ = (x.ravel() for x in np.meshgrid(g0, np.arange(om.size), indexing="ij"))
+        J = np.full(T0.size, float(self.j))
+        rss, _ = self._solve_stop(T0, om[R_], al[R_], J)
+        lw = _logw(rss, self.n_obs, 4.0 * (om[R_] > 0) + 3.0 * (J >= 0))
+        b = int(np.argmax(lw))
+        self.om, self.al = float(om[R_[b]]), float(al[R_[b]])
+        js = np.unique(np.r_[-1, self.j, self.k[(self.tk >= lo - 1) & (self.tk <= hi + 1)]]).astype(float)
+        T0, J = (x.ravel() for x in np.meshgrid(g0, js, indexing="ij"))
+        rss, _ = self._solve_stop(T0, np.full(T0.size, self.om), np.full(T0.size, self.al), J)
+        lw = _logw(rss, self.n_obs, 3.0 * (J >= 0))
+        b = int(np.argmax(lw))
+        self.j, t0b = int(J[b]), float(T0[b])
+        if self.om > 0 and self.fixed_ring is None:
+            f = lambda p: self._solve_stop([t0b], [abs(p[0])], [abs(p[1])], [self.j])[0][0]  # noqa: E731
+            p = minimize(f, [self.om, self.al], method="Nelder-Mead",
+                         options={"xatol": 1e-4, "fatol": 1e-9, "maxiter": 200}).x
+            self.om, self.al = float(abs(p[0])), float(abs(p[1]))
+        gf = np.arange(max(t0b - 1.0, lo), min(t0b + 1.0, hi) + 1e-9, 0.5 / SUB)
+        js = np.unique(np.r_[-1, self.j]).astype(float)
+        TT, JJ = (x.ravel() for x in np.meshgrid(gf, js, indexing="ij"))
+        rss, coef = self._solve_stop(TT, np.full(TT.size, self.om), np.full(TT.size, self.al), JJ)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0))
+        b = int(np.argmax(lw))
+        self.j = int(JJ[b])
+        self.ring_px = float(np.linalg.norm(coef[b, 1])) if self.om > 0 else 0.0
+        self.v0 = coef[b, 0]  # old velocity, px per frame period
+        lw2 = lw.reshape(gf.size, js.size)
+        m = lw2.max()
+        self.tau0, self.sd0 = _posterior(gf, m + np.log(np.exp(lw2 - m).sum(axis=1)), 0.5 / SUB)
+
+    def _back(self, coef: np.ndarray) -> np.ndarray:
+        """0 for onset candidates whose new motion goes back along the old one (after a reversal
+        the tip retraces its path at the actuator's speed: velocity 3 frames after the onset
+        within 45 deg of -v0 and between 0.3 and 3 |v0|; a ringing tip's swing back is faster),
+        -inf for the others. No constraint when the old motion is not
+        seen (|v0| below 0.05 px per frame)."""
+        v0 = getattr(self, "v0", np.zeros(2))
+        n0 = float(np.linalg.norm(v0))
+        if n0 < 0.05:
+            return np.zeros(coef.shape[0])
+        vel = coef[:, 0, :]
+        along = -(vel @ v0) / n0
+        ok = (along > 0.3 * n0) & (along < 3.0 * n0) & (along > 0.7071 * np.linalg.norm(vel, axis=1))
+        return np.where(ok, 0.0, -np.inf)
+
+    def _order(self, tau: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """0, or -inf for a step seen from a frame less than 1.5 periods before the onset. A
+        registration or channel jump comes with the reversal (at the stop, many frames
+        earlier) or with the onset (in its frame interval or after); a jump just before the
+        onset would leave that frame free of the line, and the fit would take it for any
+        curvature of the first moving frames, putting the onset late."""
+        tj = np.where(j >= 0, self.tk[np.clip(np.searchsorted(self.k, j), 0, self.k.size - 1)], -np.inf)
+        return np.where((tau - tj > 0) & (tau - tj < 1.5), -np.inf, 0.0)
+
+    def fit_onset(self, final: bool):
+        """Onset tau and step frame j, stop and ringing held: a half-frame grid of tau, a step
+        at any frame after the stop (or none), then an eighth-frame grid around the best with
+        the steps near it. final: t2 and its sd are the posterior of tau, marginalised
+        over the step's frame; otherwise the best tau."""
+        lo = self.tau0 + 0.25
+        hi = self.tk[-1] - 2.0
+        if hi <= lo:
+            self.ok = False
+            return
+        pen_ring = 4.0 * (self.om > 0)
+        # Coarse: tau on a half-frame grid; the step none, the current one (a step at the stop
+        # comes from fit_stop) or at a frame within 2 periods of tau (the onset's jump).
+        gt = np.arange(lo, hi + 1e-9, 0.5)
+        ks = self.k[self.tk > self.tau0 - 1.0]
+        tks = self.tk[self.tk > self.tau0 - 1.0]
+        band = np.abs(tks[None, :] - gt[:, None]) <= 2.0
+        ti, ki = np.nonzero(band)
+        TT = np.r_[gt, gt, gt[ti]]
+        JJ = np.r_[np.full(gt.size, -1.0), np.full(gt.size, float(self.j)), ks[ki].astype(float)]
+        rss, coef = self._solve_onset(TT, JJ)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
+        b = int(np.argmax(lw))
+        tb, self.j = float(TT[b]), int(JJ[b])
+        # No onset in the window unless new motion beats the best still model (level, old
+        # motion, ringing, and a step anywhere or none) by BIC: its 3 parameters (v1, tau).
+        jn = np.r_[-1, self.k[self.tk > self.tau0 - 1.0]].astype(float)
+        rn, _ = self._solve_onset(np.full(jn.size, 1e9), jn)
+        null = float(np.max(_logw(rn, self.n_obs, 3.0 * (jn >= 0) + pen_ring)))
+        self.found = lw[b] - 1.5 * np.log(self.n_obs) > null
+        gf = np.arange(max(tb - 1.5, lo), min(tb + 1.5, hi) + 1e-9, 1.0 / SUB)
+        near = self.k[np.abs(self.tk - tb) <= 2.5]
+        js = np.unique(np.r_[-1, self.j, near]).astype(float)
+        TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
+        rss, coef = self._solve_onset(TT, JJ)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
+        b = int(np.argmax(lw))
+        self.j = int(JJ[b])
+        self.step_px = float(np.linalg.norm(coef[b, 1])) if self.j >= 0 else 0.0
+        if not np.isfinite(lw[b]):  # no candidate moves back along the old motion
+            self.found = False
+        if final and self.found:
+            lw2 = lw.reshape(gf.size, js.size)
+            m = lw2.max()
+            with np.errstate(divide="ignore"):  # onsets the direction rule excludes have weight 0
+                marg = m + np.log(np.exp(lw2 - m).sum(axis=1))
+            self.tau, self.sd = _posterior(gf, marg, 1.0 / SUB)
+        else:
+            self.tau = float(TT[b])
+        self.ok = True
+
+
+def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, ring=None, stop_back=5.0):
+    """Fit the frames in [t0 - (PRE_FRAMES + 5) periods, end] starting from ``state`` (tau0,
+    om, al, j, tau; in periods from t0, tau = inf when no onset is known): stop, onset, stop,
+    onset (the last one final when asked; stop=False: the stop held from ``state``, onset only,
+    while the window grows). Returns the _Episode or None (too few frames)."""
+    sel = (tf >= t0 - (PRE_FRAMES + 5) * period_s) & (tf <= end)
+    if sel.sum() < 8:
+        return None
+    tk = (tf[sel] - t0) / period_s
+    ep = _Episode(tk, o[sel] - o[sel].mean(axis=0), kf[sel], state[0], 1e9)
+    ep.period_s = period_s
+    ep.om, ep.al, ep.j = state[1], state[2], state[3]
+    ep.stop_back = stop_back
+    if ring is not None:
+        ep.fixed_ring = (2 * np.pi * ring[0] * period_s, ring[1] * period_s)
+    if np.isfinite(state[4]):
+        ep.tau = min(max(state[4], state[0] + 1.0), tk[-1] - 2.0)
+    if stop or len(state) < 6:
+        ep.fit_stop()
+    else:
+        ep.v0, ep.ring_px = state[5], state[6]
+    ep.fit_onset(final=False)
+    if not ep.ok:
+        return None
+    if ep.found and stop:
+        ep.fit_stop()
+        ep.fit_onset(final=final)
+        if not ep.ok:
+            return None
+    return ep
+
+
+def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np.ndarray,
+           t2_guess: np.ndarray, t_delay_s: float, period_s: float, ring: tuple | None = None,
+           stop_back: float = 5.0) -> Refined:
+    """Refine every reversal's onset with the joint model (module doc).
+
+    t_f (F,), obs (F, 2) px (NaN = lost) on the image clock; t_stop (M,) motor stops (s,
+    encoder clock); t_next_stop (M,) the next reversal's motor stop (bounds the episode);
+    t2_guess (M,) the board's onset candidates (NaN: none, e.g. ONSET_ERR_NO_STILL when the tip
+    rings); t_delay_s the current delay (its error may be a few frames: the stop is searched
+    from stop_back frames before t_stop + t_delay_s to 3 after); period_s the frame period;
+    ring (hz, alpha 1/s) fixes the ringing (hz 0: none) instead of searching it. The window is grown
+    until the onset lies POST_FRAMES before its end, so a candidate fired by ringing or by a
+    jump is only a start. Returns Refined; ok False where no onset fits before the next stop.
+    """
+    ok_f = np.all(np.isfinite(obs), axis=1)
+    tf, o = t_f[ok_f], obs[ok_f]
+    kf = np.nonzero(ok_f)[0]
+    M = t_stop.size
+    res = {k: np.full(M, np.nan) for k in ("t2", "sd", "tau0", "step", "hz", "al", "ring")}
+    okm = np.zeros(M, bool)
+    for r in range(M):  # episodes are independent; each is a handful of batched solves
+        t0 = t_stop[r] + t_delay_s
+        t_lim = t_next_stop[r] + t_delay_s - 2 * period_s  # the next episode's old motion stays out
+        guess = t2_guess[r] if np.isfinite(t2_guess[r]) else -np.inf
+        # The first window ends 4 frames after the stop (the stop and ringing are fitted
+        # there, before any onset); the next one reaches past the board's candidate.
+        end = min(t0 + 4 * period_s, t_lim)
+        state = (0.0, 0.0, 0.0, -1, np.inf)  # tau0, om, al, j, tau (inf: no onset known yet)
+        ep = None
+        for _ in range(40):  # grow the window until an onset sits well inside it, then trim to it
+            ep = _fit_window(tf, o, kf, t0, end, period_s, state, stop=len(state) < 6, ring=ring, stop_back=stop_back)
+            if ep is None:
+                break
+            state = (ep.tau0, ep.om, ep.al, ep.j, ep.tau if ep.found else np.inf, ep.v0, ep.ring_px)
+            if ep.found and ep.tau * period_s + t0 < end - (POST_FRAMES - 1.5) * period_s:
+                trim = min(ep.tau * period_s + t0 + POST_FRAMES * period_s, t_lim)
+                e2 = _fit_window(tf, o, kf, t0, trim, period_s, state, final=True, ring=ring, stop_back=stop_back)
+                if e2 is not None and e2.found and abs(e2.tau - ep.tau) < 2.0:
+                    ep = e2
+                    break
+            if end >= t_lim:
+                ep = None
+                break
+            # Never shrink: an onset the longer window no longer supports was a jump or a swing.
+            if ep.found:
+                end = min(max(end + period_s, ep.tau * period_s + t0 + POST_FRAMES * period_s), t_lim)
+            else:
+                end = min(max(end, guess) + POST_FRAMES * period_s, t_lim)
+            guess = -np.inf
+        if ep is None or not ep.found or not hasattr(ep, "sd"):
+            continue
+        okm[r] = True
+        res["t2"][r] = t0 + ep.tau * period_s
+        res["sd"][r] = ep.sd * period_s
+        res["tau0"][r] = t0 + ep.tau0 * period_s
+        res["step"][r] = ep.step_px
+        res["hz"][r] = ep.om / period_s / (2 * np.pi)
+        res["al"][r] = ep.al / period_s
+        res["ring"][r] = ep.ring_px
+    return Refined(res["t2"], res["sd"], res["tau0"], res["step"], res["hz"], res["al"], res["ring"], okm)
+
+
+def delay_from_stops(tau0_s: np.ndarray, t_stop: np.ndarray) -> tuple[float, float, int]:
+    """t_delay from the record: median over reversals of (image stop - motor stop), its
+    standard error (1.2533 MAD-sd / sqrt(n), for the median of a normal sample) and the count.
+    NaN entries (no fit) are left out. Returns (t_delay_s, se_s, n)."""
+    d = tau0_s - t_stop
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return float("nan"), float("nan"), 0
+    med = float(np.median(d))
+    sd = 1.4826 * float(np.median(np.abs(d - med)))
+    sd = max(sd, 0.0025 / np.sqrt(12))  # the stops are on a grid of 1/16 frame
+    return med, 1.2533 * sd / np.sqrt(d.size), int(d.size)
+
+
+def ring_summary(ref: Refined) -> dict:
+    """The record's post-reversal ringing for the diagnosis: share of reversals where a ringing
+    was kept (BIC), and over those the median frequency (Hz), decay rate alpha (1/s), damping
+    ratio zeta = alpha / sqrt(alpha^2 + w^2) and amplitude (px)."""
+    ok = ref.ok & np.isfinite(ref.ring_hz)
+    has = ok & (ref.ring_hz > 0)
+    out = {"reversals_fitted": int(ok.sum()), "reversals_ringing": int(has.sum()),
+           "share": float(has.sum() / max(ok.sum(), 1))}
+    if has.any():
+        hz, al = np.median(ref.ring_hz[has]), np.median(ref.ring_alpha[has])
+        w = 2 * np.pi * hz
+        out.update({"freq_hz": float(hz), "decay_per_s": float(al), "damping_ratio": float(al / np.hypot(al, w)),
+                    "amplitude_px": float(np.median(ref.ring_px[has]))})
+    return out
+
+
+@dataclass
+class RobustOnsets:
+    """What `robust_samples` gives calibrate: the B samples (estimate.Onsets with sigma_b), the
+    delay used and where it came from, and the record's diagnosis (JSON-ready dict)."""
+
+    onsets: "object"
+    t_delay_s: float
+    t_delay_source: str
+    report: dict
+    warnings: list
+
+
+def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.ndarray, rq: np.ndarray,
+                   t_f: np.ndarray, obs: np.ndarray, fps: float, t_delay_cfg: float | None,
+                   t_delay_from: str = "data", board=None, onset_cfg: dict | None = None,
+                   hysteresis: float = 0.0) -> RobustOnsets:
+    """B samples of eq. 1 for an image session: the board's detector, then the host refinement.
+
+    1. Motor stops (``motor_stop_times`` on q_rev, the signal the reversals came from) and a
+       coarse delay (``coarse_delay``).
+    2. Candidates: ``board`` (estimate.Onsets the board measured, e.g. run-insitu) or the
+       firmware's detector run here through cffi (estimate.run_onsets) with the configured
+       delay, as the board would have run it (the coarse one when none is configured).
+    3. ``refine`` every reversal; t_delay from the stop times (``delay_from_stops``).
+    4. t_delay_from "data" (default): use the record's delay; "config": the configured one.
+       They are compared either way; a gap over one frame period is a warning. A configured
+       delay is never needed: without one the record's delay is used.
+    5. b = |q(t2 - t_delay) - q1| with sigma_b = |dq/dt| sigma_t2. A reversal the refinement
+       could not fit keeps the board's sample, with sigma_b one frame period of travel.
+    t_enc, q, q_rev (N,); rt, rq (M,) reversals; t_f (F,), obs (F, 2) px. Returns RobustOnsets.
+    Errors: ValueError for an unknown t_delay_from.
+    """
+    from . import estimate as E
+
+    if t_delay_from not in ("data", "config"):
+        raise ValueError(f"t_delay_from must be 'data' or 'config', not {t_delay_from!r}")
+    period = 1.0 / fps
+    tol = max(0.02 * hysteresis, 1e-9 * max(float(np.ptp(q_rev)), 1.0))
+    t_stop = motor_stop_times(t_enc, q_rev, rt, rq, tol)
+    d0 = coarse_delay(t_f, obs, t_stop, t_enc, q_rev, period)
+    if board is None:
+        cfg = E.OnsetConfig(t_delay_s=d0 if t_delay_cfg is None else t_delay_cfg, fps=fps, **(onset_cfg or {}))
+        board = E.run_onsets(t_enc, q, rt, rq, t_f, obs, "image", cfg)
+    # The board's candidates by reversal (its t1 is the commanded reversal, up to rounding).
+    guess = np.full(rt.size, np.nan)
+    bidx = np.full(rt.size, -1)
+    if board.t1_s.size:
+        i = np.argmin(np.abs(rt[:, None] - board.t1_s[None, :]), axis=0)
+        near = np.abs(rt[i] - board.t1_s) < 0.5 * period
+        guess[i[near]] = board.t2_s[near]
+        bidx[i[near]] = np.nonzero(near)[0]
+    t_next = np.r_[t_stop[1:], t_enc[-1] + 1.0]
+    # Pass 1 on up to 24 reversals spread over the record: the record's delay and ringing
+    # (searched per reversal); pass 2 on all with those, the stop searched +-1.5 frames.
+    sub = np.unique(np.linspace(0, rt.size - 1, min(rt.size, 24)).round().astype(int))
+    ref1 = refine(t_f, obs, t_stop[sub], t_next[sub], guess[sub], d0, period)
+    d1, _, n1 = delay_from_stops(ref1.tau0_s, t_stop[sub])
+    d1 = d1 if n1 >= 4 else d0
+    rs = ring_summary(ref1)
+    ring = (rs["freq_hz"], rs["decay_per_s"]) if rs["share"] > 0.5 else (0.0, 0.0)
+    ref = refine(t_f, obs, t_stop, t_next, guess, d1, period, ring=ring, stop_back=1.5)
+    d_data, d_se, n_d = delay_from_stops(ref.tau0_s, t_stop)
+    warnings = []
+    if n_d < 4:
+        d_data = d1  # too few stops fitted: the first pass is the record's best word
+    if t_delay_cfg is None:
+        td, src = d_data, "estimated from the record (image stop - motor stop, median)"
+    elif t_delay_from == "config":
+        td, src = t_delay_cfg, "configured (--t-delay-from config)"
+    else:
+        td, src = d_data, "estimated from the record (image stop - motor stop, median); configured value checked"
+    if t_delay_cfg is not None and abs(d_data - t_delay_cfg) > period:
+        warnings.append(f"t_delay: the record says {d_data:.3f} s (+-{d_se:.3f}, {n_d} stops), the configuration "
+                        f"{t_delay_cfg:.3f} s; using {'the configured' if t_delay_from == 'config' else 'the record'}'s "
+                        f"({'--t-delay-from data' if t_delay_from == 'config' else '--t-delay-from config'} to change)")
+    # B samples (eq. 1) at the refined onsets; the board's where the refinement failed.
+    v = np.gradient(q, t_enc)
+    rows = []
+    n_ref = n_board = 0
+    for r in range(rt.size):
+        if ref.ok[r]:
+            t2, sd = ref.t2_s[r], ref.sigma_t2_s[r]
+            n_ref += 1
+        elif bidx[r] >= 0:
+            t2, sd = board.t2_s[bidx[r]], period
+            n_board += 1
+        else:
+            continue
+        q2 = float(np.interp(t2 - td, t_enc, q))
+        sb = abs(float(np.interp(t2 - td, t_enc, v))) * sd
+        rows.append((rt[r], t2, rq[r], q2, 0.5 * (rq[r] + q2), abs(q2 - rq[r]), sb))
+    a = np.array(rows, float).reshape(-1, 7)
+    reasons = {"refined": n_ref, "board_only": n_board, "none": int(rt.size - n_ref - n_board)}
+    on = E.Onsets(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], a[:, 5], reasons, sigma_b=a[:, 6])
+    steps = ref.ok & (ref.step_px > 0)
+    report = {
+        "method": "joint ML change-point model per reversal (playscope.onset_refine)",
+        "board_reasons": board.reasons,
+        "t_delay": {"configured_s": t_delay_cfg, "record_s": d_data, "record_se_s": d_se, "stops_fitted": n_d,
+                    "coarse_s": d0, "first_pass_s": d1, "used_s": td, "from": t_delay_from},
+        "ringing": ring_summary(ref),
+        "steps": {"reversals_with_step": int(steps.sum()),
+                  "median_step_px": float(np.median(ref.step_px[steps])) if steps.any() else 0.0},
+        "sigma_t2_s_median": float(np.nanmedian(ref.sigma_t2_s)) if ref.ok.any() else None,
+    }
+    return RobustOnsets(on, float(td), src, report, warnings)
