@@ -14,10 +14,13 @@ from scipy.optimize import lsq_linear
 
 from . import model
 from .errors import InputError
-from .native import core, from_q16, to_q16
+from .native import core, enum_names, from_q16, to_q16
 
-ONSET_REASONS = ["ok", "ok_coarse", "marker_lost", "reversal", "timeout", "history_wrapped",
-                 "history_missing", "no_still"]
+
+def onset_reason_names() -> dict[int, str]:
+    """{value: name} of onset_reason_t (firmware/core/onset.h), read from the C enum:
+    0 -> "ok", 1 -> "ok_coarse", 2 -> "marker_lost", ... (ONSET_ and ERR_ dropped)."""
+    return {k: v.removeprefix("err_") for k, v in enum_names("onset_reason_t", "ONSET_").items()}
 
 
 # --------------------------------------------------------------------------- reversals
@@ -185,7 +188,8 @@ def run_onsets(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.nd
     lib.onset_init(o, ffi.new("onset_config_t *", cfg.to_c(ffi, lib)))
     ev = ffi.new("onset_event_t *")
     out = []
-    reasons = {r: 0 for r in ONSET_REASONS}
+    names = onset_reason_names()
+    reasons = {names[k]: 0 for k in sorted(names)}
     tick, rev = lib.onset_tick, lib.onset_reversal
     obs_px, obs_deg = lib.onset_observe_px, lib.onset_observe_deg
     times_l, kinds_l, idx_l = times[order].tolist(), kinds[order].tolist(), idx[order].tolist()
@@ -202,7 +206,7 @@ def run_onsets(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.nd
         else:
             hit = obs_px(o, tt, u_l[i], v_l[i], ok_l[i], ev)
         if hit:
-            reasons[ONSET_REASONS[ev.reason]] += 1
+            reasons[names[ev.reason]] += 1
             if ev.reason in (lib.ONSET_OK, lib.ONSET_OK_COARSE):
                 out.append((ev.t1_us, ev.t2_us, ev.q1_q16, ev.q2_q16, ev.q_mean_q16, ev.b_q16))
     a = np.array(out, dtype=np.int64).reshape(-1, 6)

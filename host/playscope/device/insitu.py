@@ -116,14 +116,9 @@ class InsituRun:
         return [s for s in self.samples if s["reason_code"] <= 1]  # ONSET_OK, ONSET_OK_COARSE
 
 
-def onset_reason_names() -> dict[int, str]:
-    """{value: name} of onset_reason_t (firmware/core/onset.h): 0 -> "ok", 2 -> "marker_lost", ..."""
-    from ..native import enum_names
-
-    return {k: v.removeprefix("err_") for k, v in enum_names("onset_reason_t", "ONSET_").items()}
-
-
 def _b_dict(b: dict) -> dict:
+    from ..estimate import onset_reason_names
+
     return {"reason": onset_reason_names().get(b["reason"], str(b["reason"])), "reason_code": b["reason"],
             "t1_s": b["t1_us"] / 1e6, "t2_s": b["t2_us"] / 1e6, "q1": b["q1_q16"] / Q16,
             "q2": b["q2_q16"] / Q16, "q_mean": b["q_mean_q16"] / Q16, "b": b["b_q16"] / Q16}
