@@ -46,6 +46,11 @@ class Calibration:
     f_play_sign: int | None = None
 
     @property
+    def B_model(self):
+        """Play width of the model: B, or b_scale x B with the transition (transition.py)."""
+        return self.transition.play_width(self.B)
+
+    @property
     def f_play(self) -> E.SplineFn:
         """f_remain of the pure-play model (eqs. 2, 3, 9: f on z), kept beside the transition's."""
         return self.f if self.f_play_fit is None else self.f_play_fit
@@ -55,7 +60,7 @@ class Calibration:
         q[0]; q (N,) actuator units -> c (N,) deg."""
         if self.transition.is_play:
             return model.direct_model(q, self.B, self.f, z0)
-        return T.direct_chain(q, self.B, self.transition, self.f, z0)
+        return T.direct_chain(q, self.B_model, self.transition, self.f, z0)
 
     def f_coarse(self, q):
         return model.f_coarse(q, self.q_per_rad)

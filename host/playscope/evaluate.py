@@ -149,7 +149,7 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
             from .tables import build_table
 
             q0, q1 = cal.doc["q_range"]
-            table = build_table(cal.B, cal.f, q0, q1, cal.doc["actuator_unit"], "remain",
+            table = build_table(cal.B_model, cal.f, q0, q1, cal.doc["actuator_unit"], "remain",
                                 transition=cal.transition)
             table_src = "built from the calibration"
         except Exception as e:  # no compiler / C core: float rows only
@@ -162,7 +162,7 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
     z = model.play_operator(q, cal.B)
     c_enc = {"f_coarse": fc(q), "f_coarse+B": fc(z), "f_remain+B": cal.f_play(z)}
     if not cal.transition.is_play:
-        c_enc["f_remain+B+PI"] = cal.f(cal.transition.direct(z))
+        c_enc["f_remain+B+PI"] = cal.predict(q)
     fixed = None if table is None else ("f_remain+B+PI_fixed" if table.n_ops else "f_remain+B_fixed")
     if table is not None:
         c_enc[fixed] = table.predict(q)
@@ -207,7 +207,7 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
               "f_coarse+B": model.compensator(c_ref, cal.B, fc_inv, fc_sign),
               "f_remain+B": model.compensator(c_ref, cal.B, f_inv, cal.f_play_sign or cal.f_sign)}
     if not cal.transition.is_play:
-        comp_q["f_remain+B+PI"] = T.compensate_chain(c_ref, cal.B, cal.transition, inverse_of(cal.f, q0, q1),
+        comp_q["f_remain+B+PI"] = T.compensate_chain(c_ref, cal.B_model, cal.transition, inverse_of(cal.f, q0, q1),
                                                      cal.f_sign)
     if table is not None:
         comp_q[fixed] = table.compensate(c_ref)

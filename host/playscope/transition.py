@@ -20,15 +20,21 @@ scipy.optimize.least_squares on the projected residual (w >= 0, w_0 > 0, sum 1);
 is the monotone robust spline of c on y (estimate.robust_spline, N = 14 as for f_remain).
 
 Settings, all from the calibration data (choose_model):
-  thresholds  r_i = i * r_span / n, i = 0..n-1 (uniform, nested for n = 4, 8, 16);
-  r_span      one of {1/8, 1/4, 1/2, 3/4} x the range of z seen in the calibration record: an
-              operator of threshold r takes up after 2r of travel, so the narrow spans model the
-              transition after a reversal and the wide ones the memory of the record's start
-              (the virgin loading curve), which a running board carries in its state;
-  n           one of {1 (the paper's play), 4, 8, 16};
-  choice      k-fold cross-validation on KFOLD contiguous time blocks of the calibration
-              frames (each block scored with its state run from the record's start, the fit
-              made on the other blocks), then the one-standard-error rule: the fewest
+  b_scale     the play width of the model, one of {1, 3/4, 1/2} x the onset-measured B: an
+              onset detector fires once the tip has moved by its threshold, so when the
+              transition starts with a slow creep the measured B already includes part of it;
+              the operators can only widen the play, so a narrower anchor lets them model the
+              creep (1 for the paper's play);
+  thresholds  r_i = i * r_span / n, i = 0..n-1 (uniform, nested for n = 4, 16);
+  r_span      one of {1/2, 1} x the median onset width B, or {1/8, 1/4, 1/2} x the range of z
+              seen in the calibration record: an operator of threshold r takes up after 2r of
+              travel, so the spans tied to B model the transition after a reversal and the wide
+              ones also the memory of the record's start (the virgin loading curve), which a
+              running board carries in its state;
+  n           one of {1 (the paper's play), 4, 16};
+  choice      k-fold cross-validation on the calibration frames, the strokes between reversals
+              dealt round-robin to KFOLD folds (each fold scored with its state run from the
+              record's start, the fit made on the other folds), then the one-standard-error rule: the fewest
               operators (then the narrowest span) whose CV RMSE is within one standard error
               of the best. No regularisation besides the count: n is the complexity control.
 Units: q, z, y, r in actuator units (mm or deg of command), c in deg, t in s.
@@ -40,12 +46,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from scipy.linalg import cho_factor, cho_solve
+
 from . import estimate as E
 from . import model
 
-N_CHOICES = (1, 4, 8, 16)              # operator counts tried by choose_model (PST_MAX_OPS = 16)
-SPAN_FACTORS = (0.125, 0.25, 0.5, 0.75)  # r_span candidates, x range of z over the calibration
-KFOLD = 5                              # contiguous CV blocks of the calibration frames
+N_CHOICES = (1, 4, 16)                 # operator counts tried by choose_model (PST_MAX_OPS = 16)
+B_SCALES = (1.0, 0.75, 0.5)            # play width candidates, x onset-measured B
+SPAN_B = (0.5, 1.0)                    # r_span candidates, x median onset width B
+SPAN_FACTORS = (0.125, 0.25, 0.5)      # r_span candidates, x range of z over the calibration
+KFOLD = 5                              # CV folds (strokes dealt round-robin)
 V_MAX = 1e3                            # v_i <= 1000 v_0: w_0 >= 1/(1 + 1000 (n-1)) > 0 (inverse needs 1/w_0)
 
 
@@ -98,10 +108,12 @@ def inverse_state(w: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Transition:
-    """The PI part: thresholds r (n,) actuator units, weights w (n,) summing to 1."""
+    """The PI part: thresholds r (n,) actuator units, weights w (n,) summing to 1, and b_scale,
+    the play width of the model as a fraction of the onset-measured B (1: B itself)."""
 
     r: np.ndarray
     w: np.ndarray
+    b_scale: float = 1.0
 
     def __post_init__(self):
         self.r = np.asarray(self.r, float).ravel()
@@ -112,6 +124,8 @@ class Transition:
             raise ValueError("thresholds must start at 0 and increase strictly")
         if self.w[0] <= 0 or np.any(self.w < 0) or abs(self.w.sum() - 1) > 1e-9:
             raise ValueError("weights must be >= 0 with w_0 > 0 and sum 1")
+        if not 0 < self.b_scale <= 1:
+            raise ValueError("b_scale must be in (0, 1]")
 
     @classmethod
     def play(cls) -> "Transition":
@@ -124,7 +138,15 @@ class Transition:
 
     @property
     def is_play(self) -> bool:
-        return self.n == 1
+        """The paper's pure play: no operator and the onset width as measured."""
+        return self.n == 1 and self.b_scale == 1.0
+
+    def play_width(self, B):
+        """The model's play width b_scale x B(q) (callable on arrays)."""
+        if self.b_scale == 1.0:
+            return B
+        k = self.b_scale
+        return lambda q: k * np.asarray(B(q), float)
 
     def direct(self, z: np.ndarray, p0=None) -> np.ndarray:
         """y = sum w_i p_i(z) (PI_MODEL step 2). z: (N,); returns y (N,)."""
@@ -139,22 +161,23 @@ class Transition:
         return play_ops(y, r_inv, inverse_state(self.w, p)) @ w_inv
 
     def to_json(self) -> dict:
-        return {"r": self.r.tolist(), "w": self.w.tolist()}
+        return {"r": self.r.tolist(), "w": self.w.tolist(), "b_scale": float(self.b_scale)}
 
     @classmethod
     def from_json(cls, d: dict) -> "Transition":
-        return cls(np.asarray(d["r"], float), np.asarray(d["w"], float))
+        return cls(np.asarray(d["r"], float), np.asarray(d["w"], float), float(d.get("b_scale", 1.0)))
 
 
 # --------------------------------------------------------------------------- float chain
 def direct_chain(q: np.ndarray, B, tr: Transition, f, z0: float | None = None) -> np.ndarray:
-    """c = f(PI(play(q; B))) from the record's start (PI_MODEL direct model). q: (N,)."""
+    """c = f(PI(play(q; B))) from the record's start (PI_MODEL direct model). q: (N,); B: the
+    model's play width (tr.play_width(B_onset))."""
     z = model.play_operator(q, B, z0)
     return f(tr.direct(z))
 
 
 def compensate_chain(c_ref: np.ndarray, B, tr: Transition, f_inv, f_sign: int) -> np.ndarray:
-    """q* for a reference c* (PI_MODEL inverse): y* = f^-1(c*), z* = PI^-1(y*), then
+    """q* for a reference c* (PI_MODEL inverse), B the model's play width: y* = f^-1(c*), z* = PI^-1(y*), then
     q* = z* + dir B(z*)/2 with dir the direction of z* (= f_sign x direction of c*, eqs. 4/5/9),
     held while z* is still, 0 before it first moves. c_ref: (N,) deg; returns q* (N,)."""
     y = f_inv(np.asarray(c_ref, float).ravel())
@@ -175,65 +198,119 @@ def f_inverse(f, lo: float, hi: float, n: int = 20001):
 
 
 # --------------------------------------------------------------------------- fit
+def turning_points(x: np.ndarray) -> np.ndarray:
+    """Indices of x's first and last samples and of every sample where its direction of
+    motion reverses (flat stretches skipped). Play operators are rate-independent and between
+    two such points x is monotone, so their outputs only depend on these samples."""
+    x = np.asarray(x, float)
+    nz = np.flatnonzero(np.diff(x))
+    if nz.size < 2:
+        return np.array([0, x.size - 1])
+    s = np.sign(np.diff(x)[nz])
+    turns = nz[1:][s[1:] != s[:-1]]
+    return np.unique(np.r_[0, turns, x.size - 1])
+
+
 @dataclass
 class FitData:
-    """One session prepared for the fit: the play centre at the encoder rate from the record's
-    start, and the frames (acquisition times already shifted by t_delay) with their c.
+    """One session prepared for the fit: the encoder record (for the play centre from the
+    record's start) and the frames (acquisition times already shifted by t_delay) with their c.
 
-    t_enc, z_enc: (N,) s, actuator units; t_frame, c: (F,) s, deg; b_med: median onset width."""
+    t_enc, q_enc: (N,) s, actuator units; B: onset width callable (eq. 1); t_frame, c: (F,)
+    s, deg; b_med: median onset width over the travel."""
 
     t_enc: np.ndarray
-    z_enc: np.ndarray
+    q_enc: np.ndarray
+    B: object
     t_frame: np.ndarray
     c: np.ndarray
-    b_med: float
     _cache: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def from_session(cls, t_enc, q, B, t_f, c_f, t_delay_s: float) -> "FitData":
         ok = np.isfinite(c_f)
-        z = model.play_operator(np.asarray(q, float), B)
-        b_med = float(np.median(B(np.linspace(np.min(q), np.max(q), 201))))
-        return cls(np.asarray(t_enc, float), z, np.asarray(t_f, float)[ok] - t_delay_s,
-                   np.asarray(c_f, float)[ok], b_med)
+        return cls(np.asarray(t_enc, float), np.asarray(q, float), B, np.asarray(t_f, float)[ok] - t_delay_s,
+                   np.asarray(c_f, float)[ok])
 
-    def ops_at_frames(self, r: np.ndarray) -> np.ndarray:
-        """P (F, n): the operators run over the whole record at the encoder rate, sampled at
-        the frames' acquisition times (the state a running board holds)."""
-        key = tuple(np.round(r, 12))
+    @property
+    def b_med(self) -> float:
+        return float(np.median(self.B(np.linspace(self.q_enc.min(), self.q_enc.max(), 201))))
+
+    def z_enc(self, b_scale: float = 1.0) -> np.ndarray:
+        """Play centre (eq. 3) of width b_scale x B(q) at the encoder rate, from the record's start."""
+        key = ("z", round(b_scale, 12))
         if key not in self._cache:
-            P = play_ops(self.z_enc, r)
-            self._cache[key] = np.column_stack([np.interp(self.t_frame, self.t_enc, P[:, i]) for i in range(r.size)])
+            B = self.B
+            self._cache[key] = model.play_operator(self.q_enc, lambda x: b_scale * B(x))
         return self._cache[key]
 
-    def z_stroke(self) -> float:
-        """Median |z| travel between reversals of z (hysteresis 1 % of its range)."""
-        _, zr, _ = E.detect_reversals(self.t_enc, self.z_enc, 0.01 * float(np.ptp(self.z_enc)) + 1e-12)
-        return float(np.median(np.abs(np.diff(zr)))) if zr.size >= 2 else float(np.ptp(self.z_enc))
+    def ops_at_frames(self, r: np.ndarray, b_scale: float = 1.0) -> np.ndarray:
+        """P (F, n): the operators run over the whole record from its start (the state a
+        running board holds), read at the frames' acquisition times. Run on the turning
+        points of z and the frames only (exact: see turning_points)."""
+        key = ("P", round(b_scale, 12), tuple(np.round(r, 12)))
+        if key not in self._cache:
+            z = self.z_enc(b_scale)
+            k = turning_points(z)
+            t = np.r_[self.t_enc[k], self.t_frame]
+            x = np.r_[z[k], np.interp(self.t_frame, self.t_enc, z)]
+            order = np.argsort(t, kind="stable")
+            P = play_ops(x[order], r, z[0])
+            out = np.empty((x.size, r.size))
+            out[order] = P
+            self._cache[key] = out[k.size:]
+        return self._cache[key]
 
 
 def _fit_f(y, c, n_ctrl, smooth, sign=None):
+    """f: monotone robust cubic spline of c on y over y's range, linear ends (as f_remain)."""
     sign = sign or (1 if np.corrcoef(y, c)[0, 1] >= 0 else -1)
     lo, hi = float(y.min()), float(y.max())
     spl, _ = E.robust_spline(y, c, n_ctrl, lo, hi, smooth, monotone=sign)
     return E.SplineFn(spl, lo, hi, linear_ends=True), sign
 
 
-def _spline_lsq(y, c, n_ctrl, smooth):
-    """Unconstrained P-spline least squares of c on y (the inner solve of fit_weights)."""
-    from scipy.interpolate import BSpline
+class _SplineProjection:
+    """P-spline least squares of c on y (the inner solve of fit_weights) and its residual's
+    Jacobian in the weights by Kaufman's variable-projection approximation (Golub & Pereyra
+    2003, Inverse Problems 19(2)): J = (I - Pi) diag(f'(y)) dy/dv, Pi the fit's projection."""
 
-    lo, hi = float(y.min()), float(y.max())
-    if hi <= lo:
-        hi = lo + 1e-9
-    A = BSpline.design_matrix(np.clip(y, lo, hi), E.clamped_knots(lo, hi, n_ctrl), 3).toarray()
-    D = np.diff(np.eye(n_ctrl), 2, axis=0)
-    lam = smooth * np.trace(A.T @ A) / n_ctrl
-    coef = np.linalg.lstsq(np.vstack([A, np.sqrt(lam) * D]), np.r_[c, np.zeros(D.shape[0])], rcond=None)[0]
-    return A @ coef
+    def __init__(self, P: np.ndarray, c: np.ndarray, n_ctrl: int, smooth: float):
+        self.P, self.c, self.n_ctrl, self.smooth = P, c, n_ctrl, smooth
+        self.D = np.diff(np.eye(n_ctrl), 2, axis=0)
+        self._key, self._val = None, None
+
+    def _solve(self, x: np.ndarray):
+        key = x.tobytes()
+        if key != self._key:
+            from scipy.interpolate import BSpline
+
+            y = self.P[:, 0] + self.P[:, 1:] @ x
+            lo, hi = float(y.min()), float(y.max())
+            hi = max(hi, lo + 1e-9)
+            t = E.clamped_knots(lo, hi, self.n_ctrl)
+            A = BSpline.design_matrix(np.clip(y, lo, hi), t, 3).toarray()
+            lam = self.smooth * np.trace(A.T @ A) / self.n_ctrl
+            # Normal equations of the penalised fit (n_ctrl x n_ctrl, well conditioned by the
+            # penalty): the projection of any G is A (N^-1 A^T G).
+            N = A.T @ A + lam * (self.D.T @ self.D)
+            cho = cho_factor(N)
+            coef = cho_solve(cho, A.T @ self.c)
+            slope = BSpline(t, coef, 3).derivative()(np.clip(y, lo, hi))
+            self._key, self._val = key, (A, cho, coef, slope)
+        return self._val
+
+    def resid(self, x):
+        A, _, coef, _ = self._solve(x)
+        return A @ coef - self.c
+
+    def jac(self, x):
+        A, cho, _, slope = self._solve(x)
+        G = slope[:, None] * self.P[:, 1:]
+        return G - A @ cho_solve(cho, A.T @ G)
 
 
-def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3):
+def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3, robust_f: bool = True):
     """Weights w and f for c ~ f(P w) (PI_MODEL steps 2-3), by variable projection.
 
     P: (F, n) operator outputs at the frames, c: (F,) deg. For given weights f is linear in
@@ -242,21 +319,29 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
     scipy.optimize.least_squares (bounded trust region) on the projected residual and
     normalised, w = v / sum v (f absorbs the scale; w_0 = 1/sum v > 0 by construction).
     The final f is the monotone robust spline of c on y = P w (estimate.robust_spline, as
-    f_remain). Returns (w (n,), f SplineFn, sign of f', rms deg on these frames)."""
+    f_remain), or with robust_f=False (the cross-validation's folds, for speed) the inner
+    P-spline itself. Returns (w (n,), f SplineFn, sign of f', rms deg on these frames)."""
     from scipy.optimize import least_squares
 
     n = P.shape[1]
     v = np.ones(n)
     if n > 1:
-        def resid(x):
-            y = P[:, 0] + P[:, 1:] @ x
-            return _spline_lsq(y, c, n_ctrl, smooth) - c
-
+        vp = _SplineProjection(P, c, n_ctrl, smooth)
         x0 = np.full(n - 1, 1.0 / (n - 1))
-        v[1:] = least_squares(resid, x0, bounds=(0.0, V_MAX), x_scale=1.0, max_nfev=200).x
+        # ftol 1e-6: the CV compares RMSEs to about 1 %, far coarser than the default 1e-8.
+        v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, V_MAX), ftol=1e-6, max_nfev=60).x
     w = v / v.sum()
     y = P @ w
-    f, sign = _fit_f(y, c, n_ctrl, smooth)
+    if robust_f:
+        f, sign = _fit_f(y, c, n_ctrl, smooth)
+    else:
+        from scipy.interpolate import BSpline
+
+        vp = _SplineProjection(y[:, None], c, n_ctrl, smooth)
+        _, _, coef, _ = vp._solve(np.zeros(0))
+        lo, hi = float(y.min()), max(float(y.max()), float(y.min()) + 1e-9)
+        f = E.SplineFn(BSpline(E.clamped_knots(lo, hi, n_ctrl), coef, 3, extrapolate=False), lo, hi, linear_ends=True)
+        sign = 1 if f.s_lo + f.s_hi >= 0 else -1
     return w, f, sign, float(np.sqrt(np.mean((f(y) - c) ** 2)))
 
 
@@ -264,55 +349,62 @@ def stroke_folds(data: "FitData", k: int) -> np.ndarray:
     """Fold index (F,) of each frame: the strokes of z (between reversals, hysteresis 1 % of
     z's range) dealt round-robin to k folds, so every fold spans the record and the travel
     (contiguous time blocks would leave f to extrapolate over strokes never fitted)."""
-    t_rev, _, _ = E.detect_reversals(data.t_enc, data.z_enc, 0.01 * float(np.ptp(data.z_enc)) + 1e-12)
+    z = data.z_enc()
+    t_rev, _, _ = E.detect_reversals(data.t_enc, z, 0.01 * float(np.ptp(z)) + 1e-12)
     stroke = np.searchsorted(t_rev, data.t_frame, side="right")
     return stroke % k
 
 
-def candidates(data: FitData, model_kind: str = "auto") -> list[tuple[int, float]]:
-    """(n, r_span) pairs tried: (1, 0) for the play; PI counts x spans (module docstring)."""
-    out = [(1, 0.0)] if model_kind in ("auto", "play") else []
+def candidates(data: FitData, model_kind: str = "auto") -> list[tuple[float, int, float]]:
+    """(b_scale, n, r_span) triples tried: (1, 1, 0) for the paper's play; for the PI,
+    B_SCALES x N_CHOICES x spans (module docstring)."""
+    out = [(1.0, 1, 0.0)] if model_kind in ("auto", "play") else []
     if model_kind in ("auto", "pi"):
-        rng = float(np.ptp(data.z_enc))
-        spans = [s * rng for s in SPAN_FACTORS if s * rng > 0]
-        out += [(n, s) for n in N_CHOICES if n > 1 for s in spans]
+        rng = float(np.ptp(data.z_enc()))
+        spans = sorted({s * data.b_med for s in SPAN_B} | {s * rng for s in SPAN_FACTORS})
+        spans = [s for s in spans if 0 < s < rng]
+        out += [(k, n, s) for k in B_SCALES for n in N_CHOICES if n > 1 for s in spans]
     return out
 
 
 def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD,
                  progress=lambda it, **kw: it) -> tuple[Transition, "E.SplineFn", int, dict]:
-    """Pick play vs PI, n and r_span by block cross-validation on the calibration frames, then
-    refit the choice on all of them (module docstring for the rule).
+    """Pick play vs PI, the play width, n and r_span by cross-validation on the calibration
+    frames, then refit the choice on all of them (module docstring for the rule).
 
-    model_kind: "play" (n = 1 only), "pi" (n >= 2 only) or "auto" (both). Returns
-    (Transition, f, sign of f', choice dict: {"model", "n", "r_span", "rule", "folds",
-    "candidates": [{"n", "r_span", "cv_rmse_deg", "cv_se_deg", "fit_rmse_deg"}]})."""
+    model_kind: "play" (the paper's pure play only), "pi" (operators only) or "auto" (both).
+    Returns (Transition, f, sign of f', choice dict: {"model", "n", "n_tried", "b_scale",
+    "r_span", "fit_rmse_deg", "rule", "folds", "b_median", "candidates": [{"b_scale", "n",
+    "r_span", "cv_rmse_deg", "cv_se_deg"}]}). Errors: ValueError for an unknown model_kind."""
     if model_kind not in ("auto", "play", "pi"):
         raise ValueError(f"model must be play, pi or auto, not {model_kind!r}")
     blk = stroke_folds(data, k)
     rows = []
-    for n, span in progress(candidates(data, model_kind), desc="model choice"):
+    for kb, n, span in progress(candidates(data, model_kind), desc="model choice"):
         r = thresholds(n, span) if n > 1 else np.zeros(1)
-        P = data.ops_at_frames(r)
+        P = data.ops_at_frames(r, kb)
         errs = []
         for b in range(k):
             tr_m, te_m = blk != b, blk == b
             if te_m.sum() < 3 or tr_m.sum() < 10:
                 continue
-            w, f, _, _ = fit_weights(P[tr_m], data.c[tr_m], n_ctrl)
+            w, f, _, _ = fit_weights(P[tr_m], data.c[tr_m], n_ctrl, robust_f=False)
             errs.append(float(np.sqrt(np.mean((f(P[te_m] @ w) - data.c[te_m]) ** 2))))
         errs = np.array(errs)
-        rows.append({"n": n, "r_span": float(span), "cv_rmse_deg": float(np.sqrt(np.mean(errs ** 2))),
+        rows.append({"b_scale": kb, "n": n, "r_span": float(span), "cv_rmse_deg": float(np.sqrt(np.mean(errs ** 2))),
                      "cv_se_deg": float(np.std(errs, ddof=1) / np.sqrt(errs.size)) if errs.size > 1 else 0.0})
     best = min(rows, key=lambda d: d["cv_rmse_deg"])
     limit = best["cv_rmse_deg"] + best["cv_se_deg"]
-    pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: (d["n"], d["r_span"]))
-    n, span = pick["n"], pick["r_span"]
+    # Simplest within one standard error: fewest operators, then the onset width closest to
+    # as measured, then the narrowest span.
+    pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: (d["n"], -d["b_scale"], d["r_span"]))
+    kb, n, span = pick["b_scale"], pick["n"], pick["r_span"]
     r = thresholds(n, span) if n > 1 else np.zeros(1)
-    w, f, sign, rms = fit_weights(data.ops_at_frames(r), data.c, n_ctrl)
+    w, f, sign, rms = fit_weights(data.ops_at_frames(r, kb), data.c, n_ctrl)
     keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
-    tr = Transition(r[keep], w[keep] / w[keep].sum())
-    choice = {"model": "play" if n == 1 else "pi", "n": int(tr.n), "n_tried": int(n), "r_span": float(span),
-              "fit_rmse_deg": rms, "rule": "k-fold CV, strokes dealt round-robin to folds, one-standard-error rule",
+    tr = Transition(r[keep], w[keep] / w[keep].sum(), kb)
+    choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(n), "b_scale": kb,
+              "r_span": float(span), "fit_rmse_deg": rms,
+              "rule": "k-fold CV, strokes dealt round-robin to folds, one-standard-error rule",
               "folds": int(k), "b_median": data.b_med, "candidates": rows}
     return tr, f, sign, choice

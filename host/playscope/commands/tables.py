@@ -29,9 +29,10 @@ def run(a) -> int:
     q_min, q_max = cal.doc["q_range"]
     f = cal.f_coarse if a.f_coarse else cal.f
     tr = None if a.f_coarse else cal.transition
-    tab = build_table(cal.B, f, q_min, q_max, cal.doc["actuator_unit"], "coarse" if a.f_coarse else "remain",
+    B = cal.B if a.f_coarse else cal.B_model
+    tab = build_table(B, f, q_min, q_max, cal.doc["actuator_unit"], "coarse" if a.f_coarse else "remain",
                       a.generation, a.entries, source=a.calibration, transition=tr)
-    err = table_errors(tab, cal.B, f, q_min, q_max, tr)
+    err = table_errors(tab, B, f, q_min, q_max, tr)
     write_bytes_atomic(a.out, tab.blob)
     print(f"{a.out}: {len(tab.blob)} bytes, crc32 {tab.cal.crc32:#010x}, {tab.cal.b.n} entries per grid, "
           f"{tab.n_ops} transition operators; "
