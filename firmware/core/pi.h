@@ -17,7 +17,8 @@ typedef struct {
     uint8_t w_frac;              /* fractional bits s of w: 16 (direct), 16..30 (inverse) */
     int32_t r_q16[PST_MAX_OPS];  /* thresholds, actuator units Q16.16, r[0] = 0, non-decreasing */
     int32_t w[PST_MAX_OPS];      /* weights, Q(w_frac); every partial sum w[0]+..+w[i] is > 0 */
-    int32_t x_min_q16;           /* input range the loader validated: x +- r stays in +-2^30 */
+    int32_t w_neg[PST_MAX_OPS];  /* -w (|w| <= INT32_MAX), so an engagement is one multiply-accumulate */
+    int32_t x_min_q16;           /* input range the loader validated: x +- 2 r stays in +-2^30 */
     int32_t x_max_q16;
 } pi_params_t;
 
@@ -29,7 +30,8 @@ typedef struct {
  * reversals a tick costs one compare and one 32x32->64 multiply-accumulate whatever n. */
 typedef struct {
     int32_t p_q16[PST_MAX_OPS];  /* outputs of the operators not engaged (i >= m) */
-    int64_t c;                   /* sum_{i>=m} w_i p_i - dir * sum_{i<m} w_i r_i, Q(16 + w_frac) */
+    int64_t c;                   /* sum_{i>=m} w_i p_i - dir * sum_{i<m} w_i r_i + 2^(w_frac-1)
+                                    (the rounding constant rides along), Q(16 + w_frac) */
     int32_t a;                   /* sum_{i<m} w_i, Q(w_frac) */
     int32_t x_q16;               /* last input */
     int32_t y_q16;               /* last output */
@@ -44,7 +46,7 @@ typedef enum {
     PI_ERR_COUNT,                /* n > PST_MAX_OPS */
     PI_ERR_R0,                   /* r[0] != 0 */
     PI_ERR_R_ORDER,              /* r not strictly increasing */
-    PI_ERR_R_RANGE,              /* r[n-1] > q_max - q_min, or an input range +- r (or r') leaves +-2^30 */
+    PI_ERR_R_RANGE,              /* r[n-1] > q_max - q_min, or an input range +- 2 r (or 2 r') leaves +-2^30 */
     PI_ERR_W0,                   /* w[0] <= 0 */
     PI_ERR_W_NEGATIVE,           /* some w[i] < 0 */
     PI_ERR_W_SUM,                /* |sum w - 1| > 2^-8 (256 raw) */
@@ -100,7 +102,7 @@ __attribute__((always_inline)) static inline int32_t pi_step_inline(pi_state_t *
     /* The sum fits int32 after the shift (pi_build bounds it), so the 64-bit shift by
      * s in 16..30 is done on the two halves, as lut_eval does. */
     uint32_t sh = pp->w_frac;
-    int64_t acc = (int64_t)s->a * x_q16 + s->c + ((int64_t)1 << (sh - 1));
+    int64_t acc = (int64_t)s->a * x_q16 + s->c; /* c holds the 1/2 for rounding half up */
     int32_t y = (int32_t)(((uint32_t)(acc >> 32) << (32u - sh)) | ((uint32_t)acc >> sh));
     s->y_q16 = y;
     return y;

@@ -5,7 +5,7 @@
 
 enum {
     PI_W_SUM_TOL = 256,          /* |sum w - 1| <= 2^-8, in raw Q16 */
-    PI_RANGE = 1 << 30,          /* inputs +- thresholds and outputs stay within +-2^30 raw */
+    PI_RANGE = 1 << 30,          /* inputs +- twice the thresholds and outputs stay within +-2^30 raw */
 };
 
 static int64_t round_div_pos(int64_t num, int64_t den) /* round half up, num >= 0, den > 0 */
@@ -13,10 +13,11 @@ static int64_t round_div_pos(int64_t num, int64_t den) /* round half up, num >= 
     return (num + den / 2) / den;
 }
 
-/* [lo - r, hi + r] within +-2^30: operator states and engagement levels then fit int32. */
+/* [lo - 2r, hi + 2r] within +-2^30: operator states (input +- r) and engagement levels
+ * (state +- r) then fit int32 with room to spare, so the engine adds them in 32 bits. */
 static int range_ok(int32_t lo, int32_t hi, int64_t r)
 {
-    return (int64_t)lo - r >= -PI_RANGE && (int64_t)hi + r <= PI_RANGE;
+    return (int64_t)lo - 2 * r >= -PI_RANGE && (int64_t)hi + 2 * r <= PI_RANGE;
 }
 
 pi_status_t pi_build(const int32_t *r_q16, const int32_t *w_q16, uint16_t n, int64_t span_q16,
@@ -79,6 +80,8 @@ pi_status_t pi_build(const int32_t *r_q16, const int32_t *w_q16, uint16_t n, int
         s_prev = s_i;
         d.r_q16[i] = r_q16[i];
         d.w[i] = w_q16[i];
+        d.w_neg[i] = -d.w[i];
+        v.w_neg[i] = -v.w[i]; /* |w'_i| <= S_0 <= INT32_MAX */
     }
     const int64_t rp_max = v.r_q16[n - 1];
     if (!range_ok(y_min_q16, y_max_q16, rp_max))

@@ -239,9 +239,12 @@ static void test_v2_table_with_operators_loads(void **state)
     assert_int_equal(cal.pi_dir.w_frac, 16);
     /* 1/w_0 = 2.5 < 2: the loader keeps 29 fractional bits for the inverse weights. */
     assert_int_equal(cal.pi_inv.w_frac, 29);
-    assert_true(cal.pi_inv_err_q16 >= 1 && cal.pi_inv_err_q16 <= 4);
-    /* The operator block is copied: the blob may go once the table is loaded... except
-     * for the grids, which are read in place; the block itself is not referenced. */
+    /* 1/2 + 1/2 sum|w'| (sum|w'| = 2/w_0 - 1/W = 4) + a few 2^-30 raw: 2.5, ceiled to 3. */
+    assert_int_equal(cal.pi_inv_err_q16, 3);
+    /* The operator block is copied (the grids are read in place): editing it in the blob
+     * afterwards changes nothing loaded. */
+    memset(blob.bytes + hd.pi.offset, 0x7F, 32);
+    assert_memory_equal(cal.pi_dir.r_q16, R4, sizeof R4);
     assert_int_equal(cal.pi_inv.r_q16[0], 0);
 }
 

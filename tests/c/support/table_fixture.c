@@ -44,6 +44,20 @@ size_t fixture_build_pi(fixture_blob_t *blob, const fixture_grid_t *g, fixture_f
     return table_write(blob->bytes, sizeof blob->bytes, &hd, bb, ff, r_q16, w_q16);
 }
 
+size_t fixture_with_ops(fixture_blob_t *blob, uint16_t version, uint16_t n_ops, const int32_t *r_q16,
+                        const int32_t *w_q16)
+{
+    static int32_t bb[PST_MAX_ENTRIES], ff[PST_MAX_ENTRIES];
+    pst_header_t hd;
+    memcpy(&hd, blob->bytes, sizeof hd);
+    memcpy(bb, blob->bytes + hd.b.offset, 4u * hd.b.n);
+    memcpy(ff, blob->bytes + hd.f.offset, 4u * hd.f.n);
+    hd.layout_version = version;
+    hd.pi.n = n_ops;
+    memset(blob, 0, sizeof *blob);
+    return table_write(blob->bytes, sizeof blob->bytes, &hd, bb, ff, r_q16, w_q16);
+}
+
 void fixture_reseal(fixture_blob_t *blob)
 {
     pst_header_t hd;

@@ -35,6 +35,12 @@ size_t fixture_build_pi(fixture_blob_t *blob, const fixture_grid_t *g, fixture_f
                         fixture_fn f, const void *f_ctx, uint16_t version, uint16_t n_ops,
                         const int32_t *r_q16, const int32_t *w_q16);
 
+/* Rewrite the table in blob with layout version (0: current, 1: v1) and another
+ * operator block (n_ops operators, r_q16 / w_q16; NULL when 0), same header fields and
+ * grids otherwise. Returns the new size, 0 if the writer refuses. */
+size_t fixture_with_ops(fixture_blob_t *blob, uint16_t version, uint16_t n_ops, const int32_t *r_q16,
+                        const int32_t *w_q16);
+
 /* Recompute the CRC after a test edited the blob on purpose. */
 void fixture_reseal(fixture_blob_t *blob);
 
