@@ -8,11 +8,12 @@ table_write/calib_load), then the firmware's playop_step over the whole record f
 sample; RMSE of the bending angle on the second half. Rows: the paper's pure play (auto's
 alternative, --model play) and ours (--model auto). Prints a Markdown table.
 
-Usage: .venv/bin/python bench/transition_catheter.py [folder]   (default ../shared/data/real/catheter)
+Usage: .venv/bin/python bench/transition_catheter.py [folder]   (default $PLAYSCOPE_REAL_DATA/catheter)
 """
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -22,7 +23,8 @@ from playscope.calibration import calibrate
 from playscope.importer import import_catheter
 from playscope.tables import build_table
 
-DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "catheter"
+# As tests/python/conftest.py: $PLAYSCOPE_REAL_DATA, else ../shared/data/real beside the checkout.
+DEFAULT = Path(os.environ.get("PLAYSCOPE_REAL_DATA", Path(__file__).resolve().parents[2] / "shared" / "data" / "real")) / "catheter"
 
 
 def in_situ(path: Path, model_kind: str) -> tuple[float, str]:
