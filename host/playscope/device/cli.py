@@ -52,7 +52,7 @@ def flash(link, blob: bytes, n_vectors: int = 200, log=print) -> dict:
     through the board's compensator and compare with the host's run of the same C code.
     Returns timings and the check results; raises RuntimeError when a check fails."""
     from ..table_check import check_blob
-    from .tables import HostCalib, set_generation, test_vector
+    from ..tables import CalibTable, set_generation, test_vector
 
     check_blob(blob)  # names the damaged field; nothing is sent, nothing resealed
     before = link.info()
@@ -60,7 +60,7 @@ def flash(link, blob: bytes, n_vectors: int = 200, log=print) -> dict:
         raise RuntimeError("the board's table generation counter is at its maximum (2^32 - 1): no newer "
                            "table can be committed; erase the board's table store first")
     blob = set_generation(blob, before["active_generation"] + 1)
-    host = HostCalib(blob)  # refuses a bad table before anything is sent
+    host = CalibTable(blob)  # refuses a bad table before anything is sent
     t0 = time.perf_counter()
     after = link.upload_table(blob)
     t_upload = time.perf_counter() - t0
@@ -91,7 +91,7 @@ def flash(link, blob: bytes, n_vectors: int = 200, log=print) -> dict:
 
 def cmd_flash(args) -> int:
     from .link import DeviceError
-    from .tables import demo_table
+    from ..tables import demo_table
 
     if args.table == "demo":
         blob = demo_table()

@@ -15,10 +15,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from playscope.commands.common import load_calibration
-try:  # branch pi-fit folds device/tables.py into playscope.tables
-    from playscope.tables import demo_table
-except ImportError:
-    from playscope.device.tables import demo_table
+from playscope.tables import demo_table
 from playscope.errors import PlayscopeError
 from playscope.session import load_session, parse_meta, read_csv
 from playscope.table_check import check_blob

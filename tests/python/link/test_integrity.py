@@ -13,10 +13,7 @@ import pytest
 
 from playscope.device.cli import flash
 from playscope.device.link import Link
-try:  # branch pi-fit folds device/tables.py into playscope.tables
-    from playscope.tables import demo_table
-except ImportError:
-    from playscope.device.tables import demo_table
+from playscope.tables import demo_table
 from playscope.device.transport import virtual_transport
 from playscope.native import core
 from playscope.table_check import TableFileError, check_blob

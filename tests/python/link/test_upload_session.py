@@ -15,10 +15,7 @@ import pytest
 
 from playscope.device.cli import flash
 from playscope.device.link import DeviceError, Link
-try:  # branch pi-fit folds device/tables.py into playscope.tables
-    from playscope.tables import demo_table
-except ImportError:
-    from playscope.device.tables import demo_table
+from playscope.tables import demo_table
 from playscope.device.transport import TcpTransport
 from playscope.native import executable
 

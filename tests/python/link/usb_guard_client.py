@@ -13,10 +13,7 @@ import time
 
 from playscope.device.cli import flash
 from playscope.device.link import DeviceError, Link
-try:  # branch pi-fit folds device/tables.py into playscope.tables
-    from playscope.tables import demo_table
-except ImportError:
-    from playscope.device.tables import demo_table
+from playscope.tables import demo_table
 from playscope.device.transport import UsbTransport
 from playscope.table_check import TableFileError
 
