@@ -45,13 +45,29 @@ def play_operators(x: np.ndarray, r: np.ndarray, p0: np.ndarray | None = None) -
     return out
 
 
+def largest_excursion(q: np.ndarray, hysteresis_frac: float = 0.01) -> float:
+    """Largest travel of q between consecutive direction reversals (the first and last
+    samples count as turning points), reversals taken with a hysteresis of hysteresis_frac
+    of the span so that noise does not split a stroke. q: (N,). Returns actuator units."""
+    from .estimate import detect_reversals
+
+    q = np.asarray(q, float)
+    span = float(np.max(q) - np.min(q))
+    _, q1, _ = detect_reversals(np.arange(q.size, dtype=float), q, hysteresis_frac * span)
+    turns = np.r_[q[0], q1, q[-1]]
+    return float(np.max(np.abs(np.diff(turns)))) if turns.size > 1 else span
+
+
 def gpi_thresholds(q_cal: np.ndarray, n: int = GPI_OPERATORS) -> np.ndarray:
     """The threshold rule of the generalized PI peer, the same for every record: the
-    midpoints of n equal bins of [0, span/2], span = max - min of q over the calibration
-    samples. A play operator of threshold r reacts only to excursions wider than 2 r, so
-    span/2 bounds every threshold the calibration data can identify. Returns (n,) increasing."""
-    span = float(np.nanmax(q_cal) - np.nanmin(q_cal))
-    return (np.arange(n) + 0.5) / n * 0.5 * span
+    midpoints of n equal bins of [0, E/2], E = the largest excursion of q between reversals
+    in the calibration samples (largest_excursion). A play operator of threshold r only
+    closes a loop on a stroke longer than 2 r, so the weight of a wider one cannot be told
+    from the polynomial's linear term on these data (on a ramp excitation of short strokes
+    such operators just follow q -+ r and the fit breaks on the return sweep). On a record
+    whose strokes span the whole travel (the catheter files) E is the span of q.
+    Returns (n,) increasing, actuator units."""
+    return (np.arange(n) + 0.5) / n * 0.5 * largest_excursion(q_cal)
 
 
 def _norm(q_cal: np.ndarray) -> tuple[float, float]:
