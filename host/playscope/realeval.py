@@ -120,11 +120,11 @@ def _in_situ(out: dict, name: str, s, source: str) -> None:
     out["b_samples"][name] = doc["rows"]["onset_lsq"]["params"]["b_samples"]
 
 
-def evaluate_real(folder, progress=lambda it, **kw: it) -> dict:
+def evaluate_real(folder, progress=lambda it, **kw: it, across: bool = True) -> dict:
     """Both protocols on data_2_*.txt in folder. Returns {"in_situ": {file: {row: rmse}},
     "in_situ_max": {file: {row: max |error|}}, "in_situ_rows": [row], "across": {file:
     {model: rmse}}, "b_samples": {file: onset samples in the first half}} (deg); rows:
-    insitu.ROWS, models: MODELS."""
+    insitu.ROWS, models: MODELS. across=False leaves the across-sessions protocol out."""
     files = sorted(Path(folder).glob("data_2_*.txt"))
     if not files:
         from .errors import InputError
@@ -134,6 +134,8 @@ def evaluate_real(folder, progress=lambda it, **kw: it) -> dict:
     sessions = {f.stem: import_catheter(f) for f in files}
     for name, s in progress(sessions.items(), desc="in situ", total=len(sessions)):
         _in_situ(out, name, s, str(Path(folder) / f"{name}.txt"))
+    if not across:
+        return out
     ref_name = files[0].stem
     fit = fit_models(sessions[ref_name])
     for name, s in progress(sessions.items(), desc="across", total=len(sessions)):
