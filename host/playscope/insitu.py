@@ -183,7 +183,8 @@ def judged_samples(s: Session, t_split: float, t_delay_s: float) -> tuple[np.nda
     return t_acq[m], np.asarray(c, float)[m], what
 
 
-def score_rows(rows: dict[str, Row], s: Session, t_split: float, t_delay_s: float) -> tuple[dict, dict, str, int]:
+def score_rows(rows: dict[str, Row], s: Session, t_split: float, t_delay_s: float,
+               progress=lambda it, **kw: it) -> tuple[dict, dict, str, int]:
     """Run every row over the whole record from its first sample and score t >= t_split.
     Returns ({row: rmse_deg}, {row: max_abs_deg}, judged_against, samples scored)."""
     t_m, c_m, what = judged_samples(s, t_split, t_delay_s)
@@ -191,7 +192,7 @@ def score_rows(rows: dict[str, Row], s: Session, t_split: float, t_delay_s: floa
         raise InputError(None, "no valid measurement after the split")
     q, t_enc = s.encoder["q"], s.encoder["t_s"]
     rm, mx = {}, {}
-    for name, row in rows.items():
+    for name, row in progress(rows.items(), desc="run over the record", total=len(rows)):
         e = np.interp(t_m, t_enc, row.predict(q)) - c_m
         rm[name] = float(np.sqrt(np.mean(e * e)))
         mx[name] = float(np.max(np.abs(e)))
@@ -211,7 +212,7 @@ def evaluate_insitu(s: Session, split: float | str = 0.5, progress=lambda it, **
         raise InputError(src, e.message) from None
     rows = fit_rows(s, ts, progress, src)
     td = float(s.t_delay_s or 0.0)
-    rm, mx, what, n = score_rows(rows, s, ts, td)
+    rm, mx, what, n = score_rows(rows, s, ts, td, progress)
     return {
         "format": FORMAT, "session": src, "distal_kind": s.distal_kind, "judged_against": what,
         "state": "every model runs from the record's first sample (board running all along); "
