@@ -51,7 +51,7 @@ MIN_PART_S = 1.0  # a part shorter than this cannot hold a reversal cycle of any
 
 JSON_KEYS = ("format, session, distal_kind, judged_against, state, split {t_split_s, fraction, t_start_s, "
              "t_end_s, cal_frames, test_samples}, order [row], rows {row: {label, fixed_point, rmse_deg, "
-             "max_deg, params}}, notes [str]; rows: " + ", ".join(ROWS))
+             "max_deg, cal_rmse_deg (in sample, t < t_split), params}}, notes [str]; rows: " + ", ".join(ROWS))
 
 
 @dataclass
@@ -141,7 +141,8 @@ def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: s
         cal = state["cal"]
         nb = len(cal.doc["b_samples"]["b"])
         rows["paper"] = _table_row("paper", cal.B, state["paper_f"], cal, {"b_samples": nb, "f_remain": "morph"})
-        rows["onset_lsq"] = _table_row("onset_lsq", cal.B, cal.f, cal, {"b_samples": nb, "f_remain": "lsq"})
+        rows["onset_lsq"] = _table_row("onset_lsq", cal.B, cal.f, cal, {"b_samples": nb, "f_remain": "lsq",
+                                                                        "t_delay_s": cal.doc["t_delay_s"]})
 
     def gpi():
         m = GeneralizedPI.fit(*state["qc"])
@@ -165,9 +166,10 @@ def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: s
     return {k: rows[k] for k in ROWS}
 
 
-def judged_samples(s: Session, t_split: float, t_delay_s: float) -> tuple[np.ndarray, np.ndarray, str]:
-    """Measurement times on the encoder clock (acquisition time = stamp - t_delay) and
-    values of the test part (t >= t_split): (t (M,), c (M,) deg, what c is)."""
+def judged_samples(s: Session, t_split: float, t_delay_s: float, part: str = "test") -> tuple[np.ndarray, np.ndarray, str]:
+    """Measurement times on the encoder clock (acquisition time = stamp - t_delay) and values
+    of the test part (t >= t_split), or of the calibration part (part="cal", t < t_split, for
+    the in-sample figure): (t (M,), c (M,) deg, what c is)."""
     if s.distal_kind == "angle":
         t, c, what = s.distal["t_s"], s.distal["c_deg"], "angle sensor"
     elif s.truth is not None:
@@ -179,24 +181,29 @@ def judged_samples(s: Session, t_split: float, t_delay_s: float) -> tuple[np.nda
         q_f = np.interp(t_f - t_delay_s, s.encoder["t_s"], s.encoder["q"])
         t, c, what = t_f, im.estimate_c(obs, model.f_coarse(q_f, s.robot.q_per_rad))[0], "pose estimate per frame (eq. 8)"
     t_acq = np.asarray(t, float) - t_delay_s
-    m = (np.asarray(t, float) >= t_split) & np.isfinite(c) & (t_acq >= s.encoder["t_s"][0]) & (t_acq <= s.encoder["t_s"][-1])
+    after = np.asarray(t, float) >= t_split
+    m = (after if part == "test" else ~after) & np.isfinite(c) & (t_acq >= s.encoder["t_s"][0]) & (t_acq <= s.encoder["t_s"][-1])
     return t_acq[m], np.asarray(c, float)[m], what
 
 
 def score_rows(rows: dict[str, Row], s: Session, t_split: float, t_delay_s: float,
-               progress=lambda it, **kw: it) -> tuple[dict, dict, str, int]:
+               progress=lambda it, **kw: it) -> tuple[dict, dict, dict, str, int]:
     """Run every row over the whole record from its first sample and score t >= t_split.
-    Returns ({row: rmse_deg}, {row: max_abs_deg}, judged_against, samples scored)."""
+    Returns ({row: rmse_deg}, {row: max_abs_deg}, {row: rmse_deg on the calibration part, in
+    sample}, judged_against, samples scored)."""
     t_m, c_m, what = judged_samples(s, t_split, t_delay_s)
+    t_c, c_c, _ = judged_samples(s, t_split, t_delay_s, part="cal")
     if t_m.size == 0:
         raise InputError(None, "no valid measurement after the split")
     q, t_enc = s.encoder["q"], s.encoder["t_s"]
-    rm, mx = {}, {}
+    rm, mx, rc = {}, {}, {}
     for name, row in progress(rows.items(), desc="run over the record", total=len(rows)):
-        e = np.interp(t_m, t_enc, row.predict(q)) - c_m
+        c_hat = row.predict(q)
+        e = np.interp(t_m, t_enc, c_hat) - c_m
         rm[name] = float(np.sqrt(np.mean(e * e)))
         mx[name] = float(np.max(np.abs(e)))
-    return rm, mx, what, int(t_m.size)
+        rc[name] = float(np.sqrt(np.mean((np.interp(t_c, t_enc, c_hat) - c_c) ** 2))) if t_c.size else float("nan")
+    return rm, mx, rc, what, int(t_m.size)
 
 
 def evaluate_insitu(s: Session, split: float | str = 0.5, progress=lambda it, **kw: it,
@@ -211,8 +218,9 @@ def evaluate_insitu(s: Session, split: float | str = 0.5, progress=lambda it, **
     except InputError as e:
         raise InputError(src, e.message) from None
     rows = fit_rows(s, ts, progress, src)
-    td = float(s.t_delay_s or 0.0)
-    rm, mx, what, n = score_rows(rows, s, ts, td, progress)
+    # The delay the chain used (session's, else estimated on the calibration part only).
+    td = float(s.t_delay_s) if s.t_delay_s is not None else float(rows["onset_lsq"].params["t_delay_s"])
+    rm, mx, rc, what, n = score_rows(rows, s, ts, td, progress)
     return {
         "format": FORMAT, "session": src, "distal_kind": s.distal_kind, "judged_against": what,
         "state": "every model runs from the record's first sample (board running all along); "
@@ -221,7 +229,7 @@ def evaluate_insitu(s: Session, split: float | str = 0.5, progress=lambda it, **
                   "t_end_s": float(t[-1]), "cal_frames": int(rows["gpi"].params["fit_frames"]), "test_samples": n},
         "order": ROWS,
         "rows": {k: {"label": LABELS[k], "fixed_point": r.fixed_point, "rmse_deg": rm[k], "max_deg": mx[k],
-                     "params": r.params} for k, r in rows.items()},
+                     "cal_rmse_deg": rc[k], "params": r.params} for k, r in rows.items()},
         "notes": [],
     }
 
@@ -232,9 +240,10 @@ def format_insitu(doc: dict) -> str:
     lines = [f"**In situ, state carried: fit on t < {sp['t_split_s'] - sp['t_start_s']:.1f} s "
              f"({100 * sp['fraction']:.0f} %), scored on the rest against the {doc['judged_against']} "
              f"({sp['test_samples']} samples)**", "",
-             "| model | fixed point | RMSE (deg) | max (deg) |", "|---|---|---|---|"]
+             "| model | fixed point | RMSE (deg) | max (deg) | in sample, calibration part (deg) |",
+             "|---|---|---|---|---|"]
     for k in doc["order"]:
         r = doc["rows"][k]
         lines.append(f"| {r['label']} | {'yes' if r['fixed_point'] else 'no (float)'} | "
-                     f"{r['rmse_deg']:.3f} | {r['max_deg']:.3f} |")
+                     f"{r['rmse_deg']:.3f} | {r['max_deg']:.3f} | {r['cal_rmse_deg']:.3f} |")
     return "\n".join(lines + [""])
