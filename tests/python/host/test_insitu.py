@@ -97,7 +97,8 @@ def test_bouc_wen_recovers_planted_parameters(beta, gamma):
 # --------------------------------------------------------------------------- split and state
 @pytest.fixture(scope="module")
 def session():
-    return angle_session()
+    # 61 s at 100 Hz: short enough for the transition's model choice to run in a few seconds.
+    return angle_session(rate_hz=100.0, q_start=-3.0, q_end=3.0, advance=0.75)
 
 
 @pytest.fixture(scope="module")
@@ -141,10 +142,10 @@ def test_state_carried_equals_full_run_restricted_to_test_part(session, split, r
     e = np.interp(t_m[test], t_enc, full) - c_m[test]
     assert doc["rows"]["gpi"]["rmse_deg"] == pytest.approx(np.sqrt(np.mean(e * e)), rel=1e-9)
     # A board reset at the split (play state lost) scores differently, so this can fail:
-    # measured 0.111 deg against 0.055 deg carried for the onset B + lsq table.
+    # measured 0.256 deg against 0.208 deg carried for the onset B + lsq table.
     after = t_enc >= split
     fresh = np.interp(t_m[test], t_enc[after], rows["onset_lsq"].predict(q[after])) - c_m[test]
-    assert np.sqrt(np.mean(fresh**2)) > 1.5 * doc["rows"]["onset_lsq"]["rmse_deg"]
+    assert np.sqrt(np.mean(fresh**2)) > 1.1 * doc["rows"]["onset_lsq"]["rmse_deg"]
     # Every row: the score is that of its full-record run restricted to the test part.
     for name, row in rows.items():
         e = np.interp(t_m[test], t_enc, row.predict(q)) - c_m[test]
@@ -179,10 +180,10 @@ def test_cli_prints_table_and_writes_documented_json(tmp_path, session):
     from playscope.session import write_session
 
     write_session(session, tmp_path / "s")
-    assert main(["evaluate-insitu", str(tmp_path / "s"), "--split", "69s", "--json", str(tmp_path / "o.json")]) == 0
+    assert main(["evaluate-insitu", str(tmp_path / "s"), "--split", "30s", "--json", str(tmp_path / "o.json")]) == 0
     d = json.loads((tmp_path / "o.json").read_text())
     assert d["order"] == insitu.ROWS and set(d["rows"]) == set(insitu.ROWS)
     for k in ("format", "session", "distal_kind", "judged_against", "state", "split", "notes"):
         assert k in d and k in insitu.JSON_KEYS
-    assert d["split"]["t_split_s"] == pytest.approx(69.0)
+    assert d["split"]["t_split_s"] == pytest.approx(30.0)
     assert main(["evaluate-insitu", str(tmp_path / "s"), "--split", "2"]) == 2
