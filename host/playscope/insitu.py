@@ -101,18 +101,27 @@ def calibration_frames(cal_s: Session, cal) -> tuple[np.ndarray, np.ndarray]:
     return E.characteristic(t_enc, q, t_f, c_f, td)
 
 
-def _table_row(name, B, f, cal, params) -> Row:
+def _table_row(name, B, f, cal, params, transition=None) -> Row:
     from .tables import build_table
 
     q0, q1 = cal.doc["q_range"]
-    tab = build_table(B, f, q0, q1, cal.doc["actuator_unit"], "remain")
-    return Row(name, True, tab.predict, {**params, "table_bytes": len(tab.blob)})
+    tab = build_table(B, f, q0, q1, cal.doc["actuator_unit"], "remain", transition=transition)
+    return Row(name, True, tab.predict, {**params, "table_bytes": len(tab.blob), "table_ops": tab.n_ops})
 
 
 def fit_ours(cal_s: Session, cal, q_c: np.ndarray, c_c: np.ndarray) -> Row:
-    """Ours with the transition. Until the transition fit (branch pi-fit) is merged this is
-    the onset B + least-squares f_remain chain on its fixed-point table (pure play, n = 1)."""
-    return _table_row("ours", cal.B, cal.f, cal, {"model": "play (transition fit not merged yet)"})
+    """Ours with the transition (PI_MODEL.md, branch pi-fit): onset B(q) (scaled by the chosen
+    b_scale: cal.B_model), then the PI operators on the play centre and f_remain of their
+    output, operator count, span and b_scale chosen by cross-validation inside the calibration
+    part (calibrate(model_kind="auto") -> transition.choose_model); run on the layout-2 table
+    that carries the operators, through the firmware's playop_step."""
+    tr = cal.transition
+    choice = cal.model_choice or {}
+    params = {"model": "play" if tr.is_play else "pi", "n_ops": tr.n, "r": tr.r.tolist(), "w": tr.w.tolist(),
+              "b_scale": float(tr.b_scale), "r_span": choice.get("r_span"),
+              "cv": [{k: d.get(k) for k in ("b_scale", "n", "r_span", "cv_rmse_deg")}
+                     for d in choice.get("candidates", [])]}
+    return _table_row("ours", cal.B_model, cal.f, cal, params, transition=tr)
 
 
 def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: str | None = None) -> dict[str, Row]:
@@ -126,7 +135,9 @@ def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: s
     state: dict = {}
 
     def chain():
-        state["cal"] = cal = calibrate(cal_s, f_method="lsq", source=src)
+        # model_kind "auto": ours chooses its transition inside the calibration part; the pure
+        # play's f_remain (cal.f_play) is fitted in the same call for the onset_lsq row.
+        state["cal"] = cal = calibrate(cal_s, f_method="lsq", source=src, model_kind="auto")
         state["qc"] = calibration_frames(cal_s, cal)
         state["paper_f"] = E.SplineFn.from_json(cal.doc["f_remain_alt"])
 
@@ -141,8 +152,8 @@ def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: s
         cal = state["cal"]
         nb = len(cal.doc["b_samples"]["b"])
         rows["paper"] = _table_row("paper", cal.B, state["paper_f"], cal, {"b_samples": nb, "f_remain": "morph"})
-        rows["onset_lsq"] = _table_row("onset_lsq", cal.B, cal.f, cal, {"b_samples": nb, "f_remain": "lsq",
-                                                                        "t_delay_s": cal.doc["t_delay_s"]})
+        rows["onset_lsq"] = _table_row("onset_lsq", cal.B, cal.f_play, cal, {"b_samples": nb, "f_remain": "lsq",
+                                                                             "t_delay_s": cal.doc["t_delay_s"]})
 
     def gpi():
         m = GeneralizedPI.fit(*state["qc"])
@@ -155,7 +166,7 @@ def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: s
     def ours():
         rows["ours"] = fit_ours(cal_s, state["cal"], *state["qc"])
 
-    steps = [("calibrate (onsets, B, f_remain)", chain), ("linear, constant play", baselines),
+    steps = [("calibrate (onsets, B, transition choice, f_remain)", chain), ("linear, constant play", baselines),
              ("fixed-point tables", tables), ("generalized PI", gpi), ("Bouc-Wen", bouc_wen),
              ("ours with transition", ours)]
     bar = progress(steps, desc="fit", total=len(steps))

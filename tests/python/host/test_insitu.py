@@ -157,10 +157,13 @@ def test_table_rows_run_the_firmware_from_the_record_start(session, split, rows)
     from playscope.calibration import calibrate
     from playscope.tables import build_table
 
-    cal = calibrate(session.slice_time(-np.inf, split))
+    cal = calibrate(session.slice_time(-np.inf, split), model_kind="play")
     tab = build_table(cal.B, cal.f, *cal.doc["q_range"], "mm")
     q = session.encoder["q"]
     np.testing.assert_array_equal(rows["onset_lsq"].predict(q), tab.predict(q))
+    # Ours: the table carries the chosen transition's operators (none for the pure play).
+    p = rows["ours"].params
+    assert p["table_ops"] == (0 if p["model"] == "play" else p["n_ops"])
     assert rows["onset_lsq"].fixed_point and rows["paper"].fixed_point and rows["ours"].fixed_point
     assert not rows["gpi"].fixed_point and not rows["bouc_wen"].fixed_point
 
