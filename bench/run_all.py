@@ -201,6 +201,23 @@ def main(argv=None) -> int:
     part("Fig. 7 replica", fig7)
     part("main job", mainjob)
     part("real data", real)
+
+    # -- issue 9: in situ with state carried, every model on the same split (bench/insitu_real.py)
+    def insitu_real():
+        with tempfile.TemporaryDirectory() as tmp:
+            sh([PY, "bench/insitu_real.py", "--catheter", a.catheter, "--json", f"{tmp}/i.json"])
+            r = json.loads(Path(f"{tmp}/i.json").read_text())
+        c, acc = "bench/insitu_real.py", r["acceptance"]
+        files = list(r["in_situ"])
+        per_file = lambda m: " / ".join(f"{r['in_situ'][f][m]:.2f}" for f in files)
+        table.append((f"catheter in situ, state carried, ours per file ({', '.join(files)})", per_file("ours") + " deg",
+                      "<= generalized PI on every file", f"generalized PI {per_file('gpi')} deg", c))
+        table.append(("catheter in situ, state carried, ours mean / worst",
+                      f"{acc['ours_mean_deg']:.2f} / {acc['ours_worst_deg']:.2f} deg "
+                      f"(<= generalized PI on {acc['ours_le_gpi_files']} of {acc['files']} files)",
+                      f"mean <= {acc['target_mean_deg']} deg", f"generalized PI mean {acc['gpi_mean_deg']:.2f} deg", c))
+
+    part("in-situ real data", insitu_real)
     if not a.skip_selftest:
         part("diagnosis self-test", selftest)
 

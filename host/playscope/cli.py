@@ -40,6 +40,7 @@ COMMAND_MODULES = [
     ("playscope.commands.evaluate", False),
     ("playscope.commands.report", False),
     ("playscope.commands.evaluate_real", False),
+    ("playscope.commands.evaluate_insitu", False),
     ("playscope.sim.cli", True),
     ("playscope.diagnose.cli", True),
     ("playscope.device.cli", True),
@@ -53,6 +54,7 @@ In situ backlash estimation for tendon-driven continuum robots (Fig. 4 of the pa
   calibrate   B(q) from motion onsets + f_remain -> calibration JSON
   tables      calibration JSON -> fixed-point table blob for the firmware (common/ps_table.h)
   evaluate    prediction (Table I) and compensation errors on a test session
+  evaluate-insitu  every model fitted before a split of one session, scored after it, state carried
   report      HTML report with the paper's figures
   demo        the main job end to end on a simulated instrument (what tools/run-main.sh runs)
 Typical run:  playscope calibrate S -o cal.json && playscope tables cal.json -o cal.pstb

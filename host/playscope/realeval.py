@@ -1,12 +1,17 @@
 """Acceptance on the real catheter recordings: in situ and across-session RMSE tables.
 
-Models, all judged by the bending-angle RMSE (deg) on the judged samples (500 Hz):
+In situ (each file alone): playscope.insitu.evaluate_insitu with the split at half the
+duration, so every row of insitu.ROWS (linear, constant play, the paper's method, onset B +
+least-squares f_remain, generalized PI, Bouc-Wen, ours) is fitted on the first half, run
+from the file's first sample (state carried) and judged on the second half; the rows the
+board runs go through the fixed-point tables.
+
+Across sessions (fit on data_2_1, judged on the whole of each other file), float models:
   linear      c = a q + b, least squares, no backlash (baseline)
   const_play  constant-width play + degree-5 polynomial, both least squares (baseline)
   ours        onset-based B(q) spline + f_remain (play-consistent least squares)
   paper       onset-based B(q) spline + f_remain by the paper's morphological median line
-Every model runs over the whole file (the play state needs the past of q) and is scored
-on the judged part only: the second half (in situ) or the whole file (across sessions).
+All judged by the bending-angle RMSE (deg) on the judged samples (500 Hz).
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from . import estimate as E
+from . import insitu
 from . import model
 from .calibration import calibrate
 from .importer import import_catheter
@@ -81,7 +87,7 @@ def evaluate_real_reimaged(folder, work, progress=lambda it, **kw: it) -> dict:
         raise InputError(folder, "no data_2_*.txt recordings here")
     work = Path(work)
     work.mkdir(parents=True, exist_ok=True)
-    out = {"in_situ": {}, "across": {}, "b_samples": {}}
+    out = _empty()
     sessions = {f.stem: reimage_and_track(f, work) for f in progress(files, desc="re-image + track")}
 
     def judge(s, fit, mask):
@@ -89,11 +95,7 @@ def evaluate_real_reimaged(folder, work, progress=lambda it, **kw: it) -> dict:
         return {m: rmse(model.direct_model(s.encoder["q"], *fit[m])[mask] - c_true[mask]) for m in MODELS}
 
     for name, s in progress(sessions.items(), desc="in situ", total=len(sessions)):
-        t = s.encoder["t_s"]
-        half = t[0] + 0.5 * (t[-1] - t[0])
-        fit = fit_models_image(s.slice_time(-np.inf, half))
-        out["b_samples"][name] = len(fit["_cal"].doc["b_samples"]["b"])
-        out["in_situ"][name] = judge(s, fit, t >= half)
+        _in_situ(out, name, s, str(work / name))
     ref_name = files[0].stem
     fit = fit_models_image(sessions[ref_name])
     for name, s in progress(sessions.items(), desc="across", total=len(sessions)):
@@ -106,28 +108,34 @@ def rmse(e) -> float:
     return float(np.sqrt(np.mean(np.square(e))))
 
 
-def evaluate_real(folder, progress=lambda it, **kw: it) -> dict:
-    """Both protocols on data_2_*.txt in folder. Returns {"in_situ": {file: {model: rmse}},
-    "across": {file: {model: rmse}}, "b_samples": {file: count}} (deg)."""
+def _empty() -> dict:
+    return {"in_situ": {}, "in_situ_max": {}, "in_situ_rows": insitu.ROWS, "across": {}, "b_samples": {}}
+
+
+def _in_situ(out: dict, name: str, s, source: str) -> None:
+    """evaluate_insitu at half the duration, filed under name in out."""
+    doc = insitu.evaluate_insitu(s, 0.5, source=source)
+    out["in_situ"][name] = {k: r["rmse_deg"] for k, r in doc["rows"].items()}
+    out["in_situ_max"][name] = {k: r["max_deg"] for k, r in doc["rows"].items()}
+    out["b_samples"][name] = doc["rows"]["onset_lsq"]["params"]["b_samples"]
+
+
+def evaluate_real(folder, progress=lambda it, **kw: it, across: bool = True) -> dict:
+    """Both protocols on data_2_*.txt in folder. Returns {"in_situ": {file: {row: rmse}},
+    "in_situ_max": {file: {row: max |error|}}, "in_situ_rows": [row], "across": {file:
+    {model: rmse}}, "b_samples": {file: onset samples in the first half}} (deg); rows:
+    insitu.ROWS, models: MODELS. across=False leaves the across-sessions protocol out."""
     files = sorted(Path(folder).glob("data_2_*.txt"))
     if not files:
         from .errors import InputError
 
         raise InputError(folder, "no data_2_*.txt recordings here")
-    out = {"in_situ": {}, "across": {}, "b_samples": {}}
+    out = _empty()
     sessions = {f.stem: import_catheter(f) for f in files}
     for name, s in progress(sessions.items(), desc="in situ", total=len(sessions)):
-        t = s.encoder["t_s"]
-        half = t[0] + 0.5 * (t[-1] - t[0])
-        fit = fit_models(s.slice_time(-np.inf, half))
-        out["b_samples"][name] = len(fit["_cal"].doc["b_samples"]["b"])
-        judged = s.distal["t_s"] >= half
-        row = {}
-        for m in MODELS:
-            B, f = fit[m]
-            c_hat = model.direct_model(s.encoder["q"], B, f)
-            row[m] = rmse(c_hat[judged] - s.distal["c_deg"][judged])
-        out["in_situ"][name] = row
+        _in_situ(out, name, s, str(Path(folder) / f"{name}.txt"))
+    if not across:
+        return out
     ref_name = files[0].stem
     fit = fit_models(sessions[ref_name])
     for name, s in progress(sessions.items(), desc="across", total=len(sessions)):
@@ -138,11 +146,26 @@ def evaluate_real(folder, progress=lambda it, **kw: it) -> dict:
     return out
 
 
+def format_in_situ(res: dict) -> str:
+    """The in-situ table of evaluate_real()'s result: one row per model, one column per file,
+    then the mean and the worst file (RMSE, deg; every file in the mean)."""
+    files = list(res["in_situ"])
+    rows = res.get("in_situ_rows", insitu.ROWS)
+    lines = ["**In situ, state carried: fit on the first half of each file, judged on the second "
+             "(bending-angle RMSE, deg)**", "",
+             "| model | " + " | ".join(files) + " | mean | worst |", "|---" * (len(files) + 3) + "|"]
+    for m in rows:
+        v = [res["in_situ"][f][m] for f in files]
+        lines.append(f"| {insitu.LABELS[m]} | " + " | ".join(f"{x:.2f}" for x in v) +
+                     f" | {np.mean(v):.2f} | {np.max(v):.2f} |")
+    return "\n".join(lines + [""])
+
+
 def format_tables(res: dict) -> str:
-    """Markdown tables of evaluate_real()'s result, with a mean row."""
-    lines = []
-    for key, title in (("in_situ", "In situ: fit on the first half, judged on the second (RMSE, deg)"),
-                       ("across", "Across sessions: fit on data_2_1, judged on each other file (RMSE, deg)")):
+    """Markdown tables of evaluate_real()'s result: in situ (format_in_situ), then across
+    sessions with a mean row."""
+    lines = [format_in_situ(res)] if res["in_situ"] else []
+    for key, title in (("across", "Across sessions: fit on data_2_1, judged on each other file (RMSE, deg)"),):
         rows = res[key]
         lines += [f"**{title}**", "", "| file | " + " | ".join(MODELS) + " |", "|---" * (len(MODELS) + 1) + "|"]
         for name, r in rows.items():

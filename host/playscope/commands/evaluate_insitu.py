@@ -1,0 +1,35 @@
+"""`playscope evaluate-insitu`: one session split in time, every model fitted on the part before
+and scored on the part after, state carried from the record's start (playscope.insitu)."""
+
+from __future__ import annotations
+
+from ..insitu import JSON_KEYS, evaluate_insitu, format_insitu
+from ..session import load_session
+from .common import add_json_arg, dump_json, progress
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("evaluate-insitu", help="in-situ RMSE of every model on one session split in time",
+                       description="Fits, on the part of SESSION before the split only: linear, constant play + "
+                       "poly5, the paper's method (onset B + morphological f_remain), onset B + least-squares "
+                       "f_remain, generalized Prandtl-Ishlinskii (16 play operators, weights >= 0, + cubic in q), "
+                       "Bouc-Wen, and ours with the transition. Every model then runs over the whole record from "
+                       "its first sample (a board that has been running all along) and is scored on the part "
+                       "after the split: bending-angle RMSE and max (deg), one Markdown table. Rows the board "
+                       "runs go through the firmware's fixed-point tables. "
+                       "Example: playscope evaluate-insitu sessions/d21 --split 0.5 --json insitu.json")
+    p.add_argument("session", help="session folder (an angle session, or an image session: scored against "
+                   "truth.csv when present, else the per-frame pose estimate)")
+    p.add_argument("--split", default="0.5", help="fraction of the duration in (0, 1), or a time from the "
+                   "first sample with an s suffix, e.g. 30s (default 0.5)")
+    add_json_arg(p, JSON_KEYS + ". rmse_deg/max_deg over the samples with t >= t_split; fixed_point true when "
+                 "the row is scored through the firmware's playop_step on a Q16.16 table")
+    p.set_defaults(func=run)
+
+
+def run(a) -> int:
+    s = load_session(a.session)
+    doc = evaluate_insitu(s, a.split, progress=progress, source=a.session)
+    print(format_insitu(doc))
+    dump_json(a.json, doc)
+    return 0
