@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from playscope.device.cli import flash
+from playscope.device.flash import flash
 from playscope.device.link import Link
 from playscope.tables import demo_table
 from playscope.device.transport import QemuTransport, TransportError, find_qemu_image, virtual_transport

@@ -218,7 +218,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         "transition": {**tr.to_json(), "model": "play" if tr.is_play else "pi", "choice": choice,
                        "f_remain_play": play_doc},
     }
-    from .commands.common import _plain
+    from .jsonio import plain_json
 
-    return Calibration(B, f, sign, s.robot.q_per_rad, _plain(doc), tr, _plain(choice), f_play,
+    return Calibration(B, f, sign, s.robot.q_per_rad, plain_json(doc), tr, plain_json(choice), f_play,
                        None if f_play is None else int(play_doc["sign"]))

@@ -5,9 +5,9 @@ from __future__ import annotations
 import json
 import sys
 
-import numpy as np
 
 from ..atomic import write_text_atomic
+from ..jsonio import plain_json
 
 
 def add_json_arg(p, keys_doc: str) -> None:
@@ -83,26 +83,10 @@ def _check_spline(sp, key: str, path) -> None:
         raise InputError(path, f"{key}.range must be [a, b] with finite a < b, got {rng!r}")
 
 
-def _plain(o):
-    if isinstance(o, dict):
-        return {str(k): _plain(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_plain(v) for v in o]
-    if isinstance(o, np.ndarray):
-        return _plain(o.tolist())
-    if isinstance(o, (np.floating,)):
-        o = float(o)
-    if isinstance(o, float) and not np.isfinite(o):
-        return None
-    if isinstance(o, np.integer):
-        return int(o)
-    return o
-
-
 def dump_json(path: str | None, obj: dict) -> None:
     """Write obj as JSON (NaN -> null, numpy -> lists) atomically; no-op when path is None."""
     if path:
-        write_text_atomic(path, json.dumps(_plain(obj), indent=2) + "\n")
+        write_text_atomic(path, json.dumps(plain_json(obj), indent=2) + "\n")
 
 
 def progress(iterable=None, **kw):

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import sys
-import time
 
 
 def _add_device_args(p) -> None:
@@ -47,49 +46,8 @@ class _closing:
         self.link.close()
 
 
-def flash(link, blob: bytes, n_vectors: int = 200, log=print) -> dict:
-    """Upload with generation = active + 1, commit, read back, then run the test vector
-    through the board's compensator and compare with the host's run of the same C code.
-    Returns timings and the check results; raises RuntimeError when a check fails."""
-    from ..table_check import check_blob
-    from ..tables import CalibTable, set_generation, test_vector
-
-    check_blob(blob)  # names the damaged field; nothing is sent, nothing resealed
-    before = link.info()
-    if before["active_generation"] >= 0xFFFFFFFF:  # pst_header_t.generation is a uint32
-        raise RuntimeError("the board's table generation counter is at its maximum (2^32 - 1): no newer "
-                           "table can be committed; erase the board's table store first")
-    blob = set_generation(blob, before["active_generation"] + 1)
-    host = CalibTable(blob)  # refuses a bad table before anything is sent
-    t0 = time.perf_counter()
-    after = link.upload_table(blob)
-    t_upload = time.perf_counter() - t0
-    back = link.read_table()
-    t_read = time.perf_counter() - t0 - t_upload
-    if back != blob:
-        raise RuntimeError("read-back differs from the uploaded table")
-    c = test_vector(host, n_vectors)
-    link.set_mode("compensation")
-    t1 = time.perf_counter()
-    q_board = [link.comp_step(x) for x in c]
-    t_vec = time.perf_counter() - t1
-    link.set_mode("idle")
-    q_host = host.comp_run(c)
-    bad = [k for k in range(len(c)) if q_board[k] != q_host[k]]
-    if bad:
-        k = bad[0]
-        raise RuntimeError(f"compensator mismatch at step {k}: board {q_board[k]}, host {q_host[k]} "
-                           f"({len(bad)} of {len(c)} differ)")
-    r = {"generation": after["active_generation"], "slot": after["active_slot"], "bytes": len(blob),
-         "crc32": f"{after['active_crc32']:08x}", "upload_s": t_upload, "readback_s": t_read,
-         "vectors": len(c), "round_trip_us": t_vec / len(c) * 1e6}
-    log(f"flashed {len(blob)} B as generation {r['generation']} into slot {r['slot']} "
-        f"(crc {r['crc32']}) in {t_upload * 1e3:.1f} ms; read back identical in {t_read * 1e3:.1f} ms; "
-        f"{len(c)} compensator steps bit-identical to the host ({r['round_trip_us']:.0f} us per round trip)")
-    return r
-
-
 def cmd_flash(args) -> int:
+    from .flash import flash
     from .link import DeviceError
     from ..tables import demo_table
 

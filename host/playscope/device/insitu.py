@@ -292,7 +292,7 @@ def exc_duration_s(exc: str) -> float:
 
 def run_insitu(link, args) -> int:
     """CLI body (see `playscope run-insitu --help`). Returns the exit status."""
-    from .cli import flash
+    from .flash import flash
     from ..errors import InputError
     from ..session import write_session
     from ..tables import build_table

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from playscope.cli import main
-from playscope.device.cli import flash
+from playscope.device.flash import flash
 from playscope.device.link import Link
 from playscope import tables as T
 from playscope.device.transport import QemuTransport, find_qemu_image

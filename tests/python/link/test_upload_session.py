@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from playscope.device.cli import flash
+from playscope.device.flash import flash
 from playscope.device.link import DeviceError, Link
 from playscope.tables import demo_table
 from playscope.device.transport import TcpTransport

@@ -8,7 +8,7 @@ import json
 import sys
 import time
 
-from playscope.device.cli import flash
+from playscope.device.flash import flash
 from playscope.device.link import DeviceError, Link
 from playscope.tables import CalibTable, demo_table, set_generation, test_vector
 from playscope.device.transport import UsbTransport

@@ -11,7 +11,7 @@ import json
 import sys
 import time
 
-from playscope.device.cli import flash
+from playscope.device.flash import flash
 from playscope.device.link import DeviceError, Link
 from playscope.tables import demo_table
 from playscope.device.transport import UsbTransport

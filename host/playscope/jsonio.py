@@ -1,0 +1,23 @@
+"""JSON-ready values: numpy arrays and scalars to lists and Python numbers, NaN/inf to null."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def plain_json(o):
+    """A copy of o (dicts, lists, tuples, numpy values) that json.dumps writes as standard JSON:
+    keys as strings, arrays as lists, numpy scalars as Python numbers, non-finite floats as None."""
+    if isinstance(o, dict):
+        return {str(k): plain_json(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [plain_json(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return plain_json(o.tolist())
+    if isinstance(o, np.floating):
+        o = float(o)
+    if isinstance(o, float) and not np.isfinite(o):
+        return None
+    if isinstance(o, np.integer):
+        return int(o)
+    return o
