@@ -50,7 +50,9 @@ def q_at_rows(data: Data) -> np.ndarray:
 def outside_share(data: Data, fit: np.ndarray, judged: np.ndarray) -> tuple[float, np.ndarray]:
     """(share of judged rows outside the fitted q range, bool mask of those rows)."""
     q = q_at_rows(data)
-    if not fit.any() or not judged.any():
+    if not judged.any():
+        return 0.0, judged.copy()
+    if not fit.any():
         return 1.0, judged.copy()
     lo, hi = q[fit].min(), q[fit].max()
     tol = OUTSIDE_TOL * max(data.q_hi - data.q_lo, 1e-9)
@@ -73,7 +75,23 @@ def _blocks(data: Data) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def choose_split(data: Data, fractions=(0.5, 0.25, 0.25)) -> Split:
-    """Split one record into fit / validation / test (module doc). Returns a Split."""
+    """Split one record into fit / validation / test (module doc). fractions (fit, validation,
+    test) of the duration for the time-ordered split; test 0 when a separate test record judges
+    (then the blocks are fit / validation only). Returns a Split."""
+    if fractions[2] <= 0:
+        f, v, te = _time_ordered(data, fractions)
+        sv, ov = outside_share(data, f, v)
+        if sv <= OUTSIDE_MAX:
+            return Split(f, v, te, "time-ordered")
+        f, v, te = _blocks(data)
+        v, f = v | te, f
+        te = np.zeros_like(f)
+        sv, ov = outside_share(data, f, v)
+        if sv <= OUTSIDE_MAX:
+            return Split(f, v, te, "interleaved blocks",
+                         ["a time-ordered split would judge q outside the fitted range: interleaved blocks used"])
+        return Split(f, v & ~ov, te, "by range",
+                     [f"{100 * sv:.0f} % of the validation rows lie outside the fitted q range: dropped"])
     f, v, te = _time_ordered(data, fractions)
     sv, _ = outside_share(data, f, v)
     st, _ = outside_share(data, f, te)

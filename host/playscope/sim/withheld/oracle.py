@@ -3,9 +3,9 @@
 A planted effect can only be found by a gap-based diagnosis if the paper's model, refitted in situ
 (its B(q) and its f_remain free), cannot absorb it. This oracle answers that question with its
 own, flexible, effect-free model and its own fitter (nothing shared with playscope.diagnose):
-  clearance half-width h(q) piecewise linear at 7 knots over the q range (evaluated at q),
-  c = Chebyshev series of degree 9 in the normalised carrier position (linear least squares),
-  the 7 knots by scipy.optimize.least_squares (soft-l1 free, bounded 0..0.6 span).
+  clearance half-width h(q) piecewise linear at 9 knots over the q range (evaluated at q),
+  c = Chebyshev series of degree 15 in the normalised carrier position (linear least squares),
+  the 9 knots by scipy.optimize.least_squares (soft-l1 free, bounded 0..0.6 span).
 The effect is called identifiable when this model's judged RMSE exceeds the noise-only RMSE
 (measured minus the generator's noise-free reading) by the practical margin max(8 %, 0.05 deg):
 then a gap exists that an effect must explain; otherwise refitting B and f absorbs it.
@@ -17,8 +17,8 @@ import numpy as np
 from numpy.polynomial import chebyshev
 from scipy.optimize import least_squares
 
-N_HALF_KNOTS = 7
-CHEB_DEG = 9
+N_HALF_KNOTS = 9
+CHEB_DEG = 15
 ORACLE_HZ = 100.0
 
 
@@ -62,7 +62,7 @@ def effect_free_fit(t_q: np.ndarray, q: np.ndarray, t_y: np.ndarray, y: np.ndarr
         return (y - solve(h, fit_sel))[fit_sel & ok]
 
     best = None
-    for h0 in (0.05, 0.12, 0.25):
+    for h0 in (0.06, 0.2):
         r = least_squares(res, np.full(N_HALF_KNOTS, h0 * span), bounds=(0.0, 0.6 * span), diff_step=1e-3,
                           max_nfev=60)
         if best is None or r.cost < best.cost:
