@@ -162,12 +162,16 @@ def _play(lo: list, hi: list, z0: float) -> np.ndarray:
     return np.asarray(out)
 
 
-def _hold(z: np.ndarray, step: float) -> np.ndarray:
+def _hold(z: np.ndarray, step: float, kin: float = 0.0) -> np.ndarray:
+    """Stiction on the play output: held until z is step away, then slips to kin * step behind z."""
     out = [0.0] * z.size
     held = float(z[0])
+    back = kin * step
     for k, v in enumerate(z.tolist()):
-        if v - held >= step or held - v >= step:
-            held = v
+        if v - held >= step:
+            held = v - back
+        elif held - v >= step:
+            held = v + back
         out[k] = held
     return np.asarray(out)
 
@@ -238,6 +242,13 @@ class Model:
         """Design matrix (Nm, n_coef) at the measurement rows for nonlinear parameters theta."""
         d = self.d
         q = d.q_int
+        if "dead_zone" in self.effects:
+            # Dead band on the actuator side, before the play: the cable does not move while q
+            # crosses [z0 - w, z0 + w]. (A dead zone after the play is a static monotone map of z
+            # that f_remain absorbs: only this side leaves a gap a refit of B and f cannot take.)
+            w = self._get(theta, "dead_zone", "w_q")
+            zc = self._get(theta, "dead_zone", "z0_q")
+            q = q - np.clip(q - zc, -w, w)
         Bk = np.maximum(theta[:N_KNOTS], 0.0)
         alpha = self._get(theta, "asymmetric_backlash", "alpha") if "asymmetric_backlash" in self.effects else 0.0
         z0 = float(q[0])
@@ -262,10 +273,6 @@ class Model:
             zs.append(_play(zu.tolist(), zd.tolist(), z0))
         z = zs[0] if len(zs) == 1 else np.mean(zs, axis=0)
         sdir = _direction(z)
-        if "dead_zone" in self.effects:
-            w = self._get(theta, "dead_zone", "w_q")
-            zc = self._get(theta, "dead_zone", "z0_q")
-            z = z - np.clip(z - zc, -w, w)
         if "stick_slip" in self.effects:
             z = _hold(z, max(self._get(theta, "stick_slip", "step_q"), 1e-9))
         x = np.clip((z - self.q_mid) / self.q_half, -1.5, 1.5)

@@ -102,7 +102,8 @@ def run_case(case: dict, duration_s: float = 120.0, candidates=C_LIBRARY, oracle
         fsel = _rows_to_samples(data.t_m, sp.fit, ts)
         jsel = _rows_to_samples(data.t_m, sp.test, ts)
         o = identifiable(s, fsel, jsel)
-        out.update({"identifiable": o["identifiable"], "oracle_effect_free_deg": o["rmse_effect_free_deg"]})
+        out.update({"identifiable": o["identifiable"], "oracle_effect_free_deg": o["rmse_effect_free_deg"],
+                    "oracle_noise_only_deg": o["rmse_noise_only_deg"]})
     out["seconds"] = time.time() - t0
     return out
 

@@ -109,21 +109,20 @@ def choose_split(data: Data, fractions=(0.5, 0.25, 0.25)) -> Split:
 
 
 def count_reversals(data: Data, frac: float = 0.05) -> int:
-    """Direction reversals of q larger than frac of the q span (hysteresis threshold)."""
+    """Direction reversals of q larger than frac of the q span (a turn counts once q has come
+    back by that much from its extreme since the last turn)."""
     q = data.q_int
     thr = frac * max(data.q_hi - data.q_lo, 1e-9)
-    n, d, ext = 0, 0, float(q[0])
+    n, d = 0, 0
+    hi = lo = float(q[0])
     for v in q.tolist():
-        if d >= 0 and v > ext:
-            ext = v
-        elif d <= 0 and v < ext:
-            ext = v
-        if d >= 0 and ext - v > thr:
-            n += d > 0
-            d, ext = -1, v
-        elif d <= 0 and v - ext > thr:
-            n += d < 0
-            d, ext = 1, v
+        hi, lo = max(hi, v), min(lo, v)
+        if d != -1 and hi - v > thr:
+            n += d == 1
+            d, lo = -1, v
+        elif d != 1 and v - lo > thr:
+            n += d == -1
+            d, hi = 1, v
     return int(n)
 
 
