@@ -42,7 +42,11 @@ def effect_free_fit(t_q: np.ndarray, q: np.ndarray, t_y: np.ndarray, y: np.ndarr
     """Fit the effect-free model on samples fit_sel of (t_y, y), judge on judge_sel.
     t_q, q: actuator log (mm); t_y, y: sensor samples (deg); *_sel: bool (Ny,).
     Returns {"rmse_fit_deg", "rmse_judged_deg", "half_knots_mm"}."""
-    tg = np.arange(t_q[0], t_q[-1], 1 / ORACLE_HZ)
+    # A 100 Hz grid plus every sharp turning point of q: the clearance output depends on the
+    # extremes of q, which a plain decimation would clip when q turns without a hold.
+    dq = np.sign(np.diff(q))
+    turns = np.flatnonzero(dq[1:] * dq[:-1] < 0) + 1
+    tg = np.union1d(np.arange(t_q[0], t_q[-1], 1 / ORACLE_HZ), t_q[turns])
     qg = np.interp(tg, t_q, q)
     lo, hi = float(qg.min()), float(qg.max())
     span = max(hi - lo, 1e-9)
