@@ -34,6 +34,27 @@ lut=$(net "$(ipi lut_eval)")
 demo=$(net "$(ipi demo_tick)")
 verdict() { awk -v v="$1" -v t="$2" 'BEGIN { print (v <= t) ? "met" : "NOT met" }'; }
 
+# --- Transition model (table v2, 16 operators; bench/bench_pi.c, report_pi() in bench_m4.c). ---
+# Averages net of the reference generator (measured alone); worst = largest single-tick
+# window net of the empty window, 1 core cycle = 6 instructions of resolution.
+pi_net() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.1f", a - b }'; }
+pi_row() { # kind label reference
+  local gen genw
+  gen=$(ipi "pi_$1_gen"); genw=$(ipi "pi_$1_gen_worst")
+  local tick tickw comp compw
+  tick=$(pi_net "$(ipi "pi_$1_tick")" "$gen"); tickw=$(pi_net "$(ipi "pi_$1_tick_worst")" "$genw")
+  comp=$(pi_net "$(ipi "pi_$1_comp")" "$gen"); compw=$(pi_net "$(ipi "pi_$1_comp_worst")" "$genw")
+  printf '| M4 instructions per control tick with the transition (onset_tick + comp_step, 16 operators, smoothing on), %s: average / worst single tick | %s / %s | <= 250 / <= 600 (%s / %s) | bench-m4.elf report_pi(): %s; 100000 ticks; average between two port_cycles() reads net of the reference generator, worst = largest tick timed alone by SysTick with its interrupt off, net of an empty window (resolution 6 instructions) |\n' \
+    "$2" "$tick" "$tickw" "$(verdict "$tick" 250)" "$(verdict "$tickw" 600)" "$3"
+  printf '| of which comp_step (f^-1, PI^-1 with 16 operators, B/2 offset, ramp), %s: average / worst | %s / %s | | same, comp_step alone |\n' "$2" "$comp" "$compw"
+}
+pi_jumpw=$(pi_net "$(ipi pi_jump_tick_worst)" "$(ipi pi_jump_gen_worst)")
+pi_jumpcw=$(pi_net "$(ipi pi_jump_comp_worst)" "$(ipi pi_jump_gen_worst)")
+pi_rows=$(pi_row real "realistic reference" "c* in +-30 deg, a reversal every 5000-10000 ticks (0.25-0.5 s at 20 kHz)"; \
+          pi_row stress "stress reference" "a reversal every 512 ticks"; \
+          printf '| same, worst single tick when every tick reverses and jumps 12-54 deg (all operators released and re-engaged; no real reference does this) | %s (comp_step %s) | <= 600 (%s) | same worst-tick timing, 100000 such ticks |\n' \
+            "$pi_jumpw" "$pi_jumpcw" "$(verdict "$pi_jumpw" 600)")
+
 # --- Desktop, desktop-release core (CMAKE_BUILD_TYPE=Release flags). ---
 dr=build/desktop-release
 release_flags=$(sed -n 's/^CMAKE_C_FLAGS_RELEASE:STRING=//p' $dr/CMakeCache.txt)
@@ -75,6 +96,7 @@ cat <<EOF2
 | comp_step, no smoothing (eq. 4 as written) | $comp_plain | | same, comp_reset(lim = NULL) |
 | one lut_eval (comp_step makes two) | $lut | | same, lut_eval(f_inv) alone |
 | demo tick (reference triangle + reversal bookkeeping + chain) | $demo | | same, ctl_loop_tick() of bench/bench_tick.c |
+$pi_rows
 | instruction-count calibration (subs+bne loop) | $cal per iteration | 2.0 | same timer, a loop of exactly 2 instructions |
 | desktop throughput of the chain | $desk_tps ticks/s ($desk_ns ns/tick) | | bench-desktop, same chain, best of 5 x 20e6 ticks, desktop-release flags \`$release_flags\`, $cpu |
 | playscope-fw.elf flash | $(kib $flash) | < 24 KiB ($(verdict "$flash" 24576)) | arm-none-eabi-size -A: .isr_vector + .text + .ARM.exidx + .init_array + .data |

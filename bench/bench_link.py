@@ -18,7 +18,7 @@ from pathlib import Path
 
 from playscope.device.cli import flash
 from playscope.device.link import Link
-from playscope.device.tables import demo_table
+from playscope.tables import demo_table
 from playscope.device.transport import QemuTransport, TransportError, find_qemu_image, virtual_transport
 
 

@@ -41,7 +41,7 @@ static void demo_table_build(void)
     h.q_max_q16 = DEMO_X0_Q16 + (DEMO_N - 1) * DEMO_STEP_Q16;
     h.b = (pst_grid_t){.x0_q16 = DEMO_X0_Q16, .step_q16 = DEMO_STEP_Q16, .n = DEMO_N};
     h.f = h.b;
-    demo_table_size = table_write(demo_table.bytes, sizeof demo_table.bytes, &h, b_q16, f_q16);
+    demo_table_size = table_write(demo_table.bytes, sizeof demo_table.bytes, &h, b_q16, f_q16, NULL, NULL);
 }
 
 int ctl_loop_init(ctl_loop_t *l, uint32_t tick_hz)

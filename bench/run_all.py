@@ -169,6 +169,16 @@ def main(argv=None) -> int:
                           f"play + f_remain {min(base):.2f}-{max(base):.2f} deg", c))
 
     part("firmware", firmware)
+
+    # Transition model on the M4 (issue 9, table v2 with 16 operators): the tick with the
+    # transition on two references, from the rows bench_firmware.sh prints for it.
+    def firmware_transition():
+        r = md_rows(sh(["bench/bench_firmware.sh"]))
+        for kind in ("realistic", "stress"):
+            row = find(r, f"M4 instructions per control tick with the transition (onset_tick + comp_step, 16 operators, smoothing on), {kind}")
+            table.append((f"M4 instructions per tick with the transition, 16 operators, {kind} reference: average / worst",
+                          row[0], "<= 250 / <= 600", "", "bench/bench_firmware.sh"))
+    part("firmware, transition", firmware_transition)
     part("host", host)
     part("link", link)
     part("Fig. 7 replica", fig7)

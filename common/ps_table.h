@@ -1,23 +1,32 @@
-/* Calibration-table binary layout (v1): one header and int32 Q16.16 entry arrays.
+/* Calibration-table binary layout (v2): one header and int32 Q16.16 entry arrays.
  *
- * Little-endian, packed. A table is  [pst_header_t][b entries][f entries]  and is
- * self-describing: each grid gives its own byte offset. The CRC-32 covers all
- * total_size bytes with the crc32 field taken as zero, seeded with the layout version
- * (ps_crc32_update(PST_LAYOUT_VERSION, ...)), so a table of another layout fails its
- * check instead of loading as garbage. f^-1 is not stored: the loader derives it from
- * f, which must be strictly monotone (firmware/core/calib.h).
+ * Little-endian, packed. A table is  [pst_header_t][b entries][f entries][r[n]][w[n]]
+ * and is self-describing: each grid and the operator block give their own byte offset.
+ * The CRC-32 covers all total_size bytes with the crc32 field taken as zero, seeded with
+ * the table's own layout_version (ps_crc32_update(layout_version, ...)), so a table whose
+ * version field was altered fails its check instead of loading as garbage, and a v1
+ * table keeps its v1 CRC. f^-1 and the inverse operator weights are not stored: the
+ * loader derives them (firmware/core/calib.h).
+ *
+ * Version 2 adds the smooth transition after the play (docs/method.md, "Transition
+ * model"): y = sum_i w_i P_{r_i}[z], n <= PST_MAX_OPS classical play operators
+ * (Prandtl-Ishlinskii) between the centre z of the play of eq. 3 and f. Version 1 is
+ * version 2 with n = 0 (the v1 header's last field `reserved` is the zero pst_pi_t),
+ * and still loads, as the pure play of the paper.
  * Used by: firmware/core/calib.c (loader), host (writer, through cffi). */
 #ifndef PS_TABLE_H
 #define PS_TABLE_H
 
+#include <stddef.h>
 #include <stdint.h>
 #include "ps_defs.h"
 
 enum {
     PST_MAGIC = 0x42545350,      /* bytes "PSTB" */
-    PST_LAYOUT_VERSION = 1,
+    PST_LAYOUT_VERSION = 2,      /* written by table_write(); 1 is still loaded (pi all zero) */
     PST_MAX_ENTRIES = 256,       /* per grid; bounds the loader's RAM */
     PST_MIN_ENTRIES = 2,
+    PST_MAX_OPS = 16,            /* play operators of the transition; bounds the per-tick cost */
 };
 
 /* Actuator unit of q and B (session.json actuator.unit). */
@@ -41,6 +50,16 @@ typedef struct PS_PACKED pst_grid {
 } pst_grid_t;
 PS_STATIC_ASSERT(sizeof(pst_grid_t) == 12, "pst_grid_t must be 12 bytes");
 
+/* The transition's operator block (v2): r[n] then w[n], int32 Q16.16, at byte offset.
+ * r: thresholds in actuator units, r[0] = 0 < r[1] < ... < r[n-1] <= q_max - q_min.
+ * w: weights (dimensionless), w[0] > 0, w[i] >= 0, |sum w - 1| <= 2^-8.
+ * n = 0: no transition (pure play, offset 0); n = 1 with w = 1 is the same model. */
+typedef struct PS_PACKED pst_pi {
+    uint16_t n;                  /* operator count, 0..PST_MAX_OPS */
+    uint16_t offset;             /* byte offset of r[0] from the start of the table, 4-aligned; 0 when n = 0 */
+} pst_pi_t;
+PS_STATIC_ASSERT(sizeof(pst_pi_t) == 4, "pst_pi_t must be 4 bytes");
+
 typedef struct PS_PACKED pst_header {
     uint32_t magic;              /* PST_MAGIC */
     uint16_t layout_version;     /* PST_LAYOUT_VERSION */
@@ -48,7 +67,7 @@ typedef struct PS_PACKED pst_header {
     uint32_t total_size;         /* bytes, header + all entries */
     uint32_t crc32;              /* see file comment */
     uint32_t generation;         /* +1 per commit; at boot the newest valid slot wins */
-    uint8_t q_frac_bits;         /* PS_FRAC_BITS (16); anything else is refused in v1 */
+    uint8_t q_frac_bits;         /* PS_FRAC_BITS (16); anything else is refused */
     uint8_t c_frac_bits;         /* PS_FRAC_BITS (16) */
     uint8_t q_unit;              /* enum pst_q_unit */
     uint8_t f_kind;              /* enum pst_f_kind */
@@ -56,11 +75,12 @@ typedef struct PS_PACKED pst_header {
     int32_t q_max_q16;
     pst_grid_t b;                /* B(q): backlash width (actuator units), over q */
     pst_grid_t f;                /* f(q): bending angle (deg), over q; strictly monotone */
-    uint32_t reserved;           /* 0 */
+    pst_pi_t pi;                 /* v2: transition operators; v1: `reserved`, must be all zero */
 } pst_header_t;
 PS_STATIC_ASSERT(sizeof(pst_header_t) == 60, "pst_header_t must be 60 bytes");
+PS_STATIC_ASSERT(offsetof(pst_header_t, pi) == 56, "pi sits where v1 had `reserved`");
 
-/* Largest table the v1 layout allows, in bytes. */
-enum { PST_MAX_TABLE_SIZE = 60 + 2 * 4 * PST_MAX_ENTRIES };
+/* Largest table the layout allows, in bytes: two full grids and a full operator block. */
+enum { PST_MAX_TABLE_SIZE = 60 + 2 * 4 * PST_MAX_ENTRIES + 2 * 4 * PST_MAX_OPS };
 
 #endif /* PS_TABLE_H */

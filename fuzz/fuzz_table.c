@@ -4,9 +4,13 @@
 #include <string.h>
 
 #include "calib.h"
+#include "comp.h"
+#include "playop.h"
 #include "ps_crc32.h"
 
 static calib_t cal;
+static playop_t play;
+static comp_t comp;
 static uint32_t blob[(PST_MAX_TABLE_SIZE + 3) / 4 + 1];
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
@@ -33,6 +37,15 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             (void)lut_eval(&cal.f, x);
             (void)lut_eval(&cal.f_inv, x);
             (void)lut_eval(&cal.z_up, x);
+        }
+        /* And the direct model and the compensator, transition included, must run from
+         * anywhere to anywhere, with reversals, without overflow (UBSan) or faults. */
+        playop_reset(&play, &cal, -(1 << 30));
+        comp_reset(&comp, &cal, NULL, 1 << 30);
+        for (int k = 0; k < 64; k++) {
+            int32_t x = (int32_t)((uint32_t)(k & 7) * 0x24924924u) ^ (k & 8 ? INT32_MIN : 0);
+            (void)playop_step(&play, x);
+            (void)comp_step(&comp, x);
         }
     }
     return 0;

@@ -18,7 +18,7 @@ for t in fuzz_frame fuzz_table; do
   exe=$(find "$build" -name "$t" -type f -perm -u+x | head -1)
   echo "[fuzz] $t for ${secs} s"
   rm -rf "$build/new-$t" && mkdir -p "$build/new-$t"
-  "$exe" -max_total_time="$secs" -max_len=2200 -print_final_stats=1 "$build/new-$t" "fuzz/corpus/$t" 2>&1 \
+  "$exe" -max_total_time="$secs" -max_len=2300 -print_final_stats=1 "$build/new-$t" "fuzz/corpus/$t" 2>&1 \
     | grep -E "^(stat::number_of_executed_units|stat::new_units_added)|ERROR|SUMMARY" || status=$?
   [ "${PIPESTATUS[0]}" -eq 0 ] || status=1
 done

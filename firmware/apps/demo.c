@@ -131,7 +131,7 @@ int main(void)
                        .b = {.x0_q16 = Q16(-4), .step_q16 = 4096, .n = N_GRID}};
     hd.f = hd.b;
     static union { uint32_t align; uint8_t bytes[PST_MAX_TABLE_SIZE]; } blob;
-    size_t len = table_write(blob.bytes, sizeof blob.bytes, &hd, b_tab, f_tab);
+    size_t len = table_write(blob.bytes, sizeof blob.bytes, &hd, b_tab, f_tab, NULL, NULL);
     static calib_t cal;
     calib_status_t st = calib_load(&cal, blob.bytes, len);
     if (st != CALIB_OK) {

@@ -9,7 +9,9 @@ uint32_t calib_table_crc(const uint8_t *blob, uint32_t total_size)
 {
     static const uint8_t zero[4] = {0, 0, 0, 0};
     const size_t at = offsetof(pst_header_t, crc32);
-    uint32_t crc = ps_crc32_update(PST_LAYOUT_VERSION, blob, at);
+    uint16_t version;
+    memcpy(&version, blob + offsetof(pst_header_t, layout_version), sizeof version);
+    uint32_t crc = ps_crc32_update(version, blob, at);
     crc = ps_crc32_update(crc, zero, sizeof zero);
     return ps_crc32_update(crc, blob + at + 4, total_size - at - 4);
 }
@@ -69,6 +71,46 @@ static void build_envelope(const lut_t *b, int sign, int32_t *scratch, int32_t *
     (void)lut_build_inverse(&g, buf, CALIB_DERIVED_MAX, out, err_q16);
 }
 
+/* Does [at, at + len) overlap grid gr's entries? */
+static int overlaps(uint32_t at, uint32_t len, const pst_grid_t *gr)
+{
+    uint32_t g0 = gr->offset, g1 = gr->offset + 4u * gr->n;
+    return at < g1 && g0 < at + len;
+}
+
+/* The v2 operator block: layout, then shape and inverse (pi_build). Writes only the
+ * three outputs, and only on success. */
+static calib_status_t load_pi(const uint8_t *blob, const pst_header_t *hd, const lut_t *b, const lut_t *f,
+                              pi_params_t *dir, pi_params_t *inv, int32_t *err_q16)
+{
+    const uint16_t n = hd->pi.n;
+    if (n > PST_MAX_OPS)
+        return CALIB_ERR_PI_COUNT;
+    int32_t r[PST_MAX_OPS], w[PST_MAX_OPS];
+    if (n == 0) {
+        if (hd->pi.offset != 0)
+            return CALIB_ERR_PI_LAYOUT;
+    } else {
+        const uint32_t at = hd->pi.offset, len = 8u * n;
+        if (at < sizeof(pst_header_t) || (at & 3u) != 0 || at + len > hd->total_size ||
+            overlaps(at, len, &hd->b) || overlaps(at, len, &hd->f))
+            return CALIB_ERR_PI_LAYOUT;
+        memcpy(r, blob + at, 4u * n);
+        memcpy(w, blob + at + 4u * n, 4u * n);
+    }
+    /* Inputs: the play's centre z lies on B's grid (z_up / z_down return its abscissas),
+     * y* = f^-1(c*) on f's grid. */
+    static const calib_status_t map[] = {
+        [PI_OK] = CALIB_OK, [PI_ERR_COUNT] = CALIB_ERR_PI_COUNT, [PI_ERR_R0] = CALIB_ERR_PI_R0,
+        [PI_ERR_R_ORDER] = CALIB_ERR_PI_R_ORDER, [PI_ERR_R_RANGE] = CALIB_ERR_PI_R_RANGE,
+        [PI_ERR_W0] = CALIB_ERR_PI_W0, [PI_ERR_W_NEGATIVE] = CALIB_ERR_PI_W_NEGATIVE,
+        [PI_ERR_W_SUM] = CALIB_ERR_PI_W_SUM, [PI_ERR_INVERSE] = CALIB_ERR_PI_INVERSE,
+    };
+    pi_status_t ps = pi_build(r, w, n, (int64_t)hd->q_max_q16 - hd->q_min_q16, b->x0_q16, b->x_last_q16,
+                              f->x0_q16, f->x_last_q16, dir, inv, err_q16);
+    return map[ps];
+}
+
 calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
 {
     pst_header_t hd;
@@ -77,14 +119,17 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     memcpy(&hd, blob, sizeof hd);
     if (hd.magic != PST_MAGIC)
         return CALIB_ERR_MAGIC;
-    if (hd.layout_version != PST_LAYOUT_VERSION || hd.header_size != sizeof hd)
+    if (hd.layout_version < 1 || hd.layout_version > PST_LAYOUT_VERSION || hd.header_size != sizeof hd)
         return CALIB_ERR_VERSION;
     if (hd.total_size < sizeof hd || hd.total_size > len || hd.total_size > PST_MAX_TABLE_SIZE)
         return CALIB_ERR_SIZE;
     if (calib_table_crc(blob, hd.total_size) != hd.crc32)
         return CALIB_ERR_CRC;
     if (hd.q_frac_bits != PS_FRAC_BITS || hd.c_frac_bits != PS_FRAC_BITS ||
-        hd.q_unit > PST_Q_UNIT_DEG || hd.f_kind > PST_F_REMAIN || hd.reserved != 0)
+        hd.q_unit > PST_Q_UNIT_DEG || hd.f_kind > PST_F_REMAIN)
+        return CALIB_ERR_FORMAT;
+    /* v1: the field was `reserved` and must be zero (n = 0 is the pure play). */
+    if (hd.layout_version == 1 && (hd.pi.n != 0 || hd.pi.offset != 0))
         return CALIB_ERR_FORMAT;
     if (hd.q_min_q16 >= hd.q_max_q16)
         return CALIB_ERR_Q_RANGE;
@@ -119,6 +164,10 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     int32_t scratch[PST_MAX_ENTRIES];
     if ((st = check_envelope(&b, +1, scratch)) != CALIB_OK || (st = check_envelope(&b, -1, scratch)) != CALIB_OK)
         return st;
+    pi_params_t pi_dir, pi_inv;
+    int32_t pi_err;
+    if ((st = load_pi(blob, &hd, &b, &f, &pi_dir, &pi_inv, &pi_err)) != CALIB_OK)
+        return st;
 
     /* Everything is checked: from here on nothing can fail, so *out changes only now. */
     int32_t e_up, e_down;
@@ -128,6 +177,9 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     build_envelope(&b, +1, scratch, out->z_up_buf, &out->z_up, &e_up);
     build_envelope(&b, -1, scratch, out->z_down_buf, &out->z_down, &e_down);
     out->z_err_q16 = e_up > e_down ? e_up : e_down;
+    out->pi_dir = pi_dir;
+    out->pi_inv = pi_inv;
+    out->pi_inv_err_q16 = pi_err;
     out->q_min_q16 = hd.q_min_q16;
     out->q_max_q16 = hd.q_max_q16;
     out->f_sign = (int8_t)(f.y_q16[1] > f.y_q16[0] ? 1 : -1);
@@ -152,6 +204,15 @@ const char *calib_status_str(calib_status_t st)
     case CALIB_ERR_B_SLOPE: return "backlash width varies too fast (|dB/dq| >= 2)";
     case CALIB_ERR_F_NOT_MONOTONE: return "f is not strictly monotone";
     case CALIB_ERR_Q_RANGE: return "actuator range empty (q_min >= q_max)";
+    case CALIB_ERR_PI_COUNT: return "too many transition operators";
+    case CALIB_ERR_PI_LAYOUT: return "transition operator block misplaced (offset or size)";
+    case CALIB_ERR_PI_R0: return "first transition threshold is not 0";
+    case CALIB_ERR_PI_R_ORDER: return "transition thresholds not strictly increasing";
+    case CALIB_ERR_PI_R_RANGE: return "transition threshold beyond the actuator range";
+    case CALIB_ERR_PI_W0: return "first transition weight is not positive";
+    case CALIB_ERR_PI_W_NEGATIVE: return "negative transition weight";
+    case CALIB_ERR_PI_W_SUM: return "transition weights do not sum to 1 (+-2^-8)";
+    case CALIB_ERR_PI_INVERSE: return "transition not invertible in Q16.16 (first weight too small)";
     }
     return "unknown";
 }

@@ -5,6 +5,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "lut.h"
+#include "pi.h"
 #include "ps_table.h"
 
 #ifndef CALIB_DERIVED_MAX
@@ -25,6 +26,16 @@ typedef enum {
     CALIB_ERR_B_SLOPE,           /* |B'| >= 2 somewhere: the envelopes f1, f2 would fold back (eq. 2) */
     CALIB_ERR_F_NOT_MONOTONE,    /* f not strictly monotone: f^-1 would not exist */
     CALIB_ERR_Q_RANGE,           /* q_min >= q_max */
+    /* v2 operator block (the transition, pst_pi_t); codes of pi_build() in pi.h. */
+    CALIB_ERR_PI_COUNT,          /* n > PST_MAX_OPS, or n != 0 in a v1 table */
+    CALIB_ERR_PI_LAYOUT,         /* offset misaligned, inside the header or a grid, or r/w beyond total_size; offset != 0 with n = 0 */
+    CALIB_ERR_PI_R0,             /* r[0] != 0 */
+    CALIB_ERR_PI_R_ORDER,        /* thresholds not strictly increasing */
+    CALIB_ERR_PI_R_RANGE,        /* r[n-1] > q_max - q_min, or a grid +- twice the thresholds leaves +-2^30 raw */
+    CALIB_ERR_PI_W0,             /* w[0] <= 0: no slope right after the play */
+    CALIB_ERR_PI_W_NEGATIVE,     /* a weight below zero */
+    CALIB_ERR_PI_W_SUM,          /* |sum w - 1| > 2^-8 */
+    CALIB_ERR_PI_INVERSE,        /* an inverse weight would overflow Q16.16 (w[0] <= 2^-15), or the inverse leaves +-2^30 */
 } calib_status_t;
 
 /* Everything the direct model and the compensator read, derived once per load. */
@@ -43,19 +54,24 @@ typedef struct {
     uint32_t crc32;              /* from the header */
     int32_t f_inv_err_q16;       /* worst-case |f^-1 table - exact inverse of the f table| (raw) */
     int32_t z_err_q16;           /* same for z_up / z_down (raw, max of the two) */
+    pi_params_t pi_dir;          /* transition y = PI[z] of the direct model (n = 0: none, y = z) */
+    pi_params_t pi_inv;          /* its inverse z* = PI^-1[y*] for the compensator (Krejci-Kuhnen) */
+    int32_t pi_inv_err_q16;      /* worst-case |pi_inv - exact inverse| (raw); pi_dir's is 1/2 raw */
     int32_t f_inv_buf[CALIB_DERIVED_MAX];
     int32_t z_up_buf[CALIB_DERIVED_MAX];
     int32_t z_down_buf[CALIB_DERIVED_MAX];
 } calib_t;
 
 /* Compute the CRC a table of total_size bytes must carry in its header (crc32 field
- * taken as zero, seed PST_LAYOUT_VERSION). blob must hold total_size >= sizeof(pst_header_t) bytes. */
+ * taken as zero, seeded with the table's own layout_version field, so v1 tables keep
+ * their v1 CRC). blob must hold total_size >= sizeof(pst_header_t) bytes. */
 uint32_t calib_table_crc(const uint8_t *blob, uint32_t total_size);
 
-/* Validate blob[0..len) and derive f^-1 and the reindexed envelopes into *out.
+/* Validate blob[0..len) (layout version 1 or 2) and derive f^-1, the reindexed envelopes
+ * and, for a v2 table with operators, the transition and its inverse (pi_build) into *out.
  * The B and f entries are read in place: blob must stay valid (and 4-aligned) while
- * *out is in use. On any error *out is left unchanged, so a running calibration
- * survives a bad upload. Not per tick: O(n) with 64-bit divides. */
+ * *out is in use (the operator block is copied). On any error *out is left unchanged, so
+ * a running calibration survives a bad upload. Not per tick: O(n) with 64-bit divides. */
 calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len);
 
 /* A short English name for a status, for logs and error frames. */

@@ -1,4 +1,5 @@
-/* Inverse model: backlash compensator q*[k] from c*[k] (paper eqs. 4, 5 and 9). */
+/* Inverse model: backlash compensator q*[k] from c*[k] (paper eqs. 4, 5 and 9), with the
+ * inverse of the transition (table v2) between f^-1 and the play. */
 #ifndef COMP_H
 #define COMP_H
 
@@ -29,6 +30,7 @@ typedef struct {
     int64_t resid_v_q32;         /* its rate, per tick */
     bool ramping;                /* resid or its rate non-zero: one flag for the per-tick test */
     int32_t q_ref_q16;           /* q*[k-1], for reading back */
+    pi_state_t pi;               /* inverse transition operators (unused when cal->pi_inv.n = 0) */
 } comp_t;
 
 /* Convert limits to per-tick Q32.32: v_q16 in actuator units/s, a_q16 in units/s^2
@@ -39,16 +41,20 @@ typedef struct {
 comp_smoothing_t comp_smoothing_from_rates(int32_t v_q16, int32_t a_q16, uint32_t tick_hz);
 
 /* Start from reference c0_q16 with no direction known: the offset is 0 (play centred)
- * until c* first moves. lim may be NULL for no smoothing. */
+ * until c* first moves, the transition's operators at rest. lim may be NULL for no smoothing. */
 void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int32_t c0_q16);
 
 /* One step of eq. 4: q*[k] for reference c*[k] (deg, Q16).
- *   q_c = f^-1(c*)                         (f_coarse^-1 of eq. 5 or f_remain^-1 of eq. 9)
+ *   y*  = f^-1(c*)                         (f_coarse^-1 of eq. 5 or f_remain^-1 of eq. 9)
+ *   q_c = PI^-1[y*]                        (the transition's inverse, Krejci-Kuhnen; q_c = y*
+ *                                           without operators, so n = 0 is eq. 4 bit for bit)
  *   q*  = q_c + dir * s_f * B(q_c) / 2      dir = sign(c*[k] - c*[k-1]), held when equal;
  *                                           s_f = sign(f'), which turns eq. 5 into eq. 9
  *                                           when f is decreasing
  * then the offset is ramped within the smoothing limits and q* saturated to
- * [q_min, q_max]. O(1), integer-only, no divide. */
+ * [q_min, q_max]. Integer-only, no divide; O(1) between reversals, O(n) at one.
+ * Error of q_c against the exact inverse on the same table: f^-1's error times
+ * sum |w'_i| (the inverse's Lipschitz constant) + cal->pi_inv_err_q16. */
 int32_t comp_step(comp_t *cp, int32_t c_ref_q16);
 
 #endif /* COMP_H */

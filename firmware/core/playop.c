@@ -5,6 +5,7 @@ void playop_reset(playop_t *p, const calib_t *cal, int32_t z0_q16)
 {
     p->cal = cal;
     p->z_q16 = z0_q16;
+    pi_reset(&p->pi, &cal->pi_dir, z0_q16);
 }
 
 int32_t playop_step(playop_t *p, int32_t q_q16)
@@ -19,5 +20,9 @@ int32_t playop_step(playop_t *p, int32_t q_q16)
     else if (z > hi)
         z = hi;
     p->z_q16 = z;
-    return lut_eval_inline(&p->cal->f, z);
+    /* The transition after the play is taken up: y = PI[z] (identity without operators). */
+    int32_t y = z;
+    if (p->cal->pi_dir.n != 0)
+        y = pi_step_inline(&p->pi, &p->cal->pi_dir, z);
+    return lut_eval_inline(&p->cal->f, y);
 }

@@ -6,12 +6,16 @@
 #include <stdint.h>
 #include "ps_table.h"
 
-/* Write [header][B entries][f entries] into buf (cap bytes) and seal it with its CRC.
- * From *hd the caller sets generation, q_unit, f_kind, q_min/q_max and, for each grid,
- * x0_q16, step_q16 and n; magic, version, sizes, offsets and crc32 are filled here.
- * Returns the table size in bytes, or 0 if cap is too small or a count exceeds
- * PST_MAX_ENTRIES (nothing is written then). Validation is calib_load()'s job. */
+/* Write [header][B entries][f entries][r[n]][w[n]] into buf (cap bytes) and seal it with
+ * its CRC. From *hd the caller sets generation, q_unit, f_kind, q_min/q_max, for each
+ * grid x0_q16, step_q16 and n, pi.n (transition operators, 0 for none) and
+ * layout_version: 1 (pi.n must be 0), 2, or 0 for the current PST_LAYOUT_VERSION.
+ * Magic, sizes, offsets and crc32 are filled here. pi_r_q16 / pi_w_q16 hold pi.n
+ * thresholds (actuator units) and weights, Q16.16; they may be NULL when pi.n = 0.
+ * Returns the table size in bytes, or 0 (nothing written) if cap is too small, a count
+ * exceeds PST_MAX_ENTRIES or PST_MAX_OPS, the version is unknown, or a v1 table is given
+ * operators. Validation of the contents is calib_load()'s job. */
 size_t table_write(uint8_t *buf, size_t cap, const pst_header_t *hd, const int32_t *b_q16,
-                   const int32_t *f_q16);
+                   const int32_t *f_q16, const int32_t *pi_r_q16, const int32_t *pi_w_q16);
 
 #endif /* TABLE_WRITE_H */

@@ -5,19 +5,21 @@ The calibration file (docs/calibration-format.md), "format": "playscope-calibrat
   fps_frames (frame rate the onset detector saw), onset: {config, reasons},
   b_samples: {t1_s, t2_s, q1, q2, q_mean, b, weight}, B: spline (SplineFn.to_json),
   f_remain: spline + "sign" + "method" ("lsq" or "morph"), f_coarse: {q_per_rad},
-  f_remain_alt: the other estimator, for comparison.
+  f_remain_alt: the other estimator, for comparison; transition: the smooth transition after
+  the play (PI operators r, w on the play centre, playscope.transition) and the model choice.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from . import estimate as E
 from . import model
+from . import transition as T
 from .atomic import write_text_atomic
 from .errors import InputError
 from .session import Session
@@ -27,17 +29,38 @@ FORMAT = "playscope-calibration/1"
 
 @dataclass
 class Calibration:
-    """Estimated model: B and f are callables on arrays (actuator units -> units, deg)."""
+    """Estimated model: B and f are callables on arrays (actuator units -> units, deg).
+
+    transition: the PI operators after the play (n = 1: the paper's pure play, f on z);
+    model_choice: how it was chosen ({"model", "n", "r_span", "candidates": [...]}, see
+    transition.choose_model), None when the model was given."""
 
     B: E.SplineFn
     f: E.SplineFn
     f_sign: int
     q_per_rad: float
     doc: dict
+    transition: T.Transition = field(default_factory=T.Transition.play)
+    model_choice: dict | None = None
+    f_play_fit: E.SplineFn | None = None
+    f_play_sign: int | None = None
+
+    @property
+    def B_model(self):
+        """Play width of the model: B, or b_scale x B with the transition (transition.py)."""
+        return self.transition.play_width(self.B)
+
+    @property
+    def f_play(self) -> E.SplineFn:
+        """f_remain of the pure-play model (eqs. 2, 3, 9: f on z), kept beside the transition's."""
+        return self.f if self.f_play_fit is None else self.f_play_fit
 
     def predict(self, q: np.ndarray, z0: float | None = None) -> np.ndarray:
-        """Direct model c = f_remain(play(q; B)) (eqs. 2, 3), deg."""
-        return model.direct_model(q, self.B, self.f, z0)
+        """Direct model c = f_remain(PI(play(q; B))) (eqs. 2, 3 and PI_MODEL), state run from
+        q[0]; q (N,) actuator units -> c (N,) deg."""
+        if self.transition.is_play:
+            return model.direct_model(q, self.B, self.f, z0)
+        return T.direct_chain(q, self.B_model, self.transition, self.f, z0)
 
     def f_coarse(self, q):
         return model.f_coarse(q, self.q_per_rad)
@@ -58,8 +81,12 @@ class Calibration:
         if d.get("format") != FORMAT:
             raise InputError(path, f"format is {d.get('format')!r}, expected {FORMAT!r}")
         try:
+            tr = d.get("transition") or {}
+            fp = tr.get("f_remain_play")
             return cls(E.SplineFn.from_json(d["B"]), E.SplineFn.from_json(d["f_remain"]),
-                       int(d["f_remain"]["sign"]), float(d["f_coarse"]["q_per_rad"]), d)
+                       int(d["f_remain"]["sign"]), float(d["f_coarse"]["q_per_rad"]), d,
+                       T.Transition.from_json(tr) if "r" in tr else T.Transition.play(), tr.get("choice"),
+                       E.SplineFn.from_json(fp) if fp else None, int(fp["sign"]) if fp else None)
         except (KeyError, TypeError, ValueError) as e:
             raise InputError(path, f"malformed calibration: {e}") from None
 
@@ -76,7 +103,7 @@ def auto_fps(t1: np.ndarray, fps_max: float = 50.0, fps_min: float = 10.0) -> fl
 def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
               t_delay_s: float | None = None, hysteresis: float | None = None,
               onset_cfg: dict | None = None, source: str | None = None,
-              onsets: E.Onsets | None = None) -> Calibration:
+              onsets: E.Onsets | None = None, model_kind: str = "auto") -> Calibration:
     """Run the chain on a session (image or angle).
 
     1 reversals (q_cmd if logged, else the encoder with hysteresis, default 1 % of the
@@ -87,6 +114,9 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
       sessions; 0 for angle sessions, whose sensor shares the encoder clock).
     onsets: B samples measured elsewhere (e.g. by the board's own detector during
       `playscope run-insitu`); steps 1-2 are then skipped and these are fitted instead.
+    model_kind: "play" (the paper's pure play), "pi" (play + transition operators) or "auto"
+      (default: play or PI and the operator count by cross-validation on the session itself,
+      transition.choose_model); with a transition, f_remain is f of y (PI_MODEL step 3).
     Errors: InputError (naming ``source``) for too few reversals/onsets or lost markers.
     """
     src = source or (str(s.path) if s.path else None)
@@ -147,6 +177,13 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         raise ValueError(f"f_method must be 'lsq' or 'morph', not {f_method!r}")
     f, sign = fits[f_method]
     alt = "morph" if f_method == "lsq" else "lsq"
+    tr, choice, f_play, play_doc = T.Transition.play(), None, None, None
+    if model_kind != "play":
+        data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
+        tr, f_pi, sign_pi, choice = T.choose_model(data, model_kind, n_ctrl)
+        if not tr.is_play:
+            f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method}
+            f, sign, f_method = f_pi, sign_pi, "lsq+pi"
     doc = {
         "format": FORMAT, "actuator_unit": s.actuator_unit, "source": src,
         "q_range": [float(q.min()), float(q.max())],
@@ -160,7 +197,10 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         "f_remain_alt": {**fits[alt][0].to_json(), "sign": fits[alt][1], "method": alt},
         "f_coarse": {"q_per_rad": s.robot.q_per_rad},
         "pose_estimation": lm,
+        "transition": {**tr.to_json(), "model": "play" if tr.is_play else "pi", "choice": choice,
+                       "f_remain_play": play_doc},
     }
     from .commands.common import _plain
 
-    return Calibration(B, f, sign, s.robot.q_per_rad, _plain(doc))
+    return Calibration(B, f, sign, s.robot.q_per_rad, _plain(doc), tr, _plain(choice), f_play,
+                       None if f_play is None else int(play_doc["sign"]))

@@ -5,8 +5,11 @@ whole encoder log (the play state needs the past of q), is read at each frame's
 acquisition time t - t_delay, and is compared with the measurement:
   f_coarse          c = f_coarse(q)                         (no backlash)
   f_coarse+B        c = f_coarse(z), z = play(q; B)         (eqs. 2-3)
-  f_remain+B        c = f_remain(z)                         (eqs. 2-3, the full model)
-  f_remain+B_fixed  the same through the firmware's playop_step() on Q16.16 tables
+  f_remain+B        c = f_remain(z)                         (eqs. 2-3, the paper's full model)
+  f_remain+B+PI     c = f_remain(PI(z))                     (with the smooth transition, PI_MODEL;
+                                                             only when the calibration carries one)
+  <row>_fixed       the table's model through the firmware's playop_step() on Q16.16 tables
+                    (f_remain+B_fixed for a pure-play table, f_remain+B+PI_fixed with operators)
 Image sessions: Q_hat = h(g(c)) (eq. 6, session camera and hand-eye) against marker.csv,
 errors |Qx|, |Qy| and distance in px (mean, std, max). Angle sessions: c against
 distal.csv. When truth.csv is there (simulated), the bending-angle RMSE against the true
@@ -16,7 +19,8 @@ Compensation (section V-G, Fig. 12): a reference c*(t) is turned into actuator c
   f_coarse_inv      q = f_coarse^-1(c*)                     (no compensation)
   f_coarse+B        eq. 4 with eq. 5 (B, f_coarse)
   f_remain+B        eq. 4 with eq. 9 (B, f_remain)
-  f_remain+B_fixed  the firmware's comp_step() on the Q16.16 table
+  f_remain+B+PI     f_remain^-1, the inverse PI operator, then eq. 4 (PI_MODEL inverse)
+  <row>_fixed       the firmware's comp_step() on the Q16.16 table
 and each command runs open loop through a plant: the simulator's truth model when the
 session records its parameters (session.json "simulator"), or a callable given by the
 caller. Without a plant only the commands are computed and the result says so.
@@ -32,12 +36,13 @@ from pathlib import Path
 import numpy as np
 
 from . import model
+from . import transition as T
 from .calibration import Calibration
 from .errors import InputError
 from .session import Session
 
-PRED_MODELS = ["f_coarse", "f_coarse+B", "f_remain+B", "f_remain+B_fixed"]
-COMP_METHODS = ["f_coarse_inv", "f_coarse+B", "f_remain+B", "f_remain+B_fixed"]
+PRED_MODELS = ["f_coarse", "f_coarse+B", "f_remain+B", "f_remain+B+PI", "f_remain+B_fixed", "f_remain+B+PI_fixed"]
+COMP_METHODS = ["f_coarse_inv", "f_coarse+B", "f_remain+B", "f_remain+B+PI", "f_remain+B_fixed", "f_remain+B+PI_fixed"]
 
 
 def stats(x: np.ndarray) -> dict:
@@ -73,7 +78,7 @@ def reference_trajectory(cal: Calibration, duration_s: float = 60.0, rate_hz: fl
     calibrated travel, so reversals happen at many positions and amplitudes.
     Returns (t (N,) s, c* (N,) deg)."""
     q0, q1 = cal.doc["q_range"]
-    fc = cal.f(np.linspace(q0, q1, 257))
+    fc = cal.f_play(np.linspace(q0, q1, 257))
     lo, hi = float(fc.min()), float(fc.max())
     mid, amp = 0.5 * (lo + hi), 0.5 * (hi - lo) * (1 - 2 * margin)
     t = np.arange(0.0, duration_s, 1.0 / rate_hz)
@@ -144,7 +149,8 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
             from .tables import build_table
 
             q0, q1 = cal.doc["q_range"]
-            table = build_table(cal.B, cal.f, q0, q1, cal.doc["actuator_unit"], "remain")
+            table = build_table(cal.B_model, cal.f, q0, q1, cal.doc["actuator_unit"], "remain",
+                                transition=cal.transition)
             table_src = "built from the calibration"
         except Exception as e:  # no compiler / C core: float rows only
             table, table_src = None, None
@@ -154,9 +160,12 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
 
     # Direct models over the whole encoder log, then read at acquisition times (eqs. 2-3).
     z = model.play_operator(q, cal.B)
-    c_enc = {"f_coarse": fc(q), "f_coarse+B": fc(z), "f_remain+B": cal.f(z)}
+    c_enc = {"f_coarse": fc(q), "f_coarse+B": fc(z), "f_remain+B": cal.f_play(z)}
+    if not cal.transition.is_play:
+        c_enc["f_remain+B+PI"] = cal.predict(q)
+    fixed = None if table is None else ("f_remain+B+PI_fixed" if table.n_ops else "f_remain+B_fixed")
     if table is not None:
-        c_enc["f_remain+B_fixed"] = table.predict(q)
+        c_enc[fixed] = table.predict(q)
     t_acq = t_f - td
     pred = {m: np.interp(t_acq, t_enc, c) for m, c in c_enc.items()}
     q_f = np.interp(t_acq, t_enc, q)
@@ -191,14 +200,17 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
     rate = float(1.0 / np.median(np.diff(t_enc)))
     t_c, c_ref = reference_trajectory(cal, comp_duration_s, rate)
     q0, q1 = cal.doc["q_range"]
-    f_inv = inverse_of(cal.f, q0, q1)
+    f_inv = inverse_of(cal.f_play, q0, q1)
     fc_inv = lambda c: model.f_coarse_inv(c, cal.q_per_rad)
     fc_sign = 1 if cal.q_per_rad > 0 else -1
     comp_q = {"f_coarse_inv": fc_inv(c_ref),
               "f_coarse+B": model.compensator(c_ref, cal.B, fc_inv, fc_sign),
-              "f_remain+B": model.compensator(c_ref, cal.B, f_inv, cal.f_sign)}
+              "f_remain+B": model.compensator(c_ref, cal.B, f_inv, cal.f_play_sign or cal.f_sign)}
+    if not cal.transition.is_play:
+        comp_q["f_remain+B+PI"] = T.compensate_chain(c_ref, cal.B_model, cal.transition, inverse_of(cal.f, q0, q1),
+                                                     cal.f_sign)
     if table is not None:
-        comp_q["f_remain+B_fixed"] = table.compensate(c_ref)
+        comp_q[fixed] = table.compensate(c_ref)
     comp_c: dict = {}
     comp_res: dict = {}
     if plant is not None:

@@ -25,7 +25,7 @@ MODELS = ["linear", "const_play", "ours", "paper"]
 
 def fit_models(s) -> dict:
     """All four models fitted on session s. Returns {name: (B callable, f callable)}."""
-    cal = calibrate(s, f_method="lsq")
+    cal = calibrate(s, f_method="lsq", model_kind="play")  # the paper's play rows
     alt = E.SplineFn.from_json(cal.doc["f_remain_alt"])
     # Baselines see the same frames as the chain (block averages at the chain's frame rate).
     t_f, c_f = E.frames_from_angle(s.distal["t_s"], s.distal["c_deg"], cal.doc["fps_frames"])
@@ -39,7 +39,7 @@ def fit_models_image(s) -> dict:
     """The same four models on an image session (a re-imaged recording): the chain as
     `calibrate` runs it (onsets in the image, f_remain on LM pose estimates, eqs. 6-8), the
     baselines fitted on the same LM estimates of c. Returns {name: (B, f)}."""
-    cal = calibrate(s, f_method="lsq")
+    cal = calibrate(s, f_method="lsq", model_kind="play")  # the paper's play rows
     alt = E.SplineFn.from_json(cal.doc["f_remain_alt"])
     t_f, obs = s.observations()
     td = cal.doc["t_delay_s"]

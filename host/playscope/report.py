@@ -21,7 +21,8 @@ from .calibration import Calibration
 from .evaluate import Evaluation
 
 COLORS = {"f_coarse": "black", "f_coarse+B": "tab:green", "f_remain+B": "goldenrod",
-          "f_remain+B_fixed": "tab:purple", "f_coarse_inv": "black"}
+          "f_remain+B_fixed": "tab:purple", "f_coarse_inv": "black",
+          "f_remain+B+PI": "tab:red", "f_remain+B+PI_fixed": "tab:brown"}
 
 
 def _png(fig) -> str:

@@ -1,11 +1,20 @@
-"""Fixed-point calibration tables (common/ps_table.h, layout v1) written through the C types.
+"""Fixed-point calibration tables (common/ps_table.h): the one host module that makes, stamps,
+loads and runs them.
 
-The header is a cffi pst_header_t filled field by field and the CRC comes from the C
-calib_table_crc(), so the host cannot drift from the firmware's layout; every table
-written is loaded back with the firmware's calib_load() before it is returned.
+Layout is never written here: every blob comes from the firmware's own writer
+``table_write()`` (firmware/core/table_write.c, reached through cffi), so host and board cannot
+drift. A table is loaded with the firmware's ``calib_load()`` and run with its ``playop_step()``
+(direct model) and ``comp_step()`` (compensator) by the one wrapper ``CalibTable``; every
+refusal is a ``TableError`` carrying the loader's reason (``calib_status_str``).
+
+Layout 2 carries the smooth transition (thresholds r, weights w of the PI operators,
+PI_MODEL.md) after the B and f grids; a pure play (n = 1 or no transition) writes no operator.
+Until the C writer takes the operator arrays (branch pi-fw) only the pure play can be written.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -14,6 +23,11 @@ from .errors import InputError
 from .native import core, from_q16, to_q16
 
 
+class TableError(InputError):
+    """A table that cannot be written, stamped or loaded (one line: source and reason)."""
+
+
+# --------------------------------------------------------------------------- writing
 def grid_for(q_min: float, q_max: float, n_max: int) -> tuple[int, int, int]:
     """Uniform grid over [q_min, q_max] with a power-of-two step (raw Q16 units) and at
     most n_max entries: returns (x0_q16, step_q16, n)."""
@@ -24,45 +38,139 @@ def grid_for(q_min: float, q_max: float, n_max: int) -> tuple[int, int, int]:
     return x0, step, max(n, 2)
 
 
+def _writer_takes_ops() -> bool:
+    """True when the C writer has the v2 signature (operator thresholds and weights)."""
+    ffi, lib = core()
+    return len(ffi.typeof(lib.table_write).args) >= 7
+
+
+def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: float, unit: str = "mm",
+               f_kind: str = "remain", generation: int = 1, pi_r=None, pi_w=None, source=None) -> bytes:
+    """Lay out and seal one table by the C table_write() (common/ps_table.h).
+
+    b_q16, f_q16: int Q16.16 entries on the grid x0 + i step (same grid for both); q_min,
+    q_max: actuator travel (units); unit "mm" | "deg"; f_kind "remain" | "coarse";
+    pi_r, pi_w: operator thresholds (actuator units) and weights (floats, n <= PST_MAX_OPS), or
+    None for the pure play. Returns the blob. Errors: TableError when the writer refuses it
+    (too many entries or operators) or this build's writer has no operator arrays."""
+    ffi, lib = core()
+    b = [int(v) for v in b_q16]
+    f = [int(v) for v in f_q16]
+    n_ops = 0 if pi_r is None else len(pi_r)
+    if n_ops and not _writer_takes_ops():
+        raise TableError(source, "this firmware core writes layout 1 only: no transition operators")
+    hd = ffi.new("pst_header_t *")
+    hd.generation = generation
+    hd.q_unit = lib.PST_Q_UNIT_MM if unit == "mm" else lib.PST_Q_UNIT_DEG
+    hd.f_kind = lib.PST_F_REMAIN if f_kind == "remain" else lib.PST_F_COARSE
+    hd.q_min_q16, hd.q_max_q16 = int(to_q16(q_min)), int(to_q16(q_max))
+    for g, n in ((hd.b, len(b)), (hd.f, len(f))):
+        g.x0_q16, g.step_q16, g.n = x0_q16, step_q16, n
+    cap = ffi.sizeof("pst_header_t") + 4 * (len(b) + len(f) + 2 * n_ops) + 16
+    buf = ffi.new("uint8_t[]", cap)
+    if _writer_takes_ops():
+        hd.pi.n = n_ops
+        r = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_r)]) if n_ops else ffi.NULL
+        w = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_w)]) if n_ops else ffi.NULL
+        size = lib.table_write(buf, cap, hd, ffi.new("int32_t[]", b), ffi.new("int32_t[]", f), r, w)
+    else:
+        size = lib.table_write(buf, cap, hd, ffi.new("int32_t[]", b), ffi.new("int32_t[]", f))
+    if size == 0:
+        raise TableError(source, f"table_write refused the table ({len(b)} entries, {n_ops} operators)")
+    return bytes(ffi.buffer(buf, size))
+
+
+def header(blob: bytes, source=None):
+    """The blob's pst_header_t (a cffi copy). Errors: TableError if shorter than a header."""
+    ffi, _ = core()
+    if len(blob) < ffi.sizeof("pst_header_t"):
+        raise TableError(source, f"table of {len(blob)} bytes is shorter than its header")
+    hd = ffi.new("pst_header_t *")
+    ffi.memmove(hd, blob, ffi.sizeof("pst_header_t"))
+    return hd
+
+
+def set_generation(blob: bytes, generation: int, source=None) -> bytes:
+    """Return blob with pst_header_t.generation set and the CRC resealed (calib_table_crc).
+
+    The blob's own CRC is checked first: bytes that were corrupted are never resealed into a
+    valid-looking table. Errors: TableError (short blob, size mismatch, CRC mismatch)."""
+    ffi, lib = core()
+    hd = header(blob, source)
+    if hd.total_size != len(blob):
+        raise TableError(source, f"header says {hd.total_size} bytes, blob has {len(blob)}")
+    if lib.calib_table_crc(blob, len(blob)) != hd.crc32:
+        raise TableError(source, "CRC mismatch: the table is corrupted, not resealing it")
+    hd.generation = generation
+    b = bytearray(blob)
+    b[: ffi.sizeof("pst_header_t")] = bytes(ffi.buffer(hd))
+    crc = lib.calib_table_crc(bytes(b), len(b))
+    off = ffi.offsetof("pst_header_t", "crc32")
+    b[off:off + 4] = int(crc).to_bytes(4, "little")
+    return bytes(b)
+
+
+# --------------------------------------------------------------------------- loading and running
 class CalibTable:
-    """A table blob and its loaded C calib_t (kept alive together: entries are read in place)."""
+    """A table blob and its loaded C calib_t (kept alive together: entries are read in place).
+
+    Errors: TableError with calib_load()'s reason when the loader refuses the blob."""
 
     def __init__(self, blob: bytes, source=None):
         ffi, lib = core()
+        self.ffi, self.lib = ffi, lib
         self.blob = bytes(blob)
         self._buf = ffi.new("uint8_t[]", self.blob)  # malloc'd, so 4-aligned as calib_load needs
         self.cal = ffi.new("calib_t *")
         st = lib.calib_load(self.cal, self._buf, len(self.blob))
         if st != lib.CALIB_OK:
-            raise InputError(source, f"table refused by calib_load: {ffi.string(lib.calib_status_str(st)).decode()}")
+            raise TableError(source, f"table refused by calib_load: {ffi.string(lib.calib_status_str(st)).decode()}")
+
+    @property
+    def n_ops(self) -> int:
+        """Transition operators carried (0: pure play or a layout-1 table)."""
+        hd = header(self.blob)
+        return int(hd.pi.n) if hasattr(hd, "pi") else 0
 
     def predict(self, q: np.ndarray, z0: float | None = None) -> np.ndarray:
-        """Direct model by the firmware's playop_step() (eq. 3, fixed point): c (N,) deg."""
-        ffi, lib = core()
-        p = ffi.new("playop_t *")
+        """Direct model by the firmware's playop_step() (eq. 3 and the PI part, fixed point):
+        q (N,) actuator units -> c (N,) deg, state run from q[0] (or z0)."""
+        p = self.ffi.new("playop_t *")
         qr = to_q16(q).tolist()
-        lib.playop_reset(p, self.cal, int(to_q16(q[0] if z0 is None else z0)))
-        step = lib.playop_step
+        self.lib.playop_reset(p, self.cal, int(to_q16(q[0] if z0 is None else z0)))
+        step = self.lib.playop_step
         return from_q16(np.array([step(p, x) for x in qr], np.int64))
 
+    def comp_run(self, c_q16: list[int]) -> list[int]:
+        """comp_reset at c[0], then comp_step over c (raw Q16): what the board does in
+        compensation mode, no smoothing. Returns q* raw Q16 (list)."""
+        cp = self.ffi.new("comp_t *")
+        self.lib.comp_reset(cp, self.cal, self.ffi.NULL, c_q16[0])
+        step = self.lib.comp_step
+        return [step(cp, c) for c in c_q16]
+
     def compensate(self, c_ref: np.ndarray) -> np.ndarray:
-        """Inverse model by the firmware's comp_step() (eq. 4 with 5/9, no smoothing): q* (N,)."""
-        ffi, lib = core()
-        cp = ffi.new("comp_t *")
-        cr = to_q16(c_ref).tolist()
-        lib.comp_reset(cp, self.cal, ffi.NULL, cr[0])
-        step = lib.comp_step
-        return from_q16(np.array([step(cp, x) for x in cr], np.int64))
+        """Inverse model by the firmware's comp_step() (eqs. 4 with 5/9 and the PI inverse):
+        c* (N,) deg -> q* (N,) actuator units."""
+        return from_q16(np.array(self.comp_run(to_q16(c_ref).tolist()), np.int64))
+
+    def c_range_q16(self) -> tuple[int, int]:
+        """Range of f over the travel, raw Q16 deg."""
+        a = self.lib.lut_eval(self.ffi.addressof(self.cal.f), self.cal.q_min_q16)
+        b = self.lib.lut_eval(self.ffi.addressof(self.cal.f), self.cal.q_max_q16)
+        return min(a, b), max(a, b)
 
 
+# --------------------------------------------------------------------------- building
 def build_table(B, f, q_min: float, q_max: float, unit: str, f_kind: str = "remain", generation: int = 1,
-                n_max: int | None = None, source=None) -> CalibTable:
-    """Sample B and f on power-of-two grids over the travel and pack a v1 table.
+                n_max: int | None = None, source=None, transition=None) -> CalibTable:
+    """Sample B and f on power-of-two grids over the travel and write a table by table_write().
 
     B: widths floored at 0; f made strictly monotone in raw units (a flat stretch of the
-    float f would otherwise have no inverse). Errors: InputError when the loader refuses
-    the table (e.g. |dB/dq| >= 2), OverflowError beyond the Q16.16 range."""
-    ffi, lib = core()
+    float f would otherwise have no inverse); transition: a transition.Transition (None or
+    n = 1: the pure play, no operator written). Errors: TableError when the writer or the
+    loader refuses the table (e.g. |dB/dq| >= 2), OverflowError beyond the Q16.16 range."""
+    _, lib = core()
     n_max = n_max or lib.PST_MAX_ENTRIES
     x0, step, n = grid_for(q_min, q_max, n_max)
     xs = from_q16(x0 + step * np.arange(n, dtype=np.int64))
@@ -73,48 +181,67 @@ def build_table(B, f, q_min: float, q_max: float, unit: str, f_kind: str = "rema
     for i in range(1, n):  # strictly monotone by at least one LSB
         g[i] = max(g[i], g[i - 1] + 1)
     f_raw = sgn * g
-    hsize = ffi.sizeof("pst_header_t")
-    total = hsize + 8 * n
-    buf = ffi.new("uint8_t[]", total)
-    h = ffi.cast("pst_header_t *", buf)
-    h.magic, h.layout_version, h.header_size = lib.PST_MAGIC, lib.PST_LAYOUT_VERSION, hsize
-    h.total_size, h.crc32, h.generation = total, 0, generation
-    h.q_frac_bits = h.c_frac_bits = lib.PS_FRAC_BITS
-    h.q_unit = lib.PST_Q_UNIT_MM if unit == "mm" else lib.PST_Q_UNIT_DEG
-    h.f_kind = lib.PST_F_REMAIN if f_kind == "remain" else lib.PST_F_COARSE
-    h.q_min_q16, h.q_max_q16 = int(to_q16(q_min)), int(to_q16(q_max))
-    for grid, off in ((h.b, hsize), (h.f, hsize + 4 * n)):
-        grid.x0_q16, grid.step_q16, grid.n, grid.offset = x0, step, n, off
-    h.reserved = 0
-    entries = ffi.cast("int32_t *", buf + hsize)
-    for i in range(n):
-        entries[i] = int(b_raw[i])
-        entries[n + i] = int(f_raw[i])
-    h.crc32 = lib.calib_table_crc(buf, total)
-    return CalibTable(bytes(ffi.buffer(buf, total)), source)
+    ops = transition is not None and not transition.is_play
+    r, w = (transition.r, _weights_q16_sum_one(transition.w)) if ops else (None, None)
+    blob = write_blob(x0, step, b_raw, f_raw, q_min, q_max, unit, f_kind, generation, r, w, source)
+    return CalibTable(blob, source)
 
 
-def table_errors(tab: CalibTable, B, f, q_min: float, q_max: float) -> dict:
+def _weights_q16_sum_one(w: np.ndarray) -> np.ndarray:
+    """Weights rounded to Q16.16 with the rounding remainder put on w_0, so that the raw sum
+    is exactly 1.0 (the loader allows 2^-8; exact keeps y on the centre line)."""
+    raw = to_q16(w).astype(np.int64)
+    raw[0] += 65536 - int(raw.sum())
+    return from_q16(raw)
+
+
+def table_errors(tab: CalibTable, B, f, q_min: float, q_max: float, transition=None) -> dict:
     """Measured worst-case errors of the fixed-point model against the float one.
 
-    direct_c_deg: |playop_step - direct_model| over a sweep with reversals every 1/8 of
-    the travel; comp_q: |comp_step - compensator| on a sine reference; plus the loader's
-    own bounds f_inv_err and z_err. All over the table's travel."""
+    direct_c_deg: |playop_step - float direct model| over a sweep with reversals every 1/8 of
+    the travel; comp_q: |comp_step - float compensator| on a sine reference; plus the loader's
+    own bounds f_inv_err and z_err. All over the table's travel. transition: the float PI part
+    (transition.Transition) the table carries, None for the pure play."""
+    from . import transition as T
+
     span = q_max - q_min
     turns = q_min + span * np.array([0, 1, 0.25, 0.875, 0.5, 0.625, 0.125, 1, 0.0])
     q = np.concatenate([np.linspace(a, b, 400) for a, b in zip(turns[:-1], turns[1:])])
+    tr = transition if transition is not None else T.Transition.play()
     c_fix = tab.predict(q)
-    c_flt = model.direct_model(q, B, f)
+    c_flt = T.direct_chain(q, B, tr, f)
     fx = f(np.linspace(q_min, q_max, 64))
     lo, hi = float(min(fx)), float(max(fx))
     c_ref = lo + (hi - lo) * (0.5 + 0.45 * np.sin(np.linspace(0, 6 * np.pi, 3000)))
     sign = 1 if f(np.array([q_max]))[0] > f(np.array([q_min]))[0] else -1
-    gq = np.linspace(q_min - span, q_max + span, 20001)
-    fg = f(gq)
-    order = np.argsort(fg)
-    f_inv = lambda c: np.interp(c, fg[order], gq[order])
-    q_flt = np.clip(model.compensator(c_ref, B, f_inv, sign), q_min, q_max)
+    f_inv = T.f_inverse(f, q_min - span, q_max + span)
+    if tr.is_play:
+        q_flt = model.compensator(c_ref, B, f_inv, sign)
+    else:
+        q_flt = T.compensate_chain(c_ref, B, tr, f_inv, sign)
+    q_flt = np.clip(q_flt, q_min, q_max)
     q_fix = tab.compensate(c_ref)
     return {"direct_c_deg_max": float(np.max(np.abs(c_fix - c_flt))),
             "comp_q_max": float(np.max(np.abs(q_fix - q_flt)[1:])),
             "f_inv_err": float(tab.cal.f_inv_err_q16) / 65536, "z_err": float(tab.cal.z_err_q16) / 65536}
+
+
+# --------------------------------------------------------------------------- test tables
+def test_vector(tab: CalibTable, n: int = 200) -> list[int]:
+    """c* reference (raw Q16): two sine periods with reversals of varying amplitude over 90 %
+    of f's range, for the board-versus-host compensator check of `playscope flash`."""
+    lo, hi = tab.c_range_q16()
+    mid, amp = (lo + hi) / 2, 0.45 * (hi - lo)
+    return [int(mid + amp * math.sin(2 * math.pi * 2 * k / n) * (0.6 + 0.4 * math.cos(7.0 * k / n)))
+            for k in range(n)]
+
+
+def demo_table(n: int = 256, q0: float = -4.0, step_log2: int = 11, generation: int = 1) -> bytes:
+    """A valid table of n entries per grid (B bump, cubic f_remain), no transition: for tests,
+    benches and a first flash before any calibration. Laid out by table_write()."""
+    step = 2 ** step_log2
+    x0 = int(q0 * 65536)
+    qs = [(x0 + i * step) / 65536 for i in range(n)]
+    b = [int(round((0.4 + 0.3 * math.exp(-q * q / 2)) * 65536)) for q in qs]
+    f = [int(round((10 * q + 0.3 * q ** 3) * 65536)) for q in qs]
+    return write_blob(x0, step, b, f, q0, (x0 + (n - 1) * step) / 65536, "mm", "remain", generation)

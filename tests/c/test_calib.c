@@ -100,7 +100,11 @@ static void test_size_magic_version(void **state)
 
     pst_header_t hd;
     memcpy(&hd, blob.bytes, sizeof hd);
-    hd.layout_version = 2;
+    hd.layout_version = PST_LAYOUT_VERSION + 1;
+    memcpy(blob.bytes, &hd, sizeof hd);
+    fixture_reseal(&blob);
+    expect_refused(len, CALIB_ERR_VERSION);
+    hd.layout_version = 0;
     memcpy(blob.bytes, &hd, sizeof hd);
     fixture_reseal(&blob);
     expect_refused(len, CALIB_ERR_VERSION);
@@ -149,7 +153,8 @@ static void edit_header(void (*edit)(pst_header_t *))
 }
 static void e_frac(pst_header_t *h) { h->q_frac_bits = 15; }
 static void e_unit(pst_header_t *h) { h->q_unit = 9; }
-static void e_reserved(pst_header_t *h) { h->reserved = 1; }
+static void e_v1_with_ops(pst_header_t *h) { h->layout_version = 1; h->pi.n = 1; }
+static void e_v1_with_offset(pst_header_t *h) { h->layout_version = 1; h->pi.offset = 64; }
 static void e_qrange(pst_header_t *h) { h->q_max_q16 = h->q_min_q16; }
 static void e_n(pst_header_t *h) { h->b.n = 1; }
 static void e_nbig(pst_header_t *h) { h->f.n = PST_MAX_ENTRIES + 1; }
@@ -162,7 +167,8 @@ static void test_header_refusals(void **state)
 {
     (void)state;
     struct { void (*edit)(pst_header_t *); calib_status_t st; } cases[] = {
-        {e_frac, CALIB_ERR_FORMAT}, {e_unit, CALIB_ERR_FORMAT}, {e_reserved, CALIB_ERR_FORMAT},
+        {e_frac, CALIB_ERR_FORMAT}, {e_unit, CALIB_ERR_FORMAT}, {e_v1_with_ops, CALIB_ERR_FORMAT},
+        {e_v1_with_offset, CALIB_ERR_FORMAT},
         {e_qrange, CALIB_ERR_Q_RANGE}, {e_n, CALIB_ERR_GRID}, {e_nbig, CALIB_ERR_GRID},
         {e_step, CALIB_ERR_GRID}, {e_offset, CALIB_ERR_GRID}, {e_misaligned, CALIB_ERR_GRID},
         {e_overlap_header, CALIB_ERR_GRID},
@@ -203,6 +209,161 @@ static void test_refusal_keeps_last_good_table(void **state)
     assert_int_equal(lut_eval(&cal.f, 65536), (int32_t)lround(10.3 * 65536));
 }
 
+/* ---- Layout v2: the transition's operator block (pst_pi_t). ---- */
+
+/* A valid 4-operator block over the GRID's travel (8 units): thresholds spread up to
+ * 1.2 units, weights summing to exactly 1. */
+static const int32_t R4[4] = {0, 13107, 39321, 78643};      /* 0, 0.2, 0.6, 1.2 */
+static const int32_t W4[4] = {26214, 19661, 13107, 6554};   /* 0.4, 0.3, 0.2, 0.1 */
+
+static size_t build_pi(uint16_t version, uint16_t n, const int32_t *r, const int32_t *w)
+{
+    return fixture_build_pi(&blob, &GRID, b_bump, NULL, f_cubic, NULL, version, n, r, w);
+}
+
+static void test_v2_table_with_operators_loads(void **state)
+{
+    (void)state;
+    size_t len = build_pi(0, 4, R4, W4);
+    assert_int_equal(len, 60 + 8 * 65 + 8 * 4);
+    pst_header_t hd;
+    memcpy(&hd, blob.bytes, sizeof hd);
+    assert_int_equal(hd.layout_version, 2);
+    assert_int_equal(hd.pi.n, 4);
+    assert_int_equal(hd.pi.offset, 60 + 8 * 65);
+    assert_int_equal(calib_load(&cal, blob.bytes, len), CALIB_OK);
+    assert_int_equal(cal.pi_dir.n, 4);
+    assert_int_equal(cal.pi_inv.n, 4);
+    assert_memory_equal(cal.pi_dir.r_q16, R4, sizeof R4);
+    assert_memory_equal(cal.pi_dir.w, W4, sizeof W4);
+    assert_int_equal(cal.pi_dir.w_frac, 16);
+    /* 1/w_0 = 2.5 < 2: the loader keeps 29 fractional bits for the inverse weights. */
+    assert_int_equal(cal.pi_inv.w_frac, 29);
+    /* 1/2 + 1/2 sum|w'| (sum|w'| = 2/w_0 - 1/W = 4) + a few 2^-30 raw: 2.5, ceiled to 3. */
+    assert_int_equal(cal.pi_inv_err_q16, 3);
+    /* The operator block is copied (the grids are read in place): editing it in the blob
+     * afterwards changes nothing loaded. */
+    memset(blob.bytes + hd.pi.offset, 0x7F, 32);
+    assert_memory_equal(cal.pi_dir.r_q16, R4, sizeof R4);
+    assert_int_equal(cal.pi_inv.r_q16[0], 0);
+}
+
+/* v1 tables (pi all zero, CRC seeded with 1) and v2 tables without operators load as the
+ * pure play: no operators on either side. */
+static void test_v1_and_empty_v2_load_as_pure_play(void **state)
+{
+    (void)state;
+    size_t len = build_pi(1, 0, NULL, NULL);
+    pst_header_t hd;
+    memcpy(&hd, blob.bytes, sizeof hd);
+    assert_int_equal(hd.layout_version, 1);
+    assert_int_equal(hd.pi.n, 0);
+    assert_int_equal(hd.pi.offset, 0);
+    extern uint32_t ps_crc32_update(uint32_t, const void *, size_t);
+    pst_header_t z = hd;
+    z.crc32 = 0;
+    static uint8_t copy[PST_MAX_TABLE_SIZE];
+    memcpy(copy, blob.bytes, len);
+    memcpy(copy, &z, sizeof z);
+    assert_int_equal(hd.crc32, ps_crc32_update(1, copy, len)); /* seed = the table's own version */
+    assert_int_equal(calib_load(&cal, blob.bytes, len), CALIB_OK);
+    assert_int_equal(cal.pi_dir.n, 0);
+    assert_int_equal(cal.pi_inv.n, 0);
+    len = build_pi(2, 0, NULL, NULL);
+    assert_int_equal(calib_load(&cal, blob.bytes, len), CALIB_OK);
+    assert_int_equal(cal.pi_dir.n, 0);
+    /* The writer refuses operators in a v1 table, a 17th operator and an unknown version. */
+    assert_int_equal(build_pi(1, 4, R4, W4), 0);
+    static int32_t r17[17], w17[17];
+    assert_int_equal(build_pi(2, 17, r17, w17), 0);
+    assert_int_equal(build_pi(3, 0, NULL, NULL), 0);
+}
+
+static void edit_pi(void (*edit)(pst_header_t *))
+{
+    edit_header(edit);
+}
+static void e_pi_count(pst_header_t *h) { h->pi.n = PST_MAX_OPS + 1; }
+static void e_pi_misaligned(pst_header_t *h) { h->pi.offset += 2; }
+static void e_pi_in_header(pst_header_t *h) { h->pi.offset = 8; }
+static void e_pi_in_f_grid(pst_header_t *h) { h->pi.offset = (uint16_t)(h->f.offset + 4); }
+static void e_pi_beyond_end(pst_header_t *h) { h->pi.offset = (uint16_t)(h->pi.offset + 4); }
+static void e_pi_offset_without_ops(pst_header_t *h) { h->pi.n = 0; }
+
+static void test_pi_layout_refusals(void **state)
+{
+    (void)state;
+    struct { void (*edit)(pst_header_t *); calib_status_t st; } cases[] = {
+        {e_pi_count, CALIB_ERR_PI_COUNT}, {e_pi_misaligned, CALIB_ERR_PI_LAYOUT},
+        {e_pi_in_header, CALIB_ERR_PI_LAYOUT}, {e_pi_in_f_grid, CALIB_ERR_PI_LAYOUT},
+        {e_pi_beyond_end, CALIB_ERR_PI_LAYOUT}, {e_pi_offset_without_ops, CALIB_ERR_PI_LAYOUT},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        size_t len = build_pi(0, 4, R4, W4);
+        edit_pi(cases[k].edit);
+        expect_refused(len, cases[k].st);
+    }
+}
+
+/* Every malformed operator block, each with its own reason code; the boundary cases
+ * next to each refusal load. */
+static void test_pi_content_refusals(void **state)
+{
+    (void)state;
+    const int32_t span = 8 * 65536; /* q_max - q_min of GRID */
+    struct {
+        int32_t r[4], w[4];
+        calib_status_t st;
+    } cases[] = {
+        {{1, 13107, 39321, 78643}, {26214, 19661, 13107, 6554}, CALIB_ERR_PI_R0},
+        {{0, 13107, 13107, 78643}, {26214, 19661, 13107, 6554}, CALIB_ERR_PI_R_ORDER},
+        {{0, 39321, 13107, 78643}, {26214, 19661, 13107, 6554}, CALIB_ERR_PI_R_ORDER},
+        {{0, 13107, 39321, span + 1}, {26214, 19661, 13107, 6554}, CALIB_ERR_PI_R_RANGE},
+        {{0, 13107, 39321, span}, {26214, 19661, 13107, 6554}, CALIB_OK},
+        {{0, 13107, 39321, 78643}, {0, 32768, 26214, 6554}, CALIB_ERR_PI_W0},
+        {{0, 13107, 39321, 78643}, {-1, 32769, 26214, 6554}, CALIB_ERR_PI_W0},
+        {{0, 13107, 39321, 78643}, {26214, 19661, 19661, -1}, CALIB_ERR_PI_W_NEGATIVE},
+        {{0, 13107, 39321, 78643}, {26214, 19661, 13107, 6554 + 257}, CALIB_ERR_PI_W_SUM},
+        {{0, 13107, 39321, 78643}, {26214, 19661, 13107, 6554 - 257}, CALIB_ERR_PI_W_SUM},
+        {{0, 13107, 39321, 78643}, {26214, 19661, 13107, 6554 + 256}, CALIB_OK},
+        {{0, 13107, 39321, 78643}, {26214, 19661, 13107, 6554 - 256}, CALIB_OK},
+        /* 1/w_0 = 32768 does not fit Q16.16; 1/w_0 = 21845.3 does. */
+        {{0, 13107, 39321, 78643}, {2, 26214, 26214, 13106}, CALIB_ERR_PI_INVERSE},
+        {{0, 13107, 39321, 78643}, {3, 26214, 26214, 13105}, CALIB_OK},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        size_t len = build_pi(0, 4, cases[k].r, cases[k].w);
+        assert_true(len > 0);
+        if (cases[k].st == CALIB_OK)
+            assert_int_equal(calib_load(&cal, blob.bytes, len), CALIB_OK);
+        else
+            expect_refused(len, cases[k].st);
+    }
+    /* A 16-operator block loads; thresholds may not make a grid +- r leave +-2^30. */
+    int32_t r16[16], w16[16];
+    for (int i = 0; i < 16; i++) {
+        r16[i] = i * 8192;
+        w16[i] = 4096;
+    }
+    size_t len = build_pi(0, 16, r16, w16);
+    assert_int_equal(calib_load(&cal, blob.bytes, len), CALIB_OK);
+    assert_int_equal(cal.pi_inv.n, 16);
+}
+
+/* A refused operator block leaves the running table (with its operators) as it was. */
+static void test_pi_refusal_keeps_last_good_table(void **state)
+{
+    (void)state;
+    static fixture_blob_t good;
+    size_t len = fixture_build_pi(&good, &GRID, b_bump, NULL, f_cubic, NULL, 0, 4, R4, W4);
+    assert_int_equal(calib_load(&cal, good.bytes, len), CALIB_OK);
+    memcpy(&snapshot, &cal, sizeof cal);
+    const int32_t bad_w[4] = {26214, 19661, 19661, -1};
+    size_t bad_len = build_pi(0, 4, R4, bad_w);
+    assert_int_equal(calib_load(&cal, blob.bytes, bad_len), CALIB_ERR_PI_W_NEGATIVE);
+    assert_memory_equal(&cal, &snapshot, sizeof cal);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -214,6 +375,11 @@ int main(void)
         cmocka_unit_test(test_header_refusals),
         cmocka_unit_test(test_content_refusals),
         cmocka_unit_test(test_refusal_keeps_last_good_table),
+        cmocka_unit_test(test_v2_table_with_operators_loads),
+        cmocka_unit_test(test_v1_and_empty_v2_load_as_pure_play),
+        cmocka_unit_test(test_pi_layout_refusals),
+        cmocka_unit_test(test_pi_content_refusals),
+        cmocka_unit_test(test_pi_refusal_keeps_last_good_table),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -6,11 +6,13 @@
 #include <stdint.h>
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 #include <cmocka.h>
 
 #include "comp.h"
 #include "playop.h"
 #include "random_tables.h"
+#include "table_write.h"
 
 #define Q16(x) ((int32_t)lround((x) * 65536.0))
 
@@ -161,6 +163,207 @@ static void test_smoothing_disabled_by_zero_rate(void **state)
     assert_true(lim.v_max_q32 == 0);
 }
 
+
+/* ---- The transition (table v2): f^-1 -> PI^-1 -> backlash offset. ---- */
+
+/* Exact chain in double on the same table: y = f^-1(c) (exact inverse of the f grid),
+ * z = PI^-1[y] (Krejci-Kuhnen, ref_model.c), q = z + dir s_f B(z)/2, saturated. */
+typedef struct {
+    ref_comp_t c;   /* direction bookkeeping and B, f, q range */
+    ref_pi_t inv;
+} ref_comp_pi_t;
+
+static double ref_comp_pi_step(ref_comp_pi_t *rc, double c_ref)
+{
+    ref_comp_t *c = &rc->c;
+    if (c_ref > c->c_prev)
+        c->dir = 1;
+    else if (c_ref < c->c_prev)
+        c->dir = -1;
+    c->c_prev = c_ref;
+    double z = ref_pi_step(&rc->inv, ref_pwl_inverse(c->f, c_ref));
+    int sf = c->f->y[c->f->n - 1] > c->f->y[0] ? 1 : -1;
+    double q = z + c->dir * sf * ref_pwl_eval(c->b, z) / 2;
+    return fmin(fmax(q, c->q_min), c->q_max);
+}
+
+static double sum_abs(const ref_pi_t *p)
+{
+    double s = 0;
+    for (int i = 0; i < p->n; i++)
+        s += fabs(p->w[i]);
+    return s;
+}
+
+/* comp_step with 1..16 operators against the exact chain: |q* error| <= (e_f sum|w'| +
+ * E_inv) (1 + max|B'|/2) + 2 raw, e_f = f^-1's table error, E_inv the loader's bound
+ * (measured worst: 302 raw, 0.19 of its trial's tolerance; f^-1's table error times
+ * sum|w'| dominates). */
+static void run_transition_vs_reference(int f_sign, uint64_t seed)
+{
+    test_rng_t r;
+    test_rng_seed(&r, seed);
+    double worst = 0, ratio = 0;
+    for (int trial = 0; trial < 30; trial++) {
+        random_table_build(&r, &blob, &rb, &rf, f_sign);
+        int n = 1 + (int)(test_rng_u64(&r) % PST_MAX_OPS);
+        int32_t rq[PST_MAX_OPS], wq[PST_MAX_OPS];
+        ref_comp_pi_t ref = {.c = {.b = &rb, .f = &rf, .q_min = -4.5, .q_max = 4.5}};
+        ref_pi_t dir;
+        random_pi_build(&r, n, test_rng_uniform(&r, 0.05, 1.5), 0.1, 256, rq, wq, &dir);
+        ref_pi_inverse(&dir, &ref.inv);
+        size_t len = fixture_with_ops(&blob, 0, (uint16_t)n, rq, wq);
+        assert_int_equal(calib_load(&cal, blob.bytes, len), CALIB_OK);
+        double lo = fmin(rf.y[0], rf.y[rf.n - 1]) + 1, hi = fmax(rf.y[0], rf.y[rf.n - 1]) - 1;
+        double tol = (cal.f_inv_err_q16 * sum_abs(&ref.inv) + cal.pi_inv_err_q16) * (1 + ref_pwl_max_slope(&rb) / 2) + 2.0;
+        comp_t cp;
+        double c = 0.5 * (lo + hi), v = 0;
+        comp_reset(&cp, &cal, NULL, Q16(c));
+        ref.c.c_prev = Q16(c) / 65536.0;
+        ref_pi_reset(&ref.inv, ref_pwl_inverse(&rf, ref.c.c_prev));
+        for (int k = 0; k < 3000; k++) {
+            c = next_c(&r, c, &v, lo, hi);
+            int32_t cq = Q16(c);
+            double want = ref_comp_pi_step(&ref, cq / 65536.0) * 65536.0;
+            int32_t got = comp_step(&cp, cq);
+            worst = fmax(worst, fabs(got - want));
+            ratio = fmax(ratio, fabs(got - want) / tol);
+            assert_true(fabs(got - want) <= tol);
+        }
+    }
+    assert_true(worst >= 1.0); /* live: fixed-point error is seen */
+}
+
+static void test_transition_vs_reference_eq5(void **state) { (void)state; run_transition_vs_reference(1, 41); }
+static void test_transition_vs_reference_eq9(void **state) { (void)state; run_transition_vs_reference(-1, 42); }
+
+/* The compensator with the transition cancels the direct model with the transition:
+ * playop_step(comp_step(c*)) = c* once c* has moved, reversals included, within
+ * 2 + |f'| (e_f + W (E_inv + e_z + 3)) raw (measured worst: 0.34 of that). */
+static void run_transition_round_trip(int f_sign, uint64_t seed)
+{
+    test_rng_t r;
+    test_rng_seed(&r, seed);
+    double worst = 0;
+    int tried = 0;
+    for (int trial = 0; trial < 30; trial++) {
+        random_table_build(&r, &blob, &rb, &rf, f_sign);
+        int n = 1 + (int)(test_rng_u64(&r) % PST_MAX_OPS);
+        int32_t rq[PST_MAX_OPS], wq[PST_MAX_OPS];
+        ref_pi_t dir;
+        random_pi_build(&r, n, test_rng_uniform(&r, 0.05, 1.0), 0.1, 256, rq, wq, &dir);
+        size_t len = fixture_with_ops(&blob, 0, (uint16_t)n, rq, wq);
+        assert_int_equal(calib_load(&cal, blob.bytes, len), CALIB_OK);
+        double W = 0;
+        for (int i = 0; i < n; i++)
+            W += dir.w[i];
+        /* c* where q* = z* +- B/2 stays inside the travel [-4.5, 4.5] and z* on B's grid
+         * [-4, 4] (z* is within r_max of y* / W), so no saturation breaks the identity. */
+        double b_max = 0;
+        for (int i = 0; i < rb.n; i++)
+            b_max = fmax(b_max, rb.y[i]);
+        double y_lim = 4.0 - fmax(b_max / 2 - 0.5, 0.0) - dir.r[n - 1] - 0.1;
+        if (y_lim < 0.5)
+            continue;
+        double ca = ref_pwl_eval(&rf, -y_lim), cb = ref_pwl_eval(&rf, y_lim);
+        double lo = fmin(ca, cb), hi = fmax(ca, cb);
+        tried++;
+        double tol = 2.0 + ref_pwl_max_slope(&rf) *
+                               (cal.f_inv_err_q16 + W * (cal.pi_inv_err_q16 + cal.z_err_q16 + 3.0));
+        comp_t cp;
+        playop_t p;
+        double c = 0.5 * (lo + hi), v = 0.2;
+        comp_reset(&cp, &cal, NULL, Q16(c));
+        playop_reset(&p, &cal, cp.q_ref_q16); /* the centre the compensator starts from */
+        int moved = 0;
+        for (int k = 0; k < 3000; k++) {
+            c = next_c(&r, c, &v, lo, hi);
+            int32_t cq = Q16(c);
+            int32_t got = playop_step(&p, comp_step(&cp, cq));
+            moved |= cp.dir != 0;
+            if (moved)
+                worst = fmax(worst, fabs((double)got - cq) / tol);
+            if (moved)
+                assert_true(fabs((double)got - cq) <= tol);
+        }
+    }
+    assert_true(tried >= 20);
+}
+
+static void test_transition_round_trip_increasing(void **state) { (void)state; run_transition_round_trip(1, 43); }
+static void test_transition_round_trip_decreasing(void **state) { (void)state; run_transition_round_trip(-1, 44); }
+
+/* Without operators the compensator and the direct model are exactly those before table
+ * v2: the FNV-1a hashes of 40000 outputs of each, on an integer-only table and integer
+ * references (so the same on every platform), were recorded with commit 1920f0d (layout
+ * v1, no transition). They must come out of a v1 table, a v2 table with n = 0 and a v2
+ * table with one operator of weight 1 alike. */
+static uint64_t pure_play_hash(int f_sign, int smooth, uint16_t version, uint16_t n_ops)
+{
+    int32_t bq[65], fq[65];
+    for (int i = 0; i < 65; i++) {
+        bq[i] = 30000 + 400 * ((i * 7) % 13);
+        fq[i] = f_sign * (i * i * 300 + i * 20000 - 1900000);
+    }
+    pst_header_t h;
+    memset(&h, 0, sizeof h);
+    h.generation = 3;
+    h.f_kind = PST_F_REMAIN;
+    h.q_min_q16 = -4 * 65536;
+    h.q_max_q16 = 4 * 65536;
+    h.b = (pst_grid_t){.x0_q16 = -4 * 65536, .step_q16 = 8192, .n = 65};
+    h.f = h.b;
+    h.layout_version = version;
+    h.pi.n = n_ops;
+    const int32_t r0 = 0, w1 = 65536;
+    size_t len = table_write(blob.bytes, sizeof blob.bytes, &h, bq, fq, &r0, &w1);
+    assert_int_equal(calib_load(&cal, blob.bytes, len), CALIB_OK);
+    playop_t p;
+    comp_t cp;
+    comp_smoothing_t lim = comp_smoothing_from_rates(200 * 65536, 20000 * 65536, 20000);
+    playop_reset(&p, &cal, 1000);
+    comp_reset(&cp, &cal, smooth ? &lim : NULL, 5000);
+    uint32_t s = 12345u + (uint32_t)f_sign * 7u + (uint32_t)smooth;
+    int32_t q = 0, v = 300, c = 0, vc = 3000;
+    uint64_t hs = 1469598103934665603ull;
+    for (int k = 0; k < 40000; k++) {
+        s = s * 1664525u + 1013904223u;
+        uint32_t u = s >> 8;
+        if (u % 64 == 0) {
+            s = s * 1664525u + 1013904223u;
+            v = (int32_t)((s >> 8) % 4001) - 2000;
+        }
+        if (u % 97 == 0) {
+            s = s * 1664525u + 1013904223u;
+            vc = (int32_t)((s >> 8) % 40001) - 20000;
+        }
+        q += v;
+        if (q > 280000) { q = 280000; v = -v; }
+        if (q < -280000) { q = -280000; v = -v; }
+        c += vc;
+        if (c > 500000) { c = 500000; vc = -vc; }
+        if (c < -1800000) { c = -1800000; vc = -vc; }
+        int32_t a = playop_step(&p, q), b = comp_step(&cp, c);
+        hs = (hs ^ (uint32_t)a) * 1099511628211ull;
+        hs = (hs ^ (uint32_t)b) * 1099511628211ull;
+    }
+    return hs;
+}
+
+static void test_pure_play_bit_for_bit_as_before_v2(void **state)
+{
+    (void)state;
+    static const struct { int f_sign, smooth; uint64_t hash; } golden[] = {
+        {-1, 0, 0xf11d00d860d56270ull}, {-1, 1, 0x338b2731bb30146dull},
+        {1, 0, 0x037375b74b395550ull}, {1, 1, 0x2816acaa906bb34cull},
+    };
+    for (size_t k = 0; k < sizeof golden / sizeof golden[0]; k++) {
+        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 1, 0) == golden[k].hash);
+        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 2, 0) == golden[k].hash);
+        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 2, 1) == golden[k].hash);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -171,6 +374,11 @@ int main(void)
         cmocka_unit_test(test_eq4_cases),
         cmocka_unit_test(test_smoothing_limits),
         cmocka_unit_test(test_smoothing_disabled_by_zero_rate),
+        cmocka_unit_test(test_transition_vs_reference_eq5),
+        cmocka_unit_test(test_transition_vs_reference_eq9),
+        cmocka_unit_test(test_transition_round_trip_increasing),
+        cmocka_unit_test(test_transition_round_trip_decreasing),
+        cmocka_unit_test(test_pure_play_bit_for_bit_as_before_v2),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -20,27 +20,47 @@ def add_parser(sub) -> None:
     p.add_argument("-N", "--control-points", type=int, default=14, help="B-spline control points (paper: 14)")
     p.add_argument("--f-method", choices=["lsq", "morph"], default="lsq",
                    help="f_remain estimator: lsq (default, play-consistent) or morph (paper, section IV)")
+    p.add_argument("--model", choices=["play", "pi", "auto"], default="auto",
+                   help="play: the paper's pure play; pi: play + Prandtl-Ishlinskii transition operators; "
+                   "auto (default): play or PI and the operator count by cross-validation on this session "
+                   "(docs/method.md, 'Transition'); the choice and its CV errors go into the JSON")
     p.add_argument("--fps", type=float, help="frame rate for angle sessions (default: ~125 frames per stroke, 10-50 Hz)")
     p.add_argument("--t-delay", type=float, help="image delay t_delay in s (default: session.json, else estimated)")
     p.add_argument("--hysteresis", type=float, help="reversal detection hysteresis, actuator units (default 1%% of travel)")
     p.add_argument("--threshold", type=float, help="onset threshold T per frame (px or deg); default automatic")
     add_json_arg(p, "calibration (path), reversals, b_samples, onset_reasons {name: count}, t_delay_s, "
-                 "fps_frames, B_range [min,max], rms_fit_deg")
+                 "fps_frames, B_range [min,max], model (play|pi), operators (count)")
     p.set_defaults(func=run)
 
 
 def run(a) -> int:
     s = load_session(a.session)
     ov = {"threshold": a.threshold} if a.threshold is not None else None
-    cal = calibrate(s, a.control_points, a.f_method, a.fps, a.t_delay, a.hysteresis, ov)
+    cal = calibrate(s, a.control_points, a.f_method, a.fps, a.t_delay, a.hysteresis, ov, model_kind=a.model)
     cal.save(a.out)
     d = cal.doc
     g = np.linspace(*d["q_range"], 200)
     b = cal.B(g)
     print(f"{a.out}: {len(d['b_samples']['b'])} B samples from {d['reversals']} reversals "
           f"({', '.join(f'{k} {v}' for k, v in d['onset']['reasons'].items() if v)}); "
-          f"B {b.min():.3g}..{b.max():.3g} {d['actuator_unit']}, t_delay {d['t_delay_s']:.3f} s")
+          f"B {b.min():.3g}..{b.max():.3g} {d['actuator_unit']}, t_delay {d['t_delay_s']:.3f} s; "
+          f"model {_model_text(cal)}")
     dump_json(a.json, {"calibration": a.out, "reversals": d["reversals"], "b_samples": len(d["b_samples"]["b"]),
                        "onset_reasons": d["onset"]["reasons"], "t_delay_s": d["t_delay_s"],
-                       "fps_frames": d["fps_frames"], "B_range": [float(b.min()), float(b.max())]})
+                       "fps_frames": d["fps_frames"], "B_range": [float(b.min()), float(b.max())],
+                       "model": "play" if cal.transition.is_play else "pi", "operators": cal.transition.n})
     return 0
+
+
+def _model_text(cal) -> str:
+    """'play' or 'PI, n operators (r up to ... )', with the CV error of the choice when made."""
+    tr, ch = cal.transition, cal.model_choice
+    txt = "play" if tr.is_play else (f"play ({tr.b_scale:g} B) + PI, {tr.n} operators (r <= {tr.r[-1]:.3g})")
+    if ch:
+        pick = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"]) ==
+                    (ch["b_scale"], ch["n_tried"], ch["r_span"]))
+        play = next((c for c in ch["candidates"] if c["n"] == 1), None)
+        txt += f", CV RMSE {pick['cv_rmse_deg']:.3g} deg"
+        if play and pick is not play:
+            txt += f" (play {play['cv_rmse_deg']:.3g})"
+    return txt

@@ -52,11 +52,11 @@ def flash(link, blob: bytes, n_vectors: int = 200, log=print) -> dict:
     """Upload with generation = active + 1, commit, read back, then run the test vector
     through the board's compensator and compare with the host's run of the same C code.
     Returns timings and the check results; raises RuntimeError when a check fails."""
-    from .tables import HostCalib, set_generation, test_vector
+    from ..tables import CalibTable, set_generation, test_vector
 
     before = link.info()
     blob = set_generation(blob, before["active_generation"] + 1)
-    host = HostCalib(blob)  # refuses a bad table before anything is sent
+    host = CalibTable(blob)  # refuses a bad table before anything is sent
     t0 = time.perf_counter()
     after = link.upload_table(blob)
     t_upload = time.perf_counter() - t0
@@ -87,7 +87,7 @@ def flash(link, blob: bytes, n_vectors: int = 200, log=print) -> dict:
 
 def cmd_flash(args) -> int:
     from .link import DeviceError
-    from .tables import demo_table
+    from ..tables import demo_table
 
     if args.table == "demo":
         blob = demo_table()

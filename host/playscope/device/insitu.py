@@ -411,7 +411,7 @@ def run_insitu(link, args) -> int:
         print(f"playscope: run-insitu: {e}", file=sys.stderr)
         return 1
     q_min, q_max = cal.doc["q_range"]
-    tab = build_table(cal.B, cal.f, q_min, q_max, "mm", "remain", 1)
+    tab = build_table(cal.B_model, cal.f, q_min, q_max, "mm", "remain", 1, transition=cal.transition)
     result = {"board_s": run.board_s, "wall_s": run.wall_s, "frames": len(run.mk_t_s),
               "b_samples": len(run.samples), "b_valid": len(valid), "q_range": [q_min, q_max]}
     if plant:

@@ -93,9 +93,13 @@ def _deg_to_q(cfg: SimConfig, c_deg: float) -> float:
 
 PRESETS: dict[str, dict] = {
     # STRAS-like instrument (paper V-A, V-D, Fig. 8): backlash much wider near straight, a low
-    # rate near straight in f_remain, 25 Hz camera with 80 ms delay, the instrument's play in its
-    # channel as a +-1.5 deg direction-dependent registration error. The main job's default.
-    "stras": {"name": "stras", "effects": {"handeye_direction": {"delta_deg": 1.5}}},
+    # rate near straight in f_remain, 25 Hz camera with 80 ms delay, and the smooth transition
+    # after the play (paper V-F: "the transition movement between backlash and the envelope";
+    # five play widths B(q)(1 +- 0.5 u), so the tip starts after 0.5 B and joins the envelope
+    # after 1.5 B). The main job's default. The +-1.5 deg direction-dependent registration
+    # error of section V-B is the Fig. 7 case (preset fig7), not Table I's (section V-F: there
+    # the registration error acts on Qy, across the motion).
+    "stras": {"name": "stras", "effects": {"smooth_transition": {"spread": 0.5}}},
     # Paper V-B / Fig. 7: constant 15 deg backlash, linear f, +-1.5 deg registration error,
     # bending velocity 15 deg/s.
     "fig7": {"name": "fig7", "B": {"base": float(np.radians(15) * 3.0), "peak": 0.0, "centre": 0.0, "sigma": 1.0},

@@ -50,3 +50,43 @@ size_t random_table_build(test_rng_t *r, fixture_blob_t *blob, ref_pwl_t *ref_b,
     }
     return len;
 }
+
+void random_pi_build(test_rng_t *r, int n, double r_max, double w0_min, int sum_err_raw, int32_t *r_q16,
+                     int32_t *w_q16, ref_pi_t *ref)
+{
+    /* Thresholds: sorted uniform draws, at least one raw unit apart. */
+    r_q16[0] = 0;
+    for (int i = 1; i < n; i++) {
+        int32_t v = (int32_t)llround(test_rng_uniform(r, 0, r_max) * 65536.0);
+        int k = i;
+        while (k > 1 && r_q16[k - 1] > v) {
+            r_q16[k] = r_q16[k - 1];
+            k--;
+        }
+        r_q16[k] = v;
+    }
+    for (int i = 1; i < n; i++)
+        if (r_q16[i] <= r_q16[i - 1])
+            r_q16[i] = r_q16[i - 1] + 1;
+    double w[32], sum = 0;
+    w[0] = test_rng_uniform(r, w0_min, 1.0);
+    for (int i = 1; i < n; i++)
+        w[i] = test_rng_uniform(r, 0, 1) < 0.33 ? 0.0 : test_rng_uniform(r, 0, 1.0);
+    for (int i = 1; i < n; i++)
+        sum += w[i];
+    /* Scale the others so that w_0 keeps its drawn share of the unit sum. */
+    int64_t raw_sum = 0;
+    w_q16[0] = (int32_t)llround(w[0] * 65536.0);
+    for (int i = 1; i < n; i++) {
+        w_q16[i] = sum > 0 ? (int32_t)llround(w[i] / sum * (1.0 - w[0]) * 65536.0) : 0;
+        raw_sum += w_q16[i];
+    }
+    raw_sum += w_q16[0];
+    int64_t target = 65536 + (sum_err_raw ? (int64_t)(test_rng_u64(r) % (2u * (uint64_t)sum_err_raw + 1u)) - sum_err_raw : 0);
+    w_q16[0] += (int32_t)(target - raw_sum); /* w_0 absorbs the rounding: stays >= w0_min - 2^-8 */
+    ref->n = n;
+    for (int i = 0; i < n; i++) {
+        ref->r[i] = r_q16[i] / 65536.0;
+        ref->w[i] = w_q16[i] / 65536.0;
+    }
+}

@@ -19,4 +19,12 @@ typedef struct {
 size_t random_table_build(test_rng_t *r, fixture_blob_t *blob, ref_pwl_t *ref_b, ref_pwl_t *ref_f,
                           int f_sign);
 
+/* A random valid transition block of n operators (1..PST_MAX_OPS): r_0 = 0 and strictly
+ * increasing thresholds up to r_max (actuator units), weights w_0 >= w0_min, about a
+ * third of the others zero (as a non-negative least-squares fit leaves them), the raw
+ * sum 65536 + d with |d| <= sum_err_raw. Fills the Q16.16 arrays and ref (double copies
+ * of exactly those values, states unset). */
+void random_pi_build(test_rng_t *r, int n, double r_max, double w0_min, int sum_err_raw, int32_t *r_q16,
+                     int32_t *w_q16, ref_pi_t *ref);
+
 #endif /* RANDOM_TABLES_H */

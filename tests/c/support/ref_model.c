@@ -80,3 +80,34 @@ double ref_comp_step(ref_comp_t *c, double c_ref)
     double q = qc + c->dir * sf * ref_pwl_eval(c->b, qc) / 2;
     return fmin(fmax(q, c->q_min), c->q_max);
 }
+
+void ref_pi_reset(ref_pi_t *s, double x0)
+{
+    for (int i = 0; i < s->n; i++)
+        s->p[i] = x0;
+}
+
+double ref_pi_step(ref_pi_t *s, double x)
+{
+    double y = 0;
+    for (int i = 0; i < s->n; i++) {
+        s->p[i] = fmin(x + s->r[i], fmax(x - s->r[i], s->p[i]));
+        y += s->w[i] * s->p[i];
+    }
+    return y;
+}
+
+void ref_pi_inverse(const ref_pi_t *d, ref_pi_t *inv)
+{
+    inv->n = d->n;
+    for (int i = 0; i < d->n; i++) {
+        double ri = 0, wi = 0, wj = 0;
+        for (int j = 0; j <= i; j++) {
+            ri += d->w[j] * (d->r[i] - d->r[j]);
+            wi += d->w[j];
+        }
+        wj = wi - d->w[i];
+        inv->r[i] = ri;
+        inv->w[i] = i == 0 ? 1.0 / d->w[0] : -d->w[i] / (wi * wj);
+    }
+}

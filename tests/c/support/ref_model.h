@@ -41,4 +41,22 @@ typedef struct {
 
 double ref_comp_step(ref_comp_t *c, double c_ref);
 
+/* Prandtl-Ishlinskii operator y = sum_i w_i P_{r_i}[x] in double, the textbook way: every
+ * operator clamped every step, p_i = min(x + r_i, max(x - r_i, p_i)). */
+#define REF_PI_MAX 16
+typedef struct {
+    int n;
+    double r[REF_PI_MAX], w[REF_PI_MAX], p[REF_PI_MAX];
+} ref_pi_t;
+
+/* All operators at rest at x0. */
+void ref_pi_reset(ref_pi_t *s, double x0);
+
+double ref_pi_step(ref_pi_t *s, double x);
+
+/* The inverse operator of d (Krejci & Kuhnen 2001), written as the products of the
+ * published formula: r'_i = sum_{j<=i} w_j (r_i - r_j), w'_0 = 1/w_0,
+ * w'_i = -w_i / ((sum_{j<=i} w_j)(sum_{j<=i-1} w_j)). States are not set. */
+void ref_pi_inverse(const ref_pi_t *d, ref_pi_t *inv);
+
 #endif /* REF_MODEL_H */

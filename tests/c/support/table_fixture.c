@@ -14,6 +14,13 @@ static int32_t to_q16(double x)
 size_t fixture_build(fixture_blob_t *blob, const fixture_grid_t *g, fixture_fn b, const void *b_ctx,
                      fixture_fn f, const void *f_ctx)
 {
+    return fixture_build_pi(blob, g, b, b_ctx, f, f_ctx, 0, 0, NULL, NULL);
+}
+
+size_t fixture_build_pi(fixture_blob_t *blob, const fixture_grid_t *g, fixture_fn b, const void *b_ctx,
+                        fixture_fn f, const void *f_ctx, uint16_t version, uint16_t n_ops,
+                        const int32_t *r_q16, const int32_t *w_q16)
+{
     static int32_t bb[PST_MAX_ENTRIES], ff[PST_MAX_ENTRIES];
     pst_header_t hd;
     memset(&hd, 0, sizeof hd);
@@ -27,12 +34,28 @@ size_t fixture_build(fixture_blob_t *blob, const fixture_grid_t *g, fixture_fn b
     int32_t step = (int32_t)1 << g->step_log2;
     hd.b = (pst_grid_t){.x0_q16 = x0, .step_q16 = step, .n = g->n};
     hd.f = hd.b;
+    hd.layout_version = version;
+    hd.pi.n = n_ops;
     for (int i = 0; i < g->n; i++) {
         double q = (x0 + (double)i * step) / 65536.0;
         bb[i] = to_q16(b(q, b_ctx));
         ff[i] = to_q16(f(q, f_ctx));
     }
-    return table_write(blob->bytes, sizeof blob->bytes, &hd, bb, ff);
+    return table_write(blob->bytes, sizeof blob->bytes, &hd, bb, ff, r_q16, w_q16);
+}
+
+size_t fixture_with_ops(fixture_blob_t *blob, uint16_t version, uint16_t n_ops, const int32_t *r_q16,
+                        const int32_t *w_q16)
+{
+    static int32_t bb[PST_MAX_ENTRIES], ff[PST_MAX_ENTRIES];
+    pst_header_t hd;
+    memcpy(&hd, blob->bytes, sizeof hd);
+    memcpy(bb, blob->bytes + hd.b.offset, 4u * hd.b.n);
+    memcpy(ff, blob->bytes + hd.f.offset, 4u * hd.f.n);
+    hd.layout_version = version;
+    hd.pi.n = n_ops;
+    memset(blob, 0, sizeof *blob);
+    return table_write(blob->bytes, sizeof blob->bytes, &hd, bb, ff, r_q16, w_q16);
 }
 
 void fixture_reseal(fixture_blob_t *blob)

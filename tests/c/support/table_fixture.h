@@ -29,6 +29,18 @@ typedef union {
 size_t fixture_build(fixture_blob_t *blob, const fixture_grid_t *g, fixture_fn b, const void *b_ctx,
                      fixture_fn f, const void *f_ctx);
 
+/* Same with layout version (0: current, 1: v1) and n_ops transition operators:
+ * thresholds r_q16 and weights w_q16 (Q16.16; NULL when n_ops = 0). */
+size_t fixture_build_pi(fixture_blob_t *blob, const fixture_grid_t *g, fixture_fn b, const void *b_ctx,
+                        fixture_fn f, const void *f_ctx, uint16_t version, uint16_t n_ops,
+                        const int32_t *r_q16, const int32_t *w_q16);
+
+/* Rewrite the table in blob with layout version (0: current, 1: v1) and another
+ * operator block (n_ops operators, r_q16 / w_q16; NULL when 0), same header fields and
+ * grids otherwise. Returns the new size, 0 if the writer refuses. */
+size_t fixture_with_ops(fixture_blob_t *blob, uint16_t version, uint16_t n_ops, const int32_t *r_q16,
+                        const int32_t *w_q16);
+
 /* Recompute the CRC after a test edited the blob on purpose. */
 void fixture_reseal(fixture_blob_t *blob);
 

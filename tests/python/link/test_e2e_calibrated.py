@@ -21,7 +21,7 @@ import pytest
 from playscope.cli import main
 from playscope.device.cli import flash
 from playscope.device.link import Link
-from playscope.device import tables as T
+from playscope import tables as T
 from playscope.device.transport import QemuTransport, find_qemu_image
 from playscope.session import write_session
 
@@ -58,7 +58,7 @@ def test_calibration_is_sane(calibrated):
 def _host_run(blob: bytes) -> tuple[bytes, list[int]]:
     """What the boards must hold after a first flash (generation 1) and answer to test_vector."""
     sent = T.set_generation(blob, 1)
-    host = T.HostCalib(sent)
+    host = T.CalibTable(sent)
     c = T.test_vector(host, N_VECTORS)
     return sent, host.comp_run(c)
 
@@ -89,7 +89,7 @@ def test_qemu_firmware_over_serial(calibrated):
         r = flash(link, path.read_bytes(), N_VECTORS, log=lambda *_: None)
         assert r["generation"] == 1
         assert link.read_table() == sent
-        host = T.HostCalib(sent)
+        host = T.CalibTable(sent)
         c = T.test_vector(host, N_VECTORS)
         link.set_mode("compensation")
         q_board = [link.comp_step(x) for x in c]

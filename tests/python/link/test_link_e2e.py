@@ -11,7 +11,7 @@ import pytest
 from playscope.device.cli import flash
 from playscope.device.link import DeviceError, Link
 from playscope.device.native import frame_codec
-from playscope.device.tables import demo_table
+from playscope.tables import demo_table
 from playscope.device.transport import QemuTransport, find_qemu_image, virtual_transport
 
 VECTORS = Path(__file__).resolve().parents[2] / "link" / "vectors" / "frames.txt"

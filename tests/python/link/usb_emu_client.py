@@ -10,7 +10,7 @@ import time
 
 from playscope.device.cli import flash
 from playscope.device.link import DeviceError, Link
-from playscope.device.tables import HostCalib, demo_table, set_generation, test_vector
+from playscope.tables import CalibTable, demo_table, set_generation, test_vector
 from playscope.device.transport import UsbTransport
 
 
@@ -21,7 +21,7 @@ def check(link: Link, n_vectors: int, blob: bytes | None = None) -> dict:
     r = flash(link, blob, n_vectors, log=lambda *_: None)
     sent = set_generation(blob, r["generation"])
     back = link.read_table()
-    host = HostCalib(sent)
+    host = CalibTable(sent)
     c = test_vector(host, n_vectors)
     link.set_mode("compensation")
     q_board = [link.comp_step(x) for x in c]

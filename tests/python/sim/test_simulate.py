@@ -24,7 +24,7 @@ def test_simulate_cli_writes_a_loadable_session_with_video(tmp_path):
     assert np.all(np.isfinite(s.marker["u_px"]))
     n = int(cv2.VideoCapture(str(out / "video.avi")).get(cv2.CAP_PROP_FRAME_COUNT))
     assert n == s.frames["t_s"].size == s.marker["t_s"].size
-    assert "drift" in s.meta["simulator"]["effects"] and "handeye_direction" in s.meta["simulator"]["effects"]
+    assert "drift" in s.meta["simulator"]["effects"] and "smooth_transition" in s.meta["simulator"]["effects"]
 
 
 def test_trajectories(tmp_path):

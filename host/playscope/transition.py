@@ -1,0 +1,410 @@
+"""The smooth transition after the play (issue 9, PI_MODEL): Prandtl-Ishlinskii operators on the
+play centre z, their classical inverse, and the in-situ fit with its model choice.
+
+Direct model per sample k (docs/method.md, "Transition"):
+  z[k]   = play of width B(q) (eq. 3, model.play_operator; B measured from onsets, eq. 1)
+  p_i[k] = min(z[k] + r_i, max(z[k] - r_i, p_i[k-1]))      classical play operators
+  y[k]   = sum_i w_i p_i[k]      0 = r_0 < r_1 < ... , w_0 > 0, w_i >= 0, sum w_i = 1
+  c[k]   = f(y[k])               f = f_remain (eq. 9), strictly monotone
+The paper's pure play is n = 1 (r_0 = 0, w_0 = 1, y = z).
+
+Inverse (Krejci & Kuhnen 2001, IEE Proc. Control Theory Appl. 148(3); Kuhnen 2003, Eur. J.
+Control 9(4)): the inverse of a PI operator with w_0 > 0 is again a PI operator, with
+  r'_i = sum_{j<=i} w_j (r_i - r_j),  w'_0 = 1/w_0,
+  w'_i = -w_i / (W_i W_{i-1}),  W_i = sum_{j<=i} w_j,
+and initial states p'_i = sum_{j<=i} w_j p_i + sum_{j>i} w_j p_j (inverse_params, inverse_state).
+
+Fit (fit_weights): c ~ f(P w) by variable projection: for given weights f is linear in its
+spline coefficients and solved exactly inside; the weights are found by the bounded
+scipy.optimize.least_squares on the projected residual (w >= 0, w_0 > 0, sum 1); the final f
+is the monotone robust spline of c on y (estimate.robust_spline, N = 14 as for f_remain).
+
+Settings, all from the calibration data (choose_model):
+  b_scale     the play width of the model, one of {1, 3/4, 1/2} x the onset-measured B: an
+              onset detector fires once the tip has moved by its threshold, so when the
+              transition starts with a slow creep the measured B already includes part of it;
+              the operators can only widen the play, so a narrower anchor lets them model the
+              creep (1 for the paper's play);
+  thresholds  r_i = i * r_span / n, i = 0..n-1 (uniform, nested for n = 4, 16);
+  r_span      one of {1/2, 1} x the median onset width B, or {1/8, 1/4, 1/2} x the range of z
+              seen in the calibration record: an operator of threshold r takes up after 2r of
+              travel, so the spans tied to B model the transition after a reversal and the wide
+              ones also the memory of the record's start (the virgin loading curve), which a
+              running board carries in its state;
+  n           one of {1 (the paper's play), 4, 16};
+  choice      k-fold cross-validation on the calibration frames, the strokes between reversals
+              dealt round-robin to KFOLD folds (each fold scored with its state run from the
+              record's start, the fit made on the other folds), then the one-standard-error rule: the fewest
+              operators (then the narrowest span) whose CV RMSE is within one standard error
+              of the best. No regularisation besides the count: n is the complexity control.
+Units: q, z, y, r in actuator units (mm or deg of command), c in deg, t in s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from scipy.linalg import cho_factor, cho_solve
+
+from . import estimate as E
+from . import model
+
+N_CHOICES = (1, 4, 16)                 # operator counts tried by choose_model (PST_MAX_OPS = 16)
+B_SCALES = (1.0, 0.75, 0.5)            # play width candidates, x onset-measured B
+SPAN_B = (0.5, 1.0)                    # r_span candidates, x median onset width B
+SPAN_FACTORS = (0.125, 0.25, 0.5)      # r_span candidates, x range of z over the calibration
+KFOLD = 5                              # CV folds (strokes dealt round-robin)
+V_MAX = 1e3                            # v_i <= 1000 v_0: w_0 >= 1/(1 + 1000 (n-1)) > 0 (inverse needs 1/w_0)
+
+
+# --------------------------------------------------------------------------- operators
+def play_ops(x: np.ndarray, r: np.ndarray, p0: np.ndarray | float | None = None) -> np.ndarray:
+    """Classical play operators of thresholds r over the input x (PI_MODEL step 2).
+
+    p_i[k] = min(x[k] + r_i, max(x[k] - r_i, p_i[k-1])), p_i[-1] = p0 (default x[0]: every
+    operator centred). x: (N,), r: (n,) >= 0. Returns P (N, n) in the unit of x."""
+    x = np.asarray(x, float).ravel()
+    r = np.asarray(r, float).ravel()
+    P = np.empty((x.size, r.size))
+    p = np.array(np.broadcast_to(x[0] if p0 is None else p0, r.shape), float)
+    lo, hi = x[:, None] - r[None, :], x[:, None] + r[None, :]
+    for k in range(x.size):  # sequential by nature; vectorised over the operators
+        np.minimum(hi[k], np.maximum(lo[k], p, out=p), out=p)
+        P[k] = p
+    return P
+
+
+def thresholds(n: int, r_span: float) -> np.ndarray:
+    """r_i = i r_span / n, i = 0..n-1 (r_0 = 0): uniform and nested for n = 2, 4, 8, 16."""
+    return np.arange(n) * (float(r_span) / n)
+
+
+def inverse_params(r: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Thresholds and weights (r', w') of the inverse PI operator (Krejci & Kuhnen 2001).
+
+    r: (n,) increasing with r_0 = 0; w: (n,), w_0 > 0, w_i >= 0. Returns (r' (n,), w' (n,)):
+    z = sum_i w'_i p'_i(y) with p'_i plays of threshold r'_i. Errors: ValueError for w_0 <= 0."""
+    r, w = np.asarray(r, float), np.asarray(w, float)
+    if w[0] <= 0:
+        raise ValueError("w_0 must be > 0 for the PI operator to be invertible")
+    W = np.cumsum(w)
+    r_inv = np.array([np.sum(w[: i + 1] * (r[i] - r[: i + 1])) for i in range(r.size)])
+    w_inv = np.empty_like(w)
+    w_inv[0] = 1.0 / w[0]
+    w_inv[1:] = -w[1:] / (W[1:] * W[:-1])
+    return r_inv, w_inv
+
+
+def inverse_state(w: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Initial states of the inverse operators from the direct ones (Kuhnen 2003):
+    p'_i = sum_{j<=i} w_j p_i + sum_{j>i} w_j p_j. w, p: (n,). Returns (n,)."""
+    w, p = np.asarray(w, float), np.asarray(p, float)
+    W = np.cumsum(w)
+    tail = np.cumsum((w * p)[::-1])[::-1]  # sum_{j>=i} w_j p_j
+    return W * p + np.r_[tail[1:], 0.0]
+
+
+@dataclass
+class Transition:
+    """The PI part: thresholds r (n,) actuator units, weights w (n,) summing to 1, and b_scale,
+    the play width of the model as a fraction of the onset-measured B (1: B itself)."""
+
+    r: np.ndarray
+    w: np.ndarray
+    b_scale: float = 1.0
+
+    def __post_init__(self):
+        self.r = np.asarray(self.r, float).ravel()
+        self.w = np.asarray(self.w, float).ravel()
+        if self.r.size != self.w.size or self.r.size == 0:
+            raise ValueError("r and w must be non-empty and of the same length")
+        if self.r[0] != 0 or np.any(np.diff(self.r) <= 0):
+            raise ValueError("thresholds must start at 0 and increase strictly")
+        if self.w[0] <= 0 or np.any(self.w < 0) or abs(self.w.sum() - 1) > 1e-9:
+            raise ValueError("weights must be >= 0 with w_0 > 0 and sum 1")
+        if not 0 < self.b_scale <= 1:
+            raise ValueError("b_scale must be in (0, 1]")
+
+    @classmethod
+    def play(cls) -> "Transition":
+        """n = 1: y = z, the paper's pure play."""
+        return cls(np.zeros(1), np.ones(1))
+
+    @property
+    def n(self) -> int:
+        return int(self.r.size)
+
+    @property
+    def is_play(self) -> bool:
+        """The paper's pure play: no operator and the onset width as measured."""
+        return self.n == 1 and self.b_scale == 1.0
+
+    def play_width(self, B):
+        """The model's play width b_scale x B(q) (callable on arrays)."""
+        if self.b_scale == 1.0:
+            return B
+        k = self.b_scale
+        return lambda q: k * np.asarray(B(q), float)
+
+    def direct(self, z: np.ndarray, p0=None) -> np.ndarray:
+        """y = sum w_i p_i(z) (PI_MODEL step 2). z: (N,); returns y (N,)."""
+        return play_ops(z, self.r, p0) @ self.w
+
+    def inverse(self, y: np.ndarray, p0=None) -> np.ndarray:
+        """z = PI^-1(y) by the inverse PI operator. p0: states of the direct operators at
+        the start (default: all at y[0], i.e. z[0] = y[0]). y: (N,); returns z (N,)."""
+        r_inv, w_inv = inverse_params(self.r, self.w)
+        y = np.asarray(y, float).ravel()
+        p = np.full(self.n, y[0]) if p0 is None else np.asarray(p0, float)
+        return play_ops(y, r_inv, inverse_state(self.w, p)) @ w_inv
+
+    def to_json(self) -> dict:
+        return {"r": self.r.tolist(), "w": self.w.tolist(), "b_scale": float(self.b_scale)}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "Transition":
+        return cls(np.asarray(d["r"], float), np.asarray(d["w"], float), float(d.get("b_scale", 1.0)))
+
+
+# --------------------------------------------------------------------------- float chain
+def direct_chain(q: np.ndarray, B, tr: Transition, f, z0: float | None = None) -> np.ndarray:
+    """c = f(PI(play(q; B))) from the record's start (PI_MODEL direct model). q: (N,); B: the
+    model's play width (tr.play_width(B_onset))."""
+    z = model.play_operator(q, B, z0)
+    return f(tr.direct(z))
+
+
+def compensate_chain(c_ref: np.ndarray, B, tr: Transition, f_inv, f_sign: int) -> np.ndarray:
+    """q* for a reference c* (PI_MODEL inverse), B the model's play width: y* = f^-1(c*), z* = PI^-1(y*), then
+    q* = z* + dir B(z*)/2 with dir the direction of z* (= f_sign x direction of c*, eqs. 4/5/9),
+    held while z* is still, 0 before it first moves. c_ref: (N,) deg; returns q* (N,)."""
+    y = f_inv(np.asarray(c_ref, float).ravel())
+    z = tr.inverse(y)
+    d = np.sign(np.diff(z, prepend=z[:1]))
+    idx = np.where(d != 0, np.arange(d.size), 0)
+    np.maximum.accumulate(idx, out=idx)
+    dirs = np.where(idx > 0, d[idx], 0.0)
+    return z + dirs * 0.5 * B(z)
+
+
+def f_inverse(f, lo: float, hi: float, n: int = 20001):
+    """Numeric inverse of a strictly monotone f on [lo, hi] (linear ends beyond): c -> y."""
+    g = np.linspace(lo, hi, n)
+    fg = f(g)
+    o = np.argsort(fg)
+    return lambda c: np.interp(c, fg[o], g[o])
+
+
+# --------------------------------------------------------------------------- fit
+def turning_points(x: np.ndarray) -> np.ndarray:
+    """Indices of x's first and last samples and of every sample where its direction of
+    motion reverses (flat stretches skipped). Play operators are rate-independent and between
+    two such points x is monotone, so their outputs only depend on these samples."""
+    x = np.asarray(x, float)
+    nz = np.flatnonzero(np.diff(x))
+    if nz.size < 2:
+        return np.array([0, x.size - 1])
+    s = np.sign(np.diff(x)[nz])
+    turns = nz[1:][s[1:] != s[:-1]]
+    return np.unique(np.r_[0, turns, x.size - 1])
+
+
+@dataclass
+class FitData:
+    """One session prepared for the fit: the encoder record (for the play centre from the
+    record's start) and the frames (acquisition times already shifted by t_delay) with their c.
+
+    t_enc, q_enc: (N,) s, actuator units; B: onset width callable (eq. 1); t_frame, c: (F,)
+    s, deg; b_med: median onset width over the travel."""
+
+    t_enc: np.ndarray
+    q_enc: np.ndarray
+    B: object
+    t_frame: np.ndarray
+    c: np.ndarray
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def from_session(cls, t_enc, q, B, t_f, c_f, t_delay_s: float) -> "FitData":
+        ok = np.isfinite(c_f)
+        return cls(np.asarray(t_enc, float), np.asarray(q, float), B, np.asarray(t_f, float)[ok] - t_delay_s,
+                   np.asarray(c_f, float)[ok])
+
+    @property
+    def b_med(self) -> float:
+        return float(np.median(self.B(np.linspace(self.q_enc.min(), self.q_enc.max(), 201))))
+
+    def z_enc(self, b_scale: float = 1.0) -> np.ndarray:
+        """Play centre (eq. 3) of width b_scale x B(q) at the encoder rate, from the record's start."""
+        key = ("z", round(b_scale, 12))
+        if key not in self._cache:
+            B = self.B
+            self._cache[key] = model.play_operator(self.q_enc, lambda x: b_scale * B(x))
+        return self._cache[key]
+
+    def ops_at_frames(self, r: np.ndarray, b_scale: float = 1.0) -> np.ndarray:
+        """P (F, n): the operators run over the whole record from its start (the state a
+        running board holds), read at the frames' acquisition times. Run on the turning
+        points of z and the frames only (exact: see turning_points)."""
+        key = ("P", round(b_scale, 12), tuple(np.round(r, 12)))
+        if key not in self._cache:
+            z = self.z_enc(b_scale)
+            k = turning_points(z)
+            t = np.r_[self.t_enc[k], self.t_frame]
+            x = np.r_[z[k], np.interp(self.t_frame, self.t_enc, z)]
+            order = np.argsort(t, kind="stable")
+            P = play_ops(x[order], r, z[0])
+            out = np.empty((x.size, r.size))
+            out[order] = P
+            self._cache[key] = out[k.size:]
+        return self._cache[key]
+
+
+def _fit_f(y, c, n_ctrl, smooth, sign=None):
+    """f: monotone robust cubic spline of c on y over y's range, linear ends (as f_remain)."""
+    sign = sign or (1 if np.corrcoef(y, c)[0, 1] >= 0 else -1)
+    lo, hi = float(y.min()), float(y.max())
+    spl, _ = E.robust_spline(y, c, n_ctrl, lo, hi, smooth, monotone=sign)
+    return E.SplineFn(spl, lo, hi, linear_ends=True), sign
+
+
+class _SplineProjection:
+    """P-spline least squares of c on y (the inner solve of fit_weights) and its residual's
+    Jacobian in the weights by Kaufman's variable-projection approximation (Golub & Pereyra
+    2003, Inverse Problems 19(2)): J = (I - Pi) diag(f'(y)) dy/dv, Pi the fit's projection."""
+
+    def __init__(self, P: np.ndarray, c: np.ndarray, n_ctrl: int, smooth: float):
+        self.P, self.c, self.n_ctrl, self.smooth = P, c, n_ctrl, smooth
+        self.D = np.diff(np.eye(n_ctrl), 2, axis=0)
+        self._key, self._val = None, None
+
+    def _solve(self, x: np.ndarray):
+        key = x.tobytes()
+        if key != self._key:
+            from scipy.interpolate import BSpline
+
+            y = self.P[:, 0] + self.P[:, 1:] @ x
+            lo, hi = float(y.min()), float(y.max())
+            hi = max(hi, lo + 1e-9)
+            t = E.clamped_knots(lo, hi, self.n_ctrl)
+            A = BSpline.design_matrix(np.clip(y, lo, hi), t, 3).toarray()
+            lam = self.smooth * np.trace(A.T @ A) / self.n_ctrl
+            # Normal equations of the penalised fit (n_ctrl x n_ctrl, well conditioned by the
+            # penalty): the projection of any G is A (N^-1 A^T G).
+            N = A.T @ A + lam * (self.D.T @ self.D)
+            cho = cho_factor(N)
+            coef = cho_solve(cho, A.T @ self.c)
+            slope = BSpline(t, coef, 3).derivative()(np.clip(y, lo, hi))
+            self._key, self._val = key, (A, cho, coef, slope)
+        return self._val
+
+    def resid(self, x):
+        A, _, coef, _ = self._solve(x)
+        return A @ coef - self.c
+
+    def jac(self, x):
+        A, cho, _, slope = self._solve(x)
+        G = slope[:, None] * self.P[:, 1:]
+        return G - A @ cho_solve(cho, A.T @ G)
+
+
+def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3, robust_f: bool = True):
+    """Weights w and f for c ~ f(P w) (PI_MODEL steps 2-3), by variable projection.
+
+    P: (F, n) operator outputs at the frames, c: (F,) deg. For given weights f is linear in
+    its spline coefficients, so it is solved exactly inside (P-spline least squares, N =
+    n_ctrl); the weights are v = (1, v_1..v_{n-1}), v_i in [0, V_MAX], found by
+    scipy.optimize.least_squares (bounded trust region) on the projected residual and
+    normalised, w = v / sum v (f absorbs the scale; w_0 = 1/sum v > 0 by construction).
+    The final f is the monotone robust spline of c on y = P w (estimate.robust_spline, as
+    f_remain), or with robust_f=False (the cross-validation's folds, for speed) the inner
+    P-spline itself. Returns (w (n,), f SplineFn, sign of f', rms deg on these frames)."""
+    from scipy.optimize import least_squares
+
+    n = P.shape[1]
+    v = np.ones(n)
+    if n > 1:
+        vp = _SplineProjection(P, c, n_ctrl, smooth)
+        x0 = np.full(n - 1, 1.0 / (n - 1))
+        # ftol 1e-6: the CV compares RMSEs to about 1 %, far coarser than the default 1e-8.
+        v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, V_MAX), ftol=1e-6, max_nfev=60).x
+    w = v / v.sum()
+    y = P @ w
+    if robust_f:
+        f, sign = _fit_f(y, c, n_ctrl, smooth)
+    else:
+        from scipy.interpolate import BSpline
+
+        vp = _SplineProjection(y[:, None], c, n_ctrl, smooth)
+        _, _, coef, _ = vp._solve(np.zeros(0))
+        lo, hi = float(y.min()), max(float(y.max()), float(y.min()) + 1e-9)
+        f = E.SplineFn(BSpline(E.clamped_knots(lo, hi, n_ctrl), coef, 3, extrapolate=False), lo, hi, linear_ends=True)
+        sign = 1 if f.s_lo + f.s_hi >= 0 else -1
+    return w, f, sign, float(np.sqrt(np.mean((f(y) - c) ** 2)))
+
+
+def stroke_folds(data: "FitData", k: int) -> np.ndarray:
+    """Fold index (F,) of each frame: the strokes of z (between reversals, hysteresis 1 % of
+    z's range) dealt round-robin to k folds, so every fold spans the record and the travel
+    (contiguous time blocks would leave f to extrapolate over strokes never fitted)."""
+    z = data.z_enc()
+    t_rev, _, _ = E.detect_reversals(data.t_enc, z, 0.01 * float(np.ptp(z)) + 1e-12)
+    stroke = np.searchsorted(t_rev, data.t_frame, side="right")
+    return stroke % k
+
+
+def candidates(data: FitData, model_kind: str = "auto") -> list[tuple[float, int, float]]:
+    """(b_scale, n, r_span) triples tried: (1, 1, 0) for the paper's play; for the PI,
+    B_SCALES x N_CHOICES x spans (module docstring)."""
+    out = [(1.0, 1, 0.0)] if model_kind in ("auto", "play") else []
+    if model_kind in ("auto", "pi"):
+        rng = float(np.ptp(data.z_enc()))
+        spans = sorted({s * data.b_med for s in SPAN_B} | {s * rng for s in SPAN_FACTORS})
+        spans = [s for s in spans if 0 < s < rng]
+        out += [(k, n, s) for k in B_SCALES for n in N_CHOICES if n > 1 for s in spans]
+    return out
+
+
+def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD,
+                 progress=lambda it, **kw: it) -> tuple[Transition, "E.SplineFn", int, dict]:
+    """Pick play vs PI, the play width, n and r_span by cross-validation on the calibration
+    frames, then refit the choice on all of them (module docstring for the rule).
+
+    model_kind: "play" (the paper's pure play only), "pi" (operators only) or "auto" (both).
+    Returns (Transition, f, sign of f', choice dict: {"model", "n", "n_tried", "b_scale",
+    "r_span", "fit_rmse_deg", "rule", "folds", "b_median", "candidates": [{"b_scale", "n",
+    "r_span", "cv_rmse_deg", "cv_se_deg"}]}). Errors: ValueError for an unknown model_kind."""
+    if model_kind not in ("auto", "play", "pi"):
+        raise ValueError(f"model must be play, pi or auto, not {model_kind!r}")
+    blk = stroke_folds(data, k)
+    rows = []
+    for kb, n, span in progress(candidates(data, model_kind), desc="model choice"):
+        r = thresholds(n, span) if n > 1 else np.zeros(1)
+        P = data.ops_at_frames(r, kb)
+        errs = []
+        for b in range(k):
+            tr_m, te_m = blk != b, blk == b
+            if te_m.sum() < 3 or tr_m.sum() < 10:
+                continue
+            w, f, _, _ = fit_weights(P[tr_m], data.c[tr_m], n_ctrl, robust_f=False)
+            errs.append(float(np.sqrt(np.mean((f(P[te_m] @ w) - data.c[te_m]) ** 2))))
+        errs = np.array(errs)
+        rows.append({"b_scale": kb, "n": n, "r_span": float(span), "cv_rmse_deg": float(np.sqrt(np.mean(errs ** 2))),
+                     "cv_se_deg": float(np.std(errs, ddof=1) / np.sqrt(errs.size)) if errs.size > 1 else 0.0})
+    best = min(rows, key=lambda d: d["cv_rmse_deg"])
+    limit = best["cv_rmse_deg"] + best["cv_se_deg"]
+    # Simplest within one standard error: fewest operators, then the onset width closest to
+    # as measured, then the narrowest span.
+    pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: (d["n"], -d["b_scale"], d["r_span"]))
+    kb, n, span = pick["b_scale"], pick["n"], pick["r_span"]
+    r = thresholds(n, span) if n > 1 else np.zeros(1)
+    w, f, sign, rms = fit_weights(data.ops_at_frames(r, kb), data.c, n_ctrl)
+    keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
+    tr = Transition(r[keep], w[keep] / w[keep].sum(), kb)
+    choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(n), "b_scale": kb,
+              "r_span": float(span), "fit_rmse_deg": rms,
+              "rule": "k-fold CV, strokes dealt round-robin to folds, one-standard-error rule",
+              "folds": int(k), "b_median": data.b_med, "candidates": rows}
+    return tr, f, sign, choice
