@@ -167,6 +167,11 @@ def main(argv=None) -> int:
             table.append(("catheter, test quarter (no fit, no selection) with the effects kept on validation (worst file)",
                           f"{worst:.2f} deg", "< 0.8 deg on every file",
                           f"play + f_remain {min(base):.2f}-{max(base):.2f} deg", c))
+            prod = [v["product_test"] for v in cat.values() if v.get("product_test")]
+            if prod:
+                table.append(("catheter, test quarter: the product's calibrate with the kept effects it can represent (worst file)",
+                              f"{max(p['with_kept'] for p in prod):.2f} deg", "",
+                              f"calibrate --model play {min(p['play'] for p in prod):.2f}-{max(p['play'] for p in prod):.2f} deg", c))
 
     part("firmware", firmware)
 

@@ -36,21 +36,29 @@ def catheter_dir(arg=None, default=None) -> Path | None:
     return Path(default) if default else None
 
 
-# Hook for the product's own model (issue 10 item 4): a callable (session, fit_mask, test_mask,
-# effects) -> test-part RMSE (deg) of `calibrate` with those effects added, or None. Set by
-# product_hook() when the transition model of the model issue (calibrate --model pi) is present.
-PRODUCT_RMSE = None
+def _product(session, data, fit_mask, test_mask, kept: list) -> dict:
+    from .product import product_rmse
+    delay = next((k["params"].get("camera_delay.delay_s", (0.0, 0.0))[0] for k in kept
+                  if k["effect"] == "camera_delay"), 0.0)
+    return product_rmse(session, data, fit_mask, test_mask, [k["effect"] for k in kept], delay)
 
 
-def _data(path):
+# Hook for the product's own model (issue 10 item 4): a callable (session, data, fit_mask,
+# test_mask, kept) -> {"play", "with_kept", "model", "not_in_product"} test-part RMSEs (deg) of
+# `calibrate` (product.py); None leaves the column "not measured".
+PRODUCT_RMSE = _product
+
+
+def _session(path):
     from ..importer import import_catheter
-    return from_session(import_catheter(path))
+    return import_catheter(path)
 
 
 def catheter_table(files, log=print) -> dict:
     """{"in_situ": {name: {...}}, "across": {"fit_on", "effects", "rows": {name: {...}}}}."""
     files = [Path(f) for f in files]
-    datas = {f.stem: _data(f) for f in files}
+    sessions = {f.stem: _session(f) for f in files}
+    datas = {k: from_session(v) for k, v in sessions.items()}
     out = {"in_situ": {}, "across": {}}
     for name, d in datas.items():
         sp = choose_split(d)
@@ -66,7 +74,7 @@ def catheter_table(files, log=print) -> dict:
             "at_bounds": ff.at_bounds(),
             "screen": {r["effect"]: r["rmse_heldout_deg"] for r in res["screen"]}}
         if PRODUCT_RMSE is not None:
-            row["product_test_rmse_deg"] = PRODUCT_RMSE(d, sp.fit, sp.test, [k["effect"] for k in res["kept"]])
+            row["product_test"] = PRODUCT_RMSE(sessions[name], d, sp.fit, sp.test, res["kept"])
         out["in_situ"][name] = row
         log(f"{name}: fit/validation/test {row['base']['fit']:.3f}/{row['base']['validation']:.3f}/{row['base']['test']:.3f}"
             f" -> {row['kept_model']['fit']:.3f}/{row['kept_model']['validation']:.3f}/{row['kept_model']['test']:.3f} deg"
@@ -100,7 +108,7 @@ def format_catheter(tab: dict) -> str:
     """Markdown tables of catheter_table()'s result."""
     lines = ["In situ, three-way (fit on the first half, select effects on the next quarter, test on the last "
              "quarter), bending-angle RMSE [deg] fit / validation / test:", "",
-             "| file | split | noise floor | play + f_remain (base) | + kept effects | kept effects (parameters ± 1 sd; validation RMSE after each; parameters at a bound) | product, test |",
+             "| file | split | noise floor | play + f_remain (base) | + kept effects | kept effects (parameters ± 1 sd; validation RMSE after each; parameters at a bound) | product (calibrate), test: play -> with kept |",
              "|---|---|---|---|---|---|---|"]
     for name, r in tab["in_situ"].items():
         ks = []
@@ -110,10 +118,13 @@ def format_catheter(tab: dict) -> str:
             ab = "".join(f"; {n.split('.', 1)[1]} AT {b.upper()} BOUND" for n, b in k.get("at_bounds", {}).items())
             ks.append(f"{k['effect']} ({ps}) → {k['rmse_after_deg']:.3f}{ind}{ab}")
         b, m = r["base"], r["kept_model"]
-        prod = r.get("product_test_rmse_deg")
+        pt = r.get("product_test")
+        prod = None if pt is None else (f"{pt['play']:.3f} -> {pt['with_kept']:.3f} ({pt['model']}"
+                                        + (f"; not in the product: {', '.join(pt['not_in_product'])}" if pt["not_in_product"] else "")
+                                        + ")")
         lines.append(f"| {name} | {r['split']['method']} | {r['noise_floor_deg']:.3f} | "
                      f"{b['fit']:.3f} / {b['validation']:.3f} / {b['test']:.3f} | {m['fit']:.3f} / {m['validation']:.3f} / {m['test']:.3f} | "
-                     f"{'; '.join(ks) or '—'} | {'not measured (hook unset)' if prod is None else f'{prod:.3f}'} |")
+                     f"{'; '.join(ks) or '—'} | {'not measured (hook unset)' if prod is None else prod} |")
     a = tab["across"]
     if a.get("rows"):
         lines += ["", f"Across files (fit on all of {a['fit_on']}, judge on the others; kept effects: "

@@ -149,3 +149,17 @@ def test_geometry_screen_recovers_image_only_effects(effect, param, value):
     s0 = simulate(preset("stras", effects={}, seed=5, trajectory=dict(TRAJ)))
     d0 = from_session(s0)
     assert screen(s0, d0, *halves(d0))["kept"] == []
+
+
+def test_product_rmse_on_an_effect_free_record_is_the_noise():
+    # The product's own calibrate, fitted on the fit part of an effect-free angle record, judged on
+    # its test quarter: the RMSE is the sensor noise (0.05 deg) plus the product's model error;
+    # measured 0.059 deg (play and pi).
+    from playscope.diagnose.product import product_rmse
+    s = simulate(preset("ideal", seed=8, distal_kind="angle", trajectory=dict(TRAJ)))
+    d = from_session(s)
+    sp = choose_split(d)
+    r = product_rmse(s, d, sp.fit, sp.test, ["smooth_transition", "stick_slip"])
+    print(r)
+    assert r["model"] == "pi" and r["not_in_product"] == ["stick_slip"]
+    assert r["play"] < 0.15 and r["with_kept"] < 0.15
