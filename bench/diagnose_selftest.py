@@ -15,8 +15,8 @@ else ../shared/data/real/catheter next to the repository.
 
 Usage: .venv/bin/python bench/diagnose_selftest.py [--quick] [--workers 2] [--json out.json]
        [--real-only] [--catheter DIR]
-       (full: 42 cases, ~10 min on 2 cores; --quick: strong strength only, 2 nulls, 22 cases,
-       ~5 min; --real-only ~3 min)
+       (full: 42 cases, ~20 min on 2 busy shared cores; --quick: strong strength only, 2 nulls, 22 cases,
+       4 min 10 s with the catheter part on 2 idle cores; --real-only ~2 min)
 """
 
 from __future__ import annotations
