@@ -19,6 +19,7 @@ MARGIN_FRAC = 0.08    # practical margin: 8 % of the held-out RMSE ...
 MARGIN_ABS = 0.05     # ... and at least 0.05 deg (below that a bending error is of no practical use)
 BIC_MIN = 10.0        # "strong" evidence on the BIC scale (Kass & Raftery)
 MAX_EFFECTS = 3
+FRESH_START = ("dead_zone", "viscous_hysteresis")
 
 
 def halves(data: Data, split: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
@@ -85,18 +86,40 @@ def excess(rmse: float, sigma: float) -> float:
     return float(np.sqrt(max(rmse * rmse - sigma * sigma, 0.0)))
 
 
+def judged_rmse(fit: Fit, model: Model, data: Data, mask: np.ndarray | None = None) -> float:
+    """RMSE (deg) of a fitted model on rows ``mask`` of ``data`` (a separate test record when
+    data is not model.d: the model is re-evaluated on it in the calibration record's frame)."""
+    if data is model.d:
+        return fit.rmse(data.y_m, mask)
+    m = Model(data, model.effects, frame=model)
+    r = data.y_m - m.predict(fit.theta, fit.coef)
+    r = r[np.isfinite(r) & (mask if mask is not None else True)]
+    return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
+
+
 def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidates=C_LIBRARY,
               margin_frac: float = MARGIN_FRAC, margin_abs: float = MARGIN_ABS, bic_min: float = BIC_MIN,
-              max_effects: int = MAX_EFFECTS, sigma: float | None = None, progress=None) -> dict:
-    """Screen, refit and decide (module doc). Returns a JSON-able dict; the Fit objects of the
-    base and final models are under "_fits" (removed before writing JSON)."""
+              max_effects: int = MAX_EFFECTS, sigma: float | None = None, progress=None,
+              test_mask: np.ndarray | None = None, test_data: Data | None = None) -> dict:
+    """Screen, refit and decide (module doc). fit_mask: rows fitted; eval_mask: rows on which
+    effects are selected (validation); test_mask (rows of data) or test_data (a separate record,
+    all its rows): the final test part that neither the fit nor the selection saw -- its RMSEs
+    are reported under "test" and never used in a decision. Returns a JSON-able dict; the Fit
+    objects of the base and final models are under "_fits" (removed before writing JSON)."""
     if sigma is None:
         sigma, method, n_still = noise_floor(data)
     else:
         method, n_still = "given", 0
     y = data.y_m
-    base = Model(data).fit(fit_mask)
+    base_model = Model(data)
+    base = base_model.fit(fit_mask)
     r0 = base.rmse(y, eval_mask)
+    has_test = test_mask is not None or test_data is not None
+    tdata = test_data if test_data is not None else data
+    tmask = test_mask if test_data is None else None
+
+    def on_test(fit, model):
+        return judged_rmse(fit, model, tdata, tmask) if has_test else float("nan")
     out = {"noise_floor_deg": sigma, "noise_method": method, "noise_samples": n_still,
            "base": {"rmse_fit_deg": base.rmse(y, fit_mask), "rmse_heldout_deg": r0, "bic": base.bic},
            "excess_before_deg": excess(r0, sigma), "screen": [], "kept": []}
@@ -105,6 +128,13 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
     for e in candidates:
         m = Model(data, [e])
         f = m.fit(fit_mask, _start(m, base))
+        if e in FRESH_START:
+            # Effects acting on the play input trade off with B(q): the base fit's B has already
+            # absorbed part of them (a wider B where a dead band is), a local minimum; a second
+            # start from the default B is tried and the lower cost on the fit rows kept.
+            f2 = m.fit(fit_mask)
+            if f2.rss < f.rss:
+                f = f2
         single[e] = f
         r = f.rmse(y, eval_mask)
         row = {"effect": e, "rmse_heldout_deg": r, "delta_rmse_deg": r0 - r, "delta_bic": delta_bic(f, base),
@@ -115,21 +145,23 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
             progress(e)
     promising = [row["effect"] for row in sorted(out["screen"], key=lambda z: z["rmse_heldout_deg"]) if row["promising"]]
     current, cur_r, kept = base, r0, []
+    cur_model = base_model
     while promising and len(kept) < max_effects:
         trials = []
         for e in promising:
             m = Model(data, kept + [e])
             f = m.fit(fit_mask, _start(m, current, single[e]))
-            trials.append((f.rmse(y, eval_mask), e, f))
+            trials.append((f.rmse(y, eval_mask), e, f, m))
         trials.sort(key=lambda z: z[0])
-        r, e, f = trials[0]
+        r, e, f, m = trials[0]
         if not (cur_r - r >= margin(cur_r) and delta_bic(f, current) < -bic_min):
             break
         kept.append(e)
         promising.remove(e)
         out["kept"].append({"effect": e, "rmse_before_deg": cur_r, "rmse_after_deg": r,
-                            "share_of_excess_removed": _share(cur_r, r, out["excess_before_deg"], sigma)})
-        current, cur_r = f, r
+                            "share_of_excess_removed": _share(cur_r, r, out["excess_before_deg"], sigma),
+                            "rmse_test_after_deg": on_test(f, m)})
+        current, cur_r, cur_model = f, r, m
     # Indistinguishable: promising alone about as well as the kept one, nothing more once it is in.
     for k in out["kept"]:
         e = k["effect"]
@@ -139,13 +171,22 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
                                        if row["effect"] not in kept and row["promising"]
                                        and row["rmse_heldout_deg"] <= rk + tol]
     fp = current.params()
+    bounds = current.at_bounds()
     for k in out["kept"]:
         k["params"] = {n: v for n, v in fp.items() if n.startswith(k["effect"] + ".")}
+        k["at_bounds"] = {n: b for n, b in bounds.items() if n.startswith(k["effect"] + ".")}
+    if has_test:
+        t0, t1 = on_test(base, base_model), on_test(current, cur_model)
+        e0 = excess(t0, sigma)
+        out["test"] = {"rmse_base_deg": t0, "rmse_final_deg": t1, "excess_before_deg": e0,
+                       "excess_after_deg": excess(t1, sigma), "share_of_excess_removed": _share(t0, t1, e0, sigma),
+                       "separate_record": test_data is not None}
     out["final"] = {"effects": list(kept), "rmse_heldout_deg": cur_r, "rmse_fit_deg": current.rmse(y, fit_mask),
                     "excess_after_deg": excess(cur_r, sigma),
                     "share_of_excess_removed": _share(r0, cur_r, out["excess_before_deg"], sigma)}
     out["verdict"] = verdict(out)
     out["_fits"] = {"base": base, "final": current}
+    out["_models"] = {"base": base_model, "final": cur_model}
     return out
 
 

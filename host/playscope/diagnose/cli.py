@@ -25,7 +25,11 @@ def add_parser(sub) -> None:
     p.add_argument("sessions", nargs="*", help="session folders (playscope-session/1)")
     p.add_argument("--catheter", metavar="FILE", nargs="+", default=[],
                    help="catheter CSV recordings (data_2_*.txt) read in place through playscope.importer")
-    p.add_argument("--split", type=argtypes.float_range(0.0, 1.0, lo_open=True, hi_open=True), default=0.5, help="fraction of each record used to fit (default 0.5)")
+    p.add_argument("--test", metavar="SESSION", help="separate test record (the paper's test motion): the calibration "
+                   "record is split fit / validation, this record only judges (one calibration session)")
+    p.add_argument("--test-catheter", metavar="FILE", help="as --test, a catheter CSV")
+    p.add_argument("--split", type=argtypes.float_range(0.0, 1.0, lo_open=True, hi_open=True), default=0.5, help="fraction of each record used to fit (default 0.5); the "
+                   "rest is validation then test in equal parts, or validation only with --test")
     p.add_argument("--html", metavar="PATH", help="write an HTML page with the plots")
     p.add_argument("--json", metavar="PATH", help=f"write results as JSON. Keys: {JSON_KEYS}")
     p.add_argument("--selftest", action="store_true", help="run the blind self-test instead (simulated cases)")
@@ -38,20 +42,42 @@ def _clean(res: dict) -> dict:
     return {k: v for k, v in res.items() if not k.startswith("_")}
 
 
-def diagnose_data(data, split: float = 0.5, progress=None, session=None) -> dict:
-    """attribute() plus the residual atlas before/after, on the held-out rows; for image
-    sessions also the image-geometry screen (lens distortion, non-constant curvature)."""
-    from .attribute import attribute, halves
-    from .localise import atlas
-    from .selftest import combine_geometry
+def combine_geometry(res: dict, session, data, fm, em) -> dict:
+    """Run the image-geometry screen (geometry.py) and fold it into res["verdict"]: a geometry
+    effect becomes the verdict when the c channel found nothing ("none")."""
+    from .geometry import screen
+    geo = screen(session, data, fm, em)
+    res["geometry"] = geo
+    if geo["kept"] and res["verdict"] == "none":
+        res["verdict"] = geo["kept"][0]
+    return geo
 
-    fm, em = halves(data, split)
-    res = attribute(data, fm, em, progress=progress)
+
+def diagnose_data(data, split: float = 0.5, progress=None, session=None, test_data=None) -> dict:
+    """Record checks (split.thin_record), the fit / validation / test split (split.choose_split:
+    the judged parts inside the fitted q range), attribute() (selection on validation, figures on
+    test: the last part of the record, or test_data when given), the residual atlas before/after
+    on the validation rows; for image sessions also the image-geometry screen."""
+    from .attribute import attribute
+    from .localise import atlas
+    from .split import choose_split, thin_record
+
+    data, notes = thin_record(data)
+    rest = 1.0 - split
+    sp = choose_split(data, (split, rest, 0.0) if test_data is not None else (split, rest / 2, rest / 2))
+    if test_data is not None:
+        test_data, tnotes = thin_record(test_data)
+        notes += [f"test record: {n}" for n in tnotes]
+    res = attribute(data, sp.fit, sp.val, progress=progress,
+                    test_mask=None if test_data is not None else sp.test, test_data=test_data)
+    res["split"] = sp.summary()
+    res["record_notes"] = notes + sp.warnings
     if session is not None and session.distal_kind == "image":
-        combine_geometry(res, session, data, fm, em)
-    res["atlas_before"] = atlas(data, res["_fits"]["base"].pred, em)
-    res["atlas_after"] = atlas(data, res["_fits"]["final"].pred, em)
-    res["_eval_mask"] = em
+        combine_geometry(res, session, data, sp.fit, sp.val)
+    res["atlas_before"] = atlas(data, res["_fits"]["base"].pred, sp.val)
+    res["atlas_after"] = atlas(data, res["_fits"]["final"].pred, sp.val)
+    res["_eval_mask"] = sp.val
+    res["_data"] = data
     return res
 
 
@@ -62,7 +88,7 @@ def run(args) -> int:
 
     if args.selftest:
         from . import selftest
-        sc = selftest.run(*((2, 4, 2) if args.full else (1, 2, 1)), workers=args.workers,
+        sc = selftest.run("both" if args.full else "strong", 4 if args.full else 2, True, workers=args.workers,
                           log=lambda s: print(s, file=sys.stderr, flush=True))
         print(selftest.format_report(sc))
         dump_json(args.json, {"selftest": sc})
@@ -74,19 +100,38 @@ def run(args) -> int:
     if not items:
         print("playscope diagnose: give session folders, --catheter files, or --selftest", file=sys.stderr)
         return 2
+    if not 0.2 <= args.split <= 0.9:
+        print(f"playscope diagnose: --split {args.split} outside [0.2, 0.9]", file=sys.stderr)
+        return 2
+    test_data = None
+    if args.test or args.test_catheter:
+        if len(items) != 1:
+            print("playscope diagnose: --test takes exactly one calibration record", file=sys.stderr)
+            return 2
+        if args.test:
+            test_data = from_session(load_session(args.test))
+        else:
+            from ..importer import import_catheter
+            test_data = from_session(import_catheter(args.test_catheter))
     out, figs_all = {}, []
     for name, load in items:
         session = load()
         data = from_session(session)
-        res = diagnose_data(data, args.split, session=session)
-        r = res["final"]
-        print(f"{name}: noise floor {res['noise_floor_deg']:.3f} deg ({res['noise_method']}); held-out RMSE "
-              f"{res['base']['rmse_heldout_deg']:.3f} -> {r['rmse_heldout_deg']:.3f} deg; verdict {res['verdict']}")
+        res = diagnose_data(data, args.split, session=session, test_data=test_data)
+        data = res.pop("_data")
+        r, t = res["final"], res["test"]
+        where = "separate test record" if t["separate_record"] else "test part"
+        print(f"{name}: noise floor {res['noise_floor_deg']:.3f} deg ({res['noise_method']}); split {res['split']['method']}; "
+              f"validation RMSE {res['base']['rmse_heldout_deg']:.3f} -> {r['rmse_heldout_deg']:.3f} deg; "
+              f"{where} {t['rmse_base_deg']:.3f} -> {t['rmse_final_deg']:.3f} deg; verdict {res['verdict']}")
+        for n in res["record_notes"]:
+            print(f"  warning: {n}")
         for k in res["kept"]:
             ps = ", ".join(f"{n.split('.', 1)[1]}={v[0]:.3g}±{v[1]:.2g}" for n, v in k["params"].items())
             ind = f"; cannot tell apart from {', '.join(k['indistinguishable_from'])}" if k["indistinguishable_from"] else ""
+            ab = "".join(f"; {n} at its {b} bound" for n, b in k.get("at_bounds", {}).items())
             print(f"  + {k['effect']} ({ps}): {k['rmse_before_deg']:.3f} -> {k['rmse_after_deg']:.3f} deg, "
-                  f"{100 * k['share_of_excess_removed']:.0f} % of the excess over the noise floor{ind}")
+                  f"{100 * k['share_of_excess_removed']:.0f} % of the excess over the noise floor{ind}{ab}")
         for g in res.get("geometry", {}).get("screen", []):
             if g["kept"]:
                 print(f"  + {g['effect']} ({g['param']}={g['value']:.3g}): path residual "
@@ -94,6 +139,7 @@ def run(args) -> int:
         if args.html:
             from .report import figures
             figs_all += [(f"{name}: {t}", img) for t, img in figures(data, res, res["atlas_before"], res["atlas_after"])]
+        res.pop("_models", None)
         out[name] = _clean(res)
     dump_json(args.json, {"sessions": out})
     if args.html:

@@ -20,8 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import BSpline, CubicSpline
 from scipy.optimize import least_squares
-
-from ..sim.core import lowpass
+from scipy.signal import lfilter
 
 N_KNOTS = 9
 N_FKNOTS = 12  # interior knots of the cubic B-spline f_remain
@@ -31,16 +30,29 @@ INTERNAL_HZ = 50.0
 # that depend on the data (q range) are filled by Data.bounds(). Linear ones are listed apart.
 NONLIN = {
     "asymmetric_backlash": [("alpha", 0.0, -0.8, 0.8)],
-    "smooth_transition": [("spread", 0.5, 0.0, 0.95)],
+    # Widths B exp(sigma u) / mean, u in [-1, 1]: any spread with positive widths (the former
+    # linear 1 + spread u needed spread < 1 and sat at 0.95 on the catheter).
+    "smooth_transition": [("log_spread", 0.5, 0.0, 3.0)],
     "dead_zone": [("w_q", None, 0.0, None), ("z0_q", None, None, None)],
     "stick_slip": [("step_q", None, 0.0, None)],
     "cable_elongation": [("kappa", 0.3, 0.0, 0.95), ("log_tau", 0.0, np.log(0.05), np.log(10.0))],
     "camera_delay": [("delay_s", 0.0, -0.2, 0.5)],
+    # Extra half-width of the play beta * |dq/dt| (speed low-passed with tau_v): the lag grows
+    # with speed and relaxes over tau_v after a stop (sheath friction with a viscous part).
+    "viscous_hysteresis": [("beta_s", 0.05, 0.0, 2.0), ("log_tau_v", np.log(0.1), np.log(0.02), np.log(3.0))],
     "handeye_direction": [],
     "drift": [],
 }
 LINEAR = {"handeye_direction": "delta_deg", "drift": "rate_deg_per_min"}
 C_LIBRARY = list(NONLIN)  # effects visible in a record of c
+
+
+def lowpass(x: np.ndarray, tau_s: float, rate_hz: float) -> np.ndarray:
+    """First-order low-pass tau dy/dt = x - y of a uniformly sampled (N,) signal, y[0] = x[0]
+    (the diagnosis' own filter; the simulators keep theirs)."""
+    a = np.exp(-1.0 / (tau_s * rate_hz))
+    y, _ = lfilter([1 - a], [1, -a], x, zi=[a * x[0]])
+    return y
 
 
 @dataclass
@@ -89,6 +101,24 @@ class Fit:
     k: int
     cov_theta: np.ndarray | None = None
     cov_coef: np.ndarray | None = None
+    lo: np.ndarray | None = None
+    hi: np.ndarray | None = None
+
+    def at_bounds(self) -> dict[str, str]:
+        """{effect parameter: "lower"|"upper"} for effect parameters within 0.1 % of the span of
+        a bound (a fitted value at a bound is not an estimate: reported, and the bound widened)."""
+        out = {}
+        if self.lo is None:
+            return out
+        for n, v, l, h in zip(self.names, self.theta, self.lo, self.hi):
+            if "." not in n:
+                continue
+            tol = 1e-3 * (h - l)
+            if v >= h - tol:
+                out[n] = "upper"
+            elif v <= l + tol:
+                out[n] = "lower"
+        return out
 
     @property
     def bic(self) -> float:
@@ -132,12 +162,16 @@ def _play(lo: list, hi: list, z0: float) -> np.ndarray:
     return np.asarray(out)
 
 
-def _hold(z: np.ndarray, step: float) -> np.ndarray:
+def _hold(z: np.ndarray, step: float, kin: float = 0.0) -> np.ndarray:
+    """Stiction on the play output: held until z is step away, then slips to kin * step behind z."""
     out = [0.0] * z.size
     held = float(z[0])
+    back = kin * step
     for k, v in enumerate(z.tolist()):
-        if v - held >= step or held - v >= step:
-            held = v
+        if v - held >= step:
+            held = v - back
+        elif held - v >= step:
+            held = v + back
         out[k] = held
     return np.asarray(out)
 
@@ -208,28 +242,37 @@ class Model:
         """Design matrix (Nm, n_coef) at the measurement rows for nonlinear parameters theta."""
         d = self.d
         q = d.q_int
+        if "dead_zone" in self.effects:
+            # Dead band on the actuator side, before the play: the cable does not move while q
+            # crosses [z0 - w, z0 + w]. (A dead zone after the play is a static monotone map of z
+            # that f_remain absorbs: only this side leaves a gap a refit of B and f cannot take.)
+            w = self._get(theta, "dead_zone", "w_q")
+            zc = self._get(theta, "dead_zone", "z0_q")
+            q = q - np.clip(q - zc, -w, w)
         Bk = np.maximum(theta[:N_KNOTS], 0.0)
         alpha = self._get(theta, "asymmetric_backlash", "alpha") if "asymmetric_backlash" in self.effects else 0.0
         z0 = float(q[0])
         widths = [1.0]
         if "smooth_transition" in self.effects:
-            s = self._get(theta, "smooth_transition", "spread")
-            widths = list(1 + s * np.linspace(-1, 1, 5))
+            s = self._get(theta, "smooth_transition", "log_spread")
+            r = np.exp(s * np.linspace(-1, 1, 5))
+            widths = list(r / r.mean())
+        vh = np.zeros_like(q)
+        if "viscous_hysteresis" in self.effects:
+            beta = self._get(theta, "viscous_hysteresis", "beta_s")
+            tau_v = np.exp(self._get(theta, "viscous_hysteresis", "log_tau_v"))
+            vh = beta * lowpass(np.abs(np.gradient(q, 1.0 / INTERNAL_HZ)), tau_v, INTERNAL_HZ)
         # B(z): natural cubic spline through the knots, held beyond them, on a fine z grid.
         Bg = np.maximum(CubicSpline(self.kn, Bk, bc_type="natural")(np.clip(self.zg, self.kn[0], self.kn[-1])), 0.0)
         zs = []
         for r in widths:
             # Band edges as in playscope.model (z + B(z)/2 = q going up, z - B(z)/2 = q going
             # down), inverted on the z grid by np.interp (z + B(z)/2 is increasing for |B'| < 2).
-            zu = np.interp(q, *self._edge(self.zg, (1 + alpha) * r * Bg / 2))
-            zd = np.interp(q, *self._edge(self.zg, -(1 - alpha) * r * Bg / 2))
+            zu = np.interp(q - vh, *self._edge(self.zg, (1 + alpha) * r * Bg / 2))
+            zd = np.interp(q + vh, *self._edge(self.zg, -(1 - alpha) * r * Bg / 2))
             zs.append(_play(zu.tolist(), zd.tolist(), z0))
         z = zs[0] if len(zs) == 1 else np.mean(zs, axis=0)
         sdir = _direction(z)
-        if "dead_zone" in self.effects:
-            w = self._get(theta, "dead_zone", "w_q")
-            zc = self._get(theta, "dead_zone", "z0_q")
-            z = z - np.clip(z - zc, -w, w)
         if "stick_slip" in self.effects:
             z = _hold(z, max(self._get(theta, "stick_slip", "step_q"), 1e-9))
         x = np.clip((z - self.q_mid) / self.q_half, -1.5, 1.5)
@@ -315,7 +358,8 @@ class Model:
         rss = float(np.sum(r * r))
         k = int(free.sum()) + A.shape[1]
         pred = A @ coef
-        fit = Fit(self.effects, th, list(self.names), coef, list(self.coef_names), pred, rss, n, n_eff, k)
+        fit = Fit(self.effects, th, list(self.names), coef, list(self.coef_names), pred, rss, n, n_eff, k,
+                  lo=self.lo.copy(), hi=self.hi.copy())
         if uncertainty:
             s2 = rss / max(n - k, 1) * n / n_eff  # inflate for autocorrelated residuals
             J = res.jac
@@ -358,9 +402,15 @@ class Model:
                         x[self.names.index("cable_elongation.log_tau")] = lt
                         new.append(x)
                 elif e == "smooth_transition":
-                    for sp in (0.3, 0.7):
+                    for sp in (0.3, 0.8, 1.5):
                         x = s.copy()
-                        x[self.names.index("smooth_transition.spread")] = sp
+                        x[self.names.index("smooth_transition.log_spread")] = sp
+                        new.append(x)
+                elif e == "viscous_hysteresis":
+                    for b, lt in ((0.05, np.log(0.05)), (0.2, np.log(0.3))):
+                        x = s.copy()
+                        x[self.names.index("viscous_hysteresis.beta_s")] = b
+                        x[self.names.index("viscous_hysteresis.log_tau_v")] = lt
                         new.append(x)
                 elif e == "camera_delay":
                     for dl in (-0.04, 0.04, 0.1):

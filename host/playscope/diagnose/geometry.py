@@ -12,10 +12,27 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from scipy.integrate import cumulative_trapezoid
+
 from .. import model as M
-from ..sim.core import tip_position
 
 GEOM = {"lens_distortion": ("dk1", (-0.5, 0.5)), "nonconstant_curvature": ("gamma", (-0.9, 0.9))}
+
+
+def _tip_graded(c_deg: np.ndarray, L: float, l_tip: float, gamma: float) -> np.ndarray:
+    """Tip position (..., 3) mm for a curvature graded along the section, kappa(s) = c/L (1 +
+    gamma (2 s/L - 1)) (same total bend c): the tangent angle is integrated in closed form,
+    theta(s) = c (s + gamma (s^2/L - s)) / L, the position by the trapezoid rule on 129 points.
+    gamma = 0 is model.constant_curvature (the diagnosis' own form; the simulator keeps its own)."""
+    if gamma == 0.0:
+        return M.constant_curvature(c_deg, L, l_tip)
+    c = np.radians(np.asarray(c_deg, float))[..., None]
+    s = np.linspace(0.0, L, 129)
+    th = c * (s + gamma * (s * s / L - s)) / L
+    x = cumulative_trapezoid(np.sin(th), s, axis=-1)[..., -1]
+    z = cumulative_trapezoid(np.cos(th), s, axis=-1)[..., -1]
+    c = c[..., 0]
+    return np.stack([x + l_tip * np.sin(c), np.zeros_like(x), z + l_tip * np.cos(c)], axis=-1)
 
 
 class _Geom(M.ImageModel):
@@ -28,7 +45,7 @@ class _Geom(M.ImageModel):
         self.gamma = gamma
 
     def __call__(self, c_deg):
-        P = tip_position(c_deg, self.L, self.l, self.gamma)
+        P = _tip_graded(c_deg, self.L, self.l, self.gamma)
         return M.project(P, self.R, self.t, self.K, self.dist)
 
 

@@ -55,7 +55,8 @@ def binned(x: np.ndarray, r: np.ndarray, bins: int = 12) -> dict:
 
 def atlas(data: Data, pred: np.ndarray, mask: np.ndarray | None = None) -> dict:
     """Residual atlas of y - pred on rows ``mask`` (default: all). Keys: by_travel_up/down,
-    by_time_since_reversal, by_q, by_c, by_speed, by_wallclock, by_direction, by_u/by_v (image),
+    by_time_since_reversal, by_q, by_c, by_speed, by_speed_signed (residual x direction), by_wallclock,
+    by_direction, by_u/by_v (image),
     spectrum {"f_hz", "psd"}, xcorr_velocity {"lag_s", "r"}, rms."""
     r = data.y_m - pred
     m = np.isfinite(r) if mask is None else (mask & np.isfinite(r))
@@ -68,6 +69,10 @@ def atlas(data: Data, pred: np.ndarray, mask: np.ndarray | None = None) -> dict:
     out["by_q"] = binned(f["q_mm"][m], r[m])
     out["by_c"] = binned(data.y_m[m], r[m])
     out["by_speed"] = binned(f["speed_mm_s"][m], r[m])
+    # Residual times the motor direction, by speed: a lag that grows with speed (viscous
+    # hysteresis, a delay, elongation) shows as a mean growing in magnitude with speed; a
+    # rate-independent play error does not.
+    out["by_speed_signed"] = binned(f["speed_mm_s"][m], (r * f["direction"])[m])
     out["by_wallclock"] = binned(data.t_m[m], r[m])
     out["by_direction"] = {str(int(dv)): {"mean": float(np.mean(r[m & (f["direction"] == dv)])) if np.any(m & (f["direction"] == dv)) else None,
                                           "rms": float(np.sqrt(np.mean(r[m & (f["direction"] == dv)] ** 2))) if np.any(m & (f["direction"] == dv)) else None}

@@ -1,7 +1,13 @@
-"""The catheter recordings (../shared/data/real/catheter, no licence: read in place at run time,
-never copied) through the diagnosis: in situ and across files, with the effects it keeps.
+"""The catheter recordings (no licence: read in place at run time, never copied) through the
+diagnosis: in situ and across files, with the effects it keeps.
 
-In situ: fit on the first half of a file, judge on its second half (attribute()).
+Folder: catheter_dir(arg) -- the argument, else $PLAYSCOPE_CATHETER_DIR, else
+$PLAYSCOPE_REAL_DATA/catheter, else the caller's default (the bench scripts pass
+../shared/data/real/catheter next to the repository); the package itself assumes no path.
+
+In situ, three-way (split.choose_split): fit on the first half of a file, select effects on the
+next quarter (validation), report on the last quarter (test), which neither the fit nor the
+selection saw; all three RMSEs per file.
 Across files: fit on the whole of the first file (base model, and base + the effects kept in situ
 on that file), judge on each other file; drift is left out across files (a per-session offset
 trend has no meaning on another recording).
@@ -13,32 +19,66 @@ from pathlib import Path
 
 import numpy as np
 
-from .attribute import attribute, halves
+import os
+
+from .attribute import attribute
 from .fitmodel import Model, from_session
+from .split import choose_split
 
-CATHETER_DIR = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "real" / "catheter"
+
+def catheter_dir(arg=None, default=None) -> Path | None:
+    """Folder of the catheter recordings (module doc); None when nothing is given or set."""
+    for v in (arg, os.environ.get("PLAYSCOPE_CATHETER_DIR")):
+        if v:
+            return Path(v)
+    if os.environ.get("PLAYSCOPE_REAL_DATA"):
+        return Path(os.environ["PLAYSCOPE_REAL_DATA"]) / "catheter"
+    return Path(default) if default else None
 
 
-def _data(path):
+def _product(session, data, fit_mask, test_mask, kept: list) -> dict:
+    from .product import product_rmse
+    delay = next((k["params"].get("camera_delay.delay_s", (0.0, 0.0))[0] for k in kept
+                  if k["effect"] == "camera_delay"), 0.0)
+    return product_rmse(session, data, fit_mask, test_mask, [k["effect"] for k in kept], delay)
+
+
+# Hook for the product's own model (issue 10 item 4): a callable (session, data, fit_mask,
+# test_mask, kept) -> {"play", "with_kept", "model", "not_in_product"} test-part RMSEs (deg) of
+# `calibrate` (product.py); None leaves the column "not measured".
+PRODUCT_RMSE = _product
+
+
+def _session(path):
     from ..importer import import_catheter
-    return from_session(import_catheter(path))
+    return import_catheter(path)
 
 
 def catheter_table(files, log=print) -> dict:
     """{"in_situ": {name: {...}}, "across": {"fit_on", "effects", "rows": {name: {...}}}}."""
     files = [Path(f) for f in files]
-    datas = {f.stem: _data(f) for f in files}
+    sessions = {f.stem: _session(f) for f in files}
+    datas = {k: from_session(v) for k, v in sessions.items()}
     out = {"in_situ": {}, "across": {}}
     for name, d in datas.items():
-        fm, em = halves(d)
-        res = attribute(d, fm, em)
-        out["in_situ"][name] = {
-            "noise_floor_deg": res["noise_floor_deg"], "rmse_base_deg": res["base"]["rmse_heldout_deg"],
-            "rmse_kept_deg": res["final"]["rmse_heldout_deg"], "verdict": res["verdict"],
-            "kept": [{k2: v for k2, v in k.items()} for k in res["kept"]],
+        sp = choose_split(d)
+        res = attribute(d, sp.fit, sp.val, test_mask=sp.test)
+        fb, ff = res["_fits"]["base"], res["_fits"]["final"]
+        row = {
+            "split": sp.summary(), "noise_floor_deg": res["noise_floor_deg"],
+            "base": {"fit": fb.rmse(d.y_m, sp.fit), "validation": res["base"]["rmse_heldout_deg"],
+                     "test": res["test"]["rmse_base_deg"]},
+            "kept_model": {"fit": ff.rmse(d.y_m, sp.fit), "validation": res["final"]["rmse_heldout_deg"],
+                           "test": res["test"]["rmse_final_deg"]},
+            "verdict": res["verdict"], "kept": [{k2: v for k2, v in k.items()} for k in res["kept"]],
+            "at_bounds": ff.at_bounds(),
             "screen": {r["effect"]: r["rmse_heldout_deg"] for r in res["screen"]}}
-        log(f"{name}: in situ {res['base']['rmse_heldout_deg']:.3f} -> {res['final']['rmse_heldout_deg']:.3f} deg "
-            f"kept {[k['effect'] for k in res['kept']]}")
+        if PRODUCT_RMSE is not None:
+            row["product_test"] = PRODUCT_RMSE(sessions[name], d, sp.fit, sp.test, res["kept"])
+        out["in_situ"][name] = row
+        log(f"{name}: fit/validation/test {row['base']['fit']:.3f}/{row['base']['validation']:.3f}/{row['base']['test']:.3f}"
+            f" -> {row['kept_model']['fit']:.3f}/{row['kept_model']['validation']:.3f}/{row['kept_model']['test']:.3f} deg"
+            f" kept {[k['effect'] for k in res['kept']]} ({sp.method})")
     ref = files[0].stem
     eff = [k["effect"] for k in out["in_situ"][ref]["kept"] if k["effect"] != "drift"]
     union = sorted({k["effect"] for r in out["in_situ"].values() for k in r["kept"]} - {"drift"})
@@ -66,16 +106,25 @@ def catheter_table(files, log=print) -> dict:
 
 def format_catheter(tab: dict) -> str:
     """Markdown tables of catheter_table()'s result."""
-    lines = ["In situ (fit on the first half, judge on the second half), bending-angle RMSE [deg]:", "",
-             "| file | noise floor | play + f_remain (base) | + kept effects | kept effects (parameters ± 1 sd; held-out RMSE after each; share of excess removed) |",
-             "|---|---|---|---|---|"]
+    lines = ["In situ, three-way (fit on the first half, select effects on the next quarter, test on the last "
+             "quarter), bending-angle RMSE [deg] fit / validation / test:", "",
+             "| file | split | noise floor | play + f_remain (base) | + kept effects | kept effects (parameters ± 1 sd; validation RMSE after each; parameters at a bound) | product (calibrate), test: play -> with kept |",
+             "|---|---|---|---|---|---|---|"]
     for name, r in tab["in_situ"].items():
         ks = []
         for k in r["kept"]:
             ps = ", ".join(f"{n.split('.', 1)[1]} = {v[0]:.3g} ± {v[1]:.2g}" for n, v in k["params"].items())
             ind = f"; cannot tell from {', '.join(k['indistinguishable_from'])}" if k["indistinguishable_from"] else ""
-            ks.append(f"{k['effect']} ({ps}) → {k['rmse_after_deg']:.3f}, {100 * k['share_of_excess_removed']:.0f} %{ind}")
-        lines.append(f"| {name} | {r['noise_floor_deg']:.3f} | {r['rmse_base_deg']:.3f} | {r['rmse_kept_deg']:.3f} | {'; '.join(ks) or '—'} |")
+            ab = "".join(f"; {n.split('.', 1)[1]} AT {b.upper()} BOUND" for n, b in k.get("at_bounds", {}).items())
+            ks.append(f"{k['effect']} ({ps}) → {k['rmse_after_deg']:.3f}{ind}{ab}")
+        b, m = r["base"], r["kept_model"]
+        pt = r.get("product_test")
+        prod = None if pt is None else (f"{pt['play']:.3f} -> {pt['with_kept']:.3f} ({pt['model']}"
+                                        + (f"; not in the product: {', '.join(pt['not_in_product'])}" if pt["not_in_product"] else "")
+                                        + ")")
+        lines.append(f"| {name} | {r['split']['method']} | {r['noise_floor_deg']:.3f} | "
+                     f"{b['fit']:.3f} / {b['validation']:.3f} / {b['test']:.3f} | {m['fit']:.3f} / {m['validation']:.3f} / {m['test']:.3f} | "
+                     f"{'; '.join(ks) or '—'} | {'not measured (hook unset)' if prod is None else prod} |")
     a = tab["across"]
     if a.get("rows"):
         lines += ["", f"Across files (fit on all of {a['fit_on']}, judge on the others; kept effects: "

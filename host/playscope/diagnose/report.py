@@ -65,7 +65,9 @@ def figures(data, res: dict, atlas_before: dict, atlas_after: dict) -> list[tupl
     fig, ax = plt.subplots(figsize=(13, 3.5))
     ax.plot(data.t_m, data.y_m - base.pred, lw=0.6, label="base")
     ax.plot(data.t_m, data.y_m - final.pred, lw=0.6, label="kept effects")
-    ax.axvspan(data.t_m[np.argmax(res["_eval_mask"])], data.t_m[-1], color="y", alpha=0.15, label="held out")
+    # Shade the validation rows (blocks or a time range, whichever the split chose).
+    ax.fill_between(data.t_m, 0, 1, where=res["_eval_mask"], transform=ax.get_xaxis_transform(), color="y",
+                    alpha=0.15, label="validation")
     ax.set_xlabel("t [s]"); ax.set_ylabel("residual [deg]"); ax.legend(fontsize=8)
     figs.append(("Residual over time", _png(fig)))
 
