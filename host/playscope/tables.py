@@ -187,6 +187,35 @@ def build_table(B, f, q_min: float, q_max: float, unit: str, f_kind: str = "rema
     return CalibTable(blob, source)
 
 
+def check_physical(B, f, q_min: float, q_max: float, source=None, n: int = 2001) -> None:
+    """Refuse a calibration that is not a physical play model before it becomes a table: the
+    float B and f sampled on n points over [q_min, q_max] must be finite, B >= 0 (one Q16 LSB
+    of rounding allowed; the loader's CALIB_ERR_B_NEGATIVE), B not zero over the whole travel
+    (no play measured), and f strictly monotone (eq. 9 needs f^-1; CALIB_ERR_F_NOT_MONOTONE):
+    it may not turn back by more than one LSB. build_table() itself floors B and forces f
+    monotone by one LSB, so without this check such a calibration would load and run with an
+    error of tens of degrees. Errors: TableError naming the rule and where it breaks."""
+    lsb = 1.0 / 65536
+    q = np.linspace(q_min, q_max, n)
+    b = np.asarray(B(q), float)
+    c = np.asarray(f(q), float)
+    if not (np.all(np.isfinite(b)) and np.all(np.isfinite(c))):
+        raise TableError(source, "B or f_remain is not finite over the q range: not a table")
+    if b.min() < -lsb:
+        k = int(np.argmin(b))
+        raise TableError(source, f"B(q) = {b[k]:.4g} < 0 at q = {q[k]:.4g} (CALIB_ERR_B_NEGATIVE): a backlash "
+                         "width cannot be negative; recalibrate (the B fit is constrained to B >= 0)")
+    if b.max() <= lsb:
+        raise TableError(source, "B(q) is zero over the whole q range: no play was measured; check the onsets")
+    d = np.diff(c)
+    sgn = 1.0 if c[-1] >= c[0] else -1.0
+    bad = np.flatnonzero(sgn * d < -lsb)
+    if c[-1] == c[0] or bad.size:
+        k = int(bad[0]) if bad.size else 0
+        raise TableError(source, f"f_remain is not strictly monotone over the q range (turns back at q = "
+                         f"{q[k]:.4g}; CALIB_ERR_F_NOT_MONOTONE): eq. 9 has no inverse; refit f_remain")
+
+
 def _weights_q16_sum_one(w: np.ndarray) -> np.ndarray:
     """Weights rounded to Q16.16 with the rounding remainder put on w_0, so that the raw sum
     is exactly 1.0 (the loader allows 2^-8; exact keeps y on the centre line)."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from .. import argtypes as T
 from ..atomic import write_bytes_atomic
-from ..tables import build_table, table_errors
+from ..tables import build_table, check_physical, table_errors
 from ..errors import InputError
 from .common import add_json_arg, dump_json, load_calibration
 
@@ -32,6 +32,7 @@ def run(a) -> int:
     tr = None if a.f_coarse else cal.transition
     B = cal.B if a.f_coarse else cal.B_model
     try:
+        check_physical(B, f, q_min, q_max, source=a.calibration)
         tab = build_table(B, f, q_min, q_max, cal.doc["actuator_unit"], "coarse" if a.f_coarse else "remain",
                           a.generation, a.entries, source=a.calibration, transition=tr)
         err = table_errors(tab, B, f, q_min, q_max, tr)

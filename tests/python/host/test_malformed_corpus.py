@@ -217,6 +217,13 @@ def cases() -> list[tuple[str, list[str], object]]:
         ("f_remain sign 0", _json_edit("cal.json", _set("f_remain.sign", 0))),
         ("q_per_rad 0", _json_edit("cal.json", _set("f_coarse.q_per_rad", 0))),
         ("actuator unit", _json_edit("cal.json", _set("actuator_unit", "furlong"))),
+        # Physically impossible models (issue 14, item 2): refused by tables.check_physical.
+        ("B negative", _json_edit("cal.json", lambda d: d["B"].__setitem__("coef", [-0.3] * len(d["B"]["coef"])))),
+        ("B all zero", _json_edit("cal.json", lambda d: d["B"].__setitem__("coef", [0.0] * len(d["B"]["coef"])))),
+        ("f_remain all zero", _json_edit("cal.json", lambda d: d["f_remain"].__setitem__(
+            "coef", [0.0] * len(d["f_remain"]["coef"])))),
+        ("f_remain not monotone", _json_edit("cal.json", lambda d: d["f_remain"].__setitem__(
+            "coef", [(-1) ** k * 20.0 for k in range(len(d["f_remain"]["coef"]))]))),
     ]:
         add(f"cal.json {name}", TAB, dmg)
     for name, dmg in [("missing", _delete("cal.json")), ("list", _write("cal.json", "[]")),
