@@ -162,6 +162,12 @@ def run_loop(link, source, max_board_s: float = 600.0, progress=None, tracker=No
                     clock.batch(t_board, now)
                     if sim:
                         source.push(np.array(t), q)
+                    elif not source.live and source.t0_us is None:
+                        # A file plays from the excitation's first move (VideoSource): look for
+                        # it in this batch only, against the first sample of the stream.
+                        moved = np.flatnonzero(q != run.enc_q[0])
+                        if moved.size:
+                            source.start(t[int(moved[0])])
             if sim:
                 frames = list(source.frames(t_board))
             elif source.live:
@@ -172,10 +178,6 @@ def run_loop(link, source, max_board_s: float = 600.0, progress=None, tracker=No
                     break
                 frames = [] if t_now is None else [(t_now, img)]
             else:
-                if source.t0_us is None and len(run.enc_q) > 1:
-                    moved = np.flatnonzero(np.asarray(run.enc_q) != run.enc_q[0])
-                    if moved.size:
-                        source.start(int(round(run.enc_t_s[moved[0]] * 1e6)))
                 frames = []
                 while source.due_us() is not None and source.due_us() <= t_board:
                     t_f = source.due_us()

@@ -161,5 +161,6 @@ def test_image_topic_becomes_a_trackable_video(tmp_path, capsys):
     assert s.video is not None and s.frames["t_s"].size == n
     assert main(["track", str(out)]) == 0
     m = load_session(out).marker
-    # MJPG and the tracker together: measured error ~0.1 px here; 1 px bounds it with margin.
-    np.testing.assert_allclose(m["u_px"], us.astype(int), atol=1.0)
+    # MJPG and the tracker together: measured worst error 0.09 px here; bound about 3x that.
+    np.testing.assert_allclose(m["u_px"], us.astype(int), atol=0.3)
+    np.testing.assert_allclose(m["v_px"], H // 2, atol=0.3)
