@@ -171,12 +171,14 @@ def run_loop(link, source, max_board_s: float = 600.0, progress=None, tracker=No
             if sim:
                 frames = list(source.frames(t_board))
             elif source.live:
-                t_now = clock.now_us(now)
-                img = source.read() if t_now is not None else False
-                if img is None:
-                    run.ended = "end of video"
-                    break
-                frames = [] if t_now is None else [(t_now, img)]
+                t_now = clock.now_us(now)  # None until the first encoder batch: no board time yet
+                frames = []
+                if t_now is not None:
+                    img = source.read()
+                    if img is None:
+                        run.ended = "end of video"
+                        break
+                    frames = [(t_now, img)]
             else:
                 frames = []
                 while source.due_us() is not None and source.due_us() <= t_board:
