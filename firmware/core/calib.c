@@ -45,8 +45,9 @@ static void envelope_samples(const lut_t *b, int sign, int32_t *out)
     }
 }
 
-/* Validate the envelope sample range and monotonicity without writing *out. */
-static calib_status_t check_envelope(const lut_t *b, int sign, int32_t *scratch)
+/* Validate the envelope sample range and monotonicity without writing *out; *err_q16
+ * receives the exact error the reindexing table will have. */
+static calib_status_t check_envelope(const lut_t *b, int sign, int32_t *scratch, int32_t *err_q16)
 {
     for (uint16_t i = 0; i < b->n; i++) {
         int64_t x = (int64_t)b->x0_q16 + ((int64_t)i << b->step_log2);
@@ -58,7 +59,7 @@ static calib_status_t check_envelope(const lut_t *b, int sign, int32_t *scratch)
     lut_t g;
     if (lut_init(&g, scratch, b->n, b->x0_q16, (int32_t)1 << b->step_log2) != LUT_OK)
         return CALIB_ERR_GRID;
-    return lut_check_inverse(&g, CALIB_DERIVED_MAX) == LUT_OK ? CALIB_OK : CALIB_ERR_B_SLOPE;
+    return lut_inverse_error(&g, CALIB_DERIVED_MAX, err_q16) == LUT_OK ? CALIB_OK : CALIB_ERR_B_SLOPE;
 }
 
 /* Build z_up (sign +1) or z_down (sign -1) into buf; checked beforehand, cannot fail. */
@@ -153,7 +154,8 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
                 return CALIB_ERR_B_SLOPE;
         }
     }
-    if (lut_check_inverse(&f, CALIB_DERIVED_MAX) != LUT_OK)
+    int32_t e_f_inv;
+    if (lut_inverse_error(&f, CALIB_DERIVED_MAX, &e_f_inv) != LUT_OK)
         return CALIB_ERR_F_NOT_MONOTONE;
     /* q* = f^-1(c*) +- B/2 must fit int32 so that comp_step adds in 32 bits. */
     int32_t b_max = 0;
@@ -162,15 +164,21 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     if ((int64_t)f.x0_q16 - b_max / 2 < INT32_MIN || (int64_t)f.x_last_q16 + b_max / 2 > INT32_MAX)
         return CALIB_ERR_GRID;
     int32_t scratch[PST_MAX_ENTRIES];
-    if ((st = check_envelope(&b, +1, scratch)) != CALIB_OK || (st = check_envelope(&b, -1, scratch)) != CALIB_OK)
+    int32_t e_up, e_down;
+    if ((st = check_envelope(&b, +1, scratch, &e_up)) != CALIB_OK ||
+        (st = check_envelope(&b, -1, scratch, &e_down)) != CALIB_OK)
         return st;
     pi_params_t pi_dir, pi_inv;
     int32_t pi_err;
     if ((st = load_pi(blob, &hd, &b, &f, &pi_dir, &pi_inv, &pi_err)) != CALIB_OK)
         return st;
+    /* Each derived table is held to the ceiling on its own: they enter q* and z one at a
+     * time (eqs. 2 and 4/5/9), and the chained bound of docs/firmware.md follows from them. */
+    const int32_t ceiling = calib_precision_ceiling_q16(b_max);
+    if (e_f_inv > ceiling || e_up > ceiling || e_down > ceiling || pi_err > ceiling)
+        return CALIB_ERR_PRECISION;
 
     /* Everything is checked: from here on nothing can fail, so *out changes only now. */
-    int32_t e_up, e_down;
     out->b = b;
     out->f = f;
     (void)lut_build_inverse(&f, out->f_inv_buf, CALIB_DERIVED_MAX, &out->f_inv, &out->f_inv_err_q16);
@@ -180,6 +188,7 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     out->pi_dir = pi_dir;
     out->pi_inv = pi_inv;
     out->pi_inv_err_q16 = pi_err;
+    out->precision_ceiling_q16 = ceiling;
     out->q_min_q16 = hd.q_min_q16;
     out->q_max_q16 = hd.q_max_q16;
     out->f_sign = (int8_t)(f.y_q16[1] > f.y_q16[0] ? 1 : -1);
@@ -188,6 +197,12 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     out->generation = hd.generation;
     out->crc32 = hd.crc32;
     return CALIB_OK;
+}
+
+int32_t calib_precision_ceiling_q16(int32_t b_max_q16)
+{
+    int32_t c = b_max_q16 / CALIB_PRECISION_B_DIV; /* load time only (a constant divide: a shift) */
+    return c > CALIB_PRECISION_FLOOR_Q16 ? c : CALIB_PRECISION_FLOOR_Q16;
 }
 
 const char *calib_status_str(calib_status_t st)
@@ -213,6 +228,7 @@ const char *calib_status_str(calib_status_t st)
     case CALIB_ERR_PI_W_NEGATIVE: return "negative transition weight";
     case CALIB_ERR_PI_W_SUM: return "transition weights do not sum to 1 (+-2^-8)";
     case CALIB_ERR_PI_INVERSE: return "transition not invertible in Q16.16 (first weight too small)";
+    case CALIB_ERR_PRECISION: return "fixed-point error above the precision ceiling (1/16 of the largest play)";
     }
     return "unknown";
 }

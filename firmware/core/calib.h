@@ -36,7 +36,20 @@ typedef enum {
     CALIB_ERR_PI_W_NEGATIVE,     /* a weight below zero */
     CALIB_ERR_PI_W_SUM,          /* |sum w - 1| > 2^-8 */
     CALIB_ERR_PI_INVERSE,        /* an inverse weight would overflow Q16.16 (w[0] <= 2^-15), or the inverse leaves +-2^30 */
+    CALIB_ERR_PRECISION,         /* a derived table's worst-case fixed-point error exceeds the precision ceiling */
 } calib_status_t;
+
+/* Precision ceiling (docs/firmware.md, "Precision ceiling"): a table's own arithmetic may add
+ * at most 1/CALIB_PRECISION_B_DIV of its largest play width B_max to q (never less than
+ * CALIB_PRECISION_FLOOR_Q16 raw, the rounding floor of a few chained lookups), because the
+ * compensator exists to remove B: a table whose rounding and resampling errors approach the
+ * play it corrects does more harm than good. The loader holds its exactly computed errors
+ * (f^-1, z_up/z_down, transition inverse) to it; the host's `tables` holds its measured
+ * error against the float model to the same figure. */
+enum { CALIB_PRECISION_B_DIV = 16, CALIB_PRECISION_FLOOR_Q16 = 16 };
+
+/* The ceiling for a table whose largest B entry is b_max_q16 (raw): max(b_max / 16, 16). */
+int32_t calib_precision_ceiling_q16(int32_t b_max_q16);
 
 /* Everything the direct model and the compensator read, derived once per load. */
 typedef struct {
@@ -57,6 +70,7 @@ typedef struct {
     pi_params_t pi_dir;          /* transition y = PI[z] of the direct model (n = 0: none, y = z) */
     pi_params_t pi_inv;          /* its inverse z* = PI^-1[y*] for the compensator (Krejci-Kuhnen) */
     int32_t pi_inv_err_q16;      /* worst-case |pi_inv - exact inverse| (raw); pi_dir's is 1/2 raw */
+    int32_t precision_ceiling_q16; /* calib_precision_ceiling_q16(max B entry): what the errors above were held to */
     int32_t f_inv_buf[CALIB_DERIVED_MAX];
     int32_t z_up_buf[CALIB_DERIVED_MAX];
     int32_t z_down_buf[CALIB_DERIVED_MAX];

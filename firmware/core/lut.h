@@ -72,6 +72,11 @@ __attribute__((always_inline)) static inline int32_t lut_eval_inline(const lut_t
  * error is piecewise linear between breakpoints of g and grid points of out, so its
  * maximum is found by evaluating at every breakpoint (plus the 1/2 LSB of lut_eval).
  * O(n + cap), uses 64-bit divides: load time only, never per tick. */
+/* The exact worst-case error *err_q16 that lut_build_inverse() would report for src (same
+ * checks, same value), computed without storing the inverse: the loader checks a table's
+ * precision before it writes anything. O(n), 64-bit divides: load time only. */
+lut_status_t lut_inverse_error(const lut_t *src, uint16_t cap, int32_t *err_q16);
+
 /* The checks of lut_build_inverse() alone, writing nothing: LUT_OK if it would succeed. */
 lut_status_t lut_check_inverse(const lut_t *src, uint16_t cap);
 

@@ -255,6 +255,29 @@ def table_errors(tab: CalibTable, B, f, q_min: float, q_max: float, transition=N
             "f_inv_err": float(tab.cal.f_inv_err_q16) / 65536, "z_err": float(tab.cal.z_err_q16) / 65536}
 
 
+def check_precision(tab: CalibTable, errors: dict, f, q_min: float, q_max: float, source=None) -> None:
+    """Refuse a table whose measured fixed-point error is above the loader's precision ceiling
+    (calib.h, CALIB_ERR_PRECISION; docs/firmware.md "Precision ceiling"): the compensator's
+    |q*_fixed - q*_float| and the direct model's |c_fixed - c_float| / max|f'| (the q that
+    error corresponds to) must each stay within calib_precision_ceiling_q16(B_max), i.e. 1/16
+    of the largest play, never below 16 raw. The loader holds its exactly computed errors of
+    the derived tables to the same figure; this check adds what only the host can see, the
+    sampling of the float model on the grids. errors: table_errors()'s dict. Errors:
+    TableError naming the figure and what to do."""
+    ceiling = float(tab.cal.precision_ceiling_q16) / 65536
+    qq = np.linspace(q_min, q_max, 2001)
+    slope = float(np.max(np.abs(np.diff(np.asarray(f(qq), float)) / np.diff(qq))))
+    checks = [("|q*_fixed - q*_float|", errors["comp_q_max"], ceiling, ""),
+              ("|c_fixed - c_float|", errors["direct_c_deg_max"], ceiling * slope,
+               f" (the ceiling times max|f'| = {slope:.4g} deg per unit)")]
+    for name, got, lim, why in checks:
+        if not got <= lim:  # NaN fails too
+            raise TableError(source, f"fixed-point error {name} = {got:.3g} is above the precision ceiling "
+                             f"{lim:.3g}{why}, 1/16 of the largest play (CALIB_ERR_PRECISION): the table would "
+                             "add an error comparable to the play it corrects; use more --entries or a "
+                             "smoother f_remain (recalibrate)")
+
+
 # --------------------------------------------------------------------------- test tables
 def test_vector(tab: CalibTable, n: int = 200) -> list[int]:
     """c* reference (raw Q16): two sine periods with reversals of varying amplitude over 90 %

@@ -305,6 +305,37 @@ static void test_pi_layout_refusals(void **state)
     }
 }
 
+static double b_const(double q, const void *ctx)
+{
+    (void)q;
+    return *(const double *)ctx;
+}
+
+/* The precision ceiling: with a constant play (envelope errors 1 raw) the f^-1 table's
+ * error e binds, so B = 16 e raw loads and B = 16 (e - 1) raw is refused, untouched. */
+static void test_precision_ceiling(void **state)
+{
+    (void)state;
+    double b = 1.0;
+    size_t len = fixture_build(&blob, &GRID, b_const, &b, f_cubic, NULL);
+    assert_int_equal(calib_load(&cal, blob.bytes, len), CALIB_OK);
+    const int32_t e = cal.f_inv_err_q16;
+    assert_true(e > CALIB_PRECISION_FLOOR_Q16 + 1); /* measured 165 raw on this grid */
+    assert_true(cal.z_err_q16 < e && cal.pi_inv_err_q16 < e);
+    assert_int_equal(cal.precision_ceiling_q16, 65536 / CALIB_PRECISION_B_DIV);
+
+    b = (double)(CALIB_PRECISION_B_DIV * e) / 65536.0;
+    len = fixture_build(&blob, &GRID, b_const, &b, f_cubic, NULL);
+    assert_int_equal(calib_load(&cal, blob.bytes, len), CALIB_OK);
+    assert_int_equal(cal.precision_ceiling_q16, e);
+    b = (double)(CALIB_PRECISION_B_DIV * (e - 1)) / 65536.0;
+    len = fixture_build(&blob, &GRID, b_const, &b, f_cubic, NULL);
+    expect_refused(len, CALIB_ERR_PRECISION);
+    /* The floor: a play too small to set a ceiling above the rounding of chained lookups. */
+    assert_int_equal(calib_precision_ceiling_q16(0), CALIB_PRECISION_FLOOR_Q16);
+    assert_int_equal(calib_precision_ceiling_q16(CALIB_PRECISION_B_DIV * 1000), 1000);
+}
+
 /* Every malformed operator block, each with its own reason code; the boundary cases
  * next to each refusal load. */
 static void test_pi_content_refusals(void **state)
@@ -327,9 +358,11 @@ static void test_pi_content_refusals(void **state)
         {{0, 13107, 39321, 78643}, {26214, 19661, 13107, 6554 - 257}, CALIB_ERR_PI_W_SUM},
         {{0, 13107, 39321, 78643}, {26214, 19661, 13107, 6554 + 256}, CALIB_OK},
         {{0, 13107, 39321, 78643}, {26214, 19661, 13107, 6554 - 256}, CALIB_OK},
-        /* 1/w_0 = 32768 does not fit Q16.16; 1/w_0 = 21845.3 does. */
+        /* 1/w_0 = 32768 does not fit Q16.16; 1/w_0 = 21845.3 does, but its inverse error
+         * (about 1/w_0 raw) is far above the precision ceiling (B_max / 16 = 3686 raw). */
         {{0, 13107, 39321, 78643}, {2, 26214, 26214, 13106}, CALIB_ERR_PI_INVERSE},
-        {{0, 13107, 39321, 78643}, {3, 26214, 26214, 13105}, CALIB_OK},
+        {{0, 13107, 39321, 78643}, {3, 26214, 26214, 13105}, CALIB_ERR_PRECISION},
+        {{0, 13107, 39321, 78643}, {6554, 26214, 26214, 6554}, CALIB_OK},
     };
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         size_t len = build_pi(0, 4, cases[k].r, cases[k].w);
@@ -379,6 +412,7 @@ int main(void)
         cmocka_unit_test(test_v1_and_empty_v2_load_as_pure_play),
         cmocka_unit_test(test_pi_layout_refusals),
         cmocka_unit_test(test_pi_content_refusals),
+        cmocka_unit_test(test_precision_ceiling),
         cmocka_unit_test(test_pi_refusal_keeps_last_good_table),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

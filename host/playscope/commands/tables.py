@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from .. import argtypes as T
 from ..atomic import write_bytes_atomic
-from ..tables import build_table, check_physical, table_errors
+from ..tables import build_table, check_physical, check_precision, table_errors
 from ..errors import InputError
 from .common import add_json_arg, dump_json, load_calibration
 
@@ -15,7 +15,8 @@ def add_parser(sub) -> None:
                        "operators (r, w) when the calibration has them, write the table (common/ps_table.h) "
                        "with the firmware's table_write(), load it back with the firmware's "
                        "calib_load(), and report the measured worst-case error of the fixed-point direct model "
-                       "and compensator against the float model. Example: playscope tables d21.cal.json -o d21.pstb")
+                       "and compensator against the float model; a table whose error is above the precision ceiling (1/16 of "
+                       "its largest play, docs/firmware.md) is refused, as the board's loader would. Example: playscope tables d21.cal.json -o d21.pstb")
     p.add_argument("calibration", help="calibration JSON from `playscope calibrate`")
     p.add_argument("-o", "--out", required=True, type=T.file_path, help="table blob to write")
     p.add_argument("--entries", type=T.int_range(2, 256), help="max entries per grid (default PST_MAX_ENTRIES = 256)")
@@ -36,6 +37,7 @@ def run(a) -> int:
         tab = build_table(B, f, q_min, q_max, cal.doc["actuator_unit"], "coarse" if a.f_coarse else "remain",
                           a.generation, a.entries, source=a.calibration, transition=tr)
         err = table_errors(tab, B, f, q_min, q_max, tr)
+        check_precision(tab, err, f, q_min, q_max, source=a.calibration)
     except (ValueError, OverflowError) as e:  # InputError passes through with its own file
         if isinstance(e, InputError):
             raise

@@ -193,7 +193,7 @@ def cases() -> list[tuple[str, list[str], object]]:
     add("session folder missing", ["calibrate", "{root}/nope", "-o", "{root}/out.json"])
     add("session is a file", ["calibrate", "{cal}", "-o", "{root}/out.json"])
 
-    # ---- calibration JSON: 29 cases
+    # ---- calibration JSON: 30 cases
     for name, dmg in [
         ("missing", _delete("cal.json")), ("empty", _write("cal.json", "")), ("not JSON", _write("cal.json", "B = 1")),
         ("invalid utf-8", _write("cal.json", b'{"\xff": 1}')), ("binary", _write("cal.json", JUNK)),
@@ -224,6 +224,8 @@ def cases() -> list[tuple[str, list[str], object]]:
             "coef", [0.0] * len(d["f_remain"]["coef"])))),
         ("f_remain not monotone", _json_edit("cal.json", lambda d: d["f_remain"].__setitem__(
             "coef", [(-1) ** k * 20.0 for k in range(len(d["f_remain"]["coef"]))]))),
+        # A play of 2 raw units: the table's own rounding would exceed it (CALIB_ERR_PRECISION).
+        ("B tiny", _json_edit("cal.json", lambda d: d["B"].__setitem__("coef", [3e-5] * len(d["B"]["coef"])))),
     ]:
         add(f"cal.json {name}", TAB, dmg)
     for name, dmg in [("missing", _delete("cal.json")), ("list", _write("cal.json", "[]")),
