@@ -19,6 +19,14 @@ bool psa_set_table(psa_loop_t *l, const calib_t *cal)
 {
     if (l->mode == PSA_MODE_EXCITATION)
         return false;
+    if (l->mode == PSA_MODE_COMPENSATION && !l->comp_armed && cal != NULL && l->cal != NULL &&
+        cal->pi_inv.n == 0 && l->cal->pi_inv.n == 0) {
+        /* Hot swap during use (a host refresh of f_remain, an offset or B): the compensator
+         * keeps its direction, offset and ramp and runs the new table from the next tick. */
+        l->cal = cal;
+        l->comp.cal = cal;
+        return true;
+    }
     l->cal = cal;
     if (cal == NULL && l->mode != PSA_MODE_IDLE)
         l->mode = PSA_MODE_IDLE; /* nothing left to compensate with: hold */

@@ -47,7 +47,10 @@ typedef struct {
 void psa_init(psa_loop_t *l, const psa_config_t *cfg);
 
 /* Table commit: from the next tick the loop runs cal (already accepted by calib_load; NULL
- * = none). A running compensation restarts at its current c* with no direction known.
+ * = none). A running pure-play compensation (both tables without transition operators)
+ * carries on with its state (direction, offset, ramp): a host refresh during use moves q*
+ * only by what the new table changes. Otherwise a running compensation restarts at its
+ * current c* with no direction known (operator states do not carry across tables).
  * Refused (false) in excitation mode, whose trajectory spans the old table's range. O(1). */
 bool psa_set_table(psa_loop_t *l, const calib_t *cal);
 
