@@ -119,6 +119,17 @@ b_online_status_t b_online_init(b_online_t *bo, const b_online_config_t *cfg, lu
     return B_ONLINE_OK;
 }
 
+b_online_status_t b_online_rebind(b_online_t *bo, lut_t *b)
+{
+    if (b->n != bo->n_grid || b->x0_q16 != bo->x0_q16 || b->step_log2 != bo->grid_log2)
+        return B_ONLINE_ERR_GRID;
+    bo->prior_q16 = b->y_q16;
+    memset(bo->theta_q16, 0, sizeof bo->theta_q16);
+    write_grid(bo);
+    b->y_q16 = bo->b_q16;
+    return B_ONLINE_OK;
+}
+
 void b_online_sample(b_online_t *bo, int32_t q_mean_q16, int32_t b_q16)
 {
     const uint32_t n = bo->n_nodes;

@@ -64,6 +64,15 @@ typedef struct {
  * Init time (one integer square root); call it after calib_load, before psa_set_table. */
 b_online_status_t b_online_init(b_online_t *bo, const b_online_config_t *cfg, lut_t *b);
 
+/* A table committed during use (psa_set_table's hot swap) whose B is what this board learnt:
+ * the host mirrors b_online bit for bit on the B samples the board reports and flashes the
+ * current entries (b_q16) with its refreshed f_remain and offset. b (the new table's B, same
+ * grid: n, x0 and step) becomes the prior, theta = 0 (the correction is now in the prior),
+ * P is kept (the estimate's uncertainty is unchanged by moving it into the prior), and
+ * b->y_q16 is re-pointed to the RAM copy. B_ONLINE_ERR_GRID, nothing changed, for another
+ * grid (then b_online_init). Init time, O(n_grid). */
+b_online_status_t b_online_rebind(b_online_t *bo, lut_t *b);
+
 /* Learn one B sample of eq. 1 (q_mean, b from an onset_event_t with reason ONSET_OK or
  * ONSET_OK_COARSE), actuator units Q16: one RLS step on theta and P with forgetting
  * (regressor: the two linear B-spline weights at q_mean, clamped to the grid; target

@@ -33,13 +33,16 @@ from .calibration import auto_fps
 from .native import core
 from .tables import grid_for
 
-ROWS = ["online", "online_b_only", "online_offset_only", "static", "const_play_insitu"]
+ROWS = ["online", "online_b_only", "online_offset_only", "static", "const_play_insitu",
+        "const_play_insitu_offset", "const_play_ref_offset"]
 LABELS = {
     "online": "ours, on-line B (board RLS) + offset refresh",
     "online_b_only": "ours, on-line B only",
     "online_offset_only": "ours, offset refresh only",
     "static": "ours without update (calibration session's B, f)",
     "const_play_insitu": "constant play + poly5 refitted in situ (first 20 %)",
+    "const_play_insitu_offset": "same + the same offset refresh (peer given our update)",
+    "const_play_ref_offset": "constant play + poly5 fitted on the reference file + the same offset refresh",
 }
 
 
@@ -82,6 +85,17 @@ class BoardB:
         if st != lib.B_ONLINE_OK:
             raise ValueError(f"b_online_init refused the B grid (status {st})")
 
+    def commit_learnt(self) -> None:
+        """A table carrying the learnt B is committed (the host's refresh): b_online_rebind
+        onto a copy of the current entries, as the board does on the new blob."""
+        lib, ffi = self.lib, self.ffi
+        blob_b = ffi.new("int32_t[]", ffi.unpack(self.bo.b_q16, int(self.bo.n_grid)))
+        lut = ffi.new("lut_t *")
+        lib.lut_init(lut, blob_b, self.bo.n_grid, self.lut.x0_q16, 1 << self.lut.step_log2)
+        if lib.b_online_rebind(self.bo, lut) != lib.B_ONLINE_OK:
+            raise ValueError("b_online_rebind refused the committed B grid")
+        self._keep = (blob_b, lut)  # the new prior must outlive the next commit
+
     def grid(self) -> np.ndarray:
         """The B entries the board runs now (actuator units)."""
         return np.array(self.ffi.unpack(self.bo.b_q16, int(self.bo.n_grid)), float) / 65536.0
@@ -90,11 +104,13 @@ class BoardB:
         return model.piecewise_linear(self.xs, self.grid())
 
 
-def learn_session(s, board: BoardB | None, cfg: E.OnsetConfig, hysteresis: float):
+def learn_session(s, board: BoardB | None, cfg: E.OnsetConfig, hysteresis: float, refresh_s: float | None = None):
     """Feed session s through the firmware's onset detector in time order (ticks, reversals,
     angle frames at cfg.fps) and, when board is given, each B sample into b_online_sample at
-    the frame that completed it. Returns (t_done (M,), grids [(n,)] after each sample, the
-    samples (M, 2) of q_mean, b)."""
+    the frame that completed it. refresh_s: every refresh_s from the first sample the host
+    commits a table carrying the learnt B (its refreshed offset beside it), which the board
+    takes with b_online_rebind. Returns (t_done (M,), grids [(n,)] after each sample, the
+    samples (M, 2) of q_mean, b, (frame times, frame angles))."""
     ffi, lib = core()
     t_enc, q = s.encoder["t_s"], s.encoder["q"]
     rt, rq, _ = E.detect_reversals(t_enc, s.encoder.get("q_cmd", q), hysteresis)
@@ -102,9 +118,11 @@ def learn_session(s, board: BoardB | None, cfg: E.OnsetConfig, hysteresis: float
     t0 = min(t_enc[0], t_f[0]) - 1e-3
     us = lambda x: np.round((np.asarray(x, float) - t0) * 1e6).astype(np.int64)
     te, tr, tf = us(t_enc), us(rt), us(t_f)
-    times = np.concatenate([te, tr, tf])
-    kinds = np.concatenate([np.zeros(te.size, np.int8), np.ones(tr.size, np.int8), np.full(tf.size, 2, np.int8)])
-    idx = np.concatenate([np.arange(te.size), np.arange(tr.size), np.arange(tf.size)])
+    tc = us(np.arange(t_enc[0] + refresh_s, t_enc[-1], refresh_s)) if refresh_s and board is not None else np.zeros(0, np.int64)
+    times = np.concatenate([te, tr, tf, tc])
+    kinds = np.concatenate([np.zeros(te.size, np.int8), np.ones(tr.size, np.int8), np.full(tf.size, 2, np.int8),
+                            np.full(tc.size, 3, np.int8)])
+    idx = np.concatenate([np.arange(te.size), np.arange(tr.size), np.arange(tf.size), np.arange(tc.size)])
     order = np.lexsort((kinds, times))
     ok = np.isfinite(c_f)
     q_raw = np.round(q * 65536.0).astype(np.int64).tolist()
@@ -120,6 +138,9 @@ def learn_session(s, board: BoardB | None, cfg: E.OnsetConfig, hysteresis: float
             continue
         if k == 1:
             lib.onset_reversal(o, tt, rq_raw[i], ev)
+            continue
+        if k == 3:
+            board.commit_learnt()
             continue
         if lib.onset_observe_deg(o, tt, c_raw[i], bool(ok[i]), ev) and ev.reason in (lib.ONSET_OK, lib.ONSET_OK_COARSE):
             samples.append((ev.q_mean_q16 / 65536.0, ev.b_q16 / 65536.0))
@@ -161,9 +182,9 @@ def rmse(e) -> float:
     return float(np.sqrt(np.mean(np.square(e))))
 
 
-def const_play_insitu(s, t_split: float, score_mask: np.ndarray) -> float:
-    """The peer: constant play + poly5 fitted on t < t_split of s, run from q[0], RMSE where
-    score_mask (deg)."""
+def const_play_insitu(s, t_split: float) -> np.ndarray:
+    """The peer: constant play + poly5 fitted on t < t_split of s, run from q[0]; its
+    prediction at every encoder sample (deg)."""
     t, q = s.encoder["t_s"], s.encoder["q"]
     td, cd = s.distal["t_s"], s.distal["c_deg"]
     cal_e, cal_d = t < t_split, td < t_split
@@ -172,13 +193,21 @@ def const_play_insitu(s, t_split: float, score_mask: np.ndarray) -> float:
     t_f, c_f = E.frames_from_angle(td[cal_d], cd[cal_d], auto_fps(rt))
     q_c, c_c = E.characteristic(t[cal_e], q[cal_e], t_f, c_f, 0.0)
     _, fp, Bc = E.fit_constant_play(q_c, c_c)
-    c_hat = model.direct_model(q, Bc, fp)
-    c_true = np.interp(t, td, cd)
-    return rmse((c_hat - c_true)[score_mask])
+    return model.direct_model(q, Bc, fp)
 
 
-def evaluate_online(cal, s, settings: OnlineSettings | None = None, b_config=None) -> dict:
-    """Every row of ROWS on session s with the reference calibration cal (pure play).
+def const_play_ref(s_ref, fps: float):
+    """Constant play + poly5 fitted on the whole reference session (frames at fps, as the
+    chain's): (B, f) for model.direct_model."""
+    t_f, c_f = E.frames_from_angle(s_ref.distal["t_s"], s_ref.distal["c_deg"], fps)
+    q_c, c_c = E.characteristic(s_ref.encoder["t_s"], s_ref.encoder["q"], t_f, c_f, 0.0)
+    _, fp, Bc = E.fit_constant_play(q_c, c_c)
+    return Bc, fp
+
+
+def evaluate_online(cal, s, settings: OnlineSettings | None = None, b_config=None, ref_const=None) -> dict:
+    """Every row of ROWS on session s with the reference calibration cal (pure play);
+    ref_const: (B, f) of the constant play fitted on the reference (None: that row is NaN).
     Returns {"rmse_deg": {row: float}, "b_samples": M, "t_split_s", "b_change_max_mm"}."""
     st = settings or OnlineSettings()
     t, q = s.encoder["t_s"], s.encoder["q"]
@@ -188,16 +217,74 @@ def evaluate_online(cal, s, settings: OnlineSettings | None = None, b_config=Non
     board = BoardB(cal.B, lo, hi, b_config)
     g0 = board.grid()
     cfg = onset_config_from(cal)
-    t_done, grids, samples, (t_f, _) = learn_session(s, board, cfg, cal.doc["reversal_hysteresis"])
+    t_done, grids, samples, (t_f, _) = learn_session(s, board, cfg, cal.doc["reversal_hysteresis"], st.refresh_s)
     c_true = np.interp(t, s.distal["t_s"], s.distal["c_deg"])
     # Residual frames for the offset: the angle at the frame rate the board's detector runs.
     _, c_f = E.frames_from_angle(s.distal["t_s"], s.distal["c_deg"], cfg.fps)
     c_s = cal.f(_play_timeline(q, t, board.xs, [g0], np.array([])))
     c_b = cal.f(_play_timeline(q, t, board.xs, [g0] + grids, t_done))
     rows = {"static": rmse((c_s - c_true)[mask]), "online_b_only": rmse((c_b - c_true)[mask])}
-    for key, c_hat in (("online", c_b), ("online_offset_only", c_s)):
+    c_cp = const_play_insitu(s, t_split)
+    c_ref = model.direct_model(q, *ref_const) if ref_const is not None else np.full_like(q, np.nan)
+    rows["const_play_insitu"] = rmse((c_cp - c_true)[mask])
+    for key, c_hat in (("online", c_b), ("online_offset_only", c_s), ("const_play_insitu_offset", c_cp),
+                       ("const_play_ref_offset", c_ref)):
         r_f = c_f - np.interp(t_f, t, c_hat)
         rows[key] = rmse((c_hat + _offset_timeline(t, t_f, r_f, st.refresh_s) - c_true)[mask])
-    rows["const_play_insitu"] = const_play_insitu(s, t_split, mask)
+    bias = float(np.mean(samples[:, 1] - cal.B(samples[:, 0]))) if samples.size else float("nan")
     return {"rmse_deg": {k: rows[k] for k in ROWS}, "b_samples": int(samples.shape[0]), "t_split_s": t_split,
+            "b_sample_minus_cal_mm": bias,
             "b_change_max_mm": float(np.max(np.abs(board.grid() - g0))) if grids else 0.0}
+
+
+def evaluate_real_online(folder, ref: str = "data_2_1", settings: OnlineSettings | None = None,
+                         progress=lambda it, **kw: it) -> dict:
+    """The protocol on the catheter recordings (data_2_*.txt in folder, read in place): the pure
+    play calibrated on ref, every other file run with on-line update from its start and scored
+    after its first 20 %. Returns {"files": {name: evaluate_online() result}, "reference": ref,
+    "settings": {...}, "b_config": {...}}. Errors: InputError when ref or the others are missing."""
+    from pathlib import Path
+
+    from .calibration import calibrate
+    from .errors import InputError
+    from .importer import import_catheter
+
+    st = settings or OnlineSettings()
+    files = sorted(Path(folder).glob("data_2_*.txt"))
+    ref_path = Path(folder) / f"{ref}.txt"
+    if not ref_path.is_file() or len(files) < 2:
+        raise InputError(folder, f"needs {ref}.txt and at least one other data_2_*.txt here")
+    s_ref = import_catheter(ref_path)
+    cal = calibrate(s_ref, f_method="lsq", model_kind="play", source=str(ref_path))
+    ref_const = const_play_ref(s_ref, cal.doc["fps_frames"])
+    _, lib = core()
+    bc = lib.b_online_default_config()
+    out = {"reference": ref, "settings": {"refresh_s": st.refresh_s, "score_after": st.score_after},
+           "b_config": {"lambda": bc.lambda_q30 / 2**30, "p0": bc.p0_q30 / 2**30, "slope_max": bc.slope_max_q16 / 65536},
+           "files": {}}
+    for f in progress([f for f in files if f.stem != ref], desc="on-line"):
+        out["files"][f.stem] = evaluate_online(cal, import_catheter(f), st, ref_const=ref_const)
+    return out
+
+
+def format_online(res: dict) -> str:
+    """Markdown table of evaluate_real_online(): one row per model, one column per file, then
+    the mean and the worst file (RMSE, deg), and whether ours <= the in-situ constant play on
+    every file."""
+    files = list(res["files"])
+    s = res["settings"]
+    lines = [f"**On-line update: calibrated on {res['reference']}, each other file run from its start, "
+             f"scored after its first {s['score_after']:.0%} (bending-angle RMSE, deg)**", "",
+             "| model | " + " | ".join(files) + " | mean | worst |", "|---" * (len(files) + 3) + "|"]
+    for m in ROWS:
+        v = [res["files"][f]["rmse_deg"][m] for f in files]
+        lines.append(f"| {LABELS[m]} | " + " | ".join(f"{x:.2f}" for x in v) + f" | {np.mean(v):.2f} | {np.max(v):.2f} |")
+    lines.append("| B samples learnt (file) | " + " | ".join(str(res["files"][f]["b_samples"]) for f in files) + " | | |")
+    lines.append("| mean B sample - calibration B (mm) | " +
+                 " | ".join(f"{res['files'][f]['b_sample_minus_cal_mm']:+.3f}" for f in files) + " | | |")
+    won = [res["files"][f]["rmse_deg"]["online"] <= res["files"][f]["rmse_deg"]["const_play_insitu"] for f in files]
+    b = res["b_config"]
+    lines += ["", f"Target (ours with on-line update <= constant play refitted in situ, every file): "
+              f"{'met' if all(won) else 'NOT met'} ({sum(won)} of {len(won)} files). Settings: lambda = {b['lambda']:.4f}, "
+              f"p0 = {b['p0']:g}, |B'| <= {b['slope_max']:g}, offset refresh every {s['refresh_s']:g} s.", ""]
+    return "\n".join(lines)

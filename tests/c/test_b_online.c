@@ -281,6 +281,34 @@ static void test_loop_hook(void **state)
     assert_ptr_equal(lp.learn, NULL);
 }
 
+/* Rebind onto a table that carries the learnt B: the running B is unchanged (bit for bit, the
+ * learnt grid already satisfies the bounds), theta is 0, P kept; another grid is refused. */
+static void test_rebind_keeps_the_learnt_b(void **state)
+{
+    (void)state;
+    lut_t l;
+    setup_lut(&l);
+    static b_online_t bo;
+    static int32_t flashed[NG];
+    b_online_config_t c = b_online_default_config();
+    assert_int_equal(b_online_init(&bo, &c, &l), B_ONLINE_OK);
+    for (int k = 0; k < 20; k++)
+        b_online_sample(&bo, (k % 7) * 65536 / 2, prior[(k % 7) * 4] + 65536 / 8);
+    memcpy(flashed, bo.b_q16, sizeof flashed);
+    int32_t p11 = bo.p_q30[1][1], p12 = bo.p_q30[1][2];
+    lut_t l2, l3;
+    assert_int_equal(lut_init(&l2, flashed, NG, 0, 1 << STEP_LOG2), LUT_OK);
+    assert_int_equal(lut_init(&l3, flashed, NG, 65536, 1 << STEP_LOG2), LUT_OK);
+    assert_int_equal(b_online_rebind(&bo, &l3), B_ONLINE_ERR_GRID);
+    assert_ptr_equal(l3.y_q16, flashed);
+    assert_int_equal(b_online_rebind(&bo, &l2), B_ONLINE_OK);
+    assert_ptr_equal(l2.y_q16, bo.b_q16);
+    assert_memory_equal(bo.b_q16, flashed, sizeof flashed);
+    assert_int_equal(bo.theta_q16[1], 0);
+    assert_int_equal(bo.p_q30[1][1], p11);
+    assert_int_equal(bo.p_q30[1][2], p12);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -289,6 +317,7 @@ int main(void)
         cmocka_unit_test(test_bounds),
         cmocka_unit_test(test_no_windup),
         cmocka_unit_test(test_loop_hook),
+        cmocka_unit_test(test_rebind_keeps_the_learnt_b),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
