@@ -238,7 +238,7 @@ def evaluate_online(cal, s, settings: OnlineSettings | None = None, b_config=Non
 
 
 def evaluate_real_online(folder, ref: str = "data_2_1", settings: OnlineSettings | None = None,
-                         progress=lambda it, **kw: it) -> dict:
+                         progress=lambda it, **kw: it, b_config=None) -> dict:
     """The protocol on the catheter recordings (data_2_*.txt in folder, read in place): the pure
     play calibrated on ref, every other file run with on-line update from its start and scored
     after its first 20 %. Returns {"files": {name: evaluate_online() result}, "reference": ref,
@@ -258,12 +258,12 @@ def evaluate_real_online(folder, ref: str = "data_2_1", settings: OnlineSettings
     cal = calibrate(s_ref, f_method="lsq", model_kind="play", source=str(ref_path))
     ref_const = const_play_ref(s_ref, cal.doc["fps_frames"])
     _, lib = core()
-    bc = lib.b_online_default_config()
+    bc = lib.b_online_default_config() if b_config is None else b_config
     out = {"reference": ref, "settings": {"refresh_s": st.refresh_s, "score_after": st.score_after},
            "b_config": {"lambda": bc.lambda_q30 / 2**30, "p0": bc.p0_q30 / 2**30, "slope_max": bc.slope_max_q16 / 65536},
            "files": {}}
     for f in progress([f for f in files if f.stem != ref], desc="on-line"):
-        out["files"][f.stem] = evaluate_online(cal, import_catheter(f), st, ref_const=ref_const)
+        out["files"][f.stem] = evaluate_online(cal, import_catheter(f), st, b_config=bc, ref_const=ref_const)
     return out
 
 
