@@ -46,7 +46,7 @@ def main(argv=None) -> int:
         for tau in (4, 8, 16):
             for refresh in (1.0, 5.0):
                 bc = lib.b_online_default_config()
-                bc.lambda_q30 = int(round((1 - 1 / tau) * 2**30))
+                bc.lambda_q30 = int(round((1 - 1 / tau) * (1 << lib.B_ONLINE_P_FRAC_BITS)))
                 r = evaluate_real_online(a.folder, settings=OnlineSettings(refresh_s=refresh), b_config=bc)
                 cell = []
                 for m in ("online", "online_offset_only"):

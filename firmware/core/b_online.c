@@ -19,13 +19,13 @@
 #include <stddef.h>
 #include <string.h>
 
-#define Q30 ((int64_t)1 << 30)
-#define HALF30 ((int64_t)1 << 29)
+#define Q30 ((int64_t)1 << B_ONLINE_P_FRAC_BITS)
+#define HALF30 ((int64_t)1 << (B_ONLINE_P_FRAC_BITS - 1))
 
 /* Round half up of x / 2^30 (arithmetic shift: gcc and clang on every target we build). */
 static inline int64_t rq30(int64_t x)
 {
-    return (x + HALF30) >> 30;
+    return (x + HALF30) >> B_ONLINE_P_FRAC_BITS;
 }
 
 static inline int32_t sat32(int64_t x)

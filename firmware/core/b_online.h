@@ -18,6 +18,9 @@
 #define B_ONLINE_MAX_NODES 16
 #endif
 
+/* Fixed-point format of lambda, p0 and the covariance P (the rest is Q16.16). */
+enum { B_ONLINE_P_FRAC_BITS = 30 };
+
 /* Settings. All dimensionless: P is the covariance of the coefficients in units of one
  * onset sample's noise variance, so neither depends on the instrument's units. */
 typedef struct {

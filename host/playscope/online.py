@@ -30,7 +30,7 @@ import numpy as np
 from . import estimate as E
 from . import model
 from .calibration import auto_fps
-from .native import core
+from .native import core, from_q16, to_q16
 from .tables import grid_for
 
 ROWS = ["online", "online_b_only", "online_offset_only", "static", "const_play_insitu",
@@ -73,8 +73,8 @@ class BoardB:
         ffi, lib = core()
         self.ffi, self.lib = ffi, lib
         x0, step, n = grid_for(q_min, q_max, lib.PST_MAX_ENTRIES)
-        self.xs = (x0 + step * np.arange(n, dtype=np.int64)) / 65536.0
-        prior = np.maximum(np.round(np.maximum(B(self.xs), 0.0) * 65536.0), 0).astype(np.int64)
+        self.xs = from_q16(x0 + step * np.arange(n, dtype=np.int64))
+        prior = np.maximum(to_q16(np.maximum(B(self.xs), 0.0)), 0).astype(np.int64)  # as tables.build_table
         self._prior = ffi.new("int32_t[]", prior.tolist())
         self.lut = ffi.new("lut_t *")
         if lib.lut_init(self.lut, self._prior, n, x0, step) != lib.LUT_OK:
@@ -98,7 +98,7 @@ class BoardB:
 
     def grid(self) -> np.ndarray:
         """The B entries the board runs now (actuator units)."""
-        return np.array(self.ffi.unpack(self.bo.b_q16, int(self.bo.n_grid)), float) / 65536.0
+        return from_q16(self.ffi.unpack(self.bo.b_q16, int(self.bo.n_grid)))
 
     def fn(self):
         return model.piecewise_linear(self.xs, self.grid())
@@ -125,9 +125,9 @@ def learn_session(s, board: BoardB | None, cfg: E.OnsetConfig, hysteresis: float
     idx = np.concatenate([np.arange(te.size), np.arange(tr.size), np.arange(tf.size), np.arange(tc.size)])
     order = np.lexsort((kinds, times))
     ok = np.isfinite(c_f)
-    q_raw = np.round(q * 65536.0).astype(np.int64).tolist()
-    rq_raw = np.round(rq * 65536.0).astype(np.int64).tolist()
-    c_raw = np.round(np.where(ok, c_f, 0.0) * 65536.0).astype(np.int64).tolist()
+    q_raw = to_q16(q).tolist()  # as estimate.run_onsets
+    rq_raw = to_q16(rq).tolist()
+    c_raw = to_q16(np.where(ok, c_f, 0.0)).tolist()
     o = ffi.new("onset_t *")
     lib.onset_init(o, ffi.new("onset_config_t *", cfg.to_c(ffi, lib)))
     ev = ffi.new("onset_event_t *")
@@ -143,7 +143,7 @@ def learn_session(s, board: BoardB | None, cfg: E.OnsetConfig, hysteresis: float
             board.commit_learnt()
             continue
         if lib.onset_observe_deg(o, tt, c_raw[i], bool(ok[i]), ev) and ev.reason in (lib.ONSET_OK, lib.ONSET_OK_COARSE):
-            samples.append((ev.q_mean_q16 / 65536.0, ev.b_q16 / 65536.0))
+            samples.append((float(from_q16(ev.q_mean_q16)), float(from_q16(ev.b_q16))))
             done.append(tt / 1e6 + t0)
             if board is not None:
                 lib.b_online_sample(board.bo, ev.q_mean_q16, ev.b_q16)  # = psa_observe_deg's hook
@@ -259,8 +259,9 @@ def evaluate_real_online(folder, ref: str = "data_2_1", settings: OnlineSettings
     ref_const = const_play_ref(s_ref, cal.doc["fps_frames"])
     _, lib = core()
     bc = lib.b_online_default_config() if b_config is None else b_config
+    p_one = float(1 << lib.B_ONLINE_P_FRAC_BITS)
     out = {"reference": ref, "settings": {"refresh_s": st.refresh_s, "score_after": st.score_after},
-           "b_config": {"lambda": bc.lambda_q30 / 2**30, "p0": bc.p0_q30 / 2**30, "slope_max": bc.slope_max_q16 / 65536},
+           "b_config": {"lambda": bc.lambda_q30 / p_one, "p0": bc.p0_q30 / p_one, "slope_max": float(from_q16(bc.slope_max_q16))},
            "files": {}}
     for f in progress([f for f in files if f.stem != ref], desc="on-line"):
         out["files"][f.stem] = evaluate_online(cal, import_catheter(f), st, b_config=bc, ref_const=ref_const)
