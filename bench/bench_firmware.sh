@@ -85,7 +85,7 @@ $(row onset_tick "of which onset_tick (decimated history push, timeout check), s
 $(row observe_px "psa_observe_px (= onset_observe_px), 25 Hz frames of the excitation run, incl. the frame that completes an onset" "" "")
 $(row table_commit "table commit: calib_table_crc + calib_load + psa_set_table (the demo table; flash write aside)" "" "")
 $(row b_online_sample_demo "b_online_sample (on-line B, RLS step + grid rewrite), demo table's B (33 entries, 9 nodes): on the observation that completes an onset, not in psa_tick" "" "")
-$(row b_online_sample_256 "b_online_sample, largest B grid (256 entries, 16 nodes)" "" "")
+$(row b_online_sample_241 "b_online_sample, costliest B grid (241 entries, 16 nodes: the most nodes a grid gets)" "" "")
 $(row tick_pi_realistic "psa_tick, compensation with the transition model (table v2, 16 operators, bench_pi_load), realistic c* as above" 250 600)
 $(row tick_pi_stress "psa_tick, compensation with the transition model (16 operators), stress: c* reversing every 512 ticks" 250 600)
 $(row comp_step_pi "of which comp_step with the 16 operators (f^-1, PI^-1, B/2 offset, ramp), realistic c*" "" "")
