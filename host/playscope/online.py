@@ -167,11 +167,13 @@ def _play_timeline(q: np.ndarray, t: np.ndarray, xs: np.ndarray, grids: list, t_
     return z
 
 
-def _offset_timeline(t: np.ndarray, t_f: np.ndarray, r_f: np.ndarray, refresh_s: float) -> np.ndarray:
+def _offset_timeline(t: np.ndarray, t_f: np.ndarray, r_f: np.ndarray, refresh_s: float,
+                     frame_s: float = 0.0) -> np.ndarray:
     """c_offset at each time t: at every refresh t_r = t[0] + k refresh_s, the mean residual
-    over the frames before t_r (0 before the first frame), held until the next refresh."""
+    over the frames complete before t_r (a frame at t_f averages the samples up to t_f +
+    frame_s / 2; 0 before the first), held until the next refresh."""
     ok = np.isfinite(r_f)
-    tf, rf = t_f[ok], r_f[ok]
+    tf, rf = t_f[ok] + 0.5 * frame_s, r_f[ok]
     csum = np.concatenate([[0.0], np.cumsum(rf)])
     t_r = t[0] + refresh_s * np.floor((t - t[0]) / refresh_s)  # last refresh at or before t
     n = np.searchsorted(tf, t_r, side="left")                   # frames strictly before it
@@ -230,7 +232,7 @@ def evaluate_online(cal, s, settings: OnlineSettings | None = None, b_config=Non
     for key, c_hat in (("online", c_b), ("online_offset_only", c_s), ("const_play_insitu_offset", c_cp),
                        ("const_play_ref_offset", c_ref)):
         r_f = c_f - np.interp(t_f, t, c_hat)
-        rows[key] = rmse((c_hat + _offset_timeline(t, t_f, r_f, st.refresh_s) - c_true)[mask])
+        rows[key] = rmse((c_hat + _offset_timeline(t, t_f, r_f, st.refresh_s, 1.0 / cfg.fps) - c_true)[mask])
     bias = float(np.mean(samples[:, 1] - cal.B(samples[:, 0]))) if samples.size else float("nan")
     return {"rmse_deg": {k: rows[k] for k in ROWS}, "b_samples": int(samples.shape[0]), "t_split_s": t_split,
             "b_sample_minus_cal_mm": bias,
