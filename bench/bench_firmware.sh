@@ -84,6 +84,8 @@ $(row comp_step "of which comp_step (eq. 4 + smoothing), on the realistic c*" ""
 $(row onset_tick "of which onset_tick (decimated history push, timeout check), same run" "" "")
 $(row observe_px "psa_observe_px (= onset_observe_px), 25 Hz frames of the excitation run, incl. the frame that completes an onset" "" "")
 $(row table_commit "table commit: calib_table_crc + calib_load + psa_set_table (the demo table; flash write aside)" "" "")
+$(row b_online_sample_demo "b_online_sample (on-line B, RLS step + grid rewrite), demo table's B (33 entries, 9 nodes): on the observation that completes an onset, not in psa_tick" "" "")
+$(row b_online_sample_241 "b_online_sample, costliest B grid (241 entries, 16 nodes: the most nodes a grid gets)" "" "")
 $(row tick_pi_realistic "psa_tick, compensation with the transition model (table v2, 16 operators, bench_pi_load), realistic c* as above" 250 600)
 $(row tick_pi_stress "psa_tick, compensation with the transition model (16 operators), stress: c* reversing every 512 ticks" 250 600)
 $(row comp_step_pi "of which comp_step with the 16 operators (f^-1, PI^-1, B/2 offset, ramp), realistic c*" "" "")
@@ -93,5 +95,6 @@ $(row comp_step_pi "of which comp_step with the 16 operators (f^-1, PI^-1, B/2 o
 | playscope-fw.elf flash, everything | $(kib $flash) | <= 24 KiB ($(verdict "$flash" 24576)) | arm-none-eabi-size -A: .isr_vector + .text + .rodata + .ARM.extab/.exidx + .init/.fini_array + .data initialisers |
 | playscope-fw.elf RAM, everything | $(kib $ram) | <= 24 KiB ($(verdict "$ram" 24576)) | .data $data + .bss $bss (tables, history, loop) + heap minimum $heap_min + stack reservation $stack (__stack_size; high-water mark on the status line) |
 | of which calib_t (table entries + derived f^-1, z_up, z_down) | $(kib $calib_sz) | | sizeof(calib_t) (bench/size_probe.c, nm -S) |
+| b_online_t (on-line B: RAM grid, theta, P), when an image enables it | $(kib $(psize probe_b_online_t)) | | sizeof(b_online_t) (bench/size_probe.c) |
 | of which psa_loop_t (incl. onset_t with the encoder history) | $(kib $loop_sz) | | sizeof(psa_loop_t); enc_hist_t alone $(kib $hist) |
 EOF2

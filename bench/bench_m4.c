@@ -8,6 +8,7 @@
 #include "ps_fixed.h"
 #include "ps_table.h"
 #include "psa_demo_table.h"
+#include "b_online.h"
 #include "psa_loop.h"
 #include "stm32f405_regs.h"
 #include "bench_traj.h"
@@ -287,6 +288,50 @@ static void run_commit(void)
     info("commit_failures", bad);
 }
 
+/* On-line B update (issue 13 item 4, b_online.c): b_online_sample on its own, the path an
+ * observation that completes an onset takes (psa_observe_*'s hook), never psa_tick. Samples
+ * spread over the travel at widths near the table's (every node's row of P in play): on the
+ * demo table's B (33 entries: 9 nodes) and on the costliest grid: 241 entries, 16 nodes (the
+ * most nodes any grid gets; 256 entries would get 9). */
+static b_online_t bench_bo;
+static int32_t bench_b256[PST_MAX_ENTRIES];
+
+static void time_b_online(const char *name, lut_t *b)
+{
+    b_online_config_t bc = b_online_default_config();
+    if (b_online_init(&bench_bo, &bc, b) != B_ONLINE_OK) {
+        console_put_str("BENCH setup failed (b_online)\r\n");
+        port_exit(1);
+    }
+    stat_t s = {0};
+    int32_t span = b->x_last_q16 - b->x0_q16;
+    for (uint32_t i = 0; i < 256u; i++) {
+        int32_t q = b->x0_q16 + (int32_t)(((int64_t)span * ((i * 97u) % 256u)) >> 8);
+        int32_t w = lut_eval(b, q) + (int32_t)((i * 7919u) % 6554u) - 3277; /* +-0.05 units */
+        uint32_t c0 = cyc();
+        b_online_sample(&bench_bo, q, w);
+        uint32_t c1 = cyc();
+        stat_add(&s, since(c0, c1));
+    }
+    sink_q16 = bench_bo.b_q16[0];
+    report(name, &s);
+}
+
+static void run_b_online(void)
+{
+    lut_t b_demo = cal[0].b; /* a copy: re-pointed to the RAM grid, cal[0] keeps the flashed one */
+    time_b_online("b_online_sample_demo", &b_demo);
+    lut_t b_big;
+    for (uint32_t j = 0; j < PST_MAX_ENTRIES; j++)
+        bench_b256[j] = PS_Q16_ONE / 2 + (int32_t)(j * 64u);
+    if (lut_init(&b_big, bench_b256, 241, 0, 1 << 10) != LUT_OK) {
+        console_put_str("BENCH setup failed (b_online grid)\r\n");
+        port_exit(1);
+    }
+    time_b_online("b_online_sample_241", &b_big);
+    info("b_online_241_nodes", bench_bo.n_nodes);
+}
+
 int main(void)
 {
     port_init();
@@ -318,6 +363,7 @@ int main(void)
     run_excitation("tick_exc_stress", (int32_t)((512ull * 3u << 16) / TICK_HZ),
                    (int32_t)((8ull * 3u << 16) / TICK_HZ), false, &obs_stress);
     run_commit();
+    run_b_online();
     console_put_str("BENCH done\r\n");
     return 0;
 }

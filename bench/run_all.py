@@ -231,6 +231,27 @@ def main(argv=None) -> int:
                       f"mean <= {acc['target_mean_deg']} deg", f"generalized PI mean {acc['gpi_mean_deg']:.2f} deg", c))
 
     part("in-situ real data", insitu_real)
+
+    # -- issue 13 item 4: on-line update during use (bench/online_real.py; docs/online.md)
+    def online_real():
+        with tempfile.TemporaryDirectory() as tmp:
+            sh([PY, "bench/online_real.py", a.catheter, "--json", f"{tmp}/o.json"])
+            r = json.loads(Path(f"{tmp}/o.json").read_text())
+        files = list(r["files"])
+        per = lambda m: " / ".join(f"{r['files'][f]['rmse_deg'][m]:.2f}" for f in files)
+        won = sum(r["files"][f]["rmse_deg"]["online"] <= r["files"][f]["rmse_deg"]["const_play_insitu"] for f in files)
+        table.append((f"catheter across sessions with on-line update, ours per file ({', '.join(files)})",
+                      per("online") + f" deg (<= in-situ constant play on {won} of {len(files)} files)",
+                      "<= constant play refitted in situ on every file",
+                      f"constant play in situ {per('const_play_insitu')}; without update {per('static')}; "
+                      f"constant play of data_2_1 + same offset refresh {per('const_play_ref_offset')} deg",
+                      "bench/online_real.py"))
+        fw = md_rows(sh(["bench/bench_firmware.sh"]))
+        table.append(("M4 instructions of b_online_sample (on-line B), demo table / costliest grid (16 nodes): average / worst",
+                      f"{find(fw, 'b_online_sample (')[0]}; {find(fw, 'b_online_sample, costliest')[0]}",
+                      "off the tick (on the observation that completes an onset)", "", "bench/bench_firmware.sh"))
+
+    part("on-line update", online_real)
     if not a.skip_selftest:
         part("diagnosis self-test", selftest)
 

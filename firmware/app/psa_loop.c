@@ -19,6 +19,14 @@ bool psa_set_table(psa_loop_t *l, const calib_t *cal)
 {
     if (l->mode == PSA_MODE_EXCITATION)
         return false;
+    if (l->mode == PSA_MODE_COMPENSATION && !l->comp_armed && cal != NULL && l->cal != NULL &&
+        cal->pi_inv.n == 0 && l->cal->pi_inv.n == 0) {
+        /* Hot swap during use (a host refresh of f_remain, an offset or B): the compensator
+         * keeps its direction, offset and ramp and runs the new table from the next tick. */
+        l->cal = cal;
+        l->comp.cal = cal;
+        return true;
+    }
     l->cal = cal;
     if (cal == NULL && l->mode != PSA_MODE_IDLE)
         l->mode = PSA_MODE_IDLE; /* nothing left to compensate with: hold */
@@ -118,13 +126,26 @@ bool psa_reversal(psa_loop_t *l, uint32_t t1_us, int32_t q1_q16, onset_event_t *
     return onset_reversal(&l->onset, t1_us, q1_q16, ev);
 }
 
+void psa_set_learning(psa_loop_t *l, b_online_t *bo)
+{
+    l->learn = bo;
+}
+
+/* The one hook of the on-line B update: an observation completed an onset. */
+static bool learn(psa_loop_t *l, bool hit, const onset_event_t *ev)
+{
+    if (hit && l->learn != NULL && (ev->reason == ONSET_OK || ev->reason == ONSET_OK_COARSE))
+        b_online_sample(l->learn, ev->q_mean_q16, ev->b_q16);
+    return hit;
+}
+
 bool psa_observe_px(psa_loop_t *l, uint32_t t_us, int32_t u_q16, int32_t v_q16, bool valid,
                     onset_event_t *ev)
 {
-    return onset_observe_px(&l->onset, t_us, u_q16, v_q16, valid, ev);
+    return learn(l, onset_observe_px(&l->onset, t_us, u_q16, v_q16, valid, ev), ev);
 }
 
 bool psa_observe_deg(psa_loop_t *l, uint32_t t_us, int32_t c_q16, bool valid, onset_event_t *ev)
 {
-    return onset_observe_deg(&l->onset, t_us, c_q16, valid, ev);
+    return learn(l, onset_observe_deg(&l->onset, t_us, c_q16, valid, ev), ev);
 }

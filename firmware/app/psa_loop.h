@@ -6,6 +6,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "b_online.h"
 #include "calib.h"
 #include "comp.h"
 #include "exc.h"
@@ -39,13 +40,17 @@ typedef struct {
     comp_t comp;
     exc_t exc;
     onset_t onset;               /* detector and encoder history */
+    b_online_t *learn;           /* on-line B update fed by the onset samples, NULL: off */
 } psa_loop_t;
 
 /* Reset: idle, no table, q* = 0, a fresh onset detector (cfg copied). Boot time. */
 void psa_init(psa_loop_t *l, const psa_config_t *cfg);
 
 /* Table commit: from the next tick the loop runs cal (already accepted by calib_load; NULL
- * = none). A running compensation restarts at its current c* with no direction known.
+ * = none). A running pure-play compensation (both tables without transition operators)
+ * carries on with its state (direction, offset, ramp): a host refresh during use moves q*
+ * only by what the new table changes. Otherwise a running compensation restarts at its
+ * current c* with no direction known (operator states do not carry across tables).
  * Refused (false) in excitation mode, whose trajectory spans the old table's range. O(1). */
 bool psa_set_table(psa_loop_t *l, const calib_t *cal);
 
@@ -83,5 +88,11 @@ bool psa_reversal(psa_loop_t *l, uint32_t t1_us, int32_t q1_q16, onset_event_t *
 bool psa_observe_px(psa_loop_t *l, uint32_t t_us, int32_t u_q16, int32_t v_q16, bool valid,
                     onset_event_t *ev);
 bool psa_observe_deg(psa_loop_t *l, uint32_t t_us, int32_t c_q16, bool valid, onset_event_t *ev);
+
+/* On-line B update during use (b_online.h): every B sample that psa_observe_px/_deg completes
+ * is learnt by bo (b_online_sample, on the observation call, never in psa_tick); bo must have
+ * been initialised (b_online_init) on the B of the table the loop runs. NULL stops learning.
+ * A sample that a tick completes (the rare finish on timeout) is not learnt. */
+void psa_set_learning(psa_loop_t *l, b_online_t *bo);
 
 #endif /* PSA_LOOP_H */

@@ -286,7 +286,10 @@ static uint16_t do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8
     uint16_t err = session_check(l, c.session, detail);
     if (err != PSP_OK)
         return err;
-    if (l->mode != PSP_MODE_IDLE || l->up_have != l->up_size)
+    /* Not during an excitation (its trajectory spans the running table's range); during
+     * compensation the loop swaps tables without stopping (psa_set_table: a host refresh of
+     * f_remain, an offset or B during use, issue 13 item 4). */
+    if (l->mode == PSP_MODE_EXCITATION || l->up_have != l->up_size)
         return PSP_ERR_STATE;
     /* From here the upload is consumed, taken or refused: the session closes, and a host
      * that wants to try again uploads anew (a STATE refusal above keeps it, to commit later). */
@@ -323,7 +326,7 @@ static uint16_t do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8
         return PSP_ERR_FLASH;
     }
     l->active_buf = nb;
-    (void)psa_set_table(&l->loop, &l->cal[nb]); /* idle here (checked above): always taken */
+    (void)psa_set_table(&l->loop, &l->cal[nb]); /* not in excitation (checked above): always taken */
     psp_info_t info;
     psl_info(l, &info);
     send(l, PSP_MSG_TABLE_COMMIT | PSP_RESPONSE, seq, &info, sizeof(info));

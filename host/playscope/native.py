@@ -34,7 +34,7 @@ REPO = Path(os.environ.get("PLAYSCOPE_SRC", Path(__file__).resolve().parents[2])
 COMMON = REPO / "common"
 CORE = REPO / "firmware" / "core"
 CDEF_HEADERS = [COMMON / n for n in ("ps_fixed.h", "ps_table.h", "ps_proto.h", "ps_frame.h")] + [
-    CORE / f"{n}.h" for n in ("lut", "calib", "playop", "comp", "enc_hist", "onset", "exc", "table_write")]
+    CORE / f"{n}.h" for n in ("lut", "calib", "playop", "comp", "enc_hist", "onset", "exc", "table_write", "b_online")]
 # Headers whose structs are runtime state, not wire or table layout: cdef'd unpacked.
 UNPACKED_COMMON = {"ps_frame.h"}
 MODULE = "_playscope_native"

@@ -10,6 +10,7 @@
 #include "ps_fixed.h"
 #include "ps_table.h"
 #include "psa_demo_table.h"
+#include "lut.h"
 #include "psa_loop.h"
 
 static union {
@@ -159,6 +160,51 @@ static void test_excitation_feeds_the_detector(void **state)
     assert_int_equal(qh, loop.q_ref_q16);
 }
 
+/* A table committed during compensation (a host refresh during use, issue 13 item 4): the loop
+ * carries on bit for bit as the core's compensator that keeps its state and switches table;
+ * a re-armed one (no direction known) would step q* by B/2 (checked to differ). */
+static calib_t cal2;
+static b_online_t bo2;
+
+static void test_hot_swap_keeps_the_compensator_state(void **state)
+{
+    (void)state;
+    size_t n = psa_demo_table(blob.bytes, sizeof blob.bytes);
+    assert_int_equal(calib_load(&cal2, blob.bytes, n), CALIB_OK);
+    /* the new table: the demo's B learnt 0.2 units wider (b_online on cal2's B) */
+    b_online_config_t bc = b_online_default_config();
+    assert_int_equal(b_online_init(&bo2, &bc, &cal2.b), B_ONLINE_OK);
+    for (int k = 0; k < 64; k++) {
+        int32_t q = cal2.q_min_q16 + (int32_t)(((int64_t)(cal2.q_max_q16 - cal2.q_min_q16) * (k % 16)) / 15);
+        b_online_sample(&bo2, q, lut_eval(&cal.b, q) + PS_Q16_ONE / 5);
+    }
+    for (int smooth = 0; smooth < 2; smooth++) {
+        psa_config_t c = config(smooth);
+        psa_init(&loop, &c);
+        assert_true(psa_set_table(&loop, &cal));
+        assert_true(psa_set_mode(&loop, PSA_MODE_COMPENSATION));
+        onset_event_t ev;
+        bool ready;
+        comp_reset(&ref, &cal, smooth ? &c.lim : NULL, c_of(0));
+        comp_t rearmed;
+        int differs = 0;
+        for (int k = 0; k < 4000; k++) {
+            if (k == 1777) { /* mid-stroke: c* moving, direction known */
+                assert_true(psa_set_table(&loop, &cal2));
+                assert_false(loop.comp_armed);
+                ref.cal = &cal2;
+                comp_reset(&rearmed, &cal2, smooth ? &c.lim : NULL, c_of(k));
+            }
+            int32_t want = comp_step(&ref, c_of(k));
+            int32_t got = psa_tick(&loop, 50u * (uint32_t)k, c_of(k), want, &ev, &ready);
+            assert_int_equal(got, want);
+            if (k >= 1777 && k < 1780)
+                differs += comp_step(&rearmed, c_of(k)) != want;
+        }
+        assert_true(differs > 0);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -166,6 +212,7 @@ int main(void)
         cmocka_unit_test(test_set_reference_then_ticks_hold),
         cmocka_unit_test(test_modes_and_tables),
         cmocka_unit_test(test_excitation_feeds_the_detector),
+        cmocka_unit_test(test_hot_swap_keeps_the_compensator_state),
     };
     return cmocka_run_group_tests(tests, setup, NULL);
 }

@@ -319,21 +319,53 @@ static void test_replay_and_order(void **state)
     seq = 1;
 }
 
-static void test_commit_only_when_idle(void **state)
+/* A commit during compensation is taken without stopping the loop (a host refresh during use,
+ * issue 13 item 4): the compensator carries its state onto the new table, bit for bit the
+ * core's comp_step with its table switched. During an excitation it is refused and the upload
+ * kept for a commit once idle. */
+static void test_commit_during_compensation_not_excitation(void **state)
 {
     (void)state;
     size_t n = make_table(1, f_fn);
     expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    static calib_t cal1, cal2;
+    static uint8_t blob1[PST_MAX_TABLE_SIZE];
+    memcpy(blob1, blob.bytes, n);
+    assert_int_equal(calib_load(&cal1, blob1, n), CALIB_OK);
     psp_set_mode_t m = {.mode = PSP_MODE_COMPENSATION};
     expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
-    n = make_table(2, f_fn);
+    comp_t cp;
+    psp_comp_req_t c = {0};
+    for (int k = 0; k < 200; k++) {
+        int32_t c_ref = (int32_t)(30.0 * sin(k * 0.05) * 65536.0);
+        if (k == 0)
+            comp_reset(&cp, &cal1, NULL, c_ref);
+        if (k == 100) { /* mid-stroke: generation 2 committed while compensating */
+            size_t n2 = make_table(2, f_fn);
+            assert_int_equal(calib_load(&cal2, blob.bytes, n2), CALIB_OK);
+            expect_ok(upload(blob.bytes, n2), PSP_MSG_TABLE_COMMIT);
+            assert_int_equal(info().active_generation, 2);
+            assert_int_equal(info().mode, PSP_MODE_COMPENSATION);
+            cp.cal = &cal2;
+        }
+        int32_t want = comp_step(&cp, c_ref);
+        c.c_ref_q16 = c_ref;
+        resp_t r = req(PSP_MSG_COMP_STEP, &c, sizeof c);
+        expect_ok(r, PSP_MSG_COMP_STEP);
+        assert_int_equal((int32_t)psf_get_u32(r.pl), want);
+    }
+    m.mode = PSP_MODE_IDLE;
+    expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
+    m.mode = PSP_MODE_EXCITATION;
+    expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
+    n = make_table(3, f_fn);
     expect_err(upload(blob.bytes, n), PSP_ERR_STATE);
-    assert_int_equal(info().active_generation, 1);
+    assert_int_equal(info().active_generation, 2);
     m.mode = PSP_MODE_IDLE;
     expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
     psp_table_commit_t cm = {.crc32 = psf_get_u32(blob.bytes + 12), .session = up_session};
     expect_ok(req(PSP_MSG_TABLE_COMMIT, &cm, sizeof cm), PSP_MSG_TABLE_COMMIT); /* upload kept */
-    assert_int_equal(info().active_generation, 2);
+    assert_int_equal(info().active_generation, 3);
 }
 
 static void test_compensation_matches_core(void **state)
@@ -565,7 +597,7 @@ int main(void)
         cmocka_unit_test_setup(test_upload_commit_readback_reboot, setup),
         cmocka_unit_test_setup(test_refusals_change_nothing, setup),
         cmocka_unit_test_setup(test_replay_and_order, setup),
-        cmocka_unit_test_setup(test_commit_only_when_idle, setup),
+        cmocka_unit_test_setup(test_commit_during_compensation_not_excitation, setup),
         cmocka_unit_test_setup(test_compensation_matches_core, setup),
         cmocka_unit_test_setup(test_streaming, setup),
         cmocka_unit_test_setup(test_onset_over_the_link, setup),

@@ -20,6 +20,11 @@ def add_parser(sub) -> None:
                    help="render each recording through a virtual endoscope into WORKDIR first (video, "
                    "then marker tracking), and run the chain on the images, judged against the measured "
                    "angle (about 20 s per file; tracked folders are reused)")
+    p.add_argument("--online", action="store_true",
+                   help="instead: the on-line update protocol (docs/online.md): calibrate on data_2_1, run each other "
+                   "file from its start with the board's B update and the host's offset refresh, score after its first "
+                   "20 %%, beside the same model without update and a constant play refitted in situ (--json: that "
+                   "result, files {file: {rmse_deg: {row: deg}, b_samples, ...}})")
     add_json_arg(p, "in_situ {file: {row: rmse_deg}}, in_situ_max {file: {row: max_abs_deg}}, in_situ_rows "
                  "[row] (linear, const_play, paper, onset_lsq, gpi, bouc_wen, ours: see evaluate-insitu), "
                  "across {file: {model: rmse_deg}} (linear, const_play, ours, paper), b_samples {file: n}")
@@ -27,6 +32,13 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
+    if a.online:
+        from ..online import evaluate_real_online, format_online
+
+        res = evaluate_real_online(a.folder, progress=lambda it, **kw: progress(it, **kw))
+        print(format_online(res))
+        dump_json(a.json, res)
+        return 0
     if a.reimage:
         res = evaluate_real_reimaged(a.folder, a.reimage, progress=lambda it, **kw: progress(it, **kw))
     else:

@@ -60,10 +60,12 @@ def test_virtual_refusals(vlink):
     with pytest.raises(DeviceError) as e:
         vlink.upload_table(demo_table(generation=1))  # not newer than generation 1
     assert e.value.code == 8
-    vlink.set_mode("compensation")
+    vlink.set_mode("excitation")
     with pytest.raises(DeviceError) as e:
-        vlink.upload_table(demo_table(generation=5))  # commit only while idle
+        vlink.upload_table(demo_table(generation=5))  # no commit during an excitation
     assert e.value.code == 6
+    vlink.set_mode("idle")
+    vlink.set_mode("compensation")  # (a commit here is taken: tests/python/link/test_hot_swap.py)
     # A replayed request (the seq of the last accepted one, SET_MODE) changes nothing.
     last = vlink.info()["last_seq"]
     with pytest.raises(DeviceError) as e:
