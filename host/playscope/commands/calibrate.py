@@ -72,8 +72,8 @@ def _model_text(cal) -> str:
     tr, ch = cal.transition, cal.model_choice
     txt = "play" if tr.is_play else (f"play ({tr.b_scale:g} B) + PI, {tr.n} operators (r <= {tr.r[-1]:.3g})")
     if ch:
-        pick = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"]) ==
-                    (ch["b_scale"], ch["n_tried"], ch["r_span"]))
+        pick = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl")) ==
+                    (ch["b_scale"], ch["n_tried"], ch["r_span"], ch.get("n_ctrl")))
         play = next((c for c in ch["candidates"] if c["n"] == 1), None)
         txt += f", CV RMSE {pick['cv_rmse_deg']:.3g} deg"
         if play and pick is not play:

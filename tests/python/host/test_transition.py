@@ -39,8 +39,22 @@ def ref_session(r, w, noise_deg=0.02, seed=0):
     return data, q, c, f
 
 
-def span_rule(data, factor):
-    return factor * float(np.ptp(data.z_enc()))
+def span_rule(data):
+    """The candidate grid's span, recomputed here: half the largest excursion of z between
+    reversals (scalar loop over the turning points of the play centre, 1 % hysteresis)."""
+    z = data.z_enc()
+    h = 0.01 * float(np.ptp(z))
+    turns, ext, d = [z[0]], z[0], 0
+    for v in z:
+        if d >= 0 and v > ext or d <= 0 and v < ext:
+            ext = v
+            if d == 0 and abs(v - z[0]) > h:
+                d = 1 if v > z[0] else -1
+        elif abs(v - ext) > h:
+            turns.append(ext)
+            d, ext = -d if d else (1 if v > ext else -1), v
+    turns.append(z[-1])
+    return 0.5 * float(np.max(np.abs(np.diff(turns))))
 
 
 def test_operators_match_the_reference_loop():
@@ -63,13 +77,14 @@ def test_inverse_undoes_the_direct_operator():
 
 def test_fit_recovers_planted_weights_and_thresholds():
     data, *_ = ref_session(np.zeros(1), np.ones(1))
-    r = T.thresholds(4, span_rule(data, 0.25))
-    w = np.array([0.4, 0.3, 0.0, 0.3])
+    r = np.arange(16) * span_rule(data) / 16
+    w = np.zeros(16)
+    w[[0, 3, 9]] = 0.4, 0.3, 0.3
     data, *_ = ref_session(r, w)
     tr, f, sign, ch = T.choose_model(data, "auto")
-    assert ch["model"] == "pi" and ch["b_scale"] == 1.0 and ch["n_tried"] == 4
-    assert ch["r_span"] == pytest.approx(span_rule(data, 0.25))
-    full = np.zeros(4)
+    assert ch["model"] == "pi" and ch["b_scale"] == 1.0 and ch["n_tried"] == 16
+    assert ch["r_span"] == pytest.approx(span_rule(data), rel=1e-9)
+    full = np.zeros(16)
     full[np.searchsorted(r, tr.r)] = tr.w
     # Measured |w - w_planted| <= 0.006 with 0.02 deg noise; 0.03 leaves room.
     assert np.max(np.abs(full - w)) < 0.03, full
@@ -80,7 +95,7 @@ def test_fit_recovers_planted_weights_and_thresholds():
 def test_cv_picks_play_on_play_data_and_pi_on_transition_data(kind):
     data, *_ = ref_session(np.zeros(1), np.ones(1))
     if kind == "pi":
-        r = T.thresholds(16, span_rule(data, 0.125))
+        r = np.arange(16) * span_rule(data) / 16
         w = np.r_[0.4, np.full(15, 0.6 / 15)]
         data, *_ = ref_session(r, w, seed=1)
     else:
@@ -96,8 +111,9 @@ def test_cv_picks_play_on_play_data_and_pi_on_transition_data(kind):
 
 def test_model_play_and_pi_restrict_the_candidates():
     data, *_ = ref_session(np.zeros(1), np.ones(1))
-    assert T.candidates(data, "play") == [(1.0, 1, 0.0)]
-    assert 1 not in [n for _, n, _ in T.candidates(data, "pi")]
+    assert T.candidates(data, "play") == [(1.0, 1, 0.0, 14)]
+    pi = T.candidates(data, "pi")
+    assert {(kb, n, nc) for kb, n, _, nc in pi} == {(kb, T.N_OPS, nc) for kb in T.B_SCALES for nc in T.F_CTRL}
     with pytest.raises(ValueError):
         T.choose_model(data, "bogus")
 
