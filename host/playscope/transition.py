@@ -244,21 +244,42 @@ class FitData:
             self._cache[key] = model.play_operator(self.q_enc, lambda x: b_scale * B(x))
         return self._cache[key]
 
+    def _reduced(self) -> tuple[np.ndarray, np.ndarray]:
+        """The encoder path reduced to what rate-independent operators depend on: q at its
+        turning points (turning_points) and at the frames' acquisition times, in time order
+        (frames after an encoder sample of the same time). Returns (order of the reduced
+        samples, q there); the frames are the last F entries before ordering."""
+        if "red" not in self._cache:
+            k = turning_points(self.q_enc)
+            t = np.r_[self.t_enc[k], self.t_frame]
+            x = np.r_[self.q_enc[k], np.interp(self.t_frame, self.t_enc, self.q_enc)]
+            order = np.argsort(t, kind="stable")
+            self._cache["red"] = (order, x[order])
+        return self._cache["red"]
+
+    def z_reduced(self, b_scale: float = 1.0) -> np.ndarray:
+        """Play centre (eq. 3) of width b_scale x B(q) on the reduced path (_reduced), from the
+        record's start: the same values as z_enc at q's turning points (the play is
+        rate-independent and monotone between them), and the play of q at the frame times."""
+        key = ("zr", round(b_scale, 12))
+        if key not in self._cache:
+            B = self.B
+            _, x = self._reduced()
+            self._cache[key] = model.play_operator(x, lambda v: b_scale * B(v), float(self.q_enc[0]))
+        return self._cache[key]
+
     def ops_at_frames(self, r: np.ndarray, b_scale: float = 1.0) -> np.ndarray:
         """P (F, n): the operators run over the whole record from its start (the state a
-        running board holds), read at the frames' acquisition times. Run on the turning
-        points of z and the frames only (exact: see turning_points)."""
+        running board holds), read at the frames' acquisition times. Run on the reduced path
+        (exact at q's turning points: see turning_points)."""
         key = ("P", round(b_scale, 12), tuple(np.round(r, 12)))
         if key not in self._cache:
-            z = self.z_enc(b_scale)
-            k = turning_points(z)
-            t = np.r_[self.t_enc[k], self.t_frame]
-            x = np.r_[z[k], np.interp(self.t_frame, self.t_enc, z)]
-            order = np.argsort(t, kind="stable")
-            P = play_ops(x[order], r, z[0])
-            out = np.empty((x.size, r.size))
+            order, _ = self._reduced()
+            z = self.z_reduced(b_scale)
+            P = play_ops(z, r, z[0])
+            out = np.empty((z.size, r.size))
             out[order] = P
-            self._cache[key] = out[k.size:]
+            self._cache[key] = out[z.size - self.t_frame.size:]
         return self._cache[key]
 
 
@@ -332,7 +353,8 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
         vp = _SplineProjection(P, c, n_ctrl, smooth)
         x0 = np.full(n - 1, 1.0 / (n - 1)) if v0 is None else np.clip(v0, 0.0, V_MAX)
         # ftol 1e-6: the CV compares RMSEs to about 1 %, far coarser than the default 1e-8.
-        v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, V_MAX), ftol=1e-6, max_nfev=60).x
+        v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, V_MAX), ftol=1e-6, max_nfev=60,
+                              tr_solver="lsmr").x
     fit_weights.last_v = v[1:].copy()
     w = v / v.sum()
     y = P @ w
@@ -387,7 +409,7 @@ def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14) -> lis
     out = [(1.0, 1, 0.0, int(n_ctrl))] if model_kind in ("auto", "play") else []
     if model_kind in ("auto", "pi"):
         for kb in B_SCALES:
-            span = SPAN_EXCURSION * largest_excursion(data.z_enc(kb))
+            span = SPAN_EXCURSION * largest_excursion(data.z_reduced(kb))
             if span > 0:
                 out += [(kb, N_OPS, span, nc) for nc in F_CTRL]
     return out
