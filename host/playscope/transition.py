@@ -19,24 +19,22 @@ spline coefficients and solved exactly inside; the weights are found by the boun
 scipy.optimize.least_squares on the projected residual (w >= 0, w_0 > 0, sum 1); the final f
 is the monotone robust spline of c on y (estimate.robust_spline, N = 14 as for f_remain).
 
-Settings, all from the calibration data (choose_model):
-  b_scale     the play width of the model, one of {1, 3/4, 1/2} x the onset-measured B: an
-              onset detector fires once the tip has moved by its threshold, so when the
+Settings, all from the calibration data by rules fixed a priori (choose_model, docs/method.md):
+  b_scale     the play width of the model, one of B_SCALES = {1, 1/2} x the onset-measured B:
+              an onset detector fires once the tip has moved by its threshold, so when the
               transition starts with a slow creep the measured B already includes part of it;
               the operators can only widen the play, so a narrower anchor lets them model the
               creep (1 for the paper's play);
-  thresholds  r_i = i * r_span / n, i = 0..n-1 (uniform, nested for n = 4, 16);
-  r_span      one of {1/2, 1} x the median onset width B, or {1/8, 1/4, 1/2} x the range of z
-              seen in the calibration record: an operator of threshold r takes up after 2r of
-              travel, so the spans tied to B model the transition after a reversal and the wide
-              ones also the memory of the record's start (the virgin loading curve), which a
-              running board carries in its state;
-  n           one of {1 (the paper's play), 4, 16};
-  choice      k-fold cross-validation on the calibration frames, the strokes between reversals
-              dealt round-robin to KFOLD folds (each fold scored with its state run from the
-              record's start, the fit made on the other folds), then the one-standard-error rule: the fewest
-              operators (then the narrowest span) whose CV RMSE is within one standard error
-              of the best. No regularisation besides the count: n is the complexity control.
+  thresholds  N_OPS = 16 operators, r_i = i r_span / 16, r_span = E/2, E the largest excursion
+              of the play centre z between reversals in the calibration record (the generalized
+              PI peer's rule): an operator of threshold r only closes a loop on a stroke longer
+              than 2 r, and the wide ones carry the virgin loading curve of the record's start,
+              which a running board holds in its state; the non-negative weights prune the count;
+  f_ctrl      f's control points, one of F_CTRL = {4 (a single cubic), 14 (f_remain's)};
+  choice      cross-validation on a rolling origin (rolling_origins: fit on the calibration
+              frames before each of KFOLD origins, score the next block, the operators run from
+              the record's start), then the one-standard-error rule: the fewest operators, then
+              b_scale closest to 1, then the stiffest f, within one standard error of the best.
 Units: q, z, y, r in actuator units (mm or deg of command), c in deg, t in s.
 """
 
