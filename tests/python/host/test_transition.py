@@ -172,3 +172,27 @@ def test_fixed_point_matches_the_float_chain():
     # compensator 1.8e-4 mm. Bounds about 3x.
     assert err["direct_c_deg_max"] < 6e-3, err
     assert err["comp_q_max"] < 6e-4, err
+
+
+def test_reduced_path_gives_the_full_rate_operators_at_the_frames():
+    data, q, _, _ = ref_session(np.zeros(1), np.ones(1))
+    r = np.array([0.0, 0.05, 0.3, 0.9])
+    z = ref_play(q, B_MM / 2, q[0])  # independent loop at the encoder rate
+    ref = np.column_stack([ref_play(z, ri, z[0]) for ri in r])
+    k = np.searchsorted(data.t_enc, data.t_frame)  # the frames are encoder samples here
+    # Exact in exact arithmetic (rate independence); measured 0 (float64 identical).
+    assert np.max(np.abs(data.ops_at_frames(r) - ref[k])) < 1e-12
+
+
+def test_rolling_origins_fit_on_the_past_and_judge_the_next_block():
+    data, *_ = ref_session(np.zeros(1), np.ones(1))
+    splits = T.rolling_origins(data, 4)
+    F = data.t_frame.size
+    seen = np.zeros(F, bool)
+    for j, (tr_m, te_m) in enumerate(splits):
+        assert not np.any(tr_m & te_m) and te_m.sum() >= F // 8 - 1
+        assert data.t_frame[tr_m].max() < data.t_frame[te_m].min()  # the past only
+        assert tr_m.sum() == pytest.approx(F * (0.5 + j / 8), abs=1)
+        seen |= te_m
+    # The judged blocks tile the second half; the first half (the record's start) is never judged.
+    assert np.array_equal(seen, data.t_frame >= np.sort(data.t_frame)[int(round(F * 0.5))])
