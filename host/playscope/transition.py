@@ -19,24 +19,22 @@ spline coefficients and solved exactly inside; the weights are found by the boun
 scipy.optimize.least_squares on the projected residual (w >= 0, w_0 > 0, sum 1); the final f
 is the monotone robust spline of c on y (estimate.robust_spline, N = 14 as for f_remain).
 
-Settings, all from the calibration data (choose_model):
-  b_scale     the play width of the model, one of {1, 3/4, 1/2} x the onset-measured B: an
-              onset detector fires once the tip has moved by its threshold, so when the
+Settings, all from the calibration data by rules fixed a priori (choose_model, docs/method.md):
+  b_scale     the play width of the model, one of B_SCALES = {1, 1/2} x the onset-measured B:
+              an onset detector fires once the tip has moved by its threshold, so when the
               transition starts with a slow creep the measured B already includes part of it;
               the operators can only widen the play, so a narrower anchor lets them model the
               creep (1 for the paper's play);
-  thresholds  r_i = i * r_span / n, i = 0..n-1 (uniform, nested for n = 4, 16);
-  r_span      one of {1/2, 1} x the median onset width B, or {1/8, 1/4, 1/2} x the range of z
-              seen in the calibration record: an operator of threshold r takes up after 2r of
-              travel, so the spans tied to B model the transition after a reversal and the wide
-              ones also the memory of the record's start (the virgin loading curve), which a
-              running board carries in its state;
-  n           one of {1 (the paper's play), 4, 16};
-  choice      k-fold cross-validation on the calibration frames, the strokes between reversals
-              dealt round-robin to KFOLD folds (each fold scored with its state run from the
-              record's start, the fit made on the other folds), then the one-standard-error rule: the fewest
-              operators (then the narrowest span) whose CV RMSE is within one standard error
-              of the best. No regularisation besides the count: n is the complexity control.
+  thresholds  N_OPS = 16 operators, r_i = i r_span / 16, r_span = E/2, E the largest excursion
+              of the play centre z between reversals in the calibration record (the generalized
+              PI peer's rule): an operator of threshold r only closes a loop on a stroke longer
+              than 2 r, and the wide ones carry the virgin loading curve of the record's start,
+              which a running board holds in its state; the non-negative weights prune the count;
+  f_ctrl      f's control points, one of F_CTRL = {4 (a single cubic), 14 (f_remain's)};
+  choice      cross-validation on a rolling origin (rolling_origins: fit on the calibration
+              frames before each of KFOLD origins, score the next block, the operators run from
+              the record's start), then the one-standard-error rule: the fewest operators, then
+              b_scale closest to 1, then the stiffest f, within one standard error of the best.
 Units: q, z, y, r in actuator units (mm or deg of command), c in deg, t in s.
 """
 
@@ -51,11 +49,11 @@ from scipy.linalg import cho_factor, cho_solve
 from . import estimate as E
 from . import model
 
-N_CHOICES = (1, 4, 16)                 # operator counts tried by choose_model (PST_MAX_OPS = 16)
-B_SCALES = (1.0, 0.75, 0.5)            # play width candidates, x onset-measured B
-SPAN_B = (0.5, 1.0)                    # r_span candidates, x median onset width B
-SPAN_FACTORS = (0.125, 0.25, 0.5)      # r_span candidates, x range of z over the calibration
-KFOLD = 5                              # CV folds (strokes dealt round-robin)
+N_OPS = 16                             # operators of the PI candidates (PST_MAX_OPS = 16)
+B_SCALES = (1.0, 0.5)                  # play width candidates, x onset-measured B
+SPAN_EXCURSION = 0.5                   # r_span = 1/2 x the largest excursion of z between reversals
+F_CTRL = (4, 14)                       # f's control points: 4 = one cubic, 14 = f_remain's spline
+KFOLD = 4                              # CV origins (rolling_origins)
 V_MAX = 1e3                            # v_i <= 1000 v_0: w_0 >= 1/(1 + 1000 (n-1)) > 0 (inverse needs 1/w_0)
 
 
@@ -244,21 +242,42 @@ class FitData:
             self._cache[key] = model.play_operator(self.q_enc, lambda x: b_scale * B(x))
         return self._cache[key]
 
+    def _reduced(self) -> tuple[np.ndarray, np.ndarray]:
+        """The encoder path reduced to what rate-independent operators depend on: q at its
+        turning points (turning_points) and at the frames' acquisition times, in time order
+        (frames after an encoder sample of the same time). Returns (order of the reduced
+        samples, q there); the frames are the last F entries before ordering."""
+        if "red" not in self._cache:
+            k = turning_points(self.q_enc)
+            t = np.r_[self.t_enc[k], self.t_frame]
+            x = np.r_[self.q_enc[k], np.interp(self.t_frame, self.t_enc, self.q_enc)]
+            order = np.argsort(t, kind="stable")
+            self._cache["red"] = (order, x[order])
+        return self._cache["red"]
+
+    def z_reduced(self, b_scale: float = 1.0) -> np.ndarray:
+        """Play centre (eq. 3) of width b_scale x B(q) on the reduced path (_reduced), from the
+        record's start: the same values as z_enc at q's turning points (the play is
+        rate-independent and monotone between them), and the play of q at the frame times."""
+        key = ("zr", round(b_scale, 12))
+        if key not in self._cache:
+            B = self.B
+            _, x = self._reduced()
+            self._cache[key] = model.play_operator(x, lambda v: b_scale * B(v), float(self.q_enc[0]))
+        return self._cache[key]
+
     def ops_at_frames(self, r: np.ndarray, b_scale: float = 1.0) -> np.ndarray:
         """P (F, n): the operators run over the whole record from its start (the state a
-        running board holds), read at the frames' acquisition times. Run on the turning
-        points of z and the frames only (exact: see turning_points)."""
+        running board holds), read at the frames' acquisition times. Run on the reduced path
+        (exact at q's turning points: see turning_points)."""
         key = ("P", round(b_scale, 12), tuple(np.round(r, 12)))
         if key not in self._cache:
-            z = self.z_enc(b_scale)
-            k = turning_points(z)
-            t = np.r_[self.t_enc[k], self.t_frame]
-            x = np.r_[z[k], np.interp(self.t_frame, self.t_enc, z)]
-            order = np.argsort(t, kind="stable")
-            P = play_ops(x[order], r, z[0])
-            out = np.empty((x.size, r.size))
+            order, _ = self._reduced()
+            z = self.z_reduced(b_scale)
+            P = play_ops(z, r, z[0])
+            out = np.empty((z.size, r.size))
             out[order] = P
-            self._cache[key] = out[k.size:]
+            self._cache[key] = out[z.size - self.t_frame.size:]
         return self._cache[key]
 
 
@@ -310,7 +329,8 @@ class _SplineProjection:
         return G - A @ cho_solve(cho, A.T @ G)
 
 
-def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3, robust_f: bool = True):
+def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3, robust_f: bool = True,
+                v0: np.ndarray | None = None):
     """Weights w and f for c ~ f(P w) (PI_MODEL steps 2-3), by variable projection.
 
     P: (F, n) operator outputs at the frames, c: (F,) deg. For given weights f is linear in
@@ -320,16 +340,20 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
     normalised, w = v / sum v (f absorbs the scale; w_0 = 1/sum v > 0 by construction).
     The final f is the monotone robust spline of c on y = P w (estimate.robust_spline, as
     f_remain), or with robust_f=False (the cross-validation's folds, for speed) the inner
-    P-spline itself. Returns (w (n,), f SplineFn, sign of f', rms deg on these frames)."""
+    P-spline itself. v0: (n-1,) starting point of v_1.. (a warm start: the previous fold's
+    solution in the cross-validation), default uniform. Returns (w (n,), f SplineFn, sign of
+    f', rms deg on these frames); the solution v is kept as fit_weights.last_v."""
     from scipy.optimize import least_squares
 
     n = P.shape[1]
     v = np.ones(n)
     if n > 1:
         vp = _SplineProjection(P, c, n_ctrl, smooth)
-        x0 = np.full(n - 1, 1.0 / (n - 1))
+        x0 = np.full(n - 1, 1.0 / (n - 1)) if v0 is None else np.clip(v0, 0.0, V_MAX)
         # ftol 1e-6: the CV compares RMSEs to about 1 %, far coarser than the default 1e-8.
-        v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, V_MAX), ftol=1e-6, max_nfev=60).x
+        v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, V_MAX), ftol=1e-6, max_nfev=60,
+                              tr_solver="lsmr").x
+    fit_weights.last_v = v[1:].copy()
     w = v / v.sum()
     y = P @ w
     if robust_f:
@@ -345,66 +369,91 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
     return w, f, sign, float(np.sqrt(np.mean((f(y) - c) ** 2)))
 
 
-def stroke_folds(data: "FitData", k: int) -> np.ndarray:
-    """Fold index (F,) of each frame: the strokes of z (between reversals, hysteresis 1 % of
-    z's range) dealt round-robin to k folds, so every fold spans the record and the travel
-    (contiguous time blocks would leave f to extrapolate over strokes never fitted)."""
-    z = data.z_enc()
-    t_rev, _, _ = E.detect_reversals(data.t_enc, z, 0.01 * float(np.ptp(z)) + 1e-12)
-    stroke = np.searchsorted(t_rev, data.t_frame, side="right")
-    return stroke % k
+def rolling_origins(data: "FitData", k: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Evaluation on a rolling forecasting origin (Hyndman & Athanasopoulos, "Forecasting:
+    Principles and Practice", 3rd ed., sec. 5.10): k (train, test) frame masks, origin j at
+    the fraction 1/2 + j/(2k) of the calibration frames (in time order), train = every frame
+    before it, test = the next 1/(2k) of the frames. Each test block is scored with the
+    operators run from the record's start, exactly as the in-situ evaluation and a running
+    board use the model: fitted on what came before, predicting what comes after (the
+    virgin loading curve of the record's start is always in the training part, never judged)."""
+    F = data.t_frame.size
+    order = np.argsort(data.t_frame, kind="stable")
+    out = []
+    for j in range(k):
+        a = int(round(F * (0.5 + j / (2 * k))))
+        b = int(round(F * (0.5 + (j + 1) / (2 * k))))
+        tr_m, te_m = np.zeros(F, bool), np.zeros(F, bool)
+        tr_m[order[:a]], te_m[order[a:b]] = True, True
+        out.append((tr_m, te_m))
+    return out
 
 
-def candidates(data: FitData, model_kind: str = "auto") -> list[tuple[float, int, float]]:
-    """(b_scale, n, r_span) triples tried: (1, 1, 0) for the paper's play; for the PI,
-    B_SCALES x N_CHOICES x spans (module docstring)."""
-    out = [(1.0, 1, 0.0)] if model_kind in ("auto", "play") else []
+def largest_excursion(x: np.ndarray, hysteresis_frac: float = 0.01) -> float:
+    """Largest travel of x between consecutive reversals (hysteresis hysteresis_frac of the
+    span; the first and last samples count as turning points). x: (N,). Returns its unit."""
+    x = np.asarray(x, float)
+    span = float(np.ptp(x))
+    _, x1, _ = E.detect_reversals(np.arange(x.size, dtype=float), x, hysteresis_frac * span + 1e-12)
+    turns = np.r_[x[0], x1, x[-1]]
+    return float(np.max(np.abs(np.diff(turns)))) if turns.size > 1 else span
+
+
+def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14) -> list[tuple[float, int, float, int]]:
+    """(b_scale, n, r_span, f_ctrl) tuples tried, fixed a priori (module docstring): (1, 1, 0,
+    n_ctrl) for the paper's play; for the PI, b_scale in B_SCALES x f_ctrl in F_CTRL, each with
+    N_OPS operators spread uniformly over r_span = SPAN_EXCURSION x the largest excursion of
+    the play centre z between reversals in the calibration record."""
+    out = [(1.0, 1, 0.0, int(n_ctrl))] if model_kind in ("auto", "play") else []
     if model_kind in ("auto", "pi"):
-        rng = float(np.ptp(data.z_enc()))
-        spans = sorted({s * data.b_med for s in SPAN_B} | {s * rng for s in SPAN_FACTORS})
-        spans = [s for s in spans if 0 < s < rng]
-        out += [(k, n, s) for k in B_SCALES for n in N_CHOICES if n > 1 for s in spans]
+        for kb in B_SCALES:
+            span = SPAN_EXCURSION * largest_excursion(data.z_reduced(kb))
+            if span > 0:
+                out += [(kb, N_OPS, span, nc) for nc in F_CTRL]
     return out
 
 
 def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD,
                  progress=lambda it, **kw: it) -> tuple[Transition, "E.SplineFn", int, dict]:
-    """Pick play vs PI, the play width, n and r_span by cross-validation on the calibration
-    frames, then refit the choice on all of them (module docstring for the rule).
+    """Pick play vs PI, the play width and f's stiffness by cross-validation on the
+    calibration frames, then refit the choice on all of them (module docstring for the rule).
 
-    model_kind: "play" (the paper's pure play only), "pi" (operators only) or "auto" (both).
+    model_kind: "play" (the paper's pure play only), "pi" (operators only) or "auto" (both);
+    n_ctrl: f's control points for the pure play (f_remain's N).
     Returns (Transition, f, sign of f', choice dict: {"model", "n", "n_tried", "b_scale",
-    "r_span", "fit_rmse_deg", "rule", "folds", "b_median", "candidates": [{"b_scale", "n",
-    "r_span", "cv_rmse_deg", "cv_se_deg"}]}). Errors: ValueError for an unknown model_kind."""
+    "r_span", "n_ctrl", "fit_rmse_deg", "rule", "folds", "b_median", "candidates": [{"b_scale",
+    "n", "r_span", "n_ctrl", "cv_rmse_deg", "cv_se_deg"}]}). Errors: ValueError for an
+    unknown model_kind."""
     if model_kind not in ("auto", "play", "pi"):
         raise ValueError(f"model must be play, pi or auto, not {model_kind!r}")
-    blk = stroke_folds(data, k)
+    splits = rolling_origins(data, k)
     rows = []
-    for kb, n, span in progress(candidates(data, model_kind), desc="model choice"):
+    for kb, n, span, nc in progress(candidates(data, model_kind, n_ctrl), desc="model choice"):
         r = thresholds(n, span) if n > 1 else np.zeros(1)
         P = data.ops_at_frames(r, kb)
-        errs = []
-        for b in range(k):
-            tr_m, te_m = blk != b, blk == b
+        errs, v = [], None
+        for tr_m, te_m in splits:
             if te_m.sum() < 3 or tr_m.sum() < 10:
                 continue
-            w, f, _, _ = fit_weights(P[tr_m], data.c[tr_m], n_ctrl, robust_f=False)
+            w, f, _, _ = fit_weights(P[tr_m], data.c[tr_m], nc, robust_f=False, v0=v)
+            v = fit_weights.last_v  # warm start of the next fold: the folds share most frames
             errs.append(float(np.sqrt(np.mean((f(P[te_m] @ w) - data.c[te_m]) ** 2))))
         errs = np.array(errs)
-        rows.append({"b_scale": kb, "n": n, "r_span": float(span), "cv_rmse_deg": float(np.sqrt(np.mean(errs ** 2))),
+        rows.append({"b_scale": kb, "n": n, "r_span": float(span), "n_ctrl": int(nc),
+                     "cv_rmse_deg": float(np.sqrt(np.mean(errs ** 2))),
                      "cv_se_deg": float(np.std(errs, ddof=1) / np.sqrt(errs.size)) if errs.size > 1 else 0.0})
     best = min(rows, key=lambda d: d["cv_rmse_deg"])
     limit = best["cv_rmse_deg"] + best["cv_se_deg"]
     # Simplest within one standard error: fewest operators, then the onset width closest to
-    # as measured, then the narrowest span.
-    pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: (d["n"], -d["b_scale"], d["r_span"]))
-    kb, n, span = pick["b_scale"], pick["n"], pick["r_span"]
+    # as measured, then the stiffest f.
+    pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: (d["n"], -d["b_scale"], d["n_ctrl"]))
+    kb, n, span, nc = pick["b_scale"], pick["n"], pick["r_span"], pick["n_ctrl"]
     r = thresholds(n, span) if n > 1 else np.zeros(1)
-    w, f, sign, rms = fit_weights(data.ops_at_frames(r, kb), data.c, n_ctrl)
+    w, f, sign, rms = fit_weights(data.ops_at_frames(r, kb), data.c, nc)
     keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
     tr = Transition(r[keep], w[keep] / w[keep].sum(), kb)
     choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(n), "b_scale": kb,
-              "r_span": float(span), "fit_rmse_deg": rms,
-              "rule": "k-fold CV, strokes dealt round-robin to folds, one-standard-error rule",
+              "r_span": float(span), "n_ctrl": int(nc), "fit_rmse_deg": rms,
+              "rule": "CV on a rolling origin (fit before, score the next block), one-standard-error rule",
               "folds": int(k), "b_median": data.b_med, "candidates": rows}
     return tr, f, sign, choice

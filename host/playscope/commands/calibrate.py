@@ -26,8 +26,9 @@ def add_parser(sub) -> None:
                    help="f_remain estimator: lsq (default, play-consistent) or morph (paper, section IV)")
     p.add_argument("--model", choices=["play", "pi", "auto"], default="auto",
                    help="play: the paper's pure play; pi: play + Prandtl-Ishlinskii transition operators; "
-                   "auto (default): play or PI and the operator count by cross-validation on this session "
-                   "(docs/method.md, 'Transition'); the choice and its CV errors go into the JSON")
+                   "auto (default): play or PI, the play width and f's stiffness by rolling-origin "
+                   "cross-validation on this session (docs/method.md, 'Transition'); the choice and its CV "
+                   "errors go into the JSON")
     p.add_argument("--fps", type=T.FPS, help="frame rate for angle sessions (default: ~125 frames per stroke, 10-50 Hz)")
     p.add_argument("--t-delay", type=T.T_DELAY_S, help="configured image delay t_delay in s (default: session.json); "
                    "image sessions check it against the record's own delay")
@@ -72,8 +73,8 @@ def _model_text(cal) -> str:
     tr, ch = cal.transition, cal.model_choice
     txt = "play" if tr.is_play else (f"play ({tr.b_scale:g} B) + PI, {tr.n} operators (r <= {tr.r[-1]:.3g})")
     if ch:
-        pick = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"]) ==
-                    (ch["b_scale"], ch["n_tried"], ch["r_span"]))
+        pick = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl")) ==
+                    (ch["b_scale"], ch["n_tried"], ch["r_span"], ch.get("n_ctrl")))
         play = next((c for c in ch["candidates"] if c["n"] == 1), None)
         txt += f", CV RMSE {pick['cv_rmse_deg']:.3g} deg"
         if play and pick is not play:
