@@ -13,7 +13,11 @@ void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int
     cp->resid_q32 = 0;
     cp->resid_v_q32 = 0;
     cp->ramping = false;
-    cp->q_ref_q16 = lut_eval_inline(&cal->f_inv, c0_q16);
+    /* Empty the cells (cal may be another table, or new entries), then fill f^-1's at c0:
+     * the first step after a reset (a table commit, in the loop) then hits it. */
+    cp->f_inv_cell.width = 0;
+    cp->b_cell.width = 0;
+    cp->q_ref_q16 = lut_eval_fill(&cal->f_inv, &cp->f_inv_cell, c0_q16);
     pi_reset(&cp->pi, &cal->pi_inv, cp->q_ref_q16);
     if (cal->pi_inv.n != 0)
         cp->q_ref_q16 = cp->pi.y_q16;
@@ -80,12 +84,12 @@ int32_t comp_step(comp_t *cp, int32_t c_ref_q16)
      * play must be taken up. For a decreasing f, raising c means lowering q: the sign
      * flip (f_sign) is exactly the difference between eq. 5 and eq. 9. The sum fits
      * int32: calib_load checks the f grid widened by B_max / 2 does. */
-    int32_t q_c = lut_eval_inline(&cal->f_inv, c_ref_q16);
+    int32_t q_c = lut_eval_cell(&cal->f_inv, &cp->f_inv_cell, c_ref_q16);
     /* The transition's inverse: the centre that the direct model maps to y* = f^-1(c*).
      * |q_c| <= 2^30 (pi_build bounds it), so q_c + B/2 still fits int32. */
     if (cal->pi_inv.n != 0)
         q_c = pi_step_inline(&cp->pi, &cal->pi_inv, q_c);
-    int32_t off = (dir * cal->f_sign) * (lut_eval_inline(&cal->b, q_c) >> 1);
+    int32_t off = (dir * cal->f_sign) * (lut_eval_cell(&cal->b, &cp->b_cell, q_c) >> 1);
     int32_t q = q_c + off;
     bool reversed = dir != cp->dir;
     if (reversed || cp->ramping)

@@ -31,6 +31,8 @@ typedef struct {
     bool ramping;                /* resid or its rate non-zero: one flag for the per-tick test */
     int32_t q_ref_q16;           /* q*[k-1], for reading back */
     pi_state_t pi;               /* inverse transition operators (unused when cal->pi_inv.n = 0) */
+    lut_cell_t f_inv_cell;       /* cell of cal->f_inv around the last c*, and of cal->b around */
+    lut_cell_t b_cell;           /* the last q_c (lut_eval_cell): emptied by comp_reset */
 } comp_t;
 
 /* Convert limits to per-tick Q32.32: v_q16 in actuator units/s, a_q16 in units/s^2
@@ -41,7 +43,9 @@ typedef struct {
 comp_smoothing_t comp_smoothing_from_rates(int32_t v_q16, int32_t a_q16, uint32_t tick_hz);
 
 /* Start from reference c0_q16 with no direction known: the offset is 0 (play centred)
- * until c* first moves, the transition's operators at rest. lim may be NULL for no smoothing. */
+ * until c* first moves, the transition's operators at rest. lim may be NULL for no smoothing.
+ * Also after any change to the entries of cal (comp_step caches one cell of f^-1 and of B;
+ * psa_set_table re-arms the loop, which resets). */
 void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int32_t c0_q16);
 
 /* One step of eq. 4: q*[k] for reference c*[k] (deg, Q16).
