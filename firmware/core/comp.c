@@ -4,6 +4,10 @@
 
 void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int32_t c0_q16)
 {
+    /* Empty the cells (cal may be another table, or new entries); f^-1's is filled at c0
+     * below, so the first step after a reset (a table commit, in the loop) hits it. */
+    cp->f_inv_cell.width = 0;
+    cp->b_cell.width = 0;
     cp->cal = cal;
     static const comp_smoothing_t none = {0, 0, 0};
     cp->lim = (lim && lim->v_max_q32 > 0 && lim->a_max_q32 > 0) ? *lim : none;
@@ -13,10 +17,6 @@ void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int
     cp->resid_q32 = 0;
     cp->resid_v_q32 = 0;
     cp->ramping = false;
-    /* Empty the cells (cal may be another table, or new entries), then fill f^-1's at c0:
-     * the first step after a reset (a table commit, in the loop) then hits it. */
-    cp->f_inv_cell.width = 0;
-    cp->b_cell.width = 0;
     cp->q_ref_q16 = lut_eval_fill(&cal->f_inv, &cp->f_inv_cell, c0_q16);
     pi_reset(&cp->pi, &cal->pi_inv, cp->q_ref_q16);
     if (cal->pi_inv.n != 0)
