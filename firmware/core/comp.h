@@ -61,4 +61,46 @@ void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int
  * sum |w'_i| (the inverse's Lipschitz constant) + cal->pi_inv_err_q16. */
 int32_t comp_step(comp_t *cp, int32_t c_ref_q16);
 
+#ifndef PS_CDEF
+/* comp_step's reversal and ramp (the offset jump joins the residual, which is ramped
+ * within the limits): out of line, called by comp_step_inline only when c* reversed or a
+ * ramp is pending. q_q16 = q* before it, off_q16 = this tick's offset. Internal. */
+int32_t comp_smooth(comp_t *cp, int32_t q_q16, int32_t off_q16, bool reversed);
+
+/* comp_step() inlined, for the control loop (psa_tick): the same code, so the same bits,
+ * without the call and its register saves (bench/bench_firmware.sh). */
+__attribute__((always_inline)) static inline int32_t comp_step_inline(comp_t *cp, int32_t c_ref_q16)
+{
+    const calib_t *cal = cp->cal;
+    /* eq. 4: the branch follows the sign of the change of c*; held when c* is unchanged. */
+    int8_t dir = cp->dir;
+    if (c_ref_q16 != cp->c_prev_q16)
+        dir = c_ref_q16 > cp->c_prev_q16 ? 1 : -1;
+    cp->c_prev_q16 = c_ref_q16;
+
+    /* eqs. 5 / 9: centre from the inverse, half the width at the centre on the side the
+     * play must be taken up. For a decreasing f, raising c means lowering q: the sign
+     * flip (f_sign) is exactly the difference between eq. 5 and eq. 9. The sum fits
+     * int32: calib_load checks the f grid widened by B_max / 2 does. */
+    int32_t q_c = lut_eval_cell(&cal->f_inv, &cp->f_inv_cell, c_ref_q16);
+    /* The transition's inverse: the centre that the direct model maps to y* = f^-1(c*).
+     * |q_c| <= 2^30 (pi_build bounds it), so q_c + B/2 still fits int32. */
+    if (cal->pi_inv.n != 0)
+        q_c = pi_step_inline(&cp->pi, &cal->pi_inv, q_c);
+    int32_t off = (dir * cal->f_sign) * (lut_eval_cell(&cal->b, &cp->b_cell, q_c) >> 1);
+    int32_t q = q_c + off;
+    bool reversed = dir != cp->dir;
+    if (reversed || cp->ramping)
+        q = comp_smooth(cp, q, off, reversed);
+    cp->dir = dir;
+    cp->off_q16 = off;
+    if (q < cal->q_min_q16)
+        q = cal->q_min_q16;
+    if (q > cal->q_max_q16)
+        q = cal->q_max_q16;
+    cp->q_ref_q16 = q;
+    return q;
+}
+#endif
+
 #endif /* COMP_H */
