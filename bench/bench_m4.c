@@ -48,6 +48,7 @@ static uint32_t pair_cycles;     /* two back-to-back counter reads */
 
 typedef struct {
     uint32_t n, sum, max;        /* calls, total and largest single-call cycles (read pair included) */
+    uint32_t at_max;             /* which call (0-based) was the largest: names the worst tick */
 } stat_t;
 
 static inline uint32_t cyc(void)
@@ -63,10 +64,12 @@ static inline uint32_t since(uint32_t c0, uint32_t c1)
 
 static void stat_add(stat_t *s, uint32_t cycles)
 {
+    if (cycles > s->max) {
+        s->max = cycles;
+        s->at_max = s->n;
+    }
     s->n++;
     s->sum += cycles;
-    if (cycles > s->max)
-        s->max = cycles;
 }
 
 static const char *run_name = "";  /* the last report()ed run, to label its counts */
@@ -85,6 +88,8 @@ static void report(const char *name, const stat_t *s)
     console_put_u32(s->max);
     console_put_str(" pair=");
     console_put_u32(pair_cycles);
+    console_put_str(" at_max=");
+    console_put_u32(s->at_max);
     console_put_str("\r\n");
 }
 

@@ -30,7 +30,7 @@ typedef struct {
     int64_t resid_v_q32;         /* its rate, per tick */
     bool ramping;                /* resid or its rate non-zero: one flag for the per-tick test */
     int32_t q_ref_q16;           /* q*[k-1], for reading back */
-    pi_state_t pi;               /* inverse transition operators (unused when cal->pi_inv.n = 0) */
+    pi_state_t pi;               /* inverse transition operators (not reset, not read when cal->pi_inv.n = 0) */
     lut_cell_t f_inv_cell;       /* cell of cal->f_inv around the last c*, and of cal->b around */
     lut_cell_t b_cell;           /* the last q_c (lut_eval_cell): emptied by comp_reset */
 } comp_t;
