@@ -20,15 +20,17 @@ PS_STATIC_ASSERT((ENC_HIST_LEN & (ENC_HIST_LEN - 1)) == 0 && ENC_HIST_LEN >= 4,
  * sample in that interval: an exact bound, not an estimate (it saturates at 0xFFFF, which
  * then reads "at least one actuator unit"). With keep_us = 0 every push is kept. */
 typedef struct {
-    uint32_t t_us[ENC_HIST_LEN];
-    int32_t q_q16[ENC_HIST_LEN];
-    uint16_t spread_q16[ENC_HIST_LEN];
+    /* The per-push fields first, the rings last: the M4 reaches a field at most 4095 B past
+     * the loop's base address with one load (onset_t and psa_loop_t also put this last). */
     uint32_t head;               /* kept samples so far; slot of the next is head % ENC_HIST_LEN */
     uint32_t keep_us;            /* minimum spacing of kept samples */
     uint32_t next_keep_us;       /* newest kept time + keep_us: the next push at or after it is kept */
     uint32_t last_t_us;          /* newest push, kept or not: the live end of the history */
     int32_t last_q_q16;
     int32_t lo_q16, hi_q16;      /* q range over the pushes since the newest kept sample (incl.) */
+    uint32_t t_us[ENC_HIST_LEN];
+    int32_t q_q16[ENC_HIST_LEN];
+    uint16_t spread_q16[ENC_HIST_LEN];
 } enc_hist_t;
 
 typedef enum {
