@@ -38,7 +38,8 @@ row() { # name label target_avg target_worst [how]
   local ta="" tw=""
   [ -n "${3:-}" ] && ta="avg <= $3 ($(verdict "$a" "$3")), "
   [ -n "${4:-}" ] && tw="worst <= $4 ($(verdict "$w" "$4"))"
-  echo "| $2 | $a avg, $w worst (n = $(field "$1" n)) | $ta$tw | ${5:-$how} |"
+  # at_max: the 0-based call that was the worst, so a reader can tell a reversal from a start-up tick.
+  echo "| $2 | $a avg, $w worst (n = $(field "$1" n), worst at call $(field "$1" at_max)) | $ta$tw | ${5:-$how} |"
 }
 
 # --- Desktop, desktop-release core (CMAKE_BUILD_TYPE=Release flags). ---
