@@ -79,6 +79,7 @@ cat <<EOF2
 |---|---|---|---|
 $(row tick_comp_realistic "psa_tick, compensation, realistic: +-30 deg c* reversing every 0.25-0.5 s (random), smoothing on" 120 400)
 $(row tick_comp_stress "psa_tick, compensation, stress: c* reversing every 512 ticks" "" 400)
+$(row tick_comp_held "psa_tick, compensation, the realistic c* from a 1 kHz host (held 20 ticks; no target, for comparison)" "" "")
 $(row tick_exc_realistic "psa_tick, excitation on a ramp (3 mm/s, amplitude 1.3 mm, advance 0.35 mm: a reversal every 0.32/0.43 s), onsets detected" 120 400)
 $(row tick_exc_stress "psa_tick, excitation, stress: a reversal every 512/504 ticks (each supersedes the pending onset)" "" 400)
 $(row comp_step "of which comp_step (eq. 4 + smoothing), on the realistic c*" "" "")

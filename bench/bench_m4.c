@@ -142,8 +142,10 @@ static psa_config_t loop_config(void)
 }
 
 /* Compensation mode with table tab on a +-30 deg triangle with half-periods in
- * [half_min, half_max] ticks; ideal motor (q measured = last q*). Times psa_tick. */
-static void run_compensation(const char *name, const calib_t *tab, uint32_t half_min, uint32_t half_max)
+ * [half_min, half_max] ticks, sampled and held every `hold` ticks (1: a new c* every tick;
+ * 20: a 1 kHz host); ideal motor (q measured = last q*). Times psa_tick. */
+static void run_compensation(const char *name, const calib_t *tab, uint32_t half_min, uint32_t half_max,
+                             uint32_t hold)
 {
     psa_config_t c = loop_config();
     psa_init(&loop, &c);
@@ -153,6 +155,7 @@ static void run_compensation(const char *name, const calib_t *tab, uint32_t half
     }
     bench_tri_t ref;
     bench_tri_init(&ref, 30 * PS_Q16_ONE, half_min, half_max, 7u);
+    ref.hold = hold;
     stat_t s = {0};
     uint32_t t_us = 0, events = 0;
     int32_t q = 0;
@@ -307,15 +310,16 @@ int main(void)
     measure_pair();
     measure_calibration();
     stat_t obs = {0}, obs_stress = {0};
-    run_compensation("tick_comp_realistic", &cal[0], TICK_HZ / 4, TICK_HZ / 2);
+    run_compensation("tick_comp_realistic", &cal[0], TICK_HZ / 4, TICK_HZ / 2, 1);
+    run_compensation("tick_comp_held", &cal[0], TICK_HZ / 4, TICK_HZ / 2, TICK_HZ / 1000);
     run_parts("comp_step", "onset_tick", &cal[0]);
-    run_compensation("tick_comp_stress", &cal[0], 512, 512);
+    run_compensation("tick_comp_stress", &cal[0], 512, 512, 1);
     if (bench_pi_load(&cal_pi) != CALIB_OK) {
         console_put_str("BENCH setup failed (transition table)\r\n");
         return 1;
     }
-    run_compensation("tick_pi_realistic", &cal_pi, TICK_HZ / 4, TICK_HZ / 2);
-    run_compensation("tick_pi_stress", &cal_pi, 512, 512);
+    run_compensation("tick_pi_realistic", &cal_pi, TICK_HZ / 4, TICK_HZ / 2, 1);
+    run_compensation("tick_pi_stress", &cal_pi, 512, 512, 1);
     run_parts("comp_step_pi", NULL, &cal_pi);
     run_excitation("tick_exc_realistic", PS_Q16_ONE * 13 / 10, PS_Q16_ONE * 35 / 100, true, &obs);
     report("observe_px", &obs);

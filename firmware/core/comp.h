@@ -76,6 +76,13 @@ __attribute__((always_inline)) static inline int32_t comp_step_inline(comp_t *cp
     int8_t dir = cp->dir;
     if (c_ref_q16 != cp->c_prev_q16)
         dir = c_ref_q16 > cp->c_prev_q16 ? 1 : -1;
+    else if (dir != 0 && !cp->ramping)
+        /* c* held (a host slower than the tick) with no ramp pending: the last step had this
+         * c*, this dir, the same q_c (the transition is rate-independent: an unchanged input
+         * leaves it as it is) and no residual, so it returned exactly this q*; nothing in
+         * the state would change. dir = 0: no step since comp_reset, whose q_ref is not
+         * clamped to the travel, so that tick runs in full. */
+        return cp->q_ref_q16;
     cp->c_prev_q16 = c_ref_q16;
 
     /* eqs. 5 / 9: centre from the inverse, half the width at the centre on the side the
