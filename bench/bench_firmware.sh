@@ -85,6 +85,7 @@ $(row tick_exc_stress "psa_tick, excitation, stress: a reversal every 512/504 ti
 $(row comp_step "of which comp_step (eq. 4 + smoothing), on the realistic c*" "" "")
 $(row onset_tick "of which onset_tick (decimated history push, timeout check), same run" "" "")
 $(row observe_px "psa_observe_px (= onset_observe_px), 25 Hz frames of the excitation run, incl. the frame that completes an onset" "" "")
+$(row observe_deg "psa_observe_deg (= onset_observe_deg), the same excitation seen by a 25 Hz angle sensor (16 deg/mm, 19 of 25 onsets detected), incl. the readings that complete an onset" "" "")
 $(row table_commit "table commit: calib_table_crc + calib_load + psa_set_table (the demo table; flash write aside)" "" "")
 $(row tick_pi_realistic "psa_tick, compensation with the transition model (table v2, 16 operators, bench_pi_load), realistic c* as above" 250 600)
 $(row tick_pi_stress "psa_tick, compensation with the transition model (16 operators), stress: c* reversing every 512 ticks" 250 600)
