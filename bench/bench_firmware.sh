@@ -38,7 +38,8 @@ row() { # name label target_avg target_worst [how]
   local ta="" tw=""
   [ -n "${3:-}" ] && ta="avg <= $3 ($(verdict "$a" "$3")), "
   [ -n "${4:-}" ] && tw="worst <= $4 ($(verdict "$w" "$4"))"
-  echo "| $2 | $a avg, $w worst (n = $(field "$1" n)) | $ta$tw | ${5:-$how} |"
+  # at_max: the 0-based call that was the worst, so a reader can tell a reversal from a start-up tick.
+  echo "| $2 | $a avg, $w worst (n = $(field "$1" n), worst at call $(field "$1" at_max)) | $ta$tw | ${5:-$how} |"
 }
 
 # --- Desktop, desktop-release core (CMAKE_BUILD_TYPE=Release flags). ---
@@ -78,11 +79,13 @@ cat <<EOF2
 |---|---|---|---|
 $(row tick_comp_realistic "psa_tick, compensation, realistic: +-30 deg c* reversing every 0.25-0.5 s (random), smoothing on" 120 400)
 $(row tick_comp_stress "psa_tick, compensation, stress: c* reversing every 512 ticks" "" 400)
+$(row tick_comp_held "psa_tick, compensation, the realistic c* from a 1 kHz host (held 20 ticks; no target, for comparison)" "" "")
 $(row tick_exc_realistic "psa_tick, excitation on a ramp (3 mm/s, amplitude 1.3 mm, advance 0.35 mm: a reversal every 0.32/0.43 s), onsets detected" 120 400)
 $(row tick_exc_stress "psa_tick, excitation, stress: a reversal every 512/504 ticks (each supersedes the pending onset)" "" 400)
 $(row comp_step "of which comp_step (eq. 4 + smoothing), on the realistic c*" "" "")
 $(row onset_tick "of which onset_tick (decimated history push, timeout check), same run" "" "")
 $(row observe_px "psa_observe_px (= onset_observe_px), 25 Hz frames of the excitation run, incl. the frame that completes an onset" "" "")
+$(row observe_deg "psa_observe_deg (= onset_observe_deg), the same excitation seen by a 25 Hz angle sensor (16 deg/mm, 19 of 25 onsets detected), incl. the readings that complete an onset" "" "")
 $(row table_commit "table commit: calib_table_crc + calib_load + psa_set_table (the demo table; flash write aside)" "" "")
 $(row b_online_sample_demo "b_online_sample (on-line B, RLS step + grid rewrite), demo table's B (33 entries, 9 nodes): on the observation that completes an onset, not in psa_tick" "" "")
 $(row b_online_sample_241 "b_online_sample, costliest B grid (241 entries, 16 nodes: the most nodes a grid gets)" "" "")

@@ -22,6 +22,15 @@ from playscope.tables import demo_table
 from playscope.device.transport import QemuTransport, TransportError, find_qemu_image, virtual_transport
 
 
+def report(name, up, rb, rt):
+    """One line per transport: median and worst of every flash (upload_ms), read-back and
+    INFO round trip (p95 too), over all repeats, none dropped."""
+    print(f"{name:8s} flash 2108 B (begin+10 chunks+commit): median {statistics.median(up):7.1f} ms "
+          f"(worst {max(up):.1f} ms, n = {len(up)}), read-back {statistics.median(rb):6.1f} ms "
+          f"(worst {max(rb):.1f} ms), INFO round trip median {statistics.median(rt):7.0f} us "
+          f"(p95 {sorted(rt)[int(0.95 * len(rt))]:.0f} us, worst {max(rt):.0f} us, n = {len(rt)})")
+
+
 def measure(name, make, repeat):
     try:
         link = Link(make())
@@ -38,9 +47,7 @@ def measure(name, make, repeat):
             t = time.perf_counter()
             link.info()
             rt.append((time.perf_counter() - t) * 1e6)
-        print(f"{name:8s} flash 2108 B (begin+10 chunks+commit): median {statistics.median(up):7.1f} ms, "
-              f"read-back {statistics.median(rb):6.1f} ms, INFO round trip median "
-              f"{statistics.median(rt):7.0f} us (p95 {sorted(rt)[int(0.95 * len(rt))]:.0f} us)")
+        report(name, up, rb, rt)
     finally:
         link.close()
 
@@ -62,9 +69,7 @@ def measure_usb_emulated(repeat):
     up = [x * 1e3 for x in d["upload_s"]]
     rb = [x * 1e3 for x in d["readback_s"]]
     rt = [x * 1e6 for x in d["info_rt_s"]]
-    print(f"usb-emu  flash 2108 B (begin+10 chunks+commit): median {statistics.median(up):7.1f} ms, "
-          f"read-back {statistics.median(rb):6.1f} ms, INFO round trip median "
-          f"{statistics.median(rt):7.0f} us (p95 {sorted(rt)[int(0.95 * len(rt))]:.0f} us)")
+    report("usb-emu", up, rb, rt)
 
 
 def main():

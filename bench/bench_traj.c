@@ -25,10 +25,12 @@ void bench_tri_init(bench_tri_t *g, int32_t ampl_q16, uint32_t half_min, uint32_
     g->half_max = half_max;
     g->rng = seed ? seed : 1u;
     g->reversals = 0;
+    g->hold = 1;
+    g->hold_left = 0;
     new_leg(g);
 }
 
-int32_t bench_tri_next(bench_tri_t *g)
+static int32_t tri_advance(bench_tri_t *g)
 {
     if (--g->left == 0) {
         g->c_q16 = g->target_q16; /* land exactly on the turning point */
@@ -39,6 +41,19 @@ int32_t bench_tri_next(bench_tri_t *g)
     }
     g->c_q16 += g->step_q16;
     return g->c_q16;
+}
+
+/* The triangle advances every tick; a host slower than the tick (hold > 1) sends its value
+ * every `hold` ticks and the loop sees it held in between. */
+int32_t bench_tri_next(bench_tri_t *g)
+{
+    int32_t c = tri_advance(g);
+    if (g->hold_left == 0) {
+        g->out_q16 = c;
+        g->hold_left = g->hold;
+    }
+    g->hold_left--;
+    return g->out_q16;
 }
 
 void bench_plant_init(bench_plant_t *p, int32_t q0_q16, int32_t b_q16, int32_t gain_px_per_unit, int32_t noise_q16)

@@ -11,6 +11,9 @@ typedef struct {
     int32_t c_q16, target_q16, step_q16;
     uint32_t left, half_min, half_max, rng;
     uint32_t reversals;
+    uint32_t hold;               /* the output is sampled and held every `hold` ticks (init: 1, every tick) */
+    uint32_t hold_left;
+    int32_t out_q16;
 } bench_tri_t;
 
 void bench_tri_init(bench_tri_t *g, int32_t ampl_q16, uint32_t half_min, uint32_t half_max, uint32_t seed);

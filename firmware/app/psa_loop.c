@@ -87,7 +87,7 @@ int32_t psa_tick(psa_loop_t *l, uint32_t t_us, int32_t c_ref_q16, int32_t q_meas
     int32_t q_ref_q16 = l->q_ref_q16;
     if (l->mode == PSA_MODE_COMPENSATION && !l->comp_armed && c_ref_q16 != PSA_NO_REFERENCE) {
         /* The hot path, every tick while compensating: eq. 4 and nothing else. */
-        q_ref_q16 = comp_step(&l->comp, c_ref_q16);
+        q_ref_q16 = comp_step_inline(&l->comp, c_ref_q16);
         l->c_ref_q16 = c_ref_q16;
     } else if (l->mode >= PSA_MODE_COMPENSATION) {
         if (c_ref_q16 != PSA_NO_REFERENCE) {

@@ -4,6 +4,10 @@
 
 void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int32_t c0_q16)
 {
+    /* Empty the cells (cal may be another table, or new entries); f^-1's is filled at c0
+     * below, so the first step after a reset (a table commit, in the loop) hits it. */
+    cp->f_inv_cell.width = 0;
+    cp->b_cell.width = 0;
     cp->cal = cal;
     static const comp_smoothing_t none = {0, 0, 0};
     cp->lim = (lim && lim->v_max_q32 > 0 && lim->a_max_q32 > 0) ? *lim : none;
@@ -13,10 +17,13 @@ void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int
     cp->resid_q32 = 0;
     cp->resid_v_q32 = 0;
     cp->ramping = false;
-    cp->q_ref_q16 = lut_eval_inline(&cal->f_inv, c0_q16);
-    pi_reset(&cp->pi, &cal->pi_inv, cp->q_ref_q16);
-    if (cal->pi_inv.n != 0)
+    cp->q_ref_q16 = lut_eval_fill(&cal->f_inv, &cp->f_inv_cell, c0_q16);
+    /* Without operators comp_step never reads cp->pi: skip its reset (it clears all 16
+     * operator slots, ~70 instructions on the tick that arms the compensator). */
+    if (cal->pi_inv.n != 0) {
+        pi_reset(&cp->pi, &cal->pi_inv, cp->q_ref_q16);
         cp->q_ref_q16 = cp->pi.y_q16;
+    }
 }
 
 /* Bring the residual r to 0 with |v| <= v_max and |dv| <= a_max per tick: accelerate
@@ -53,7 +60,7 @@ static void ramp(comp_t *cp)
 
 /* Reversal step and its ramp: kept out of line so the common tick (no reversal, ramp
  * idle) stays 32-bit and saves no extra registers. Returns q* with the residual applied. */
-__attribute__((noinline)) static int32_t smooth(comp_t *cp, int32_t q_q16, int32_t off_q16, bool reversed)
+__attribute__((noinline)) int32_t comp_smooth(comp_t *cp, int32_t q_q16, int32_t off_q16, bool reversed)
 {
     if (cp->lim.v_max_q32 <= 0)
         return q_q16;
@@ -67,35 +74,8 @@ __attribute__((noinline)) static int32_t smooth(comp_t *cp, int32_t q_q16, int32
     return q > INT32_MAX ? INT32_MAX : (q < INT32_MIN ? INT32_MIN : (int32_t)q);
 }
 
+/* comp_step_inline (comp.h), called: the host (cffi) and the tests step through here. */
 int32_t comp_step(comp_t *cp, int32_t c_ref_q16)
 {
-    const calib_t *cal = cp->cal;
-    /* eq. 4: the branch follows the sign of the change of c*; held when c* is unchanged. */
-    int8_t dir = cp->dir;
-    if (c_ref_q16 != cp->c_prev_q16)
-        dir = c_ref_q16 > cp->c_prev_q16 ? 1 : -1;
-    cp->c_prev_q16 = c_ref_q16;
-
-    /* eqs. 5 / 9: centre from the inverse, half the width at the centre on the side the
-     * play must be taken up. For a decreasing f, raising c means lowering q: the sign
-     * flip (f_sign) is exactly the difference between eq. 5 and eq. 9. The sum fits
-     * int32: calib_load checks the f grid widened by B_max / 2 does. */
-    int32_t q_c = lut_eval_inline(&cal->f_inv, c_ref_q16);
-    /* The transition's inverse: the centre that the direct model maps to y* = f^-1(c*).
-     * |q_c| <= 2^30 (pi_build bounds it), so q_c + B/2 still fits int32. */
-    if (cal->pi_inv.n != 0)
-        q_c = pi_step_inline(&cp->pi, &cal->pi_inv, q_c);
-    int32_t off = (dir * cal->f_sign) * (lut_eval_inline(&cal->b, q_c) >> 1);
-    int32_t q = q_c + off;
-    bool reversed = dir != cp->dir;
-    if (reversed || cp->ramping)
-        q = smooth(cp, q, off, reversed);
-    cp->dir = dir;
-    cp->off_q16 = off;
-    if (q < cal->q_min_q16)
-        q = cal->q_min_q16;
-    if (q > cal->q_max_q16)
-        q = cal->q_max_q16;
-    cp->q_ref_q16 = q;
-    return q;
+    return comp_step_inline(cp, c_ref_q16);
 }

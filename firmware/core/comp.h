@@ -30,7 +30,9 @@ typedef struct {
     int64_t resid_v_q32;         /* its rate, per tick */
     bool ramping;                /* resid or its rate non-zero: one flag for the per-tick test */
     int32_t q_ref_q16;           /* q*[k-1], for reading back */
-    pi_state_t pi;               /* inverse transition operators (unused when cal->pi_inv.n = 0) */
+    pi_state_t pi;               /* inverse transition operators (not reset, not read when cal->pi_inv.n = 0) */
+    lut_cell_t f_inv_cell;       /* cell of cal->f_inv around the last c*, and of cal->b around */
+    lut_cell_t b_cell;           /* the last q_c (lut_eval_cell): emptied by comp_reset */
 } comp_t;
 
 /* Convert limits to per-tick Q32.32: v_q16 in actuator units/s, a_q16 in units/s^2
@@ -41,7 +43,9 @@ typedef struct {
 comp_smoothing_t comp_smoothing_from_rates(int32_t v_q16, int32_t a_q16, uint32_t tick_hz);
 
 /* Start from reference c0_q16 with no direction known: the offset is 0 (play centred)
- * until c* first moves, the transition's operators at rest. lim may be NULL for no smoothing. */
+ * until c* first moves, the transition's operators at rest. lim may be NULL for no smoothing.
+ * Also after any change to the entries of cal (comp_step caches one cell of f^-1 and of B;
+ * psa_set_table re-arms the loop, which resets). */
 void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int32_t c0_q16);
 
 /* One step of eq. 4: q*[k] for reference c*[k] (deg, Q16).
@@ -56,5 +60,54 @@ void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int
  * Error of q_c against the exact inverse on the same table: f^-1's error times
  * sum |w'_i| (the inverse's Lipschitz constant) + cal->pi_inv_err_q16. */
 int32_t comp_step(comp_t *cp, int32_t c_ref_q16);
+
+#ifndef PS_CDEF
+/* comp_step's reversal and ramp (the offset jump joins the residual, which is ramped
+ * within the limits): out of line, called by comp_step_inline only when c* reversed or a
+ * ramp is pending. q_q16 = q* before it, off_q16 = this tick's offset. Internal. */
+int32_t comp_smooth(comp_t *cp, int32_t q_q16, int32_t off_q16, bool reversed);
+
+/* comp_step() inlined, for the control loop (psa_tick): the same code, so the same bits,
+ * without the call and its register saves (bench/bench_firmware.sh). */
+__attribute__((always_inline)) static inline int32_t comp_step_inline(comp_t *cp, int32_t c_ref_q16)
+{
+    const calib_t *cal = cp->cal;
+    /* eq. 4: the branch follows the sign of the change of c*; held when c* is unchanged. */
+    int8_t dir = cp->dir;
+    if (c_ref_q16 != cp->c_prev_q16)
+        dir = c_ref_q16 > cp->c_prev_q16 ? 1 : -1;
+    else if (dir != 0 && !cp->ramping)
+        /* c* held (a host slower than the tick) with no ramp pending: the last step had this
+         * c*, this dir, the same q_c (the transition is rate-independent: an unchanged input
+         * leaves it as it is) and no residual, so it returned exactly this q*; nothing in
+         * the state would change. dir = 0: no step since comp_reset, whose q_ref is not
+         * clamped to the travel, so that tick runs in full. */
+        return cp->q_ref_q16;
+    cp->c_prev_q16 = c_ref_q16;
+
+    /* eqs. 5 / 9: centre from the inverse, half the width at the centre on the side the
+     * play must be taken up. For a decreasing f, raising c means lowering q: the sign
+     * flip (f_sign) is exactly the difference between eq. 5 and eq. 9. The sum fits
+     * int32: calib_load checks the f grid widened by B_max / 2 does. */
+    int32_t q_c = lut_eval_cell(&cal->f_inv, &cp->f_inv_cell, c_ref_q16);
+    /* The transition's inverse: the centre that the direct model maps to y* = f^-1(c*).
+     * |q_c| <= 2^30 (pi_build bounds it), so q_c + B/2 still fits int32. */
+    if (cal->pi_inv.n != 0)
+        q_c = pi_step_inline(&cp->pi, &cal->pi_inv, q_c);
+    int32_t off = (dir * cal->f_sign) * (lut_eval_cell(&cal->b, &cp->b_cell, q_c) >> 1);
+    int32_t q = q_c + off;
+    bool reversed = dir != cp->dir;
+    if (reversed || cp->ramping)
+        q = comp_smooth(cp, q, off, reversed);
+    cp->dir = dir;
+    cp->off_q16 = off;
+    if (q < cal->q_min_q16)
+        q = cal->q_min_q16;
+    if (q > cal->q_max_q16)
+        q = cal->q_max_q16;
+    cp->q_ref_q16 = q;
+    return q;
+}
+#endif
 
 #endif /* COMP_H */

@@ -5,9 +5,11 @@
 
 #define MASK (ENC_HIST_LEN - 1u)
 
+/* next_keep = last_t closes enc_hist_push_inline's fast path until the first sample is kept. */
 void enc_hist_reset(enc_hist_t *h)
 {
     h->head = 0;
+    h->next_keep_us = h->last_t_us;
 }
 
 void enc_hist_set_span(enc_hist_t *h, uint32_t span_us)
@@ -15,12 +17,35 @@ void enc_hist_set_span(enc_hist_t *h, uint32_t span_us)
     /* 32-bit divide (one UDIV on the M4); 64-bit sum so span_us near 2^32 cannot wrap. */
     uint64_t keep = ((uint64_t)span_us + (ENC_HIST_LEN - 2u)) / (ENC_HIST_LEN - 1u);
     h->keep_us = (uint32_t)keep;
-    h->head = 0;
+    enc_hist_reset(h);
 }
 
 void enc_hist_push(enc_hist_t *h, uint32_t t_us, int32_t q_q16)
 {
     enc_hist_push_inline(h, t_us, q_q16);
+}
+
+void enc_hist_push_slow(enc_hist_t *h, uint32_t t_us, int32_t q_q16)
+{
+    if ((int32_t)(t_us - h->last_t_us) < 0 && h->head != 0)
+        return; /* out of order: keep the history sorted */
+    h->last_t_us = t_us;
+    h->last_q_q16 = q_q16;
+    if (q_q16 < h->lo_q16)
+        h->lo_q16 = q_q16;
+    if (q_q16 > h->hi_q16)
+        h->hi_q16 = q_q16;
+    if ((int32_t)(t_us - h->next_keep_us) < 0 && h->head != 0)
+        return; /* between kept samples: only the range above changes */
+    /* Keep this push; the interval it closes gets its spread (none before the first). */
+    uint32_t spread = (uint32_t)h->hi_q16 - (uint32_t)h->lo_q16;
+    h->spread_q16[(h->head - 1u) & MASK] = (uint16_t)(spread > 0xFFFFu ? 0xFFFFu : spread);
+    uint32_t slot = h->head & MASK;
+    h->t_us[slot] = t_us;
+    h->q_q16[slot] = q_q16;
+    h->lo_q16 = h->hi_q16 = q_q16;
+    h->next_keep_us = t_us + h->keep_us;
+    h->head++;
 }
 
 /* Linear interpolation at t between (t0, q0) and (t1, q1), t0 <= t <= t1, rounded to

@@ -63,6 +63,38 @@ __attribute__((always_inline)) static inline int32_t lut_eval_inline(const lut_t
 }
 #endif
 
+/* One interpolation cell of a table, kept between calls by a per-tick caller whose abscissa
+ * moves slowly (the compensator: at 20 kHz c* and q_c stay in one cell for tens to thousands
+ * of ticks). A hit skips the range checks, the index and the two entry loads, and uses a
+ * 32-bit multiply: the cell is only filled when |dy| < 2^(31 - s), for which dy * frac + half
+ * fits int32, so the result is lut_eval()'s bit for bit (the same exact p, shifted). */
+typedef struct {
+    int32_t x_lo_q16;            /* abscissa of the cell's left entry */
+    uint32_t width;              /* the table's step when filled; 0: empty, nothing hits */
+    int32_t y0_q16;              /* left entry */
+    int32_t dy_q16;              /* right entry - left entry */
+} lut_cell_t;
+
+/* lut_eval(lut, x) through cell (zeroed = empty; empty it when lut changes): equal to
+ * lut_eval() for every x and every cell content this function left. On a miss the cell
+ * is refilled around x when x is inside the grid and the cell qualifies (see lut_cell_t).
+ * O(1), integer-only, no divide, per tick. */
+int32_t lut_eval_fill(const lut_t *lut, lut_cell_t *cell, int32_t x_q16);
+
+#ifndef PS_CDEF
+__attribute__((always_inline)) static inline int32_t lut_eval_cell(const lut_t *lut, lut_cell_t *cell,
+                                                                    int32_t x_q16)
+{
+    /* x_lo <= x < x_lo + width in one unsigned compare. The filled cell lies inside
+     * [x0, x_last], where lut_eval interpolates in that same cell (at x = x0, cell 0 gives
+     * y0 + (half >> s) = y0, as lut_eval's saturation does). */
+    uint32_t off = (uint32_t)x_q16 - (uint32_t)cell->x_lo_q16;
+    if (__builtin_expect(off < cell->width, 1))
+        return cell->y0_q16 + ((cell->dy_q16 * (int32_t)off + lut->half) >> lut->step_log2);
+    return lut_eval_fill(lut, cell, x_q16);
+}
+#endif
+
 /* Build the table of the inverse x = g^-1(y) of the piecewise-linear g given by src,
  * on a uniform y grid whose power-of-two step is the smallest that covers
  * [min g, max g] in at most cap entries; entries go to out_y_q16[0..cap-1].

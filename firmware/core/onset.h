@@ -76,7 +76,6 @@ typedef enum {
 
 typedef struct {
     onset_config_t cfg;
-    enc_hist_t hist;
     onset_state_t state;
     uint32_t t1_us;
     int32_t q1_q16;
@@ -95,6 +94,7 @@ typedef struct {
     int64_t noise_d2_q32;        /* mean |dQ|^2 over still frame pairs, Q32: plain mean of the
                                     first ONSET_NOISE_LEARN_PAIRS, then EWMA 1/16 */
     uint32_t noise_count;        /* still frame pairs seen (saturating) */
+    enc_hist_t hist;             /* last: its rings are 5 KiB (see enc_hist_t) */
 } onset_t;
 
 /* The encoder history span an onset can need: the frame that completes it (C) comes at

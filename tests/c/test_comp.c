@@ -120,6 +120,13 @@ static void test_eq4_cases(void **state)
     /* Saturation to the actuator travel [-3, 3]. */
     assert_int_equal(comp_step(&cp, Q16(-100)), Q16(-3));
     assert_int_equal(comp_step(&cp, Q16(100)), Q16(3));
+    assert_int_equal(comp_step(&cp, Q16(100)), Q16(3));                 /* held, saturated */
+    /* A first c* equal to the reset's and beyond the travel is clamped like any step
+     * (comp_reset's q_ref is the unclamped f^-1(c0) = 3.5), held or not. */
+    comp_reset(&cp, &cal, NULL, Q16(35));
+    assert_int_equal(cp.q_ref_q16, Q16(3.5));
+    assert_int_equal(comp_step(&cp, Q16(35)), Q16(3));
+    assert_int_equal(comp_step(&cp, Q16(35)), Q16(3));
 }
 
 /* Smoothing: the B step becomes a ramp within the velocity and acceleration limits and
@@ -298,7 +305,7 @@ static void test_transition_round_trip_decreasing(void **state) { (void)state; r
  * references (so the same on every platform), were recorded with commit 1920f0d (layout
  * v1, no transition). They must come out of a v1 table, a v2 table with n = 0 and a v2
  * table with one operator of weight 1 alike. */
-static uint64_t pure_play_hash(int f_sign, int smooth, uint16_t version, uint16_t n_ops)
+static uint64_t pure_play_hash(int f_sign, int smooth, uint16_t version, uint16_t n_ops, int hold)
 {
     int32_t bq[65], fq[65];
     for (int i = 0; i < 65; i++) {
@@ -324,7 +331,7 @@ static uint64_t pure_play_hash(int f_sign, int smooth, uint16_t version, uint16_
     playop_reset(&p, &cal, 1000);
     comp_reset(&cp, &cal, smooth ? &lim : NULL, 5000);
     uint32_t s = 12345u + (uint32_t)f_sign * 7u + (uint32_t)smooth;
-    int32_t q = 0, v = 300, c = 0, vc = 3000;
+    int32_t q = 0, v = 300, c = 0, vc = 3000, held = 0;
     uint64_t hs = 1469598103934665603ull;
     for (int k = 0; k < 40000; k++) {
         s = s * 1664525u + 1013904223u;
@@ -340,9 +347,18 @@ static uint64_t pure_play_hash(int f_sign, int smooth, uint16_t version, uint16_
         q += v;
         if (q > 280000) { q = 280000; v = -v; }
         if (q < -280000) { q = -280000; v = -v; }
+        /* hold: c* held for 1-40 ticks now and then (a host slower than the tick), during
+         * a smoothing ramp or after it, as a real reference is */
+        if (held > 0) {
+            held--;
+            goto step;
+        }
+        if (hold && u % 11 == 0)
+            held = 1 + (int32_t)(u % 40u);
         c += vc;
         if (c > 500000) { c = 500000; vc = -vc; }
         if (c < -1800000) { c = -1800000; vc = -vc; }
+    step:;
         int32_t a = playop_step(&p, q), b = comp_step(&cp, c);
         hs = (hs ^ (uint32_t)a) * 1099511628211ull;
         hs = (hs ^ (uint32_t)b) * 1099511628211ull;
@@ -358,9 +374,27 @@ static void test_pure_play_bit_for_bit_as_before_v2(void **state)
         {1, 0, 0x037375b74b395550ull}, {1, 1, 0x2816acaa906bb34cull},
     };
     for (size_t k = 0; k < sizeof golden / sizeof golden[0]; k++) {
-        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 1, 0) == golden[k].hash);
-        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 2, 0) == golden[k].hash);
-        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 2, 1) == golden[k].hash);
+        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 1, 0, 0) == golden[k].hash);
+        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 2, 0, 0) == golden[k].hash);
+        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 2, 1, 0) == golden[k].hash);
+    }
+}
+
+/* The same outputs with c* held for 1-40 ticks now and then, hashes printed by this
+ * function at commit 62df7a9 (before the compensator's cached cells and its held-reference
+ * shortcut): a held c* gives what the full step gave, ramp ticks, the pure play as a v1 or
+ * v2 table and one operator of weight 1 (the transition's code path) alike. */
+static void test_held_reference_bit_for_bit_as_before(void **state)
+{
+    (void)state;
+    static const struct { int f_sign, smooth; uint64_t hash; } golden[] = {
+        {-1, 0, 0xff3f63ede8cf8406ull}, {-1, 1, 0x94f0dea2a3260304ull},
+        {1, 0, 0xa38b9e5c5cf3e67eull}, {1, 1, 0xf4625ef65c6de215ull},
+    };
+    for (size_t k = 0; k < sizeof golden / sizeof golden[0]; k++) {
+        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 1, 0, 1) == golden[k].hash);
+        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 2, 0, 1) == golden[k].hash);
+        assert_true(pure_play_hash(golden[k].f_sign, golden[k].smooth, 2, 1, 1) == golden[k].hash);
     }
 }
 
@@ -379,6 +413,7 @@ int main(void)
         cmocka_unit_test(test_transition_round_trip_increasing),
         cmocka_unit_test(test_transition_round_trip_decreasing),
         cmocka_unit_test(test_pure_play_bit_for_bit_as_before_v2),
+        cmocka_unit_test(test_held_reference_bit_for_bit_as_before),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

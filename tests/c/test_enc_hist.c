@@ -80,6 +80,85 @@ static void test_out_of_order_push_dropped(void **state)
     assert_int_equal(q, 25);
 }
 
+/* The push as the rule of enc_hist.h states it, written plainly (drop out of order, keep
+ * at or after next_keep or when empty, else fold into the range), to check the fast path's
+ * one-compare test against: same kept samples, spreads and live end, push by push. */
+static void ref_push(enc_hist_t *r, uint32_t t_us, int32_t q)
+{
+    if (r->head != 0 && (int32_t)(t_us - r->last_t_us) < 0)
+        return;
+    r->last_t_us = t_us;
+    r->last_q_q16 = q;
+    r->lo_q16 = q < r->lo_q16 ? q : r->lo_q16;
+    r->hi_q16 = q > r->hi_q16 ? q : r->hi_q16;
+    if (r->head != 0 && (int32_t)(t_us - r->next_keep_us) < 0)
+        return;
+    if (r->head != 0) {
+        uint32_t sp = (uint32_t)r->hi_q16 - (uint32_t)r->lo_q16;
+        r->spread_q16[(r->head - 1u) % ENC_HIST_LEN] = (uint16_t)(sp > 0xFFFFu ? 0xFFFFu : sp);
+    }
+    r->t_us[r->head % ENC_HIST_LEN] = t_us;
+    r->q_q16[r->head % ENC_HIST_LEN] = q;
+    r->lo_q16 = r->hi_q16 = q;
+    r->next_keep_us = t_us + r->keep_us;
+    r->head++;
+}
+
+/* Compares the newest `depth` kept samples (all of them: ENC_HIST_LEN). */
+static void assert_same_history(const enc_hist_t *a, const enc_hist_t *b, uint32_t depth)
+{
+    assert_int_equal(a->head, b->head);
+    assert_int_equal(a->last_t_us, b->last_t_us);
+    assert_int_equal(a->last_q_q16, b->last_q_q16);
+    if (a->head == 0)
+        return;
+    assert_int_equal(a->lo_q16, b->lo_q16);
+    assert_int_equal(a->hi_q16, b->hi_q16);
+    assert_int_equal(a->next_keep_us, b->next_keep_us);
+    uint32_t n = a->head < depth ? a->head : depth;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t k = (a->head - 1u - i) % ENC_HIST_LEN;
+        assert_int_equal(a->t_us[k], b->t_us[k]);
+        assert_int_equal(a->q_q16[k], b->q_q16[k]);
+        if (i > 0) /* the newest sample's interval is still open */
+            assert_int_equal(a->spread_q16[k], b->spread_q16[k]);
+    }
+}
+
+/* enc_hist_push equals the plain rule on ticks with jitter, repeated and late times, time
+ * jumps, the clock wrapping past 2^32, resets mid-stream, and spacings 0 (keep all), 1 us
+ * and 2.23 ms (the default at 20 kHz). */
+static void test_push_equals_plain_rule(void **state)
+{
+    (void)state;
+    static enc_hist_t ref;
+    test_rng_t r;
+    test_rng_seed(&r, 5);
+    const uint32_t spans[] = {0u, 511u, 1140000u};
+    for (int si = 0; si < 3; si++) {
+        enc_hist_set_span(&h, spans[si]);
+        enc_hist_set_span(&ref, spans[si]);
+        uint32_t t = 0xFFFFFFFFu - 20000u * (uint32_t)si; /* wraps within the run */
+        int32_t q = 0;
+        for (int k = 0; k < 60000; k++) {
+            uint64_t u = test_rng_u64(&r);
+            switch (u % 64) {
+            case 0: t -= (uint32_t)(u >> 8) % 400u; break;          /* late sample */
+            case 1: t += (uint32_t)(u >> 8) % 100000u; break;       /* gap in the ticks */
+            case 2: break;                                          /* same time again */
+            case 3:
+                if (k % 7 == 0) { enc_hist_reset(&h); enc_hist_reset(&ref); }
+                break;
+            default: t += 50u - 2u + (uint32_t)(u >> 8) % 5u;       /* 20 kHz with jitter */
+            }
+            q += (int32_t)((u >> 20) % 2001u) - 1000;
+            enc_hist_push(&h, t, q);
+            ref_push(&ref, t, q);
+            assert_same_history(&h, &ref, k % 256 == 0 ? ENC_HIST_LEN : 2u);
+        }
+    }
+}
+
 /* Decimated history at 20 kHz: a sample kept every keep_us; lookups at every pushed time
  * of the last span are within the reported bound of the pushed value (the bound is exact,
  * so this must hold for all of them), and the span asked for is covered. The signal is a
@@ -152,6 +231,7 @@ int main(void)
         cmocka_unit_test(test_ring_wrap),
         cmocka_unit_test(test_clock_wrap),
         cmocka_unit_test(test_out_of_order_push_dropped),
+        cmocka_unit_test(test_push_equals_plain_rule),
         cmocka_unit_test(test_decimated_bound_exact_and_span_covered),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
