@@ -62,14 +62,14 @@ static calib_status_t check_envelope(const lut_t *b, int sign, int32_t *scratch,
     return lut_inverse_error(&g, CALIB_DERIVED_MAX, err_q16) == LUT_OK ? CALIB_OK : CALIB_ERR_B_SLOPE;
 }
 
-/* Build z_up (sign +1) or z_down (sign -1) into buf; checked beforehand, cannot fail. */
-static void build_envelope(const lut_t *b, int sign, int32_t *scratch, int32_t *buf, lut_t *out,
-                           int32_t *err_q16)
+/* Build z_up (sign +1) or z_down (sign -1) into buf; checked (and its error computed) by
+ * check_envelope() beforehand, cannot fail. */
+static void build_envelope(const lut_t *b, int sign, int32_t *scratch, int32_t *buf, lut_t *out)
 {
     envelope_samples(b, sign, scratch);
     lut_t g;
     (void)lut_init(&g, scratch, b->n, b->x0_q16, (int32_t)1 << b->step_log2);
-    (void)lut_build_inverse(&g, buf, CALIB_DERIVED_MAX, out, err_q16);
+    (void)lut_build_inverse(&g, buf, CALIB_DERIVED_MAX, out, NULL);
 }
 
 /* Does [at, at + len) overlap grid gr's entries? */
@@ -181,9 +181,10 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     /* Everything is checked: from here on nothing can fail, so *out changes only now. */
     out->b = b;
     out->f = f;
-    (void)lut_build_inverse(&f, out->f_inv_buf, CALIB_DERIVED_MAX, &out->f_inv, &out->f_inv_err_q16);
-    build_envelope(&b, +1, scratch, out->z_up_buf, &out->z_up, &e_up);
-    build_envelope(&b, -1, scratch, out->z_down_buf, &out->z_down, &e_down);
+    (void)lut_build_inverse(&f, out->f_inv_buf, CALIB_DERIVED_MAX, &out->f_inv, NULL);
+    build_envelope(&b, +1, scratch, out->z_up_buf, &out->z_up);
+    build_envelope(&b, -1, scratch, out->z_down_buf, &out->z_down);
+    out->f_inv_err_q16 = e_f_inv;
     out->z_err_q16 = e_up > e_down ? e_up : e_down;
     out->pi_dir = pi_dir;
     out->pi_inv = pi_inv;

@@ -102,7 +102,8 @@ __attribute__((always_inline)) static inline int32_t lut_eval_cell(const lut_t *
  * and nothing is written (out_y_q16 included). On success *err_q16 receives the exact worst-case error of
  * lut_eval(out, .) against the exact inverse of g over g's range, in raw units: the
  * error is piecewise linear between breakpoints of g and grid points of out, so its
- * maximum is found by evaluating at every breakpoint (plus the 1/2 LSB of lut_eval).
+ * maximum is found by evaluating at every breakpoint (plus the 1/2 LSB of lut_eval);
+ * err_q16 may be NULL when the caller has it already (lut_inverse_error()).
  * O(n + cap), uses 64-bit divides: load time only, never per tick. */
 /* The exact worst-case error *err_q16 that lut_build_inverse() would report for src (same
  * checks, same value), computed without storing the inverse: the loader checks a table's

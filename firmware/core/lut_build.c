@@ -1,4 +1,5 @@
 /* Load-time construction of inverse lookup tables (f^-1 and the reindexed envelopes of eq. 2). */
+#include <stddef.h>
 #include "lut.h"
 
 /* x at which the segment (x0, y0)-(x0 + h, y1) reaches y, rounded to nearest.
@@ -131,10 +132,10 @@ lut_status_t lut_build_inverse(const lut_t *src, int32_t *out_y_q16, uint16_t ca
     int32_t y_lo, y_hi;
     uint8_t s;
     uint16_t m;
-    int32_t err;
+    int32_t err = 0;
     lut_status_t st = inverse_plan(src, cap, &sgn, &y_lo, &y_hi, &s, &m);
-    if (st == LUT_OK)
-        st = lut_inverse_error(src, cap, &err); /* also checks that every cell initialises */
+    if (st == LUT_OK && err_q16 != NULL)
+        st = lut_inverse_error(src, cap, &err);
     if (st != LUT_OK)
         return st;
 
@@ -145,6 +146,7 @@ lut_status_t lut_build_inverse(const lut_t *src, int32_t *out_y_q16, uint16_t ca
     st = lut_init(out, out_y_q16, m, y_lo, (int32_t)1 << s);
     if (st != LUT_OK)
         return st;
-    *err_q16 = err;
+    if (err_q16 != NULL)
+        *err_q16 = err;
     return LUT_OK;
 }
