@@ -203,7 +203,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         on = onsets if onsets is not None else E.run_onsets(t_enc, q, rt, rq, t_f, obs, s.distal_kind, cfg)
     if on.b.size == 0:
         why = ", ".join(f"{k} {v}" for k, v in on.reasons.items() if v) or "none reached"
-        raise InputError(src, f"no usable reversal: {rt.size} reversal(s), none gave a motion onset ({why}); "
+        raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset ({why}); "
                          "check that the distal end moves after each reversal and the back-and-forth exceeds the play")
     bfit = E.fit_backlash_auto(on.q_mean, on.b, n_ctrl, source=src, sigma=on.sigma_b)
     B, w = bfit.B, bfit.weight

@@ -241,6 +241,7 @@ FALSE_ONSETS_PER_REVERSAL = 0.01  # alpha: one false onset in a hundred reversal
 # Frames the detector needs inside a dead band: settle_frames (1) + ONSET_NOISE_LEARN_PAIRS (8)
 # still pairs for its own noise estimate + the first moving frame.
 DEAD_BAND_FRAMES = 10
+MIN_STILL_PAIRS = ONSET_NOISE_LEARN_PAIRS = 8  # still pairs a noise estimate needs (the C detector's count)
 
 
 def onset_noise_k(n_frames: float, dims: int = 1, alpha: float = FALSE_ONSETS_PER_REVERSAL) -> float:
@@ -310,8 +311,8 @@ def angle_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
        on the bootstrap's still segments (``still_noise``, one segment margin of one frame
        at each end), k = onset_noise_k(fps x median stroke duration) (false onsets per
        reversal <= FALSE_ONSETS_PER_REVERSAL).
-    Without a bootstrap onset (or fewer than 8 still pairs), the detector keeps its automatic
-    T with that k. t_enc, q: encoder (N,); rev_t, rev_q: reversals (M,); t_s, c_deg: the
+    With fewer than MIN_STILL_PAIRS still pairs sigma_d is diff2_noise at that rate (an upper
+    bound); without a bootstrap onset, the bootstrap's rate and threshold stay. t_enc, q: encoder (N,); rev_t, rev_q: reversals (M,); t_s, c_deg: the
     sensor (K,), NaN = lost. Returns (fps, OnsetConfig overrides dict, doc dict).
     """
     t_s, c_deg = np.asarray(t_s, float), np.asarray(c_deg, float)
@@ -330,8 +331,8 @@ def angle_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
                      OnsetConfig(t_delay_s=t_delay_s, fps=fps0, jump_ratio=0.0, **boot))
     doc["bootstrap_onsets"] = int(on0.b.size)
     if on0.b.size == 0:
-        doc.update(rule="automatic T (no bootstrap onset)", fps=fps0, noise_k=k0)
-        return fps0, {"jump_ratio": 0.0, "noise_k": k0}, doc
+        doc.update(rule="T = k x diff2_noise (no bootstrap onset)", fps=fps0, noise_k=k0)
+        return fps0, {"jump_ratio": 0.0, **boot}, doc
     dead = np.maximum(on0.t2_s - on0.t1_s - t_delay_s, 0.0)
     if fps is None:
         fr = DEAD_BAND_FRAMES / max(float(np.median(dead)), 1e-6)
@@ -344,11 +345,16 @@ def angle_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
     sig, pairs = still_noise(tf, cf, a, b)
     doc.update(fps=fps, dead_band_s_median=float(np.median(dead)), noise_k=k, still_pairs=pairs,
                still_noise_deg=sig)
-    if pairs < 8 or not sig > 0:
-        doc["rule"] = "automatic T (too few still frame pairs)"
+    if pairs >= MIN_STILL_PAIRS and sig > 0:
+        doc["rule"] = "T = k x still noise"
+    else:  # too few still frames to trust their MAD: the whole record's upper bound
+        sig = diff2_noise(cf)
+        doc["rule"] = "T = k x diff2_noise (too few still frame pairs)"
+    if not np.isfinite(sig):
+        doc["rule"] = "automatic T (no noise estimate)"
         return fps, {"jump_ratio": 0.0, "noise_k": k}, doc
     T = max(k * sig, 2.0 / 65536.0)  # a fixed threshold of 0 would mean "automatic" to the C detector
-    doc.update(rule="T = k x still noise", threshold_deg=T)
+    doc["threshold_deg"] = T
     return fps, {"jump_ratio": 0.0, "threshold": T}, doc
 
 
