@@ -137,7 +137,14 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     model_kind: "play" (the paper's pure play), "pi" (play + transition operators) or "auto"
       (default: play or PI and the operator count by cross-validation on the session itself,
       transition.choose_model); with a transition, f_remain is f of y (PI_MODEL step 3).
-    Errors: InputError (naming ``source``) for too few reversals/onsets or lost markers.
+    Thin records degrade (issue 13): 1-3 B samples give a constant B with its 95 % interval, more
+      a B(q) spline of min(n_ctrl, samples) control points with its stiffness by cross-validation
+      (estimate.fit_backlash_auto); angle sessions take their frame rate and onset threshold from
+      the record (estimate.angle_onset_settings); each fallback is a line in doc["warnings"].
+    q_source "command" (session.json actuator.q_source): angle sessions measure the command-to-tip
+      delay from the record (servo lag) instead of taking 0.
+    Errors: InputError (naming the file) when q never reverses, when no reversal gives an onset,
+      or for lost markers.
     """
     src = source or (str(s.path) if s.path else None)
     t_enc, q = s.encoder["t_s"], s.encoder["q"]
