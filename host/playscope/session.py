@@ -200,7 +200,7 @@ def regularize_time(tab: dict[str, np.ndarray], path, time_col: str = "t_s") -> 
     - rows sharing a time stamp keep the last of them (a sensor re-publishing keeps its
       newest reading; the same choice as ``playscope import`` of ROS bags).
     Returns (table, note) with note None when nothing changed, else one line naming the
-    file and the number of rows affected. Errors: InputError(path, ..., row) when more than
+    file and the number of rows affected. Errors: InputError(path, ..., row of the largest step back) when more than
     MAX_BACKWARD_FRACTION of the rows (and more than one) go back in time.
     """
     t = np.asarray(tab[time_col], float)
@@ -212,9 +212,10 @@ def regularize_time(tab: dict[str, np.ndarray], path, time_col: str = "t_s") -> 
     nb = int(back.sum())
     first = int(np.argmax(back)) if nb else -1
     if nb > max(1.0, MAX_BACKWARD_FRACTION * n):
-        raise InputError(path, f"time goes back in {nb} of {n} rows, first {t_col_fmt(t[first])} s after "
-                         f"{t_col_fmt(prev_max[first])} s: a clock reset or joined logs? split the file there "
-                         f"(at most {MAX_BACKWARD_FRACTION:.0%} of the rows may be out of order)", first + 2)
+        k = int(np.argmin(t - prev_max))  # the largest step back: where the clock was reset
+        raise InputError(path, f"time goes back in {nb} of {n} rows, the most here ({t_col_fmt(t[k])} s after "
+                         f"{t_col_fmt(prev_max[k])} s): a clock reset or joined logs? split the file there "
+                         f"(at most {MAX_BACKWARD_FRACTION:.0%} of the rows may be out of order)", k + 2)
     kept = np.nonzero(~back)[0]
     tk = t[kept]
     last = np.r_[tk[1:] != tk[:-1], True]
