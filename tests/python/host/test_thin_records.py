@@ -229,3 +229,15 @@ def test_threshold_follows_the_sensor_noise():
         assert d["still_noise_deg"] / noise == pytest.approx(0.96, abs=0.1)
         assert d["threshold_deg"] == pytest.approx(d["noise_k"] * d["still_noise_deg"])
         assert d["noise_k"] == pytest.approx(E.onset_noise_k(d["fps"] * d["stroke_s"]))
+
+
+def test_import_repairs_repeated_stamps_with_a_message(tmp_path, capsys):
+    rows = ["Time,Tendon Disp.,Angle x", "0,0,1", "0.01,0.1,1.1", "0.01,0.2,1.2", "0.02,0.3,1.3",
+            "0.015,0.3,1.3", "0.03,0.4,1.4"]
+    (tmp_path / "r.csv").write_text("\n".join(rows) + "\n")
+    assert main(["import", str(tmp_path / "r.csv"), "-o", str(tmp_path / "s")]) == 0
+    err = capsys.readouterr().err
+    assert "1 row(s) repeat an earlier time stamp" in err and "the first at row 6 (dropped): 2 of 6 rows" in err
+    s = load_session(tmp_path / "s")
+    np.testing.assert_allclose(s.encoder["t_s"], [0, 0.01, 0.02, 0.03])
+    np.testing.assert_allclose(s.encoder["q"], [0, 0.2, 0.3, 0.4])  # the last row of the repeat
