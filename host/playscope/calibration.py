@@ -92,12 +92,27 @@ class Calibration:
 
 
 def auto_fps(t1: np.ndarray, fps_max: float = 50.0, fps_min: float = 10.0) -> float:
-    """Frame rate for decimating a high-rate angle log: about 125 frames per stroke (median
-    time between reversals), so the dead band after a reversal (typically a tenth of a
-    stroke) spans several frames while motion per frame stays above the sensor noise."""
-    if t1.size < 2:
-        return 25.0
-    return float(np.clip(125.0 / np.median(np.diff(t1)), fps_min, fps_max))
+    """The bootstrap frame rate (estimate.bootstrap_fps); `calibrate` then sets the rate from
+    the record's dead bands (estimate.angle_onset_settings)."""
+    return E.bootstrap_fps(t1, fps_max, fps_min)
+
+
+# The transition's model choice deals the strokes to transition.KFOLD folds: with fewer
+# reversals than folds a fold gets no stroke, and the choice falls back to the paper's play.
+MIN_REVERSALS_TRANSITION = T.KFOLD
+
+
+def _command_lag(s: Session, t_enc, q, rt, rq, hyst) -> float:
+    """Delay from a commanded q to the angle sensor (servo lag + sensor delay), s: the lag at
+    which the tip's velocity best follows the command's sign around the reversals
+    (onset_refine.coarse_delay on frames at the bootstrap rate; the tip stops as the motor
+    turns, eq. 1's dead band)."""
+    from .onset_refine import coarse_delay, motor_stop_times
+
+    fr = E.bootstrap_fps(rt)
+    t_f, c_f = E.frames_from_angle(s.distal["t_s"], s.distal["c_deg"], fr)
+    t_stop = motor_stop_times(t_enc, q, rt, rq, 0.1 * hyst)
+    return coarse_delay(t_f, np.column_stack([c_f, np.zeros_like(c_f)]), t_stop, t_enc, q, 1.0 / fr)
 
 
 def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
@@ -122,7 +137,14 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     model_kind: "play" (the paper's pure play), "pi" (play + transition operators) or "auto"
       (default: play or PI and the operator count by cross-validation on the session itself,
       transition.choose_model); with a transition, f_remain is f of y (PI_MODEL step 3).
-    Errors: InputError (naming ``source``) for too few reversals/onsets or lost markers.
+    Thin records degrade (issue 13): 1-3 B samples give a constant B with its 95 % interval, more
+      a B(q) spline of min(n_ctrl, samples) control points with its stiffness by cross-validation
+      (estimate.fit_backlash_auto); angle sessions take their frame rate and onset threshold from
+      the record (estimate.angle_onset_settings); each fallback is a line in doc["warnings"].
+    q_source "command" (session.json actuator.q_source): angle sessions measure the command-to-tip
+      delay from the record (servo lag) instead of taking 0.
+    Errors: InputError (naming the file) when q never reverses, when no reversal gives an onset,
+      or for lost markers.
     """
     src = source or (str(s.path) if s.path else None)
     t_enc, q = s.encoder["t_s"], s.encoder["q"]
@@ -134,20 +156,36 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     rt, rq, _ = E.detect_reversals(t_enc, q_rev, hyst)
     if "q_cmd" in s.encoder:
         rq = np.interp(rt, t_enc, q)  # q1 is the measured position at the commanded reversal
+    enc_file = Path(s.path or ".") / "encoder.csv" if s.path else src
+    if rt.size == 0:
+        raise InputError(enc_file, f"no direction reversal (q moves one way only, hysteresis {hyst:.3g} "
+                         f"{s.actuator_unit}): B needs at least one; record a back-and-forth motion")
+    warnings = []
     if rt.size < 4:
-        raise InputError(src, f"only {rt.size} direction reversals in encoder.csv (need >= 4 for B(q))")
+        warnings.append(f"only {rt.size} direction reversal(s): B(q) needs >= 4 onsets, B is held constant "
+                        "if fewer are detected (confidence interval in B_fit.ci95)")
+    if s.q_source == "measured" and "q_cmd" not in s.encoder:
+        cmd, ratio = E.q_looks_commanded(q)
+        if cmd:
+            warnings.append(f"encoder.csv q looks like a command, not a measurement (smooth to {ratio:.1e} of a "
+                            "step): if it is, set actuator.q_source = \"command\" in session.json so the "
+                            "servo lag is measured from the record (docs/session-format.md)")
 
+    onset_rule = None
     if s.distal_kind == "angle":
-        fr = fps or auto_fps(rt)
+        if t_delay_s is not None:
+            td, td_src = t_delay_s, "argument"
+        elif s.t_delay_s is not None and s.q_source != "command":
+            td, td_src = s.t_delay_s, "session"
+        elif s.q_source == "command":
+            td, td_src = _command_lag(s, t_enc, q, rt, rq, hyst), "record (q is the command: servo lag + sensor delay)"
+        else:
+            td, td_src = 0.0, "angle sensor on the encoder clock"
+        # No image registration here, so no jump at the onset: a fast start is real motion.
+        # Frame rate and threshold from the record (estimate.angle_onset_settings).
+        fr, defaults, onset_rule = E.angle_onset_settings(t_enc, q, rt, rq, s.distal["t_s"], s.distal["c_deg"], td, fps)
         t_f, c_f = E.frames_from_angle(s.distal["t_s"], s.distal["c_deg"], fr)
         obs = np.column_stack([c_f, np.zeros_like(c_f)])
-        td, td_src = (t_delay_s, "argument") if t_delay_s is not None else (
-            (s.t_delay_s, "session") if s.t_delay_s is not None else (0.0, "angle sensor on the encoder clock"))
-        # No image registration here, so no jump at the onset: a fast start is real motion.
-        # k = 4 (T = 4 x rms still motion, against 3 for images) was chosen while looking at
-        # the real catheter recordings, where k = 3 fires early on data_2_1 (1.01 deg in
-        # situ against 0.83); treat those figures as tuned, not held out.
-        defaults = {"threshold_floor": 0.01, "threshold_max": 0.1, "jump_ratio": 0.0, "noise_k": 4.0}
     else:
         t_f, obs = s.observations()
         fr = s.camera.fps
@@ -156,21 +194,32 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
             raise InputError(Path(s.path or ".") / "marker.csv", f"marker lost in {lost.mean():.0%} of the frames")
         td = td_src = None  # set below from the record (onset_refine), checked against these
         defaults = {}
-    warnings, refine_doc = [], None
+    refine_doc = None
     if s.distal_kind == "image":
         from .onset_refine import robust_samples
 
         cfg_td = t_delay_s if t_delay_s is not None else s.t_delay_s
         rob = robust_samples(t_enc, q, q_rev, rt, rq, t_f, obs, fr, cfg_td, t_delay_from, onsets, onset_cfg, hyst)
-        td, warnings, refine_doc = rob.t_delay_s, rob.warnings, rob.report
+        td, refine_doc = rob.t_delay_s, rob.report
+        warnings += rob.warnings
         td_src = "argument" if t_delay_s is not None and t_delay_from == "config" else rob.t_delay_source
     cfg = E.OnsetConfig(t_delay_s=td, fps=fr, **{**defaults, **(onset_cfg or {})})
     if s.distal_kind == "image":
         on = rob.onsets
     else:
         on = onsets if onsets is not None else E.run_onsets(t_enc, q, rt, rq, t_f, obs, s.distal_kind, cfg)
-    bfit = E.fit_backlash_samples(on.q_mean, on.b, n_ctrl, source=src, sigma=on.sigma_b)
+    if on.b.size == 0:
+        why = ", ".join(f"{k} {v}" for k, v in on.reasons.items() if v) or "none reached"
+        raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset ({why}); "
+                         "check that the distal end moves after each reversal and the back-and-forth exceeds the play")
+    bfit = E.fit_backlash_auto(on.q_mean, on.b, n_ctrl, source=src, sigma=on.sigma_b)
     B, w = bfit.B, bfit.weight
+    if bfit.kind == "constant":
+        ci = "unknown (one sample without an uncertainty)" if bfit.ci95 is None else \
+            f"95 % CI {bfit.ci95[0]:.3g}..{bfit.ci95[1]:.3g}"
+        why = (f"only {on.b.size} B sample(s) (B(q) needs >= {E.MIN_SPLINE_SAMPLES})" if on.b.size < E.MIN_SPLINE_SAMPLES
+               else f"cross-validation on the {on.b.size} B samples prefers it to a B(q) spline")
+        warnings.append(f"B held constant at {float(B(np.array([0.0]))[0]):.3g} {s.actuator_unit}, {ci}: {why}")
     if bfit.inconsistent.any():
         warnings.append(f"{int(bfit.inconsistent.sum())} B sample(s) inconsistent with their neighbours "
                         f"(|z| > {E.Z_INCONSISTENT}): listed in b_inconsistent, down-weighted, not averaged in")
@@ -193,6 +242,10 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     f, sign = fits[f_method]
     alt = "morph" if f_method == "lsq" else "lsq"
     tr, choice, f_play, play_doc = T.Transition.play(), None, None, None
+    if model_kind == "auto" and rt.size < MIN_REVERSALS_TRANSITION:
+        model_kind = "play"
+        warnings.append(f"model play: {rt.size} reversals are too few to cross-validate a transition "
+                        f"(needs >= {MIN_REVERSALS_TRANSITION}, one stroke per fold)")
     if model_kind != "play":
         data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
         tr, f_pi, sign_pi, choice = T.choose_model(data, model_kind, n_ctrl)
@@ -204,7 +257,9 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         "q_range": [float(q.min()), float(q.max())],
         "t_delay_s": float(td), "t_delay_source": td_src, "fps_frames": float(fr),
         "reversal_hysteresis": float(hyst), "reversals": int(rt.size),
-        "onset": {"config": cfg.effective(), "reasons": on.reasons, "refine": refine_doc},
+        "onset": {"config": cfg.effective(), "reasons": on.reasons, "refine": refine_doc, "rule": onset_rule},
+        "B_fit": {"kind": bfit.kind, "n_ctrl": bfit.n_ctrl, "smooth": bfit.smooth, "ci95": bfit.ci95,
+                  "samples": int(on.b.size), "cv": bfit.cv},
         "b_samples": {"t1_s": on.t1_s, "t2_s": on.t2_s, "q1": on.q1, "q2": on.q2, "q_mean": on.q_mean,
                       "b": on.b, "weight": w, "sigma_b": on.sigma_b, "z": bfit.z},
         "b_inconsistent": [{"index": int(i), "q_mean": float(on.q_mean[i]), "b": float(on.b[i]), "z": float(bfit.z[i])}

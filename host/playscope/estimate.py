@@ -58,6 +58,25 @@ def detect_reversals(t: np.ndarray, q: np.ndarray, hysteresis: float) -> tuple[n
     return np.array(t1), np.array(q1), np.array(dirs, int)
 
 
+def q_looks_commanded(q: np.ndarray) -> tuple[bool, float]:
+    """Does q look like a commanded position rather than an encoder reading?
+
+    A reading carries quantisation and noise, so its third difference is of the order of
+    one step |dq| wherever it moves; a command computed in floating point (ramp, spline,
+    sine) is smooth to rounding. Rule: median |d3q| / median |dq| over moving samples
+    (|dq| > 0) below 1e-3. q: (N,). Returns (looks commanded, the ratio)."""
+    q = np.asarray(q, float)
+    if q.size < 8:
+        return False, float("nan")
+    d1 = np.abs(np.diff(q))
+    d3 = np.abs(np.diff(q, 3))
+    mv = d1[:-2] > 0
+    if mv.sum() < 4:
+        return False, float("nan")
+    ratio = float(np.median(d3[mv]) / np.median(d1[:-2][mv]))
+    return ratio < 1e-3, ratio
+
+
 # --------------------------------------------------------------------------- frames
 def frames_from_angle(t: np.ndarray, c: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
     """Decimate a high-rate angle log into camera-like frames by block averaging.
@@ -215,6 +234,130 @@ def run_onsets(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.nd
                   from_q16(a[:, 5]), reasons)
 
 
+# --------------------------------------------------------------------------- onset settings from the record
+# Issue 13 item 3: the angle-sensor detector's frame rate and threshold come from the record by
+# these rules (docs/method.md, "Settings from the record"); nothing here was set on a file.
+FALSE_ONSETS_PER_REVERSAL = 0.01  # alpha: one false onset in a hundred reversals (the robust B fit absorbs it)
+# Frames the detector needs inside a dead band: settle_frames (1) + ONSET_NOISE_LEARN_PAIRS (8)
+# still pairs for its own noise estimate + the first moving frame.
+DEAD_BAND_FRAMES = 10
+MIN_STILL_PAIRS = ONSET_NOISE_LEARN_PAIRS = 8  # still pairs a noise estimate needs (the C detector's count)
+
+
+def onset_noise_k(n_frames: float, dims: int = 1, alpha: float = FALSE_ONSETS_PER_REVERSAL) -> float:
+    """Threshold factor k (T = k x rms still frame difference) from a false-alarm rate.
+
+    A still frame difference d crosses T with probability p = 2 (1 - Phi(k)) for a 1-D
+    Gaussian d (angle sensor), exp(-k^2) for 2-D (image: |d|^2 / sigma^2 ~ chi^2_2 with
+    mean |d|^2 = 2 sigma^2). Over the n_frames a reversal's detector watches, the union
+    bound n p <= alpha gives k = Phi^-1(1 - alpha / (2 n)) (1-D), sqrt(ln(n / alpha)) (2-D).
+    n_frames >= 1. Returns k (dimensionless)."""
+    from scipy.stats import norm
+
+    n = max(float(n_frames), 1.0)
+    return float(norm.isf(alpha / (2.0 * n))) if dims == 1 else float(np.sqrt(np.log(n / alpha)))
+
+
+def still_noise(t_f: np.ndarray, c_f: np.ndarray, t_a: np.ndarray, t_b: np.ndarray) -> tuple[float, int]:
+    """Robust rms of frame-to-frame differences on still segments [t_a[i], t_b[i]) (s).
+
+    Pairs of consecutive valid frames inside the same segment; sigma = 1.4826 x MAD of their
+    differences (the MAD about the median takes out a slow creep and ignores a frame of
+    motion at a segment's end). t_f, c_f: (F,) frames; t_a, t_b: (S,) sorted by t_a.
+    Returns (sigma (deg per frame), pairs used); (nan, 0) without a pair."""
+    t_f, c_f = np.asarray(t_f, float), np.asarray(c_f, float)
+    seg = np.searchsorted(t_a, t_f, side="right") - 1
+    inside = (seg >= 0) & np.isfinite(c_f)
+    inside[inside] &= t_f[inside] < np.asarray(t_b)[seg[inside]]
+    pair = inside[1:] & inside[:-1] & (seg[1:] == seg[:-1])
+    d = np.diff(c_f)[pair]
+    if d.size == 0:
+        return float("nan"), 0
+    return float(1.4826 * np.median(np.abs(d - np.median(d)))), int(d.size)
+
+
+def diff2_noise(c: np.ndarray) -> float:
+    """Upper bound of the rms frame difference of still frames, from the whole record: the
+    second difference removes any constant-speed motion, so 1.4826 MAD(d2c) / sqrt(6) is the
+    per-frame noise (white) plus what curvature of the motion is left, times sqrt(2) for a
+    first difference. c: (F,), NaN ignored. Returns deg per frame (nan with < 3 frames)."""
+    d2 = np.diff(np.asarray(c, float), 2)
+    d2 = d2[np.isfinite(d2)]
+    if d2.size == 0:
+        return float("nan")
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(3.0))
+
+
+def bootstrap_fps(t1: np.ndarray, fps_max: float = 50.0, fps_min: float = 10.0) -> float:
+    """First-pass frame rate: about 125 frames per stroke (median time between reversals),
+    10-50 Hz. Only used to find the still segments the rules then measure."""
+    if t1.size < 2:
+        return 25.0
+    return float(np.clip(125.0 / np.median(np.diff(t1)), fps_min, fps_max))
+
+
+def angle_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.ndarray,
+                         t_s: np.ndarray, c_deg: np.ndarray, t_delay_s: float, fps: float | None = None):
+    """Frame rate and threshold of the angle-sensor onset detector, from the record itself.
+
+    1. Bootstrap: frames at bootstrap_fps (capped at half the sensor's own rate of valid
+       readings), the C detector with T = k diff2_noise (an upper bound of the still noise
+       from the whole record; k from onset_noise_k); each onset gives a still segment
+       [t1 + t_delay, t2).
+    2. Frame rate: DEAD_BAND_FRAMES frames in the median still segment (the lowest rate the
+       detector can work at, so each frame averages the most samples), between
+       DEAD_BAND_FRAMES per median stroke and half the sensor's rate; ``fps`` overrides it.
+    3. Threshold T = k sigma_d: sigma_d the robust still frame-difference noise at that rate
+       on the bootstrap's still segments (``still_noise``, one segment margin of one frame
+       at each end), k = onset_noise_k(fps x median stroke duration) (false onsets per
+       reversal <= FALSE_ONSETS_PER_REVERSAL).
+    With fewer than MIN_STILL_PAIRS still pairs sigma_d is diff2_noise at that rate (an upper
+    bound); without a bootstrap onset, the bootstrap's rate and threshold stay. t_enc, q: encoder (N,); rev_t, rev_q: reversals (M,); t_s, c_deg: the
+    sensor (K,), NaN = lost. Returns (fps, OnsetConfig overrides dict, doc dict).
+    """
+    t_s, c_deg = np.asarray(t_s, float), np.asarray(c_deg, float)
+    ok = np.isfinite(c_deg)
+    span = max(float(t_s[ok][-1] - t_s[ok][0]) if ok.sum() > 1 else 0.0, 1e-9)
+    rate = max(int(ok.sum()) - 1, 1) / span
+    stroke = float(np.median(np.diff(rev_t))) if rev_t.size >= 2 else float(t_enc[-1] - t_enc[0]) / max(rev_t.size + 1, 1)
+    fps0 = min(bootstrap_fps(rev_t), 0.5 * rate) if fps is None else fps
+    k0 = onset_noise_k(fps0 * stroke)
+    doc = {"sensor_rate_hz": rate, "stroke_s": stroke, "bootstrap_fps": fps0, "alpha": FALSE_ONSETS_PER_REVERSAL}
+    tf0, cf0 = frames_from_angle(t_s, c_deg, fps0)
+    T0 = k0 * diff2_noise(cf0)
+    doc["bootstrap_threshold_deg"] = T0
+    boot = {"threshold": max(T0, 2.0 / 65536.0)} if np.isfinite(T0) else {"noise_k": k0}
+    on0 = run_onsets(t_enc, q, rev_t, rev_q, tf0, np.column_stack([cf0, np.zeros_like(cf0)]), "angle",
+                     OnsetConfig(t_delay_s=t_delay_s, fps=fps0, jump_ratio=0.0, **boot))
+    doc["bootstrap_onsets"] = int(on0.b.size)
+    if on0.b.size == 0:
+        doc.update(rule="T = k x diff2_noise (no bootstrap onset)", fps=fps0, noise_k=k0)
+        return fps0, {"jump_ratio": 0.0, **boot}, doc
+    dead = np.maximum(on0.t2_s - on0.t1_s - t_delay_s, 0.0)
+    if fps is None:
+        fr = DEAD_BAND_FRAMES / max(float(np.median(dead)), 1e-6)
+        fps = float(np.clip(fr, min(DEAD_BAND_FRAMES / max(stroke, 1e-6), 0.5 * rate), 0.5 * rate))
+    k = onset_noise_k(fps * stroke)
+    tf, cf = frames_from_angle(t_s, c_deg, fps)
+    order = np.argsort(on0.t1_s)
+    a = on0.t1_s[order] + t_delay_s + 1.0 / fps
+    b = on0.t2_s[order] - 1.0 / fps
+    sig, pairs = still_noise(tf, cf, a, b)
+    doc.update(fps=fps, dead_band_s_median=float(np.median(dead)), noise_k=k, still_pairs=pairs,
+               still_noise_deg=sig)
+    if pairs >= MIN_STILL_PAIRS and sig > 0:
+        doc["rule"] = "T = k x still noise"
+    else:  # too few still frames to trust their MAD: the whole record's upper bound
+        sig = diff2_noise(cf)
+        doc["rule"] = "T = k x diff2_noise (too few still frame pairs)"
+    if not np.isfinite(sig):
+        doc["rule"] = "automatic T (no noise estimate)"
+        return fps, {"jump_ratio": 0.0, "noise_k": k}, doc
+    T = max(k * sig, 2.0 / 65536.0)  # a fixed threshold of 0 would mean "automatic" to the C detector
+    doc["threshold_deg"] = T
+    return fps, {"jump_ratio": 0.0, "threshold": T}, doc
+
+
 # --------------------------------------------------------------------------- B spline
 def clamped_knots(lo: float, hi: float, n_ctrl: int, degree: int = 3) -> np.ndarray:
     """Knot vector of a clamped B-spline with n_ctrl control points spread evenly over
@@ -352,6 +495,11 @@ class BacklashFit:
     z: np.ndarray
     inconsistent: np.ndarray
     scatter: float
+    kind: str = "spline"              # "spline" (B(q)) or "constant" (too few samples for a shape)
+    n_ctrl: int = 0                   # control points used (4 for a constant)
+    smooth: float | None = None       # difference-penalty weight (chosen by cross-validation)
+    ci95: tuple[float, float] | None = None  # constant B: 95 % confidence interval, None if unknown
+    cv: dict | None = None            # the stiffness choice: candidates and their CV scores
 
 
 Z_INCONSISTENT = 3.5
@@ -394,6 +542,131 @@ def fit_backlash(q_mean: np.ndarray, b: np.ndarray, n_ctrl: int = 14, smooth: fl
     """fit_backlash_samples, returning (SplineFn, weights (M,)) only."""
     f = fit_backlash_samples(q_mean, b, n_ctrl, smooth, q_range, source, max_slope, sigma)
     return f.B, f.weight
+
+
+# --------------------------------------------------------------------------- B from few or many samples
+MIN_SPLINE_SAMPLES = 4  # a cubic needs 4 coefficients: fewer samples give a constant B
+
+
+def _constant_spline(value: float, lo: float, hi: float) -> SplineFn:
+    """A B(q) SplineFn equal to value everywhere (clamped cubic, 4 equal coefficients), so
+    tables and the model read a constant B like any other."""
+    if not hi > lo:
+        lo, hi = lo - 0.5, hi + 0.5
+    t = clamped_knots(lo, hi, 4)
+    return SplineFn(BSpline(t, np.full(4, float(value)), 3, extrapolate=False), lo, hi, linear_ends=False, floor=0.0)
+
+
+def constant_backlash(b: np.ndarray, sigma: np.ndarray | None = None,
+                      q_range: tuple[float, float] = (0.0, 1.0)) -> tuple[float, tuple[float, float] | None]:
+    """Constant B from M >= 1 onset samples b (M,) and its 95 % confidence interval.
+
+    Weighted mean with weights 1 / sigma^2 (equal without sigma). Interval: Student t with
+    M - 1 degrees of freedom on the samples' own scatter (M >= 2), widened to the sigmas'
+    standard error when that is larger; one sample: +-1.96 sigma, or None without sigma.
+    Returns (B, (lo, hi) or None). Units: actuator units."""
+    from scipy.stats import t as student
+
+    b = np.asarray(b, float)
+    m = b.size
+    w = np.ones(m) if sigma is None else 1.0 / np.maximum(np.asarray(sigma, float) ** 2, 1e-24)
+    b0 = float(np.sum(w * b) / np.sum(w))
+    se_sig = None if sigma is None else float(np.sqrt(1.0 / np.sum(w)))
+    if m >= 2:
+        se = float(np.sqrt(np.sum(w * (b - b0) ** 2) / ((m - 1) * np.sum(w))))
+        se = max(se, se_sig or 0.0)
+        h = float(student.ppf(0.975, m - 1)) * se
+    elif se_sig is not None:
+        h = 1.96 * se_sig
+    else:
+        return b0, None
+    return b0, (max(b0 - h, 0.0), b0 + h)
+
+
+def _cv_folds(q: np.ndarray, k: int) -> np.ndarray:
+    """Fold of each sample: samples sorted by q dealt round-robin, so every fold spans the range."""
+    f = np.empty(q.size, int)
+    f[np.argsort(q, kind="stable")] = np.arange(q.size) % k
+    return f
+
+
+SMOOTH_GRID = tuple(10.0 ** np.arange(-4, 3))  # penalty weights tried, relative to the data term
+
+
+def choose_stiffness(q: np.ndarray, b: np.ndarray, n_ctrl: int, lo: float, hi: float,
+                     sigma: np.ndarray | None = None, grid=SMOOTH_GRID) -> dict:
+    """Spline stiffness of B(q) by k-fold cross-validation on the B samples themselves.
+
+    Candidates: a constant B, and the penalised spline (robust_spline) for each penalty in
+    grid. Folds: k = min(M, 5), the samples sorted by q dealt round-robin. Score: mean over
+    held-out samples of the squared prediction error, each clipped at (3 s)^2, s the robust
+    scatter of the samples about their median (a false onset must not pick the model), and
+    weighted 1 / sigma^2 when the samples carry one. Choice: the stiffest candidate (constant
+    first, then the largest penalty) within one standard error of the best (the one-standard-
+    error rule, as transition.choose_model). Returns {"choice": "constant" | smooth (float),
+    "candidates": [{"smooth": None | float, "cv": float, "se": float}]}.
+    """
+    q, b = np.asarray(q, float), np.asarray(b, float)
+    m = b.size
+    k = min(m, 5)
+    folds = _cv_folds(q, k)
+    s = 1.4826 * float(np.median(np.abs(b - np.median(b)))) + 1e-9 * (1 + float(np.max(np.abs(b))))
+    wt = np.ones(m) if sigma is None else 1.0 / np.maximum(np.asarray(sigma, float) ** 2 + np.median(np.asarray(sigma) ** 2), 1e-24)
+    wt = wt / wt.mean()
+    cands = [None] + [float(g) for g in grid]
+    out = []
+    for sm in cands:
+        pred = np.empty(m)
+        for j in range(k):
+            tr, te = folds != j, folds == j
+            sg = None if sigma is None else np.asarray(sigma, float)[tr]
+            if sm is None or tr.sum() < MIN_SPLINE_SAMPLES:
+                pred[te] = constant_backlash(b[tr], sg)[0]
+            else:
+                spl, _ = robust_spline(q[tr], b[tr], n_ctrl, lo, hi, sm, sigma=sg)
+                pred[te] = spl(np.clip(q[te], lo, np.nextafter(hi, -np.inf)))
+        loss = wt * np.minimum((pred - b) ** 2, (3 * s) ** 2)
+        out.append({"smooth": sm, "cv": float(loss.mean()), "se": float(loss.std(ddof=1) / np.sqrt(m))})
+    best = min(range(len(out)), key=lambda i: out[i]["cv"])
+    limit = out[best]["cv"] + out[best]["se"]
+    # Stiffest first: the constant, then the spline penalties from the largest down.
+    order = [0] + sorted(range(1, len(out)), key=lambda i: -out[i]["smooth"])
+    pick = next(i for i in order if out[i]["cv"] <= limit)
+    return {"choice": "constant" if out[pick]["smooth"] is None else out[pick]["smooth"], "candidates": out}
+
+
+def fit_backlash_auto(q_mean: np.ndarray, b: np.ndarray, n_max: int = 14, q_range: tuple[float, float] | None = None,
+                      source: str | None = None, max_slope: float = 1.5, sigma: np.ndarray | None = None) -> BacklashFit:
+    """B from whatever number of onset samples the record holds (issue 13, item 1).
+
+    - M = 0: InputError naming ``source`` (nothing to fit).
+    - 1 <= M < 4: constant B (weighted mean) with its 95 % confidence interval
+      (``constant_backlash``); kind "constant".
+    - M >= 4: a B(q) spline with N = min(n_max, M) control points (no more coefficients than
+      samples; N = 14 is the paper's setting, reached from 14 samples on) and its stiffness,
+      or a constant, chosen by cross-validation on the samples (``choose_stiffness``); then
+      fitted by fit_backlash_samples (B >= 0, |B'| <= max_slope, robust, sigma-weighted).
+    q_mean, b, sigma: (M,) actuator units. Returns a BacklashFit.
+    """
+    q_mean, b = np.asarray(q_mean, float), np.asarray(b, float)
+    m = b.size
+    if m == 0:
+        raise InputError(source, "no B sample: no reversal ended with a detected onset")
+    lo, hi = (float(np.min(q_mean)), float(np.max(q_mean))) if q_range is None else q_range
+    cv = None
+    if m >= MIN_SPLINE_SAMPLES and hi > lo:
+        n_ctrl = int(min(n_max, m))
+        cv = choose_stiffness(q_mean, b, n_ctrl, lo, hi, sigma)
+        if cv["choice"] != "constant":
+            f = fit_backlash_samples(q_mean, b, n_ctrl, cv["choice"], (lo, hi), source, max_slope, sigma)
+            f.kind, f.n_ctrl, f.smooth, f.cv = "spline", n_ctrl, float(cv["choice"]), cv
+            return f
+    b0, ci = constant_backlash(b, sigma)
+    r = b - b0
+    s = 1.4826 * float(np.median(np.abs(r - np.median(r)))) + 1e-12 if m >= 3 else 0.0
+    z = r / s if s > 0 else np.zeros(m)
+    return BacklashFit(_constant_spline(b0, lo, hi), np.ones(m), z, np.abs(z) > Z_INCONSISTENT, s,
+                       "constant", 4, None, ci, cv)
 
 
 # --------------------------------------------------------------------------- f_remain

@@ -26,8 +26,9 @@ def import_csv(path, t_col: str, q_col: str, c_col: str, time_scale: float = 1.0
     """Read one CSV with a header into an angle session (encoder and distal share rows).
 
     t_col, q_col, c_col: header names; time_scale, q_scale multiply the raw columns (e.g.
-    1e-3 for ms, 1e-3 for um). Errors: InputError naming the file and row (missing
-    column, NaN, non-increasing time)."""
+    1e-3 for ms, 1e-3 for um). Repeated and backward time stamps are repaired as for a
+    session (session.regularize_time; what was done is in Session.notes). Errors: InputError
+    naming the file and row (missing column, NaN, a clock reset)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
@@ -43,9 +44,10 @@ def import_csv(path, t_col: str, q_col: str, c_col: str, time_scale: float = 1.0
     for col in (t_col, q_col, c_col):
         if col not in header:
             raise InputError(path, f"missing column {col!r} (header: {','.join(header)})", 1)
-    d = read_csv(path, [t_col, q_col, c_col], time_col=t_col)
+    notes: list[str] = []
+    d = read_csv(path, [t_col, q_col, c_col], time_col=t_col, notes=notes)  # repeated/backward stamps repaired
     t = d[t_col] * time_scale
-    return Session(actuator_unit=unit, distal_kind="angle",
+    return Session(notes=notes, actuator_unit=unit, distal_kind="angle",
                    robot=Robot("constant_curvature", bend_length_mm, tip_length_mm, q_per_rad),
                    encoder={"t_s": t, "q": d[q_col] * q_scale}, distal={"t_s": t.copy(), "c_deg": d[c_col]},
                    t_delay_s=0.0, meta={"source": {"file": str(path), "columns": [t_col, q_col, c_col]}})

@@ -30,6 +30,7 @@ from .errors import InputError
 FORMAT = "playscope-session/1"
 ACTUATOR_UNITS = ("mm", "deg")
 DISTAL_KINDS = ("image", "angle")
+Q_SOURCES = ("measured", "command")  # actuator.q_source: encoder reading, or the position commanded
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov", ".m4v")
 
 
@@ -107,6 +108,8 @@ class Session:
     video: Path | None = None
     path: Path | None = None
     meta: dict[str, Any] = field(default_factory=dict)
+    q_source: str = "measured"
+    notes: list[str] = field(default_factory=list)
 
     # Observations used by the estimator, whichever the distal kind.
     def observations(self) -> tuple[np.ndarray, np.ndarray]:
@@ -120,7 +123,8 @@ class Session:
         return self.marker["t_s"], np.column_stack([self.marker["u_px"], self.marker["v_px"]])
 
     def to_json(self) -> dict:
-        d: dict[str, Any] = {"format": FORMAT, "actuator": {"unit": self.actuator_unit},
+        act = {"unit": self.actuator_unit} | ({"q_source": self.q_source} if self.q_source != "measured" else {})
+        d: dict[str, Any] = {"format": FORMAT, "actuator": act,
                              "distal": {"kind": self.distal_kind}, "robot": self.robot.to_json()}
         if self.camera is not None:
             d["camera"] = self.camera.to_json()
@@ -146,12 +150,14 @@ class Session:
 
 # --------------------------------------------------------------------------- CSV
 def read_csv(path: Path, required: list[str], optional: list[str] = (), nullable: set[str] = frozenset(),
-             time_col: str | None = "t_s") -> dict[str, np.ndarray]:
+             time_col: str | None = "t_s", notes: list[str] | None = None) -> dict[str, np.ndarray]:
     """Read a numeric CSV with a header row into float64 arrays.
 
     required/optional: column names (others are kept too). nullable: columns whose empty
     fields mean "lost" (NaN); anywhere else an empty, non-numeric, NaN or infinite field is
-    an error. time_col must be strictly increasing.
+    an error. time_col must be strictly increasing, unless ``notes`` (a list) is given: then
+    repeated and backward time stamps are repaired by ``regularize_time`` and what it did is
+    appended to notes as one line.
     Errors: InputError(file, message, row) with the 1-based line number.
     """
     path = Path(path)
@@ -162,7 +168,11 @@ def read_csv(path: Path, required: list[str], optional: list[str] = (), nullable
         out = fast
     else:
         out = _read_csv_checked(path, required, nullable)
-    if time_col is not None:
+    if time_col is not None and notes is not None:
+        out, note = regularize_time(out, path, time_col)
+        if note:
+            notes.append(note)
+    elif time_col is not None:
         t = out[time_col]
         bad = np.nonzero(np.diff(t) <= 0)[0]
         if bad.size:
@@ -170,6 +180,79 @@ def read_csv(path: Path, required: list[str], optional: list[str] = (), nullable
             raise InputError(path, f"time {t_col_fmt(t[k])} s not after the previous row's "
                              f"{t_col_fmt(t[k - 1])} s (time must increase)", k + 2)
     return out
+
+
+# Irregular logs (docs/session-format.md, "Irregular logs"). A row whose time stamp is
+# behind an earlier row's cannot be placed without guessing which clock is right; a few
+# such rows are dropped (a late packet, a corrupt stamp), but more than this fraction of the
+# file means a clock reset or two joined logs, which only the user can untangle.
+MAX_BACKWARD_FRACTION = 0.01
+# A logger faster than its sensor repeats the last reading: when most rows equal the
+# previous one, the repeats are not measurements (a measured signal with noise almost never
+# repeats exactly, a still one at most half the time between quantisation steps).
+HELD_FRACTION = 0.5
+
+
+def regularize_time(tab: dict[str, np.ndarray], path, time_col: str = "t_s") -> tuple[dict[str, np.ndarray], str | None]:
+    """Make ``tab[time_col]`` strictly increasing by the documented choice, and say so.
+
+    - a row earlier than some row before it is dropped (its stamp cannot be placed);
+    - rows sharing a time stamp keep the last of them (a sensor re-publishing keeps its
+      newest reading; the same choice as ``playscope import`` of ROS bags).
+    Returns (table, note) with note None when nothing changed, else one line naming the
+    file and the number of rows affected. Errors: InputError(path, ..., row of the largest step back) when more than
+    MAX_BACKWARD_FRACTION of the rows (and more than one) go back in time.
+    """
+    t = np.asarray(tab[time_col], float)
+    n = t.size
+    if n < 2:
+        return tab, None
+    prev_max = np.maximum.accumulate(np.r_[-np.inf, t[:-1]])
+    back = t < prev_max
+    nb = int(back.sum())
+    first = int(np.argmax(back)) if nb else -1
+    if nb > max(1.0, MAX_BACKWARD_FRACTION * n):
+        k = int(np.argmin(t - prev_max))  # the largest step back: where the clock was reset
+        raise InputError(path, f"time goes back in {nb} of {n} rows, the most here ({t_col_fmt(t[k])} s after "
+                         f"{t_col_fmt(prev_max[k])} s): a clock reset or joined logs? split the file there "
+                         f"(at most {MAX_BACKWARD_FRACTION:.0%} of the rows may be out of order)", k + 2)
+    kept = np.nonzero(~back)[0]
+    tk = t[kept]
+    last = np.r_[tk[1:] != tk[:-1], True]
+    nd = int((~last).sum())
+    if nb == 0 and nd == 0:
+        return tab, None
+    idx = kept[last]
+    parts = []
+    if nd:
+        parts.append(f"{nd} row(s) repeat an earlier time stamp (kept the last row of each)")
+    if nb:
+        parts.append(f"{nb} row(s) go back in time, the first at row {first + 2} (dropped)")
+    note = f"{path}: " + "; ".join(parts) + f": {n - idx.size} of {n} rows dropped"
+    return {k: v[idx] for k, v in tab.items()}, note
+
+
+def drop_held(tab: dict[str, np.ndarray], cols: list[str], path) -> tuple[dict[str, np.ndarray], str | None]:
+    """Read a sensor logged faster than it measures (sample-and-hold) at its own rate.
+
+    When more than HELD_FRACTION of the rows repeat the previous row's ``cols`` exactly, each
+    run of equal values is one reading, timed at the run's first row (when it arrived); the
+    repeats are dropped. Lost rows (NaN) never count as repeats. Returns (table, note), note
+    None when the file is not held, else one line with the count and the sensor's own rate.
+    """
+    X = np.column_stack([np.asarray(tab[c], float) for c in cols])
+    n = X.shape[0]
+    if n < 3:
+        return tab, None
+    same = np.r_[False, np.all(X[1:] == X[:-1], axis=1)]
+    if same.mean() <= HELD_FRACTION:
+        return tab, None
+    t = tab["t_s"]
+    keep = ~same
+    rate = (int(keep.sum()) - 1) / max(float(t[-1] - t[0]), 1e-12)
+    note = (f"{path}: {int(same.sum())} of {n} rows ({same.mean():.0%}) repeat the previous value: read as a "
+            f"sensor slower than its log ({rate:.3g} new readings/s), each reading timed at its first row")
+    return {k: v[keep] for k, v in tab.items()}, note
 
 
 def _read_csv_fast(path: Path, required, nullable) -> dict[str, np.ndarray] | None:
@@ -326,6 +409,10 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
     if robot.q_per_rad == 0 or robot.bend_length_mm <= 0:
         raise InputError(path, "robot.q_per_rad must be non-zero and robot.bend_length_mm positive")
     out: dict[str, Any] = {"actuator_unit": unit, "distal_kind": kind, "robot": robot}
+    q_source = d["actuator"].get("q_source", "measured")
+    if q_source not in Q_SOURCES:
+        raise InputError(path, f"actuator.q_source must be one of {Q_SOURCES}, got {q_source!r}")
+    out["q_source"] = q_source
     if "camera" in d or kind == "image":
         c = _get(d, "camera", path, "", dict)
         K = _matrix(_get(c, "K", path, "camera."), (3, 3), path, "camera.K")
@@ -414,15 +501,18 @@ def load_session(folder: str | os.PathLike) -> Session:
         raise InputError(jpath, "file not found")
     d = read_json(jpath, "session.json")
     kw = parse_meta(d, jpath)
-    enc = read_csv(folder / "encoder.csv", ["t_s", "q"], ["q_cmd"])
+    notes: list[str] = []
+    enc = read_csv(folder / "encoder.csv", ["t_s", "q"], ["q_cmd"], notes=notes)
     if len(enc["t_s"]) < 2:
         raise InputError(folder / "encoder.csv", "fewer than two samples")
-    s = Session(encoder=enc, path=folder, **kw)
+    s = Session(encoder=enc, path=folder, notes=notes, **kw)
     if kw["distal_kind"] == "angle":
-        s.distal = read_csv(folder / "distal.csv", ["t_s", "c_deg"], nullable={"c_deg"})
+        s.distal = read_csv(folder / "distal.csv", ["t_s", "c_deg"], nullable={"c_deg"}, notes=notes)
+        s.distal = _noted(drop_held(s.distal, ["c_deg"], folder / "distal.csv"), notes)
     else:
         if (folder / "marker.csv").is_file():
-            s.marker = read_csv(folder / "marker.csv", ["t_s", "u_px", "v_px"], nullable={"u_px", "v_px"})
+            s.marker = read_csv(folder / "marker.csv", ["t_s", "u_px", "v_px"], nullable={"u_px", "v_px"}, notes=notes)
+            s.marker = _noted(drop_held(s.marker, ["u_px", "v_px"], folder / "marker.csv"), notes)
             if np.any(np.isnan(s.marker["u_px"]) != np.isnan(s.marker["v_px"])):
                 k = int(np.nonzero(np.isnan(s.marker["u_px"]) != np.isnan(s.marker["v_px"]))[0][0])
                 raise InputError(folder / "marker.csv", "u_px and v_px must be both present or both empty", k + 2)
@@ -435,6 +525,13 @@ def load_session(folder: str | os.PathLike) -> Session:
     if (folder / "truth.csv").is_file():
         s.truth = read_csv(folder / "truth.csv", ["t_s", "c_deg"])
     return s
+
+
+def _noted(result, notes: list[str]):
+    tab, note = result
+    if note:
+        notes.append(note)
+    return tab
 
 
 def write_session(s: Session, folder: str | os.PathLike, overwrite: bool = False) -> Path:

@@ -8,8 +8,7 @@ import numpy as np
 
 from .. import argtypes as T
 from ..calibration import calibrate
-from ..session import load_session
-from .common import add_json_arg, dump_json
+from .common import load_session_noted, add_json_arg, dump_json
 
 
 def add_parser(sub) -> None:
@@ -44,7 +43,7 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    s = load_session(a.session)
+    s = load_session_noted(a.session)
     ov = {"threshold": a.threshold} if a.threshold is not None else None
     cal = calibrate(s, a.control_points, a.f_method, a.fps, a.t_delay, a.hysteresis, ov,
                     t_delay_from=a.t_delay_from, model_kind=a.model)

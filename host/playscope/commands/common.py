@@ -18,6 +18,22 @@ def add_json_arg(p, keys_doc: str) -> None:
                    help=f"also write machine-readable results to PATH. Keys: {keys_doc}")
 
 
+def load_session_noted(folder):
+    """load_session, printing what it repaired in the files (session.notes: repeated or backward
+    time stamps, a held sensor) as one `playscope: warning:` line each on stderr."""
+    from ..session import load_session
+
+    s = load_session(folder)
+    warn(s.notes)
+    return s
+
+
+def warn(lines) -> None:
+    """Each line as `playscope: warning: <line>` on stderr."""
+    for line in lines:
+        print(f"playscope: warning: {line}", file=sys.stderr)
+
+
 Q16_LIMIT = 32767.0  # |q| a Q16.16 int32 holds (common/ps_fixed.h), actuator units
 
 

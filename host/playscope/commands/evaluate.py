@@ -6,8 +6,7 @@ from pathlib import Path
 
 from .. import argtypes as T
 from ..evaluate import evaluate, format_table
-from ..session import load_session
-from .common import add_json_arg, dump_json, load_calibration
+from .common import load_session_noted, add_json_arg, dump_json, load_calibration
 
 
 def add_parser(sub) -> None:
@@ -33,7 +32,7 @@ def add_parser(sub) -> None:
 
 def run(a) -> int:
     cal = load_calibration(a.calibration)
-    s = load_session(a.session)
+    s = load_session_noted(a.session)
     tab = None
     if a.table:
         from ..errors import InputError

@@ -4,8 +4,7 @@ and scored on the part after, state carried from the record's start (playscope.i
 from __future__ import annotations
 
 from ..insitu import JSON_KEYS, evaluate_insitu, format_insitu
-from ..session import load_session
-from .common import add_json_arg, dump_json, progress
+from .common import load_session_noted, add_json_arg, dump_json, progress
 
 
 def add_parser(sub) -> None:
@@ -28,7 +27,7 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    s = load_session(a.session)
+    s = load_session_noted(a.session)
     doc = evaluate_insitu(s, a.split, progress=progress, source=a.session)
     print(format_insitu(doc))
     dump_json(a.json, doc)

@@ -10,7 +10,7 @@ from .. import argtypes as T
 from ..errors import InputError
 from ..importer import CATHETER, import_csv
 from ..session import write_session
-from .common import add_json_arg, dump_json
+from .common import warn, add_json_arg, dump_json
 
 EPILOG = """\
 examples:
@@ -91,6 +91,8 @@ def run(a) -> int:
         write_bag_session(s, frames, a.out, overwrite=a.overwrite)
     else:
         s = import_csv(a.source, a.t_col, a.q_col, a.c_col, a.time_scale, a.q_scale, a.unit, a.q_per_rad)
+        notes = list(s.notes)
+        warn(notes)
         write_session(s, a.out, overwrite=a.overwrite)
     t = s.encoder["t_s"]
     print(f"{a.out}: {t.size} rows, {t[-1] - t[0]:.1f} s")

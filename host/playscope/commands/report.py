@@ -9,8 +9,7 @@ from .. import argtypes as T
 from ..errors import InputError
 from ..evaluate import evaluate, format_table
 from ..report import write_report
-from ..session import load_session
-from .common import add_json_arg, dump_json, load_calibration
+from .common import load_session_noted, add_json_arg, dump_json, load_calibration
 
 
 def add_parser(sub) -> None:
@@ -29,7 +28,7 @@ def add_parser(sub) -> None:
 
 def run(a) -> int:
     cal = load_calibration(a.calibration)
-    s = load_session(a.session)
+    s = load_session_noted(a.session)
     ev = evaluate(cal, s, source=a.session)
     ev.summary["calibration"] = a.calibration
     summary = ev.summary

@@ -93,7 +93,9 @@ def run(args) -> int:
         print(selftest.format_report(sc))
         dump_json(args.json, {"selftest": sc})
         return 0
-    items = [(str(s), lambda s=s: load_session(s)) for s in args.sessions]
+    from ..commands.common import load_session_noted  # prints what loading repaired (issue 13)
+
+    items = [(str(s), lambda s=s: load_session_noted(s)) for s in args.sessions]
     if args.catheter:
         from ..importer import import_catheter
         items += [(Path(f).stem, lambda f=f: import_catheter(f)) for f in args.catheter]

@@ -100,7 +100,7 @@ def test_cli_errors_name_file_and_write_nothing(tmp_path, capsys):
     write_session(s, tmp_path / "s")
     assert main(["calibrate", str(tmp_path / "s"), "-o", str(tmp_path / "c.json")]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "reversals" in err and str(tmp_path / "s") in err
+    assert err.count("\n") == 0 and "no usable reversal" in err and str(tmp_path / "s") in err
     assert not (tmp_path / "c.json").exists()
     assert main(["calibrate", str(tmp_path / "missing"), "-o", str(tmp_path / "c.json")]) == 2
     assert "session folder not found" in capsys.readouterr().err

@@ -63,6 +63,16 @@ def _csv_edit(rel: str, fn):
     return f
 
 
+def _clock_reset(first: int, back_s: float = 1000.0):
+    """Lines from ``first`` on moved back by back_s seconds: a clock reset (or two joined logs),
+    refused; one stray backward row is dropped with a warning by design (issue 13, item 2)."""
+    def fn(lines):
+        for i in range(first, len(lines)):
+            t, rest = lines[i].split(",", 1)
+            lines[i] = f"{float(t) - back_s!r},{rest}"
+    return fn
+
+
 def _set(path: str, value):
     """Edit of a nested key "a.b.c" (value DELETE removes it)."""
     def fn(d):
@@ -178,7 +188,7 @@ def cases() -> list[tuple[str, list[str], object]]:
         ("NaN cell", _csv_edit(enc, lambda L: L.__setitem__(50, "0.5,nan"))),
         ("inf cell", _csv_edit(enc, lambda L: L.__setitem__(50, "0.5,inf"))),
         ("short row", _csv_edit(enc, lambda L: L.__setitem__(50, "0.5"))),
-        ("time backwards", _csv_edit(enc, lambda L: L.__setitem__(50, "-5,0.1"))),
+        ("time backwards (clock reset)", _csv_edit(enc, _clock_reset(50))),
         ("binary", _write(enc, JUNK)), ("NUL bytes", _write(enc, b"t_s,q\n0,\x00\x00\n")),
         ("invalid utf-8", _write(enc, b"t_s,q\n0,1\n\xff\xfe,2\n")), ("a folder", _to_folder(enc)),
         ("one row", _write(enc, "t_s,q\n0,1\n")),
@@ -187,7 +197,7 @@ def cases() -> list[tuple[str, list[str], object]]:
         add(f"encoder.csv {name}", CAL, dmg)
     dis = S + "distal.csv"
     for name, dmg in [("missing", _delete(dis)), ("text cell", _csv_edit(dis, lambda L: L.__setitem__(9, "1,x"))),
-                      ("time backwards", _csv_edit(dis, lambda L: L.__setitem__(9, "-1,0"))),
+                      ("time backwards (clock reset)", _csv_edit(dis, _clock_reset(9))),
                       ("invalid utf-8", _write(dis, b"t_s,c_deg\n\xff\n"))]:
         add(f"distal.csv {name}", CAL, dmg)
     add("session folder missing", ["calibrate", "{root}/nope", "-o", "{root}/out.json"])

@@ -54,7 +54,6 @@ def _corrupt(folder, name, lineno, text):
     (5, "0.008,nan", "non-finite"),
     (5, "0.008,", "empty value"),
     (5, "0.008,abc", "not a number"),
-    (5, "0.0001,1.0", "time"),
     (5, "0.008", "expected 2 fields"),
 ])
 def test_bad_encoder_rows_name_file_and_row(tmp_path, line, text, msg):
@@ -65,6 +64,25 @@ def test_bad_encoder_rows_name_file_and_row(tmp_path, line, text, msg):
         load_session(tmp_path / "s")
     assert f"encoder.csv:{line}:" in str(ei.value) and msg in str(ei.value)
     assert "\n" not in str(ei.value)
+
+
+def test_backward_time_one_row_repaired_clock_reset_refused(tmp_path):
+    """Issue 13: one row stamped before its predecessor is dropped with a note (it used to be
+    refused); time going back for the rest of the file is a clock reset, refused at its row."""
+    s = angle_session()
+    write_session(s, tmp_path / "s")
+    _corrupt(tmp_path / "s", "encoder.csv", 5, "0.0001,1.0")
+    r = load_session(tmp_path / "s")
+    assert r.encoder["t_s"].size == s.encoder["t_s"].size - 1
+    assert r.notes == [f"{tmp_path / 's' / 'encoder.csv'}: 1 row(s) go back in time, the first at row 5 (dropped): "
+                       f"1 of {s.encoder['t_s'].size} rows dropped"]
+    p = tmp_path / "s" / "encoder.csv"
+    lines = p.read_text().splitlines()
+    lines[100:] = [f"{float(x.split(',')[0]) - 50:.6f},{x.split(',')[1]}" for x in lines[100:]]
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError) as ei:
+        load_session(tmp_path / "s")
+    assert "encoder.csv:101:" in str(ei.value) and "clock reset" in str(ei.value) and "\n" not in str(ei.value)
 
 
 def test_missing_file_and_bad_json(tmp_path):
