@@ -19,6 +19,11 @@ MARGIN_FRAC = 0.08    # practical margin: 8 % of the held-out RMSE ...
 MARGIN_ABS = 0.05     # ... and at least 0.05 deg (below that a bending error is of no practical use)
 BIC_MIN = 10.0        # "strong" evidence on the BIC scale (Kass & Raftery)
 MAX_EFFECTS = 3
+# Stick-slip signature: skewness of the motion-signed residual increments. Set on development seeds
+# of the blind generator (1000-3500, never the reported seed 0): stick-slip 0.40-3.4, nulls and the
+# out-of-library ringing/ratcheting <= 0.05 (ratcheting -0.31, one-sided rule), a viscous damped
+# contact 0.46 (named by its kept lag first; the rule is only asked when nothing explains the gap).
+SKEW_MIN = 0.3
 FRESH_START = ("dead_zone", "viscous_hysteresis")
 
 
@@ -184,10 +189,39 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
     out["final"] = {"effects": list(kept), "rmse_heldout_deg": cur_r, "rmse_fit_deg": current.rmse(y, fit_mask),
                     "excess_after_deg": excess(cur_r, sigma),
                     "share_of_excess_removed": _share(r0, cur_r, out["excess_before_deg"], sigma)}
+    out["stick_slip_signature"] = stick_slip_signature(data, current, eval_mask)
     out["verdict"] = verdict(out)
     out["_fits"] = {"base": base, "final": current}
     out["_models"] = {"base": base_model, "final": cur_model}
     return out
+
+
+def stick_slip_signature(data: Data, fit: Fit, mask: np.ndarray, skew_min: float = SKEW_MIN) -> dict:
+    """Residual signature of stick-slip that needs no phase: while the actuator moves, the tip
+    sticks (the residual drifts slowly against the motion) and slips (it jumps back with the
+    motion), so the increments of the residual, signed by the direction of motion, are skewed
+    towards the motion. A lag, a play or a vibration gives symmetric increments. The deterministic
+    stiction form of the screen cannot follow the slips' phase at the sampling rate (a slip every
+    few samples), so the effect is named from this signature, not from a shrink.
+    Rows: ``mask`` rows where |dq/dt| exceeds 20 % of its 90th percentile (moving legs, not holds
+    or turns), consecutive pairs only. Present when the sample skewness exceeds
+    max(skew_min, 3 sqrt(6 / n)): 3 standard errors of the skewness of a symmetric sample keep
+    chance out, skew_min (0.3, see SKEW_MIN) keeps out the mild skew of other misfits.
+    Returns {"skewness", "n", "threshold", "present"}."""
+    from scipy.stats import skew
+    q = np.interp(data.t_m - data.t_delay_s, data.t_int, data.q_int)
+    dq = np.gradient(q, data.t_m)
+    a = np.abs(dq)
+    moving = a > 0.2 * np.percentile(a, 90) if a.size else a > 0
+    r = data.y_m - fit.pred
+    dr = np.diff(r) * np.sign(dq[1:])
+    ok = moving[1:] & moving[:-1] & mask[1:] & mask[:-1] & np.isfinite(dr)
+    n = int(ok.sum())
+    if n < 50:
+        return {"skewness": float("nan"), "n": n, "threshold": float("nan"), "present": False}
+    g = float(skew(dr[ok]))
+    thr = max(skew_min, 3.0 * np.sqrt(6.0 / n))
+    return {"skewness": g, "n": n, "threshold": float(thr), "present": bool(g > thr)}
 
 
 def _share(r_before: float, r_after: float, e0: float, sigma: float) -> float:
@@ -201,9 +235,13 @@ def verdict(out: dict, unexplained_ratio: float = 1.5, negligible_deg: float = 2
     """One label: the first kept effect when the kept set removes at least half of the excess;
     "none" when nothing is kept and the gap is negligible (held-out RMSE within
     unexplained_ratio x the noise floor, or an excess over it below negligible_deg = 0.1 deg);
-    "unexplained" otherwise."""
+    otherwise "stick_slip" when the validation residual of the final model carries the stick-slip
+    signature (``stick_slip_signature``), else "unexplained"."""
+    sig = out.get("stick_slip_signature", {}).get("present", False)
     if out["kept"]:
-        return out["kept"][0]["effect"] if out["final"]["share_of_excess_removed"] >= 0.5 else "unexplained"
+        if out["final"]["share_of_excess_removed"] >= 0.5:
+            return out["kept"][0]["effect"]
+        return "stick_slip" if sig else "unexplained"
     r0 = out["base"]["rmse_heldout_deg"]
     small = r0 <= unexplained_ratio * max(out["noise_floor_deg"], 1e-9) or out["excess_before_deg"] < negligible_deg
-    return "none" if small else "unexplained"
+    return "none" if small else ("stick_slip" if sig else "unexplained")

@@ -40,7 +40,10 @@ NONLIN = {
     # Extra half-width of the play beta * |dq/dt| (speed low-passed with tau_v): the lag grows
     # with speed and relaxes over tau_v after a stop (sheath friction with a viscous part).
     "viscous_hysteresis": [("beta_s", 0.05, 0.0, 2.0), ("log_tau_v", np.log(0.1), np.log(0.02), np.log(3.0))],
-    "handeye_direction": [],
+    # The registration offset switches sign with the direction of distal motion over a travel of
+    # the play output (a seat that slides over its gap, an instrument dragged in its channel);
+    # log of the travel as a fraction of the q span; the smallest is an instant switch.
+    "handeye_direction": [("log_travel", np.log(0.002), np.log(0.002), np.log(0.5))],
     "drift": [],
 }
 LINEAR = {"handeye_direction": "delta_deg", "drift": "rate_deg_per_min"}
@@ -176,6 +179,19 @@ def _hold(z: np.ndarray, step: float, kin: float = 0.0) -> np.ndarray:
     return np.asarray(out)
 
 
+def _switch(z: list, travel: float) -> np.ndarray:
+    """Direction state that goes from -1 to +1 over a travel ``travel`` of z (a play of width
+    travel on z, normalised): s += 2 dz / travel, clipped to [-1, 1]; starts at +1."""
+    out = [0.0] * len(z)
+    st, g = 1.0, 2.0 / max(travel, 1e-12)
+    for k in range(1, len(z)):
+        st += g * (z[k] - z[k - 1])
+        st = 1.0 if st > 1.0 else (-1.0 if st < -1.0 else st)
+        out[k] = st
+    out[0] = out[1] if len(z) > 1 else 1.0
+    return np.asarray(out)
+
+
 def _direction(z: np.ndarray) -> np.ndarray:
     d = np.diff(z, prepend=z[:1])
     d = np.where(np.abs(d) > 1e-12, np.sign(d), 0.0)
@@ -273,6 +289,9 @@ class Model:
             zs.append(_play(zu.tolist(), zd.tolist(), z0))
         z = zs[0] if len(zs) == 1 else np.mean(zs, axis=0)
         sdir = _direction(z)
+        if "handeye_direction" in self.effects:
+            w = np.exp(self._get(theta, "handeye_direction", "log_travel")) * 2 * self.q_half
+            sdir = _switch(z.tolist(), w)
         if "stick_slip" in self.effects:
             z = _hold(z, max(self._get(theta, "stick_slip", "step_q"), 1e-9))
         x = np.clip((z - self.q_mid) / self.q_half, -1.5, 1.5)
@@ -411,6 +430,11 @@ class Model:
                         x = s.copy()
                         x[self.names.index("viscous_hysteresis.beta_s")] = b
                         x[self.names.index("viscous_hysteresis.log_tau_v")] = lt
+                        new.append(x)
+                elif e == "handeye_direction":
+                    for lt in np.log([0.002, 0.05, 0.2]):
+                        x = s.copy()
+                        x[self.names.index("handeye_direction.log_travel")] = lt
                         new.append(x)
                 elif e == "camera_delay":
                     for dl in (-0.04, 0.04, 0.1):

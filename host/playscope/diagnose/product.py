@@ -4,8 +4,10 @@ diagnosis kept that the product can represent:
   smooth_transition -> the transition model of the model issue (calibrate model_kind="pi"),
   camera_delay      -> the kept delay applied to the product's prediction (angle sessions share the
                        encoder clock, so calibrate itself estimates none);
-other kept effects have no counterpart in the product and are listed as such. The fixed-point
-tables are not evaluated here (the host's native build must match the merged C first).
+other kept effects have no counterpart in the product and are listed as such. Each model is
+judged twice: in float (Calibration.predict) and through the fixed-point path the board runs
+(tables.build_table -> the firmware's playop_step via cffi, the same table `calibrate` writes;
+the delay is applied to the table's output, as the board's latency compensation would).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import numpy as np
 
 from ..calibration import calibrate
 from ..session import Session
+from ..tables import TableError, build_table
 
 
 def _until(s: Session, t_end: float) -> Session:
@@ -25,9 +28,10 @@ def _until(s: Session, t_end: float) -> Session:
 
 def product_rmse(session: Session, data, fit_mask: np.ndarray, test_mask: np.ndarray, kept: list,
                  delay_s: float = 0.0) -> dict:
-    """{"play": RMSE, "with_kept": RMSE, "model": model_kind, "not_in_product": [...]} in deg on
-    the test rows of ``data`` (diagnose Data of the same session); fit on rows up to the last fit row
-    (angle sessions only)."""
+    """{"play", "with_kept" (float), "play_fixed", "with_kept_fixed" (fixed-point table through the
+    firmware's playop_step; NaN with "fixed_error" when the table cannot be built): RMSE in deg on
+    the test rows of ``data`` (diagnose Data of the same session), "model": model_kind,
+    "not_in_product": [...]}; fit on rows up to the last fit row (angle sessions only)."""
     if session.distal_kind != "angle":
         raise ValueError("product shrink: angle sessions only")
     t_end = float(data.t_m[fit_mask].max())
@@ -38,10 +42,21 @@ def product_rmse(session: Session, data, fit_mask: np.ndarray, test_mask: np.nda
                                ("with_kept", "pi" if "smooth_transition" in kept else "play",
                                 delay_s if "camera_delay" in kept else 0.0)):
         cal = calibrate(sub, model_kind=kind, source=str(session.path or "record"))
-        c = cal.predict(session.encoder["q"])
-        pred = np.interp(data.t_m - data.t_delay_s - delay, t, c)  # declared acquisition delay too
-        r = (data.y_m - pred)[test_mask & np.isfinite(data.y_m)]
-        out[label] = float(np.sqrt(np.mean(r * r)))
+        q = session.encoder["q"]
+
+        def rmse(c):
+            pred = np.interp(data.t_m - data.t_delay_s - delay, t, c)  # declared acquisition delay too
+            r = (data.y_m - pred)[test_mask & np.isfinite(data.y_m)]
+            return float(np.sqrt(np.mean(r * r)))
+        out[label] = rmse(cal.predict(q))
+        try:
+            q0, q1 = cal.doc["q_range"]
+            tab = build_table(cal.B_model, cal.f, q0, q1, cal.doc["actuator_unit"], "remain",
+                              transition=cal.transition)
+            out[label + "_fixed"] = rmse(tab.predict(q))
+        except (TableError, OverflowError) as exc:
+            out[label + "_fixed"] = float("nan")
+            out.setdefault("fixed_error", {})[label] = str(exc)
         if label == "with_kept":
             out["model"] = kind
     return out

@@ -108,7 +108,7 @@ def format_catheter(tab: dict) -> str:
     """Markdown tables of catheter_table()'s result."""
     lines = ["In situ, three-way (fit on the first half, select effects on the next quarter, test on the last "
              "quarter), bending-angle RMSE [deg] fit / validation / test:", "",
-             "| file | split | noise floor | play + f_remain (base) | + kept effects | kept effects (parameters ± 1 sd; validation RMSE after each; parameters at a bound) | product (calibrate), test: play -> with kept |",
+             "| file | split | noise floor | play + f_remain (base) | + kept effects | kept effects (parameters ± 1 sd; validation RMSE after each; parameters at a bound) | product (calibrate), test: play -> with kept, float; fixed point (board's playop_step) |",
              "|---|---|---|---|---|---|---|"]
     for name, r in tab["in_situ"].items():
         ks = []
@@ -119,7 +119,9 @@ def format_catheter(tab: dict) -> str:
             ks.append(f"{k['effect']} ({ps}) → {k['rmse_after_deg']:.3f}{ind}{ab}")
         b, m = r["base"], r["kept_model"]
         pt = r.get("product_test")
-        prod = None if pt is None else (f"{pt['play']:.3f} -> {pt['with_kept']:.3f} ({pt['model']}"
+        fx = "" if pt is None or "play_fixed" not in pt else (
+            f"; fixed point {pt['play_fixed']:.3f} -> {pt['with_kept_fixed']:.3f}")
+        prod = None if pt is None else (f"{pt['play']:.3f} -> {pt['with_kept']:.3f}{fx} ({pt['model']}"
                                         + (f"; not in the product: {', '.join(pt['not_in_product'])}" if pt["not_in_product"] else "")
                                         + ")")
         lines.append(f"| {name} | {r['split']['method']} | {r['noise_floor_deg']:.3f} | "

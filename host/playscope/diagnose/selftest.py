@@ -93,6 +93,7 @@ def run_case(case: dict, duration_s: float = 120.0, candidates=C_LIBRARY, oracle
            "strength": case["strength"], "unit": case["unit"], "verdict": res["verdict"],
            "kept": [k["effect"] for k in res["kept"]],
            "indistinguishable": {k["effect"]: k["indistinguishable_from"] for k in res["kept"]},
+           "stick_skew": res["stick_slip_signature"]["skewness"],
            "split": sp.method, "noise_floor_deg": res["noise_floor_deg"],
            "rmse_val_base_deg": res["base"]["rmse_heldout_deg"], "rmse_val_after_deg": res["final"]["rmse_heldout_deg"],
            "rmse_base_deg": r0, "rmse_after_deg": res["test"]["rmse_final_deg"], "rmse_noise_only_deg": r_noise,
@@ -136,6 +137,7 @@ def _line(r: dict) -> str:
     return (f"case {r['id']:3d} {what:<46s} -> {r['verdict']:<20s} kept {','.join(r['kept']) or '-':<36s} "
             f"test {r['rmse_base_deg']:.3f}->{r['rmse_after_deg']:.3f} (noise-only {r['rmse_noise_only_deg']:.3f}) "
             f"shrink {r['shrink_recovered_deg']:.3f}/{r['shrink_true_deg']:.3f} identifiable {ident} "
+            f"skew {r.get('stick_skew', float('nan')):.2f} "
             f"[{r['seconds']:.0f} s]")
 
 
