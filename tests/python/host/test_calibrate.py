@@ -96,11 +96,11 @@ def test_cli_calibrate_tables_json(tmp_path, synth_cal):
 
 def test_cli_errors_name_file_and_write_nothing(tmp_path, capsys):
     s = angle_session(rate_hz=100.0)
-    s.encoder = {k: v[:400] for k, v in s.encoder.items()}  # 4 s: too few reversals
+    s.encoder = {k: v[:250] for k, v in s.encoder.items()}  # 2.5 s, before the first reversal (3 s)
     write_session(s, tmp_path / "s")
     assert main(["calibrate", str(tmp_path / "s"), "-o", str(tmp_path / "c.json")]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "no usable reversal" in err and str(tmp_path / "s") in err
+    assert err.count("\n") == 0 and "no direction reversal" in err and str(tmp_path / "s" / "encoder.csv") in err
     assert not (tmp_path / "c.json").exists()
     assert main(["calibrate", str(tmp_path / "missing"), "-o", str(tmp_path / "c.json")]) == 2
     assert "session folder not found" in capsys.readouterr().err

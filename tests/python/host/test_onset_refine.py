@@ -130,7 +130,8 @@ def test_cli_calibrate_t_delay_from(tmp_path, capsys):
     assert main(["calibrate", str(tmp_path / "s"), "-o", str(out), "--json", str(tmp_path / "r.json")]) == 0
     err = capsys.readouterr().err
     r = json.loads((tmp_path / "r.json").read_text())
-    assert len(r["warnings"]) == 1 and r["t_delay"]["configured_s"] == 0.18
+    # One delay warning; the others are issue 13's notes (q without encoder noise, B's model).
+    assert len([w for w in r["warnings"] if w.startswith("t_delay")]) == 1 and r["t_delay"]["configured_s"] == 0.18
     assert err.count("playscope: warning: t_delay") == 1
     d = json.loads(out.read_text())
     assert d["t_delay_s"] == pytest.approx(0.084, abs=0.004)
