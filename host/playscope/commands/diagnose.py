@@ -23,7 +23,10 @@ def add_parser(sub) -> None:
     p = add_command(sub, "diagnose", "sim-to-real gap: held-out gap, localisation, attribution to library effects",
                     "Fit the paper's model (play of width B(q) then f_remain) on the first part of each "
                                    "session, judge it on the rest, localise the residuals and attribute the gap to "
-                                   "effects of the simulator's library (docs/diagnosis.md).")
+                                   "effects of the simulator's library (docs/diagnosis.md).",
+                    examples=["playscope diagnose sessions/d21 --html diag.html --json diag.json",
+                              "playscope diagnose --catheter ../shared/data/real/catheter/data_2_1.txt --split 0.5",
+                              "playscope diagnose --selftest --workers 2"])
     p.add_argument("sessions", nargs="*", help="session folders (playscope-session/1)")
     p.add_argument("--catheter", metavar="FILE", nargs="+", default=[],
                    help="catheter CSV recordings (data_2_*.txt) read in place through playscope.importer")

@@ -20,7 +20,10 @@ def add_parser(sub) -> None:
     eff_help = "; ".join(f"{e.name}: " + ",".join(f"{p.name}[{p.unit}]" for p in e.params) for e in EFFECTS.values())
     p = add_command(sub, "simulate", "simulated session (robot with B(q) + f_remain, effects, endoscope camera)",
                     "Simulate the bending DOF (play of width B(q), f_remain, constant curvature) seen by an "
-                                   "endoscope camera, and write a session folder (docs/simulator.md).")
+                                   "endoscope camera, and write a session folder (docs/simulator.md).",
+                    examples=["playscope simulate sim_cal --preset stras --trajectory excitation --duration 120 --seed 1 --video",
+                              "playscope simulate sim_test --preset stras --trajectory test --duration 60 --seed 2",
+                              "playscope simulate reimaged --reimage ../shared/data/real/catheter/data_2_1.txt --video"])
     p.add_argument("out", help="session folder to write")
     p.add_argument("--preset", default="stras", choices=sorted(PRESETS), help="named configuration (default stras)")
     p.add_argument("--config", metavar="JSON", help="SimConfig as JSON (overrides the preset's keys)")
