@@ -146,10 +146,6 @@ class TableWritten:
     table: object
     errors: dict
 
-    @property
-    def blob(self) -> bytes:
-        return self.table.blob
-
     def line(self) -> str:
         tab, err = self.table, self.errors
         return (f"{self.path}: {len(tab.blob)} bytes, crc32 {tab.cal.crc32:#010x}, {tab.cal.b.n} entries per grid, "

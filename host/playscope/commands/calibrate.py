@@ -6,16 +6,19 @@ import sys
 
 from .. import argtypes as T
 from ..pipeline import calibrate_session
-from .common import add_command, add_json_arg, dump_json
+from .common import add_command, add_json_arg, emit
+
+
+DESCRIPTION = """\
+Paper Fig. 4: reversals -> motion onsets (the firmware's C detector, eq. 1; image sessions:
+refined on the host by a joint ML model, t_delay measured from the record) -> B(q) robust cubic
+B-spline (N control points) -> f_remain (play-consistent least squares, or the paper's
+morphological median line) -> calibration JSON (docs/calibration-format.md).
+"""
 
 
 def add_parser(sub) -> None:
-    p = add_command(sub, "calibrate", "estimate B(q) and f_remain from a session",
-                    "Paper Fig. 4: reversals -> motion onsets (the firmware's C detector, eq. 1; image sessions: "
-                       "refined on the host by a joint ML model, t_delay measured from the record) "
-                       "-> B(q) robust cubic B-spline (N control points) -> f_remain (play-consistent least "
-                       "squares, or the paper's morphological median line) -> calibration JSON "
-                       "(docs/calibration-format.md).",
+    p = add_command(sub, "calibrate", "estimate B(q) and f_remain from a session", DESCRIPTION,
                     examples=["playscope calibrate sessions/d21 -o d21.cal.json"])
     p.add_argument("session", help="session folder (playscope-session/1)")
     p.add_argument("-o", "--out", required=True, type=T.file_path, help="calibration JSON to write")
@@ -45,6 +48,4 @@ def run(a) -> int:
                             a.hysteresis, a.threshold, a.model)
     for w in res.warnings:
         print(f"playscope: warning: {w}", file=sys.stderr)
-    print(res.line())
-    dump_json(a.json, res.to_json())
-    return 0
+    return emit(a, res)

@@ -36,6 +36,13 @@ def dump_json(path: str | None, obj: dict) -> None:
     write_json(path, obj)
 
 
+def emit(a, res) -> int:
+    """Print a pipeline result's summary line and write its --json document; exit status 0."""
+    print(res.line())
+    dump_json(a.json, res.to_json())
+    return 0
+
+
 def progress(iterable=None, **kw):
     """tqdm on stderr, silent when stderr is not a terminal (logs, tests)."""
     from tqdm import tqdm

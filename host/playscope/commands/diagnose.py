@@ -17,13 +17,17 @@ JSON_KEYS = ("sessions.<name>: noise_floor_deg, noise_method, base{rmse_fit_deg,
              "verdict, atlas_before, atlas_after, geometry{base_px, screen, kept} (image sessions); selftest: confusion, top1, false_discovery_nulls, cases")
 
 
+DESCRIPTION = """\
+Fit the paper's model (play of width B(q) then f_remain) on the first part of each session,
+judge it on the rest, localise the residuals and attribute the gap to effects of the simulator's
+library (docs/diagnosis.md).
+"""
+
+
 def add_parser(sub) -> None:
     from .. import argtypes  # range-checked values (issue 14)
 
-    p = add_command(sub, "diagnose", "sim-to-real gap: held-out gap, localisation, attribution to library effects",
-                    "Fit the paper's model (play of width B(q) then f_remain) on the first part of each "
-                                   "session, judge it on the rest, localise the residuals and attribute the gap to "
-                                   "effects of the simulator's library (docs/diagnosis.md).",
+    p = add_command(sub, "diagnose", "sim-to-real gap: held-out gap, localisation, attribution to library effects", DESCRIPTION,
                     examples=["playscope diagnose sessions/d21 --html diag.html --json diag.json",
                               "playscope diagnose --catheter ../shared/data/real/catheter/data_2_1.txt --split 0.5",
                               "playscope diagnose --selftest --workers 2"])

@@ -4,16 +4,20 @@ from __future__ import annotations
 
 from .. import argtypes as T
 from ..pipeline import evaluate_session
-from .common import add_command, add_json_arg, dump_json
+from .common import add_command, add_json_arg, emit
+
+
+DESCRIPTION = """\
+Direct models f_coarse, f_coarse+B, f_remain+B (float, eqs. 2-3) and f_remain+B through the
+firmware's playop_step on Q16.16 tables, projected with h(g(c)) (eq. 6) and compared with the
+marker (|Qx|, |Qy|, distance: mean ± std, max) or with the angle sensor (RMSE); then an open-
+loop reference through f_coarse^-1, eq. 4+5, eq. 4+9 and comp_step, run on the simulator's truth
+model when the session records it.
+"""
 
 
 def add_parser(sub) -> None:
-    p = add_command(sub, "evaluate", "prediction (Table I) and compensation errors on a test session",
-                    "Direct models f_coarse, f_coarse+B, f_remain+B (float, eqs. 2-3) and "
-                       "f_remain+B through the firmware's playop_step on Q16.16 tables, projected with h(g(c)) "
-                       "(eq. 6) and compared with the marker (|Qx|, |Qy|, distance: mean ± std, max) or with the "
-                       "angle sensor (RMSE); then an open-loop reference through f_coarse^-1, eq. 4+5, eq. 4+9 "
-                       "and comp_step, run on the simulator's truth model when the session records it.",
+    p = add_command(sub, "evaluate", "prediction (Table I) and compensation errors on a test session", DESCRIPTION,
                     examples=["playscope evaluate sim_test cal.json --json eval.json"])
     p.add_argument("session", help="test session folder (not the one calibrated on, for a fair test)")
     p.add_argument("calibration", help="calibration JSON from `playscope calibrate`")
@@ -29,7 +33,4 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    res = evaluate_session(a.session, a.calibration, a.table, a.comp_duration)
-    print(res.line())
-    dump_json(a.json, res.to_json())
-    return 0
+    return emit(a, evaluate_session(a.session, a.calibration, a.table, a.comp_duration))

@@ -8,15 +8,18 @@ from ..session import load_session
 from .common import add_command, add_json_arg, dump_json, progress
 
 
+DESCRIPTION = """\
+Fits, on the part of SESSION before the split only: linear, constant play + poly5, the paper's
+method (onset B + morphological f_remain), onset B + least-squares f_remain, generalized
+Prandtl-Ishlinskii (16 play operators, weights >= 0, + cubic in q), Bouc-Wen, and ours with the
+transition. Every model then runs over the whole record from its first sample (a board that has
+been running all along) and is scored on the part after the split: bending-angle RMSE and max
+(deg), one Markdown table. Rows the board runs go through the firmware's fixed-point tables.
+"""
+
+
 def add_parser(sub) -> None:
-    p = add_command(sub, "evaluate-insitu", "in-situ RMSE of every model on one session split in time",
-                    "Fits, on the part of SESSION before the split only: linear, constant play + "
-                       "poly5, the paper's method (onset B + morphological f_remain), onset B + least-squares "
-                       "f_remain, generalized Prandtl-Ishlinskii (16 play operators, weights >= 0, + cubic in q), "
-                       "Bouc-Wen, and ours with the transition. Every model then runs over the whole record from "
-                       "its first sample (a board that has been running all along) and is scored on the part "
-                       "after the split: bending-angle RMSE and max (deg), one Markdown table. Rows the board "
-                       "runs go through the firmware's fixed-point tables.",
+    p = add_command(sub, "evaluate-insitu", "in-situ RMSE of every model on one session split in time", DESCRIPTION,
                     examples=["playscope evaluate-insitu sessions/d21 --split 0.5 --json insitu.json"])
     p.add_argument("session", help="session folder (an angle session, or an image session: scored against "
                    "truth.csv when present, else the per-frame pose estimate)")

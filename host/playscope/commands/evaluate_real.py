@@ -6,15 +6,18 @@ from ..realeval import evaluate_real, evaluate_real_reimaged, format_tables
 from .common import add_command, add_json_arg, dump_json, progress
 
 
+DESCRIPTION = """\
+Two Markdown tables of bending-angle RMSE (deg). In situ: each file split at half its duration
+and run through `playscope evaluate-insitu` (every model fitted on the first half, run from the
+file's start with its state carried, judged on the second half; the board's models on fixed-
+point tables). Across sessions: linear, constant play + degree-5 polynomial, ours (onset B(q) +
+play-consistent f_remain) and paper (onset B(q) + morphological f_remain) fitted on data_2_1,
+judged on each other file. The recordings are read in place.
+"""
+
+
 def add_parser(sub) -> None:
-    p = add_command(sub, "evaluate-real", "in situ and across-session RMSE tables on the catheter recordings",
-                    "Two Markdown tables of bending-angle RMSE (deg). In situ: each file split at "
-                       "half its duration and run through `playscope evaluate-insitu` (every model fitted on the "
-                       "first half, run from the file's start with its state carried, judged on the second half; "
-                       "the board's models on fixed-point tables). Across sessions: linear, constant play + "
-                       "degree-5 polynomial, ours (onset B(q) + play-consistent f_remain) and paper (onset B(q) "
-                       "+ morphological f_remain) fitted on data_2_1, judged on each other file. The recordings "
-                       "are read in place.",
+    p = add_command(sub, "evaluate-real", "in situ and across-session RMSE tables on the catheter recordings", DESCRIPTION,
                     examples=["playscope evaluate-real ../shared/data/real/catheter"])
     p.add_argument("folder", help="folder holding data_2_*.txt")
     p.add_argument("--reimage", metavar="WORKDIR",

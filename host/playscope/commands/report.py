@@ -4,14 +4,18 @@ from __future__ import annotations
 
 from .. import argtypes as T
 from ..pipeline import write_report_file
-from .common import add_command, add_json_arg, dump_json
+from .common import add_command, add_json_arg, emit
+
+
+DESCRIPTION = """\
+One HTML file (PNG figures embedded): characteristic with envelopes (Figs. 6, 9), B(q)
+samples/spline/knots (Fig. 8), predictions vs measurement (Figs. 10, 11), compensation (Fig.
+12), and Table I.
+"""
 
 
 def add_parser(sub) -> None:
-    p = add_command(sub, "report", "HTML report with the paper's figures",
-                    "One HTML file (PNG figures embedded): characteristic with envelopes "
-                       "(Figs. 6, 9), B(q) samples/spline/knots (Fig. 8), predictions vs measurement (Figs. 10, 11), "
-                       "compensation (Fig. 12), and Table I.",
+    p = add_command(sub, "report", "HTML report with the paper's figures", DESCRIPTION,
                     examples=["playscope report cal.json sim_test -o report.html"])
     p.add_argument("calibration", help="calibration JSON")
     p.add_argument("session", help="test session folder")
@@ -23,7 +27,4 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    res = write_report_file(a.calibration, a.session, a.out, a.eval)
-    print(res.line())
-    dump_json(a.json, res.to_json())
-    return 0
+    return emit(a, write_report_file(a.calibration, a.session, a.out, a.eval))

@@ -11,6 +11,12 @@ import sys
 from .common import add_command
 
 
+DESCRIPTION = """\
+Simulate the bending DOF (play of width B(q), f_remain, constant curvature) seen by an endoscope
+camera, and write a session folder (docs/simulator.md).
+"""
+
+
 def add_parser(sub) -> None:
     from .. import argtypes  # range-checked values (issue 14)
 
@@ -18,9 +24,7 @@ def add_parser(sub) -> None:
     from ..sim.effects import EFFECTS
 
     eff_help = "; ".join(f"{e.name}: " + ",".join(f"{p.name}[{p.unit}]" for p in e.params) for e in EFFECTS.values())
-    p = add_command(sub, "simulate", "simulated session (robot with B(q) + f_remain, effects, endoscope camera)",
-                    "Simulate the bending DOF (play of width B(q), f_remain, constant curvature) seen by an "
-                                   "endoscope camera, and write a session folder (docs/simulator.md).",
+    p = add_command(sub, "simulate", "simulated session (robot with B(q) + f_remain, effects, endoscope camera)", DESCRIPTION,
                     examples=["playscope simulate sim_cal --preset stras --trajectory excitation --duration 120 --seed 1 --video",
                               "playscope simulate sim_test --preset stras --trajectory test --duration 60 --seed 2",
                               "playscope simulate reimaged --reimage ../shared/data/real/catheter/data_2_1.txt --video"])

@@ -4,16 +4,19 @@ from __future__ import annotations
 
 from .. import argtypes as T
 from ..pipeline import write_tables
-from .common import add_command, add_json_arg, dump_json
+from .common import add_command, add_json_arg, emit
+
+
+DESCRIPTION = """\
+Sample B(q) and f_remain on power-of-two grids (Q16.16), add the transition operators (r, w)
+when the calibration has them, write the table (common/ps_table.h) with the firmware's
+table_write(), load it back with the firmware's calib_load(), and report the measured worst-case
+error of the fixed-point direct model and compensator against the float model.
+"""
 
 
 def add_parser(sub) -> None:
-    p = add_command(sub, "tables", "write the firmware's fixed-point lookup tables",
-                    "Sample B(q) and f_remain on power-of-two grids (Q16.16), add the transition "
-                       "operators (r, w) when the calibration has them, write the table (common/ps_table.h) "
-                       "with the firmware's table_write(), load it back with the firmware's "
-                       "calib_load(), and report the measured worst-case error of the fixed-point direct model "
-                       "and compensator against the float model.",
+    p = add_command(sub, "tables", "write the firmware's fixed-point lookup tables", DESCRIPTION,
                     examples=["playscope tables d21.cal.json -o d21.pstb"])
     p.add_argument("calibration", help="calibration JSON from `playscope calibrate`")
     p.add_argument("-o", "--out", required=True, type=T.file_path, help="table blob to write")
@@ -25,7 +28,4 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    res = write_tables(a.calibration, a.out, a.entries, a.generation, a.f_coarse)
-    print(res.line())
-    dump_json(a.json, res.to_json())
-    return 0
+    return emit(a, write_tables(a.calibration, a.out, a.entries, a.generation, a.f_coarse))

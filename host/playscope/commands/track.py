@@ -8,15 +8,19 @@ from .. import argtypes as T
 from ..errors import InputError
 from ..pipeline import track_session
 from ..track import HUE_PRESETS, TrackConfig
-from .common import add_command, add_json_arg, dump_json, progress
+from .common import add_command, add_json_arg, emit, progress
+
+
+DESCRIPTION = """\
+HSV colour threshold, largest blob within area bounds and circular enough, sub-pixel centroid
+from image moments (soft rim weights); ROI around the last position, whole-frame search (1/4
+scale) when lost. Lost frames get empty u_px,v_px. A truncated video gives marker.csv up to the
+last decoded frame and a one-line warning.
+"""
 
 
 def add_parser(sub) -> None:
-    p = add_command(sub, "track", "find the coloured marker in a session's video -> marker.csv",
-                    "HSV colour threshold, largest blob within area bounds and circular enough, "
-                       "sub-pixel centroid from image moments (soft rim weights); ROI around the last position, "
-                       "whole-frame search (1/4 scale) when lost. Lost frames get empty u_px,v_px. A truncated "
-                       "video gives marker.csv up to the last decoded frame and a one-line warning.",
+    p = add_command(sub, "track", "find the coloured marker in a session's video -> marker.csv", DESCRIPTION,
                     examples=["playscope track sessions/s1 --marker green"])
     p.add_argument("session", help="session folder holding video.* and frames.csv")
     p.add_argument("-o", "--out", type=T.file_path, help="marker CSV to write (default: <session>/marker.csv)")
@@ -46,6 +50,4 @@ def run(a) -> int:
     res = track_session(a.session, a.out, cfg, a.overwrite, progress=lambda **kw: progress(**kw))
     if res.warning:
         print(f"playscope: warning: {res.warning}", file=sys.stderr)
-    print(res.line())
-    dump_json(a.json, res.to_json())
-    return 0
+    return emit(a, res)
