@@ -9,7 +9,7 @@
 
 #include "ps_fixed.h"
 #include "ps_table.h"
-#include "psa_demo_table.h"
+#include "psa_builtin_table.h"
 #include "psa_loop.h"
 
 static union {
@@ -32,7 +32,7 @@ static psa_config_t config(bool smooth)
 static int setup(void **state)
 {
     (void)state;
-    size_t n = psa_demo_table(blob.bytes, sizeof blob.bytes);
+    size_t n = psa_builtin_table(blob.bytes, sizeof blob.bytes);
     assert_true(n > 0);
     assert_int_equal(calib_load(&cal, blob.bytes, n), CALIB_OK);
     return 0;
