@@ -149,12 +149,17 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run_command(args) -> int:
     """args.func(args), its stdout silenced under --quiet or --json - (the JSON itself still
-    reaches stdout: jsonio.STDOUT)."""
+    reaches stdout: jsonio.STDOUT), under a busy line (commands.common.busy) unless the command
+    shows progress of its own (own_progress)."""
+    from .commands.common import busy
+
+    bar = contextlib.nullcontext() if getattr(args, "own_progress", False) else busy(f"playscope {args.command}")
     if not (getattr(args, "quiet", False) or getattr(args, "json", None) == "-"):
-        return int(args.func(args) or 0)
+        with bar:
+            return int(args.func(args) or 0)
     jsonio.STDOUT.append(sys.stdout)
     try:
-        with contextlib.redirect_stdout(io.StringIO()):
+        with contextlib.redirect_stdout(io.StringIO()), bar:
             return int(args.func(args) or 0)
     finally:
         jsonio.STDOUT.pop()

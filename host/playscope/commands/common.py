@@ -4,6 +4,7 @@ progress bars."""
 
 from __future__ import annotations
 
+import contextlib
 import sys
 
 from ..calibration_check import load_calibration  # noqa: F401 (the commands' name for it)
@@ -41,6 +42,32 @@ def emit(a, res) -> int:
     print(res.line())
     dump_json(a.json, res.to_json())
     return 0
+
+
+@contextlib.contextmanager
+def busy(desc: str):
+    """A tqdm line on stderr with the elapsed time while a step without progress of its own
+    runs (cli.main wraps every command that sets no own_progress in it), refreshed twice a
+    second by a thread; silent when stderr is not a terminal. Yields the bar (bar.write prints
+    above it)."""
+    import threading
+
+    bar = progress(total=None, desc=desc, bar_format="{desc}: {elapsed}")
+    stop = threading.Event()
+    th = None
+    if not bar.disable:
+        def tick():
+            while not stop.wait(0.5):
+                bar.refresh()
+        th = threading.Thread(target=tick, daemon=True)
+        th.start()
+    try:
+        yield bar
+    finally:
+        stop.set()
+        if th is not None:
+            th.join()
+        bar.close()
 
 
 def progress(iterable=None, **kw):

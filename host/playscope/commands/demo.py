@@ -9,12 +9,20 @@ from pathlib import Path
 
 from .. import mainjob
 from ..mainjob import DEFAULT_OUT, format_summary, run
-from .common import dump_json
+from .common import dump_json, progress
 
 
 def cmd_demo(args) -> int:
+    bar = progress(total=8, desc="playscope demo", unit="step")
+
+    def log(line: str) -> None:  # a step starts: its name above the bar, the bar one step on
+        bar.write(line, file=sys.stdout)
+        sys.stdout.flush()
+        bar.update(1)
+
     try:
-        s = run(Path(args.out), args.duration, args.seed, args.device)
+        with bar:
+            s = run(Path(args.out), args.duration, args.seed, args.device, log=log)
     except RuntimeError as e:
         print(f"playscope: error: {e}", file=sys.stderr)
         return 1
@@ -36,4 +44,4 @@ def add_parser(subparsers) -> None:
                    help="board to flash: usb = virtual board behind the emulated USB device (default)")
     p.add_argument("--json", metavar="PATH", help="also write the summary (keys of out/summary.json) to PATH "
                    "('-': stdout)")
-    p.set_defaults(func=cmd_demo)
+    p.set_defaults(func=cmd_demo, own_progress=True)

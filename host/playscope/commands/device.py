@@ -228,4 +228,4 @@ def add_parser(subparsers) -> None:
     add_json_arg(p, "board_s, wall_s, frames, b_samples, b_valid, q_range, sim_B_err_mm (--sim-plant), flash "
                  "(generation, slot, bytes, crc32, upload_s, readback_s, vectors, round_trip_us)")
     _add_device_args(p)
-    p.set_defaults(func=cmd_run_insitu)
+    p.set_defaults(func=cmd_run_insitu, own_progress=True)

@@ -27,7 +27,7 @@ def add_parser(sub) -> None:
                    "first sample with an s suffix, e.g. 30s (default 0.5)")
     add_json_arg(p, JSON_KEYS + ". rmse_deg/max_deg over the samples with t >= t_split; fixed_point true when "
                  "the row is scored through the firmware's playop_step on a Q16.16 table")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, own_progress=True)
 
 
 def run(a) -> int:

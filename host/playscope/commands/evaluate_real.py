@@ -27,7 +27,7 @@ def add_parser(sub) -> None:
     add_json_arg(p, "in_situ {file: {row: rmse_deg}}, in_situ_max {file: {row: max_abs_deg}}, in_situ_rows "
                  "[row] (linear, const_play, paper, onset_lsq, gpi, bouc_wen, ours: see evaluate-insitu), "
                  "across {file: {model: rmse_deg}} (linear, const_play, ours, paper), b_samples {file: n}")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, own_progress=True)
 
 
 def run(a) -> int:

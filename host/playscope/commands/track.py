@@ -38,7 +38,7 @@ def add_parser(sub) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace an existing marker CSV")
     add_json_arg(p, "marker_csv (path), video (path), frames_listed, frames_decoded, frames_tracked, lost, "
                  "lost_fraction, truncated (bool), reasons {reason: count}, seconds, fps, warning (str|null)")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, own_progress=True)
 
 
 def run(a) -> int:
