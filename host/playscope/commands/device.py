@@ -60,10 +60,11 @@ def cmd_flash(args) -> int:
         blob = read_table_file(args.table)  # checked before the board is even opened
     with _closing(_open(args)) as link:
         try:
-            flash(link, blob, args.vectors)
+            r = flash(link, blob, args.vectors)
         except (DeviceError, RuntimeError, ValueError) as e:
             print(f"playscope: flash failed: {e}", file=sys.stderr)
             return 1
+    dump_json(args.json, r)
     return 0
 
 
@@ -186,6 +187,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("table", help="table blob (from `playscope tables`), or 'builtin' for the built-in test table "
                    "(tables.builtin_table)")
     p.add_argument("--vectors", type=T.VECTORS, default=200, help="compensator test steps (default 200)")
+    add_json_arg(p, "generation, slot, bytes, crc32 (hex), upload_s, readback_s, vectors, round_trip_us")
     _add_device_args(p)
     p.set_defaults(func=cmd_flash)
 
