@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import sys
 
-from .common import add_command
+from .common import add_command, add_json_arg, dump_json
 
 
 DESCRIPTION = """\
@@ -22,6 +22,7 @@ def add_parser(sub) -> None:
 
     from ..sim.core import PRESETS
     from ..sim.effects import EFFECTS
+    from ..sim.record import TRAJ_DEFAULTS
 
     eff_help = "; ".join(f"{e.name}: " + ",".join(f"{p.name}[{p.unit}]" for p in e.params) for e in EFFECTS.values())
     p = add_command(sub, "simulate", "simulated session (robot with B(q) + f_remain, effects, endoscope camera)", DESCRIPTION,
@@ -34,7 +35,7 @@ def add_parser(sub) -> None:
     p.add_argument("--effect", action="append", default=[], metavar="NAME[:p=v,...]",
                    help=f"switch an effect on (repeatable). Known: {eff_help}")
     p.add_argument("--no-preset-effects", action="store_true", help="drop the preset's own effects")
-    p.add_argument("--trajectory", choices=["excitation", "test", "ellipse", "random_walk"], help="trajectory kind")
+    p.add_argument("--trajectory", choices=list(TRAJ_DEFAULTS), help="trajectory kind")
     p.add_argument("--duration", type=argtypes.float_range(0.0, 86_400.0, lo_open=True), help="duration in s")
     p.add_argument("--seed", type=argtypes.SEED, help="random seed")
     p.add_argument("--kind", choices=["image", "angle"], help="distal measurement (default image)")
@@ -43,6 +44,7 @@ def add_parser(sub) -> None:
     p.add_argument("--reimage", metavar="SRC", help="re-image a recording with a measured angle instead: a session "
                                                      "folder (distal.kind angle) or a catheter CSV (data_2_*.txt)")
     p.add_argument("--overwrite", action="store_true")
+    add_json_arg(p, "session (path), encoder_rows, frames (null for an angle session), video (path or null)")
     p.set_defaults(func=run)
 
 
@@ -59,4 +61,5 @@ def run(args) -> int:
 
     res = write_simulated(build_config(args), args.out, args.video, args.blind, args.reimage, args.overwrite)
     print(res.summary_line(), file=sys.stderr)
+    dump_json(args.json, res.to_json())
     return 0

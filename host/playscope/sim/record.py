@@ -93,6 +93,10 @@ class SimulatedSession:
     frames: int | None
     video: Path | None
 
+    def to_json(self) -> dict:
+        return {"session": str(self.path), "encoder_rows": self.encoder_rows, "frames": self.frames,
+                "video": None if self.video is None else str(self.video)}
+
     def summary_line(self) -> str:
         msg = f"wrote {self.path}: {self.encoder_rows} encoder rows"
         if self.frames is not None:
