@@ -6,7 +6,7 @@
 
 #include "ps_fixed.h"
 #include "ps_table.h"
-#include "psa_demo_table.h"
+#include "psa_builtin_table.h"
 #include "psa_loop.h"
 #include "bench_traj.h"
 
@@ -36,7 +36,7 @@ int main(int argc, char **argv)
     psa_config_t c = {.onset = onset_default_config(), .smooth = true,
                       .lim = comp_smoothing_from_rates(200 * PS_Q16_ONE, 20000 * PS_Q16_ONE, TICK_HZ)};
     psa_init(&loop, &c);
-    if (calib_load(&cal, blob.bytes, psa_demo_table(blob.bytes, sizeof blob.bytes)) != CALIB_OK ||
+    if (calib_load(&cal, blob.bytes, psa_builtin_table(blob.bytes, sizeof blob.bytes)) != CALIB_OK ||
         !psa_set_table(&loop, &cal) || !psa_set_mode(&loop, PSA_MODE_COMPENSATION)) {
         fprintf(stderr, "bench_desktop: demo table refused\n");
         return 1;

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from playscope.device.flash import flash
 from playscope.device.link import Link
-from playscope.tables import demo_table
+from playscope.tables import builtin_table
 from playscope.device.transport import QemuTransport, TransportError, find_qemu_image, virtual_transport
 
 
@@ -40,7 +40,7 @@ def measure(name, make, repeat):
     try:
         up, rb, rt = [], [], []
         for _ in range(repeat):
-            r = flash(link, demo_table(), 50, log=lambda *_: None)
+            r = flash(link, builtin_table(), 50, log=lambda *_: None)
             up.append(r["upload_s"] * 1e3)
             rb.append(r["readback_s"] * 1e3)
         for _ in range(200):

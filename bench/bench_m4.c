@@ -7,7 +7,7 @@
 #include "port_console.h"
 #include "ps_fixed.h"
 #include "ps_table.h"
-#include "psa_demo_table.h"
+#include "psa_builtin_table.h"
 #include "b_online.h"
 #include "psa_loop.h"
 #include "stm32f405_regs.h"
@@ -404,7 +404,7 @@ static void run_b_online(void)
 int main(void)
 {
     port_init();
-    blob_size = psa_demo_table(blob.bytes, sizeof blob.bytes);
+    blob_size = psa_builtin_table(blob.bytes, sizeof blob.bytes);
     if (calib_load(&cal[0], blob.bytes, blob_size) != CALIB_OK || !port_tick_start(TIMEBASE_HZ, NULL)) {
         console_put_str("BENCH setup failed\r\n");
         return 1;

@@ -87,23 +87,23 @@ def run_case(kw: dict, seed: int) -> dict:
             cal = calibrate(s)
         except InputError as e:
             return {"refused": str(e)}
-    qm = np.asarray(cal.doc["b_samples"]["q_mean"], float)
+    qm = cal.b_samples["q_mean"]
     g = np.linspace(qm.min(), qm.max(), 400)
     true = sc.B(g)
     err_mm = float(np.mean(np.abs(cal.B(g) - true)))
     raw = cal.B.spl(np.clip(g, cal.B.lo, np.nextafter(cal.B.hi, -np.inf)))
-    q0, q1 = cal.doc["q_range"]
+    q0, q1 = cal.q_range
     tab = build_table(cal.B, cal.f, q0, q1, "mm")
     h = core()[0].sizeof("pst_header_t")
     n = (len(tab.blob) - h) // 8  # [header][n B entries][n f entries], int32 Q16.16
     tab_min = float(np.frombuffer(tab.blob[h:h + 4 * n], np.int32).min()) / 65536.0
-    ring = cal.doc["onset"]["refine"]["ringing"]
+    ring = cal.onset_refine["ringing"]
     return {"board_pct": board_only(s, sc, g), "err_deg": float(np.degrees(err_mm / sc.q_per_rad)),
             "err_pct": 100 * err_mm / float(np.mean(true)),
-            "b_min": float(np.min(raw)), "table_min": tab_min, "t_delay": cal.doc["t_delay_s"],
+            "b_min": float(np.min(raw)), "table_min": tab_min, "t_delay": cal.t_delay_s,
             "ring_hz": ring.get("freq_hz"), "ring_zeta": ring.get("damping_ratio"),
-            "samples": len(cal.doc["b_samples"]["b"]), "reversals": cal.doc["reversals"],
-            "inconsistent": len(cal.doc["b_inconsistent"])}
+            "samples": cal.n_b_samples, "reversals": cal.reversals,
+            "inconsistent": len(cal.b_inconsistent)}
 
 
 def main(argv=None) -> int:

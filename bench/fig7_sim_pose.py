@@ -67,7 +67,7 @@ def run(seed: int):
     s = simulate(cfg)
     qpr = cfg.q_per_rad
     cal = calibrate(s)  # the host chain: board detector, host refinement, constrained B spline
-    bs = cal.doc["b_samples"]
+    bs = cal.b_samples
     b2 = np.degrees(np.asarray(bs["b"]) / qpr)
     qs = np.asarray(bs["q_mean"])
     grid = np.linspace(qs.min(), qs.max(), 200)

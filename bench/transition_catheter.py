@@ -32,7 +32,7 @@ def in_situ(path: Path, model_kind: str) -> tuple[float, str]:
     t = s.encoder["t_s"]
     half = t[0] + 0.5 * (t[-1] - t[0])
     cal = calibrate(s.slice_time(-np.inf, half), model_kind=model_kind)
-    q0, q1 = cal.doc["q_range"]
+    q0, q1 = cal.q_range
     # The table covers the travel seen in calibration; the board saturates beyond it.
     tab = build_table(cal.B_model, cal.f, q0, q1, "mm", transition=cal.transition)
     q = np.clip(s.encoder["q"], q0, q1)

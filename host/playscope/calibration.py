@@ -45,6 +45,73 @@ class Calibration:
     f_play_fit: E.SplineFn | None = None
     f_play_sign: int | None = None
 
+    # Typed views of the file's fields (docs/calibration-format.md): the rest of the host reads
+    # these, never doc[...] (doc is the file as written, kept for save()).
+    @property
+    def q_range(self) -> tuple[float, float]:
+        """(q_min, q_max): the actuator travel seen while calibrating, actuator units."""
+        lo, hi = self.doc["q_range"]
+        return float(lo), float(hi)
+
+    @property
+    def actuator_unit(self) -> str:
+        """"mm" (tendon displacement) or "deg" (motor angle)."""
+        return self.doc.get("actuator_unit", "mm")
+
+    @property
+    def t_delay_s(self) -> float:
+        """Image acquisition delay t_delay used by the calibration, s (eq. 1)."""
+        return float(self.doc.get("t_delay_s", 0.0))
+
+    @property
+    def fps_frames(self) -> float:
+        """Frame rate the onset detector saw, Hz (angle sessions: the block-averaging rate)."""
+        return float(self.doc["fps_frames"])
+
+    @property
+    def reversals(self) -> int:
+        """Direction reversals found in the calibration session."""
+        return int(self.doc["reversals"])
+
+    @property
+    def b_samples(self) -> dict:
+        """The B samples (eq. 1), arrays of equal length: t1_s, t2_s, q1, q2, q_mean, b, weight,
+        and sigma_b, z when the file has them (actuator units, s)."""
+        return {k: np.asarray(v, float) for k, v in self.doc["b_samples"].items() if v is not None}
+
+    @property
+    def n_b_samples(self) -> int:
+        return len(self.doc["b_samples"]["b"])
+
+    @property
+    def onset_reasons(self) -> dict:
+        """{reason name: count} of the onset detector (names from the C enum)."""
+        return dict(self.doc["onset"]["reasons"])
+
+    @property
+    def onset_refine(self) -> dict | None:
+        """Image sessions: the onset refinement's report (t_delay, ringing, ...), else None."""
+        return self.doc.get("onset", {}).get("refine")
+
+    @property
+    def warnings(self) -> list:
+        return list(self.doc.get("warnings", []))
+
+    @property
+    def b_inconsistent(self) -> list:
+        """B samples inconsistent with their neighbours: [{index, q_mean, b, z}]."""
+        return list(self.doc.get("b_inconsistent", []))
+
+    @property
+    def f_alt(self) -> E.SplineFn:
+        """The other f_remain estimator's fit (f_remain_alt: morph when f is lsq, and back)."""
+        return E.SplineFn.from_json(self.doc["f_remain_alt"])
+
+    @property
+    def source(self) -> str | None:
+        """The session the calibration was made from, as recorded."""
+        return self.doc.get("source")
+
     @property
     def B_model(self):
         """Play width of the model: B, or b_scale x B with the transition (transition.py)."""

@@ -1,8 +1,8 @@
 """Command-line entry point `playscope`: one argparse subcommand per module.
 
 Each command module exposes ``add_parser(subparsers)``, which adds its subparser and sets
-``func=<callable(args) -> int>`` on it. Optional subpackages (sim, diagnose, device) register
-themselves the same way when they are importable. Bad input prints one line
+``func=<callable(args) -> int>`` on it. All command modules live in playscope.commands;
+those of optional subpackages (sim, diagnose, device) are skipped when the package is absent. Bad input prints one line
 ``playscope: error: <file>:<row>: <message>`` and exits with status 2: an InputError, an
 OSError, a UnicodeDecodeError, a JSON or any other ValueError escaping a command, and a bad
 command-line value (argparse types in playscope.argtypes). PLAYSCOPE_DEBUG=1 re-raises them
@@ -12,12 +12,15 @@ with the traceback, for bug reports.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import importlib.util
+import io
 import json
 import os
 import sys
 
-from . import __version__
+from . import __version__, jsonio
 from .atomic import check_output, output_guard
 from .errors import InputError
 
@@ -31,20 +34,21 @@ NOT_INPUT_ARGS = frozenset(OUTPUT_ARGS + ("flash_file", "elf", "address", "devic
 # replaces by design): neither an input nor an output the guard checks.
 WORK_ARGS = {"evaluate-real": ("reimage",), "demo": ("out", "json")}
 
-# Command modules in help order; optional ones are skipped when their package is absent.
+# Command modules in help order (all in playscope.commands, the one command-line home), each
+# with the subpackage it needs: a command whose package is absent from an install is skipped.
 COMMAND_MODULES = [
-    ("playscope.commands.import_cmd", False),
-    ("playscope.commands.track", False),
-    ("playscope.commands.calibrate", False),
-    ("playscope.commands.tables", False),
-    ("playscope.commands.evaluate", False),
-    ("playscope.commands.report", False),
-    ("playscope.commands.evaluate_real", False),
-    ("playscope.commands.evaluate_insitu", False),
-    ("playscope.sim.cli", True),
-    ("playscope.diagnose.cli", True),
-    ("playscope.device.cli", True),
-    ("playscope.mainjob", False),
+    ("playscope.commands.import_cmd", None),
+    ("playscope.commands.track", None),
+    ("playscope.commands.calibrate", None),
+    ("playscope.commands.tables", None),
+    ("playscope.commands.evaluate", None),
+    ("playscope.commands.report", None),
+    ("playscope.commands.evaluate_real", None),
+    ("playscope.commands.evaluate_insitu", None),
+    ("playscope.commands.simulate", "playscope.sim"),
+    ("playscope.commands.diagnose", "playscope.diagnose"),
+    ("playscope.commands.device", "playscope.device"),
+    ("playscope.commands.demo", None),
 ]
 
 DESCRIPTION = """\
@@ -74,19 +78,19 @@ def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="playscope", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action="version", version=f"playscope {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    for name, optional in COMMAND_MODULES:
-        try:
-            mod = importlib.import_module(name)
-        except ImportError as e:
-            # Only a missing optional package is silent; a broken one still fails loudly.
-            if optional and e.name is not None and name.startswith(e.name):
-                continue
-            raise
-        mod.add_parser(sub)
+    for name, needs in COMMAND_MODULES:
+        # Only a missing optional package is silent; a broken one still fails loudly.
+        if needs is not None and importlib.util.find_spec(needs) is None:
+            continue
+        importlib.import_module(name).add_parser(sub)
     for sp in _all_subparsers(sub):
         if "--force" not in sp._option_string_actions:
             sp.add_argument("--force", action="store_true",
                             help="replace existing outputs (never an input of the command)")
+        if sp.get_default("func") is not None and "--quiet" not in sp._option_string_actions:
+            sp.add_argument("-q", "--quiet", action="store_true",
+                            help="print no summary on stdout (warnings and errors still go to stderr; "
+                            "--json - implies it)")
     return p
 
 
@@ -132,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         with output_guard(ins, force):
             for o in outs:  # before any work: a refused output costs nothing
                 check_output(o)
-            return int(args.func(args) or 0)
+            return _run_command(args)
     except KeyboardInterrupt:
         print("playscope: interrupted", file=sys.stderr)
         return 130
@@ -141,6 +145,24 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"playscope: error: {_one_line(e, args)}", file=sys.stderr)
         return 2
+
+
+def _run_command(args) -> int:
+    """args.func(args), its stdout silenced under --quiet or --json - (the JSON itself still
+    reaches stdout: jsonio.STDOUT), under a busy line (commands.common.busy) unless the command
+    shows progress of its own (own_progress)."""
+    from .commands.common import busy
+
+    bar = contextlib.nullcontext() if getattr(args, "own_progress", False) else busy(f"playscope {args.command}")
+    if not (getattr(args, "quiet", False) or getattr(args, "json", None) == "-"):
+        with bar:
+            return int(args.func(args) or 0)
+    jsonio.STDOUT.append(sys.stdout)
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), bar:
+            return int(args.func(args) or 0)
+    finally:
+        jsonio.STDOUT.pop()
 
 
 def _one_line(e: BaseException, args) -> str:

@@ -77,7 +77,7 @@ def reference_trajectory(cal: Calibration, duration_s: float = 60.0, rate_hz: fl
     two incommensurate sines spanning the middle (1 - 2 margin) of f_remain's range over the
     calibrated travel, so reversals happen at many positions and amplitudes.
     Returns (t (N,) s, c* (N,) deg)."""
-    q0, q1 = cal.doc["q_range"]
+    q0, q1 = cal.q_range
     fc = cal.f_play(np.linspace(q0, q1, 257))
     lo, hi = float(fc.min()), float(fc.max())
     mid, amp = 0.5 * (lo + hi), 0.5 * (hi - lo) * (1 - 2 * margin)
@@ -130,11 +130,11 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
     has no valid frame or its actuator unit differs from the calibration's.
     """
     src = source or (str(s.path) if s.path else None)
-    if s.actuator_unit != cal.doc.get("actuator_unit", s.actuator_unit):
+    if s.actuator_unit != cal.actuator_unit:
         raise InputError(src, f"actuator unit {s.actuator_unit!r} differs from the calibration's "
-                         f"{cal.doc['actuator_unit']!r}")
+                         f"{cal.actuator_unit!r}")
     t_enc, q = s.encoder["t_s"], s.encoder["q"]
-    td = float(s.t_delay_s if s.t_delay_s is not None else cal.doc.get("t_delay_s", 0.0))
+    td = float(s.t_delay_s if s.t_delay_s is not None else cal.t_delay_s)
     t_f, obs = s.observations()
     ok = np.all(np.isfinite(obs), axis=1) & (t_f - td >= t_enc[0]) & (t_f - td <= t_enc[-1])
     if not ok.any():
@@ -148,8 +148,8 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
         try:
             from .tables import build_table
 
-            q0, q1 = cal.doc["q_range"]
-            table = build_table(cal.B_model, cal.f, q0, q1, cal.doc["actuator_unit"], "remain",
+            q0, q1 = cal.q_range
+            table = build_table(cal.B_model, cal.f, q0, q1, cal.actuator_unit, "remain",
                                 transition=cal.transition)
             table_src = "built from the calibration"
         except Exception as e:  # no compiler / C core: float rows only
@@ -199,7 +199,7 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
         plant_note = "plant given by the caller"
     rate = float(1.0 / np.median(np.diff(t_enc)))
     t_c, c_ref = reference_trajectory(cal, comp_duration_s, rate)
-    q0, q1 = cal.doc["q_range"]
+    q0, q1 = cal.q_range
     f_inv = inverse_of(cal.f_play, q0, q1)
     fc_inv = lambda c: model.f_coarse_inv(c, cal.q_per_rad)
     fc_sign = 1 if cal.q_per_rad > 0 else -1
@@ -227,7 +227,7 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
             comp_res[m] = r
     summary = {
         "format": "playscope-evaluate/1",
-        "session": src, "calibration": cal.doc.get("source"),
+        "session": src, "calibration": cal.source,
         "distal_kind": s.distal_kind, "t_delay_s": td, "frames_scored": int(t_f.size),
         "table": table_src,
         "prediction": table_i,

@@ -90,9 +90,9 @@ def calibration_frames(cal_s: Session, cal) -> tuple[np.ndarray, np.ndarray]:
     """The (q, c) frames of the calibration part the chain fits f_remain on (Fig. 9):
     angle block-averaged at the chain's frame rate, or LM pose estimates (eqs. 6-8)."""
     t_enc, q = cal_s.encoder["t_s"], cal_s.encoder["q"]
-    td = float(cal.doc["t_delay_s"])
+    td = cal.t_delay_s
     if cal_s.distal_kind == "angle":
-        t_f, c_f = E.frames_from_angle(cal_s.distal["t_s"], cal_s.distal["c_deg"], cal.doc["fps_frames"])
+        t_f, c_f = E.frames_from_angle(cal_s.distal["t_s"], cal_s.distal["c_deg"], cal.fps_frames)
     else:
         t_f, obs = cal_s.observations()
         im = model.ImageModel(cal_s.robot, cal_s.camera, cal_s.hand_eye)
@@ -104,8 +104,8 @@ def calibration_frames(cal_s: Session, cal) -> tuple[np.ndarray, np.ndarray]:
 def _table_row(name, B, f, cal, params, transition=None) -> Row:
     from .tables import build_table
 
-    q0, q1 = cal.doc["q_range"]
-    tab = build_table(B, f, q0, q1, cal.doc["actuator_unit"], "remain", transition=transition)
+    q0, q1 = cal.q_range
+    tab = build_table(B, f, q0, q1, cal.actuator_unit, "remain", transition=transition)
     return Row(name, True, tab.predict, {**params, "table_bytes": len(tab.blob), "table_ops": tab.n_ops})
 
 
@@ -139,7 +139,7 @@ def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: s
         # play's f_remain (cal.f_play) is fitted in the same call for the onset_lsq row.
         state["cal"] = cal = calibrate(cal_s, f_method="lsq", source=src, model_kind="auto")
         state["qc"] = calibration_frames(cal_s, cal)
-        state["paper_f"] = E.SplineFn.from_json(cal.doc["f_remain_alt"])
+        state["paper_f"] = cal.f_alt
 
     def baselines():
         q_c, c_c = state["qc"]
@@ -150,10 +150,10 @@ def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: s
 
     def tables():
         cal = state["cal"]
-        nb = len(cal.doc["b_samples"]["b"])
+        nb = cal.n_b_samples
         rows["paper"] = _table_row("paper", cal.B, state["paper_f"], cal, {"b_samples": nb, "f_remain": "morph"})
         rows["onset_lsq"] = _table_row("onset_lsq", cal.B, cal.f_play, cal, {"b_samples": nb, "f_remain": "lsq",
-                                                                             "t_delay_s": cal.doc["t_delay_s"]})
+                                                                             "t_delay_s": cal.t_delay_s})
 
     def gpi():
         m = GeneralizedPI.fit(*state["qc"])

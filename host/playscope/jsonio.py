@@ -21,3 +21,27 @@ def plain_json(o):
     if isinstance(o, np.integer):
         return int(o)
     return o
+
+
+# The real stdout while a `--quiet` command runs with its summary lines silenced (cli.main
+# pushes it): `--json -` still reaches it.
+STDOUT: list = []
+
+
+def write_json(path, obj, indent: int = 2) -> None:
+    """Write obj (plain_json) to the file path atomically, or to stdout when path is "-" (the
+    common meaning of `--json PATH`, docs/host.md); no-op when path is None or empty."""
+    import json
+    import sys
+
+    if not path:
+        return
+    text = json.dumps(plain_json(obj), indent=indent) + "\n"
+    if path == "-":
+        out = STDOUT[-1] if STDOUT else sys.stdout
+        out.write(text)
+        out.flush()
+        return
+    from .atomic import write_text_atomic
+
+    write_text_atomic(path, text)

@@ -18,9 +18,6 @@ registration error of section V-B belongs to the Fig. 7 replica (bench/fig7_repl
 
 from __future__ import annotations
 
-import argparse
-import contextlib
-import io
 import json
 import sys
 import time
@@ -28,8 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import cli
+from . import pipeline as P
+from .atomic import output_guard
 from .calibration import Calibration
+from .errors import InputError
+from .jsonio import plain_json
+from .sim.record import sim_config, write_simulated
 
 DEFAULT_OUT = "out/main"
 REGISTRATION_QY_DEG = 2.0  # Table I conditions: registration error about the camera x axis (acts on Qy)
@@ -49,17 +50,6 @@ def declare_registration_error(session_dir: Path, rx_deg: float) -> None:
     path.write_text(json.dumps(d, indent=1) + "\n")
 
 
-def _run_cli(argv: list[str], quiet: bool = True) -> str:
-    """Run one `playscope` subcommand in this process; its stdout is returned (and
-    hidden when quiet). Raises RuntimeError naming the step when it fails."""
-    buf = io.StringIO()
-    with contextlib.redirect_stdout(buf) if quiet else contextlib.nullcontext():
-        rc = cli.main(argv)
-    if rc != 0:
-        raise RuntimeError(f"`playscope {' '.join(argv)}` failed (exit {rc}):\n{buf.getvalue()}")
-    return buf.getvalue()
-
-
 def b_error_vs_truth(cal_path: Path, session_dir: Path) -> dict:
     """|B_est(q) - B_true(q)| in actuator units over the calibrated q range (201 points),
     B_true from the simulator parameters recorded in session.json. With the smooth transition
@@ -72,89 +62,92 @@ def b_error_vs_truth(cal_path: Path, session_dir: Path) -> dict:
     cal = Calibration.load(cal_path)
     sim = json.loads((session_dir / "session.json").read_text())["simulator"]
     truth = SimConfig.from_json(sim).B_fn()
-    lo, hi = cal.doc["q_range"]
+    lo, hi = cal.q_range
     q = np.linspace(lo, hi, 201)
     err = np.abs(np.asarray(cal.B(q)) - truth(q))
-    return {"mean": float(err.mean()), "max": float(err.max()), "unit": cal.doc["actuator_unit"],
+    return {"mean": float(err.mean()), "max": float(err.max()), "unit": cal.actuator_unit,
             "b_true_min": float(truth(q).min()), "b_true_max": float(truth(q).max())}
 
 
-def run(out: Path, duration_s: float = 90.0, seed: int = 1, device: str = "usb") -> dict:
-    """Run the whole job into out/ (created; existing outputs are replaced). Returns the
-    summary dict also written to out/summary.json."""
+def run(out: Path, duration_s: float = 90.0, seed: int = 1, device: str = "usb", log=None) -> dict:
+    """Run the whole job into out/ (created; existing outputs are replaced) through the pipeline
+    functions (playscope.pipeline). Returns the summary dict also written to out/summary.json.
+    log: where the step names go (one line each; default stdout). The simulator's one-line
+    summaries and the warnings of track and calibrate go to stderr, as the commands print them.
+    Errors: RuntimeError naming the failed step."""
+    log = log or (lambda s: print(s, flush=True))
     out.mkdir(parents=True, exist_ok=True)
     cal_s, test_s = out / "session_excitation", out / "session_test"
     cal_json, table, ev_json, report = out / "calibration.json", out / "tables.pstb", out / "evaluate.json", out / "report.html"
     # This job's own outputs from an earlier run are replaced (calibrate and tables refuse
-    # to overwrite on their own; the session folders are rewritten with --overwrite).
+    # to overwrite on their own; the session folders are rewritten with overwrite).
     for f in (cal_json, table, ev_json, report, out / "board.flash", out / "summary.json"):
         f.unlink(missing_ok=True)
+    # The job owns out/: its steps replace their outputs (as `--overwrite` / `--force` would)
+    # in an output guard of its own, armed inside the `demo` command's.
+    with output_guard((), force=True):
+        return _run(out, duration_s, seed, device, log)
+
+
+def _run(out: Path, duration_s: float, seed: int, device: str, log) -> dict:
+    cal_s, test_s = out / "session_excitation", out / "session_test"
+    cal_json, table, ev_json, report = out / "calibration.json", out / "tables.pstb", out / "evaluate.json", out / "report.html"
     steps: list[tuple[str, float]] = []
     t_all = time.perf_counter()
 
-    def step(name: str, argv: list[str]) -> str:
-        print(f"[main] {name} ...", flush=True)
+    def step(name: str, fn, *a, **kw):
+        log(f"[main] {name} ...")
         t0 = time.perf_counter()
-        text = _run_cli(argv)
+        try:
+            res = fn(*a, **kw)
+        except (InputError, OSError, ValueError) as e:
+            raise RuntimeError(f"{name} failed: {' '.join(str(e).split())}") from e
         steps.append((name, time.perf_counter() - t0))
-        return text
+        return res
 
-    step("simulate excitation with video (STRAS-like preset)",
-         ["simulate", str(cal_s), "--preset", "stras", "--trajectory", "excitation", "--video",
-          "--duration", str(duration_s), "--seed", str(seed), "--overwrite"])
+    warn = lambda s: print(s, file=sys.stderr)  # noqa: E731
+    warn(step("simulate excitation with video (STRAS-like preset)", write_simulated,
+              sim_config("stras", trajectory="excitation", duration_s=duration_s, seed=seed), cal_s,
+              video=True, overwrite=True).summary_line())
     declare_registration_error(cal_s, REGISTRATION_QY_DEG)
-    step("track the marker in the video", ["track", str(cal_s), "--overwrite"])
-    cal_text = step("calibrate: onsets, B(q) spline, f_remain, transition (model by CV)",
-                    ["calibrate", str(cal_s), "-o", str(cal_json)])
-    tab_text = step("fixed-point tables", ["tables", str(cal_json), "-o", str(table)])
-
-    print("[main] flash to the virtual board over the emulated USB device ...", flush=True)
+    tracked = step("track the marker in the video", P.track_session, cal_s, overwrite=True)
+    if tracked.warning:
+        warn(f"playscope: warning: {tracked.warning}")
+    cal = step("calibrate: onsets, B(q) spline, f_remain, transition (model by CV)", P.calibrate_session,
+               cal_s, cal_json)
+    for w in cal.warnings:
+        warn(f"playscope: warning: {w}")
+    tab = step("fixed-point tables", P.write_tables, cal_json, table)
+    log("[main] flash to the virtual board over the emulated USB device ...")
     t0 = time.perf_counter()
-    flash_text = _flash(table, out / "board.flash", device)
+    flashed = P.flash_tables(table, device, out / "board.flash")
     steps.append((f"flash over {device}, read back, bit-exact check", time.perf_counter() - t0))
 
-    step("simulate a separate test motion", ["simulate", str(test_s), "--preset", "stras", "--trajectory", "test",
-                                            "--duration", str(duration_s), "--seed", str(seed + 1), "--overwrite"])
+    warn(step("simulate a separate test motion", write_simulated,
+              sim_config("stras", trajectory="test", duration_s=duration_s, seed=seed + 1), test_s,
+              overwrite=True).summary_line())
     declare_registration_error(test_s, REGISTRATION_QY_DEG)
-    step("evaluate: Table I and compensation", ["evaluate", str(test_s), str(cal_json), "--table", str(table),
-                                                "--json", str(ev_json)])
-    step("HTML report", ["report", str(cal_json), str(test_s), "-o", str(report), "--eval", str(ev_json)])
+    ev = step("evaluate: Table I and compensation", P.evaluate_session, test_s, cal_json, table)
+    (ev_json).write_text(json.dumps(plain_json(ev.to_json()), indent=2) + "\n")
+    step("HTML report", P.write_report_file, cal_json, test_s, report, ev_json)
 
-    ev = json.loads(ev_json.read_text())
     summary = {
         "format": "playscope-main/1",
         "out": str(out),
         "b_error": b_error_vs_truth(cal_json, cal_s),
-        "model": _model_summary(Calibration.load(cal_json)),
+        "model": _model_summary(cal.cal),
         "registration_qy_deg": REGISTRATION_QY_DEG,
-        "calibrate": cal_text.strip().splitlines()[-1] if cal_text.strip() else "",
-        "tables": tab_text.strip().splitlines()[-1] if tab_text.strip() else "",
-        "flash": flash_text.strip().splitlines()[-1] if flash_text.strip() else "",
-        "prediction": ev.get("prediction", {}),
-        "compensation": ev.get("compensation", {}).get("methods", {}),
+        "calibrate": cal.line(),
+        "tables": tab.line(),
+        "flash": flashed.line(),
+        "prediction": ev.summary.get("prediction", {}),
+        "compensation": ev.summary.get("compensation", {}).get("methods", {}),
         "report": str(report),
         "steps_s": {name: round(t, 2) for name, t in steps},
         "total_s": round(time.perf_counter() - t_all, 2),
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
-
-
-def _flash(table: Path, flash_file: Path, device: str) -> str:
-    """Flash through `playscope flash` (upload, commit, read back, compensator test vectors);
-    for usb, under the emulated USB device (ps_usbemu), since libusb's preload must be in the
-    process from its start."""
-    exe = [sys.executable, "-m", "playscope.cli"]
-    if device == "usb":
-        from .device import usbemu
-        r = usbemu.run(exe + ["flash", str(table), "--device", "usb"], flash_file=str(flash_file))
-    else:
-        import subprocess
-        r = subprocess.run(exe + ["flash", str(table), "--device", device, "--flash-file", str(flash_file)],
-                           capture_output=True, text=True, timeout=300)
-    if r.returncode != 0:
-        raise RuntimeError(f"flash over {device} failed (exit {r.returncode}):\n{r.stdout}\n{r.stderr}")
-    return r.stdout
 
 
 def _model_summary(cal: Calibration) -> dict:
@@ -214,28 +207,3 @@ def _model_text(m: dict | None) -> str:
         txt += f" (cross-validated on the calibration session: {cv['chosen']:.3f} deg"
         txt += f", pure play {cv['play']:.3f} deg)" if cv.get("play") is not None and m["model"] != "play" else ")"
     return txt
-
-
-def cmd_demo(args) -> int:
-    try:
-        s = run(Path(args.out), args.duration, args.seed, args.device)
-    except RuntimeError as e:
-        print(f"playscope: error: {e}", file=sys.stderr)
-        return 1
-    print(format_summary(s))
-    if args.json:
-        Path(args.json).write_text(json.dumps(s, indent=1) + "\n")
-    return 0
-
-
-def add_parser(subparsers) -> None:
-    p = subparsers.add_parser(
-        "demo", help="the main job on the built-in simulated instrument, end to end",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    p.add_argument("--duration", type=float, default=90.0, help="length of each simulated session, s (default 90)")
-    p.add_argument("--seed", type=int, default=1, help="random seed of the excitation session (test uses seed+1)")
-    p.add_argument("--device", choices=["usb", "virtual", "qemu"], default="usb",
-                   help="board to flash: usb = virtual board behind the emulated USB device (default)")
-    p.add_argument("--json", metavar="PATH", help="also write the summary (keys of out/summary.json) to PATH")
-    p.set_defaults(func=cmd_demo)

@@ -23,11 +23,18 @@ def constant(value: float) -> ArrayFn:
     return lambda q: np.full(np.shape(q), float(value))
 
 
-def piecewise_linear(x: np.ndarray, y: np.ndarray) -> ArrayFn:
-    """y(x) by linear interpolation of samples (x increasing, shape (n,)), held beyond the ends."""
+def held_direction(x: np.ndarray, tol: float = 0.0, before: float = 1.0) -> np.ndarray:
+    """Direction of motion of x (N,): the sign (+1/-1) of its last change larger than tol, held
+    while x is still (eq. 4, third case); ``before`` until x first moves. The one copy of the
+    direction hold of the compensator, the simulator and the diagnosis."""
     x = np.asarray(x, float)
-    y = np.asarray(y, float)
-    return lambda q: np.interp(q, x, y)
+    dx = np.diff(x, prepend=x[:1])
+    d = np.where(np.abs(dx) > tol, np.sign(dx), 0.0)
+    idx = np.where(d != 0, np.arange(d.size), 0)
+    np.maximum.accumulate(idx, out=idx)
+    out = d[idx]
+    out[out == 0] = before
+    return out
 
 
 def _solve_increasing(fn: ArrayFn, target: np.ndarray, lo: np.ndarray, hi: np.ndarray, iters: int = 64) -> np.ndarray:
@@ -115,11 +122,8 @@ def compensator(c_ref: np.ndarray, B: ArrayFn, f_inv: ArrayFn, f_sign: int) -> n
     c_ref = np.asarray(c_ref, float).ravel()
     if f_sign not in (1, -1):
         raise ValueError("f_sign must be +1 or -1")
-    d = np.sign(np.diff(c_ref, prepend=c_ref[:1]))
     # Hold the last non-zero direction (eq. 4: q*[k] = q*[k-1] when c* is still).
-    idx = np.where(d != 0, np.arange(d.size), 0)
-    np.maximum.accumulate(idx, out=idx)
-    dirs = np.where(idx > 0, d[idx], np.where(d[0] != 0, d[0], 0.0))
+    dirs = held_direction(c_ref, 0.0, before=0.0)
     qc = f_inv(c_ref)
     return qc + dirs * f_sign * 0.5 * B(qc)
 

@@ -32,9 +32,9 @@ MODELS = ["linear", "const_play", "ours", "paper"]
 def fit_models(s) -> dict:
     """All four models fitted on session s. Returns {name: (B callable, f callable)}."""
     cal = calibrate(s, f_method="lsq", model_kind="play")  # the paper's play rows
-    alt = E.SplineFn.from_json(cal.doc["f_remain_alt"])
+    alt = cal.f_alt
     # Baselines see the same frames as the chain (block averages at the chain's frame rate).
-    t_f, c_f = E.frames_from_angle(s.distal["t_s"], s.distal["c_deg"], cal.doc["fps_frames"])
+    t_f, c_f = E.frames_from_angle(s.distal["t_s"], s.distal["c_deg"], cal.fps_frames)
     q_c, c_c = E.characteristic(s.encoder["t_s"], s.encoder["q"], t_f, c_f, 0.0)
     w, fp, Bc = E.fit_constant_play(q_c, c_c)
     return {"linear": (model.constant(0.0), E.fit_linear(q_c, c_c)), "const_play": (Bc, fp),
@@ -46,9 +46,9 @@ def fit_models_image(s) -> dict:
     `calibrate` runs it (onsets in the image, f_remain on LM pose estimates, eqs. 6-8), the
     baselines fitted on the same LM estimates of c. Returns {name: (B, f)}."""
     cal = calibrate(s, f_method="lsq", model_kind="play")  # the paper's play rows
-    alt = E.SplineFn.from_json(cal.doc["f_remain_alt"])
+    alt = cal.f_alt
     t_f, obs = s.observations()
-    td = cal.doc["t_delay_s"]
+    td = cal.t_delay_s
     im = model.ImageModel(s.robot, s.camera, s.hand_eye)
     q_f = np.interp(t_f - td, s.encoder["t_s"], s.encoder["q"])
     c_f, _ = im.estimate_c(obs, model.f_coarse(q_f, s.robot.q_per_rad))
@@ -62,15 +62,24 @@ def reimage_and_track(src: Path, work: Path) -> "object":
     """Render src (a catheter CSV) through the simulator's virtual endoscope into
     work/<stem>/ (video + frames.csv, truth.csv with the measured angle), track the marker
     in that video, and load the session. Reuses a folder already tracked."""
-    from . import cli
+    import sys
+
+    from .atomic import output_guard
+    from .pipeline import track_session
     from .session import load_session
+    from .sim.record import sim_config, write_simulated
 
     folder = work / src.stem
     if not (folder / "marker.csv").is_file() or not (folder / ".tracked").is_file():
-        for argv in (["simulate", str(folder), "--reimage", str(src), "--video", "--overwrite"],
-                     ["track", str(folder), "--overwrite"]):
-            if cli.main(argv) != 0:
-                raise RuntimeError(f"`playscope {' '.join(argv)}` failed")
+        # The simulator's default preset (stras) images the recording (`playscope simulate --reimage`);
+        # the work folder is this function's own, replaced at will, the recording is an input.
+        with output_guard((src,), force=True):
+            print(write_simulated(sim_config(), folder, video=True, reimage_src=str(src), overwrite=True).summary_line(),
+                  file=sys.stderr)
+            res = track_session(folder, overwrite=True)
+        if res.warning:
+            print(f"playscope: warning: {res.warning}", file=sys.stderr)
+        print(res.line())
         (folder / ".tracked").write_text("marker.csv comes from tracking video.avi\n")
     return load_session(folder)
 

@@ -43,8 +43,8 @@ def figures(cal: Calibration, ev: Evaluation) -> dict[str, str]:
 
     sr = ev.series
     out = {}
-    unit = cal.doc.get("actuator_unit", "mm")
-    q0, q1 = cal.doc["q_range"]
+    unit = cal.actuator_unit
+    q0, q1 = cal.q_range
     g = np.linspace(q0, q1, 400)
 
     # Figs. 6, 9: characteristic c(q) with the envelopes of eq. 2.
@@ -61,13 +61,13 @@ def figures(cal: Calibration, ev: Evaluation) -> dict[str, str]:
 
     # Fig. 8: B samples, spline, knots.
     fig, ax = plt.subplots(figsize=(7, 3.8))
-    bs = cal.doc["b_samples"]
+    bs = cal.b_samples
     qm, b = np.asarray(bs["q_mean"], float), np.asarray(bs["b"], float)
     w = np.asarray(bs.get("weight", np.ones_like(b)), float)
     sc = ax.scatter(qm, b, c=w, cmap="viridis", vmin=0, vmax=1, s=18, label="onset samples (colour: robust weight)")
     fig.colorbar(sc, ax=ax, label="weight")
     ax.plot(g, cal.B(g), color="tab:red", label="B(q) spline")
-    kn = np.unique(np.asarray(cal.doc["B"]["knots"], float))
+    kn = np.unique(np.asarray(cal.B.spl.t, float))
     ax.plot(kn, cal.B(kn), "kx", label=f"knots ({kn.size})")
     ax.set_xlabel(f"q ({unit})"); ax.set_ylabel(f"B ({unit})"); ax.legend(fontsize=8); ax.grid(alpha=0.3)
     ax.set_title("Backlash width B(q) (Fig. 8)")

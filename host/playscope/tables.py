@@ -288,7 +288,7 @@ def test_vector(tab: CalibTable, n: int = 200) -> list[int]:
             for k in range(n)]
 
 
-def demo_table(n: int = 256, q0: float = -4.0, step_log2: int = 11, generation: int = 1) -> bytes:
+def builtin_table(n: int = 256, q0: float = -4.0, step_log2: int = 11, generation: int = 1) -> bytes:
     """A valid table of n entries per grid (B bump, cubic f_remain), no transition: for tests,
     benches and a first flash before any calibration. Laid out by table_write()."""
     step = 2 ** step_log2

@@ -9,7 +9,7 @@
 
 #include "ps_fixed.h"
 #include "ps_table.h"
-#include "psa_demo_table.h"
+#include "psa_builtin_table.h"
 #include "lut.h"
 #include "psa_loop.h"
 
@@ -33,7 +33,7 @@ static psa_config_t config(bool smooth)
 static int setup(void **state)
 {
     (void)state;
-    size_t n = psa_demo_table(blob.bytes, sizeof blob.bytes);
+    size_t n = psa_builtin_table(blob.bytes, sizeof blob.bytes);
     assert_true(n > 0);
     assert_int_equal(calib_load(&cal, blob.bytes, n), CALIB_OK);
     return 0;
@@ -169,7 +169,7 @@ static b_online_t bo2;
 static void test_hot_swap_keeps_the_compensator_state(void **state)
 {
     (void)state;
-    size_t n = psa_demo_table(blob.bytes, sizeof blob.bytes);
+    size_t n = psa_builtin_table(blob.bytes, sizeof blob.bytes);
     assert_int_equal(calib_load(&cal2, blob.bytes, n), CALIB_OK);
     /* the new table: the demo's B learnt 0.2 units wider (b_online on cal2's B) */
     b_online_config_t bc = b_online_default_config();

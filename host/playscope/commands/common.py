@@ -1,13 +1,26 @@
-"""Helpers shared by the subcommands: --json output and progress bars."""
+"""Helpers shared by the subcommands: one way to declare a command (add_command), the common
+options (--json PATH, --out, --quiet; docs/host.md "Common options"), --json output and
+progress bars."""
 
 from __future__ import annotations
 
-import json
+import contextlib
 import sys
 
+from ..calibration_check import load_calibration  # noqa: F401 (the commands' name for it)
+from ..jsonio import write_json
 
-from ..atomic import write_text_atomic
-from ..jsonio import plain_json
+
+def add_command(sub, name: str, help: str, description: str, examples=(), epilog: str = ""):
+    """Add subcommand name to the subparsers sub and return its parser: description wrapped,
+    then an "examples:" block (each a command line, run or parsed by
+    tests/python/host/test_cli_examples.py), then epilog as written."""
+    import argparse
+    import textwrap
+
+    ex = "examples:\n" + "".join(f"  {e}\n" for e in examples) if examples else ""
+    return sub.add_parser(name, help=help, description="\n".join(textwrap.wrap(" ".join(description.split()), 92)),
+                          epilog=(ex + epilog) or None, formatter_class=argparse.RawDescriptionHelpFormatter)
 
 
 def add_json_arg(p, keys_doc: str) -> None:
@@ -15,7 +28,7 @@ def add_json_arg(p, keys_doc: str) -> None:
     from ..argtypes import file_path
 
     p.add_argument("--json", metavar="PATH", type=file_path,
-                   help=f"also write machine-readable results to PATH. Keys: {keys_doc}")
+                   help=f"also write machine-readable results to PATH ('-': stdout). Keys: {keys_doc}")
 
 
 def load_session_noted(folder):
@@ -34,75 +47,43 @@ def warn(lines) -> None:
         print(f"playscope: warning: {line}", file=sys.stderr)
 
 
-Q16_LIMIT = 32767.0  # |q| a Q16.16 int32 holds (common/ps_fixed.h), actuator units
-
-
-def load_calibration(path):
-    """Calibration.load behind a file-level check (readable, UTF-8, a JSON object, a q_range of
-    two finite numbers q_min < q_max inside Q16.16): one-line InputError naming the file."""
-    import math
-
-    from ..calibration import FORMAT, Calibration
-    from ..errors import InputError
-    from ..session import read_json
-
-    d = read_json(path, "calibration JSON")
-    if not isinstance(d, dict):
-        raise InputError(path, f"a calibration is a JSON object, this file holds a {type(d).__name__}; "
-                         "make one with `playscope calibrate`")
-    if d.get("format") != FORMAT:
-        raise InputError(path, f"format is {d.get('format')!r}, not a calibration ({FORMAT!r}); "
-                         "make one with `playscope calibrate`")
-    qr = d.get("q_range")
-    if not (isinstance(qr, list) and len(qr) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                                                           and math.isfinite(x) for x in qr)):
-        raise InputError(path, f"q_range must be two finite numbers [q_min, q_max], got {qr!r}")
-    if not -Q16_LIMIT <= qr[0] < qr[1] <= Q16_LIMIT:
-        raise InputError(path, f"q_range {qr} must satisfy -{Q16_LIMIT:g} <= q_min < q_max <= {Q16_LIMIT:g} "
-                         "(actuator units in Q16.16)")
-    if d.get("actuator_unit") not in ("mm", "deg"):
-        raise InputError(path, f"actuator_unit must be 'mm' or 'deg', got {d.get('actuator_unit')!r}")
-    for key in ("B", "f_remain"):
-        _check_spline(d.get(key), key, path)
-    if d["f_remain"].get("sign") not in (-1, 1):
-        raise InputError(path, f"f_remain.sign must be 1 or -1, got {d['f_remain'].get('sign')!r}")
-    qpr = (d.get("f_coarse") or {}).get("q_per_rad") if isinstance(d.get("f_coarse"), dict) else None
-    if not _finite(qpr) or qpr == 0:
-        raise InputError(path, f"f_coarse.q_per_rad must be a finite non-zero number, got {qpr!r}")
-    return Calibration.load(path)
-
-
-def _finite(x) -> bool:
-    import math
-
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-
-
-def _check_spline(sp, key: str, path) -> None:
-    """A B-spline as calibrate writes it (estimate.SplineFn.to_json): degree 1..5, knots and
-    coefficients finite, a range a < b. Errors: InputError naming the file and the key."""
-    from ..errors import InputError
-
-    if not isinstance(sp, dict):
-        raise InputError(path, f"{key} must be a spline object, got {type(sp).__name__}; make the file with "
-                         "`playscope calibrate`")
-    deg, knots, coef, rng = sp.get("degree"), sp.get("knots"), sp.get("coef"), sp.get("range")
-    if not (isinstance(deg, int) and not isinstance(deg, bool) and 1 <= deg <= 5):
-        raise InputError(path, f"{key}.degree must be an integer 1..5 (calibrate writes 3), got {deg!r}")
-    for name, v in (("knots", knots), ("coef", coef)):
-        if not (isinstance(v, list) and v and all(_finite(x) for x in v)):
-            raise InputError(path, f"{key}.{name} must be a list of finite numbers")
-    if len(knots) != len(coef) + deg + 1:
-        raise InputError(path, f"{key}: {len(knots)} knots for {len(coef)} coefficients of degree {deg} "
-                         f"(need {len(coef) + deg + 1})")
-    if not (isinstance(rng, list) and len(rng) == 2 and all(_finite(x) for x in rng) and rng[0] < rng[1]):
-        raise InputError(path, f"{key}.range must be [a, b] with finite a < b, got {rng!r}")
-
-
 def dump_json(path: str | None, obj: dict) -> None:
-    """Write obj as JSON (NaN -> null, numpy -> lists) atomically; no-op when path is None."""
-    if path:
-        write_text_atomic(path, json.dumps(plain_json(obj), indent=2) + "\n")
+    """Write obj as JSON (NaN -> null, numpy -> lists) atomically to path, or to stdout for "-";
+    no-op when path is None (jsonio.write_json)."""
+    write_json(path, obj)
+
+
+def emit(a, res) -> int:
+    """Print a pipeline result's summary line and write its --json document; exit status 0."""
+    print(res.line())
+    dump_json(a.json, res.to_json())
+    return 0
+
+
+@contextlib.contextmanager
+def busy(desc: str):
+    """A tqdm line on stderr with the elapsed time while a step without progress of its own
+    runs (cli.main wraps every command that sets no own_progress in it), refreshed twice a
+    second by a thread; silent when stderr is not a terminal. Yields the bar (bar.write prints
+    above it)."""
+    import threading
+
+    bar = progress(total=None, desc=desc, bar_format="{desc}: {elapsed}")
+    stop = threading.Event()
+    th = None
+    if not bar.disable:
+        def tick():
+            while not stop.wait(0.5):
+                bar.refresh()
+        th = threading.Thread(target=tick, daemon=True)
+        th.start()
+    try:
+        yield bar
+    finally:
+        stop.set()
+        if th is not None:
+            th.join()
+        bar.close()
 
 
 def progress(iterable=None, **kw):

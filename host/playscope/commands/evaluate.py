@@ -2,21 +2,23 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from .. import argtypes as T
-from ..evaluate import evaluate, format_table
-from .common import load_session_noted, add_json_arg, dump_json, load_calibration
+from ..pipeline import evaluate_session
+from .common import add_command, add_json_arg, emit
+
+
+DESCRIPTION = """\
+Direct models f_coarse, f_coarse+B, f_remain+B (float, eqs. 2-3) and f_remain+B through the
+firmware's playop_step on Q16.16 tables, projected with h(g(c)) (eq. 6) and compared with the
+marker (|Qx|, |Qy|, distance: mean ± std, max) or with the angle sensor (RMSE); then an open-
+loop reference through f_coarse^-1, eq. 4+5, eq. 4+9 and comp_step, run on the simulator's truth
+model when the session records it.
+"""
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("evaluate", help="prediction (Table I) and compensation errors on a test session",
-                       description="Direct models f_coarse, f_coarse+B, f_remain+B (float, eqs. 2-3) and "
-                       "f_remain+B through the firmware's playop_step on Q16.16 tables, projected with h(g(c)) "
-                       "(eq. 6) and compared with the marker (|Qx|, |Qy|, distance: mean ± std, max) or with the "
-                       "angle sensor (RMSE); then an open-loop reference through f_coarse^-1, eq. 4+5, eq. 4+9 "
-                       "and comp_step, run on the simulator's truth model when the session records it. "
-                       "Example: playscope evaluate sim_test cal.json --json eval.json")
+    p = add_command(sub, "evaluate", "prediction (Table I) and compensation errors on a test session", DESCRIPTION,
+                    examples=["playscope evaluate sim_test cal.json --json eval.json"])
     p.add_argument("session", help="test session folder (not the one calibrated on, for a fair test)")
     p.add_argument("calibration", help="calibration JSON from `playscope calibrate`")
     p.add_argument("--table", type=T.existing_file, help="table blob from `playscope tables` for the fixed-point rows "
@@ -31,21 +33,4 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    cal = load_calibration(a.calibration)
-    s = load_session_noted(a.session)
-    tab = None
-    if a.table:
-        from ..errors import InputError
-        from ..tables import CalibTable
-
-        path = Path(a.table)
-        if not path.is_file():
-            raise InputError(path, "file not found")
-        tab = CalibTable(path.read_bytes(), source=path)
-    ev = evaluate(cal, s, table=tab, comp_duration_s=a.comp_duration, source=a.session)
-    ev.summary["calibration"] = a.calibration
-    if a.table:
-        ev.summary["table"] = a.table
-    print(format_table(ev.summary))
-    dump_json(a.json, ev.summary)
-    return 0
+    return emit(a, evaluate_session(a.session, a.calibration, a.table, a.comp_duration))

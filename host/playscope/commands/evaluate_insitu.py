@@ -4,26 +4,29 @@ and scored on the part after, state carried from the record's start (playscope.i
 from __future__ import annotations
 
 from ..insitu import JSON_KEYS, evaluate_insitu, format_insitu
-from .common import load_session_noted, add_json_arg, dump_json, progress
+from .common import add_command, add_json_arg, dump_json, load_session_noted, progress
+
+
+DESCRIPTION = """\
+Fits, on the part of SESSION before the split only: linear, constant play + poly5, the paper's
+method (onset B + morphological f_remain), onset B + least-squares f_remain, generalized
+Prandtl-Ishlinskii (16 play operators, weights >= 0, + cubic in q), Bouc-Wen, and ours with the
+transition. Every model then runs over the whole record from its first sample (a board that has
+been running all along) and is scored on the part after the split: bending-angle RMSE and max
+(deg), one Markdown table. Rows the board runs go through the firmware's fixed-point tables.
+"""
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("evaluate-insitu", help="in-situ RMSE of every model on one session split in time",
-                       description="Fits, on the part of SESSION before the split only: linear, constant play + "
-                       "poly5, the paper's method (onset B + morphological f_remain), onset B + least-squares "
-                       "f_remain, generalized Prandtl-Ishlinskii (16 play operators, weights >= 0, + cubic in q), "
-                       "Bouc-Wen, and ours with the transition. Every model then runs over the whole record from "
-                       "its first sample (a board that has been running all along) and is scored on the part "
-                       "after the split: bending-angle RMSE and max (deg), one Markdown table. Rows the board "
-                       "runs go through the firmware's fixed-point tables. "
-                       "Example: playscope evaluate-insitu sessions/d21 --split 0.5 --json insitu.json")
+    p = add_command(sub, "evaluate-insitu", "in-situ RMSE of every model on one session split in time", DESCRIPTION,
+                    examples=["playscope evaluate-insitu sessions/d21 --split 0.5 --json insitu.json"])
     p.add_argument("session", help="session folder (an angle session, or an image session: scored against "
                    "truth.csv when present, else the per-frame pose estimate)")
     p.add_argument("--split", default="0.5", help="fraction of the duration in (0, 1), or a time from the "
                    "first sample with an s suffix, e.g. 30s (default 0.5)")
     add_json_arg(p, JSON_KEYS + ". rmse_deg/max_deg over the samples with t >= t_split; fixed_point true when "
                  "the row is scored through the firmware's playop_step on a Q16.16 table")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, own_progress=True)
 
 
 def run(a) -> int:

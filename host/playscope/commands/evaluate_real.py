@@ -3,18 +3,22 @@
 from __future__ import annotations
 
 from ..realeval import evaluate_real, evaluate_real_reimaged, format_tables
-from .common import add_json_arg, dump_json, progress
+from .common import add_command, add_json_arg, dump_json, progress
+
+
+DESCRIPTION = """\
+Two Markdown tables of bending-angle RMSE (deg). In situ: each file split at half its duration
+and run through `playscope evaluate-insitu` (every model fitted on the first half, run from the
+file's start with its state carried, judged on the second half; the board's models on fixed-
+point tables). Across sessions: linear, constant play + degree-5 polynomial, ours (onset B(q) +
+play-consistent f_remain) and paper (onset B(q) + morphological f_remain) fitted on data_2_1,
+judged on each other file. The recordings are read in place.
+"""
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("evaluate-real", help="in situ and across-session RMSE tables on the catheter recordings",
-                       description="Two Markdown tables of bending-angle RMSE (deg). In situ: each file split at "
-                       "half its duration and run through `playscope evaluate-insitu` (every model fitted on the "
-                       "first half, run from the file's start with its state carried, judged on the second half; "
-                       "the board's models on fixed-point tables). Across sessions: linear, constant play + "
-                       "degree-5 polynomial, ours (onset B(q) + play-consistent f_remain) and paper (onset B(q) "
-                       "+ morphological f_remain) fitted on data_2_1, judged on each other file. The recordings "
-                       "are read in place. Example: playscope evaluate-real ../shared/data/real/catheter")
+    p = add_command(sub, "evaluate-real", "in situ and across-session RMSE tables on the catheter recordings", DESCRIPTION,
+                    examples=["playscope evaluate-real ../shared/data/real/catheter"])
     p.add_argument("folder", help="folder holding data_2_*.txt")
     p.add_argument("--reimage", metavar="WORKDIR",
                    help="render each recording through a virtual endoscope into WORKDIR first (video, "
@@ -28,7 +32,7 @@ def add_parser(sub) -> None:
     add_json_arg(p, "in_situ {file: {row: rmse_deg}}, in_situ_max {file: {row: max_abs_deg}}, in_situ_rows "
                  "[row] (linear, const_play, paper, onset_lsq, gpi, bouc_wen, ours: see evaluate-insitu), "
                  "across {file: {model: rmse_deg}} (linear, const_play, ours, paper), b_samples {file: n}")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, own_progress=True)
 
 
 def run(a) -> int:

@@ -2,21 +2,21 @@
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 from .. import argtypes as T
-from ..errors import InputError
-from ..evaluate import evaluate, format_table
-from ..report import write_report
-from .common import load_session_noted, add_json_arg, dump_json, load_calibration
+from ..pipeline import write_report_file
+from .common import add_command, add_json_arg, emit
+
+
+DESCRIPTION = """\
+One HTML file (PNG figures embedded): characteristic with envelopes (Figs. 6, 9), B(q)
+samples/spline/knots (Fig. 8), predictions vs measurement (Figs. 10, 11), compensation (Fig.
+12), and Table I.
+"""
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("report", help="HTML report with the paper's figures",
-                       description="One HTML file (PNG figures embedded): characteristic with envelopes "
-                       "(Figs. 6, 9), B(q) samples/spline/knots (Fig. 8), predictions vs measurement (Figs. 10, 11), "
-                       "compensation (Fig. 12), and Table I. Example: playscope report cal.json sim_test -o report.html")
+    p = add_command(sub, "report", "HTML report with the paper's figures", DESCRIPTION,
+                    examples=["playscope report cal.json sim_test -o report.html"])
     p.add_argument("calibration", help="calibration JSON")
     p.add_argument("session", help="test session folder")
     p.add_argument("-o", "--out", required=True, type=T.file_path, help="HTML file to write")
@@ -27,25 +27,4 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    cal = load_calibration(a.calibration)
-    s = load_session_noted(a.session)
-    ev = evaluate(cal, s, source=a.session)
-    ev.summary["calibration"] = a.calibration
-    summary = ev.summary
-    if a.eval:
-        path = Path(a.eval)
-        if not path.is_file():
-            raise InputError(path, "file not found")
-        try:
-            summary = json.loads(path.read_text())
-            md = format_table(summary)
-        except (json.JSONDecodeError, KeyError, TypeError) as e:
-            raise InputError(path, f"not an `evaluate --json` file: {e}") from None
-    else:
-        md = format_table(summary)
-    write_report(a.out, cal, ev, md)
-    n = Path(a.out).stat().st_size
-    print(f"{a.out}: {n} bytes, 4 figures")
-    dump_json(a.json, {"report": a.out, "figures": ["characteristic", "backlash", "prediction", "compensation"],
-                       "bytes": n})
-    return 0
+    return emit(a, write_report_file(a.calibration, a.session, a.out, a.eval))

@@ -3,21 +3,25 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from .. import argtypes as T
 from ..errors import InputError
-from ..track import HUE_PRESETS, TrackConfig, find_video, single_thread, track_video, write_marker_csv
-from .common import add_json_arg, dump_json, progress
+from ..pipeline import track_session
+from ..track import HUE_PRESETS, TrackConfig
+from .common import add_command, add_json_arg, emit, progress
+
+
+DESCRIPTION = """\
+HSV colour threshold, largest blob within area bounds and circular enough, sub-pixel centroid
+from image moments (soft rim weights); ROI around the last position, whole-frame search (1/4
+scale) when lost. Lost frames get empty u_px,v_px. A truncated video gives marker.csv up to the
+last decoded frame and a one-line warning.
+"""
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("track", help="find the coloured marker in a session's video -> marker.csv",
-                       description="HSV colour threshold, largest blob within area bounds and circular enough, "
-                       "sub-pixel centroid from image moments (soft rim weights); ROI around the last position, "
-                       "whole-frame search (1/4 scale) when lost. Lost frames get empty u_px,v_px. A truncated "
-                       "video gives marker.csv up to the last decoded frame and a one-line warning. "
-                       "Example: playscope track sessions/s1 --marker green")
+    p = add_command(sub, "track", "find the coloured marker in a session's video -> marker.csv", DESCRIPTION,
+                    examples=["playscope track sessions/s1 --marker green"])
     p.add_argument("session", help="session folder holding video.* and frames.csv")
     p.add_argument("-o", "--out", type=T.file_path, help="marker CSV to write (default: <session>/marker.csv)")
     p.add_argument("--marker", choices=sorted(HUE_PRESETS), default="green",
@@ -34,30 +38,16 @@ def add_parser(sub) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace an existing marker CSV")
     add_json_arg(p, "marker_csv (path), video (path), frames_listed, frames_decoded, frames_tracked, lost, "
                  "lost_fraction, truncated (bool), reasons {reason: count}, seconds, fps, warning (str|null)")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, own_progress=True)
 
 
 def run(a) -> int:
-    folder = Path(a.session)
-    if not folder.is_dir():
-        raise InputError(folder, "session folder not found")
-    video = find_video(folder)
-    out = Path(a.out) if a.out else folder / "marker.csv"
-    if out.exists() and not a.overwrite:
-        raise FileExistsError(f"{out}: exists (use --overwrite)")
     lo, hi = a.hue if a.hue else HUE_PRESETS[a.marker]
     try:
         cfg = TrackConfig(lo, hi, a.s_min, a.v_min, *(a.area or (12.0, None)), a.circ_min, a.roi)
-        cfg.check()
     except ValueError as e:
         raise InputError(None, f"track options: {e}") from None
-    single_thread()
-    res = track_video(video, folder / "frames.csv", cfg, progress=lambda **kw: progress(**kw))
-    write_marker_csv(out, res)
-    sm = res.summary()
+    res = track_session(a.session, a.out, cfg, a.overwrite, progress=lambda **kw: progress(**kw))
     if res.warning:
         print(f"playscope: warning: {res.warning}", file=sys.stderr)
-    print(f"{out}: {sm['frames_tracked']} frames, {sm['lost']} lost ({100 * (sm['lost_fraction'] or 0):.1f} %), "
-          f"{sm['fps']:.0f} frames/s")
-    dump_json(a.json, {"marker_csv": str(out), "video": str(video), **sm})
-    return 0
+    return emit(a, res)

@@ -43,7 +43,44 @@ def flash(link, blob: bytes, n_vectors: int = 200, log=print) -> dict:
     r = {"generation": after["active_generation"], "slot": after["active_slot"], "bytes": len(blob),
          "crc32": f"{after['active_crc32']:08x}", "upload_s": t_upload, "readback_s": t_read,
          "vectors": len(c), "round_trip_us": t_vec / len(c) * 1e6}
-    log(f"flashed {len(blob)} B as generation {r['generation']} into slot {r['slot']} "
-        f"(crc {r['crc32']}) in {t_upload * 1e3:.1f} ms; read back identical in {t_read * 1e3:.1f} ms; "
-        f"{len(c)} compensator steps bit-identical to the host ({r['round_trip_us']:.0f} us per round trip)")
+    log(flash_line(r))
     return r
+
+
+def flash_line(r: dict) -> str:
+    """The one line `playscope flash` prints for flash()'s result r."""
+    return (f"flashed {r['bytes']} B as generation {r['generation']} into slot {r['slot']} "
+            f"(crc {r['crc32']}) in {r['upload_s'] * 1e3:.1f} ms; read back identical in {r['readback_s'] * 1e3:.1f} ms; "
+            f"{r['vectors']} compensator steps bit-identical to the host ({r['round_trip_us']:.0f} us per round trip)")
+
+
+def _usb_child(argv: list[str]) -> int:
+    """`python -m playscope.device.flash TABLE [--vectors N]`: flash over --device usb in a
+    process started under the emulated USB device (pipeline.flash_tables), the result as one
+    JSON line on stdout; a failure is one line on stderr, exit 1. Not a user command."""
+    import json
+    import sys
+
+    from .link import Link
+    from .transport import open_transport
+    from ..table_check import read_table_file
+
+    n = int(argv[argv.index("--vectors") + 1]) if "--vectors" in argv else 200
+    try:
+        blob = read_table_file(argv[0])
+        link = Link(open_transport("usb"))
+        try:
+            r = flash(link, blob, n, log=lambda s: None)
+        finally:
+            link.close()
+    except (OSError, RuntimeError, ValueError) as e:
+        print(f"playscope: flash failed: {' '.join(str(e).split())}", file=sys.stderr)
+        return 1
+    print(json.dumps(r))
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(_usb_child(sys.argv[1:]))

@@ -12,7 +12,7 @@
 4. The host fits B(q) to the board's samples (robust B-spline, estimate.fit_backlash, N = 14),
    f_remain from the recorded characteristic (pose estimation eqs. 6-8, play-consistent least
    squares; calibration.calibrate with the board's onsets), builds the fixed-point tables and
-   flashes them (upload, commit, read back, compensator bit for bit: device.cli.flash).
+   flashes them (upload, commit, read back, compensator bit for bit: device.flash.flash).
 
 Board clock. With --sim-plant, frames are rendered exactly at board times k / fps once the
 encoder stream has passed them (so the board's clock drives the simulation, whatever its
@@ -255,7 +255,7 @@ def write_samples_csv(path, samples: list) -> None:
         w.writerows(samples)
 
 
-def _geometry(path: str):
+def read_geometry(path: str):
     """Robot, camera, hand-eye and t_delay from a session.json (playscope-session/1)."""
     from ..errors import InputError
     from ..session import parse_meta
@@ -267,15 +267,6 @@ def _geometry(path: str):
     if m.get("camera") is None or m.get("hand_eye") is None:
         raise InputError(p, "needs camera and hand_eye to estimate c from the marker (eqs. 6-8)")
     return m["robot"], m["camera"], m["hand_eye"], m.get("t_delay_s") or 0.08
-
-
-def _bar(board_s: float, n: int, total_s: float | None) -> None:
-    if total_s:
-        k = int(30 * min(board_s / total_s, 1.0))
-        sys.stderr.write(f"\r[{'#' * k}{'.' * (30 - k)}] {board_s:6.1f}/{total_s:.0f} s board time, {n} B samples")
-    else:
-        sys.stderr.write(f"\r{board_s:6.1f} s board time, {n} B samples")
-    sys.stderr.flush()
 
 
 def exc_duration_s(exc: str) -> float:
@@ -292,86 +283,3 @@ def exc_duration_s(exc: str) -> float:
         pts += [high - amp, high - adv]
         high -= adv
     return float(np.sum(np.abs(np.diff(pts)))) / v
-
-
-def run_insitu(link, args) -> int:
-    """CLI body (see `playscope run-insitu --help`). Returns the exit status."""
-    from .flash import flash
-    from ..errors import InputError
-    from ..session import write_session
-    from ..tables import build_table
-
-    out = Path(args.output) if args.output else None
-    if out:
-        out.mkdir(parents=True, exist_ok=True)
-    plant = None
-    if args.sim_plant:
-        from ..sim.plant import SimPlant, SimPlantConfig
-
-        plant = SimPlant(SimPlantConfig(seed=args.seed, time_scale=args.time_scale, exc=args.exc))
-        source = plant
-        sim = plant.sim
-        robot, camera, hand_eye, t_delay = sim.robot(), sim.camera(), sim.hand_eye(), sim.t_delay_s
-        total = exc_duration_s(args.exc)
-        print(f"SIMULATION: --sim-plant renders a simulated instrument (simulator preset 'ideal') "
-              f"from the board's encoder stream; board clock x{args.time_scale:g}", file=sys.stderr)
-    else:
-        if args.video is None:
-            print("playscope: run-insitu needs --video FILE, a camera index, or --sim-plant", file=sys.stderr)
-            return 2
-        if args.geometry is None:
-            print("playscope: run-insitu needs --geometry session.json (robot, camera, hand-eye) to fit f",
-                  file=sys.stderr)
-            return 2
-        robot, camera, hand_eye, t_delay = _geometry(args.geometry)
-        try:
-            source = VideoSource(args.video)
-        except OSError as e:
-            print(f"playscope: {e}", file=sys.stderr)
-            return 2
-        total = None
-    try:
-        run = run_loop(link, source, args.seconds, progress=lambda s, n: _bar(s, n, total))
-    finally:
-        sys.stderr.write("\n")
-        if not plant:
-            source.close()
-    valid = run.valid()
-    print(f"{run.ended}: {run.board_s:.1f} s board time in {run.wall_s:.1f} s, {len(run.mk_t_s)} frames, "
-          f"{len(run.samples)} B samples from the board ({len(valid)} valid)")
-    s = session_of(run, robot, camera, hand_eye, t_delay)
-    if out:
-        write_samples_csv(out / "b_samples.csv", run.samples)
-        write_session(s, out / "session", overwrite=True)
-    try:
-        cal = calibrate_run(run, s, args.control_points)
-    except InputError as e:
-        print(f"playscope: run-insitu: {e}", file=sys.stderr)
-        return 1
-    q_min, q_max = cal.doc["q_range"]
-    tab = build_table(cal.B_model, cal.f, q_min, q_max, "mm", "remain", 1, transition=cal.transition)
-    result = {"board_s": run.board_s, "wall_s": run.wall_s, "frames": len(run.mk_t_s),
-              "b_samples": len(run.samples), "b_valid": len(valid), "q_range": [q_min, q_max]}
-    if plant:
-        g = np.linspace(q_min + 0.3, q_max - 0.3, 101)
-        e = np.abs(cal.B(g) - plant.truth_B(g))
-        qm = np.array([x["q_mean"] for x in valid])
-        eb = np.abs(np.array([x["b"] for x in valid]) - plant.truth_B(qm)) if valid else np.zeros(1)
-        result["sim_B_err_mm"] = {"mean": float(e.mean()), "max": float(e.max()),
-                                  "samples_mean": float(eb.mean()), "samples_max": float(eb.max())}
-        print(f"SIMULATION truth: |B_fit - B_true| mean {e.mean():.3f} mm, max {e.max():.3f} mm over "
-              f"q in [{g[0]:.2f}, {g[-1]:.2f}]; board samples mean {eb.mean():.3f} mm")
-    if out:
-        cal.save(out / "calibration.json")
-        (out / "table.bin").write_bytes(tab.blob)
-    if not args.no_flash:
-        try:
-            result["flash"] = flash(link, tab.blob, args.vectors)
-        except (RuntimeError, ValueError) as e:
-            print(f"playscope: run-insitu: flash failed: {e}", file=sys.stderr)
-            return 1
-    if out:
-        (out / "result.json").write_text(json.dumps(result, indent=1) + "\n")
-    if args.json:
-        print(json.dumps(result))
-    return 0

@@ -5,7 +5,7 @@
 (firmware/link/usb) in front of a ps_vboard process, and runs COMMAND with
 libumockdev-preload, so COMMAND's own libusb (``--device usb``, pyusb) talks to it:
 
-    ps_usbemu -- playscope flash demo --device usb
+    ps_usbemu -- playscope flash builtin --device usb
 
 The preload has to be in the process from its start, so the USB path cannot be emulated
 inside an already running Python; tests and the bench run a child under the emulator.

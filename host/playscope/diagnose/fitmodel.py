@@ -193,13 +193,9 @@ def _switch(z: list, travel: float) -> np.ndarray:
 
 
 def _direction(z: np.ndarray) -> np.ndarray:
-    d = np.diff(z, prepend=z[:1])
-    d = np.where(np.abs(d) > 1e-12, np.sign(d), 0.0)
-    idx = np.where(d != 0, np.arange(d.size), 0)
-    np.maximum.accumulate(idx, out=idx)
-    s = d[idx]
-    s[s == 0] = 1.0
-    return s
+    from ..model import held_direction
+
+    return held_direction(z, 1e-12)
 
 
 class Model:

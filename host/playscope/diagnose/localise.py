@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import correlate, welch
 
+from ..model import held_direction
 from .fitmodel import Data
 
 
@@ -18,12 +19,7 @@ def reversal_features(data: Data) -> dict[str, np.ndarray]:
     """Per measurement row: motor direction (+1/-1), travel (mm) and time (s) since the last
     actuator reversal, q (mm) and speed |dq/dt| (mm/s), all at t - t_delay."""
     t, q = data.t_int, data.q_int
-    dq = np.diff(q, prepend=q[:1])
-    d = np.where(np.abs(dq) > 1e-9, np.sign(dq), 0.0)
-    idx = np.where(d != 0, np.arange(d.size), 0)
-    np.maximum.accumulate(idx, out=idx)
-    dirn = d[idx]
-    dirn[dirn == 0] = 1.0
+    dirn = held_direction(q, 1e-9)
     rev = np.r_[True, dirn[1:] != dirn[:-1]]
     last = np.maximum.accumulate(np.where(rev, np.arange(t.size), 0))
     travel = np.abs(q - q[last])

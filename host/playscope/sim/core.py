@@ -87,10 +87,6 @@ class SimConfig:
         return HandEye(np.array(self.R, float), np.array(self.t_mm, float))
 
 
-def _deg_to_q(cfg: SimConfig, c_deg: float) -> float:
-    return float(np.radians(c_deg) * cfg.q_per_rad)
-
-
 PRESETS: dict[str, dict] = {
     # STRAS-like instrument (paper V-A, V-D, Fig. 8): backlash much wider near straight, a low
     # rate near straight in f_remain, 25 Hz camera with 80 ms delay, and the smooth transition
@@ -184,13 +180,7 @@ def lowpass(x: np.ndarray, tau_s: float, rate_hz: float) -> np.ndarray:
 def distal_direction(c: np.ndarray, tol: float = 1e-9) -> np.ndarray:
     """Sign of the last non-zero change of c (+1/-1), the direction of distal motion, held while
     still; +1 before the first motion. (N,)"""
-    d = np.sign(np.diff(c, prepend=c[:1]))
-    d[np.abs(np.diff(c, prepend=c[:1])) <= tol] = 0
-    idx = np.where(d != 0, np.arange(d.size), 0)
-    np.maximum.accumulate(idx, out=idx)
-    out = d[idx]
-    out[out == 0] = 1.0
-    return out
+    return M.held_direction(c, tol)
 
 
 def transmission(cfg: SimConfig, t: np.ndarray, q: np.ndarray, eff: EffectSet,

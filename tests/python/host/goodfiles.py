@@ -20,8 +20,8 @@ def make_good(root: Path) -> dict[str, Path]:
     write_session(s, root / "session")
     cal = calibrate(s, fps=25.0)
     cal.save(root / "cal.json")
-    q0, q1 = cal.doc["q_range"]
-    tab = build_table(cal.B, cal.f, q0, q1, cal.doc["actuator_unit"], "remain", 1, 64)
+    q0, q1 = cal.q_range
+    tab = build_table(cal.B, cal.f, q0, q1, cal.actuator_unit, "remain", 1, 64)
     (root / "table.pstb").write_bytes(tab.blob)
     t, q, c = s.encoder["t_s"], s.encoder["q"], None
     import numpy as np

@@ -70,7 +70,7 @@ def test_constant_play_baseline_recovers_width():
 
 def test_table_round_trip_and_error_bound(synth_cal):
     s, cal = synth_cal
-    q0, q1 = cal.doc["q_range"]
+    q0, q1 = cal.q_range
     tab = build_table(cal.B, cal.f, q0, q1, "mm")
     err = table_errors(tab, cal.B, cal.f, q0, q1)
     assert err["direct_c_deg_max"] < 0.2 and err["comp_q_max"] < 0.02

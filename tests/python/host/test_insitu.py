@@ -158,7 +158,7 @@ def test_table_rows_run_the_firmware_from_the_record_start(session, split, rows)
     from playscope.tables import build_table
 
     cal = calibrate(session.slice_time(-np.inf, split), model_kind="play")
-    tab = build_table(cal.B, cal.f, *cal.doc["q_range"], "mm")
+    tab = build_table(cal.B, cal.f, *cal.q_range, "mm")
     q = session.encoder["q"]
     np.testing.assert_array_equal(rows["onset_lsq"].predict(q), tab.predict(q))
     # Ours: the table carries the chosen transition's operators (none for the pure play).

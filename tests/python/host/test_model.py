@@ -135,3 +135,15 @@ def test_jacobian_is_derivative_eq7():
     h = 1e-3
     fd = (im(c + h) - im(c - h)) / (2 * h)
     np.testing.assert_allclose(im.jacobian(c), fd, rtol=1e-5, atol=1e-6)
+
+
+def test_held_direction_holds_the_last_move():
+    """model.held_direction, the direction hold of eq. 4 (third case) shared by the compensator,
+    the simulator and the diagnosis: worked by hand."""
+    from playscope.model import held_direction
+
+    x = np.array([0.0, 0.0, 1.0, 1.0, 0.5, 0.5, 0.5, 0.52, 2.0])
+    assert held_direction(x).tolist() == [1, 1, 1, 1, -1, -1, -1, 1, 1]
+    assert held_direction(x, before=0.0).tolist() == [0, 0, 1, 1, -1, -1, -1, 1, 1]
+    # a change of 0.02 within tol 0.05 is no move: the down direction is held through it
+    assert held_direction(x, tol=0.05).tolist() == [1, 1, 1, 1, -1, -1, -1, -1, 1]

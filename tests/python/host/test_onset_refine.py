@@ -160,8 +160,8 @@ def test_board_samples_stay_valid_input():
     t_f, obs = s.observations()
     board = E.run_onsets(t, q, rt, rq, t_f, obs, "image", E.OnsetConfig(t_delay_s=0.08, fps=FPS))
     cal = calibrate(s, onsets=board)
-    ref = cal.doc["onset"]["refine"]
-    assert cal.doc["onset"]["reasons"]["refined"] >= board.b.size - 1
+    ref = cal.onset_refine
+    assert cal.onset_reasons["refined"] >= board.b.size - 1
     assert ref["board_reasons"] == board.reasons
     g = np.linspace(-1.5, 1.5, 50)
     assert np.mean(np.abs(cal.B(g) - sc.B(g))) / sc.B(g).mean() < 0.05

@@ -14,8 +14,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from playscope.commands.common import load_calibration
-from playscope.tables import demo_table
+from playscope.calibration_check import load_calibration
+from playscope.tables import builtin_table
 from playscope.errors import PlayscopeError
 from playscope.session import load_session, parse_meta, read_csv
 from playscope.table_check import check_blob
@@ -138,7 +138,7 @@ def test_load_calibration_any_field(key, value):
             pass
 
 
-GOOD_TABLE = demo_table(n=32, step_log2=14)
+GOOD_TABLE = builtin_table(n=32, step_log2=14)
 
 
 @SETTINGS

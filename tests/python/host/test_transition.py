@@ -156,7 +156,7 @@ def _reseal(blob: bytes) -> bytes:
 
 
 def test_set_generation_refuses_a_corrupted_blob():
-    blob = TB.demo_table()
+    blob = TB.builtin_table()
     assert TB.header(TB.set_generation(blob, 7)).generation == 7
     bad = bytearray(blob)
     bad[-1] ^= 1

@@ -13,7 +13,7 @@ import pytest
 
 from playscope.device.flash import flash
 from playscope.device.link import Link
-from playscope.tables import demo_table
+from playscope.tables import builtin_table
 from playscope.device.transport import virtual_transport
 from playscope.native import core
 from playscope.table_check import TableFileError, check_blob
@@ -28,7 +28,7 @@ def _off(field: str) -> int:
 
 def corruptions() -> dict[str, tuple[bytes, str]]:
     """name -> (damaged blob, the field the refusal must name)."""
-    good = demo_table()
+    good = builtin_table()
     out = {}
     b = bytearray(good)
     b[700] ^= 0x10                      # one data byte (an f entry), CRC left as written
@@ -67,7 +67,7 @@ def test_check_names_the_field(name):
 
 
 def test_every_q_max_bit_flip_refused():
-    good = demo_table()
+    good = builtin_table()
     for bit in range(32):
         b = bytearray(good)
         b[_off("q_max_q16") + bit // 8] ^= 1 << (bit % 8)
@@ -77,8 +77,8 @@ def test_every_q_max_bit_flip_refused():
 
 
 def test_good_table_passes():
-    hd = check_blob(demo_table())
-    assert hd.total_size == len(demo_table())
+    hd = check_blob(builtin_table())
+    assert hd.total_size == len(builtin_table())
 
 
 @pytest.mark.parametrize("name", ["data_byte", "crc_field", "q_max_bit"])
@@ -86,7 +86,7 @@ def test_virtual_board_nothing_sent(name, tmp_path):
     blob, field = CASES[name]
     link = Link(virtual_transport(tmp_path / "flash.bin"))
     try:
-        flash(link, demo_table(), 10, log=lambda *_: None)
+        flash(link, builtin_table(), 10, log=lambda *_: None)
         before = link.info()
         n0 = link.n_requests
         with pytest.raises(TableFileError) as e:
@@ -138,10 +138,10 @@ def test_generation_counter_at_maximum(tmp_path):
 
     link = L(virtual_transport(tmp_path / "flash.bin"))
     try:
-        link.upload_table(demo_table(generation=0xFFFFFFFF))
+        link.upload_table(builtin_table(generation=0xFFFFFFFF))
         n0 = link.n_requests
         with pytest.raises(RuntimeError, match="generation counter is at its maximum"):
-            flash(link, demo_table(), 5, log=lambda *_: None)
+            flash(link, builtin_table(), 5, log=lambda *_: None)
         assert link.n_requests == n0 + 1  # only the INFO that read the counter
     finally:
         link.close()
@@ -153,6 +153,6 @@ def test_cli_qemu_without_image_and_usb_without_device(tmp_path):
     env = dict(os.environ, PLAYSCOPE_LINK_ELF=str(tmp_path / "missing.elf"))
     for extra in (["--device", "qemu"], ["--device", "usb"]):
         r = subprocess.run([sys.executable, "-c", "import sys; from playscope.cli import main; sys.exit(main())",
-                            "flash", "demo", *extra], capture_output=True, text=True, env=env)
+                            "flash", "builtin", *extra], capture_output=True, text=True, env=env)
         lines = r.stderr.strip().splitlines()
         assert r.returncode == 2 and len(lines) == 1 and lines[0].startswith("playscope: error: "), r.stderr

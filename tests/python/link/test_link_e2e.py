@@ -11,7 +11,7 @@ import pytest
 from playscope.device.flash import flash
 from playscope.device.link import DeviceError, Link
 from playscope.native import frame_codec
-from playscope.tables import demo_table
+from playscope.tables import builtin_table
 from playscope.device.transport import QemuTransport, find_qemu_image, virtual_transport
 
 VECTORS = Path(__file__).resolve().parents[2] / "link" / "vectors" / "frames.txt"
@@ -40,9 +40,9 @@ def vlink(tmp_path):
 
 
 def test_virtual_flash_readback_compensator(vlink, tmp_path):
-    r = flash(vlink, demo_table(), 300, log=lambda *_: None)
+    r = flash(vlink, builtin_table(), 300, log=lambda *_: None)
     assert r["generation"] == 1 and r["slot"] == "A"
-    r = flash(vlink, demo_table(), 50, log=lambda *_: None)
+    r = flash(vlink, builtin_table(), 50, log=lambda *_: None)
     assert r["generation"] == 2 and r["slot"] == "B"
     vlink.close()
     # Reboot from the same flash file: the newest table comes back.
@@ -50,19 +50,19 @@ def test_virtual_flash_readback_compensator(vlink, tmp_path):
     try:
         info = link.info()
         assert info["active_generation"] == 2 and info["active_slot"] == "B"
-        assert link.read_table()[60:] == demo_table()[60:]
+        assert link.read_table()[60:] == builtin_table()[60:]
     finally:
         link.close()
 
 
 def test_virtual_refusals(vlink):
-    flash(vlink, demo_table(), 10, log=lambda *_: None)
+    flash(vlink, builtin_table(), 10, log=lambda *_: None)
     with pytest.raises(DeviceError) as e:
-        vlink.upload_table(demo_table(generation=1))  # not newer than generation 1
+        vlink.upload_table(builtin_table(generation=1))  # not newer than generation 1
     assert e.value.code == 8
     vlink.set_mode("excitation")
     with pytest.raises(DeviceError) as e:
-        vlink.upload_table(demo_table(generation=5))  # no commit during an excitation
+        vlink.upload_table(builtin_table(generation=5))  # no commit during an excitation
     assert e.value.code == 6
     vlink.set_mode("idle")
     vlink.set_mode("compensation")  # (a commit here is taken: tests/python/link/test_hot_swap.py)
@@ -96,7 +96,7 @@ def test_qemu_flash_readback_compensator():
     try:
         info = link.info()
         assert info["proto_version"] == 1 and info["board_id"].startswith("51454d55")
-        r = flash(link, demo_table(), 100, log=lambda *_: None)
+        r = flash(link, builtin_table(), 100, log=lambda *_: None)
         assert r["generation"] == 1
     finally:
         link.close()

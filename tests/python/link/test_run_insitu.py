@@ -22,7 +22,7 @@ from playscope.sim.plant import SimPlant
 def test_run_insitu_sim_plant_recovers_B(tmp_path, capsys):
     out = tmp_path / "run"
     rc = main(["run-insitu", "--device", "virtual", "--sim-plant", "--time-scale", "6", "--vectors", "100",
-               "-o", str(out), "--json"])
+               "-o", str(out), "--json", str(tmp_path / "r.json")])
     text = capsys.readouterr()
     assert rc == 0, text.err
     assert "SIMULATION" in text.err and "SIMULATION truth" in text.out
@@ -101,7 +101,7 @@ def test_run_insitu_camera_path_on_a_rendered_video(tmp_path, capsys):
     write_session(geo, tmp_path / "geo")
     out = tmp_path / "run"
     rc = main(["run-insitu", "--device", "virtual", "--video", str(video), "--geometry",
-               str(tmp_path / "geo" / "session.json"), f"--exc={exc}", "--vectors", "50", "-o", str(out), "--json"])
+               str(tmp_path / "geo" / "session.json"), f"--exc={exc}", "--vectors", "50", "-o", str(out), "--json", str(tmp_path / "r.json")])
     text = capsys.readouterr()
     assert rc == 0, text.err
     res = _json.loads((out / "result.json").read_text())

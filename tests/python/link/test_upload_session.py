@@ -15,7 +15,7 @@ import pytest
 
 from playscope.device.flash import flash
 from playscope.device.link import DeviceError, Link
-from playscope.tables import demo_table
+from playscope.tables import builtin_table
 from playscope.device.transport import TcpTransport
 from playscope.native import executable
 
@@ -57,7 +57,7 @@ def _crc(blob: bytes) -> int:
 
 def test_second_host_busy_until_abort(board):
     a, b = board(), board()
-    t1, t2 = demo_table(generation=1), demo_table(generation=2)
+    t1, t2 = builtin_table(generation=1), builtin_table(generation=2)
     s = a.begin_upload(len(t1), _crc(t1))
     _chunk(a, t1, s)
     with pytest.raises(DeviceError) as e:
@@ -76,7 +76,7 @@ def test_second_host_busy_until_abort(board):
 
 def test_second_host_busy_until_commit(board):
     a, b = board(), board()
-    t1 = demo_table(generation=1)
+    t1 = builtin_table(generation=1)
     s = a.begin_upload(len(t1), _crc(t1))
     for off in range(0, len(t1), a.lib.PSP_CHUNK_MAX):
         _chunk(a, t1, s, off)
@@ -85,18 +85,18 @@ def test_second_host_busy_until_commit(board):
         assert e.value.busy
     a.request(a.lib.PSP_MSG_TABLE_COMMIT, bytes(a.ffi.buffer(a.ffi.new("psp_table_commit_t *",
                                                                         {"crc32": _crc(t1), "session": s}))))
-    assert b.upload_table(demo_table(generation=2))["active_generation"] == 2
+    assert b.upload_table(builtin_table(generation=2))["active_generation"] == 2
 
 
 def test_silent_owner_times_out(board):
     a, b = board(), board()
-    t1 = demo_table(generation=1)
+    t1 = builtin_table(generation=1)
     s = a.begin_upload(len(t1), _crc(t1))  # then host A goes silent (killed, unplugged)
     with pytest.raises(DeviceError) as e:
-        b.upload_table(demo_table(generation=3))
+        b.upload_table(builtin_table(generation=3))
     assert e.value.busy
     time.sleep(TIMEOUT_MS / 1000 + 0.3)
-    assert b.upload_table(demo_table(generation=3))["active_generation"] == 3
+    assert b.upload_table(builtin_table(generation=3))["active_generation"] == 3
     with pytest.raises(DeviceError) as e:  # A's token died with its session
         _chunk(a, t1, s)
     assert e.value.code == a.lib.PSP_ERR_STATE
@@ -110,7 +110,7 @@ def test_overlapping_uploads_from_threads(board):
 
     def host_b():
         try:
-            b.upload_table(demo_table(generation=7))
+            b.upload_table(builtin_table(generation=7))
             got["b"] = "ok"
         except DeviceError as e:
             got["b"] = "busy" if e.busy else str(e)
@@ -121,9 +121,9 @@ def test_overlapping_uploads_from_threads(board):
             threading.Thread(target=host_b).start()
             assert tried.wait(5)
 
-    assert a.upload_table(demo_table(generation=5), progress=progress)["active_generation"] == 5
+    assert a.upload_table(builtin_table(generation=5), progress=progress)["active_generation"] == 5
     assert got["b"] == "busy"
-    assert b.read_table() == demo_table(generation=5)
+    assert b.read_table() == builtin_table(generation=5)
 
 
 def test_concurrent_flashes_consistent(board):
@@ -135,7 +135,7 @@ def test_concurrent_flashes_consistent(board):
     def run(k):
         for _ in range(6):
             try:
-                r = flash(links[k], demo_table(), 5, log=lambda *_: None)
+                r = flash(links[k], builtin_table(), 5, log=lambda *_: None)
                 results[k].append(("ok", r["generation"]))
             except (DeviceError, RuntimeError) as e:
                 assert "\n" not in str(e)
@@ -151,7 +151,7 @@ def test_concurrent_flashes_consistent(board):
     info = links[0].info()
     back = links[0].read_table()
     assert info["active_generation"] >= max(committed)
-    assert back[60:] == demo_table()[60:]
+    assert back[60:] == builtin_table()[60:]
     assert int.from_bytes(back[16:20], "little") == info["active_generation"]
 
 

@@ -53,11 +53,11 @@ def test_usb_emulated_flash_readback_compensator(tmp_path):
 def test_usb_emulated_cli_info_and_flash(tmp_path):
     usbemu = _emu_or_skip()
     flash_file = tmp_path / "flash.bin"
-    r = usbemu.run(_playscope("flash", "demo", "--device", "usb", "--vectors", "100"), flash_file=flash_file)
+    r = usbemu.run(_playscope("flash", "builtin", "--device", "usb", "--vectors", "100"), flash_file=flash_file)
     assert r.returncode == 0, r.stderr
     assert "read back identical" in r.stdout and "bit-identical" in r.stdout
     # A second run of the emulator over the same flash file: the board kept the table.
-    r = usbemu.run(_playscope("device", "info", "--device", "usb", "--json"), flash_file=flash_file)
+    r = usbemu.run(_playscope("device", "info", "--device", "usb", "--json", "-"), flash_file=flash_file)
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
     assert info["active_generation"] == 1 and info["active_slot"] == "A"

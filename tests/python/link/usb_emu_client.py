@@ -10,14 +10,14 @@ import time
 
 from playscope.device.flash import flash
 from playscope.device.link import DeviceError, Link
-from playscope.tables import CalibTable, demo_table, set_generation, test_vector
+from playscope.tables import CalibTable, builtin_table, set_generation, test_vector
 from playscope.device.transport import UsbTransport
 
 
 def check(link: Link, n_vectors: int, blob: bytes | None = None) -> dict:
     """Flash blob (default: the demo table), then read back and rerun the compensator here,
     independently of flash()'s own checks. q_board: the board's q* (Q16) for test_vector."""
-    blob = demo_table() if blob is None else blob
+    blob = builtin_table() if blob is None else blob
     r = flash(link, blob, n_vectors, log=lambda *_: None)
     sent = set_generation(blob, r["generation"])
     back = link.read_table()
@@ -42,7 +42,7 @@ def check(link: Link, n_vectors: int, blob: bytes | None = None) -> dict:
 def bench(link: Link, repeat: int) -> dict:
     up, rb, rt = [], [], []
     for _ in range(repeat):
-        r = flash(link, demo_table(), 20, log=lambda *_: None)
+        r = flash(link, builtin_table(), 20, log=lambda *_: None)
         up.append(r["upload_s"])
         rb.append(r["readback_s"])
     for _ in range(200):

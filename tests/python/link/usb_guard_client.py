@@ -13,13 +13,13 @@ import time
 
 from playscope.device.flash import flash
 from playscope.device.link import DeviceError, Link
-from playscope.tables import demo_table
+from playscope.tables import builtin_table
 from playscope.device.transport import UsbTransport
 from playscope.table_check import TableFileError
 
 
 def corrupt(link: Link, files: list[str]) -> dict:
-    flash(link, demo_table(), 10, log=lambda *_: None)
+    flash(link, builtin_table(), 10, log=lambda *_: None)
     out = {"generation_before": link.info()["active_generation"], "refused": []}
     for path in files:
         with open(path, "rb") as f:
@@ -37,7 +37,7 @@ def corrupt(link: Link, files: list[str]) -> dict:
 
 def session() -> dict:
     a = Link(UsbTransport())
-    t1 = demo_table(generation=1)
+    t1 = builtin_table(generation=1)
     s = a.begin_upload(len(t1), int.from_bytes(t1[12:16], "little"))
     t_last = time.monotonic()
     a.close()  # host A killed after BEGIN: its session stays open on the board
@@ -46,7 +46,7 @@ def session() -> dict:
     try:
         while time.monotonic() - t_last < 30:
             try:
-                r = flash(b, demo_table(), 20, log=lambda *_: None)
+                r = flash(b, builtin_table(), 20, log=lambda *_: None)
                 out["waited_s"] = time.monotonic() - t_last
                 out["generation"] = r["generation"]
                 break

@@ -8,6 +8,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from .common import add_command
+
 JSON_KEYS = ("sessions.<name>: noise_floor_deg, noise_method, base{rmse_fit_deg, rmse_heldout_deg, bic}, "
              "screen[{effect, rmse_heldout_deg, delta_rmse_deg, delta_bic, promising, params}], "
              "kept[{effect, params{name: [value, sd]}, rmse_before_deg, rmse_after_deg, share_of_excess_removed, "
@@ -15,13 +17,20 @@ JSON_KEYS = ("sessions.<name>: noise_floor_deg, noise_method, base{rmse_fit_deg,
              "verdict, atlas_before, atlas_after, geometry{base_px, screen, kept} (image sessions); selftest: confusion, top1, false_discovery_nulls, cases")
 
 
+DESCRIPTION = """\
+Fit the paper's model (play of width B(q) then f_remain) on the first part of each session,
+judge it on the rest, localise the residuals and attribute the gap to effects of the simulator's
+library (docs/diagnosis.md).
+"""
+
+
 def add_parser(sub) -> None:
     from .. import argtypes  # range-checked values (issue 14)
 
-    p = sub.add_parser("diagnose", help="sim-to-real gap: held-out gap, localisation, attribution to library effects",
-                       description="Fit the paper's model (play of width B(q) then f_remain) on the first part of each "
-                                   "session, judge it on the rest, localise the residuals and attribute the gap to "
-                                   "effects of the simulator's library (docs/diagnosis.md).")
+    p = add_command(sub, "diagnose", "sim-to-real gap: held-out gap, localisation, attribution to library effects", DESCRIPTION,
+                    examples=["playscope diagnose sessions/d21 --html diag.html --json diag.json",
+                              "playscope diagnose --catheter ../shared/data/real/catheter/data_2_1.txt --split 0.5",
+                              "playscope diagnose --selftest --workers 2"])
     p.add_argument("sessions", nargs="*", help="session folders (playscope-session/1)")
     p.add_argument("--catheter", metavar="FILE", nargs="+", default=[],
                    help="catheter CSV recordings (data_2_*.txt) read in place through playscope.importer")
@@ -38,62 +47,20 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _clean(res: dict) -> dict:
-    return {k: v for k, v in res.items() if not k.startswith("_")}
-
-
-def combine_geometry(res: dict, session, data, fm, em) -> dict:
-    """Run the image-geometry screen (geometry.py) and fold it into res["verdict"]: a geometry
-    effect becomes the verdict when the c channel found nothing ("none")."""
-    from .geometry import screen
-    geo = screen(session, data, fm, em)
-    res["geometry"] = geo
-    if geo["kept"] and res["verdict"] == "none":
-        res["verdict"] = geo["kept"][0]
-    return geo
-
-
-def diagnose_data(data, split: float = 0.5, progress=None, session=None, test_data=None) -> dict:
-    """Record checks (split.thin_record), the fit / validation / test split (split.choose_split:
-    the judged parts inside the fitted q range), attribute() (selection on validation, figures on
-    test: the last part of the record, or test_data when given), the residual atlas before/after
-    on the validation rows; for image sessions also the image-geometry screen."""
-    from .attribute import attribute
-    from .localise import atlas
-    from .split import choose_split, thin_record
-
-    data, notes = thin_record(data)
-    rest = 1.0 - split
-    sp = choose_split(data, (split, rest, 0.0) if test_data is not None else (split, rest / 2, rest / 2))
-    if test_data is not None:
-        test_data, tnotes = thin_record(test_data)
-        notes += [f"test record: {n}" for n in tnotes]
-    res = attribute(data, sp.fit, sp.val, progress=progress,
-                    test_mask=None if test_data is not None else sp.test, test_data=test_data)
-    res["split"] = sp.summary()
-    res["record_notes"] = notes + sp.warnings
-    if session is not None and session.distal_kind == "image":
-        combine_geometry(res, session, data, sp.fit, sp.val)
-    res["atlas_before"] = atlas(data, res["_fits"]["base"].pred, sp.val)
-    res["atlas_after"] = atlas(data, res["_fits"]["final"].pred, sp.val)
-    res["_eval_mask"] = sp.val
-    res["_data"] = data
-    return res
-
-
 def run(args) -> int:
-    from ..commands.common import dump_json
+    from ..diagnose.run import clean, diagnose_data
+    from .common import dump_json
     from ..session import load_session
-    from .fitmodel import from_session
+    from ..diagnose.fitmodel import from_session
 
     if args.selftest:
-        from . import selftest
+        from ..diagnose import selftest
         sc = selftest.run("both" if args.full else "strong", 4 if args.full else 2, True, workers=args.workers,
                           log=lambda s: print(s, file=sys.stderr, flush=True))
         print(selftest.format_report(sc))
         dump_json(args.json, {"selftest": sc})
         return 0
-    from ..commands.common import load_session_noted  # prints what loading repaired (issue 13)
+    from .common import load_session_noted  # prints what loading repaired (issue 13)
 
     items = [(str(s), lambda s=s: load_session_noted(s)) for s in args.sessions]
     if args.catheter:
@@ -139,13 +106,13 @@ def run(args) -> int:
                 print(f"  + {g['effect']} ({g['param']}={g['value']:.3g}): path residual "
                       f"{res['geometry']['base_px']['heldout']:.3f} -> {g['heldout_px']:.3f} px (held out)")
         if args.html:
-            from .report import figures
+            from ..diagnose.report import figures
             figs_all += [(f"{name}: {t}", img) for t, img in figures(data, res, res["atlas_before"], res["atlas_after"])]
         res.pop("_models", None)
-        out[name] = _clean(res)
+        out[name] = clean(res)
     dump_json(args.json, {"sessions": out})
     if args.html:
         from ..atomic import write_text_atomic
-        from .report import html_page
+        from ..diagnose.report import html_page
         write_text_atomic(args.html, html_page("playscope diagnose", out, figs_all))
     return 0

@@ -1,5 +1,5 @@
-/* The built-in demonstration table: small, plausible, exercises both B and f. */
-#include "psa_demo_table.h"
+/* The built-in table: small, plausible, exercises both B and f. */
+#include "psa_builtin_table.h"
 
 #include <string.h>
 
@@ -13,7 +13,7 @@ enum {
     DEMO_STEP_Q16 = PS_Q16_ONE,  /* 1 mm, a power of two in raw units */
 };
 
-size_t psa_demo_table(uint8_t *buf, size_t cap)
+size_t psa_builtin_table(uint8_t *buf, size_t cap)
 {
     int32_t b_q16[DEMO_N], f_q16[DEMO_N];
     for (int i = 0; i < DEMO_N; i++) {

@@ -1,10 +1,10 @@
-/* USART demo image playscope-fw: the production loop (psa_tick) at 20 kHz in compensation mode on a
- * +-30 deg triangle reference, with the built-in demonstration table; status on USART1. */
+/* USART image playscope-fw: the production loop (psa_tick) at 20 kHz in compensation mode on a
+ * +-30 deg triangle reference, with the built-in table (psa_builtin_table); status on USART1. */
 #include <stdbool.h>
 #include <stdint.h>
 #include <string.h>
 
-#include "psa_demo_table.h"
+#include "psa_builtin_table.h"
 #include "psa_loop.h"
 #include "ps_fixed.h"
 #include "ps_table.h"
@@ -141,7 +141,7 @@ int main(void)
     psa_config_t lc = {.onset = onset_default_config(), .smooth = true,
                        .lim = comp_smoothing_from_rates(200 * PS_Q16_ONE, 20000 * PS_Q16_ONE, DEMO_TICK_HZ)};
     psa_init(&loop, &lc);
-    int st = (int)calib_load(&cal, table.bytes, psa_demo_table(table.bytes, sizeof table.bytes));
+    int st = (int)calib_load(&cal, table.bytes, psa_builtin_table(table.bytes, sizeof table.bytes));
     if (st == CALIB_OK && !(psa_set_table(&loop, &cal) && psa_set_mode(&loop, PSA_MODE_COMPENSATION))) {
         st = -1;
     }

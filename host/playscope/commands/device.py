@@ -1,0 +1,233 @@
+"""CLI commands of the device link: `playscope flash`, `playscope device info`, `playscope run-insitu`."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from .common import add_command, add_json_arg, dump_json, progress
+
+
+def _add_device_args(p) -> None:
+    from .. import argtypes as T
+
+    p.add_argument("--device", choices=["virtual", "qemu", "usb"], default="virtual",
+                   help="board to talk to (default: virtual, the desktop build as a process)")
+    p.add_argument("--flash-file", type=T.file_path, help="virtual: file-backed A/B flash kept across runs")
+    p.add_argument("--elf", type=T.existing_file, help="qemu: link firmware image (default: build/stm32f405/link-fw)")
+    p.add_argument("--address", type=T.host_port, help="qemu: host:port of an already running QEMU serial")
+
+
+def _open(args, vboard_args=()):
+    from ..device.link import Link
+    from ..device.transport import open_transport
+
+    return Link(open_transport(args.device, flash_file=args.flash_file, elf=args.elf, address=args.address,
+                               vboard_args=vboard_args))
+
+
+def cmd_info(args) -> int:
+    with _closing(_open(args)) as link:
+        info = link.info()
+    for k, v in info.items():
+        print(f"{k:22s} {v}")
+    dump_json(args.json, info)
+    return 0
+
+
+class _closing:
+    def __init__(self, link):
+        self.link = link
+
+    def __enter__(self):
+        return self.link
+
+    def __exit__(self, *exc):
+        self.link.close()
+
+
+def cmd_flash(args) -> int:
+    from ..device.flash import flash
+    from ..device.link import DeviceError
+    from ..tables import builtin_table
+
+    if args.table == "builtin":
+        blob = builtin_table()
+    else:
+        from ..table_check import read_table_file
+
+        blob = read_table_file(args.table)  # checked before the board is even opened
+    with _closing(_open(args)) as link:
+        try:
+            r = flash(link, blob, args.vectors)
+        except (DeviceError, RuntimeError, ValueError) as e:
+            print(f"playscope: flash failed: {e}", file=sys.stderr)
+            return 1
+    dump_json(args.json, r)
+    return 0
+
+
+def cmd_run_insitu(args) -> int:
+    vb = []
+    if args.sim_plant:
+        if args.device != "virtual":
+            print("playscope: --sim-plant needs --device virtual (the simulated instrument follows "
+                  "the virtual board's clock)", file=sys.stderr)
+            return 2
+        vb = ["--time-scale", f"{args.time_scale:g}"]
+    if args.device == "virtual":
+        vb += ["--exc", args.exc]
+    with _closing(_open(args, vb)) as link:
+        return _run_insitu(link, args)
+
+
+def _run_insitu(link, args) -> int:
+    """`playscope run-insitu` on an open link (the work: device/insitu.py). Returns the exit status."""
+    import numpy as np
+
+    from ..device.flash import flash
+    from ..device.insitu import (VideoSource, calibrate_run, exc_duration_s, read_geometry, run_loop,
+                                 session_of, write_samples_csv)
+    from ..errors import InputError
+    from ..session import write_session
+    from ..tables import build_table
+
+    out = Path(args.out) if args.out else None
+    if out:
+        out.mkdir(parents=True, exist_ok=True)
+    plant = None
+    if args.sim_plant:
+        from ..sim.plant import SimPlant, SimPlantConfig
+
+        plant = SimPlant(SimPlantConfig(seed=args.seed, time_scale=args.time_scale, exc=args.exc))
+        source = plant
+        sim = plant.sim
+        robot, camera, hand_eye, t_delay = sim.robot(), sim.camera(), sim.hand_eye(), sim.t_delay_s
+        total = exc_duration_s(args.exc)
+        print(f"SIMULATION: --sim-plant renders a simulated instrument (simulator preset 'ideal') "
+              f"from the board's encoder stream; board clock x{args.time_scale:g}", file=sys.stderr)
+    else:
+        if args.video is None:
+            print("playscope: run-insitu needs --video FILE, a camera index, or --sim-plant", file=sys.stderr)
+            return 2
+        if args.geometry is None:
+            print("playscope: run-insitu needs --geometry session.json (robot, camera, hand-eye) to fit f",
+                  file=sys.stderr)
+            return 2
+        robot, camera, hand_eye, t_delay = read_geometry(args.geometry)
+        try:
+            source = VideoSource(args.video)
+        except OSError as e:
+            print(f"playscope: {e}", file=sys.stderr)
+            return 2
+        total = None
+    bar = progress(total=total, unit="s", desc="board time", bar_format=None if total else "{desc}: {n:.1f} s {postfix}")
+    try:
+        run = run_loop(link, source, args.seconds, progress=lambda s, n: _bar(bar, s, n))
+    finally:
+        bar.close()
+        if not plant:
+            source.close()
+    valid = run.valid()
+    print(f"{run.ended}: {run.board_s:.1f} s board time in {run.wall_s:.1f} s, {len(run.mk_t_s)} frames, "
+          f"{len(run.samples)} B samples from the board ({len(valid)} valid)")
+    s = session_of(run, robot, camera, hand_eye, t_delay)
+    if out:
+        write_samples_csv(out / "b_samples.csv", run.samples)
+        write_session(s, out / "session", overwrite=True)
+    try:
+        cal = calibrate_run(run, s, args.control_points)
+    except InputError as e:
+        print(f"playscope: run-insitu: {e}", file=sys.stderr)
+        return 1
+    q_min, q_max = cal.q_range
+    tab = build_table(cal.B_model, cal.f, q_min, q_max, "mm", "remain", 1, transition=cal.transition)
+    result = {"board_s": run.board_s, "wall_s": run.wall_s, "frames": len(run.mk_t_s),
+              "b_samples": len(run.samples), "b_valid": len(valid), "q_range": [q_min, q_max]}
+    if plant:
+        g = np.linspace(q_min + 0.3, q_max - 0.3, 101)
+        e = np.abs(cal.B(g) - plant.truth_B(g))
+        qm = np.array([x["q_mean"] for x in valid])
+        eb = np.abs(np.array([x["b"] for x in valid]) - plant.truth_B(qm)) if valid else np.zeros(1)
+        result["sim_B_err_mm"] = {"mean": float(e.mean()), "max": float(e.max()),
+                                  "samples_mean": float(eb.mean()), "samples_max": float(eb.max())}
+        print(f"SIMULATION truth: |B_fit - B_true| mean {e.mean():.3f} mm, max {e.max():.3f} mm over "
+              f"q in [{g[0]:.2f}, {g[-1]:.2f}]; board samples mean {eb.mean():.3f} mm")
+    if out:
+        cal.save(out / "calibration.json")
+        (out / "table.bin").write_bytes(tab.blob)
+    if not args.no_flash:
+        try:
+            result["flash"] = flash(link, tab.blob, args.vectors)
+        except (RuntimeError, ValueError) as e:
+            print(f"playscope: run-insitu: flash failed: {e}", file=sys.stderr)
+            return 1
+    if out:
+        (out / "result.json").write_text(json.dumps(result, indent=1) + "\n")
+    dump_json(args.json, result)
+    return 0
+
+
+def _bar(bar, board_s: float, n: int) -> None:
+    """Move the run's tqdm bar to board_s seconds of board time, n B samples so far."""
+    bar.update(board_s - bar.n)
+    bar.set_postfix_str(f"{n} B samples", refresh=False)
+
+
+def add_parser(subparsers) -> None:
+    from .. import argtypes as T
+
+    p = add_command(subparsers, "flash", "upload a table, commit, read back and check bit for bit",
+                    "Upload a table blob to a board with generation = active + 1, commit it, read it back, "
+                    "then run test steps through the board's compensator and compare them bit for bit with "
+                    "the host's run of the same C (device/flash.py).",
+                    examples=["playscope flash builtin --device virtual --flash-file board.flash",
+                              "playscope flash d21.pstb --device virtual --flash-file board.flash --vectors 500"])
+    p.add_argument("table", help="table blob (from `playscope tables`), or 'builtin' for the built-in test table "
+                   "(tables.builtin_table)")
+    p.add_argument("--vectors", type=T.VECTORS, default=200, help="compensator test steps (default 200)")
+    add_json_arg(p, "generation, slot, bytes, crc32 (hex), upload_s, readback_s, vectors, round_trip_us")
+    _add_device_args(p)
+    p.set_defaults(func=cmd_flash)
+
+    p = add_command(subparsers, "device", "board information", "Ask a board what it runs.",
+                    examples=["playscope device info --device virtual --json -"])
+    sub = p.add_subparsers(dest="device_command", metavar="SUBCOMMAND")
+    pi = add_command(sub, "info", "firmware/protocol/layout versions, board id, active table",
+                     "Firmware, protocol and table layout versions, board id and the active table "
+                     "(generation, slot, CRC).", examples=["playscope device info --device virtual --json -"])
+    add_json_arg(pi, "the printed fields: board_id, fw_version, proto_version, layout, active_generation, "
+                 "active_slot, active_crc32, ...")
+    _add_device_args(pi)
+    pi.set_defaults(func=cmd_info)
+
+    p = add_command(subparsers, "run-insitu", "in-situ calibration on the board: excitation, marker from "
+                    "a camera/video, B samples from the board's onset detector, fit, tables, flash",
+                    "The paper's in-situ procedure (section III) on a board: the board runs its excitation and "
+                    "streams its encoder, frames come from a camera or a video (or a SIMULATED instrument with "
+                    "--sim-plant), the board's onset detector answers B samples, the host fits B(q) and f_remain, "
+                    "writes the tables and flashes them (device/insitu.py).",
+                    examples=["playscope run-insitu --device virtual --sim-plant -o run --json run/result.json",
+                              "playscope run-insitu --device qemu --video 0 --geometry sessions/s1/session.json -o run"])
+    p.add_argument("--video", help="video file or camera index for OpenCV VideoCapture")
+    p.add_argument("--geometry", type=T.existing_file, help="session.json with robot, camera and hand-eye (to fit f_remain, eqs. 6-8)")
+    p.add_argument("--sim-plant", action="store_true",
+                   help="SIMULATION: no camera; a simulated instrument follows the virtual board's encoder "
+                        "stream and is rendered to frames (simulator preset 'ideal')")
+    p.add_argument("--time-scale", type=T.TIME_SCALE, default=4.0,
+                   help="--sim-plant: virtual board clock speed-up over the wall clock (default 4)")
+    p.add_argument("--exc", default="-3:3:1.6:0.4:1.0", type=T.colon_floats(5, "Q0:Q1:AMP:ADV:V"),
+                   help="virtual board: its excitation Q0:Q1:AMP:ADV:V in mm, mm/s (default -3:3:1.6:0.4:1.0); "
+                        "a real board runs the excitation it was built with")
+    p.add_argument("--seed", type=T.SEED, default=0, help="--sim-plant: noise seed")
+    p.add_argument("--seconds", type=T.DURATION_S, default=600.0, help="longest run in board seconds (default 600)")
+    p.add_argument("-N", "--control-points", type=T.CONTROL_POINTS, default=14, help="B-spline control points (paper: 14)")
+    p.add_argument("--vectors", type=T.VECTORS, default=200, help="compensator test steps after flashing (default 200)")
+    p.add_argument("--no-flash", action="store_true", help="fit and write tables, do not flash")
+    p.add_argument("-o", "--out", "--output", dest="out",
+                   help="folder for b_samples.csv, session/, calibration.json, table.bin, result.json")
+    add_json_arg(p, "board_s, wall_s, frames, b_samples, b_valid, q_range, sim_B_err_mm (--sim-plant), flash "
+                 "(generation, slot, bytes, crc32, upload_s, readback_s, vectors, round_trip_us)")
+    _add_device_args(p)
+    p.set_defaults(func=cmd_run_insitu, own_progress=True)

@@ -1,0 +1,346 @@
+"""The estimation chain as functions (paper Fig. 4): session -> track -> calibrate -> tables ->
+flash -> evaluate -> report, each reading and writing the same files as its `playscope` command
+and returning a typed result.
+
+The commands in playscope/commands/ parse arguments, call these and print ``result.line()``
+(one line, what the command prints) and write ``result.to_json()`` (its ``--json`` document);
+the main job (mainjob.py), realeval.py and the benches call them directly. Nothing here reads
+argv or prints: warnings are in the results, progress goes to a callback.
+
+Errors: InputError naming the file (bad or missing input), FileExistsError for an output that
+exists without overwrite, RuntimeError for a failed board check (flash).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .calibration import Calibration
+from .errors import InputError
+
+
+# --------------------------------------------------------------------------- track
+@dataclass
+class Tracked:
+    """track_session's result: the marker CSV written, the video read, track.TrackResult's
+    summary (frames_listed, frames_decoded, frames_tracked, lost, lost_fraction, truncated,
+    reasons, seconds, fps, warning)."""
+
+    marker_csv: Path
+    video: Path
+    summary: dict
+
+    @property
+    def warning(self) -> str | None:
+        return self.summary.get("warning")
+
+    def line(self) -> str:
+        sm = self.summary
+        return (f"{self.marker_csv}: {sm['frames_tracked']} frames, {sm['lost']} lost "
+                f"({100 * (sm['lost_fraction'] or 0):.1f} %), {sm['fps']:.0f} frames/s")
+
+    def to_json(self) -> dict:
+        return {"marker_csv": str(self.marker_csv), "video": str(self.video), **self.summary}
+
+
+def track_session(session_dir, out=None, cfg=None, overwrite: bool = False, progress=None) -> Tracked:
+    """Find the marker in session_dir's video.* (frames.csv gives the times) and write
+    marker.csv (default session_dir/marker.csv). cfg: track.TrackConfig (default: green).
+    progress: callable(**tqdm kwargs) -> bar, as track.track_video takes. One OpenCV thread."""
+    from .track import TrackConfig, find_video, single_thread, track_video, write_marker_csv
+
+    folder = Path(session_dir)
+    if not folder.is_dir():
+        raise InputError(folder, "session folder not found")
+    video = find_video(folder)
+    out = Path(out) if out else folder / "marker.csv"
+    if out.exists() and not overwrite:
+        raise FileExistsError(f"{out}: exists (use --overwrite)")
+    cfg = cfg or TrackConfig()
+    try:
+        cfg.check()
+    except ValueError as e:
+        raise InputError(None, f"track options: {e}") from None
+    single_thread()
+    res = track_video(video, folder / "frames.csv", cfg, progress=progress)
+    write_marker_csv(out, res)
+    return Tracked(out, video, res.summary())
+
+
+# --------------------------------------------------------------------------- calibrate
+@dataclass
+class Calibrated:
+    """calibrate_session's result: the calibration file written and its content."""
+
+    path: str  # as given (printed as given)
+    cal: Calibration
+    notes: list = field(default_factory=list)  # the session loader's repairs (session.notes)
+
+    @property
+    def warnings(self) -> list[str]:
+        """The loader's repairs, then the calibration's own warnings."""
+        return list(self.notes) + self.cal.warnings
+
+    def line(self) -> str:
+        cal = self.cal
+        b = cal.B(np.linspace(*cal.q_range, 200))
+        return (f"{self.path}: {cal.n_b_samples} B samples from {cal.reversals} reversals "
+                f"({', '.join(f'{k} {v}' for k, v in cal.onset_reasons.items() if v)}); "
+                f"B {b.min():.3g}..{b.max():.3g} {cal.actuator_unit}, t_delay {cal.t_delay_s:.3f} s; "
+                f"model {model_text(cal)}")
+
+    def to_json(self) -> dict:
+        cal = self.cal
+        b = cal.B(np.linspace(*cal.q_range, 200))
+        refine = cal.onset_refine or {}
+        return {"calibration": self.path, "reversals": cal.reversals, "b_samples": cal.n_b_samples,
+                "onset_reasons": cal.onset_reasons, "t_delay_s": cal.t_delay_s,
+                "fps_frames": cal.fps_frames, "B_range": [float(b.min()), float(b.max())],
+                "t_delay": refine.get("t_delay"), "ringing": refine.get("ringing"),
+                "b_inconsistent": len(cal.b_inconsistent), "warnings": cal.warnings,
+                "model": "play" if cal.transition.is_play else "pi", "operators": cal.transition.n}
+
+
+def model_text(cal: Calibration) -> str:
+    """'play' or 'play (b B) + PI, n operators (r <= ...)', with the CV error of the choice when
+    calibrate made one (transition.choose_model)."""
+    tr, ch = cal.transition, cal.model_choice
+    txt = "play" if tr.is_play else (f"play ({tr.b_scale:g} B) + PI, {tr.n} operators (r <= {tr.r[-1]:.3g})")
+    if ch:
+        pick = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl")) ==
+                    (ch["b_scale"], ch["n_tried"], ch["r_span"], ch.get("n_ctrl")))
+        play = next((c for c in ch["candidates"] if c["n"] == 1), None)
+        txt += f", CV RMSE {pick['cv_rmse_deg']:.3g} deg"
+        if play and pick is not play:
+            txt += f" (play {play['cv_rmse_deg']:.3g})"
+    return txt
+
+
+def calibrate_session(session_dir, out, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
+                      t_delay_s: float | None = None, t_delay_from: str = "data",
+                      hysteresis: float | None = None, threshold: float | None = None,
+                      model_kind: str = "auto") -> Calibrated:
+    """calibration.calibrate on the session folder, saved to out (docs/calibration-format.md).
+    threshold: the onset threshold T per frame (px or deg), default automatic."""
+    from .calibration import calibrate
+    from .session import load_session
+
+    s = load_session(session_dir)
+    notes = list(s.notes)  # what the loader repaired (repeated or backward stamps, a held sensor)
+    ov = {"threshold": threshold} if threshold is not None else None
+    cal = calibrate(s, n_ctrl, f_method, fps, t_delay_s, hysteresis, ov, t_delay_from=t_delay_from,
+                    model_kind=model_kind)
+    cal.save(out)
+    return Calibrated(os.fspath(out), cal, notes)
+
+
+# --------------------------------------------------------------------------- tables
+@dataclass
+class TableWritten:
+    """write_tables' result: the blob's path, the loaded table (tables.CalibTable) and the
+    measured fixed-point errors {direct_c_deg_max, comp_q_max, f_inv_err, z_err}."""
+
+    path: str  # as given
+    table: object
+    errors: dict
+
+    def line(self) -> str:
+        tab, err = self.table, self.errors
+        return (f"{self.path}: {len(tab.blob)} bytes, crc32 {tab.cal.crc32:#010x}, {tab.cal.b.n} entries per grid, "
+                f"{tab.n_ops} transition operators; "
+                f"worst |c_fixed - c_float| {err['direct_c_deg_max']:.2e} deg, |q*_fixed - q*_float| {err['comp_q_max']:.2e}")
+
+    def to_json(self) -> dict:
+        tab = self.table
+        return {"table": self.path, "bytes": len(tab.blob), "crc32": int(tab.cal.crc32),
+                "entries": int(tab.cal.b.n), "operators": tab.n_ops, "errors": self.errors}
+
+
+def write_tables(cal_path, out, entries: int | None = None, generation: int = 1,
+                 f_coarse: bool = False) -> TableWritten:
+    """Calibration file -> Q16.16 table blob at out (common/ps_table.h, laid out by the firmware's
+    table_write()), loaded back with calib_load() and measured against the float model.
+    f_coarse: store f_coarse (eq. 5) instead of f_remain (eq. 9). Errors: InputError naming
+    cal_path when the model cannot be tabulated."""
+    from .atomic import write_bytes_atomic
+    from .calibration_check import load_calibration
+    from .tables import build_table, check_physical, check_precision, table_errors
+
+    cal = load_calibration(cal_path)
+    q_min, q_max = cal.q_range
+    f = cal.f_coarse if f_coarse else cal.f
+    tr = None if f_coarse else cal.transition
+    B = cal.B if f_coarse else cal.B_model
+    try:
+        check_physical(B, f, q_min, q_max, source=cal_path)
+        tab = build_table(B, f, q_min, q_max, cal.actuator_unit, "coarse" if f_coarse else "remain",
+                          generation, entries, source=cal_path, transition=tr)
+        err = table_errors(tab, B, f, q_min, q_max, tr)
+        check_precision(tab, err, f, q_min, q_max, source=cal_path)
+    except (ValueError, OverflowError) as e:  # InputError passes through with its own file
+        if isinstance(e, InputError):
+            raise
+        raise InputError(cal_path, f"cannot make a table of it: {' '.join(str(e).split())}") from None
+    write_bytes_atomic(out, tab.blob)
+    return TableWritten(os.fspath(out), tab, err)
+
+
+# --------------------------------------------------------------------------- flash
+@dataclass
+class Flashed:
+    """flash_tables' result (device.flash.flash): generation and slot committed, bytes, crc32
+    (hex), upload_s, readback_s, vectors (compensator steps compared bit for bit),
+    round_trip_us."""
+
+    generation: int
+    slot: int
+    bytes: int
+    crc32: str
+    upload_s: float
+    readback_s: float
+    vectors: int
+    round_trip_us: float
+
+    def line(self) -> str:
+        from .device.flash import flash_line
+
+        return flash_line(self.__dict__)
+
+    def to_json(self) -> dict:
+        return dict(self.__dict__)
+
+
+def flash_tables(table_path, device: str = "virtual", flash_file=None, n_vectors: int = 200,
+                 elf=None, address=None) -> Flashed:
+    """Upload the table at table_path to a board, commit, read back, and check the board's
+    compensator bit for bit against the host's run of the same C (device.flash.flash).
+    device "virtual" (the desktop build as a process, flash_file its A/B flash), "qemu" or "usb".
+    usb runs in a child process under the emulated USB device (device.usbemu: libusb's preload
+    must be in a process from its start; flash_file is the emulated board's flash). Errors:
+    InputError for a bad table file (nothing is sent), RuntimeError for a failed check."""
+    from .table_check import read_table_file
+
+    if device == "usb":
+        import json
+
+        from .device import usbemu
+
+        read_table_file(table_path)  # refused here, before a child is started
+        r = usbemu.run([sys.executable, "-m", "playscope.device.flash", os.fspath(table_path),
+                        "--vectors", str(n_vectors)], flash_file=os.fspath(flash_file) if flash_file else None)
+        if r.returncode != 0:
+            raise RuntimeError(f"flash over usb failed (exit {r.returncode}):\n{r.stdout}\n{r.stderr}")
+        return Flashed(**json.loads(r.stdout.strip().splitlines()[-1]))
+    from .device.flash import flash
+    from .device.link import Link
+    from .device.transport import open_transport
+
+    blob = read_table_file(table_path)  # checked before the board is even opened
+    link = Link(open_transport(device, flash_file=flash_file, elf=elf, address=address))
+    try:
+        return Flashed(**flash(link, blob, n_vectors, log=lambda s: None))
+    finally:
+        link.close()
+
+
+# --------------------------------------------------------------------------- evaluate, report
+@dataclass
+class Evaluated:
+    """evaluate_session's result: evaluate.Evaluation (summary: the `evaluate --json` document,
+    series: what the report plots) and the calibration it judged."""
+
+    evaluation: object
+    cal: Calibration
+
+    @property
+    def summary(self) -> dict:
+        return self.evaluation.summary
+
+    def line(self) -> str:
+        """Table I and the compensation table as Markdown (evaluate.format_table)."""
+        from .evaluate import format_table
+
+        return format_table(self.summary)
+
+    def to_json(self) -> dict:
+        return self.summary
+
+
+def _warn_repairs(s) -> None:
+    """The session loader's repairs (session.notes: repeated or backward time stamps, a held
+    sensor), one `playscope: warning:` line each on stderr, as the commands print warnings."""
+    for line in s.notes:
+        print(f"playscope: warning: {line}", file=sys.stderr)
+
+
+def evaluate_session(session_dir, cal_path, table_path=None, comp_duration_s: float = 60.0) -> Evaluated:
+    """Table I and the compensation test (evaluate.evaluate) of the calibration at cal_path on
+    the test session folder; table_path: a blob from write_tables for the fixed-point rows
+    (default: built from the calibration)."""
+    from .calibration_check import load_calibration
+    from .evaluate import evaluate
+    from .session import load_session
+
+    cal = load_calibration(cal_path)
+    s = load_session(session_dir)
+    _warn_repairs(s)
+    tab = None
+    if table_path:
+        from .tables import CalibTable
+
+        path = Path(table_path)
+        if not path.is_file():
+            raise InputError(path, "file not found")
+        tab = CalibTable(path.read_bytes(), source=path)
+    ev = evaluate(cal, s, table=tab, comp_duration_s=comp_duration_s, source=os.fspath(session_dir))
+    ev.summary["calibration"] = os.fspath(cal_path)
+    if table_path:
+        ev.summary["table"] = os.fspath(table_path)
+    return Evaluated(ev, cal)
+
+
+@dataclass
+class Reported:
+    """write_report_file's result: the HTML file, its size and the figures in it."""
+
+    path: str  # as given
+    bytes: int
+    figures: list = field(default_factory=lambda: ["characteristic", "backlash", "prediction", "compensation"])
+
+    def line(self) -> str:
+        return f"{self.path}: {self.bytes} bytes, 4 figures"
+
+    def to_json(self) -> dict:
+        return {"report": self.path, "figures": self.figures, "bytes": self.bytes}
+
+
+def write_report_file(cal_path, session_dir, out, eval_json=None) -> Reported:
+    """Single-file HTML report (report.write_report) of the calibration on the session; the
+    tables come from eval_json (an `evaluate --json` file) when given, else are computed here.
+    The figures are always computed from the inputs."""
+    import json
+
+    from .evaluate import format_table
+    from .report import write_report
+
+    done = evaluate_session(session_dir, cal_path)
+    ev, summary = done.evaluation, done.summary
+    if eval_json:
+        path = Path(eval_json)
+        if not path.is_file():
+            raise InputError(path, "file not found")
+        try:
+            summary = json.loads(path.read_text())
+            md = format_table(summary)
+        except (json.JSONDecodeError, KeyError, TypeError) as e:
+            raise InputError(path, f"not an `evaluate --json` file: {e}") from None
+    else:
+        md = format_table(summary)
+    write_report(out, done.cal, ev, md)
+    return Reported(os.fspath(out), Path(out).stat().st_size)
+

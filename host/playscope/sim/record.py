@@ -1,0 +1,136 @@
+"""Simulated recordings written as session folders: the simulator's configuration from a preset
+and overrides, a simulated session (optionally with rendered video), or a recording with a
+measured tip angle re-imaged through a virtual endoscope camera (docs/simulator.md).
+
+Library side of `playscope simulate` and of the main job; it never imports the command line."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+TRAJ_DEFAULTS = {
+    "excitation": {"kind": "excitation", "q_lo": -3.0, "q_hi": 3.0, "amp": 1.4, "speed": 0.8, "duration_s": 120.0, "cycles": 2},
+    "test": {"kind": "test", "q_lo": -3.0, "q_hi": 3.0, "amp": 1.6, "speed": 1.0, "duration_s": 200.0, "hold_s": 1.0},
+    "ellipse": {"kind": "ellipse", "a_mm": 8.0, "b_mm": 3.0, "period_s": 20.0, "cycles": 3},
+    "random_walk": {"kind": "random_walk", "q_lo": -3.0, "q_hi": 3.0, "speed": 0.8, "duration_s": 120.0},
+}
+
+
+def sim_config(preset_name: str = "stras", config_json: str | None = None, effects=(),
+               no_preset_effects: bool = False, trajectory: str | None = None,
+               duration_s: float | None = None, seed: int | None = None, kind: str | None = None):
+    """SimConfig of a named preset with overrides: config_json (a file of SimConfig keys),
+    effects (specs NAME[:p=v,...], added after the preset's own unless no_preset_effects),
+    trajectory (a TRAJ_DEFAULTS kind), duration_s (ellipse: cycles of its period), seed, kind
+    ("image" or "angle"). Errors: ValueError for an unknown preset or effect, OSError/JSON
+    errors for the config file."""
+    from .core import SimConfig, preset
+    from .effects import parse_effect
+
+    cfg = preset(preset_name)
+    if config_json:
+        d = cfg.to_json()
+        d.update(json.loads(Path(config_json).read_text()))
+        cfg = SimConfig.from_json(d)
+    if no_preset_effects:
+        cfg.effects = {}
+    for spec in effects:
+        name, params = parse_effect(spec)
+        cfg.effects[name] = params
+    if trajectory:
+        cfg.trajectory = dict(TRAJ_DEFAULTS[trajectory])
+    if duration_s:
+        if cfg.trajectory["kind"] == "ellipse":
+            cfg.trajectory["cycles"] = duration_s / cfg.trajectory.get("period_s", 20.0)
+        else:
+            cfg.trajectory["duration_s"] = duration_s
+    if seed is not None:
+        cfg.seed = seed
+    if kind:
+        cfg.distal_kind = kind
+    return cfg
+
+
+def reimage(src: str, cfg, seed: int = 0):
+    """Session whose marker is the measured tip angle of ``src`` seen by cfg's camera (nominal
+    hand-eye, distortion, delay t_delay_s, marker noise). Returns (session, c_frames, t_frames)."""
+    from ..session import Session, load_session
+    from .core import observe_image
+
+    p = Path(src)
+    if p.is_dir():
+        rec = load_session(p)
+    else:
+        from ..importer import import_catheter
+        rec = import_catheter(p)
+    if rec.distal is None:
+        raise ValueError(f"{src}: no measured angle (distal.csv) to re-image")
+    cfg.q_per_rad = rec.robot.q_per_rad
+    truth = {"t_s": rec.distal["t_s"], "c_deg": rec.distal["c_deg"]}
+    from .core import distal_direction
+    from .effects import EffectSet
+    truth["dir"] = distal_direction(truth["c_deg"], tol=0.02)
+    rng = np.random.default_rng(seed)
+    obs = observe_image(cfg, truth, EffectSet(dict(cfg.effects)), rng)
+    s = Session(actuator_unit=rec.actuator_unit, distal_kind="image", robot=cfg.robot(), encoder=dict(rec.encoder),
+                camera=cfg.camera(), hand_eye=cfg.hand_eye(), t_delay_s=cfg.t_delay_s,
+                marker={k: obs[k] for k in ("t_s", "u_px", "v_px")}, truth=truth,
+                meta={"source": {"reimaged_from": str(src)}, "simulator": cfg.to_json()})
+    return s, obs["c_deg"], obs["t_s"]
+
+
+@dataclass
+class SimulatedSession:
+    """A session folder written by write_simulated: path, encoder rows, marker frames (None
+    for an angle session), the video file (None without video)."""
+
+    path: Path
+    encoder_rows: int
+    frames: int | None
+    video: Path | None
+
+    def to_json(self) -> dict:
+        return {"session": str(self.path), "encoder_rows": self.encoder_rows, "frames": self.frames,
+                "video": None if self.video is None else str(self.video)}
+
+    def summary_line(self) -> str:
+        msg = f"wrote {self.path}: {self.encoder_rows} encoder rows"
+        if self.frames is not None:
+            msg += f", {self.frames} frames"
+        if self.video is not None:
+            msg += f", video {self.video.name}"
+        return msg
+
+
+def write_simulated(cfg, out, video: bool = False, blind: bool = False, reimage_src: str | None = None,
+                    overwrite: bool = False) -> SimulatedSession:
+    """Simulate cfg (or re-image reimage_src through cfg's camera) into the session folder out,
+    with video.avi + frames.csv when video. blind leaves the effect list out of session.json.
+    Errors: FileExistsError for an existing folder without overwrite; see reimage()."""
+    from ..session import write_session
+    from .core import observe_image, simulate
+    from .effects import EffectSet
+
+    out = Path(out)
+    if reimage_src:
+        s, c_frames, t_frames = reimage(reimage_src, cfg, cfg.seed)
+    else:
+        s = simulate(cfg, blind=blind)
+    write_session(s, out, overwrite=overwrite)
+    v = None
+    if video:
+        from .render import write_video
+        if not reimage_src:
+            obs = observe_image(cfg, s.truth, EffectSet(dict(cfg.effects)), np.random.default_rng(cfg.seed), with_noise=False)
+            c_frames, t_frames = obs["c_deg"], obs["t_s"]
+            cap = obs["t_capture_s"]
+        else:
+            cap = t_frames - cfg.t_delay_s
+        dirs = np.interp(cap, s.truth["t_s"], s.truth["dir"]) if "dir" in s.truth else None
+        tr = np.interp(cap, s.truth["t_s"], s.truth["translation_mm"]) if "translation_mm" in s.truth else None
+        v = write_video(cfg, c_frames, t_frames, out, dirs, tr, cfg.effects)
+    return SimulatedSession(out, int(s.encoder["t_s"].size), None if s.marker is None else int(s.marker["t_s"].size), v)
