@@ -29,12 +29,7 @@ void enc_hist_push_slow(enc_hist_t *h, uint32_t t_us, int32_t q_q16)
 {
     if ((int32_t)(t_us - h->last_t_us) < 0 && h->head != 0)
         return; /* out of order: keep the history sorted */
-    h->last_t_us = t_us;
-    h->last_q_q16 = q_q16;
-    if (q_q16 < h->lo_q16)
-        h->lo_q16 = q_q16;
-    if (q_q16 > h->hi_q16)
-        h->hi_q16 = q_q16;
+    enc_hist_note_live(h, t_us, q_q16);
     if ((int32_t)(t_us - h->next_keep_us) < 0 && h->head != 0)
         return; /* between kept samples: only the range above changes */
     /* Keep this push; the interval it closes gets its spread (none before the first). */

@@ -54,6 +54,17 @@ void enc_hist_set_span(enc_hist_t *h, uint32_t span_us);
  * 20 kHz only about one push in 45 keeps (keep_us 2.23 ms by default). */
 void enc_hist_push_slow(enc_hist_t *h, uint32_t t_us, int32_t q_q16);
 
+/* The live end and the range since the last kept sample move on every push (fast and slow path). */
+__attribute__((always_inline)) static inline void enc_hist_note_live(enc_hist_t *h, uint32_t t_us, int32_t q_q16)
+{
+    h->last_t_us = t_us;
+    h->last_q_q16 = q_q16;
+    if (q_q16 < h->lo_q16)
+        h->lo_q16 = q_q16;
+    if (q_q16 > h->hi_q16)
+        h->hi_q16 = q_q16;
+}
+
 /* enc_hist_push() inlined for onset_tick(): same result, without the call. */
 __attribute__((always_inline)) static inline void enc_hist_push_inline(enc_hist_t *h, uint32_t t_us, int32_t q_q16)
 {
@@ -64,12 +75,7 @@ __attribute__((always_inline)) static inline void enc_hist_push_inline(enc_hist_
      * passes (enc_hist_reset sets next_keep = last_t). Only the range and the live end move. */
     uint32_t d = t_us - h->last_t_us;
     if (__builtin_expect(d < h->next_keep_us - h->last_t_us, 1)) {
-        h->last_t_us = t_us;
-        h->last_q_q16 = q_q16;
-        if (q_q16 < h->lo_q16)
-            h->lo_q16 = q_q16;
-        if (q_q16 > h->hi_q16)
-            h->hi_q16 = q_q16;
+        enc_hist_note_live(h, t_us, q_q16);
         return;
     }
     enc_hist_push_slow(h, t_us, q_q16);
