@@ -18,6 +18,15 @@ ArrayFn = Callable[[np.ndarray], np.ndarray]
 
 
 # --------------------------------------------------------------------------- helpers
+
+def piecewise_linear(x: np.ndarray, y: np.ndarray) -> ArrayFn:
+    """y(x) by linear interpolation of samples (x increasing, shape (n,)), held beyond the ends
+    (the on-line B grid of online.py, as the board's lookup table holds it)."""
+    x = np.asarray(x, float)
+    y = np.asarray(y, float)
+    return lambda q: np.interp(q, x, y)
+
+
 def constant(value: float) -> ArrayFn:
     """B(q) = value for every q (constant play, the model of Reilink et al.)."""
     return lambda q: np.full(np.shape(q), float(value))
