@@ -89,6 +89,16 @@ class Calibration:
         return dict(self.doc["onset"]["reasons"])
 
     @property
+    def onset_config(self) -> dict:
+        """The onset detector's settings used (onset_config_t fields: threshold, timeouts, ...)."""
+        return dict(self.doc["onset"]["config"])
+
+    @property
+    def reversal_hysteresis(self) -> float:
+        """Hysteresis (actuator units) with which direction reversals were taken from q."""
+        return float(self.doc["reversal_hysteresis"])
+
+    @property
     def onset_refine(self) -> dict | None:
         """Image sessions: the onset refinement's report (t_delay, ringing, ...), else None."""
         return self.doc.get("onset", {}).get("refine")

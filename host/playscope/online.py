@@ -58,7 +58,7 @@ class OnlineSettings:
 def onset_config_from(cal) -> E.OnsetConfig:
     """The onset configuration the reference calibration ran (its effective C config), so the
     board's detector during use is the one that calibrated it."""
-    c = cal.doc["onset"]["config"]
+    c = cal.onset_config
     return E.OnsetConfig(t_delay_s=c["t_delay_s"], fps=1.0 / c["frame_period_s"], threshold=c["threshold"],
                          threshold_floor=c["threshold_floor"], threshold_max=c["threshold_max"],
                          noise_k=c["noise_k"], settle_frames=c["settle_frames"],
@@ -215,11 +215,11 @@ def evaluate_online(cal, s, settings: OnlineSettings | None = None, b_config=Non
     t, q = s.encoder["t_s"], s.encoder["q"]
     t_split = float(t[0] + st.score_after * (t[-1] - t[0]))
     mask = t >= t_split
-    lo, hi = cal.doc["q_range"]
+    lo, hi = cal.q_range
     board = BoardB(cal.B, lo, hi, b_config)
     g0 = board.grid()
     cfg = onset_config_from(cal)
-    t_done, grids, samples, (t_f, _) = learn_session(s, board, cfg, cal.doc["reversal_hysteresis"], st.refresh_s)
+    t_done, grids, samples, (t_f, _) = learn_session(s, board, cfg, cal.reversal_hysteresis, st.refresh_s)
     c_true = np.interp(t, s.distal["t_s"], s.distal["c_deg"])
     # Residual frames for the offset: the angle at the frame rate the board's detector runs.
     _, c_f = E.frames_from_angle(s.distal["t_s"], s.distal["c_deg"], cfg.fps)
@@ -258,7 +258,7 @@ def evaluate_real_online(folder, ref: str = "data_2_1", settings: OnlineSettings
         raise InputError(folder, f"needs {ref}.txt and at least one other data_2_*.txt here")
     s_ref = import_catheter(ref_path)
     cal = calibrate(s_ref, f_method="lsq", model_kind="play", source=str(ref_path))
-    ref_const = const_play_ref(s_ref, cal.doc["fps_frames"])
+    ref_const = const_play_ref(s_ref, cal.fps_frames)
     _, lib = core()
     bc = lib.b_online_default_config() if b_config is None else b_config
     p_one = float(1 << lib.B_ONLINE_P_FRAC_BITS)

@@ -50,8 +50,8 @@ def product_rmse(session: Session, data, fit_mask: np.ndarray, test_mask: np.nda
             return float(np.sqrt(np.mean(r * r)))
         out[label] = rmse(cal.predict(q))
         try:
-            q0, q1 = cal.doc["q_range"]
-            tab = build_table(cal.B_model, cal.f, q0, q1, cal.doc["actuator_unit"], "remain",
+            q0, q1 = cal.q_range
+            tab = build_table(cal.B_model, cal.f, q0, q1, cal.actuator_unit, "remain",
                               transition=cal.transition)
             out[label + "_fixed"] = rmse(tab.predict(q))
         except (TableError, OverflowError) as exc:

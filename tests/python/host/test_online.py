@@ -48,10 +48,10 @@ def test_drift_is_learnt_and_cut(cal):
     assert res["b_sample_minus_cal_mm"] == pytest.approx(DB, abs=0.02)
     # The learnt grid moved toward the planted width where samples landed (measured: mean
     # +0.144 mm, every entry within 0.014 mm of +0.15).
-    lo, hi = cal.doc["q_range"]
+    lo, hi = cal.q_range
     board = online.BoardB(cal.B, lo, hi)
     g0 = board.grid()
-    online.learn_session(s, board, online.onset_config_from(cal), cal.doc["reversal_hysteresis"], 1.0)
+    online.learn_session(s, board, online.onset_config_from(cal), cal.reversal_hysteresis, 1.0)
     inside = (board.xs > -2.5) & (board.xs < 2.5)
     assert np.mean(board.grid()[inside] - g0[inside]) == pytest.approx(DB, abs=0.02)
     assert np.max(np.abs(board.grid()[inside] - g0[inside] - DB)) < 0.04
@@ -64,8 +64,8 @@ def test_nothing_learnt_depends_on_the_future(cal):
     e, d = bad.encoder["t_s"] >= t_cut, bad.distal["t_s"] >= t_cut
     bad.encoder["q"][e] = np.random.default_rng(1).uniform(-4, 4, e.sum())
     bad.distal["c_deg"][d] = np.nan
-    lo, hi = cal.doc["q_range"]
-    cfg, hy = online.onset_config_from(cal), cal.doc["reversal_hysteresis"]
+    lo, hi = cal.q_range
+    cfg, hy = online.onset_config_from(cal), cal.reversal_hysteresis
     runs = []
     for sess in (s, bad):
         board = online.BoardB(cal.B, lo, hi)

@@ -155,7 +155,7 @@ def test_held_sensor_is_read_at_its_own_rate(tmp_path):
     s2 = load_session(tmp_path / "s")
     assert s2.distal["t_s"].size == t_read.size and "distal.csv" in s2.notes[0]
     cal = calibrate(s2, model_kind="play")
-    assert cal.doc["fps_frames"] <= 5.0 + 1e-9  # at most half the sensor's own rate
+    assert cal.fps_frames <= 5.0 + 1e-9  # at most half the sensor's own rate
     g = np.linspace(-2.5, 2.5, 30)
     # measured 0.05 mm median |B - true| (a 10 Hz sensor at 0.5 mm/s: 0.05 mm per reading)
     assert np.median(np.abs(cal.B(g) - true_B(g))) < 0.1
@@ -168,10 +168,10 @@ def test_commanded_q_flag_measures_the_servo_lag():
     s = _session(lag_s=0.12, q_start=-3, q_end=3)
     assert E.q_looks_commanded(s.encoder["q"])[0]
     plain = calibrate(s, model_kind="play")
-    assert any("looks like a command" in w for w in plain.doc["warnings"])
+    assert any("looks like a command" in w for w in plain.warnings)
     s.q_source = "command"
     cmd = calibrate(s, model_kind="play")
-    assert cmd.doc["t_delay_s"] == pytest.approx(0.12, abs=0.03)
+    assert cmd.t_delay_s == pytest.approx(0.12, abs=0.03)
     bias_plain = np.median(plain.B(g) - true_B(g))
     bias_cmd = np.median(cmd.B(g) - true_B(g))
     assert bias_plain > 0.04 and abs(bias_cmd) < 0.5 * bias_plain, (bias_plain, bias_cmd)
