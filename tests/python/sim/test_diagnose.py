@@ -154,14 +154,15 @@ def test_geometry_screen_recovers_image_only_effects(effect, param, value):
 def test_product_rmse_on_an_effect_free_record_is_the_noise():
     # The product's own calibrate, fitted on the fit part of an effect-free angle record, judged on
     # its test quarter: the RMSE is the sensor noise (0.05 deg) plus the product's model error;
-    # measured 0.059 deg (play and pi).
+    # measured 0.134 deg for both (the calibration's cross-validation keeps the play here: a
+    # transition forced on this record gave 0.41 deg).
     from playscope.diagnose.product import product_rmse
     s = simulate(preset("ideal", seed=8, distal_kind="angle", trajectory=dict(TRAJ)))
     d = from_session(s)
     sp = choose_split(d)
     r = product_rmse(s, d, sp.fit, sp.test, ["smooth_transition", "stick_slip"])
     print(r)
-    assert r["model"] == "pi" and r["not_in_product"] == ["stick_slip"]
+    assert r["model"] == "play" and r["not_in_product"] == ["stick_slip"]
     assert r["play"] < 0.15 and r["with_kept"] < 0.15
     # The fixed-point table through the firmware's playop_step agrees with the float model to the
     # table's resolution: measured |fixed - float| = 0.00013-0.00014 deg.
