@@ -5,7 +5,13 @@ Mirrors table_check.py for table blobs; every refusal is a one-line InputError n
 from __future__ import annotations
 
 
-Q16_LIMIT = 32767.0  # |q| a Q16.16 int32 holds (common/ps_fixed.h), actuator units
+def q16_limit() -> float:
+    """|q| (actuator units) the board's int32 Q format holds: (2^(31 - PS_FRAC_BITS) - 1),
+    PS_FRAC_BITS taken from common/ps_fixed.h through the native loader, never retyped."""
+    from .native import core
+
+    _, lib = core()
+    return float((1 << (31 - lib.PS_FRAC_BITS)) - 1)
 
 
 def load_calibration(path):
@@ -28,8 +34,9 @@ def load_calibration(path):
     if not (isinstance(qr, list) and len(qr) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
                                                            and math.isfinite(x) for x in qr)):
         raise InputError(path, f"q_range must be two finite numbers [q_min, q_max], got {qr!r}")
-    if not -Q16_LIMIT <= qr[0] < qr[1] <= Q16_LIMIT:
-        raise InputError(path, f"q_range {qr} must satisfy -{Q16_LIMIT:g} <= q_min < q_max <= {Q16_LIMIT:g} "
+    lim = q16_limit()
+    if not -lim <= qr[0] < qr[1] <= lim:
+        raise InputError(path, f"q_range {qr} must satisfy -{lim:g} <= q_min < q_max <= {lim:g} "
                          "(actuator units in Q16.16)")
     if d.get("actuator_unit") not in ("mm", "deg"):
         raise InputError(path, f"actuator_unit must be 'mm' or 'deg', got {d.get('actuator_unit')!r}")
