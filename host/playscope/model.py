@@ -102,14 +102,22 @@ def play_operator(q: np.ndarray, B: ArrayFn, z0: float | None = None, b_max: flo
     play centred). q: (N,) actuator units. Returns z (N,); the direct model is c = f(z).
     """
     q = np.asarray(q, float).ravel()
-    zu = z_up(q, B, b_max)
-    zd = z_down(q, B, b_max)
-    z = np.empty_like(q)
-    prev = float(q[0] if z0 is None else z0)
-    for k in range(q.size):  # sequential by nature; N <= 1e6 in practice
-        prev = min(zd[k], max(zu[k], prev))
-        z[k] = prev
-    return z
+    return play_on_edges(z_up(q, B, b_max), z_down(q, B, b_max), float(q[0] if z0 is None else z0))
+
+
+def play_on_edges(z_lo, z_hi, z0: float) -> np.ndarray:
+    """The play operator's recursion on precomputed band edges: z[k] = min(z_hi[k], max(z_lo[k],
+    z[k-1])), z[-1] = z0 (eq. 3; z_lo = z_up(q), z_hi = z_down(q) for the paper's play). The one
+    kernel of the model, the simulator and the diagnosis. z_lo, z_hi: (N,) with z_lo <= z_hi.
+    Returns z (N,). Sequential by nature; Python floats (~5x faster here than numpy scalars)."""
+    lo = np.asarray(z_lo, float).tolist()
+    hi = np.asarray(z_hi, float).tolist()
+    out = [0.0] * len(lo)
+    p = float(z0)
+    for k in range(len(lo)):
+        p = min(hi[k], max(lo[k], p))
+        out[k] = p
+    return np.asarray(out)
 
 
 def direct_model(q: np.ndarray, B: ArrayFn, f: ArrayFn, z0: float | None = None) -> np.ndarray:

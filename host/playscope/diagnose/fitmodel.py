@@ -22,6 +22,8 @@ from scipy.interpolate import BSpline, CubicSpline
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
+from ..model import play_on_edges
+
 N_KNOTS = 9
 N_FKNOTS = 12  # interior knots of the cubic B-spline f_remain
 INTERNAL_HZ = 50.0
@@ -147,24 +149,6 @@ class Fit:
         return out
 
 
-def _play(lo: list, hi: list, z0: float) -> np.ndarray:
-    """Play operator on precomputed band edges (eq. 3 with B evaluated at q): z stays where it
-    is unless pushed by an edge. lo, hi: lists (Python floats are ~5x faster here than numpy
-    scalars). Returns z (N,)."""
-    out = [0.0] * len(lo)
-    p = z0
-    for k in range(len(lo)):
-        a = lo[k]
-        if p < a:
-            p = a
-        else:
-            b = hi[k]
-            if p > b:
-                p = b
-        out[k] = p
-    return np.asarray(out)
-
-
 def _hold(z: np.ndarray, step: float, kin: float = 0.0) -> np.ndarray:
     """Stiction on the play output: held until z is step away, then slips to kin * step behind z."""
     out = [0.0] * z.size
@@ -282,7 +266,7 @@ class Model:
             # down), inverted on the z grid by np.interp (z + B(z)/2 is increasing for |B'| < 2).
             zu = np.interp(q - vh, *self._edge(self.zg, (1 + alpha) * r * Bg / 2))
             zd = np.interp(q + vh, *self._edge(self.zg, -(1 - alpha) * r * Bg / 2))
-            zs.append(_play(zu.tolist(), zd.tolist(), z0))
+            zs.append(play_on_edges(zu, zd, z0))
         z = zs[0] if len(zs) == 1 else np.mean(zs, axis=0)
         sdir = _direction(z)
         if "handeye_direction" in self.effects:

@@ -151,12 +151,7 @@ def play_asym(q: np.ndarray, B, alpha: float = 0.0, z0: float | None = None) -> 
         return M.play_operator(q, B, z0)
     zu = M.z_up(q, lambda z: (1 + alpha) * B(z))
     zd = M.z_down(q, lambda z: (1 - alpha) * B(z))
-    z = np.empty_like(q)
-    prev = float(q[0] if z0 is None else z0)
-    for k in range(q.size):  # sequential by nature, as model.play_operator
-        prev = min(zd[k], max(zu[k], prev))
-        z[k] = prev
-    return z
+    return M.play_on_edges(zu, zd, float(q[0] if z0 is None else z0))
 
 
 def stick_slip(c: np.ndarray, step: float) -> np.ndarray:

@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import model as M
+
 
 @dataclass
 class SimPlantConfig:
@@ -71,12 +73,8 @@ class SimPlant:
         if q.min() < self.qg[0] or q.max() > self.qg[-1]:
             raise ValueError(f"sim plant: q outside [{self.qg[0]:g}, {self.qg[-1]:g}] mm")
         zu, zd = np.interp(q, self.qg, self.zu_g), np.interp(q, self.qg, self.zd_g)
-        z = np.empty_like(q)
-        prev = float(q[0]) if self.z is None else self.z
-        for k in range(q.size):  # play operator, eq. 3: z = min(z_down, max(z_up, z_prev))
-            prev = min(zd[k], max(zu[k], prev))
-            z[k] = prev
-        self.z = prev
+        z = M.play_on_edges(zu, zd, float(q[0]) if self.z is None else self.z)  # eq. 3
+        self.z = float(z[-1])
         self.t_us = np.concatenate([self.t_us[-4000:], np.asarray(t_us, np.int64)])
         self.zs = np.concatenate([self.zs[-4000:], z])
 
