@@ -86,27 +86,8 @@ def reference_trajectory(cal: Calibration, duration_s: float = 60.0, rate_hz: fl
     return t, mid + amp * x
 
 
-def simulator_plant(s: Session):
-    """A plant q(t) -> c(t) from the simulator parameters stored in session.json, or
-    (None, reason). Uses playscope.sim (owned by the simulator) only when importable."""
-    cfg_d = s.meta.get("simulator") if s.meta else None
-    if not cfg_d:
-        return None, "no plant: the session records no simulator parameters (a real recording); " \
-                     "run the commands on the robot and track the result instead"
-    try:
-        from .sim.core import SimConfig, transmission
-        from .sim.effects import EffectSet
-    except ImportError as e:
-        return None, f"no plant: the simulator package is not importable ({e})"
-    cfg = SimConfig.from_json(cfg_d)
-    blind = "effects" not in cfg_d
-    eff = EffectSet({k: dict(v) for k, v in cfg.effects.items()})
-
-    def plant(t, q):
-        return transmission(cfg, t, q, eff, np.random.default_rng(cfg.seed))["c_deg"]
-
-    note = "simulator truth model from session.json" + (" (blind session: effects unknown, left out)" if blind else "")
-    return plant, note
+NO_PLANT = ("no plant: the session records no simulator parameters (a real recording); "
+            "run the commands on the robot and track the result instead")
 
 
 @dataclass
@@ -126,7 +107,8 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
 
     table: a playscope.tables.CalibTable for the fixed-point rows (built from ``cal`` when
     None; skipped when the C core is unavailable); plant: callable (t (N,), q (N,)) -> c (N,)
-    deg, default simulator_plant(s). Errors: InputError (naming ``source``) when the session
+    deg, or None (no compensation rows: a real recording has no plant; the pipeline passes
+    sim.plant.session_plant(s) for a simulated session). Errors: InputError (naming ``source``) when the session
     has no valid frame or its actuator unit differs from the calibration's.
     """
     src = source or (str(s.path) if s.path else None)
@@ -193,8 +175,7 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
 
     # Compensation test (eq. 4 with 5 / 9) through the plant.
     if plant is None:
-        plant, pn = simulator_plant(s)
-        plant_note = plant_note or pn
+        plant_note = plant_note or NO_PLANT
     elif plant_note is None:
         plant_note = "plant given by the caller"
     rate = float(1.0 / np.median(np.diff(t_enc)))

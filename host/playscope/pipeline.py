@@ -297,7 +297,11 @@ def evaluate_session(session_dir, cal_path, table_path=None, comp_duration_s: fl
         if not path.is_file():
             raise InputError(path, "file not found")
         tab = CalibTable(path.read_bytes(), source=path)
-    ev = evaluate(cal, s, table=tab, comp_duration_s=comp_duration_s, source=os.fspath(session_dir))
+    from .sim.plant import session_plant  # the simulator stays behind the plant interface
+
+    plant, plant_note = session_plant(s)
+    ev = evaluate(cal, s, table=tab, plant=plant, plant_note=plant_note, comp_duration_s=comp_duration_s,
+                  source=os.fspath(session_dir))
     ev.summary["calibration"] = os.fspath(cal_path)
     if table_path:
         ev.summary["table"] = os.fspath(table_path)

@@ -163,3 +163,25 @@ def render_excitation_video(path, exc: str, cfg: SimPlantConfig | None = None, l
         vw.write(plant.render(*plant.tip_px(max(ta, 0.0))))
     vw.release()
     return {"frames": n_lead + n, "duration_s": (n_lead + n) / fps, "plant": plant}
+
+
+def session_plant(s):
+    """A plant q(t) -> c(t) deg from the simulator parameters a simulated session records in
+    session.json, or (None, reason) for a real recording: what `evaluate` runs its open-loop
+    compensation test through. Lives with the simulator so that the product never imports it."""
+    from ..evaluate import NO_PLANT
+    from .core import SimConfig, transmission
+    from .effects import EffectSet
+
+    cfg_d = s.meta.get("simulator") if s.meta else None
+    if not cfg_d:
+        return None, NO_PLANT
+    cfg = SimConfig.from_json(cfg_d)
+    blind = "effects" not in cfg_d
+    eff = EffectSet({k: dict(v) for k, v in cfg.effects.items()})
+
+    def plant(t, q):
+        return transmission(cfg, t, q, eff, np.random.default_rng(cfg.seed))["c_deg"]
+
+    note = "simulator truth model from session.json" + (" (blind session: effects unknown, left out)" if blind else "")
+    return plant, note
