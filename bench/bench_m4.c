@@ -137,7 +137,7 @@ static void measure_calibration(void)
 static psa_config_t loop_config(void)
 {
     psa_config_t c = {.onset = onset_default_config(), .smooth = true};
-    /* The demo image's smoothing: 200 mm/s, 20000 mm/s^2 (a 1.5 mm offset step in ~17 ms). */
+    /* The USART image's smoothing: 200 mm/s, 20000 mm/s^2 (a 1.5 mm offset step in ~17 ms). */
     c.lim = comp_smoothing_from_rates(200 * PS_Q16_ONE, 20000 * PS_Q16_ONE, TICK_HZ);
     return c;
 }
@@ -209,7 +209,7 @@ static void run_parts(const char *comp_name, const char *onset_name, const calib
         report(onset_name, &so);
 }
 
-/* Excitation mode over the demo table's range (section III-B) at 3 mm/s with amplitude
+/* Excitation mode over the built-in table's range (section III-B) at 3 mm/s with amplitude
  * ampl and advance adv; the plant is a 0.5 mm play seen by a 25 Hz camera 80 ms late,
  * when frames is set. Times psa_tick and, into *obs, every psa_observe_px. */
 static void run_excitation(const char *name, int32_t ampl_q16, int32_t adv_q16, bool frames, stat_t *obs)
@@ -360,7 +360,7 @@ static void run_commit(void)
 /* On-line B update (issue 13 item 4, b_online.c): b_online_sample on its own, the path an
  * observation that completes an onset takes (psa_observe_*'s hook), never psa_tick. Samples
  * spread over the travel at widths near the table's (every node's row of P in play): on the
- * demo table's B (33 entries: 9 nodes) and on the costliest grid: 241 entries, 16 nodes (the
+ * built-in table's B (33 entries: 9 nodes) and on the costliest grid: 241 entries, 16 nodes (the
  * most nodes any grid gets; 256 entries would get 9). */
 static b_online_t bench_bo;
 static int32_t bench_b256[PST_MAX_ENTRIES];
@@ -388,8 +388,8 @@ static void time_b_online(const char *name, lut_t *b)
 
 static void run_b_online(void)
 {
-    lut_t b_demo = cal[0].b; /* a copy: re-pointed to the RAM grid, cal[0] keeps the flashed one */
-    time_b_online("b_online_sample_demo", &b_demo);
+    lut_t b_builtin = cal[0].b; /* a copy: re-pointed to the RAM grid, cal[0] keeps the flashed one */
+    time_b_online("b_online_sample_builtin", &b_builtin);
     lut_t b_big;
     for (uint32_t j = 0; j < PST_MAX_ENTRIES; j++)
         bench_b256[j] = PS_Q16_ONE / 2 + (int32_t)(j * 64u);

@@ -239,7 +239,7 @@ def main(argv=None) -> int:
                       f"constant play of data_2_1 + same offset refresh {per('const_play_ref_offset')} deg",
                       "bench/online_real.py"))
         fw = md_rows(sh(["bench/bench_firmware.sh"]))
-        table.append(("M4 instructions of b_online_sample (on-line B), demo table / costliest grid (16 nodes): average / worst",
+        table.append(("M4 instructions of b_online_sample (on-line B), built-in table / costliest grid (16 nodes): average / worst",
                       f"{find(fw, 'b_online_sample (')[0]}; {find(fw, 'b_online_sample, costliest')[0]}",
                       "off the tick (on the observation that completes an onset)", "", "bench/bench_firmware.sh"))
 

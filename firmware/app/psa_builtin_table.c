@@ -8,15 +8,15 @@
 #include "table_write.h"
 
 enum {
-    DEMO_N = 33,                 /* grid entries, q = -16 .. +16 mm */
-    DEMO_X0_Q16 = -16 * PS_Q16_ONE,
-    DEMO_STEP_Q16 = PS_Q16_ONE,  /* 1 mm, a power of two in raw units */
+    BUILTIN_N = 33,                 /* grid entries, q = -16 .. +16 mm */
+    BUILTIN_X0_Q16 = -16 * PS_Q16_ONE,
+    BUILTIN_STEP_Q16 = PS_Q16_ONE,  /* 1 mm, a power of two in raw units */
 };
 
 size_t psa_builtin_table(uint8_t *buf, size_t cap)
 {
-    int32_t b_q16[DEMO_N], f_q16[DEMO_N];
-    for (int i = 0; i < DEMO_N; i++) {
+    int32_t b_q16[BUILTIN_N], f_q16[BUILTIN_N];
+    for (int i = 0; i < BUILTIN_N; i++) {
         int32_t q_mm = i - 16;
         b_q16[i] = 3 * PS_Q16_ONE / 2 + q_mm * (PS_Q16_ONE / 50);
         f_q16[i] = 3 * q_mm * PS_Q16_ONE + q_mm * q_mm * (PS_Q16_ONE / 25);
@@ -26,9 +26,9 @@ size_t psa_builtin_table(uint8_t *buf, size_t cap)
     h.generation = 1;
     h.q_unit = PST_Q_UNIT_MM;
     h.f_kind = PST_F_COARSE;
-    h.q_min_q16 = DEMO_X0_Q16;
-    h.q_max_q16 = DEMO_X0_Q16 + (DEMO_N - 1) * DEMO_STEP_Q16;
-    h.b = (pst_grid_t){.x0_q16 = DEMO_X0_Q16, .step_q16 = DEMO_STEP_Q16, .n = DEMO_N};
+    h.q_min_q16 = BUILTIN_X0_Q16;
+    h.q_max_q16 = BUILTIN_X0_Q16 + (BUILTIN_N - 1) * BUILTIN_STEP_Q16;
+    h.b = (pst_grid_t){.x0_q16 = BUILTIN_X0_Q16, .step_q16 = BUILTIN_STEP_Q16, .n = BUILTIN_N};
     h.f = h.b;
     return table_write(buf, cap, &h, b_q16, f_q16, NULL, NULL);
 }

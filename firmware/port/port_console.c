@@ -1,4 +1,4 @@
-/* Console text over the port UART, shared by the demo image and the M4 bench. */
+/* Console text over the port UART, shared by the USART image and the M4 bench. */
 #include "port_console.h"
 
 #include <string.h>

@@ -11,19 +11,19 @@
 #include "port_board.h"
 #include "port_console.h"
 
-#ifndef DEMO_TICK_HZ
-/* DEMO_TICK_HZ: control tick rate in Hz. Default 20000 (50 us). */
-#define DEMO_TICK_HZ 20000u
+#ifndef FW_TICK_HZ
+/* FW_TICK_HZ: control tick rate in Hz. Default 20000 (50 us). */
+#define FW_TICK_HZ 20000u
 #endif
 
-#ifndef DEMO_STATUS_TICKS
-/* DEMO_STATUS_TICKS: ticks between two status lines. Default DEMO_TICK_HZ (1 s). */
-#define DEMO_STATUS_TICKS DEMO_TICK_HZ
+#ifndef FW_STATUS_TICKS
+/* FW_STATUS_TICKS: ticks between two status lines. Default FW_TICK_HZ (1 s). */
+#define FW_STATUS_TICKS FW_TICK_HZ
 #endif
 
 enum {
-    DEMO_C_AMPL_Q16 = 30 * PS_Q16_ONE, /* reference triangle +-30 deg ... */
-    DEMO_C_PERIOD_MS = 2000,           /* ... with a 2 s period */
+    FW_C_AMPL_Q16 = 30 * PS_Q16_ONE, /* reference triangle +-30 deg ... */
+    FW_C_PERIOD_MS = 2000,           /* ... with a 2 s period */
 };
 
 static psa_loop_t loop;
@@ -32,7 +32,7 @@ static union {
     uint8_t bytes[PST_MAX_TABLE_SIZE];
 } table;
 static calib_t cal;
-static int32_t c_ref_q16, c_step_q16;  /* the demo's reference generator */
+static int32_t c_ref_q16, c_step_q16;  /* the image's reference generator */
 static int32_t q_meas_q16;             /* ideal motor: it reached last tick's q* */
 static volatile uint32_t reversals, onset_events;
 static volatile uint32_t tick_count;
@@ -68,7 +68,7 @@ static void control_tick(void)
 {
     uint64_t c0 = port_cycles();
     int32_t c_next = c_ref_q16 + c_step_q16;
-    if (c_next > DEMO_C_AMPL_Q16 || c_next < -DEMO_C_AMPL_Q16) {
+    if (c_next > FW_C_AMPL_Q16 || c_next < -FW_C_AMPL_Q16) {
         c_step_q16 = -c_step_q16;
         c_next = c_ref_q16 + c_step_q16;
         reversals = reversals + 1u;
@@ -131,38 +131,38 @@ int main(void)
     stack_paint();
     port_init();
     console_put_str("\r\nplayscope-fw " PS_FW_VERSION " on STM32F405: control tick ");
-    console_put_u32(DEMO_TICK_HZ);
+    console_put_u32(FW_TICK_HZ);
     console_put_str(" Hz, core ");
     console_put_u32(port_core_hz());
     console_put_str(" Hz; send 'q' to stop\r\n");
 
-    /* Compensation with the transition smoothing the demo always had: 200 mm/s, 20000 mm/s^2
+    /* Compensation with the transition smoothing this image always had: 200 mm/s, 20000 mm/s^2
      * (a 1.5 mm offset step takes ~17 ms). */
     psa_config_t lc = {.onset = onset_default_config(), .smooth = true,
-                       .lim = comp_smoothing_from_rates(200 * PS_Q16_ONE, 20000 * PS_Q16_ONE, DEMO_TICK_HZ)};
+                       .lim = comp_smoothing_from_rates(200 * PS_Q16_ONE, 20000 * PS_Q16_ONE, FW_TICK_HZ)};
     psa_init(&loop, &lc);
     int st = (int)calib_load(&cal, table.bytes, psa_builtin_table(table.bytes, sizeof table.bytes));
     if (st == CALIB_OK && !(psa_set_table(&loop, &cal) && psa_set_mode(&loop, PSA_MODE_COMPENSATION))) {
         st = -1;
     }
     /* 4 amplitudes per period: step = 4 A / (period * tick_hz); computed once, here. */
-    c_step_q16 = (int32_t)(4u * (uint32_t)DEMO_C_AMPL_Q16 / (DEMO_TICK_HZ / 1000u * DEMO_C_PERIOD_MS));
+    c_step_q16 = (int32_t)(4u * (uint32_t)FW_C_AMPL_Q16 / (FW_TICK_HZ / 1000u * FW_C_PERIOD_MS));
     if (st != 0) {
         console_put_str("built-in table refused (calib_load status, or -1: the loop), ");
         console_put_u32((uint32_t)st);
         console_put_str("\r\n");
         return 2;
     }
-    if (!port_tick_start(DEMO_TICK_HZ, control_tick)) {
+    if (!port_tick_start(FW_TICK_HZ, control_tick)) {
         console_put_str("tick rate not reachable from the core clock\r\n");
         return 3;
     }
 
-    uint32_t next_status = DEMO_STATUS_TICKS;
+    uint32_t next_status = FW_STATUS_TICKS;
     for (;;) {
         port_wait_for_interrupt();
         if ((int32_t)(tick_count - next_status) >= 0) {
-            next_status += DEMO_STATUS_TICKS;
+            next_status += FW_STATUS_TICKS;
             put_status();
         }
         uint8_t cmd;
