@@ -1,15 +1,11 @@
 /* Transition-model bench inputs: the 16-operator table and the reversal-rate references. */
 #include "bench_pi.h"
 
-#include <string.h>
-
 #include "ps_fixed.h"
 #include "ps_table.h"
-#include "table_write.h"
+#include "psa_builtin_table.h"
 
 enum {
-    PI_N = 33,                   /* grid entries, q = -16 .. +16 mm, 1 mm apart */
-    PI_X0_Q16 = -16 * PS_Q16_ONE,
     PI_OPS = PST_MAX_OPS,
     REF_AMPL_Q16 = 30 * PS_Q16_ONE,
 };
@@ -19,29 +15,16 @@ static union {
     uint8_t bytes[PST_MAX_TABLE_SIZE];
 } pi_table;
 
+/* The built-in table's grids (firmware/app/psa_builtin_table.c) with 16 operators: thresholds
+ * 0.1 mm apart, w_0 = 1/4 and 15 x 1/20 (sum 1). */
 int bench_pi_load(calib_t *cal)
 {
-    int32_t b_q16[PI_N], f_q16[PI_N], r_q16[PI_OPS], w_q16[PI_OPS];
-    for (int i = 0; i < PI_N; i++) {
-        int32_t q_mm = i - 16;
-        b_q16[i] = 3 * PS_Q16_ONE / 2 + q_mm * (PS_Q16_ONE / 50);
-        f_q16[i] = 3 * q_mm * PS_Q16_ONE + q_mm * q_mm * (PS_Q16_ONE / 25);
-    }
+    int32_t r_q16[PI_OPS], w_q16[PI_OPS];
     for (int i = 0; i < PI_OPS; i++) {
         r_q16[i] = i * (PS_Q16_ONE / 10);
         w_q16[i] = i == 0 ? PS_Q16_ONE / 4 : PS_Q16_ONE / 20;
     }
-    pst_header_t h;
-    memset(&h, 0, sizeof h);
-    h.generation = 1;
-    h.q_unit = PST_Q_UNIT_MM;
-    h.f_kind = PST_F_REMAIN;
-    h.q_min_q16 = PI_X0_Q16;
-    h.q_max_q16 = PI_X0_Q16 + (PI_N - 1) * PS_Q16_ONE;
-    h.b = (pst_grid_t){.x0_q16 = PI_X0_Q16, .step_q16 = PS_Q16_ONE, .n = PI_N};
-    h.f = h.b;
-    h.pi.n = PI_OPS;
-    size_t len = table_write(pi_table.bytes, sizeof pi_table.bytes, &h, b_q16, f_q16, r_q16, w_q16);
+    size_t len = psa_builtin_table_ops(pi_table.bytes, sizeof pi_table.bytes, PST_F_REMAIN, PI_OPS, r_q16, w_q16);
     return (int)calib_load(cal, pi_table.bytes, len);
 }
 

@@ -11,4 +11,9 @@
  * is too small. Generation 1, PST_F_COARSE. Boot time (table_write divides). */
 size_t psa_builtin_table(uint8_t *buf, size_t cap);
 
+/* The same grids with f_kind (enum pst_f_kind) and n_ops transition operators (thresholds
+ * r_q16, weights w_q16, Q16.16; NULL when n_ops = 0), e.g. the transition bench's table. */
+size_t psa_builtin_table_ops(uint8_t *buf, size_t cap, uint8_t f_kind, uint16_t n_ops, const int32_t *r_q16,
+                             const int32_t *w_q16);
+
 #endif /* PSA_BUILTIN_TABLE_H */
