@@ -81,6 +81,7 @@ class Calibration:
 
     @property
     def n_b_samples(self) -> int:
+        """Number of B samples (motion onsets, eq. 1) the B(q) fit used."""
         return len(self.doc["b_samples"]["b"])
 
     @property
@@ -105,6 +106,7 @@ class Calibration:
 
     @property
     def warnings(self) -> list:
+        """The calibration's warnings (one line each), as printed by `calibrate`."""
         return list(self.doc.get("warnings", []))
 
     @property
@@ -140,9 +142,11 @@ class Calibration:
         return T.direct_chain(q, self.B_model, self.transition, self.f, z0)
 
     def f_coarse(self, q):
+        """f_coarse(q) (eq. 5, deg) at q (any shape, actuator units)."""
         return model.f_coarse(q, self.q_per_rad)
 
     def save(self, path) -> None:
+        """Write the calibration JSON (docs/calibration-format.md) atomically. Errors: OSError."""
         write_text_atomic(path, json.dumps(self.doc, indent=1) + "\n")
 
     @classmethod

@@ -226,12 +226,15 @@ class FitData:
 
     @classmethod
     def from_session(cls, t_enc, q, B, t_f, c_f, t_delay_s: float) -> "FitData":
+        """Encoder t_enc (N,) s and q (N,) actuator units, B(q), frames t_f (F,) s and angles
+        c_f (F,) deg (NaN rows dropped), frame times moved back by the acquisition delay (s)."""
         ok = np.isfinite(c_f)
         return cls(np.asarray(t_enc, float), np.asarray(q, float), B, np.asarray(t_f, float)[ok] - t_delay_s,
                    np.asarray(c_f, float)[ok])
 
     @property
     def b_med(self) -> float:
+        """Median of B over the travelled q range (actuator units)."""
         return float(np.median(self.B(np.linspace(self.q_enc.min(), self.q_enc.max(), 201))))
 
     def z_enc(self, b_scale: float = 1.0) -> np.ndarray:

@@ -248,6 +248,8 @@ def calibrate_run(run: InsituRun, session, n_ctrl: int = 14):
 
 
 def write_samples_csv(path, samples: list) -> None:
+    """The B samples of a run (dicts with reason, reason_code, t1_s, t2_s (s), q1, q2, q_mean,
+    b (actuator units)) as one CSV row each at path. Errors: OSError from the file system."""
     keys = ["reason", "reason_code", "t1_s", "t2_s", "q1", "q2", "q_mean", "b"]
     with open(path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=keys)

@@ -85,9 +85,11 @@ class SimPlant:
         return float(u), float(v)
 
     def truth_B(self, q):
+        """The simulated instrument's true play width B(q) (mm) at q (any shape, mm)."""
         return self.B(q)
 
     def render(self, u: float, v: float) -> np.ndarray:
+        """One (H, W, 3) uint8 BGR frame with the marker centred at (u, v) px (sub-pixel)."""
         import cv2
 
         img = self.bank[self.k % len(self.bank)].copy()
@@ -98,6 +100,8 @@ class SimPlant:
         return img
 
     def frames(self, t_board_us: int):
+        """Yield (t_us, frame) for each camera frame due up to board time t_board_us (us): the
+        scene t_delay before the frame's time stamp t_us, as the board's camera delivers it."""
         while self.t_us.size and self.next_us <= t_board_us:
             t = self.next_us
             self.next_us += self.period_us
