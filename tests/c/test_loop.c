@@ -171,7 +171,7 @@ static void test_hot_swap_keeps_the_compensator_state(void **state)
     (void)state;
     size_t n = psa_builtin_table(blob.bytes, sizeof blob.bytes);
     assert_int_equal(calib_load(&cal2, blob.bytes, n), CALIB_OK);
-    /* the new table: the demo's B learnt 0.2 units wider (b_online on cal2's B) */
+    /* the new table: the built-in B learnt 0.2 units wider (b_online on cal2's B) */
     b_online_config_t bc = b_online_default_config();
     assert_int_equal(b_online_init(&bo2, &bc, &cal2.b), B_ONLINE_OK);
     for (int k = 0; k < 64; k++) {
