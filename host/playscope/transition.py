@@ -51,7 +51,7 @@ from . import model
 
 N_OPS = 16                             # operators of the PI candidates (PST_MAX_OPS = 16)
 B_SCALES = (1.0, 0.5)                  # play width candidates, x onset-measured B
-SPAN_EXCURSION = 0.5                   # r_span = 1/2 x the largest excursion of z between reversals
+SPAN_EXCURSION = 1.0                   # r_span = the largest excursion of z between reversals
 F_CTRL = (4, 14)                       # f's control points: 4 = one cubic, 14 = f_remain's spline
 KFOLD = 4                              # CV origins (rolling_origins)
 V_MAX = 1e3                            # v_i <= 1000 v_0: w_0 >= 1/(1 + 1000 (n-1)) > 0 (inverse needs 1/w_0)
@@ -75,8 +75,10 @@ def play_ops(x: np.ndarray, r: np.ndarray, p0: np.ndarray | float | None = None)
 
 
 def thresholds(n: int, r_span: float) -> np.ndarray:
-    """r_i = i r_span / n, i = 0..n-1 (r_0 = 0): uniform and nested for n = 2, 4, 8, 16."""
-    return np.arange(n) * (float(r_span) / n)
+    """r_i = r_span (i / n)^2, i = 0..n-1 (r_0 = 0): nested for n = 2, 4, 8, 16, dense at
+    small thresholds (the transition just after the play, seen on every stroke) and sparse at
+    wide ones (seen only on the longest strokes and the record's first loading)."""
+    return float(r_span) * (np.arange(n) / n) ** 2
 
 
 def inverse_params(r: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -341,9 +343,10 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
     n_ctrl); the weights are v = (1, v_1..v_{n-1}), v_i in [0, V_MAX], found by
     scipy.optimize.least_squares (bounded trust region) on the projected residual and
     normalised, w = v / sum v (f absorbs the scale; w_0 = 1/sum v > 0 by construction).
-    The final f is the monotone robust spline of c on y = P w (estimate.robust_spline, as
-    f_remain), or with robust_f=False (the cross-validation's folds, for speed) the inner
-    P-spline itself. v0: (n-1,) starting point of v_1.. (a warm start: the previous fold's
+    The final f is the inner P-spline at the solution (the f the weights were optimised
+    with and the cross-validation scored); with robust_f=True (the table's f) and that
+    P-spline not strictly monotone on y's range, the monotone robust spline of c on y = P w
+    instead (estimate.robust_spline, as f_remain), since eq. 9 needs f^-1. v0: (n-1,) starting point of v_1.. (a warm start: the previous fold's
     solution in the cross-validation), default uniform. Returns (w (n,), f SplineFn, sign of
     f', rms deg on these frames); the solution v is kept as fit_weights.last_v."""
     from scipy.optimize import least_squares
@@ -359,17 +362,27 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
     fit_weights.last_v = v[1:].copy()
     w = v / v.sum()
     y = P @ w
-    if robust_f:
-        f, sign = _fit_f(y, c, n_ctrl, smooth)
-    else:
-        from scipy.interpolate import BSpline
+    from scipy.interpolate import BSpline
 
-        vp = _SplineProjection(y[:, None], c, n_ctrl, smooth)
-        _, _, coef, _ = vp._solve(np.zeros(0))
-        lo, hi = float(y.min()), max(float(y.max()), float(y.min()) + 1e-9)
-        f = E.SplineFn(BSpline(E.clamped_knots(lo, hi, n_ctrl), coef, 3, extrapolate=False), lo, hi, linear_ends=True)
-        sign = 1 if f.s_lo + f.s_hi >= 0 else -1
+    # f of the projection: the P-spline the weights were optimised with (and that the
+    # cross-validation scored). Refitting another f on y afterwards would leave the joint
+    # least-squares optimum for weights chosen under a different f.
+    vp = _SplineProjection(y[:, None], c, n_ctrl, smooth)
+    _, _, coef, _ = vp._solve(np.zeros(0))
+    lo, hi = float(y.min()), max(float(y.max()), float(y.min()) + 1e-9)
+    f = E.SplineFn(BSpline(E.clamped_knots(lo, hi, n_ctrl), coef, 3, extrapolate=False), lo, hi, linear_ends=True)
+    sign = 1 if f.s_lo + f.s_hi >= 0 else -1
+    if robust_f and not _strictly_monotone(f, lo, hi, sign):
+        # The table needs f strictly monotone (eq. 9's f^-1): only then the constrained fit.
+        f, sign = _fit_f(y, c, n_ctrl, smooth)
     return w, f, sign, float(np.sqrt(np.mean((f(y) - c) ** 2)))
+
+
+def _strictly_monotone(f, lo: float, hi: float, sign: int, n: int = 2001) -> bool:
+    """f strictly monotone with direction sign on [lo, hi], sampled on n points, and its
+    linear ends (SplineFn linear_ends) going the same way."""
+    d = np.diff(f(np.linspace(lo, hi, n)))
+    return bool(np.all(sign * d > 0) and sign * f.s_lo > 0 and sign * f.s_hi > 0)
 
 
 def rolling_origins(data: "FitData", k: int) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -40,7 +40,7 @@ def ref_session(r, w, noise_deg=0.02, seed=0):
 
 
 def span_rule(data):
-    """The candidate grid's span, recomputed here: half the largest excursion of z between
+    """The candidate grid's span, recomputed here: the largest excursion of z between
     reversals (scalar loop over the turning points of the play centre, 1 % hysteresis)."""
     z = data.z_enc()
     h = 0.01 * float(np.ptp(z))
@@ -54,7 +54,12 @@ def span_rule(data):
             turns.append(ext)
             d, ext = -d if d else (1 if v > ext else -1), v
     turns.append(z[-1])
-    return 0.5 * float(np.max(np.abs(np.diff(turns))))
+    return float(np.max(np.abs(np.diff(turns))))
+
+
+def threshold_rule(data, n=16):
+    """The candidates' thresholds, recomputed here: r_i = span (i/n)^2."""
+    return span_rule(data) * (np.arange(n) / n) ** 2
 
 
 def test_operators_match_the_reference_loop():
@@ -77,7 +82,7 @@ def test_inverse_undoes_the_direct_operator():
 
 def test_fit_recovers_planted_weights_and_thresholds():
     data, *_ = ref_session(np.zeros(1), np.ones(1))
-    r = np.arange(16) * span_rule(data) / 16
+    r = threshold_rule(data)
     w = np.zeros(16)
     w[[0, 3, 9]] = 0.4, 0.3, 0.3
     data, *_ = ref_session(r, w)
@@ -95,7 +100,7 @@ def test_fit_recovers_planted_weights_and_thresholds():
 def test_cv_picks_play_on_play_data_and_pi_on_transition_data(kind):
     data, *_ = ref_session(np.zeros(1), np.ones(1))
     if kind == "pi":
-        r = np.arange(16) * span_rule(data) / 16
+        r = threshold_rule(data)
         w = np.r_[0.4, np.full(15, 0.6 / 15)]
         data, *_ = ref_session(r, w, seed=1)
     else:
