@@ -17,7 +17,9 @@ and initial states p'_i = sum_{j<=i} w_j p_i + sum_{j>i} w_j p_j (inverse_params
 Fit (fit_weights): c ~ f(P w) by variable projection: for given weights f is linear in its
 spline coefficients and solved exactly inside; the weights are found by the bounded
 scipy.optimize.least_squares on the projected residual (w >= 0, w_0 > 0, sum 1); the final f
-is the monotone robust spline of c on y (estimate.robust_spline, N = 14 as for f_remain).
+is the inner P-spline at the solution (the f the weights were fitted with and the
+cross-validation scored), or the monotone robust spline of c on y (estimate.robust_spline) when
+that P-spline is not strictly monotone (the table needs f^-1, eq. 9).
 
 Settings, all from the calibration data by rules fixed a priori (choose_model, docs/method.md):
   b_scale     the play width of the model, one of B_SCALES = {1, 1/2} x the onset-measured B:
@@ -25,11 +27,14 @@ Settings, all from the calibration data by rules fixed a priori (choose_model, d
               transition starts with a slow creep the measured B already includes part of it;
               the operators can only widen the play, so a narrower anchor lets them model the
               creep (1 for the paper's play);
-  thresholds  N_OPS = 16 operators, r_i = i r_span / 16, r_span = E/2, E the largest excursion
-              of the play centre z between reversals in the calibration record (the generalized
-              PI peer's rule): an operator of threshold r only closes a loop on a stroke longer
-              than 2 r, and the wide ones carry the virgin loading curve of the record's start,
-              which a running board holds in its state; the non-negative weights prune the count;
+  thresholds  N_OPS = 16 operators, r_i = r_span (i / 16)^2, r_span = E, E the largest
+              excursion of the play centre z between reversals in the calibration record: an
+              operator of threshold r closes a loop only on a stroke longer than 2 r, so the
+              ones above E/2 move only on the record's first loading (the virgin curve, which
+              a running board holds in its state): they let the fit take that curve without
+              bending the loop weights. Quadratic spacing puts half the operators below E/4,
+              where every stroke shows the transition after the play; the non-negative
+              weights prune the count;
   f_ctrl      f's control points, one of F_CTRL = {4 (a single cubic), 14 (f_remain's)};
   choice      cross-validation on a rolling origin (rolling_origins: fit on the calibration
               frames before each of KFOLD origins, score the next block, the operators run from
@@ -346,8 +351,9 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
     The final f is the inner P-spline at the solution (the f the weights were optimised
     with and the cross-validation scored); with robust_f=True (the table's f) and that
     P-spline not strictly monotone on y's range, the monotone robust spline of c on y = P w
-    instead (estimate.robust_spline, as f_remain), since eq. 9 needs f^-1. v0: (n-1,) starting point of v_1.. (a warm start: the previous fold's
-    solution in the cross-validation), default uniform. Returns (w (n,), f SplineFn, sign of
+    instead (estimate.robust_spline, as f_remain), since eq. 9 needs f^-1. v0: (n-1,)
+    starting point of v_1.. (a warm start: the previous fold's solution in the
+    cross-validation), default all equal. Returns (w (n,), f SplineFn, sign of
     f', rms deg on these frames); the solution v is kept as fit_weights.last_v."""
     from scipy.optimize import least_squares
 
@@ -418,7 +424,7 @@ def largest_excursion(x: np.ndarray, hysteresis_frac: float = 0.01) -> float:
 def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14) -> list[tuple[float, int, float, int]]:
     """(b_scale, n, r_span, f_ctrl) tuples tried, fixed a priori (module docstring): (1, 1, 0,
     n_ctrl) for the paper's play; for the PI, b_scale in B_SCALES x f_ctrl in F_CTRL, each with
-    N_OPS operators spread uniformly over r_span = SPAN_EXCURSION x the largest excursion of
+    N_OPS operators at thresholds(N_OPS, r_span), r_span = SPAN_EXCURSION x the largest excursion of
     the play centre z between reversals in the calibration record."""
     out = [(1.0, 1, 0.0, int(n_ctrl))] if model_kind in ("auto", "play") else []
     if model_kind in ("auto", "pi"):

@@ -91,8 +91,9 @@ def test_fit_recovers_planted_weights_and_thresholds():
     assert ch["r_span"] == pytest.approx(span_rule(data), rel=1e-9)
     full = np.zeros(16)
     full[np.searchsorted(r, tr.r)] = tr.w
-    # Measured |w - w_planted| <= 0.006 with 0.02 deg noise; 0.03 leaves room.
-    assert np.max(np.abs(full - w)) < 0.03, full
+    # Measured |w - w_planted| <= 0.023 with 0.02 deg noise (the quadratic spacing puts
+    # neighbouring small thresholds close, so weight trades between them); 0.06 leaves room.
+    assert np.max(np.abs(full - w)) < 0.06, full
     assert sign == 1 and ch["fit_rmse_deg"] < 0.03
 
 
@@ -112,6 +113,28 @@ def test_cv_picks_play_on_play_data_and_pi_on_transition_data(kind):
     if kind == "pi":
         assert best < 0.5 * play["cv_rmse_deg"]  # the transition is visible to the CV
     assert tr.is_play == (kind == "play")
+
+
+def test_table_f_is_the_f_the_weights_were_fitted_with():
+    # Monotone data: the f written to the table is the projection's P-spline (the f the CV
+    # scored), not a refit; data bending back: the monotone robust spline instead (eq. 9 needs f^-1).
+    r = np.array([0.0, 0.1, 0.4])
+    w = np.array([0.5, 0.3, 0.2])
+    data, *_ = ref_session(r, w)
+    P = data.ops_at_frames(r)
+    wa, fa, _, ra = T.fit_weights(P, data.c, 4, robust_f=True)
+    wb, fb, _, rb = T.fit_weights(P, data.c, 4, robust_f=False)
+    y = np.linspace(-4, 4, 101)
+    assert np.array_equal(wa, wb) and np.array_equal(fa(y), fb(y)) and ra == rb
+    y_f = P @ wa
+    c_bent = np.where(y_f > 1.0, 12.0 - 6.0 * (y_f - 1.0), 12.0 * y_f)  # turns back above y = 1
+    _, fm, sign, _ = T.fit_weights(P, c_bent, 14, robust_f=True)
+    _, fp, _, _ = T.fit_weights(P, c_bent, 14, robust_f=False)
+    g = np.linspace(y_f.min(), y_f.max(), 401)
+    assert np.any(np.diff(fp(g)) < 0)  # the plain P-spline follows the turn
+    # The constrained fit is monotone (flat where the data turn back; build_table then makes it
+    # strictly monotone by one LSB, as for f_remain).
+    assert sign == 1 and np.all(np.diff(fm(g)) >= -1e-9)
 
 
 def test_model_play_and_pi_restrict_the_candidates():
