@@ -340,12 +340,12 @@ class _SplineProjection:
 
 
 def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3, robust_f: bool = True,
-                v0: np.ndarray | None = None):
+                v0: np.ndarray | None = None, v_max: float = V_MAX):
     """Weights w and f for c ~ f(P w) (PI_MODEL steps 2-3), by variable projection.
 
     P: (F, n) operator outputs at the frames, c: (F,) deg. For given weights f is linear in
     its spline coefficients, so it is solved exactly inside (P-spline least squares, N =
-    n_ctrl); the weights are v = (1, v_1..v_{n-1}), v_i in [0, V_MAX], found by
+    n_ctrl); the weights are v = (1, v_1..v_{n-1}), v_i in [0, v_max], found by
     scipy.optimize.least_squares (bounded trust region) on the projected residual and
     normalised, w = v / sum v (f absorbs the scale; w_0 = 1/sum v > 0 by construction).
     The final f is the inner P-spline at the solution (the f the weights were optimised
@@ -353,17 +353,19 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
     P-spline not strictly monotone on y's range, the monotone robust spline of c on y = P w
     instead (estimate.robust_spline, as f_remain), since eq. 9 needs f^-1. v0: (n-1,)
     starting point of v_1.. (a warm start: the previous fold's solution in the
-    cross-validation), default all equal. Returns (w (n,), f SplineFn, sign of
+    cross-validation), default all equal. v_max: bound of v_i (choose_model: v_max_for_table).
+    Returns (w (n,), f SplineFn, sign of
     f', rms deg on these frames); the solution v is kept as fit_weights.last_v."""
     from scipy.optimize import least_squares
 
     n = P.shape[1]
     v = np.ones(n)
-    if n > 1:
+    v[1:] = 0.0  # v_max 0: the table cannot carry any operator within its precision ceiling
+    if n > 1 and v_max > 0:
         vp = _SplineProjection(P, c, n_ctrl, smooth)
-        x0 = np.full(n - 1, 1.0 / (n - 1)) if v0 is None else np.clip(v0, 0.0, V_MAX)
+        x0 = np.full(n - 1, min(1.0, v_max) / (n - 1)) if v0 is None else np.clip(v0, 0.0, v_max)
         # ftol 1e-6: the CV compares RMSEs to about 1 %, far coarser than the default 1e-8.
-        v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, V_MAX), ftol=1e-6, max_nfev=60,
+        v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, v_max), ftol=1e-6, max_nfev=60,
                               tr_solver="lsmr").x
     fit_weights.last_v = v[1:].copy()
     w = v / v.sum()
@@ -421,6 +423,22 @@ def largest_excursion(x: np.ndarray, hysteresis_frac: float = 0.01) -> float:
     return float(np.max(np.abs(np.diff(turns)))) if turns.size > 1 else span
 
 
+def v_max_for_table(data: "FitData", b_scale: float, n: int) -> float:
+    """Bound of v_i = w_i / w_0 that keeps the table loadable: the inverse PI's worst-case
+    error is about 1/w_0 Q16 units (pi_build: 1/2 + 1/2 sum|w'_i|, sum|w'_i| = 2/w_0 - 1), and
+    calib_load refuses a table whose error exceeds calib_precision_ceiling_q16(B_max) (1/16 of
+    the largest play width). With sum v = 1/w_0 <= ceiling/2 (a factor 2 for the other terms)
+    the fitted table always loads: v_i <= (ceiling/2 - 1)/(n - 1), at most V_MAX. B_max: the
+    model's play width b_scale x B over the recorded q range."""
+    from .native import core
+
+    _, lib = core()
+    q = np.linspace(float(data.q_enc.min()), float(data.q_enc.max()), 201)
+    b_max_q16 = int(round(b_scale * float(np.max(data.B(q))) * 65536))
+    ceiling = float(lib.calib_precision_ceiling_q16(min(max(b_max_q16, 0), 2**31 - 1)))
+    return float(min(V_MAX, max(0.5 * ceiling - 1.0, 0.0) / max(n - 1, 1)))
+
+
 def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14) -> list[tuple[float, int, float, int]]:
     """(b_scale, n, r_span, f_ctrl) tuples tried, fixed a priori (module docstring): (1, 1, 0,
     n_ctrl) for the paper's play; for the PI, b_scale in B_SCALES x f_ctrl in F_CTRL, each with
@@ -453,11 +471,12 @@ def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: i
     for kb, n, span, nc in progress(candidates(data, model_kind, n_ctrl), desc="model choice"):
         r = thresholds(n, span) if n > 1 else np.zeros(1)
         P = data.ops_at_frames(r, kb)
+        vm = v_max_for_table(data, kb, n)
         errs, v = [], None
         for tr_m, te_m in splits:
             if te_m.sum() < 3 or tr_m.sum() < 10:
                 continue
-            w, f, _, _ = fit_weights(P[tr_m], data.c[tr_m], nc, robust_f=False, v0=v)
+            w, f, _, _ = fit_weights(P[tr_m], data.c[tr_m], nc, robust_f=False, v0=v, v_max=vm)
             v = fit_weights.last_v  # warm start of the next fold: the folds share most frames
             errs.append(float(np.sqrt(np.mean((f(P[te_m] @ w) - data.c[te_m]) ** 2))))
         errs = np.array(errs)
@@ -471,7 +490,7 @@ def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: i
     pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: (d["n"], -d["b_scale"], d["n_ctrl"]))
     kb, n, span, nc = pick["b_scale"], pick["n"], pick["r_span"], pick["n_ctrl"]
     r = thresholds(n, span) if n > 1 else np.zeros(1)
-    w, f, sign, rms = fit_weights(data.ops_at_frames(r, kb), data.c, nc)
+    w, f, sign, rms = fit_weights(data.ops_at_frames(r, kb), data.c, nc, v_max=v_max_for_table(data, kb, n))
     keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
     tr = Transition(r[keep], w[keep] / w[keep].sum(), kb)
     choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(n), "b_scale": kb,

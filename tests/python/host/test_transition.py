@@ -137,6 +137,22 @@ def test_table_f_is_the_f_the_weights_were_fitted_with():
     assert sign == 1 and np.all(np.diff(fm(g)) >= -1e-9)
 
 
+def test_fitted_table_loads_when_the_data_want_a_tiny_first_weight():
+    # Planted w_0 = 1e-4: the inverse's error bound (~1/w_0 raw) would exceed calib_load's
+    # precision ceiling (B/16 = 1638 raw here) and the table would be refused; the fit bounds
+    # v_i = w_i/w_0 so that the table it writes always loads (v_max_for_table).
+    data, *_ = ref_session(np.zeros(1), np.ones(1))
+    r = threshold_rule(data)
+    w = np.zeros(16)
+    w[[0, 6, 12]] = 1e-4, 0.5, 0.5 - 1e-4
+    data, q, _, _ = ref_session(r, w)
+    tr, f, _, ch = T.choose_model(data, "pi")
+    assert ch["model"] == "pi" and tr.n > 1
+    assert 1 / tr.w[0] <= 0.5 * 1638 + 1e-6  # sum v <= ceiling/2
+    tab = TB.build_table(tr.play_width(data.B), f, float(q.min()), float(q.max()), "mm", transition=tr)
+    assert tab.n_ops == tr.n
+
+
 def test_model_play_and_pi_restrict_the_candidates():
     data, *_ = ref_session(np.zeros(1), np.ones(1))
     assert T.candidates(data, "play") == [(1.0, 1, 0.0, 14)]
