@@ -17,7 +17,9 @@ and initial states p'_i = sum_{j<=i} w_j p_i + sum_{j>i} w_j p_j (inverse_params
 Fit (fit_weights): c ~ f(P w) by variable projection: for given weights f is linear in its
 spline coefficients and solved exactly inside; the weights are found by the bounded
 scipy.optimize.least_squares on the projected residual (w >= 0, w_0 > 0, sum 1); the final f
-is the monotone robust spline of c on y (estimate.robust_spline, N = 14 as for f_remain).
+is the inner P-spline at the solution (the f the weights were fitted with and the
+cross-validation scored), or the monotone robust spline of c on y (estimate.robust_spline) when
+that P-spline is not strictly monotone (the table needs f^-1, eq. 9).
 
 Settings, all from the calibration data by rules fixed a priori (choose_model, docs/method.md):
   b_scale     the play width of the model, one of B_SCALES = {1, 1/2} x the onset-measured B:
@@ -25,11 +27,14 @@ Settings, all from the calibration data by rules fixed a priori (choose_model, d
               transition starts with a slow creep the measured B already includes part of it;
               the operators can only widen the play, so a narrower anchor lets them model the
               creep (1 for the paper's play);
-  thresholds  N_OPS = 16 operators, r_i = i r_span / 16, r_span = E/2, E the largest excursion
-              of the play centre z between reversals in the calibration record (the generalized
-              PI peer's rule): an operator of threshold r only closes a loop on a stroke longer
-              than 2 r, and the wide ones carry the virgin loading curve of the record's start,
-              which a running board holds in its state; the non-negative weights prune the count;
+  thresholds  N_OPS = 16 operators, r_i = r_span (i / 16)^2, r_span = E, E the largest
+              excursion of the play centre z between reversals in the calibration record: an
+              operator of threshold r closes a loop only on a stroke longer than 2 r, so the
+              ones above E/2 move only on the record's first loading (the virgin curve, which
+              a running board holds in its state): they let the fit take that curve without
+              bending the loop weights. Quadratic spacing puts half the operators below E/4,
+              where every stroke shows the transition after the play; the non-negative
+              weights prune the count;
   f_ctrl      f's control points, one of F_CTRL = {4 (a single cubic), 14 (f_remain's)};
   choice      cross-validation on a rolling origin (rolling_origins: fit on the calibration
               frames before each of KFOLD origins, score the next block, the operators run from
@@ -51,7 +56,7 @@ from . import model
 
 N_OPS = 16                             # operators of the PI candidates (PST_MAX_OPS = 16)
 B_SCALES = (1.0, 0.5)                  # play width candidates, x onset-measured B
-SPAN_EXCURSION = 0.5                   # r_span = 1/2 x the largest excursion of z between reversals
+SPAN_EXCURSION = 1.0                   # r_span = the largest excursion of z between reversals
 F_CTRL = (4, 14)                       # f's control points: 4 = one cubic, 14 = f_remain's spline
 KFOLD = 4                              # CV origins (rolling_origins)
 V_MAX = 1e3                            # v_i <= 1000 v_0: w_0 >= 1/(1 + 1000 (n-1)) > 0 (inverse needs 1/w_0)
@@ -75,8 +80,10 @@ def play_ops(x: np.ndarray, r: np.ndarray, p0: np.ndarray | float | None = None)
 
 
 def thresholds(n: int, r_span: float) -> np.ndarray:
-    """r_i = i r_span / n, i = 0..n-1 (r_0 = 0): uniform and nested for n = 2, 4, 8, 16."""
-    return np.arange(n) * (float(r_span) / n)
+    """r_i = r_span (i / n)^2, i = 0..n-1 (r_0 = 0): nested for n = 2, 4, 8, 16, dense at
+    small thresholds (the transition just after the play, seen on every stroke) and sparse at
+    wide ones (seen only on the longest strokes and the record's first loading)."""
+    return float(r_span) * (np.arange(n) / n) ** 2
 
 
 def inverse_params(r: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -333,43 +340,57 @@ class _SplineProjection:
 
 
 def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3, robust_f: bool = True,
-                v0: np.ndarray | None = None):
+                v0: np.ndarray | None = None, v_max: float = V_MAX):
     """Weights w and f for c ~ f(P w) (PI_MODEL steps 2-3), by variable projection.
 
     P: (F, n) operator outputs at the frames, c: (F,) deg. For given weights f is linear in
     its spline coefficients, so it is solved exactly inside (P-spline least squares, N =
-    n_ctrl); the weights are v = (1, v_1..v_{n-1}), v_i in [0, V_MAX], found by
+    n_ctrl); the weights are v = (1, v_1..v_{n-1}), v_i in [0, v_max], found by
     scipy.optimize.least_squares (bounded trust region) on the projected residual and
     normalised, w = v / sum v (f absorbs the scale; w_0 = 1/sum v > 0 by construction).
-    The final f is the monotone robust spline of c on y = P w (estimate.robust_spline, as
-    f_remain), or with robust_f=False (the cross-validation's folds, for speed) the inner
-    P-spline itself. v0: (n-1,) starting point of v_1.. (a warm start: the previous fold's
-    solution in the cross-validation), default uniform. Returns (w (n,), f SplineFn, sign of
+    The final f is the inner P-spline at the solution (the f the weights were optimised
+    with and the cross-validation scored); with robust_f=True (the table's f) and that
+    P-spline not strictly monotone on y's range, the monotone robust spline of c on y = P w
+    instead (estimate.robust_spline, as f_remain), since eq. 9 needs f^-1. v0: (n-1,)
+    starting point of v_1.. (a warm start: the previous fold's solution in the
+    cross-validation), default all equal. v_max: bound of v_i (choose_model: v_max_for_table).
+    Returns (w (n,), f SplineFn, sign of
     f', rms deg on these frames); the solution v is kept as fit_weights.last_v."""
     from scipy.optimize import least_squares
 
     n = P.shape[1]
     v = np.ones(n)
-    if n > 1:
+    v[1:] = 0.0  # v_max 0: the table cannot carry any operator within its precision ceiling
+    if n > 1 and v_max > 0:
         vp = _SplineProjection(P, c, n_ctrl, smooth)
-        x0 = np.full(n - 1, 1.0 / (n - 1)) if v0 is None else np.clip(v0, 0.0, V_MAX)
+        x0 = np.full(n - 1, min(1.0, v_max) / (n - 1)) if v0 is None else np.clip(v0, 0.0, v_max)
         # ftol 1e-6: the CV compares RMSEs to about 1 %, far coarser than the default 1e-8.
-        v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, V_MAX), ftol=1e-6, max_nfev=60,
+        v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, v_max), ftol=1e-6, max_nfev=60,
                               tr_solver="lsmr").x
     fit_weights.last_v = v[1:].copy()
     w = v / v.sum()
     y = P @ w
-    if robust_f:
-        f, sign = _fit_f(y, c, n_ctrl, smooth)
-    else:
-        from scipy.interpolate import BSpline
+    from scipy.interpolate import BSpline
 
-        vp = _SplineProjection(y[:, None], c, n_ctrl, smooth)
-        _, _, coef, _ = vp._solve(np.zeros(0))
-        lo, hi = float(y.min()), max(float(y.max()), float(y.min()) + 1e-9)
-        f = E.SplineFn(BSpline(E.clamped_knots(lo, hi, n_ctrl), coef, 3, extrapolate=False), lo, hi, linear_ends=True)
-        sign = 1 if f.s_lo + f.s_hi >= 0 else -1
+    # f of the projection: the P-spline the weights were optimised with (and that the
+    # cross-validation scored). Refitting another f on y afterwards would leave the joint
+    # least-squares optimum for weights chosen under a different f.
+    vp = _SplineProjection(y[:, None], c, n_ctrl, smooth)
+    _, _, coef, _ = vp._solve(np.zeros(0))
+    lo, hi = float(y.min()), max(float(y.max()), float(y.min()) + 1e-9)
+    f = E.SplineFn(BSpline(E.clamped_knots(lo, hi, n_ctrl), coef, 3, extrapolate=False), lo, hi, linear_ends=True)
+    sign = 1 if f.s_lo + f.s_hi >= 0 else -1
+    if robust_f and not _strictly_monotone(f, lo, hi, sign):
+        # The table needs f strictly monotone (eq. 9's f^-1): only then the constrained fit.
+        f, sign = _fit_f(y, c, n_ctrl, smooth)
     return w, f, sign, float(np.sqrt(np.mean((f(y) - c) ** 2)))
+
+
+def _strictly_monotone(f, lo: float, hi: float, sign: int, n: int = 2001) -> bool:
+    """f strictly monotone with direction sign on [lo, hi], sampled on n points, and its
+    linear ends (SplineFn linear_ends) going the same way."""
+    d = np.diff(f(np.linspace(lo, hi, n)))
+    return bool(np.all(sign * d > 0) and sign * f.s_lo > 0 and sign * f.s_hi > 0)
 
 
 def rolling_origins(data: "FitData", k: int) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -402,10 +423,26 @@ def largest_excursion(x: np.ndarray, hysteresis_frac: float = 0.01) -> float:
     return float(np.max(np.abs(np.diff(turns)))) if turns.size > 1 else span
 
 
+def v_max_for_table(data: "FitData", b_scale: float, n: int) -> float:
+    """Bound of v_i = w_i / w_0 that keeps the table loadable: the inverse PI's worst-case
+    error is about 1/w_0 Q16 units (pi_build: 1/2 + 1/2 sum|w'_i|, sum|w'_i| = 2/w_0 - 1), and
+    calib_load refuses a table whose error exceeds calib_precision_ceiling_q16(B_max) (1/16 of
+    the largest play width). With sum v = 1/w_0 <= ceiling/2 (a factor 2 for the other terms)
+    the fitted table always loads: v_i <= (ceiling/2 - 1)/(n - 1), at most V_MAX. B_max: the
+    model's play width b_scale x B over the recorded q range."""
+    from .native import core
+
+    _, lib = core()
+    q = np.linspace(float(data.q_enc.min()), float(data.q_enc.max()), 201)
+    b_max_q16 = int(round(b_scale * float(np.max(data.B(q))) * 65536))
+    ceiling = float(lib.calib_precision_ceiling_q16(min(max(b_max_q16, 0), 2**31 - 1)))
+    return float(min(V_MAX, max(0.5 * ceiling - 1.0, 0.0) / max(n - 1, 1)))
+
+
 def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14) -> list[tuple[float, int, float, int]]:
     """(b_scale, n, r_span, f_ctrl) tuples tried, fixed a priori (module docstring): (1, 1, 0,
     n_ctrl) for the paper's play; for the PI, b_scale in B_SCALES x f_ctrl in F_CTRL, each with
-    N_OPS operators spread uniformly over r_span = SPAN_EXCURSION x the largest excursion of
+    N_OPS operators at thresholds(N_OPS, r_span), r_span = SPAN_EXCURSION x the largest excursion of
     the play centre z between reversals in the calibration record."""
     out = [(1.0, 1, 0.0, int(n_ctrl))] if model_kind in ("auto", "play") else []
     if model_kind in ("auto", "pi"):
@@ -434,11 +471,12 @@ def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: i
     for kb, n, span, nc in progress(candidates(data, model_kind, n_ctrl), desc="model choice"):
         r = thresholds(n, span) if n > 1 else np.zeros(1)
         P = data.ops_at_frames(r, kb)
+        vm = v_max_for_table(data, kb, n)
         errs, v = [], None
         for tr_m, te_m in splits:
             if te_m.sum() < 3 or tr_m.sum() < 10:
                 continue
-            w, f, _, _ = fit_weights(P[tr_m], data.c[tr_m], nc, robust_f=False, v0=v)
+            w, f, _, _ = fit_weights(P[tr_m], data.c[tr_m], nc, robust_f=False, v0=v, v_max=vm)
             v = fit_weights.last_v  # warm start of the next fold: the folds share most frames
             errs.append(float(np.sqrt(np.mean((f(P[te_m] @ w) - data.c[te_m]) ** 2))))
         errs = np.array(errs)
@@ -452,7 +490,7 @@ def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: i
     pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: (d["n"], -d["b_scale"], d["n_ctrl"]))
     kb, n, span, nc = pick["b_scale"], pick["n"], pick["r_span"], pick["n_ctrl"]
     r = thresholds(n, span) if n > 1 else np.zeros(1)
-    w, f, sign, rms = fit_weights(data.ops_at_frames(r, kb), data.c, nc)
+    w, f, sign, rms = fit_weights(data.ops_at_frames(r, kb), data.c, nc, v_max=v_max_for_table(data, kb, n))
     keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
     tr = Transition(r[keep], w[keep] / w[keep].sum(), kb)
     choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(n), "b_scale": kb,

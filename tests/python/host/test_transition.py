@@ -40,7 +40,7 @@ def ref_session(r, w, noise_deg=0.02, seed=0):
 
 
 def span_rule(data):
-    """The candidate grid's span, recomputed here: half the largest excursion of z between
+    """The candidate grid's span, recomputed here: the largest excursion of z between
     reversals (scalar loop over the turning points of the play centre, 1 % hysteresis)."""
     z = data.z_enc()
     h = 0.01 * float(np.ptp(z))
@@ -54,7 +54,12 @@ def span_rule(data):
             turns.append(ext)
             d, ext = -d if d else (1 if v > ext else -1), v
     turns.append(z[-1])
-    return 0.5 * float(np.max(np.abs(np.diff(turns))))
+    return float(np.max(np.abs(np.diff(turns))))
+
+
+def threshold_rule(data, n=16):
+    """The candidates' thresholds, recomputed here: r_i = span (i/n)^2."""
+    return span_rule(data) * (np.arange(n) / n) ** 2
 
 
 def test_operators_match_the_reference_loop():
@@ -77,7 +82,7 @@ def test_inverse_undoes_the_direct_operator():
 
 def test_fit_recovers_planted_weights_and_thresholds():
     data, *_ = ref_session(np.zeros(1), np.ones(1))
-    r = np.arange(16) * span_rule(data) / 16
+    r = threshold_rule(data)
     w = np.zeros(16)
     w[[0, 3, 9]] = 0.4, 0.3, 0.3
     data, *_ = ref_session(r, w)
@@ -86,8 +91,9 @@ def test_fit_recovers_planted_weights_and_thresholds():
     assert ch["r_span"] == pytest.approx(span_rule(data), rel=1e-9)
     full = np.zeros(16)
     full[np.searchsorted(r, tr.r)] = tr.w
-    # Measured |w - w_planted| <= 0.006 with 0.02 deg noise; 0.03 leaves room.
-    assert np.max(np.abs(full - w)) < 0.03, full
+    # Measured |w - w_planted| <= 0.023 with 0.02 deg noise (the quadratic spacing puts
+    # neighbouring small thresholds close, so weight trades between them); 0.06 leaves room.
+    assert np.max(np.abs(full - w)) < 0.06, full
     assert sign == 1 and ch["fit_rmse_deg"] < 0.03
 
 
@@ -95,7 +101,7 @@ def test_fit_recovers_planted_weights_and_thresholds():
 def test_cv_picks_play_on_play_data_and_pi_on_transition_data(kind):
     data, *_ = ref_session(np.zeros(1), np.ones(1))
     if kind == "pi":
-        r = np.arange(16) * span_rule(data) / 16
+        r = threshold_rule(data)
         w = np.r_[0.4, np.full(15, 0.6 / 15)]
         data, *_ = ref_session(r, w, seed=1)
     else:
@@ -107,6 +113,44 @@ def test_cv_picks_play_on_play_data_and_pi_on_transition_data(kind):
     if kind == "pi":
         assert best < 0.5 * play["cv_rmse_deg"]  # the transition is visible to the CV
     assert tr.is_play == (kind == "play")
+
+
+def test_table_f_is_the_f_the_weights_were_fitted_with():
+    # Monotone data: the f written to the table is the projection's P-spline (the f the CV
+    # scored), not a refit; data bending back: the monotone robust spline instead (eq. 9 needs f^-1).
+    r = np.array([0.0, 0.1, 0.4])
+    w = np.array([0.5, 0.3, 0.2])
+    data, *_ = ref_session(r, w)
+    P = data.ops_at_frames(r)
+    wa, fa, _, ra = T.fit_weights(P, data.c, 4, robust_f=True)
+    wb, fb, _, rb = T.fit_weights(P, data.c, 4, robust_f=False)
+    y = np.linspace(-4, 4, 101)
+    assert np.array_equal(wa, wb) and np.array_equal(fa(y), fb(y)) and ra == rb
+    y_f = P @ wa
+    c_bent = np.where(y_f > 1.0, 12.0 - 6.0 * (y_f - 1.0), 12.0 * y_f)  # turns back above y = 1
+    _, fm, sign, _ = T.fit_weights(P, c_bent, 14, robust_f=True)
+    _, fp, _, _ = T.fit_weights(P, c_bent, 14, robust_f=False)
+    g = np.linspace(y_f.min(), y_f.max(), 401)
+    assert np.any(np.diff(fp(g)) < 0)  # the plain P-spline follows the turn
+    # The constrained fit is monotone (flat where the data turn back; build_table then makes it
+    # strictly monotone by one LSB, as for f_remain).
+    assert sign == 1 and np.all(np.diff(fm(g)) >= -1e-9)
+
+
+def test_fitted_table_loads_when_the_data_want_a_tiny_first_weight():
+    # Planted w_0 = 1e-4: the inverse's error bound (~1/w_0 raw) would exceed calib_load's
+    # precision ceiling (B/16 = 1638 raw here) and the table would be refused; the fit bounds
+    # v_i = w_i/w_0 so that the table it writes always loads (v_max_for_table).
+    data, *_ = ref_session(np.zeros(1), np.ones(1))
+    r = threshold_rule(data)
+    w = np.zeros(16)
+    w[[0, 6, 12]] = 1e-4, 0.5, 0.5 - 1e-4
+    data, q, _, _ = ref_session(r, w)
+    tr, f, _, ch = T.choose_model(data, "pi")
+    assert ch["model"] == "pi" and tr.n > 1
+    assert 1 / tr.w[0] <= 0.5 * 1638 + 1e-6  # sum v <= ceiling/2
+    tab = TB.build_table(tr.play_width(data.B), f, float(q.min()), float(q.max()), "mm", transition=tr)
+    assert tab.n_ops == tr.n
 
 
 def test_model_play_and_pi_restrict_the_candidates():
