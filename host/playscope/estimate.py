@@ -693,6 +693,86 @@ def f_remain_lsq(q_c: np.ndarray, c: np.ndarray, B, n_ctrl: int = 14, smooth: fl
     return SplineFn(spl, lo, hi, linear_ends=True), sign, z
 
 
+# f_remain's stiffness (issue 13 item 3): its number of control points, chosen by cross-validation on
+# the calibration frames. Candidates fixed a priori: a single cubic (4) up to 2x the paper's 14.
+F_CTRL_GRID = (4, 6, 8, 10, 14, 20, 28)
+F_FRAMES_PER_CTRL = 10  # a candidate needs >= 10 training frames per coefficient in every fold
+
+
+def _monotone_pspline(x: np.ndarray, y: np.ndarray, n_ctrl: int, lo: float, hi: float, smooth: float,
+                      sign: int) -> SplineFn:
+    """robust_spline's first (unweighted) iteration, monotone, solved on its normal equations:
+    with N = A'A + lam D'D = R'R (Cholesky) the F-row problem equals ||R c - R^-T A'y||^2 + const,
+    an n_ctrl-row bounded least squares (bvls), so a fit costs one design matrix and an n x n
+    solve. For the cross-validation's many fits (the final fit is the robust one). Returns the
+    SplineFn with linear ends over [lo, hi], as f_remain_lsq's."""
+    from scipy.linalg import cho_factor, solve_triangular
+
+    t = clamped_knots(lo, hi, n_ctrl)
+    A = BSpline.design_matrix(np.clip(x, lo, hi), t, 3).toarray()
+    D = _diff_penalty(n_ctrl)
+    AtA = A.T @ A
+    lam = smooth * max(np.trace(AtA) / n_ctrl, 1e-12)
+    N = AtA + lam * (D.T @ D) + 1e-12 * np.eye(n_ctrl) * max(np.trace(AtA), 1.0)
+    R, _ = cho_factor(N, lower=False)
+    R = np.triu(R)
+    rhs = solve_triangular(R, A.T @ y, trans="T", lower=False)
+    Tm = np.tril(np.ones((n_ctrl, n_ctrl))) * np.where(np.arange(n_ctrl) == 0, 1.0, float(sign))[None, :]
+    lb = np.r_[-np.inf, np.zeros(n_ctrl - 1)]
+    th = lsq_linear(R @ Tm, rhs, bounds=(lb, np.full(n_ctrl, np.inf)), method="bvls").x
+    return SplineFn(BSpline(t, Tm @ th, 3, extrapolate=False), lo, hi, linear_ends=True)
+
+
+def choose_f_ctrl(z: np.ndarray, c: np.ndarray, splits, grid=F_CTRL_GRID, smooth: float = 1e-3) -> dict:
+    """f_remain's stiffness (control points N) by cross-validation on the calibration frames.
+
+    z, c: (F,) play centre (eq. 3, actuator units) and angle (deg) at the calibration frames, in
+    time order. splits: [(train mask (F,), test mask (F,))], the rolling origins of the
+    transition's model choice (transition.rolling_origins: fit on the frames before each origin,
+    score the next block), so f is judged as the board uses it: fitted on the past, predicting
+    frames that come after, whose z may reach beyond the trained range (linear ends, as the
+    tables). Each candidate N of ``grid`` (at most one per F_FRAMES_PER_CTRL frames of the
+    smallest training part; 4, a single cubic, always) is fitted on each training part by the
+    monotone P-spline (_monotone_pspline, the penalty ``smooth`` relative to the data term as in
+    robust_spline), scored by the held-out RMSE per fold; cv = rms over folds, se = their standard
+    error. Choice: the fewest control points within one standard error of the best (the
+    one-standard-error rule of Hastie, Tibshirani & Friedman, "The Elements of Statistical
+    Learning", 2nd ed., sec. 7.10; the rule of choose_stiffness and transition.choose_model): the
+    CV curve of a spline is flat near its minimum, and among near-equal scores the stiffest f
+    extrapolates most safely and carries the least noise into the tables. Returns {"n_ctrl": N,
+    "rule": str, "candidates": [{"n_ctrl", "cv_rmse_deg", "cv_se_deg"}]}; n_ctrl is None when no
+    fold has frames to judge (the caller keeps its default). Errors: none (bad folds are skipped).
+    """
+    z, c = np.asarray(z, float), np.asarray(c, float)
+    folds = [(tr, te) for tr, te in splits if te.sum() >= 3 and tr.sum() >= 4 * F_FRAMES_PER_CTRL]
+    rule = "CV on a rolling origin (fit before, score the next block), fewest control points within one SE"
+    if not folds:
+        return {"n_ctrl": None, "rule": rule + " (no fold with frames to judge)", "candidates": []}
+    n_max = min(int(tr.sum()) for tr, _ in folds) // F_FRAMES_PER_CTRL
+    grid = [int(n) for n in grid if n <= n_max] or [4]
+    sign = 1 if np.corrcoef(z, c)[0, 1] >= 0 else -1
+    rows = []
+    for n in grid:
+        errs = []
+        for tr, te in folds:
+            lo, hi = float(z[tr].min()), float(z[tr].max())
+            if hi <= lo:
+                continue
+            f = _monotone_pspline(z[tr], c[tr], n, lo, hi, smooth, sign)
+            errs.append(float(np.sqrt(np.mean((f(z[te]) - c[te]) ** 2))))
+        if not errs:
+            continue
+        e = np.array(errs)
+        rows.append({"n_ctrl": n, "cv_rmse_deg": float(np.sqrt(np.mean(e ** 2))),
+                     "cv_se_deg": float(np.std(e, ddof=1) / np.sqrt(e.size)) if e.size > 1 else 0.0})
+    if not rows:
+        return {"n_ctrl": None, "rule": rule + " (no fold with a z range)", "candidates": []}
+    best = min(rows, key=lambda d: d["cv_rmse_deg"])
+    limit = best["cv_rmse_deg"] + best["cv_se_deg"]
+    pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: d["n_ctrl"])
+    return {"n_ctrl": int(pick["n_ctrl"]), "rule": rule, "candidates": rows}
+
+
 def f_remain_morph(q_c: np.ndarray, c: np.ndarray, n_ctrl: int = 14, size: int = 512, close_px: int = 7,
                    smooth: float = 1e-3):
     """f_remain by the paper's method (section IV): the characteristic drawn as an image,
