@@ -358,6 +358,63 @@ def angle_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
     return fps, {"jump_ratio": 0.0, "threshold": T}, doc
 
 
+def _rms2(su: float, sv: float) -> float:
+    """rms of a 2-D frame difference |d| from the per-axis rms of its components."""
+    return float(np.sqrt(su * su + sv * sv))
+
+
+def image_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.ndarray,
+                         t_f: np.ndarray, obs: np.ndarray, t_delay_s: float, fps: float):
+    """Onset threshold of the image (marker, px) detector from the record: the angle rule
+    (angle_onset_settings) in 2-D, at the camera's own frame rate.
+
+    1. Bootstrap: the C detector with the fixed T0 = k rms|d|, rms|d| from diff2_noise of u and
+       v (an upper bound of the still noise from the whole record), k = onset_noise_k(fps x
+       median stroke, dims=2) = sqrt(ln(n / alpha)); each onset gives a still segment
+       [t1 + t_delay, t2).
+    2. T = k sigma_d: sigma_d = rms of the 2-D still frame difference, from still_noise on u
+       and v over the bootstrap's still segments (one frame of margin at each end), or the
+       diff2 bound when that is smaller (both bound the still noise from above: the segments
+       hold motion when the onsets come late, because the marker moves less per frame than
+       T0); with fewer than MIN_STILL_PAIRS pairs, the diff2 bound. A fixed T replaces the C detector's
+       automatic one (k = 3 and its 0.05 / 1 px floor and ceiling, constants).
+    t_enc, q: encoder (N,); rev_t, rev_q: reversals (M,); t_f (F,) s, obs (F, 2) px, NaN = lost;
+    t_delay_s: acquisition delay (s); fps: camera rate (Hz). Returns (OnsetConfig overrides
+    dict, doc dict); ({}, doc) when no noise figure can be had (the C defaults then stay)."""
+    t_f, obs = np.asarray(t_f, float), np.asarray(obs, float)
+    stroke = float(np.median(np.diff(rev_t))) if rev_t.size >= 2 else float(t_enc[-1] - t_enc[0]) / max(rev_t.size + 1, 1)
+    k = onset_noise_k(fps * stroke, dims=2)
+    doc = {"stroke_s": stroke, "fps": fps, "alpha": FALSE_ONSETS_PER_REVERSAL, "noise_k": k}
+    s0 = _rms2(diff2_noise(obs[:, 0]), diff2_noise(obs[:, 1]))
+    if not np.isfinite(s0) or s0 <= 0:
+        doc["rule"] = "C defaults (no noise estimate)"
+        return {}, doc
+    T0 = max(k * s0, 2.0 / 65536.0)
+    doc["bootstrap_threshold_px"] = T0
+    on0 = run_onsets(t_enc, q, rev_t, rev_q, t_f, obs, "image", OnsetConfig(t_delay_s=t_delay_s, fps=fps, threshold=T0))
+    doc["bootstrap_onsets"] = int(on0.b.size)
+    sig, pairs = float("nan"), 0
+    if on0.b.size:
+        order = np.argsort(on0.t1_s)
+        a = on0.t1_s[order] + t_delay_s + 1.0 / fps
+        b = on0.t2_s[order] - 1.0 / fps
+        su, pu = still_noise(t_f, obs[:, 0], a, b)
+        sv, pv = still_noise(t_f, obs[:, 1], a, b)
+        sig, pairs = _rms2(su, sv), min(pu, pv)
+    doc.update(still_pairs=pairs, still_noise_px=sig, diff2_noise_px=s0)
+    if pairs >= MIN_STILL_PAIRS and sig > 0:
+        # Both figures bound the same still noise from above (the segments may hold motion when
+        # onsets are found late; diff2 holds the motion's curvature): the smaller is kept.
+        doc["rule"] = "T = k x min(still noise, diff2_noise) (2-D)"
+        sig = min(sig, s0)
+    else:
+        sig = s0
+        doc["rule"] = "T = k x diff2_noise (2-D; too few still frame pairs)"
+    T = max(k * sig, 2.0 / 65536.0)
+    doc["threshold_px"] = T
+    return {"threshold": T}, doc
+
+
 # --------------------------------------------------------------------------- B spline
 def clamped_knots(lo: float, hi: float, n_ctrl: int, degree: int = 3) -> np.ndarray:
     """Knot vector of a clamped B-spline with n_ctrl control points spread evenly over
