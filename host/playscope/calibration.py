@@ -286,7 +286,6 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         cfg_td = t_delay_s if t_delay_s is not None else s.t_delay_s
         rob = robust_samples(t_enc, q, q_rev, rt, rq, t_f, obs, fr, cfg_td, t_delay_from, onsets, onset_cfg, hyst)
         td, refine_doc = rob.t_delay_s, rob.report
-        defaults, onset_rule = rob.onset_overrides, rob.onset_rule  # the image threshold from the record
         warnings += rob.warnings
         td_src = "argument" if t_delay_s is not None and t_delay_from == "config" else rob.t_delay_source
     cfg = E.OnsetConfig(t_delay_s=td, fps=fr, **{**defaults, **(onset_cfg or {})})

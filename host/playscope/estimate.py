@@ -258,19 +258,25 @@ def onset_noise_k(n_frames: float, dims: int = 1, alpha: float = FALSE_ONSETS_PE
     return float(norm.isf(alpha / (2.0 * n))) if dims == 1 else float(np.sqrt(np.log(n / alpha)))
 
 
-def still_noise(t_f: np.ndarray, c_f: np.ndarray, t_a: np.ndarray, t_b: np.ndarray) -> tuple[float, int]:
-    """Robust rms of frame-to-frame differences on still segments [t_a[i], t_b[i]) (s).
-
-    Pairs of consecutive valid frames inside the same segment; sigma = 1.4826 x MAD of their
-    differences (the MAD about the median takes out a slow creep and ignores a frame of
-    motion at a segment's end). t_f, c_f: (F,) frames; t_a, t_b: (S,) sorted by t_a.
-    Returns (sigma (deg per frame), pairs used); (nan, 0) without a pair."""
+def still_diffs(t_f: np.ndarray, c_f: np.ndarray, t_a: np.ndarray, t_b: np.ndarray) -> np.ndarray:
+    """Frame-to-frame differences of consecutive valid frames inside the same still segment
+    [t_a[i], t_b[i]) (s). t_f, c_f: (F,) frames; t_a, t_b: (S,) sorted by t_a. Returns (P,)."""
     t_f, c_f = np.asarray(t_f, float), np.asarray(c_f, float)
     seg = np.searchsorted(t_a, t_f, side="right") - 1
     inside = (seg >= 0) & np.isfinite(c_f)
     inside[inside] &= t_f[inside] < np.asarray(t_b)[seg[inside]]
     pair = inside[1:] & inside[:-1] & (seg[1:] == seg[:-1])
-    d = np.diff(c_f)[pair]
+    return np.diff(c_f)[pair]
+
+
+def still_noise(t_f: np.ndarray, c_f: np.ndarray, t_a: np.ndarray, t_b: np.ndarray) -> tuple[float, int]:
+    """Robust rms of frame-to-frame differences on still segments [t_a[i], t_b[i]) (s).
+
+    Pairs of consecutive valid frames inside the same segment (still_diffs); sigma = 1.4826 x
+    MAD of their differences (the MAD about the median takes out a slow creep and ignores a
+    frame of motion at a segment's end). t_f, c_f: (F,) frames; t_a, t_b: (S,) sorted by t_a.
+    Returns (sigma (deg per frame), pairs used); (nan, 0) without a pair."""
+    d = still_diffs(t_f, c_f, t_a, t_b)
     if d.size == 0:
         return float("nan"), 0
     return float(1.4826 * np.median(np.abs(d - np.median(d)))), int(d.size)
@@ -358,6 +364,18 @@ def angle_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
     return fps, {"jump_ratio": 0.0, "threshold": T}, doc
 
 
+def _axis_noise(d: np.ndarray) -> float:
+    """rms of still frame differences d (one image axis): 1.4826 MAD (still_noise's robust
+    figure), or, when over half of them are exactly equal (a tracker that returns the same
+    sub-pixel position for a still marker: MAD 0), their rms about the median, which counts the
+    rare jitter the MAD cannot see. nan without a difference."""
+    if d.size == 0:
+        return float("nan")
+    r = d - np.median(d)
+    mad = float(np.median(np.abs(r)))
+    return 1.4826 * mad if mad > 0 else float(np.sqrt(np.mean(r * r)))
+
+
 def _rms2(su: float, sv: float) -> float:
     """rms of a 2-D frame difference |d| from the per-axis rms of its components."""
     return float(np.sqrt(su * su + sv * sv))
@@ -366,7 +384,10 @@ def _rms2(su: float, sv: float) -> float:
 def image_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.ndarray,
                          t_f: np.ndarray, obs: np.ndarray, t_delay_s: float, fps: float):
     """Onset threshold of the image (marker, px) detector from the record: the angle rule
-    (angle_onset_settings) in 2-D, at the camera's own frame rate.
+    (angle_onset_settings) in 2-D, at the camera's own frame rate. Not used by `calibrate` yet:
+    on the demo's STRAS-like preset, whose tip creeps through the dead band, it fires later than
+    the C detector's automatic threshold and B is worse (docs/robustness.md); pass its
+    overrides as `calibrate(onset_cfg=...)` to use it.
 
     1. Bootstrap: the C detector with the fixed T0 = k rms|d|, rms|d| from diff2_noise of u and
        v (an upper bound of the still noise from the whole record), k = onset_noise_k(fps x
@@ -376,7 +397,8 @@ def image_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
        and v over the bootstrap's still segments (one frame of margin at each end), or the
        diff2 bound when that is smaller (both bound the still noise from above: the segments
        hold motion when the onsets come late, because the marker moves less per frame than
-       T0); with fewer than MIN_STILL_PAIRS pairs, the diff2 bound. A fixed T replaces the C detector's
+       T0); with fewer than MIN_STILL_PAIRS pairs, the diff2 bound. Per axis the MAD figure, or
+       the rms when the MAD is 0 (a tracker that repeats the same position: _axis_noise). A fixed T replaces the C detector's
        automatic one (k = 3 and its 0.05 / 1 px floor and ceiling, constants).
     t_enc, q: encoder (N,); rev_t, rev_q: reversals (M,); t_f (F,) s, obs (F, 2) px, NaN = lost;
     t_delay_s: acquisition delay (s); fps: camera rate (Hz). Returns (OnsetConfig overrides
@@ -398,9 +420,8 @@ def image_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
         order = np.argsort(on0.t1_s)
         a = on0.t1_s[order] + t_delay_s + 1.0 / fps
         b = on0.t2_s[order] - 1.0 / fps
-        su, pu = still_noise(t_f, obs[:, 0], a, b)
-        sv, pv = still_noise(t_f, obs[:, 1], a, b)
-        sig, pairs = _rms2(su, sv), min(pu, pv)
+        du, dv = still_diffs(t_f, obs[:, 0], a, b), still_diffs(t_f, obs[:, 1], a, b)
+        sig, pairs = _rms2(_axis_noise(du), _axis_noise(dv)), min(du.size, dv.size)
     doc.update(still_pairs=pairs, still_noise_px=sig, diff2_noise_px=s0)
     if pairs >= MIN_STILL_PAIRS and sig > 0:
         # Both figures bound the same still noise from above (the segments may hold motion when

@@ -27,7 +27,7 @@ Units: t in s, image points in px. Arrays per reversal are (M,).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -445,8 +445,6 @@ class RobustOnsets:
     t_delay_source: str
     report: dict
     warnings: list
-    onset_overrides: dict = field(default_factory=dict)  # the detector's threshold from the record (estimate.image_onset_settings)
-    onset_rule: dict | None = None                       # how it was found
 
 
 def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.ndarray, rq: np.ndarray,
@@ -477,14 +475,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     tol = max(0.02 * hysteresis, 1e-9 * max(float(np.ptp(q_rev)), 1.0))
     t_stop = motor_stop_times(t_enc, q_rev, rt, rq, tol)
     d0 = coarse_delay(t_f, obs, t_stop, t_enc, q_rev, period)
-    # The detector's threshold from the record (false-alarm rate and still noise,
-    # estimate.image_onset_settings) unless the caller sets one.
-    td0 = d0 if t_delay_cfg is None else t_delay_cfg
-    over, rule = {}, None
-    if not any(k in (onset_cfg or {}) for k in ("threshold", "noise_k")):
-        over, rule = E.image_onset_settings(t_enc, q, rt, rq, t_f, obs, td0, fps)
     if board is None:
-        cfg = E.OnsetConfig(t_delay_s=td0, fps=fps, **{**over, **(onset_cfg or {})})
+        cfg = E.OnsetConfig(t_delay_s=d0 if t_delay_cfg is None else t_delay_cfg, fps=fps, **(onset_cfg or {}))
         board = E.run_onsets(t_enc, q, rt, rq, t_f, obs, "image", cfg)
     # The board's candidates by reversal (its t1 is the commanded reversal, up to rounding).
     guess = np.full(rt.size, np.nan)
@@ -548,4 +540,4 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                   "median_step_px": float(np.median(ref.step_px[steps])) if steps.any() else 0.0},
         "sigma_t2_s_median": float(np.nanmedian(ref.sigma_t2_s)) if ref.ok.any() else None,
     }
-    return RobustOnsets(on, float(td), src, report, warnings, over, rule)
+    return RobustOnsets(on, float(td), src, report, warnings)
