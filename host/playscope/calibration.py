@@ -320,14 +320,14 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         lm = {"residual_px_median": float(np.nanmedian(res)), "residual_px_max": float(np.nanmax(res))}
     q_c, c_c = E.characteristic(t_enc, q, t_f, c_f, td)
     # f_remain's stiffness from the calibration frames: rolling-origin CV on the transition's folds.
+    z_c = model.play_operator(q_c, B)
     if f_ctrl is None:
-        f_cv = E.choose_f_ctrl(model.play_operator(q_c, B), c_c,
-                               T.rolling_origins(T.FitData.from_session(t_enc, q, B, t_f, c_f, td), T.KFOLD))
+        f_cv = E.choose_f_ctrl(z_c, c_c, T.rolling_origins(T.FitData.from_session(t_enc, q, B, t_f, c_f, td), T.KFOLD))
         f_n = f_cv["n_ctrl"] or n_ctrl
     else:
         f_cv, f_n = {"n_ctrl": int(f_ctrl), "rule": "given", "candidates": []}, int(f_ctrl)
     fits = {}
-    fits["lsq"] = E.f_remain_lsq(q_c, c_c, B, f_n)[:2]
+    fits["lsq"] = E.f_remain_lsq(q_c, c_c, B, f_n, z=z_c)[:2]
     fits["morph"] = E.f_remain_morph(q_c, c_c, n_ctrl)[:2]
     if f_method not in fits:
         raise ValueError(f"f_method must be 'lsq' or 'morph', not {f_method!r}")

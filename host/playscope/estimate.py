@@ -756,15 +756,16 @@ def characteristic(t_enc, q, t_f, c_f, t_delay_s: float) -> tuple[np.ndarray, np
 
 
 def f_remain_lsq(q_c: np.ndarray, c: np.ndarray, B, n_ctrl: int = 14, smooth: float = 1e-3,
-                 z_range: tuple[float, float] | None = None):
+                 z_range: tuple[float, float] | None = None, z: np.ndarray | None = None):
     """f_remain by play-consistent least squares (our estimator).
 
     With B fixed from the onsets, the play operator gives the centre z[k] from q alone
     (eq. 3), and the model says c[k] = f(z[k]); f is then a monotone robust spline
     regression of c on z, using every frame (transitions included) instead of the loop's
-    outline only. q_c, c: (F,) in time order. Returns (SplineFn, sign of f', z (F,)).
+    outline only. q_c, c: (F,) in time order; z: the play centre if the caller has it
+    (model.play_operator(q_c, B)). Returns (SplineFn, sign of f', z (F,)).
     """
-    z = model.play_operator(q_c, B)
+    z = model.play_operator(q_c, B) if z is None else np.asarray(z, float)
     sign = 1 if np.corrcoef(z, c)[0, 1] >= 0 else -1
     lo, hi = (float(z.min()), float(z.max())) if z_range is None else z_range
     spl, _ = robust_spline(z, c, n_ctrl, lo, hi, smooth, monotone=sign)
