@@ -382,7 +382,7 @@ static void time_b_online(const char *name, lut_t *b)
         uint32_t c1 = cyc();
         stat_add(&s, since(c0, c1));
     }
-    sink_q16 = bench_bo.b_q16[0];
+    sink_q16 = b_online_entries(&bench_bo)[0];
     report(name, &s);
 }
 

@@ -35,6 +35,7 @@ enum psp_msg_type {
     PSP_MSG_REVERSAL = 0x21,     /* H->B psp_reversal_t: a commanded direction change (t1, q1) */
     PSP_MSG_MARKER_OBS = 0x22,   /* H->B psp_marker_obs_t; B->H empty, or psp_b_sample_t on an onset */
     PSP_MSG_COMP_STEP = 0x30,    /* H->B psp_comp_req_t; B->H psp_comp_resp_t */
+    PSP_MSG_LEARN = 0x31,        /* H->B psp_learn_ctl_t: on-line B update on/off/query; B->H psp_learn_state_t */
     PSP_MSG_ERROR = 0x7F,        /* B->H psp_error_t */
 };
 
@@ -190,6 +191,32 @@ typedef struct PS_PACKED psp_comp_resp {
     int32_t q_ref_q16;           /* q*[k], actuator units */
 } psp_comp_resp_t;
 PS_STATIC_ASSERT(sizeof(psp_comp_resp_t) == 4, "psp_comp_resp_t must be 4 bytes");
+
+/* On-line B update during use (issue 13 item 4, docs/online.md): the B samples the onset
+ * detector completes are queued and learnt outside the tick (firmware/core/b_online.h). */
+enum psp_learn_op {
+    PSP_LEARN_QUERY = 0,         /* report the state, change nothing */
+    PSP_LEARN_START = 1,         /* start on the running table's B (restart: theta 0, P = p0 I) */
+    PSP_LEARN_STOP = 2,          /* stop; the running table's flashed B is used again */
+};
+
+typedef struct PS_PACKED psp_learn_ctl {
+    uint8_t op;                  /* enum psp_learn_op */
+    uint8_t reserved[3];
+} psp_learn_ctl_t;
+PS_STATIC_ASSERT(sizeof(psp_learn_ctl_t) == 4, "psp_learn_ctl_t must be 4 bytes");
+
+typedef struct PS_PACKED psp_learn_state {
+    uint32_t samples;            /* B samples learnt since the start (b_online_t.samples) */
+    uint32_t queued;             /* B samples completed since the start, learnt or waiting */
+    uint32_t dropped;            /* of those, lost because the queue was full */
+    uint32_t b_crc32;            /* CRC-32 (ps_crc32) of the n_grid B entries the loop runs, int32 LE;
+                                    0 when stopped: a host mirror (b_online through cffi) checks it */
+    uint16_t n_grid;             /* B grid entries (0 when stopped) */
+    uint8_t n_nodes;             /* coefficients learnt */
+    uint8_t on;                  /* 1 while learning */
+} psp_learn_state_t;
+PS_STATIC_ASSERT(sizeof(psp_learn_state_t) == 20, "psp_learn_state_t must be 20 bytes");
 
 typedef struct PS_PACKED psp_error {
     uint16_t code;               /* enum psp_error_code */

@@ -36,6 +36,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         size_t n = size - off < 64 ? size - off : 64;
         psl_rx(&board, data + off, n);
         q = psl_tick(&board, t_us, q);
+        (void)psl_background(&board); /* the main loop's background step (on-line B) */
         t_us += 1000;
     }
     return 0;

@@ -24,7 +24,7 @@ bool psa_set_table(psa_loop_t *l, const calib_t *cal)
         /* Hot swap during use (a host refresh of f_remain, an offset or B): the compensator
          * keeps its direction, offset and ramp and runs the new table from the next tick. */
         l->cal = cal;
-        l->comp.cal = cal;
+        comp_rebind(&l->comp, cal); /* the cached cells held the previous table's entries */
         return true;
     }
     l->cal = cal;
@@ -121,6 +121,11 @@ int32_t psa_set_reference(psa_loop_t *l, int32_t c_ref_q16)
     return l->q_ref_q16;
 }
 
+void psa_b_changed(psa_loop_t *l)
+{
+    comp_b_changed(&l->comp);
+}
+
 bool psa_reversal(psa_loop_t *l, uint32_t t1_us, int32_t q1_q16, onset_event_t *ev)
 {
     return onset_reversal(&l->onset, t1_us, q1_q16, ev);
@@ -134,8 +139,10 @@ void psa_set_learning(psa_loop_t *l, b_online_t *bo)
 /* The one hook of the on-line B update: an observation completed an onset. */
 static bool learn(psa_loop_t *l, bool hit, const onset_event_t *ev)
 {
-    if (hit && l->learn != NULL && (ev->reason == ONSET_OK || ev->reason == ONSET_OK_COARSE))
+    if (hit && l->learn != NULL && (ev->reason == ONSET_OK || ev->reason == ONSET_OK_COARSE)) {
         b_online_sample(l->learn, ev->q_mean_q16, ev->b_q16);
+        comp_b_changed(&l->comp);
+    }
     return hit;
 }
 

@@ -95,4 +95,9 @@ bool psa_observe_deg(psa_loop_t *l, uint32_t t_us, int32_t c_q16, bool valid, on
  * A sample that a tick completes (the rare finish on timeout) is not learnt. */
 void psa_set_learning(psa_loop_t *l, b_online_t *bo);
 
+/* The running table's B entries changed outside the loop (an on-line B sample published by a
+ * background step, b_online_sample / b_online_stop): the compensator drops its cached cell of
+ * B. Safe to call from outside an interrupt-driven tick (one word store). O(1). */
+void psa_b_changed(psa_loop_t *l);
+
 #endif /* PSA_LOOP_H */

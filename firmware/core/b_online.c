@@ -16,6 +16,7 @@
  * congruence D P D keeps P symmetric positive semi-definite. */
 #include "b_online.h"
 
+#include <stdatomic.h>
 #include <stddef.h>
 #include <string.h>
 
@@ -60,10 +61,24 @@ b_online_config_t b_online_default_config(void)
     return c;
 }
 
-/* Rewrite the running entries from the prior and theta: floor at 0, then the largest lower
- * envelope with slope <= slope_max (forward then backward min-plus pass). */
+/* Make copy `idx` the one the loop reads: the entries are complete before the pointer moves
+ * (the fence keeps the compiler from sinking their stores below it; one core, so the tick
+ * interrupt sees program order), and the pointer is one aligned word store. */
+static void publish(b_online_t *bo, uint8_t idx)
+{
+    atomic_signal_fence(memory_order_release);
+    if (bo->out != NULL)
+        bo->out->y_q16 = bo->b_q16[idx];
+    bo->live = idx;
+}
+
+/* Rewrite the entries from the prior and theta into the copy the loop does not read: floor
+ * at 0, then the largest lower envelope with slope <= slope_max (forward then backward
+ * min-plus pass); then publish it. */
 static void write_grid(b_online_t *bo)
 {
+    const uint8_t idx = (uint8_t)(bo->live ^ 1u);
+    int32_t *out = bo->b_q16[idx];
     const uint32_t k = bo->node_log2;
     const int64_t half_k = k ? ((int64_t)1 << (k - 1)) : 0;
     const int64_t lip = ((int64_t)bo->cfg.slope_max_q16 << bo->grid_log2) >> 16;
@@ -79,14 +94,15 @@ static void write_grid(b_online_t *bo)
         if (j > 0 && b > prev + lip)
             b = prev + lip;
         b = b > INT32_MAX ? INT32_MAX : b;
-        bo->b_q16[j] = (int32_t)b;
+        out[j] = (int32_t)b;
         prev = b;
     }
     for (uint32_t j = bo->n_grid - 1u; j-- > 0;) {
-        int64_t cap = (int64_t)bo->b_q16[j + 1] + lip;
-        if (bo->b_q16[j] > cap)
-            bo->b_q16[j] = (int32_t)cap;
+        int64_t cap = (int64_t)out[j + 1] + lip;
+        if (out[j] > cap)
+            out[j] = (int32_t)cap;
     }
+    publish(bo, idx);
 }
 
 b_online_status_t b_online_init(b_online_t *bo, const b_online_config_t *cfg, lut_t *b)
@@ -114,8 +130,9 @@ b_online_status_t b_online_init(b_online_t *bo, const b_online_config_t *cfg, lu
     bo->lambda_p0_q30 = rq30(lam * cfg->p0_q30);
     for (uint32_t i = 0; i < bo->n_nodes; i++)
         bo->p_q30[i][i] = cfg->p0_q30;
-    memcpy(bo->b_q16, b->y_q16, (size_t)b->n * sizeof(int32_t));
-    b->y_q16 = bo->b_q16;
+    memcpy(bo->b_q16[0], b->y_q16, (size_t)b->n * sizeof(int32_t));
+    bo->out = b;
+    publish(bo, 0);
     return B_ONLINE_OK;
 }
 
@@ -125,9 +142,21 @@ b_online_status_t b_online_rebind(b_online_t *bo, lut_t *b)
         return B_ONLINE_ERR_GRID;
     bo->prior_q16 = b->y_q16;
     memset(bo->theta_q16, 0, sizeof bo->theta_q16);
+    bo->out = b;
     write_grid(bo);
-    b->y_q16 = bo->b_q16;
     return B_ONLINE_OK;
+}
+
+const int32_t *b_online_entries(const b_online_t *bo)
+{
+    return bo->b_q16[bo->live];
+}
+
+void b_online_stop(b_online_t *bo)
+{
+    if (bo->out != NULL)
+        bo->out->y_q16 = bo->prior_q16;
+    bo->out = NULL;
 }
 
 void b_online_sample(b_online_t *bo, int32_t q_mean_q16, int32_t b_q16)

@@ -45,7 +45,13 @@ typedef enum {
 typedef struct {
     b_online_config_t cfg;
     const int32_t *prior_q16;    /* the flashed B entries (the table blob), read only */
-    int32_t b_q16[PST_MAX_ENTRIES]; /* the B entries the loop runs: prior + correction, bounded */
+    lut_t *out;                  /* the running table's B: its y_q16 is pointed at b_q16[live] */
+    /* Two copies of the B entries the loop runs (prior + correction, bounded): a sample is
+     * written into the copy the loop does not read, then published by one aligned pointer
+     * store (out->y_q16), so a tick that preempts the update reads either the old or the
+     * new grid, never a half-written one (the A/B idea of the table commit, for B alone). */
+    int32_t b_q16[2][PST_MAX_ENTRIES];
+    uint8_t live;                /* index of the copy out->y_q16 points to */
     int32_t theta_q16[B_ONLINE_MAX_NODES]; /* correction at each node, actuator units Q16 */
     int32_t p_q30[B_ONLINE_MAX_NODES][B_ONLINE_MAX_NODES]; /* covariance / noise variance, Q30, symmetric */
     int64_t inv_lambda_q30;      /* 1/lambda */
@@ -59,9 +65,11 @@ typedef struct {
     uint32_t samples;            /* samples learnt since init (saturating) */
 } b_online_t;
 
-/* Start learning on a loaded table's B: the RAM copy b_q16 starts as the flashed entries,
- * theta = 0, P = p0 I, and b->y_q16 is re-pointed to b_q16, so whatever evaluates *b (the
- * compensator, eq. 4) runs the learnt B from then on. The flashed entries stay the prior
+/* Start learning on a loaded table's B: the RAM copy starts as the flashed entries,
+ * theta = 0, P = p0 I, and b->y_q16 is re-pointed to it, so whatever evaluates *b (the
+ * compensator, eq. 4) runs the learnt B from then on (b must outlive the learner, or be
+ * replaced by b_online_rebind / b_online_stop). A compensator that caches a cell of *b
+ * (comp_t) must drop it after every call that publishes (comp_b_changed). The flashed entries stay the prior
  * (the table blob must stay valid, as calib_load already requires). Nodes: every 2^k-th
  * grid entry, k the smallest giving <= B_ONLINE_MAX_NODES. On error nothing is changed.
  * Init time (one integer square root); call it after calib_load, before psa_set_table. */
@@ -72,7 +80,7 @@ b_online_status_t b_online_init(b_online_t *bo, const b_online_config_t *cfg, lu
  * current entries (b_q16) with its refreshed f_remain and offset. b (the new table's B, same
  * grid: n, x0 and step) becomes the prior, theta = 0 (the correction is now in the prior),
  * P is kept (the estimate's uncertainty is unchanged by moving it into the prior), and
- * b->y_q16 is re-pointed to the RAM copy. B_ONLINE_ERR_GRID, nothing changed, for another
+ * b->y_q16 is re-pointed to the RAM copy (b is the learner's table from then on). B_ONLINE_ERR_GRID, nothing changed, for another
  * grid (then b_online_init). Init time, O(n_grid). */
 b_online_status_t b_online_rebind(b_online_t *bo, lut_t *b);
 
@@ -80,10 +88,18 @@ b_online_status_t b_online_rebind(b_online_t *bo, lut_t *b);
  * ONSET_OK_COARSE), actuator units Q16: one RLS step on theta and P with forgetting
  * (regressor: the two linear B-spline weights at q_mean, clamped to the grid; target
  * b - prior(q_mean)), then the entries rewritten as prior + correction, floored at 0 and
- * replaced by their largest lower envelope with |dB/dq| <= slope_max (exact, two passes).
+ * replaced by their largest lower envelope with |dB/dq| <= slope_max (exact, two passes),
+ * written into the copy the loop does not read and then published (one pointer store).
  * Integer-only; one 64-bit divide (1/s of the gain) per sample: it runs when an onset
  * completes (a camera frame or angle reading, about once per reversal), never per tick.
  * O(N^2 + n_grid); bench/bench_firmware.sh gives its cost. */
 void b_online_sample(b_online_t *bo, int32_t q_mean_q16, int32_t b_q16);
+
+/* The B entries the loop runs now (n_grid of them, Q16): the published copy. */
+const int32_t *b_online_entries(const b_online_t *bo);
+
+/* Stop learning: the bound table's B is pointed back at the flashed entries (one pointer
+ * store). The learner keeps its state but publishes nothing until b_online_init/_rebind. */
+void b_online_stop(b_online_t *bo);
 
 #endif /* B_ONLINE_H */

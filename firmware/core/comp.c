@@ -26,6 +26,18 @@ void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int
     }
 }
 
+void comp_rebind(comp_t *cp, const calib_t *cal)
+{
+    cp->f_inv_cell.width = 0;
+    cp->b_cell.width = 0;
+    cp->cal = cal;
+}
+
+void comp_b_changed(comp_t *cp)
+{
+    *(volatile uint32_t *)&cp->b_cell.width = 0;
+}
+
 /* Bring the residual r to 0 with |v| <= v_max and |dv| <= a_max per tick: accelerate
  * while the distance left still allows stopping (v^2 / 2 <= a |r|, compared without a
  * divide), brake otherwise, creep at a_max per tick at worst, and land exactly on 0 (the

@@ -48,6 +48,16 @@ comp_smoothing_t comp_smoothing_from_rates(int32_t v_q16, int32_t a_q16, uint32_
  * psa_set_table re-arms the loop, which resets). */
 void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int32_t c0_q16);
 
+/* Hot swap (psa_set_table during a pure-play compensation): run cal from the next step with
+ * the state kept (direction, offset, ramp); both cached cells are emptied, since they hold
+ * the previous table's entries. O(1). */
+void comp_rebind(comp_t *cp, const calib_t *cal);
+
+/* The entries of cal->b changed under the compensator (an on-line B update published, or
+ * stopped, b_online.h): B's cached cell is emptied (one word store: safe from outside an
+ * interrupt-driven tick, whose next B lookup refills it from the new entries). O(1). */
+void comp_b_changed(comp_t *cp);
+
 /* One step of eq. 4: q*[k] for reference c*[k] (deg, Q16).
  *   y*  = f^-1(c*)                         (f_coarse^-1 of eq. 5 or f_remain^-1 of eq. 9)
  *   q_c = PI^-1[y*]                        (the transition's inverse, Krejci-Kuhnen; q_c = y*

@@ -132,6 +132,7 @@ static int expected_len(uint8_t type)
     case PSP_MSG_REVERSAL: return (int)sizeof(psp_reversal_t);
     case PSP_MSG_MARKER_OBS: return (int)sizeof(psp_marker_obs_t);
     case PSP_MSG_COMP_STEP: return (int)sizeof(psp_comp_req_t);
+    case PSP_MSG_LEARN: return (int)sizeof(psp_learn_ctl_t);
     default: return -1;
     }
 }
@@ -325,6 +326,15 @@ static uint16_t do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8
         *detail = PSL_DETAIL_READBACK;
         return PSP_ERR_FLASH;
     }
+    /* Learning carries over: the new table's B becomes the learner's prior (the host flashes
+     * what the board learnt, docs/online.md), or, on another grid, learning restarts on it. */
+    if (l->learn_on && b_online_rebind(&l->learn, &l->cal[nb].b) != B_ONLINE_OK) {
+        b_online_config_t lc = b_online_default_config();
+        if (b_online_init(&l->learn, &lc, &l->cal[nb].b) != B_ONLINE_OK) {
+            l->learn_on = false;
+            l->learn_count = 0;
+        }
+    }
     l->active_buf = nb;
     (void)psa_set_table(&l->loop, &l->cal[nb]); /* not in excitation (checked above): always taken */
     psp_info_t info;
@@ -384,6 +394,91 @@ static uint16_t do_reversal(psl_t *l, uint16_t seq, const uint8_t *pl)
     return PSP_OK;
 }
 
+/* ------------------------------------------------------------------ on-line B update */
+/* A completed B sample waits for psl_background; the oldest is kept when the queue is full
+ * (the learner sees the samples in the order the host was told them). */
+static void learn_enqueue(psl_t *l, const onset_event_t *ev)
+{
+    l->learn_queued++;
+    if (l->learn_count == PSL_LEARN_QUEUE) {
+        l->learn_dropped++;
+        return;
+    }
+    uint8_t i = (uint8_t)((l->learn_head + l->learn_count) % PSL_LEARN_QUEUE);
+    l->learn_q[i][0] = ev->q_mean_q16;
+    l->learn_q[i][1] = ev->b_q16;
+    l->learn_count++;
+}
+
+static void learn_stop(psl_t *l)
+{
+    if (l->learn_on) {
+        b_online_stop(&l->learn);
+        psa_b_changed(&l->loop);
+    }
+    l->learn_on = false;
+    l->learn_count = 0;
+}
+
+/* Start on the running table's B (already running it: the published copy equals the flashed
+ * entries, so the compensator sees no change). */
+static bool learn_start(psl_t *l)
+{
+    learn_stop(l);
+    b_online_config_t c = b_online_default_config();
+    if (!have_table(l) || b_online_init(&l->learn, &c, &l->cal[l->active_buf].b) != B_ONLINE_OK)
+        return false;
+    psa_b_changed(&l->loop);
+    l->learn_on = true;
+    l->learn_head = 0;
+    l->learn_queued = 0;
+    l->learn_dropped = 0;
+    return true;
+}
+
+bool psl_background(psl_t *l)
+{
+    if (!l->learn_on || l->learn_count == 0)
+        return false;
+    const int32_t *s = l->learn_q[l->learn_head];
+    b_online_sample(&l->learn, s[0], s[1]);
+    psa_b_changed(&l->loop);
+    l->learn_head = (uint8_t)((l->learn_head + 1u) % PSL_LEARN_QUEUE);
+    l->learn_count--;
+    return true;
+}
+
+void psl_learn_state(const psl_t *l, psp_learn_state_t *st)
+{
+    memset(st, 0, sizeof(*st));
+    st->queued = l->learn_queued;
+    st->dropped = l->learn_dropped;
+    st->on = l->learn_on ? 1u : 0u;
+    if (l->learn_on) {
+        st->samples = l->learn.samples;
+        st->n_grid = l->learn.n_grid;
+        st->n_nodes = l->learn.n_nodes;
+        st->b_crc32 = ps_crc32_update(0, (const uint8_t *)b_online_entries(&l->learn),
+                                      (size_t)l->learn.n_grid * sizeof(int32_t));
+    }
+}
+
+static uint16_t do_learn(psl_t *l, uint16_t seq, const uint8_t *pl)
+{
+    psp_learn_ctl_t c;
+    memcpy(&c, pl, sizeof(c));
+    if (c.op > PSP_LEARN_STOP)
+        return PSP_ERR_RANGE;
+    if (c.op == PSP_LEARN_START && !learn_start(l))
+        return PSP_ERR_STATE; /* no table (or a grid the learner cannot take) */
+    if (c.op == PSP_LEARN_STOP)
+        learn_stop(l);
+    psp_learn_state_t st;
+    psl_learn_state(l, &st);
+    send(l, PSP_MSG_LEARN | PSP_RESPONSE, seq, &st, sizeof(st));
+    return PSP_OK;
+}
+
 static uint16_t do_marker(psl_t *l, uint16_t seq, const uint8_t *pl)
 {
     psp_marker_obs_t m;
@@ -397,6 +492,8 @@ static uint16_t do_marker(psl_t *l, uint16_t seq, const uint8_t *pl)
     else
         done = psa_observe_deg(&l->loop, m.t_us, m.u_q16, m.valid != 0, &ev);
     if (done) {
+        if (l->learn_on && (ev.reason == ONSET_OK || ev.reason == ONSET_OK_COARSE))
+            learn_enqueue(l, &ev);
         psp_b_sample_t b;
         b_sample_from(&ev, &b);
         send(l, PSP_MSG_MARKER_OBS | PSP_RESPONSE, seq, &b, sizeof(b));
@@ -470,6 +567,7 @@ void psl_handle(psl_t *l, const psp_frame_header_t *hdr, const uint8_t *payload)
     case PSP_MSG_REVERSAL: err = do_reversal(l, seq, payload); break;
     case PSP_MSG_MARKER_OBS: err = do_marker(l, seq, payload); break;
     case PSP_MSG_COMP_STEP: err = do_comp(l, seq, payload); break;
+    case PSP_MSG_LEARN: err = do_learn(l, seq, payload); break;
     default: err = PSP_ERR_TYPE; break;
     }
     if (err != PSP_OK) {

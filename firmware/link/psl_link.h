@@ -39,6 +39,12 @@ typedef struct {
 #define PSL_UPLOAD_TIMEOUT_US 5000000u
 #endif
 
+#ifndef PSL_LEARN_QUEUE
+/* PSL_LEARN_QUEUE: B samples waiting for psl_background. Default 4: onsets complete about
+ * once per reversal (a few per second at most), the main loop runs every tick. */
+#define PSL_LEARN_QUEUE 4
+#endif
+
 typedef struct {
     psl_config_t cfg;
     psf_parser_t parser;
@@ -63,6 +69,13 @@ typedef struct {
     uint8_t stream_decim, stream_left;
     psp_enc_samples_t batch;
     uint32_t n_b_events;         /* B samples (or failures) sent unsolicited */
+    /* On-line B update (PSP_MSG_LEARN): B samples the observations complete are queued by the
+     * request handler and learnt by psl_background, outside the tick. */
+    bool learn_on;
+    uint8_t learn_head, learn_count;
+    int32_t learn_q[PSL_LEARN_QUEUE][2]; /* (q_mean, b) Q16, oldest at learn_head */
+    uint32_t learn_queued, learn_dropped;
+    b_online_t learn;
     uint8_t tx[PSF_MAX_FRAME];
 } psl_t;
 
@@ -87,6 +100,16 @@ void psl_handle(psl_t *l, const psp_frame_header_t *hdr, const uint8_t *payload)
  * sample into the onset history), then streaming. Returns the set-point q* for the motor.
  * O(1) except when a batch or event is sent. */
 int32_t psl_tick(psl_t *l, uint32_t t_us, int32_t q_meas_q16);
+
+/* Work that must not delay a tick, run from the main loop between ticks (or at the lowest
+ * priority): learns the oldest queued B sample (b_online_sample: its RLS step, the grid
+ * rewritten into the copy the loop does not read, then published by one pointer store) and
+ * drops the compensator's cached B cell. True if it learnt one. bench/bench_firmware.sh
+ * gives b_online_sample's cost (6 k-28 k M4 instructions). */
+bool psl_background(psl_t *l);
+
+/* The on-line B state as PSP_MSG_LEARN reports it. */
+void psl_learn_state(const psl_t *l, psp_learn_state_t *st);
 
 /* Fill an info record of the current state. */
 void psl_info(const psl_t *l, psp_info_t *info);

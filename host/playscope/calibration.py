@@ -200,7 +200,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
               t_delay_s: float | None = None, hysteresis: float | None = None,
               onset_cfg: dict | None = None, source: str | None = None,
               onsets: E.Onsets | None = None, t_delay_from: str = "data",
-              model_kind: str = "auto") -> Calibration:
+              model_kind: str = "auto", f_ctrl: int | None = None) -> Calibration:
     """Run the chain on a session (image or angle).
 
     1 reversals (q_cmd if logged, else the encoder with hysteresis, default 1 % of the
@@ -222,6 +222,10 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
       a B(q) spline of min(n_ctrl, samples) control points with its stiffness by cross-validation
       (estimate.fit_backlash_auto); angle sessions take their frame rate and onset threshold from
       the record (estimate.angle_onset_settings); each fallback is a line in doc["warnings"].
+    f_ctrl: f_remain's control points; None (default): chosen by rolling-origin cross-validation on
+      the calibration frames (estimate.choose_f_ctrl, the fewest within one standard error of the
+      best); the choice and its scores are in doc["f_fit"]. The pure play's f in the transition's
+      model choice uses the same N.
     q_source "command" (session.json actuator.q_source): angle sessions measure the command-to-tip
       delay from the record (servo lag) instead of taking 0.
     Errors: InputError (naming the file) when q never reverses, when no reversal gives an onset,
@@ -315,8 +319,15 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         c_f, res = im.estimate_c(obs, model.f_coarse(q_f, s.robot.q_per_rad))
         lm = {"residual_px_median": float(np.nanmedian(res)), "residual_px_max": float(np.nanmax(res))}
     q_c, c_c = E.characteristic(t_enc, q, t_f, c_f, td)
+    # f_remain's stiffness from the calibration frames: rolling-origin CV on the transition's folds.
+    z_c = model.play_operator(q_c, B)
+    if f_ctrl is None:
+        f_cv = E.choose_f_ctrl(z_c, c_c, T.rolling_origins(T.FitData.from_session(t_enc, q, B, t_f, c_f, td), T.KFOLD))
+        f_n = f_cv["n_ctrl"] or n_ctrl
+    else:
+        f_cv, f_n = {"n_ctrl": int(f_ctrl), "rule": "given", "candidates": []}, int(f_ctrl)
     fits = {}
-    fits["lsq"] = E.f_remain_lsq(q_c, c_c, B, n_ctrl)[:2]
+    fits["lsq"] = E.f_remain_lsq(q_c, c_c, B, f_n, z=z_c)[:2]
     fits["morph"] = E.f_remain_morph(q_c, c_c, n_ctrl)[:2]
     if f_method not in fits:
         raise ValueError(f"f_method must be 'lsq' or 'morph', not {f_method!r}")
@@ -329,7 +340,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
                         f"(needs >= {MIN_REVERSALS_TRANSITION}, one stroke per fold)")
     if model_kind != "play":
         data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
-        tr, f_pi, sign_pi, choice = T.choose_model(data, model_kind, n_ctrl)
+        tr, f_pi, sign_pi, choice = T.choose_model(data, model_kind, f_n)
         if not tr.is_play:
             f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method}
             f, sign, f_method = f_pi, sign_pi, "lsq+pi"
@@ -348,6 +359,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         "warnings": warnings,
         "B": B.to_json(),
         "f_remain": {**f.to_json(), "sign": sign, "method": f_method},
+        "f_fit": {"n_ctrl": f_n, **{k: v for k, v in f_cv.items() if k != "n_ctrl"}},
         "f_remain_alt": {**fits[alt][0].to_json(), "sign": fits[alt][1], "method": alt},
         "f_coarse": {"q_per_rad": s.robot.q_per_rad},
         "pose_estimation": lm,

@@ -258,19 +258,25 @@ def onset_noise_k(n_frames: float, dims: int = 1, alpha: float = FALSE_ONSETS_PE
     return float(norm.isf(alpha / (2.0 * n))) if dims == 1 else float(np.sqrt(np.log(n / alpha)))
 
 
-def still_noise(t_f: np.ndarray, c_f: np.ndarray, t_a: np.ndarray, t_b: np.ndarray) -> tuple[float, int]:
-    """Robust rms of frame-to-frame differences on still segments [t_a[i], t_b[i]) (s).
-
-    Pairs of consecutive valid frames inside the same segment; sigma = 1.4826 x MAD of their
-    differences (the MAD about the median takes out a slow creep and ignores a frame of
-    motion at a segment's end). t_f, c_f: (F,) frames; t_a, t_b: (S,) sorted by t_a.
-    Returns (sigma (deg per frame), pairs used); (nan, 0) without a pair."""
+def still_diffs(t_f: np.ndarray, c_f: np.ndarray, t_a: np.ndarray, t_b: np.ndarray) -> np.ndarray:
+    """Frame-to-frame differences of consecutive valid frames inside the same still segment
+    [t_a[i], t_b[i]) (s). t_f, c_f: (F,) frames; t_a, t_b: (S,) sorted by t_a. Returns (P,)."""
     t_f, c_f = np.asarray(t_f, float), np.asarray(c_f, float)
     seg = np.searchsorted(t_a, t_f, side="right") - 1
     inside = (seg >= 0) & np.isfinite(c_f)
     inside[inside] &= t_f[inside] < np.asarray(t_b)[seg[inside]]
     pair = inside[1:] & inside[:-1] & (seg[1:] == seg[:-1])
-    d = np.diff(c_f)[pair]
+    return np.diff(c_f)[pair]
+
+
+def still_noise(t_f: np.ndarray, c_f: np.ndarray, t_a: np.ndarray, t_b: np.ndarray) -> tuple[float, int]:
+    """Robust rms of frame-to-frame differences on still segments [t_a[i], t_b[i]) (s).
+
+    Pairs of consecutive valid frames inside the same segment (still_diffs); sigma = 1.4826 x
+    MAD of their differences (the MAD about the median takes out a slow creep and ignores a
+    frame of motion at a segment's end). t_f, c_f: (F,) frames; t_a, t_b: (S,) sorted by t_a.
+    Returns (sigma (deg per frame), pairs used); (nan, 0) without a pair."""
+    d = still_diffs(t_f, c_f, t_a, t_b)
     if d.size == 0:
         return float("nan"), 0
     return float(1.4826 * np.median(np.abs(d - np.median(d)))), int(d.size)
@@ -356,6 +362,78 @@ def angle_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
     T = max(k * sig, 2.0 / 65536.0)  # a fixed threshold of 0 would mean "automatic" to the C detector
     doc["threshold_deg"] = T
     return fps, {"jump_ratio": 0.0, "threshold": T}, doc
+
+
+def _axis_noise(d: np.ndarray) -> float:
+    """rms of still frame differences d (one image axis): 1.4826 MAD (still_noise's robust
+    figure), or, when over half of them are exactly equal (a tracker that returns the same
+    sub-pixel position for a still marker: MAD 0), their rms about the median, which counts the
+    rare jitter the MAD cannot see. nan without a difference."""
+    if d.size == 0:
+        return float("nan")
+    r = d - np.median(d)
+    mad = float(np.median(np.abs(r)))
+    return 1.4826 * mad if mad > 0 else float(np.sqrt(np.mean(r * r)))
+
+
+def _rms2(su: float, sv: float) -> float:
+    """rms of a 2-D frame difference |d| from the per-axis rms of its components."""
+    return float(np.sqrt(su * su + sv * sv))
+
+
+def image_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.ndarray,
+                         t_f: np.ndarray, obs: np.ndarray, t_delay_s: float, fps: float):
+    """Onset threshold of the image (marker, px) detector from the record: the angle rule
+    (angle_onset_settings) in 2-D, at the camera's own frame rate. Not used by `calibrate` yet:
+    on the demo's STRAS-like preset, whose tip creeps through the dead band, it fires later than
+    the C detector's automatic threshold and B is worse (docs/robustness.md); pass its
+    overrides as `calibrate(onset_cfg=...)` to use it.
+
+    1. Bootstrap: the C detector with the fixed T0 = k rms|d|, rms|d| from diff2_noise of u and
+       v (an upper bound of the still noise from the whole record), k = onset_noise_k(fps x
+       median stroke, dims=2) = sqrt(ln(n / alpha)); each onset gives a still segment
+       [t1 + t_delay, t2).
+    2. T = k sigma_d: sigma_d = rms of the 2-D still frame difference, from still_noise on u
+       and v over the bootstrap's still segments (one frame of margin at each end), or the
+       diff2 bound when that is smaller (both bound the still noise from above: the segments
+       hold motion when the onsets come late, because the marker moves less per frame than
+       T0); with fewer than MIN_STILL_PAIRS pairs, the diff2 bound. Per axis the MAD figure, or
+       the rms when the MAD is 0 (a tracker that repeats the same position: _axis_noise). A fixed T replaces the C detector's
+       automatic one (k = 3 and its 0.05 / 1 px floor and ceiling, constants).
+    t_enc, q: encoder (N,); rev_t, rev_q: reversals (M,); t_f (F,) s, obs (F, 2) px, NaN = lost;
+    t_delay_s: acquisition delay (s); fps: camera rate (Hz). Returns (OnsetConfig overrides
+    dict, doc dict); ({}, doc) when no noise figure can be had (the C defaults then stay)."""
+    t_f, obs = np.asarray(t_f, float), np.asarray(obs, float)
+    stroke = float(np.median(np.diff(rev_t))) if rev_t.size >= 2 else float(t_enc[-1] - t_enc[0]) / max(rev_t.size + 1, 1)
+    k = onset_noise_k(fps * stroke, dims=2)
+    doc = {"stroke_s": stroke, "fps": fps, "alpha": FALSE_ONSETS_PER_REVERSAL, "noise_k": k}
+    s0 = _rms2(diff2_noise(obs[:, 0]), diff2_noise(obs[:, 1]))
+    if not np.isfinite(s0) or s0 <= 0:
+        doc["rule"] = "C defaults (no noise estimate)"
+        return {}, doc
+    T0 = max(k * s0, 2.0 / 65536.0)
+    doc["bootstrap_threshold_px"] = T0
+    on0 = run_onsets(t_enc, q, rev_t, rev_q, t_f, obs, "image", OnsetConfig(t_delay_s=t_delay_s, fps=fps, threshold=T0))
+    doc["bootstrap_onsets"] = int(on0.b.size)
+    sig, pairs = float("nan"), 0
+    if on0.b.size:
+        order = np.argsort(on0.t1_s)
+        a = on0.t1_s[order] + t_delay_s + 1.0 / fps
+        b = on0.t2_s[order] - 1.0 / fps
+        du, dv = still_diffs(t_f, obs[:, 0], a, b), still_diffs(t_f, obs[:, 1], a, b)
+        sig, pairs = _rms2(_axis_noise(du), _axis_noise(dv)), min(du.size, dv.size)
+    doc.update(still_pairs=pairs, still_noise_px=sig, diff2_noise_px=s0)
+    if pairs >= MIN_STILL_PAIRS and sig > 0:
+        # Both figures bound the same still noise from above (the segments may hold motion when
+        # onsets are found late; diff2 holds the motion's curvature): the smaller is kept.
+        doc["rule"] = "T = k x min(still noise, diff2_noise) (2-D)"
+        sig = min(sig, s0)
+    else:
+        sig = s0
+        doc["rule"] = "T = k x diff2_noise (2-D; too few still frame pairs)"
+    T = max(k * sig, 2.0 / 65536.0)
+    doc["threshold_px"] = T
+    return {"threshold": T}, doc
 
 
 # --------------------------------------------------------------------------- B spline
@@ -678,19 +756,100 @@ def characteristic(t_enc, q, t_f, c_f, t_delay_s: float) -> tuple[np.ndarray, np
 
 
 def f_remain_lsq(q_c: np.ndarray, c: np.ndarray, B, n_ctrl: int = 14, smooth: float = 1e-3,
-                 z_range: tuple[float, float] | None = None):
+                 z_range: tuple[float, float] | None = None, z: np.ndarray | None = None):
     """f_remain by play-consistent least squares (our estimator).
 
     With B fixed from the onsets, the play operator gives the centre z[k] from q alone
     (eq. 3), and the model says c[k] = f(z[k]); f is then a monotone robust spline
     regression of c on z, using every frame (transitions included) instead of the loop's
-    outline only. q_c, c: (F,) in time order. Returns (SplineFn, sign of f', z (F,)).
+    outline only. q_c, c: (F,) in time order; z: the play centre if the caller has it
+    (model.play_operator(q_c, B)). Returns (SplineFn, sign of f', z (F,)).
     """
-    z = model.play_operator(q_c, B)
+    z = model.play_operator(q_c, B) if z is None else np.asarray(z, float)
     sign = 1 if np.corrcoef(z, c)[0, 1] >= 0 else -1
     lo, hi = (float(z.min()), float(z.max())) if z_range is None else z_range
     spl, _ = robust_spline(z, c, n_ctrl, lo, hi, smooth, monotone=sign)
     return SplineFn(spl, lo, hi, linear_ends=True), sign, z
+
+
+# f_remain's stiffness (issue 13 item 3): its number of control points, chosen by cross-validation on
+# the calibration frames. Candidates fixed a priori: a single cubic (4) up to 2x the paper's 14.
+F_CTRL_GRID = (4, 6, 8, 10, 14, 20, 28)
+F_FRAMES_PER_CTRL = 10  # a candidate needs >= 10 training frames per coefficient in every fold
+
+
+def _monotone_pspline(x: np.ndarray, y: np.ndarray, n_ctrl: int, lo: float, hi: float, smooth: float,
+                      sign: int) -> SplineFn:
+    """robust_spline's first (unweighted) iteration, monotone, solved on its normal equations:
+    with N = A'A + lam D'D = R'R (Cholesky) the F-row problem equals ||R c - R^-T A'y||^2 + const,
+    an n_ctrl-row bounded least squares (bvls), so a fit costs one design matrix and an n x n
+    solve. For the cross-validation's many fits (the final fit is the robust one). Returns the
+    SplineFn with linear ends over [lo, hi], as f_remain_lsq's."""
+    from scipy.linalg import cho_factor, solve_triangular
+
+    t = clamped_knots(lo, hi, n_ctrl)
+    A = BSpline.design_matrix(np.clip(x, lo, hi), t, 3).toarray()
+    D = _diff_penalty(n_ctrl)
+    AtA = A.T @ A
+    lam = smooth * max(np.trace(AtA) / n_ctrl, 1e-12)
+    N = AtA + lam * (D.T @ D) + 1e-12 * np.eye(n_ctrl) * max(np.trace(AtA), 1.0)
+    R, _ = cho_factor(N, lower=False)
+    R = np.triu(R)
+    rhs = solve_triangular(R, A.T @ y, trans="T", lower=False)
+    Tm = np.tril(np.ones((n_ctrl, n_ctrl))) * np.where(np.arange(n_ctrl) == 0, 1.0, float(sign))[None, :]
+    lb = np.r_[-np.inf, np.zeros(n_ctrl - 1)]
+    th = lsq_linear(R @ Tm, rhs, bounds=(lb, np.full(n_ctrl, np.inf)), method="bvls").x
+    return SplineFn(BSpline(t, Tm @ th, 3, extrapolate=False), lo, hi, linear_ends=True)
+
+
+def choose_f_ctrl(z: np.ndarray, c: np.ndarray, splits, grid=F_CTRL_GRID, smooth: float = 1e-3) -> dict:
+    """f_remain's stiffness (control points N) by cross-validation on the calibration frames.
+
+    z, c: (F,) play centre (eq. 3, actuator units) and angle (deg) at the calibration frames, in
+    time order. splits: [(train mask (F,), test mask (F,))], the rolling origins of the
+    transition's model choice (transition.rolling_origins: fit on the frames before each origin,
+    score the next block), so f is judged as the board uses it: fitted on the past, predicting
+    frames that come after, whose z may reach beyond the trained range (linear ends, as the
+    tables). Each candidate N of ``grid`` (at most one per F_FRAMES_PER_CTRL frames of the
+    smallest training part; 4, a single cubic, always) is fitted on each training part by the
+    monotone P-spline (_monotone_pspline, the penalty ``smooth`` relative to the data term as in
+    robust_spline), scored by the held-out RMSE per fold; cv = rms over folds, se = their standard
+    error. Choice: the fewest control points within one standard error of the best (the
+    one-standard-error rule of Hastie, Tibshirani & Friedman, "The Elements of Statistical
+    Learning", 2nd ed., sec. 7.10; the rule of choose_stiffness and transition.choose_model): the
+    CV curve of a spline is flat near its minimum, and among near-equal scores the stiffest f
+    extrapolates most safely and carries the least noise into the tables. Returns {"n_ctrl": N,
+    "rule": str, "candidates": [{"n_ctrl", "cv_rmse_deg", "cv_se_deg"}]}; n_ctrl is None when no
+    fold has frames to judge (the caller keeps its default). Errors: none (bad folds are skipped).
+    """
+    z, c = np.asarray(z, float), np.asarray(c, float)
+    folds = [(tr, te) for tr, te in splits if te.sum() >= 3 and tr.sum() >= 4 * F_FRAMES_PER_CTRL]
+    rule = "CV on a rolling origin (fit before, score the next block), fewest control points within one SE"
+    if not folds:
+        return {"n_ctrl": None, "rule": rule + " (no fold with frames to judge)", "candidates": []}
+    n_max = min(int(tr.sum()) for tr, _ in folds) // F_FRAMES_PER_CTRL
+    grid = [int(n) for n in grid if n <= n_max] or [4]
+    sign = 1 if np.corrcoef(z, c)[0, 1] >= 0 else -1
+    rows = []
+    for n in grid:
+        errs = []
+        for tr, te in folds:
+            lo, hi = float(z[tr].min()), float(z[tr].max())
+            if hi <= lo:
+                continue
+            f = _monotone_pspline(z[tr], c[tr], n, lo, hi, smooth, sign)
+            errs.append(float(np.sqrt(np.mean((f(z[te]) - c[te]) ** 2))))
+        if not errs:
+            continue
+        e = np.array(errs)
+        rows.append({"n_ctrl": n, "cv_rmse_deg": float(np.sqrt(np.mean(e ** 2))),
+                     "cv_se_deg": float(np.std(e, ddof=1) / np.sqrt(e.size)) if e.size > 1 else 0.0})
+    if not rows:
+        return {"n_ctrl": None, "rule": rule + " (no fold with a z range)", "candidates": []}
+    best = min(rows, key=lambda d: d["cv_rmse_deg"])
+    limit = best["cv_rmse_deg"] + best["cv_se_deg"]
+    pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: d["n_ctrl"])
+    return {"n_ctrl": int(pick["n_ctrl"]), "rule": rule, "candidates": rows}
 
 
 def f_remain_morph(q_c: np.ndarray, c: np.ndarray, n_ctrl: int = 14, size: int = 512, close_px: int = 7,

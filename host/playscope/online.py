@@ -89,16 +89,20 @@ class BoardB:
         """A table carrying the learnt B is committed (the host's refresh): b_online_rebind
         onto a copy of the current entries, as the board does on the new blob."""
         lib, ffi = self.lib, self.ffi
-        blob_b = ffi.new("int32_t[]", ffi.unpack(self.bo.b_q16, int(self.bo.n_grid)))
+        blob_b = ffi.new("int32_t[]", ffi.unpack(lib.b_online_entries(self.bo), int(self.bo.n_grid)))
         lut = ffi.new("lut_t *")
         lib.lut_init(lut, blob_b, self.bo.n_grid, self.lut.x0_q16, 1 << self.lut.step_log2)
         if lib.b_online_rebind(self.bo, lut) != lib.B_ONLINE_OK:
             raise ValueError("b_online_rebind refused the committed B grid")
-        self._keep = (blob_b, lut)  # the new prior must outlive the next commit
+        self._keep = (blob_b, lut)  # the new prior and the lut the learner publishes into must live on
 
     def grid(self) -> np.ndarray:
         """The B entries the board runs now (actuator units)."""
-        return from_q16(self.ffi.unpack(self.bo.b_q16, int(self.bo.n_grid)))
+        return from_q16(self.ffi.unpack(self.lib.b_online_entries(self.bo), int(self.bo.n_grid)))
+
+    def crc32(self) -> int:
+        """CRC-32 of the entries (int32 LE), as the board reports it (psp_learn_state_t.b_crc32)."""
+        return int(self.lib.ps_crc32_update(0, self.lib.b_online_entries(self.bo), 4 * int(self.bo.n_grid)))
 
     def fn(self):
         return model.piecewise_linear(self.xs, self.grid())

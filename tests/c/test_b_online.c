@@ -136,7 +136,7 @@ static void test_config_and_grid_errors(void **state)
     assert_ptr_equal(l.y_q16, prior); /* refused: the lut still reads the flashed entries */
     c = b_online_default_config();
     assert_int_equal(b_online_init(&bo, &c, &l), B_ONLINE_OK);
-    assert_ptr_equal(l.y_q16, bo.b_q16);
+    assert_ptr_equal(l.y_q16, b_online_entries(&bo));
     assert_int_equal(bo.n_nodes, 9); /* 33 entries: every 2nd gives 17 > 16 nodes, so every 4th */
     assert_int_equal(bo.node_log2, 2);
 }
@@ -180,7 +180,7 @@ static void test_matches_double_reference(void **state)
         double grid[NG];
         ref_grid(&r, 1.5, grid);
         for (int j = 0; j < NG; j++)
-            max_b = fmax(max_b, fabs(bo.b_q16[j] / 65536.0 - grid[j]));
+            max_b = fmax(max_b, fabs(b_online_entries(&bo)[j] / 65536.0 - grid[j]));
         if (getenv("B_ONLINE_PRINT"))
             printf("|dB| %.3g mm, B(1.25) err %.3g\n", max_b, lut_eval(&l, 81920) / 65536.0 - (0.6 + 0.1 * sin(1.25) + 0.25 + 0.0625));
         /* Measured (6 trials): theta within 7.5e-5 mm (5 LSB of Q16 after 300 samples), P
@@ -210,14 +210,14 @@ static void test_bounds(void **state)
     assert_true(lut_eval(&l, 2 * 65536) > before + 65536 / 4); /* the lut runs the learnt grid */
     int64_t lip = (int64_t)c.slope_max_q16 << STEP_LOG2 >> 16;
     for (int j = 0; j + 1 < NG; j++)
-        assert_true(llabs((long long)bo.b_q16[j + 1] - bo.b_q16[j]) <= lip);
+        assert_true(llabs((long long)b_online_entries(&bo)[j + 1] - b_online_entries(&bo)[j]) <= lip);
     for (int k = 0; k < 40; k++)
         b_online_sample(&bo, 65536, -5 * 65536);
     for (int j = 0; j < NG; j++)
-        assert_true(bo.b_q16[j] >= 0);
-    assert_int_equal(bo.b_q16[8], 0); /* at q = 1 mm the samples say 0 (floored) */
+        assert_true(b_online_entries(&bo)[j] >= 0);
+    assert_int_equal(b_online_entries(&bo)[8], 0); /* at q = 1 mm the samples say 0 (floored) */
     for (int j = 0; j + 1 < NG; j++)
-        assert_true(llabs((long long)bo.b_q16[j + 1] - bo.b_q16[j]) <= lip);
+        assert_true(llabs((long long)b_online_entries(&bo)[j + 1] - b_online_entries(&bo)[j]) <= lip);
     assert_int_equal(prior[16], (int32_t)lround((0.6 + 0.1 * sin(2.0)) * 65536.0)); /* prior untouched */
 }
 
@@ -281,6 +281,31 @@ static void test_loop_hook(void **state)
     assert_ptr_equal(lp.learn, NULL);
 }
 
+/* Publication (A/B): a sample is written into the copy the table does not point to, then the
+ * table's pointer moves to it; the copy a preempted tick was reading is left complete and
+ * unchanged. Stop points the table back at the flashed entries. */
+static void test_sample_publishes_a_complete_copy(void **state)
+{
+    (void)state;
+    lut_t l;
+    setup_lut(&l);
+    static b_online_t bo;
+    static int32_t before[NG];
+    b_online_config_t c = b_online_default_config();
+    assert_int_equal(b_online_init(&bo, &c, &l), B_ONLINE_OK);
+    for (int k = 0; k < 5; k++) {
+        const int32_t *old = l.y_q16;
+        memcpy(before, old, sizeof before);
+        b_online_sample(&bo, (k % 7) * 65536 / 2, prior[(k % 7) * 4] + 65536 / 8);
+        assert_true(l.y_q16 != old);
+        assert_ptr_equal(l.y_q16, b_online_entries(&bo));
+        assert_memory_equal(old, before, sizeof before); /* the copy read before is untouched */
+        assert_true(memcmp(l.y_q16, before, sizeof before) != 0);
+    }
+    b_online_stop(&bo);
+    assert_ptr_equal(l.y_q16, prior);
+}
+
 /* Rebind onto a table that carries the learnt B: the running B is unchanged (bit for bit, the
  * learnt grid already satisfies the bounds), theta is 0, P kept; another grid is refused. */
 static void test_rebind_keeps_the_learnt_b(void **state)
@@ -294,7 +319,7 @@ static void test_rebind_keeps_the_learnt_b(void **state)
     assert_int_equal(b_online_init(&bo, &c, &l), B_ONLINE_OK);
     for (int k = 0; k < 20; k++)
         b_online_sample(&bo, (k % 7) * 65536 / 2, prior[(k % 7) * 4] + 65536 / 8);
-    memcpy(flashed, bo.b_q16, sizeof flashed);
+    memcpy(flashed, b_online_entries(&bo), sizeof flashed);
     int32_t p11 = bo.p_q30[1][1], p12 = bo.p_q30[1][2];
     lut_t l2, l3;
     assert_int_equal(lut_init(&l2, flashed, NG, 0, 1 << STEP_LOG2), LUT_OK);
@@ -302,8 +327,8 @@ static void test_rebind_keeps_the_learnt_b(void **state)
     assert_int_equal(b_online_rebind(&bo, &l3), B_ONLINE_ERR_GRID);
     assert_ptr_equal(l3.y_q16, flashed);
     assert_int_equal(b_online_rebind(&bo, &l2), B_ONLINE_OK);
-    assert_ptr_equal(l2.y_q16, bo.b_q16);
-    assert_memory_equal(bo.b_q16, flashed, sizeof flashed);
+    assert_ptr_equal(l2.y_q16, b_online_entries(&bo));
+    assert_memory_equal(b_online_entries(&bo), flashed, sizeof flashed);
     assert_int_equal(bo.theta_q16[1], 0);
     assert_int_equal(bo.p_q30[1][1], p11);
     assert_int_equal(bo.p_q30[1][2], p12);
@@ -318,6 +343,7 @@ int main(void)
         cmocka_unit_test(test_no_windup),
         cmocka_unit_test(test_loop_hook),
         cmocka_unit_test(test_rebind_keeps_the_learnt_b),
+        cmocka_unit_test(test_sample_publishes_a_complete_copy),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

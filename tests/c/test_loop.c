@@ -192,7 +192,7 @@ static void test_hot_swap_keeps_the_compensator_state(void **state)
             if (k == 1777) { /* mid-stroke: c* moving, direction known */
                 assert_true(psa_set_table(&loop, &cal2));
                 assert_false(loop.comp_armed);
-                ref.cal = &cal2;
+                comp_rebind(&ref, &cal2); /* state kept, cached cells of the old table emptied */
                 comp_reset(&rearmed, &cal2, smooth ? &c.lim : NULL, c_of(k));
             }
             int32_t want = comp_step(&ref, c_of(k));

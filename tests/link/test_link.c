@@ -346,7 +346,7 @@ static void test_commit_during_compensation_not_excitation(void **state)
             expect_ok(upload(blob.bytes, n2), PSP_MSG_TABLE_COMMIT);
             assert_int_equal(info().active_generation, 2);
             assert_int_equal(info().mode, PSP_MODE_COMPENSATION);
-            cp.cal = &cal2;
+            comp_rebind(&cp, &cal2); /* the board's hot swap: state kept, cached cells emptied */
         }
         int32_t want = comp_step(&cp, c_ref);
         c.c_ref_q16 = c_ref;
@@ -452,6 +452,117 @@ static void test_onset_over_the_link(void **state)
     assert_true(bs.b_q16 > 0);
     psp_marker_obs_t bad = {.kind = 7};
     expect_err(req(PSP_MSG_MARKER_OBS, &bad, sizeof bad), PSP_ERR_RANGE);
+}
+
+static psp_learn_state_t learn(uint8_t op)
+{
+    psp_learn_ctl_t c = {.op = op};
+    resp_t r = req(PSP_MSG_LEARN, &c, sizeof c);
+    expect_ok(r, PSP_MSG_LEARN);
+    assert_int_equal(r.len, sizeof(psp_learn_state_t));
+    psp_learn_state_t st;
+    memcpy(&st, r.pl, sizeof st);
+    return st;
+}
+
+/* On-line B update over the link (PSP_MSG_LEARN, issue 13 item 4): during compensation a B
+ * sample an observation completes is queued, not learnt in the request or the tick; the
+ * background step learns it and publishes B (the compensator runs it from the next step);
+ * the state reported matches an independent b_online run on the same table bit for bit (CRC
+ * of the entries); a table committed while learning becomes the prior; stop restores the
+ * flashed B. */
+static void test_learn_during_compensation(void **state)
+{
+    (void)state;
+    psp_learn_ctl_t bad = {.op = 3};
+    expect_err(req(PSP_MSG_LEARN, &bad, sizeof bad), PSP_ERR_RANGE);
+    psp_learn_ctl_t start = {.op = PSP_LEARN_START};
+    expect_err(req(PSP_MSG_LEARN, &start, sizeof start), PSP_ERR_STATE); /* no table */
+    size_t n = make_table(1, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    static uint8_t blob1[PST_MAX_TABLE_SIZE];
+    static calib_t ref;
+    static b_online_t bo;
+    memcpy(blob1, blob.bytes, n);
+    assert_int_equal(calib_load(&ref, blob1, n), CALIB_OK);
+    const int32_t *flashed = ref.b.y_q16;
+    b_online_config_t bc = b_online_default_config();
+    assert_int_equal(b_online_init(&bo, &bc, &ref.b), B_ONLINE_OK);
+    psp_set_mode_t m = {.mode = PSP_MODE_COMPENSATION};
+    expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
+
+    psp_learn_state_t st = learn(PSP_LEARN_QUERY);
+    assert_int_equal(st.on, 0);
+    st = learn(PSP_LEARN_START);
+    assert_int_equal(st.on, 1);
+    assert_int_equal(st.n_grid, 65);
+    assert_int_equal(st.samples, 0);
+    assert_int_equal(st.b_crc32, ps_crc32_update(0, (const uint8_t *)flashed, 65 * 4));
+
+    /* The onset of test_onset_over_the_link, now while compensating. */
+    const uint32_t frame_us = 40000;
+    for (uint32_t t = 0; t <= 2000000; t += 1000)
+        psl_tick(&L, t, (int32_t)((int64_t)t * 65536 / 1000000));
+    out_n = 0;
+    psp_reversal_t rv = {.t1_us = 100000, .q1_q16 = (int32_t)(0.1 * 65536)};
+    expect_ok(req(PSP_MSG_REVERSAL, &rv, sizeof rv), PSP_MSG_REVERSAL);
+    psp_b_sample_t bs;
+    int got = 0;
+    for (uint32_t t = 120000; t < 2000000 && !got; t += frame_us) {
+        double u = 100.0 + (t > 1200000 ? (t - 1200000) / (double)frame_us * 2.0 : 0.0);
+        psp_marker_obs_t mo = {.t_us = t, .u_q16 = (int32_t)(u * 65536), .v_q16 = 50 * 65536, .valid = 1};
+        resp_t r = req(PSP_MSG_MARKER_OBS, &mo, sizeof mo);
+        expect_ok(r, PSP_MSG_MARKER_OBS);
+        if (r.len == sizeof bs) {
+            memcpy(&bs, r.pl, sizeof bs);
+            got = 1;
+        }
+    }
+    assert_true(got && bs.reason <= ONSET_OK_COARSE);
+    st = learn(PSP_LEARN_QUERY);
+    assert_int_equal(st.queued, 1);
+    assert_int_equal(st.samples, 0); /* queued: nothing learnt in the request */
+    int32_t b_before = lut_eval(&L.cal[L.active_buf].b, bs.q_mean_q16);
+
+    assert_true(psl_background(&L));
+    assert_false(psl_background(&L));
+    b_online_sample(&bo, bs.q_mean_q16, bs.b_q16);
+    st = learn(PSP_LEARN_QUERY);
+    assert_int_equal(st.samples, 1);
+    assert_int_equal(st.dropped, 0);
+    assert_int_equal(st.b_crc32, ps_crc32_update(0, (const uint8_t *)b_online_entries(&bo), 65 * 4));
+    assert_ptr_equal(L.cal[L.active_buf].b.y_q16, b_online_entries(&L.learn));
+    assert_int_equal(L.loop.comp.b_cell.width, 0); /* the compensator's cached B cell dropped */
+    int32_t b_after = lut_eval(&L.cal[L.active_buf].b, bs.q_mean_q16);
+    /* b = 0.9 units here against the flashed ~0.55: the learnt B moves toward the sample. */
+    assert_true(b_after > b_before && b_after < bs.b_q16);
+    assert_int_equal(b_after, lut_eval(&ref.b, bs.q_mean_q16));
+
+    /* Compensation steps now run the learnt B: the core on the reference table agrees. */
+    comp_t cp;
+    psp_comp_req_t c = {0};
+    for (int k = 0; k < 50; k++) {
+        int32_t c_ref = (int32_t)(10.0 * sin(k * 0.1) * 65536.0);
+        if (k == 0)
+            comp_reset(&cp, &ref, NULL, c_ref);
+        c.c_ref_q16 = c_ref;
+        resp_t r = req(PSP_MSG_COMP_STEP, &c, sizeof c);
+        expect_ok(r, PSP_MSG_COMP_STEP);
+        assert_int_equal((int32_t)psf_get_u32(r.pl), comp_step(&cp, c_ref));
+    }
+
+    /* A table committed while learning (the host's refresh): its B becomes the prior. */
+    n = make_table(2, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    st = learn(PSP_LEARN_QUERY);
+    assert_int_equal(st.on, 1);
+    assert_int_equal(st.samples, 1);
+    assert_ptr_equal(L.cal[L.active_buf].b.y_q16, b_online_entries(&L.learn));
+    assert_int_equal(st.b_crc32, ps_crc32_update(0, (const uint8_t *)L.learn.prior_q16, 65 * 4));
+
+    st = learn(PSP_LEARN_STOP);
+    assert_int_equal(st.on, 0);
+    assert_ptr_equal(L.cal[L.active_buf].b.y_q16, L.learn.prior_q16);
 }
 
 /* A power cut at every byte of a commit through the handler: reboot runs old or new. */
@@ -601,6 +712,7 @@ int main(void)
         cmocka_unit_test_setup(test_compensation_matches_core, setup),
         cmocka_unit_test_setup(test_streaming, setup),
         cmocka_unit_test_setup(test_onset_over_the_link, setup),
+        cmocka_unit_test_setup(test_learn_during_compensation, setup),
         cmocka_unit_test_setup(test_power_cut_via_handler, setup),
         cmocka_unit_test_setup(test_readback_mismatch_keeps_previous, setup),
         cmocka_unit_test_setup(test_upload_session_one_owner, setup),

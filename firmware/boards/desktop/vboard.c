@@ -105,6 +105,7 @@ static void serve(int in_fd, uint32_t tick_hz, double time_scale)
         uint64_t due = (uint64_t)((double)(now_us() - t0) * 1000.0 * time_scale / (double)tick_ns);
         for (int k = 0; ticks < due && k < VB_TICKS_MAX_PER_WAKE; k++, ticks++)
             q_q16 = psl_tick(&board, (uint32_t)(ticks * tick_ns / 1000u), q_q16);
+        (void)psl_background(&board); /* an on-line B sample between ticks, as the M4 images */
         if (due > ticks + VB_TICKS_MAX_PER_WAKE)
             ticks = due; /* drop the backlog rather than replay a long stall */
     }
@@ -169,6 +170,7 @@ static void serve_ports(int listen_fd, uint32_t tick_hz, double time_scale)
         uint64_t due = (uint64_t)((double)(now_us() - t0) * 1000.0 * time_scale / (double)tick_ns);
         for (int k = 0; ticks < due && k < VB_TICKS_MAX_PER_WAKE; k++, ticks++)
             q_q16 = psl_tick(&board, (uint32_t)(ticks * tick_ns / 1000u), q_q16);
+        (void)psl_background(&board); /* an on-line B sample between ticks, as the M4 images */
         if (due > ticks + VB_TICKS_MAX_PER_WAKE)
             ticks = due;
     }

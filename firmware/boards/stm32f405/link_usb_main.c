@@ -46,5 +46,6 @@ int main(void)
             q_q16 = psl_tick(&link, next_us, q_q16);
             next_us += tick_us;
         }
+        (void)psl_background(&link); /* an on-line B sample between ticks, if one is queued */
     }
 }

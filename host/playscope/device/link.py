@@ -230,6 +230,17 @@ class Link:
                            valid=int(valid), kind=kind)
         return self._b_sample(self.request(self.lib.PSP_MSG_MARKER_OBS, pl))
 
+    def learn(self, op: str = "query") -> dict:
+        """On-line B update on the board (PSP_MSG_LEARN, docs/online.md): op "start" (on the
+        running table's B), "stop" (back to the flashed B) or "query". Returns the board's
+        psp_learn_state_t as a dict: samples learnt, queued, dropped, b_crc32 (CRC-32 of the B
+        entries it runs), n_grid, n_nodes, on. Errors: BoardError STATE when starting without
+        a table."""
+        ops = {"query": self.lib.PSP_LEARN_QUERY, "start": self.lib.PSP_LEARN_START, "stop": self.lib.PSP_LEARN_STOP}
+        pl = self.request(self.lib.PSP_MSG_LEARN, _struct_bytes(self.ffi, "psp_learn_ctl_t", op=ops[op]))
+        st = self.ffi.from_buffer("psp_learn_state_t *", pl)
+        return {k: int(getattr(st, k)) for k in ("samples", "queued", "dropped", "b_crc32", "n_grid", "n_nodes", "on")}
+
     def poll_events(self, timeout_s: float = 0.0) -> list:
         """Drain unsolicited frames: ('b', dict) for B samples, ('enc', [(t_us, q_q16)...])."""
         if timeout_s > 0:

@@ -47,7 +47,7 @@ def test_commit_during_compensation_carries_on(vlink):
             info = vlink.upload_table(t2.blob)
             assert info["active_generation"] == 2
             assert vlink.info()["mode"] == "compensation"
-            cp.cal = t2.cal
+            lib.comp_rebind(cp, t2.cal)  # the board's hot swap: state kept, cached cells emptied
             lib.comp_reset(rearmed, t2.cal, ffi.NULL, c)  # what a stop-and-restart would do
         want = lib.comp_step(cp, c)
         assert vlink.comp_step(c) == want, f"step {k}"

@@ -98,5 +98,34 @@ def test_qemu_flash_readback_compensator():
         assert info["proto_version"] == 1 and info["board_id"].startswith("51454d55")
         r = flash(link, builtin_table(), 100, log=lambda *_: None)
         assert r["generation"] == 1
+        check_learn_start_stop(link, builtin_table())
     finally:
         link.close()
+
+
+def check_learn_start_stop(link, blob: bytes) -> None:
+    """On-line B update on a board running `blob` (PSP_MSG_LEARN): off at boot, start reports the
+    table's B grid with the CRC of its flashed entries (computed here from the blob through the
+    loader), nothing learnt without onsets, stop turns it off. The samples themselves are learnt
+    in tests/link/test_link.c::test_learn_during_compensation."""
+    from playscope.native import core
+    from playscope.tables import CalibTable
+
+    ffi, lib = core()
+    t = CalibTable(blob)
+    assert link.learn()["on"] == 0
+    link.set_mode("compensation")
+    st = link.learn("start")
+    n = int(t.cal.b.n)
+    assert st["on"] == 1 and st["n_grid"] == n and 2 <= st["n_nodes"] <= 16
+    assert st["b_crc32"] == lib.ps_crc32_update(0, t.cal.b.y_q16, 4 * n)
+    assert st["samples"] == 0 and st["queued"] == 0
+    assert link.learn("stop")["on"] == 0
+    link.set_mode("idle")
+
+
+def test_vboard_learn_start_stop(vlink):
+    with pytest.raises(DeviceError):
+        vlink.learn("start")  # no table: refused (STATE), nothing started
+    flash(vlink, builtin_table(), 20, log=lambda *_: None)
+    check_learn_start_stop(vlink, builtin_table())
