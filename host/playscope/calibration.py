@@ -196,6 +196,54 @@ def _command_lag(s: Session, t_enc, q, rt, rq, hyst) -> float:
     return coarse_delay(t_f, np.column_stack([c_f, np.zeros_like(c_f)]), t_stop, t_enc, q, 1.0 / fr)
 
 
+def pose_with_offset(im: model.ImageModel, obs: np.ndarray, c0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """c per frame by LM pose estimation (eqs. 6-8) with one constant image offset for the
+    session: a registration error of the hand-eye (section V-F: it acts mainly across the
+    motion, Table I's Qy) moves the marker's image by a nearly constant amount over the small
+    workspace, and left in the residual it pulls each frame's c towards reducing it (LM fits
+    one c to both image coordinates). First pass: c with the given registration; offset = the
+    median image residual over the valid frames (its component along the motion is ~0, as c
+    absorbs it, so only the part across the motion is taken out); second pass: c on Q - offset.
+    obs: (F, 2) px, NaN rows lost; c0: (F,) deg seeds. Returns (c (F,) deg, residual (F,) px
+    after the offset, offset (2,) px)."""
+    c1, _ = im.estimate_c(obs, c0)
+    r = obs - im(c1)
+    ok = np.all(np.isfinite(r), axis=1)
+    offset = np.median(r[ok], axis=0) if ok.any() else np.zeros(2)
+    c2, res = im.estimate_c(obs - offset, c1)
+    return c2, res, offset
+
+
+def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src):
+    """B(q)'s stiffness and the model chosen together by the model choice's own cross-
+    validation on c (transition.choose_model: rolling origin, state from the record's start).
+
+    The B-sample CV (estimate.choose_stiffness) judges a B by how well it predicts held-out
+    onset widths; but an onset fires once the tip has moved by the detector's threshold, and
+    with a smooth transition that width is not the play the model anchors on (the tip creeps
+    from the narrowest operator). What the product needs from B is the c it predicts, so each
+    stiffness the B-sample CV tried (estimate.backlash_alternatives: distinct B's only) gets
+    its own model choice, and the pick is the stiffest B whose chosen model's CV RMSE is within
+    one standard error of the best (the one-standard-error rule of both CVs).
+    Returns (BacklashFit, Transition, f, sign, choice dict, [{"smooth", "cv_rmse_deg",
+    "cv_se_deg", "model", "b_scale", "n"}] stiffest first)."""
+    alts = E.backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)
+    rows, fits = [], []
+    for sm, bf in alts:
+        data = T.FitData.from_session(t_enc, q, bf.B, t_f, c_f, td)
+        tr, f, sign, ch = T.choose_model(data, model_kind, n_ctrl)
+        key = (ch["b_scale"], ch["n_tried"], ch["r_span"], ch["n_ctrl"])
+        row = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"], c["n_ctrl"]) == key)
+        rows.append({"smooth": sm, "cv_rmse_deg": row["cv_rmse_deg"], "cv_se_deg": row["cv_se_deg"],
+                     "model": ch["model"], "b_scale": ch["b_scale"], "n": ch["n"]})
+        fits.append((bf, tr, f, sign, ch))
+    best = min(rows, key=lambda d: d["cv_rmse_deg"])
+    limit = best["cv_rmse_deg"] + best["cv_se_deg"]
+    i = next(i for i, d in enumerate(rows) if d["cv_rmse_deg"] <= limit)  # rows are stiffest first
+    bf, tr, f, sign, ch = fits[i]
+    return bf, tr, f, sign, ch, rows
+
+
 def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
               t_delay_s: float | None = None, hysteresis: float | None = None,
               onset_cfg: dict | None = None, source: str | None = None,
@@ -316,8 +364,15 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     else:
         im = model.ImageModel(s.robot, s.camera, s.hand_eye)
         q_f = np.interp(t_f - td, t_enc, q)
-        c_f, res = im.estimate_c(obs, model.f_coarse(q_f, s.robot.q_per_rad))
-        lm = {"residual_px_median": float(np.nanmedian(res)), "residual_px_max": float(np.nanmax(res))}
+        c_f, res, offset = pose_with_offset(im, obs, model.f_coarse(q_f, s.robot.q_per_rad))
+        lm = {"residual_px_median": float(np.nanmedian(res)), "residual_px_max": float(np.nanmax(res)),
+              "image_offset_px": [float(v) for v in offset]}
+    model_cv = None
+    if model_kind != "play" and rt.size >= MIN_REVERSALS_TRANSITION:
+        # B(q)'s stiffness by the model's own cross-validation on c (see choose_b_and_model).
+        joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src)
+        bfit, model_cv = joint[0], joint[5]
+        B, w = bfit.B, bfit.weight
     q_c, c_c = E.characteristic(t_enc, q, t_f, c_f, td)
     # f_remain's stiffness from the calibration frames: rolling-origin CV on the transition's folds.
     z_c = model.play_operator(q_c, B)
@@ -339,8 +394,11 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         warnings.append(f"model play: {rt.size} reversals are too few to cross-validate a transition "
                         f"(needs >= {MIN_REVERSALS_TRANSITION}, one stroke per fold)")
     if model_kind != "play":
-        data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
-        tr, f_pi, sign_pi, choice = T.choose_model(data, model_kind, f_n)
+        if model_cv is not None:  # chosen with B above (its pure-play candidate uses n_ctrl: f_n needs B first)
+            tr, f_pi, sign_pi, choice = joint[1:5]
+        else:
+            data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
+            tr, f_pi, sign_pi, choice = T.choose_model(data, model_kind, f_n)
         if not tr.is_play:
             f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method}
             f, sign, f_method = f_pi, sign_pi, "lsq+pi"
@@ -351,7 +409,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         "reversal_hysteresis": float(hyst), "reversals": int(rt.size),
         "onset": {"config": cfg.effective(), "reasons": on.reasons, "refine": refine_doc, "rule": onset_rule},
         "B_fit": {"kind": bfit.kind, "n_ctrl": bfit.n_ctrl, "smooth": bfit.smooth, "ci95": bfit.ci95,
-                  "samples": int(on.b.size), "cv": bfit.cv},
+                  "samples": int(on.b.size), "cv": bfit.cv, "model_cv": model_cv},
         "b_samples": {"t1_s": on.t1_s, "t2_s": on.t2_s, "q1": on.q1, "q2": on.q2, "q_mean": on.q_mean,
                       "b": on.b, "weight": w, "sigma_b": on.sigma_b, "z": bfit.z},
         "b_inconsistent": [{"index": int(i), "q_mean": float(on.q_mean[i]), "b": float(on.b[i]), "z": float(bfit.z[i])}

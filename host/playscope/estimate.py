@@ -747,6 +747,34 @@ def fit_backlash_auto(q_mean: np.ndarray, b: np.ndarray, n_max: int = 14, q_rang
                        "constant", 4, None, ci, cv)
 
 
+def backlash_alternatives(q_mean: np.ndarray, b: np.ndarray, bfit: BacklashFit, source: str | None = None,
+                          max_slope: float = 1.5, sigma: np.ndarray | None = None) -> list[tuple[float, BacklashFit]]:
+    """The B(q) splines of every penalty choose_stiffness tried (bfit.cv), stiffest first, for a
+    choice of the stiffness by a downstream criterion (calibration: the model's own cross-
+    validation on c). Splines that differ from a stiffer kept one by less than the samples'
+    median standard error (sigma) everywhere on the range are the same B to the data and are
+    dropped. bfit: fit_backlash_auto's result for the same samples (kind "spline"; a constant
+    or a fit without cv gives [(bfit.smooth, bfit)]). q_mean, b, sigma: (M,) actuator units.
+    Returns [(penalty, BacklashFit)], bfit's own penalty included (its fit object)."""
+    if bfit.kind != "spline" or not bfit.cv:
+        return [(bfit.smooth, bfit)]
+    q_mean, b = np.asarray(q_mean, float), np.asarray(b, float)
+    lo, hi = float(np.min(q_mean)), float(np.max(q_mean))
+    tol = float(np.median(sigma)) if sigma is not None and np.size(sigma) else 0.0
+    grid = np.linspace(lo, hi, 201)
+    out: list[tuple[float, BacklashFit]] = [(float(bfit.smooth), bfit)]  # the B-sample CV's own pick
+    for sm in sorted((c["smooth"] for c in bfit.cv["candidates"] if c["smooth"] is not None), reverse=True):
+        if sm == bfit.smooth:
+            continue
+        f = fit_backlash_samples(q_mean, b, bfit.n_ctrl, sm, (lo, hi), source, max_slope, sigma)
+        f.kind, f.n_ctrl, f.smooth, f.cv = "spline", bfit.n_ctrl, float(sm), bfit.cv
+        Bg = f.B(grid)
+        if all(np.max(np.abs(Bg - g.B(grid))) > tol for _, g in out):
+            out.append((float(sm), f))
+    out.sort(key=lambda p: -p[0])
+    return out
+
+
 # --------------------------------------------------------------------------- f_remain
 def characteristic(t_enc, q, t_f, c_f, t_delay_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Pairs (q, c) of the characteristic (Fig. 9): each valid frame with the actuator

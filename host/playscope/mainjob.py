@@ -151,14 +151,17 @@ def _run(out: Path, duration_s: float, seed: int, device: str, log) -> dict:
 
 
 def _model_summary(cal: Calibration) -> dict:
-    """What calibrate chose: {"model", "operators", "r_max", "cv_rmse_deg" {play, chosen}}."""
+    """What calibrate chose: {"model", "operators", "r_max", "b_scale", "b_smooth" (B(q)'s penalty),
+    "b_smooth_by", "image_offset_px" [du, dv] (pose estimation), "cv_rmse_deg" {play, chosen}}."""
     tr, ch = cal.transition, cal.model_choice or {}
     cands = ch.get("candidates", [])
     play = next((c["cv_rmse_deg"] for c in cands if c["n"] == 1), None)
     pick = next((c["cv_rmse_deg"] for c in cands if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl")) ==
                  (ch.get("b_scale"), ch.get("n_tried"), ch.get("r_span"), ch.get("n_ctrl"))), None)
+    bf = cal.doc.get("B_fit") or {}
     return {"model": "play" if tr.is_play else "pi", "operators": tr.n, "r_max": float(tr.r[-1]),
-            "b_scale": tr.b_scale,
+            "b_scale": tr.b_scale, "b_smooth": bf.get("smooth"), "b_smooth_by": "model CV" if bf.get("model_cv") else
+            "B-sample CV", "image_offset_px": (cal.doc.get("pose_estimation") or {}).get("image_offset_px"),
             "cv_rmse_deg": {"play": play, "chosen": pick}}
 
 
@@ -203,6 +206,11 @@ def _model_text(m: dict | None) -> str:
     cv = m["cv_rmse_deg"]
     txt = "pure play" if m["model"] == "play" else (f"play of {m['b_scale']:g} x the onset B + transition, "
                                                     f"{m['operators']} operators, r <= {m['r_max']:.3g}")
+    if m.get("b_smooth") is not None:
+        txt += f", B(q) penalty {m['b_smooth']:g} ({m.get('b_smooth_by', 'CV')})"
+    if m.get("image_offset_px"):
+        du, dv = m["image_offset_px"]
+        txt += f", image offset ({du:.1f}, {dv:.1f}) px"
     if cv.get("chosen") is not None:
         txt += f" (cross-validated on the calibration session: {cv['chosen']:.3f} deg"
         txt += f", pure play {cv['play']:.3f} deg)" if cv.get("play") is not None and m["model"] != "play" else ")"

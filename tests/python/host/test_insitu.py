@@ -157,8 +157,10 @@ def test_table_rows_run_the_firmware_from_the_record_start(session, split, rows)
     from playscope.calibration import calibrate
     from playscope.tables import build_table
 
-    cal = calibrate(session.slice_time(-np.inf, split), model_kind="play")
-    tab = build_table(cal.B, cal.f, *cal.q_range, "mm")
+    # The row is the auto calibration's B (its stiffness chosen with the model) with the pure
+    # play's f_remain, as evaluate_insitu builds it.
+    cal = calibrate(session.slice_time(-np.inf, split), model_kind="auto")
+    tab = build_table(cal.B, cal.f_play, *cal.q_range, "mm")
     q = session.encoder["q"]
     np.testing.assert_array_equal(rows["onset_lsq"].predict(q), tab.predict(q))
     # Ours: the table carries the chosen transition's operators (none for the pure play).
