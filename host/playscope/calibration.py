@@ -229,8 +229,9 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     "cv_se_deg", "model", "b_scale", "n"}] stiffest first)."""
     alts = E.backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)
     rows, fits = [], []
+    base = T.FitData.from_session(t_enc, q, alts[0][1].B, t_f, c_f, td)
     for sm, bf in alts:
-        data = T.FitData.from_session(t_enc, q, bf.B, t_f, c_f, td)
+        data = base.with_B(bf.B)
         tr, f, sign, ch = T.choose_model(data, model_kind, n_ctrl)
         key = (ch["b_scale"], ch["n_tried"], ch["r_span"], ch["n_ctrl"])
         row = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"], c["n_ctrl"]) == key)
