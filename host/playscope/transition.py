@@ -475,10 +475,157 @@ def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14) -> lis
     return out
 
 
+class _CandidateCV:
+    """One candidate's rolling-origin CV, run one fold at a time so that it can stop early
+    (ModelChoice) and resume later with bit-identical results: fold j starts from fold j-1's
+    weights (the folds share most frames), and nothing else carries over between folds."""
+
+    def __init__(self, data: FitData, splits, kb: float, n: int, span: float, nc: int):
+        self.kb, self.n, self.span, self.nc = kb, n, float(span), int(nc)
+        self.data, self.splits = data, splits
+        self.r = thresholds(n, span) if n > 1 else np.zeros(1)
+        self.errs: list[float] = []
+        self._next, self._v, self._P, self._vm = 0, None, None, None
+
+    @property
+    def done(self) -> bool:
+        return self._next >= len(self.splits)
+
+    def step(self) -> None:
+        """Fit and score the next scored fold (rolling_origins' folds with too few frames are
+        skipped, as choose_model always did)."""
+        if self._P is None:  # the operators at the frames and the table's bound, once
+            self._P = self.data.ops_at_frames(self.r, self.kb)
+            self._vm = v_max_for_table(self.data, self.kb, self.n)
+        while not self.done:
+            tr_m, te_m = self.splits[self._next]
+            self._next += 1
+            if te_m.sum() < 3 or tr_m.sum() < 10:
+                continue
+            P, c = self._P, self.data.c
+            w, f, _, _ = fit_weights(P[tr_m], c[tr_m], self.nc, robust_f=False, v0=self._v, v_max=self._vm)
+            self._v = fit_weights.last_v  # warm start of the next fold
+            self.errs.append(float(np.sqrt(np.mean((f(P[te_m] @ w) - c[te_m]) ** 2))))
+            return
+
+    def complete(self) -> "_CandidateCV":
+        while not self.done:
+            self.step()
+        return self
+
+    def lower_bound(self, k_scored: int) -> float:
+        """A lower bound of the final CV RMSE from the folds scored so far: the folds still to
+        come add >= 0 to the sum of squares over the k_scored folds."""
+        return float(np.sqrt(np.sum(np.square(self.errs)) / max(k_scored, 1)))
+
+    def row(self) -> dict:
+        """The choice's candidate row (complete() first)."""
+        errs = np.array(self.errs)
+        return {"b_scale": self.kb, "n": self.n, "r_span": self.span, "n_ctrl": self.nc,
+                "cv_rmse_deg": float(np.sqrt(np.mean(errs ** 2))),
+                "cv_se_deg": float(np.std(errs, ddof=1) / np.sqrt(errs.size)) if errs.size > 1 else 0.0}
+
+
+def _preference(d) -> tuple:
+    """The one-standard-error rule's order (simplest first): fewest operators, then the onset
+    width closest to as measured, then the stiffest f."""
+    return d["n"], -d["b_scale"], d["n_ctrl"]
+
+
+class ModelChoice:
+    """choose_model's rule, computed lazily (the calibration runs it once per B(q) alternative,
+    calibration.choose_b_and_model, and needs every candidate's CV only for the alternative it
+    keeps).
+
+    pick() finds the rule's choice exactly while fitting as few folds as it can prove
+    irrelevant: (1) the best CV (it sets the limit best + its SE) is found by scoring the
+    candidates in turn and stopping one as soon as the lower bound of its CV from the folds
+    scored so far (_CandidateCV.lower_bound) exceeds the lowest complete CV: it cannot be the
+    best, whatever its remaining folds; (2) the pick is the first candidate in the rule's order
+    within the limit: a stopped candidate whose lower bound already exceeds the limit is not,
+    any other one is completed and tested. What cannot be skipped: the candidates that could
+    still be the best (their SE is part of the limit) and the ones the order reaches before a
+    pick. result() completes every candidate (the choice dict lists them all) and gives exactly
+    what choose_model gives. Stopping never changes a number: each candidate's folds are the
+    same fits in the same order whether run at once or resumed."""
+
+    def __init__(self, data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD):
+        if model_kind not in ("auto", "play", "pi"):
+            raise ValueError(f"model must be play, pi or auto, not {model_kind!r}")
+        self.data, self.model_kind, self.k = data, model_kind, k
+        splits = rolling_origins(data, k)
+        self.k_scored = sum(1 for tr_m, te_m in splits if te_m.sum() >= 3 and tr_m.sum() >= 10)
+        self.cands = [_CandidateCV(data, splits, *cand) for cand in candidates(data, model_kind, n_ctrl)]
+        self._pick, self._refit = None, None
+
+    # A relative margin for comparing the lower bound (a sum over folds) with a CV RMSE (a mean):
+    # the two round differently, and a stop must never rest on a rounding difference.
+    _MARGIN = 1e-9
+
+    def _exceeds(self, c: _CandidateCV, level: float) -> bool:
+        return c.lower_bound(self.k_scored) > level * (1 + self._MARGIN) + 1e-300
+
+    def pick(self) -> dict:
+        """The chosen candidate's row ({"b_scale", "n", "r_span", "n_ctrl", "cv_rmse_deg",
+        "cv_se_deg"}), by choose_model's rule."""
+        if self._pick is not None:
+            return self._pick
+        # (1) Best first: always score the next fold of the open candidate with the lowest lower
+        # bound (an unscored one has 0), until every open one is above the lowest complete CV.
+        # The order of the fits does not change any of them (_CandidateCV).
+        while True:
+            done = [c for c in self.cands if c.done]
+            best_cv = min((c.row()["cv_rmse_deg"] for c in done), default=None)
+            open_ = [c for c in self.cands if not c.done
+                     and (best_cv is None or not self._exceeds(c, best_cv))]
+            if not open_:
+                break
+            min(open_, key=lambda c: c.lower_bound(self.k_scored)).step()
+        rows = [c.row() for c in self.cands if c.done]
+        best = min(rows, key=lambda d: d["cv_rmse_deg"])  # the first of equal ones, as choose_model
+        limit = best["cv_rmse_deg"] + best["cv_se_deg"]
+        for c in sorted(self.cands, key=lambda c: _preference({"n": c.n, "b_scale": c.kb, "n_ctrl": c.nc})):
+            if not c.done and self._exceeds(c, limit):
+                continue  # its CV is above the limit whatever its remaining folds
+            row = c.complete().row()
+            if row["cv_rmse_deg"] <= limit:
+                self._pick = row
+                return row
+        # Only without any scored fold (every CV NaN; choose_model never had a pick there either).
+        raise ValueError("no candidate of the model choice has a cross-validation score (too few frames per fold)")
+
+    def refit(self) -> tuple[Transition, "E.SplineFn", int, float]:
+        """The pick refitted on all the calibration frames: (Transition without its zero-weight
+        operators, f, sign of f', fit RMSE deg)."""
+        if self._refit is None:
+            p = self.pick()
+            kb, n, span, nc = p["b_scale"], p["n"], p["r_span"], p["n_ctrl"]
+            r = thresholds(n, span) if n > 1 else np.zeros(1)
+            w, f, sign, rms = fit_weights(self.data.ops_at_frames(r, kb), self.data.c, nc,
+                                          v_max=v_max_for_table(self.data, kb, n))
+            keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
+            self._refit = (Transition(r[keep], w[keep] / w[keep].sum(), kb), f, sign, rms)
+        return self._refit
+
+    def result(self, progress=lambda it, **kw: it) -> tuple[Transition, "E.SplineFn", int, dict]:
+        """choose_model's return value: every candidate's CV complete."""
+        for c in progress(self.cands, desc="model choice"):
+            c.complete()
+        p = self.pick()
+        tr, f, sign, rms = self.refit()
+        choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(p["n"]),
+                  "b_scale": p["b_scale"], "r_span": float(p["r_span"]), "n_ctrl": int(p["n_ctrl"]),
+                  "fit_rmse_deg": rms,
+                  "rule": "CV on a rolling origin (fit before, score the next block), one-standard-error rule",
+                  "folds": int(self.k), "b_median": self.data.b_med, "candidates": [c.row() for c in self.cands]}
+        return tr, f, sign, choice
+
+
 def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD,
                  progress=lambda it, **kw: it) -> tuple[Transition, "E.SplineFn", int, dict]:
     """Pick play vs PI, the play width and f's stiffness by cross-validation on the
-    calibration frames, then refit the choice on all of them (module docstring for the rule).
+    calibration frames, then refit the choice on all of them (module docstring for the rule;
+    ModelChoice computes it).
 
     model_kind: "play" (the paper's pure play only), "pi" (operators only) or "auto" (both);
     n_ctrl: f's control points for the pure play (f_remain's N).
@@ -486,37 +633,4 @@ def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: i
     "r_span", "n_ctrl", "fit_rmse_deg", "rule", "folds", "b_median", "candidates": [{"b_scale",
     "n", "r_span", "n_ctrl", "cv_rmse_deg", "cv_se_deg"}]}). Errors: ValueError for an
     unknown model_kind."""
-    if model_kind not in ("auto", "play", "pi"):
-        raise ValueError(f"model must be play, pi or auto, not {model_kind!r}")
-    splits = rolling_origins(data, k)
-    rows = []
-    for kb, n, span, nc in progress(candidates(data, model_kind, n_ctrl), desc="model choice"):
-        r = thresholds(n, span) if n > 1 else np.zeros(1)
-        P = data.ops_at_frames(r, kb)
-        vm = v_max_for_table(data, kb, n)
-        errs, v = [], None
-        for tr_m, te_m in splits:
-            if te_m.sum() < 3 or tr_m.sum() < 10:
-                continue
-            w, f, _, _ = fit_weights(P[tr_m], data.c[tr_m], nc, robust_f=False, v0=v, v_max=vm)
-            v = fit_weights.last_v  # warm start of the next fold: the folds share most frames
-            errs.append(float(np.sqrt(np.mean((f(P[te_m] @ w) - data.c[te_m]) ** 2))))
-        errs = np.array(errs)
-        rows.append({"b_scale": kb, "n": n, "r_span": float(span), "n_ctrl": int(nc),
-                     "cv_rmse_deg": float(np.sqrt(np.mean(errs ** 2))),
-                     "cv_se_deg": float(np.std(errs, ddof=1) / np.sqrt(errs.size)) if errs.size > 1 else 0.0})
-    best = min(rows, key=lambda d: d["cv_rmse_deg"])
-    limit = best["cv_rmse_deg"] + best["cv_se_deg"]
-    # Simplest within one standard error: fewest operators, then the onset width closest to
-    # as measured, then the stiffest f.
-    pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: (d["n"], -d["b_scale"], d["n_ctrl"]))
-    kb, n, span, nc = pick["b_scale"], pick["n"], pick["r_span"], pick["n_ctrl"]
-    r = thresholds(n, span) if n > 1 else np.zeros(1)
-    w, f, sign, rms = fit_weights(data.ops_at_frames(r, kb), data.c, nc, v_max=v_max_for_table(data, kb, n))
-    keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
-    tr = Transition(r[keep], w[keep] / w[keep].sum(), kb)
-    choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(n), "b_scale": kb,
-              "r_span": float(span), "n_ctrl": int(nc), "fit_rmse_deg": rms,
-              "rule": "CV on a rolling origin (fit before, score the next block), one-standard-error rule",
-              "folds": int(k), "b_median": data.b_med, "candidates": rows}
-    return tr, f, sign, choice
+    return ModelChoice(data, model_kind, n_ctrl, k).result(progress)
