@@ -326,7 +326,8 @@ class _SplineProjection:
 
     def __init__(self, P: np.ndarray, c: np.ndarray, n_ctrl: int, smooth: float):
         self.P, self.c, self.n_ctrl, self.smooth = P, c, n_ctrl, smooth
-        self.D = np.diff(np.eye(n_ctrl), 2, axis=0)
+        D = np.diff(np.eye(n_ctrl), 2, axis=0)
+        self.DtD = D.T @ D
         self._key, self._val = None, None
 
     def _solve(self, x: np.ndarray):
@@ -338,14 +339,16 @@ class _SplineProjection:
             lo, hi = float(y.min()), float(y.max())
             hi = max(hi, lo + 1e-9)
             t = E.clamped_knots(lo, hi, self.n_ctrl)
-            A = _design_matrix(np.clip(y, lo, hi), t, self.n_ctrl)
-            lam = self.smooth * np.trace(A.T @ A) / self.n_ctrl
+            yc = np.clip(y, lo, hi)
+            A = _design_matrix(yc, t, self.n_ctrl)
+            AtA = A.T @ A
+            lam = self.smooth * np.trace(AtA) / self.n_ctrl
             # Normal equations of the penalised fit (n_ctrl x n_ctrl, well conditioned by the
             # penalty): the projection of any G is A (N^-1 A^T G).
-            N = A.T @ A + lam * (self.D.T @ self.D)
+            N = AtA + lam * self.DtD
             cho = cho_factor(N)
             coef = cho_solve(cho, A.T @ self.c)
-            slope = BSpline(t, coef, 3).derivative()(np.clip(y, lo, hi))
+            slope = BSpline(t, coef, 3).derivative()(yc)
             self._key, self._val = key, (A, cho, coef, slope)
         return self._val
 
