@@ -333,8 +333,6 @@ class _SplineProjection:
     def _solve(self, x: np.ndarray):
         key = x.tobytes()
         if key != self._key:
-            from scipy.interpolate import BSpline
-
             y = self.P[:, 0] + self.P[:, 1:] @ x
             lo, hi = float(y.min()), float(y.max())
             hi = max(hi, lo + 1e-9)
@@ -348,16 +346,20 @@ class _SplineProjection:
             N = AtA + lam * self.DtD
             cho = cho_factor(N)
             coef = cho_solve(cho, A.T @ self.c)
-            slope = BSpline(t, coef, 3).derivative()(yc)
-            self._key, self._val = key, (A, cho, coef, slope)
+            self._key, self._val = key, (A, cho, coef, t, yc)
         return self._val
 
     def resid(self, x):
-        A, _, coef, _ = self._solve(x)
+        A, _, coef, _, _ = self._solve(x)
         return A @ coef - self.c
 
     def jac(self, x):
-        A, cho, _, slope = self._solve(x)
+        from scipy.interpolate import BSpline
+
+        # f'(y) here, not in _solve: the trust region rejects a third of its trial points, and
+        # those only need the residual.
+        A, cho, coef, t, yc = self._solve(x)
+        slope = BSpline(t, coef, 3).derivative()(yc)
         G = slope[:, None] * self.P[:, 1:]
         # cho_solve returns a Fortran-ordered (n_ctrl, n-1) block, and numpy's A @ X does not
         # reach BLAS for that layout (~50x slower at F = 3000 frames: it was half of calibrate).
@@ -401,7 +403,7 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
     # cross-validation scored). Refitting another f on y afterwards would leave the joint
     # least-squares optimum for weights chosen under a different f.
     vp = _SplineProjection(y[:, None], c, n_ctrl, smooth)
-    _, _, coef, _ = vp._solve(np.zeros(0))
+    _, _, coef, _, _ = vp._solve(np.zeros(0))
     lo, hi = float(y.min()), max(float(y.max()), float(y.min()) + 1e-9)
     f = E.SplineFn(BSpline(E.clamped_knots(lo, hi, n_ctrl), coef, 3, extrapolate=False), lo, hi, linear_ends=True)
     sign = 1 if f.s_lo + f.s_hi >= 0 else -1
