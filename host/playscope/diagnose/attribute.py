@@ -1,9 +1,11 @@
 """Gap measurement and attribution: held-out error of the paper's model against the noise floor,
 then screening of every library effect, joint refit of the promising ones, and the decision rule.
 
-Decision rule (docs/diagnosis.md): an effect is kept only if adding it lowers the held-out RMSE
-by a practical margin (max(margin_frac * RMSE, margin_abs), 8 % and 0.05 deg by default) AND the BIC on the fit rows agrees
-(drop > bic_min). Effects whose single-effect screens come as close as the kept one, and that
+Decision rule (docs/diagnosis.md): an effect is kept only if adding it lowers the validation RMSE
+by a margin taken from the data, max(margin_frac * RMSE, t * SE): 8 % of the RMSE, and t standard
+errors of the paired, blocked RMSE difference on the validation rows (``rmse_gain_se``; t the
+one-sided Student quantile at alpha / number of screens, ``t_threshold``), AND the BIC on the fit
+rows agrees (drop > bic_min). Effects whose single-effect screens come as close as the kept one, and that
 add nothing once it is in, are named as indistinguishable from it. When nothing is kept and
 the gap stands above the noise floor, or the kept effects remove less than half of the excess,
 the verdict is "unexplained".
@@ -16,7 +18,8 @@ import numpy as np
 from .fitmodel import C_LIBRARY, Data, Fit, Model
 
 MARGIN_FRAC = 0.08    # practical margin: 8 % of the held-out RMSE ...
-MARGIN_ABS = 0.05     # ... and at least 0.05 deg (below that a bending error is of no practical use)
+ALPHA = 0.05          # ... and a gain significant at 5 % family-wise over one step's screens
+NEGLIGIBLE_DEG = 0.1  # an excess over the noise floor below this is no gap (verdict "none")
 BIC_MIN = 10.0        # "strong" evidence on the BIC scale (Kass & Raftery)
 MAX_EFFECTS = 3
 # Stick-slip signature: skewness of the motion-signed residual increments. Set on development seeds
@@ -78,6 +81,47 @@ def _start(model: Model, *fits: Fit) -> np.ndarray:
     return th
 
 
+def rmse_gain_se(y: np.ndarray, pred_old: np.ndarray, pred_new: np.ndarray, mask: np.ndarray) -> dict:
+    """Validation RMSE gain of a new model over an old one and its standard error, paired and
+    blocked. d[k] = e_old[k]^2 - e_new[k]^2 on the ``mask`` rows (finite ones, in time order);
+    the gain in RMSE is exactly mean(d) / (RMSE_old + RMSE_new). The rows are cut into blocks of
+    L consecutive rows, L = ceil(2 tau) with tau = 1 + 2 sum rho_k the integrated autocorrelation
+    time of d (sum stopped at the first rho_k <= 0, Geyer's initial positive sequence), at least 10
+    blocks; the block means are then close to independent and SE(mean d) = sd(block means) /
+    sqrt(n_blocks) (batch means; Politis & Romano's blocking for dependent series).
+    y, pred_old, pred_new: (Nm,) deg; mask: bool (Nm,). Returns {"gain_deg", "se_deg",
+    "n_blocks", "block_rows"}; se NaN with fewer than 20 rows."""
+    m = mask & np.isfinite(y) & np.isfinite(pred_old) & np.isfinite(pred_new)
+    e0, e1 = (y - pred_old)[m], (y - pred_new)[m]
+    n = e0.size
+    if n < 20:
+        return {"gain_deg": float("nan"), "se_deg": float("nan"), "n_blocks": 0, "block_rows": 0}
+    r0, r1 = float(np.sqrt(np.mean(e0 * e0))), float(np.sqrt(np.mean(e1 * e1)))
+    d = e0 * e0 - e1 * e1
+    x = d - d.mean()
+    nf = 1 << int(np.ceil(np.log2(2 * n)))
+    f = np.fft.rfft(x, nf)
+    ac = np.fft.irfft(f * np.conj(f), nf)[:n]
+    ac = ac / ac[0] if ac[0] > 0 else np.zeros(n)
+    neg = np.nonzero(ac[1:] <= 0.0)[0]
+    kmax = int(neg[0]) if neg.size else n - 1
+    tau = 1.0 + 2.0 * float(np.sum(ac[1:kmax + 1]))
+    L = int(min(max(np.ceil(2.0 * tau), 1), n // 10))
+    nb = n // L
+    b = d[: nb * L].reshape(nb, L).mean(1)
+    se_d = float(np.std(b, ddof=1) / np.sqrt(nb))
+    den = max(r0 + r1, 1e-12)
+    return {"gain_deg": float(d.mean() / den), "se_deg": se_d / den, "n_blocks": int(nb), "block_rows": L}
+
+
+def t_threshold(n_blocks: int, n_tests: int, alpha: float = ALPHA) -> float:
+    """One-sided Student-t quantile at 1 - alpha / n_tests with n_blocks - 1 degrees of freedom:
+    the number of standard errors a gain must exceed so that, over the n_tests screens of one
+    step, chance passes one with probability at most alpha (Bonferroni)."""
+    from scipy.stats import t
+    return float(t.ppf(1.0 - alpha / max(n_tests, 1), max(n_blocks - 1, 1)))
+
+
 def delta_bic(new: Fit, old: Fit) -> float:
     """BIC(new) - BIC(old) on the same fit rows with one effective sample size, that of the richer
     model's residuals (closer to white than the poorer model's, so n_eff is not crushed by the
@@ -103,7 +147,7 @@ def judged_rmse(fit: Fit, model: Model, data: Data, mask: np.ndarray | None = No
 
 
 def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidates=C_LIBRARY,
-              margin_frac: float = MARGIN_FRAC, margin_abs: float = MARGIN_ABS, bic_min: float = BIC_MIN,
+              margin_frac: float = MARGIN_FRAC, alpha: float = ALPHA, bic_min: float = BIC_MIN,
               max_effects: int = MAX_EFFECTS, sigma: float | None = None, progress=None,
               test_mask: np.ndarray | None = None, test_data: Data | None = None) -> dict:
     """Screen, refit and decide (module doc). fit_mask: rows fitted; eval_mask: rows on which
@@ -128,8 +172,17 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
     out = {"noise_floor_deg": sigma, "noise_method": method, "noise_samples": n_still,
            "base": {"rmse_fit_deg": base.rmse(y, fit_mask), "rmse_heldout_deg": r0, "bic": base.bic},
            "excess_before_deg": excess(r0, sigma), "screen": [], "kept": []}
-    margin = lambda r: max(margin_frac * r, margin_abs)
+    n_tests = len(candidates)
+
+    def test_gain(old: Fit, new: Fit, r_old: float) -> dict:
+        """Gain on the validation rows, its SE and the margin it must clear (module doc)."""
+        g = rmse_gain_se(y, old.pred, new.pred, eval_mask)
+        thr = t_threshold(g["n_blocks"], n_tests, alpha) * g["se_deg"] if g["n_blocks"] else float("inf")
+        g["margin_deg"] = float(max(margin_frac * r_old, thr))
+        g["passes"] = bool(g["gain_deg"] >= g["margin_deg"])
+        return g
     single: dict[str, Fit] = {}
+    gains: dict[str, dict] = {}
     for e in candidates:
         m = Model(data, [e])
         f = m.fit(fit_mask, _start(m, base))
@@ -142,9 +195,11 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
                 f = f2
         single[e] = f
         r = f.rmse(y, eval_mask)
+        g = gains[e] = test_gain(base, f, r0)
         row = {"effect": e, "rmse_heldout_deg": r, "delta_rmse_deg": r0 - r, "delta_bic": delta_bic(f, base),
+               "se_deg": g["se_deg"], "margin_deg": g["margin_deg"], "n_blocks": g["n_blocks"],
                "params": f.params()}
-        row["promising"] = bool(r0 - r >= margin(r0) and delta_bic(f, base) < -bic_min)
+        row["promising"] = bool(g["passes"] and delta_bic(f, base) < -bic_min)
         out["screen"].append(row)
         if progress:
             progress(e)
@@ -159,11 +214,13 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
             trials.append((f.rmse(y, eval_mask), e, f, m))
         trials.sort(key=lambda z: z[0])
         r, e, f, m = trials[0]
-        if not (cur_r - r >= margin(cur_r) and delta_bic(f, current) < -bic_min):
+        g = test_gain(current, f, cur_r)
+        if not (g["passes"] and delta_bic(f, current) < -bic_min):
             break
         kept.append(e)
         promising.remove(e)
         out["kept"].append({"effect": e, "rmse_before_deg": cur_r, "rmse_after_deg": r,
+                            "gain_se_deg": g["se_deg"], "margin_deg": g["margin_deg"],
                             "share_of_excess_removed": _share(cur_r, r, out["excess_before_deg"], sigma),
                             "rmse_test_after_deg": on_test(f, m)})
         current, cur_r, cur_model = f, r, m
@@ -171,7 +228,7 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
     for k in out["kept"]:
         e = k["effect"]
         rk = single[e].rmse(y, eval_mask)
-        tol = max(margin(r0), 0.25 * (r0 - rk))
+        tol = max(gains[e]["margin_deg"], 0.25 * (r0 - rk))
         k["indistinguishable_from"] = [row["effect"] for row in out["screen"]
                                        if row["effect"] not in kept and row["promising"]
                                        and row["rmse_heldout_deg"] <= rk + tol]
@@ -231,7 +288,7 @@ def _share(r_before: float, r_after: float, e0: float, sigma: float) -> float:
     return float((excess(r_before, sigma) - excess(r_after, sigma)) / e0)
 
 
-def verdict(out: dict, unexplained_ratio: float = 1.5, negligible_deg: float = 2 * MARGIN_ABS) -> str:
+def verdict(out: dict, unexplained_ratio: float = 1.5, negligible_deg: float = NEGLIGIBLE_DEG) -> str:
     """One label: the first kept effect when the kept set removes at least half of the excess;
     "none" when nothing is kept and the gap is negligible (held-out RMSE within
     unexplained_ratio x the noise floor, or an excess over it below negligible_deg = 0.1 deg);

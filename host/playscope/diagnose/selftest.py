@@ -94,6 +94,9 @@ def run_case(case: dict, duration_s: float = 120.0, candidates=C_LIBRARY, oracle
            "kept": [k["effect"] for k in res["kept"]],
            "indistinguishable": {k["effect"]: k["indistinguishable_from"] for k in res["kept"]},
            "stick_skew": res["stick_slip_signature"]["skewness"],
+           "screen": {row["effect"]: {"rmse_val_deg": row["rmse_heldout_deg"], "promising": row["promising"],
+                                      "margin_deg": row.get("margin_deg"), "delta_bic": row["delta_bic"]}
+                      for row in res["screen"]},
            "split": sp.method, "noise_floor_deg": res["noise_floor_deg"],
            "rmse_val_base_deg": res["base"]["rmse_heldout_deg"], "rmse_val_after_deg": res["final"]["rmse_heldout_deg"],
            "rmse_base_deg": r0, "rmse_after_deg": res["test"]["rmse_final_deg"], "rmse_noise_only_deg": r_noise,
