@@ -3,7 +3,7 @@ then screening of every library effect, joint refit of the promising ones, and t
 
 Decision rule (docs/diagnosis.md): an effect is kept only if adding it lowers the validation RMSE
 by a margin taken from the data, max(margin_frac * RMSE, t * SE): 8 % of the RMSE, and t standard
-errors of the paired, blocked RMSE difference on the validation rows (``rmse_gain_se``; t the
+errors of the paired RMSE difference on the validation rows (its noise part, blocked) (``rmse_gain_se``; t the
 one-sided Student quantile at alpha / number of screens, ``t_threshold``), AND the BIC on the fit
 rows agrees (drop > bic_min). Effects whose single-effect screens come as close as the kept one, and that
 add nothing once it is in, are named as indistinguishable from it. When nothing is kept and
@@ -83,35 +83,43 @@ def _start(model: Model, *fits: Fit) -> np.ndarray:
 
 def rmse_gain_se(y: np.ndarray, pred_old: np.ndarray, pred_new: np.ndarray, mask: np.ndarray) -> dict:
     """Validation RMSE gain of a new model over an old one and its standard error, paired and
-    blocked. d[k] = e_old[k]^2 - e_new[k]^2 on the ``mask`` rows (finite ones, in time order);
-    the gain in RMSE is exactly mean(d) / (RMSE_old + RMSE_new). The rows are cut into blocks of
-    L consecutive rows, L = ceil(2 tau) with tau = 1 + 2 sum rho_k the integrated autocorrelation
-    time of d (sum stopped at the first rho_k <= 0, Geyer's initial positive sequence), at least 10
-    blocks; the block means are then close to independent and SE(mean d) = sd(block means) /
-    sqrt(n_blocks) (batch means; Politis & Romano's blocking for dependent series).
+    blocked. On the ``mask`` rows (finite ones, in time order), with e = y - pred_new and
+    dp = pred_new - pred_old: e_old^2 - e_new^2 = dp^2 + 2 dp e, and the RMSE gain is exactly
+    mean(dp^2 + 2 dp e) / (RMSE_old + RMSE_new). Both fits come from other rows, so given them dp is
+    fixed and the gain's sampling error is that of the cross term 2 dp e: the noise of the
+    validation rows meeting the change of prediction. (The spread of dp^2 over the record is not
+    chance: an effect that acts at a few places of the cycle gains there and nowhere else.)
+    Autocorrelation by blocking: blocks of L consecutive rows, L = ceil(2 tau) with tau = 1 + 2
+    sum rho_k the integrated autocorrelation time of dp e (sum stopped at the first rho_k <= 0,
+    Geyer's initial positive sequence), at least 10 blocks; SE(mean) = sd(block means) /
+    sqrt(n_blocks) (batch means).
     y, pred_old, pred_new: (Nm,) deg; mask: bool (Nm,). Returns {"gain_deg", "se_deg",
-    "n_blocks", "block_rows"}; se NaN with fewer than 20 rows."""
+    "n_blocks", "block_rows"}; NaN and 0 blocks with fewer than 20 rows."""
     m = mask & np.isfinite(y) & np.isfinite(pred_old) & np.isfinite(pred_new)
-    e0, e1 = (y - pred_old)[m], (y - pred_new)[m]
-    n = e0.size
+    e = (y - pred_new)[m]
+    dp = (pred_new - pred_old)[m]
+    n = e.size
     if n < 20:
         return {"gain_deg": float("nan"), "se_deg": float("nan"), "n_blocks": 0, "block_rows": 0}
-    r0, r1 = float(np.sqrt(np.mean(e0 * e0))), float(np.sqrt(np.mean(e1 * e1)))
-    d = e0 * e0 - e1 * e1
-    x = d - d.mean()
+    r0, r1 = float(np.sqrt(np.mean((e + dp) ** 2))), float(np.sqrt(np.mean(e * e)))
+    den = max(r0 + r1, 1e-12)
+    gain = float(np.mean(dp * dp + 2.0 * dp * e) / den)
+    x = dp * e
+    xc = x - x.mean()
     nf = 1 << int(np.ceil(np.log2(2 * n)))
-    f = np.fft.rfft(x, nf)
+    f = np.fft.rfft(xc, nf)
     ac = np.fft.irfft(f * np.conj(f), nf)[:n]
-    ac = ac / ac[0] if ac[0] > 0 else np.zeros(n)
+    if not ac[0] > 0:
+        return {"gain_deg": gain, "se_deg": 0.0, "n_blocks": n, "block_rows": 1}
+    ac = ac / ac[0]
     neg = np.nonzero(ac[1:] <= 0.0)[0]
     kmax = int(neg[0]) if neg.size else n - 1
     tau = 1.0 + 2.0 * float(np.sum(ac[1:kmax + 1]))
     L = int(min(max(np.ceil(2.0 * tau), 1), n // 10))
     nb = n // L
-    b = d[: nb * L].reshape(nb, L).mean(1)
-    se_d = float(np.std(b, ddof=1) / np.sqrt(nb))
-    den = max(r0 + r1, 1e-12)
-    return {"gain_deg": float(d.mean() / den), "se_deg": se_d / den, "n_blocks": int(nb), "block_rows": L}
+    b = x[: nb * L].reshape(nb, L).mean(1)
+    se_x = float(np.std(b, ddof=1) / np.sqrt(nb))
+    return {"gain_deg": gain, "se_deg": 2.0 * se_x / den, "n_blocks": int(nb), "block_rows": L}
 
 
 def t_threshold(n_blocks: int, n_tests: int, alpha: float = ALPHA) -> float:

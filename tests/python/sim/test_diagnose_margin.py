@@ -23,7 +23,7 @@ def test_blocked_se_matches_the_spread_of_the_gain_over_replications():
     # Independent reference: the standard deviation of the gain over 300 independent records
     # (Monte Carlo), against the mean of the single-record blocked SE. Residuals are AR(1) with
     # rho = 0.8 (a naive iid SE would be 3x too small); the new model removes a smooth periodic
-    # misfit of 0.03 deg from the old one. Measured ratio mean SE / MC sd: 0.91 (iid formula: 0.35).
+    # misfit of 0.03 deg from the old one. Measured ratio mean SE / MC sd: 0.89 (iid formula: 0.35).
     rng = np.random.default_rng(11)
     n = 1500
     t = np.arange(n) / 50.0
@@ -47,7 +47,7 @@ def test_blocked_se_matches_the_spread_of_the_gain_over_replications():
 def test_a_null_gain_passes_the_threshold_at_about_the_nominal_rate():
     # Null: two models equally wrong (each a random 0.01 deg wave off a zero truth), AR(1) noise
     # rho = 0.6; the expected gain is zero. Over 400 records the gain exceeds the one-screen threshold
-    # t(0.95, n_blocks - 1) x SE at about the nominal 5 % (measured 6.2 %: the blocking leaves a little autocorrelation), and the Bonferroni
+    # t(0.95, n_blocks - 1) x SE at about the nominal 5 % (measured 6.5 %: the blocking leaves a little autocorrelation), and the Bonferroni
     # threshold for 9 screens at about 5 % / 9 (measured 1.0 %).
     rng = np.random.default_rng(12)
     n = 1500
