@@ -191,6 +191,7 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
         return g
     single: dict[str, Fit] = {}
     gains: dict[str, dict] = {}
+    side = "actuator"
     for e in candidates:
         m = Model(data, [e])
         f = m.fit(fit_mask, _start(m, base))
@@ -201,6 +202,13 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
             f2 = m.fit(fit_mask)
             if f2.rss < f.rss:
                 f = f2
+        if e == "dead_zone":
+            # Both sides of the dead band; the lower cost on the fit rows decides (never the
+            # validation rows).
+            md = Model(data, [e], dead_zone_side="distal")
+            fd = md.fit(fit_mask, _start(md, base))
+            if fd.rss < f.rss:
+                f, m, side = fd, md, "distal"
         single[e] = f
         r = f.rmse(y, eval_mask)
         g = gains[e] = test_gain(base, f, r0)
@@ -208,6 +216,8 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
                "se_deg": g["se_deg"], "margin_deg": g["margin_deg"], "n_blocks": g["n_blocks"],
                "params": f.params()}
         row["promising"] = bool(g["passes"] and delta_bic(f, base) < -bic_min)
+        if e == "dead_zone":
+            row["side"] = side
         out["screen"].append(row)
         if progress:
             progress(e)
@@ -217,7 +227,7 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
     while promising and len(kept) < max_effects:
         trials = []
         for e in promising:
-            m = Model(data, kept + [e])
+            m = Model(data, kept + [e], dead_zone_side=side)
             f = m.fit(fit_mask, _start(m, current, single[e]))
             trials.append((f.rmse(y, eval_mask), e, f, m))
         trials.sort(key=lambda z: z[0])
@@ -245,6 +255,8 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
     for k in out["kept"]:
         k["params"] = {n: v for n, v in fp.items() if n.startswith(k["effect"] + ".")}
         k["at_bounds"] = {n: b for n, b in bounds.items() if n.startswith(k["effect"] + ".")}
+        if k["effect"] == "dead_zone":
+            k["side"] = side
     if has_test:
         t0, t1 = on_test(base, base_model), on_test(current, cur_model)
         e0 = excess(t0, sigma)

@@ -56,6 +56,7 @@ NONLIN = {
 }
 LINEAR = {"handeye_direction": "delta_deg", "drift": "rate_deg_per_min"}
 C_LIBRARY = list(NONLIN)  # effects visible in a record of c
+DEAD_ZONE_SIDES = ("actuator", "distal")
 
 
 def lowpass(x: np.ndarray, tau_s: float, rate_hz: float) -> np.ndarray:
@@ -207,11 +208,17 @@ def _direction(z: np.ndarray) -> np.ndarray:
 class Model:
     """The diagnostic model for one Data and one set of effects (names from C_LIBRARY)."""
 
-    def __init__(self, data: Data, effects=(), frame: "Model | None" = None):
+    def __init__(self, data: Data, effects=(), frame: "Model | None" = None, dead_zone_side: str | None = None):
         """frame: another Model whose knots and normalisation are reused, so a fit made on one
-        session can be evaluated on another (across-session protocol)."""
+        session can be evaluated on another (across-session protocol). dead_zone_side: where the
+        dead band acts, "actuator" (on q, before the play; default) or "distal" (on the play
+        output z, before f_remain; see design()); a frame's side is kept."""
         self.d = data
         self.effects = tuple(e for e in C_LIBRARY if e in effects)
+        side = dead_zone_side or (frame.dead_zone_side if frame is not None else "actuator")
+        if side not in DEAD_ZONE_SIDES:
+            raise ValueError(f"dead_zone_side must be one of {DEAD_ZONE_SIDES}, not {side!r}")
+        self.dead_zone_side = side
         ref = frame.d if frame is not None else data
         span = ref.q_hi - ref.q_lo
         self.q_mid = 0.5 * (ref.q_hi + ref.q_lo)
@@ -260,10 +267,9 @@ class Model:
         """Design matrix (Nm, n_coef) at the measurement rows for nonlinear parameters theta."""
         d = self.d
         q = d.q_int
-        if "dead_zone" in self.effects:
+        if "dead_zone" in self.effects and self.dead_zone_side == "actuator":
             # Dead band on the actuator side, before the play: the cable does not move while q
-            # crosses [z0 - w, z0 + w]. (A dead zone after the play is a static monotone map of z
-            # that f_remain absorbs: only this side leaves a gap a refit of B and f cannot take.)
+            # crosses [z0 - w, z0 + w].
             w = self._get(theta, "dead_zone", "w_q")
             zc = self._get(theta, "dead_zone", "z0_q")
             q = q - np.clip(q - zc, -w, w)
@@ -300,6 +306,13 @@ class Model:
             sdir = _switch(z.tolist(), w)
         if "stick_slip" in self.effects:
             z = _hold(z, max(self._get(theta, "stick_slip", "step_q"), 1e-9))
+        if "dead_zone" in self.effects and self.dead_zone_side == "distal":
+            # Dead band on the distal side: the bend does not follow the play output while z
+            # crosses [z0 - w, z0 + w] (a joint that is slack near one configuration). It is a static
+            # map of z, but with kinks f_remain's 12 knots cannot follow; same parameters (q units).
+            w = self._get(theta, "dead_zone", "w_q")
+            zc = self._get(theta, "dead_zone", "z0_q")
+            z = z - np.clip(z - zc, -w, w)
         x = np.clip((z - self.q_mid) / self.q_half, -1.5, 1.5)
         Phi = BSpline.design_matrix(x, self.ftk, 3).toarray()
         if "cable_elongation" in self.effects:
