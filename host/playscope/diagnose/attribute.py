@@ -221,22 +221,32 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
         out["screen"].append(row)
         if progress:
             progress(e)
-    promising = [row["effect"] for row in sorted(out["screen"], key=lambda z: z["rmse_heldout_deg"]) if row["promising"]]
+    # Joint refits are tried for every effect that helped alone on both counts (validation RMSE
+    # and BIC lower), not only the significant ones: an effect may pass only once another is in
+    # (e.g. a rate-dependent lag beside an elongation's creep). At each step the best validation
+    # RMSE among the refits that pass the full test (margin and BIC) is kept.
+    pool = [row["effect"] for row in sorted(out["screen"], key=lambda z: z["rmse_heldout_deg"])
+            if row["delta_rmse_deg"] > 0 and row["delta_bic"] < -bic_min]
     current, cur_r, kept = base, r0, []
     cur_model = base_model
-    while promising and len(kept) < max_effects:
+    while pool and len(kept) < max_effects:
         trials = []
-        for e in promising:
+        for e in pool:
             m = Model(data, kept + [e], dead_zone_side=side)
-            f = m.fit(fit_mask, _start(m, current, single[e]))
+            f = single[e] if not kept else m.fit(fit_mask, _start(m, current, single[e]))
             trials.append((f.rmse(y, eval_mask), e, f, m))
         trials.sort(key=lambda z: z[0])
-        r, e, f, m = trials[0]
-        g = test_gain(current, f, cur_r)
-        if not (g["passes"] and delta_bic(f, current) < -bic_min):
+        chosen = None
+        for r, e, f, m in trials:
+            g = test_gain(current, f, cur_r)
+            if g["passes"] and delta_bic(f, current) < -bic_min:
+                chosen = (r, e, f, m)
+                break
+        if chosen is None:
             break
+        r, e, f, m = chosen
         kept.append(e)
-        promising.remove(e)
+        pool.remove(e)
         out["kept"].append({"effect": e, "rmse_before_deg": cur_r, "rmse_after_deg": r,
                             "gain_se_deg": g["se_deg"], "margin_deg": g["margin_deg"],
                             "share_of_excess_removed": _share(cur_r, r, out["excess_before_deg"], sigma),

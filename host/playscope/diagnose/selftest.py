@@ -203,4 +203,10 @@ def format_report(sc: dict) -> str:
               + ", ".join(f"{k} -> {v}" for k, v in sc["ool"].items()),
               f"recovered shrink within 25 % of the generator's truth: {pct(sc['shrink_within_25pct_identifiable'])} "
               f"of identifiable cases (misses count), {pct(sc['shrink_within_25pct_correct'])} of correctly named ones"]
+    miss = [r for r in sc["cases"] if r["effect"] in C_LIBRARY and r.get("identifiable") and r["shrink_true_deg"] > 0
+            and abs(r["shrink_recovered_deg"] - r["shrink_true_deg"]) > 0.25 * r["shrink_true_deg"]]
+    if miss:
+        lines.append("shrink misses (identifiable; recovered / true, deg; verdict):")
+        lines += [f"  {r['effect']}/{r['variant']}@{r['strength']:g}: {r['shrink_recovered_deg']:.3f} / "
+                  f"{r['shrink_true_deg']:.3f}; {r['verdict']}" for r in miss]
     return "\n".join(lines)
