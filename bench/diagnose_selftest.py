@@ -14,7 +14,10 @@ Catheter folder: --catheter DIR, else $PLAYSCOPE_CATHETER_DIR, else $PLAYSCOPE_R
 else ../shared/data/real/catheter next to the repository.
 
 Usage: .venv/bin/python bench/diagnose_selftest.py [--quick] [--workers 2] [--json out.json]
-       [--real-only] [--catheter DIR]
+       [--real-only] [--catheter DIR] [--effects a,b] [--nulls N] [--no-ool] [--seed S]
+       [--selftest-only]
+       (a subset while developing, e.g. --effects viscous_hysteresis,cable_elongation --nulls 0
+       --no-ool --seed 1000 --selftest-only; the reported figures are seed 0 with every case)
        (full: 42 cases, ~20 min on 2 busy shared cores; --quick: strong strength only, 2 nulls, 22 cases,
        4 min 10 s with the catheter part on 2 idle cores; --real-only ~2 min)
 """
@@ -42,22 +45,35 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="strong strength only, 2 nulls (22 cases)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--real-only", action="store_true")
+    ap.add_argument("--selftest-only", action="store_true", help="skip the catheter part")
     ap.add_argument("--catheter", help="folder of data_2_*.txt (see module doc for the default)")
     ap.add_argument("--json", help="write all results as JSON")
+    ap.add_argument("--effects", help="comma-separated library effects to plant (a subset while developing; "
+                    "the reported figure is the full list)")
+    ap.add_argument("--nulls", type=int, help="number of null cases (default 4, --quick 2)")
+    ap.add_argument("--no-ool", action="store_true", help="leave out the out-of-library cases")
+    ap.add_argument("--seed", type=int, default=0, help="case seed (0 is the reported one; develop on others)")
     a = ap.parse_args(argv)
     out = {}
     if not a.real_only:
-        sc = selftest.run("strong" if a.quick else "both", 2 if a.quick else 4, True, workers=a.workers,
-                          log=lambda s: print(s, flush=True))
+        effects = selftest.LIB_EFFECTS
+        if a.effects:
+            effects = tuple(e.strip() for e in a.effects.split(",") if e.strip())
+            bad = [e for e in effects if e not in selftest.LIB_EFFECTS]
+            if bad:
+                ap.error(f"unknown effect(s) {', '.join(bad)}; choose from {', '.join(selftest.LIB_EFFECTS)}")
+        nulls = a.nulls if a.nulls is not None else (2 if a.quick else 4)
+        sc = selftest.run("strong" if a.quick else "both", nulls, not a.no_ool, seed=a.seed, workers=a.workers,
+                          effects=effects, log=lambda s: print(s, flush=True))
         print(selftest.format_report(sc))
         out["selftest"] = sc
     folder = catheter_dir(a.catheter, default=ROOT.parent / "shared" / "data" / "real" / "catheter")
-    files = sorted(folder.glob("data_2_*.txt")) if folder else []
+    files = sorted(folder.glob("data_2_*.txt")) if folder and not a.selftest_only else []
     if files:
         tab = catheter_table(files, log=lambda s: print(s, flush=True))
         print(format_catheter(tab))
         out["catheter"] = tab
-    else:
+    elif not a.selftest_only:
         print(f"catheter recordings not found ({folder}): part 2 skipped")
     if a.json:
         from playscope.commands.common import dump_json

@@ -223,8 +223,10 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     with a smooth transition that width is not the play the model anchors on (the tip creeps
     from the narrowest operator). What the product needs from B is the c it predicts, so each
     stiffness the B-sample CV tried (estimate.backlash_alternatives: distinct B's only) gets
-    its own model choice, and the pick is the stiffest B whose chosen model's CV RMSE is within
-    one standard error of the best (the one-standard-error rule of both CVs).
+    its own model choice. The B-sample CV's own pick is kept when its model's CV RMSE is within
+    one standard error of the best (no evidence against the measured B); otherwise the pick is
+    the stiffest B whose chosen model's CV RMSE is within one standard error of the best (the
+    one-standard-error rule of both CVs).
     Each alternative's model choice is transition.ModelChoice: pick() fits only the folds that
     can decide its pick (the rows here need its pick and refit alone), and only the alternative
     kept completes every candidate for the choice dict: the same results as a full
@@ -232,7 +234,7 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     be cut short: the B rule's limit is the best alternative's CV + SE, and every alternative's
     row is part of the calibration file (B_fit.model_cv).
     Returns (BacklashFit, Transition, f, sign, choice dict, [{"smooth", "cv_rmse_deg",
-    "cv_se_deg", "model", "b_scale", "n"}] stiffest first)."""
+    "cv_se_deg", "model", "b_scale", "n", "b_sample_pick"}] stiffest first)."""
     alts = E.backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)
     base = T.FitData.from_session(t_enc, q, alts[0][1].B, t_f, c_f, td)
     rows, choices = [], []
@@ -244,7 +246,14 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
         choices.append(mc)
     best = min(rows, key=lambda d: d["cv_rmse_deg"])
     limit = best["cv_rmse_deg"] + best["cv_se_deg"]
-    i = next(i for i, d in enumerate(rows) if d["cv_rmse_deg"] <= limit)  # rows are stiffest first
+    own = next(i for i, (sm, _) in enumerate(alts) if sm == bfit.smooth)
+    for j, d in enumerate(rows):
+        d["b_sample_pick"] = j == own  # the B-sample CV's own choice (estimate.choose_stiffness)
+    # The onset samples' own choice stays unless the model's CV on c puts it beyond one standard
+    # error of the best: B is the anchor measured by eq. 1, and a CV on c that cannot tell the
+    # stiffnesses apart has no evidence to move it. Beyond, the stiffest B within one SE of the
+    # best (rows are stiffest first).
+    i = own if rows[own]["cv_rmse_deg"] <= limit else next(i for i, d in enumerate(rows) if d["cv_rmse_deg"] <= limit)
     tr, f, sign, ch = choices[i].result()
     return alts[i][1], tr, f, sign, ch, rows
 

@@ -39,9 +39,15 @@ NONLIN = {
     "stick_slip": [("step_q", None, 0.0, None)],
     "cable_elongation": [("kappa", 0.3, 0.0, 0.95), ("log_tau", 0.0, np.log(0.05), np.log(10.0))],
     "camera_delay": [("delay_s", 0.0, -0.2, 0.5)],
-    # Extra half-width of the play beta * |dq/dt| (speed low-passed with tau_v): the lag grows
-    # with speed and relaxes over tau_v after a stop (sheath friction with a viscous part).
-    "viscous_hysteresis": [("beta_s", 0.05, 0.0, 2.0), ("log_tau_v", np.log(0.1), np.log(0.02), np.log(3.0))],
+    # Rate-dependent play, two physical routes to a lag that grows with speed: (1) an extra
+    # half-width beta * |dq/dt| (speed low-passed with tau_v; sheath friction with a viscous part:
+    # the band itself widens with speed); (2) a viscous contact, the play output relaxing towards
+    # the band with time constant tau_c instead of being carried by it (a lag only while an edge
+    # pushes, frozen as soon as the edge leaves: unlike a low-pass after the play, i.e. an
+    # elongation, it does not creep on through the reversal). log_tau_c at its lower bound
+    # (2 ms, a tenth of an internal sample) is the plain play.
+    "viscous_hysteresis": [("beta_s", 0.05, 0.0, 2.0), ("log_tau_v", np.log(0.1), np.log(0.02), np.log(3.0)),
+                           ("log_tau_c", np.log(0.002), np.log(0.002), np.log(2.0))],
     # The registration offset switches sign with the direction of distal motion over a travel of
     # the play output (a seat that slides over its gap, an instrument dragged in its channel);
     # log of the travel as a fraction of the q span; the smallest is an instant switch.
@@ -50,6 +56,7 @@ NONLIN = {
 }
 LINEAR = {"handeye_direction": "delta_deg", "drift": "rate_deg_per_min"}
 C_LIBRARY = list(NONLIN)  # effects visible in a record of c
+DEAD_ZONE_SIDES = ("actuator", "distal")
 
 
 def lowpass(x: np.ndarray, tau_s: float, rate_hz: float) -> np.ndarray:
@@ -176,6 +183,22 @@ def _switch(z: list, travel: float) -> np.ndarray:
     return np.asarray(out)
 
 
+def _viscous_play(z_lo: np.ndarray, z_hi: np.ndarray, z0: float, a: float) -> np.ndarray:
+    """Play whose output relaxes towards its band instead of being carried by it (a viscous
+    contact): p[k] = p[k-1] + a (clip(p[k-1], z_lo[k], z_hi[k]) - p[k-1]), a = 1 - exp(-dt/tau_c).
+    a = 1 is the play operator of eq. 3; a < 1 lags while an edge pushes, by ~ speed x tau_c, and
+    holds still once the edge has left (the band contains p). z_lo, z_hi: (N,); returns p (N,)."""
+    lo = np.asarray(z_lo, float).tolist()
+    hi = np.asarray(z_hi, float).tolist()
+    out = [0.0] * len(lo)
+    p = float(z0)
+    for k in range(len(lo)):
+        c = lo[k] if p < lo[k] else (hi[k] if p > hi[k] else p)
+        p += a * (c - p)
+        out[k] = p
+    return np.asarray(out)
+
+
 def _direction(z: np.ndarray) -> np.ndarray:
     from ..model import held_direction
 
@@ -185,11 +208,17 @@ def _direction(z: np.ndarray) -> np.ndarray:
 class Model:
     """The diagnostic model for one Data and one set of effects (names from C_LIBRARY)."""
 
-    def __init__(self, data: Data, effects=(), frame: "Model | None" = None):
+    def __init__(self, data: Data, effects=(), frame: "Model | None" = None, dead_zone_side: str | None = None):
         """frame: another Model whose knots and normalisation are reused, so a fit made on one
-        session can be evaluated on another (across-session protocol)."""
+        session can be evaluated on another (across-session protocol). dead_zone_side: where the
+        dead band acts, "actuator" (on q, before the play; default) or "distal" (on the play
+        output z, before f_remain; see design()); a frame's side is kept."""
         self.d = data
         self.effects = tuple(e for e in C_LIBRARY if e in effects)
+        side = dead_zone_side or (frame.dead_zone_side if frame is not None else "actuator")
+        if side not in DEAD_ZONE_SIDES:
+            raise ValueError(f"dead_zone_side must be one of {DEAD_ZONE_SIDES}, not {side!r}")
+        self.dead_zone_side = side
         ref = frame.d if frame is not None else data
         span = ref.q_hi - ref.q_lo
         self.q_mid = 0.5 * (ref.q_hi + ref.q_lo)
@@ -238,10 +267,9 @@ class Model:
         """Design matrix (Nm, n_coef) at the measurement rows for nonlinear parameters theta."""
         d = self.d
         q = d.q_int
-        if "dead_zone" in self.effects:
+        if "dead_zone" in self.effects and self.dead_zone_side == "actuator":
             # Dead band on the actuator side, before the play: the cable does not move while q
-            # crosses [z0 - w, z0 + w]. (A dead zone after the play is a static monotone map of z
-            # that f_remain absorbs: only this side leaves a gap a refit of B and f cannot take.)
+            # crosses [z0 - w, z0 + w].
             w = self._get(theta, "dead_zone", "w_q")
             zc = self._get(theta, "dead_zone", "z0_q")
             q = q - np.clip(q - zc, -w, w)
@@ -254,10 +282,14 @@ class Model:
             r = np.exp(s * np.linspace(-1, 1, 5))
             widths = list(r / r.mean())
         vh = np.zeros_like(q)
+        a_c = 1.0
         if "viscous_hysteresis" in self.effects:
             beta = self._get(theta, "viscous_hysteresis", "beta_s")
             tau_v = np.exp(self._get(theta, "viscous_hysteresis", "log_tau_v"))
             vh = beta * lowpass(np.abs(np.gradient(q, 1.0 / INTERNAL_HZ)), tau_v, INTERNAL_HZ)
+            ltc = self._get(theta, "viscous_hysteresis", "log_tau_c")
+            lo_tc = NONLIN["viscous_hysteresis"][2][2]
+            a_c = 1.0 if ltc <= lo_tc + 1e-9 else -np.expm1(-1.0 / (np.exp(ltc) * INTERNAL_HZ))
         # B(z): natural cubic spline through the knots, held beyond them, on a fine z grid.
         Bg = np.maximum(CubicSpline(self.kn, Bk, bc_type="natural")(np.clip(self.zg, self.kn[0], self.kn[-1])), 0.0)
         zs = []
@@ -266,7 +298,7 @@ class Model:
             # down), inverted on the z grid by np.interp (z + B(z)/2 is increasing for |B'| < 2).
             zu = np.interp(q - vh, *self._edge(self.zg, (1 + alpha) * r * Bg / 2))
             zd = np.interp(q + vh, *self._edge(self.zg, -(1 - alpha) * r * Bg / 2))
-            zs.append(play_on_edges(zu, zd, z0))
+            zs.append(play_on_edges(zu, zd, z0) if a_c >= 1.0 else _viscous_play(zu, zd, z0, a_c))
         z = zs[0] if len(zs) == 1 else np.mean(zs, axis=0)
         sdir = _direction(z)
         if "handeye_direction" in self.effects:
@@ -274,6 +306,13 @@ class Model:
             sdir = _switch(z.tolist(), w)
         if "stick_slip" in self.effects:
             z = _hold(z, max(self._get(theta, "stick_slip", "step_q"), 1e-9))
+        if "dead_zone" in self.effects and self.dead_zone_side == "distal":
+            # Dead band on the distal side: the bend does not follow the play output while z
+            # crosses [z0 - w, z0 + w] (a joint that is slack near one configuration). It is a static
+            # map of z, but with kinks f_remain's 12 knots cannot follow; same parameters (q units).
+            w = self._get(theta, "dead_zone", "w_q")
+            zc = self._get(theta, "dead_zone", "z0_q")
+            z = z - np.clip(z - zc, -w, w)
         x = np.clip((z - self.q_mid) / self.q_half, -1.5, 1.5)
         Phi = BSpline.design_matrix(x, self.ftk, 3).toarray()
         if "cable_elongation" in self.effects:
@@ -406,10 +445,12 @@ class Model:
                         x[self.names.index("smooth_transition.log_spread")] = sp
                         new.append(x)
                 elif e == "viscous_hysteresis":
-                    for b, lt in ((0.05, np.log(0.05)), (0.2, np.log(0.3))):
+                    # speed-widened band (tau_c at its plain-play bound), then viscous contacts
+                    for b, tv, tc in ((0.05, 0.05, 0.002), (0.2, 0.3, 0.002), (0.0, 0.1, 0.1), (0.0, 0.1, 0.3)):
                         x = s.copy()
                         x[self.names.index("viscous_hysteresis.beta_s")] = b
-                        x[self.names.index("viscous_hysteresis.log_tau_v")] = lt
+                        x[self.names.index("viscous_hysteresis.log_tau_v")] = np.log(tv)
+                        x[self.names.index("viscous_hysteresis.log_tau_c")] = np.log(tc)
                         new.append(x)
                 elif e == "handeye_direction":
                     for lt in np.log([0.002, 0.05, 0.2]):

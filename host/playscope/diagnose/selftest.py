@@ -94,6 +94,9 @@ def run_case(case: dict, duration_s: float = 120.0, candidates=C_LIBRARY, oracle
            "kept": [k["effect"] for k in res["kept"]],
            "indistinguishable": {k["effect"]: k["indistinguishable_from"] for k in res["kept"]},
            "stick_skew": res["stick_slip_signature"]["skewness"],
+           "screen": {row["effect"]: {"rmse_val_deg": row["rmse_heldout_deg"], "promising": row["promising"],
+                                      "margin_deg": row.get("margin_deg"), "delta_bic": row["delta_bic"]}
+                      for row in res["screen"]},
            "split": sp.method, "noise_floor_deg": res["noise_floor_deg"],
            "rmse_val_base_deg": res["base"]["rmse_heldout_deg"], "rmse_val_after_deg": res["final"]["rmse_heldout_deg"],
            "rmse_base_deg": r0, "rmse_after_deg": res["test"]["rmse_final_deg"], "rmse_noise_only_deg": r_noise,
@@ -200,4 +203,10 @@ def format_report(sc: dict) -> str:
               + ", ".join(f"{k} -> {v}" for k, v in sc["ool"].items()),
               f"recovered shrink within 25 % of the generator's truth: {pct(sc['shrink_within_25pct_identifiable'])} "
               f"of identifiable cases (misses count), {pct(sc['shrink_within_25pct_correct'])} of correctly named ones"]
+    miss = [r for r in sc["cases"] if r["effect"] in C_LIBRARY and r.get("identifiable") and r["shrink_true_deg"] > 0
+            and abs(r["shrink_recovered_deg"] - r["shrink_true_deg"]) > 0.25 * r["shrink_true_deg"]]
+    if miss:
+        lines.append("shrink misses (identifiable; recovered / true, deg; verdict):")
+        lines += [f"  {r['effect']}/{r['variant']}@{r['strength']:g}: {r['shrink_recovered_deg']:.3f} / "
+                  f"{r['shrink_true_deg']:.3f}; {r['verdict']}" for r in miss]
     return "\n".join(lines)
