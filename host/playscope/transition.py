@@ -543,10 +543,10 @@ class ModelChoice:
     keeps).
 
     pick() finds the rule's choice exactly while fitting as few folds as it can prove
-    irrelevant: (1) the best CV (it sets the limit best + its SE) is found by scoring the
-    candidates in turn and stopping one as soon as the lower bound of its CV from the folds
-    scored so far (_CandidateCV.lower_bound) exceeds the lowest complete CV: it cannot be the
-    best, whatever its remaining folds; (2) the pick is the first candidate in the rule's order
+    irrelevant: (1) the best CV (it sets the limit best + its SE) is found by scoring folds
+    best-first (the open candidate with the lowest lower bound of its CV from the folds scored
+    so far, _CandidateCV.lower_bound) and stopping a candidate once that bound exceeds the
+    lowest complete CV: it cannot be the best, whatever its remaining folds; (2) the pick is the first candidate in the rule's order
     within the limit: a stopped candidate whose lower bound already exceeds the limit is not,
     any other one is completed and tested. What cannot be skipped: the candidates that could
     still be the best (their SE is part of the limit) and the ones the order reaches before a
