@@ -227,18 +227,23 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     one standard error of the best (no evidence against the measured B); otherwise the pick is
     the stiffest B whose chosen model's CV RMSE is within one standard error of the best (the
     one-standard-error rule of both CVs).
+    Each alternative's model choice is transition.ModelChoice: pick() fits only the folds that
+    can decide its pick (the rows here need its pick and refit alone), and only the alternative
+    kept completes every candidate for the choice dict: the same results as a full
+    transition.choose_model per alternative, in fewer fits. The alternatives themselves cannot
+    be cut short: the B rule's limit is the best alternative's CV + SE, and every alternative's
+    row is part of the calibration file (B_fit.model_cv).
     Returns (BacklashFit, Transition, f, sign, choice dict, [{"smooth", "cv_rmse_deg",
     "cv_se_deg", "model", "b_scale", "n", "b_sample_pick"}] stiffest first)."""
     alts = E.backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)
-    rows, fits = [], []
+    base = T.FitData.from_session(t_enc, q, alts[0][1].B, t_f, c_f, td)
+    rows, choices = [], []
     for sm, bf in alts:
-        data = T.FitData.from_session(t_enc, q, bf.B, t_f, c_f, td)
-        tr, f, sign, ch = T.choose_model(data, model_kind, n_ctrl)
-        key = (ch["b_scale"], ch["n_tried"], ch["r_span"], ch["n_ctrl"])
-        row = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"], c["n_ctrl"]) == key)
-        rows.append({"smooth": sm, "cv_rmse_deg": row["cv_rmse_deg"], "cv_se_deg": row["cv_se_deg"],
-                     "model": ch["model"], "b_scale": ch["b_scale"], "n": ch["n"]})
-        fits.append((bf, tr, f, sign, ch))
+        mc = T.ModelChoice(base.with_B(bf.B), model_kind, n_ctrl)
+        pick, (tr, _, _, _) = mc.pick(), mc.refit()
+        rows.append({"smooth": sm, "cv_rmse_deg": pick["cv_rmse_deg"], "cv_se_deg": pick["cv_se_deg"],
+                     "model": "play" if tr.is_play else "pi", "b_scale": pick["b_scale"], "n": tr.n})
+        choices.append(mc)
     best = min(rows, key=lambda d: d["cv_rmse_deg"])
     limit = best["cv_rmse_deg"] + best["cv_se_deg"]
     own = next(i for i, (sm, _) in enumerate(alts) if sm == bfit.smooth)
@@ -249,8 +254,8 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     # stiffnesses apart has no evidence to move it. Beyond, the stiffest B within one SE of the
     # best (rows are stiffest first).
     i = own if rows[own]["cv_rmse_deg"] <= limit else next(i for i, d in enumerate(rows) if d["cv_rmse_deg"] <= limit)
-    bf, tr, f, sign, ch = fits[i]
-    return bf, tr, f, sign, ch, rows
+    tr, f, sign, ch = choices[i].result()
+    return alts[i][1], tr, f, sign, ch, rows
 
 
 def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,

@@ -239,6 +239,15 @@ class FitData:
         return cls(np.asarray(t_enc, float), np.asarray(q, float), B, np.asarray(t_f, float)[ok] - t_delay_s,
                    np.asarray(c_f, float)[ok])
 
+    def with_B(self, B) -> "FitData":
+        """The same session with another onset width B(q): shares the reduced path (_reduced:
+        q's turning points and the frames' q, which do not depend on B), so the B alternatives
+        of the calibration (calibration.choose_b_and_model) compute it once."""
+        out = FitData(self.t_enc, self.q_enc, B, self.t_frame, self.c)
+        self._reduced()
+        out._cache["red"] = self._cache["red"]
+        return out
+
     @property
     def b_med(self) -> float:
         """Median of B over the travelled q range (actuator units)."""
@@ -299,6 +308,17 @@ def _fit_f(y, c, n_ctrl, smooth, sign=None):
     return E.SplineFn(spl, lo, hi, linear_ends=True), sign
 
 
+def _design_matrix(x: np.ndarray, t: np.ndarray, n_ctrl: int) -> np.ndarray:
+    """Dense cubic B-spline design matrix (x.size, n_ctrl) on knots t: the spline with the
+    identity as coefficients evaluated at x. The same basis values as
+    BSpline.design_matrix(x, t, 3).toarray() (bit for bit: each column is one basis function
+    times 1), without building the sparse matrix first (2x faster; the variable projection
+    builds one per residual evaluation)."""
+    from scipy.interpolate import BSpline
+
+    return BSpline(t, np.eye(n_ctrl), 3)(x)
+
+
 class _SplineProjection:
     """P-spline least squares of c on y (the inner solve of fit_weights) and its residual's
     Jacobian in the weights by Kaufman's variable-projection approximation (Golub & Pereyra
@@ -306,37 +326,44 @@ class _SplineProjection:
 
     def __init__(self, P: np.ndarray, c: np.ndarray, n_ctrl: int, smooth: float):
         self.P, self.c, self.n_ctrl, self.smooth = P, c, n_ctrl, smooth
-        self.D = np.diff(np.eye(n_ctrl), 2, axis=0)
+        D = np.diff(np.eye(n_ctrl), 2, axis=0)
+        self.DtD = D.T @ D
         self._key, self._val = None, None
 
     def _solve(self, x: np.ndarray):
         key = x.tobytes()
         if key != self._key:
-            from scipy.interpolate import BSpline
-
             y = self.P[:, 0] + self.P[:, 1:] @ x
             lo, hi = float(y.min()), float(y.max())
             hi = max(hi, lo + 1e-9)
             t = E.clamped_knots(lo, hi, self.n_ctrl)
-            A = BSpline.design_matrix(np.clip(y, lo, hi), t, 3).toarray()
-            lam = self.smooth * np.trace(A.T @ A) / self.n_ctrl
+            yc = np.clip(y, lo, hi)
+            A = _design_matrix(yc, t, self.n_ctrl)
+            AtA = A.T @ A
+            lam = self.smooth * np.trace(AtA) / self.n_ctrl
             # Normal equations of the penalised fit (n_ctrl x n_ctrl, well conditioned by the
             # penalty): the projection of any G is A (N^-1 A^T G).
-            N = A.T @ A + lam * (self.D.T @ self.D)
+            N = AtA + lam * self.DtD
             cho = cho_factor(N)
             coef = cho_solve(cho, A.T @ self.c)
-            slope = BSpline(t, coef, 3).derivative()(np.clip(y, lo, hi))
-            self._key, self._val = key, (A, cho, coef, slope)
+            self._key, self._val = key, (A, cho, coef, t, yc)
         return self._val
 
     def resid(self, x):
-        A, _, coef, _ = self._solve(x)
+        A, _, coef, _, _ = self._solve(x)
         return A @ coef - self.c
 
     def jac(self, x):
-        A, cho, _, slope = self._solve(x)
+        from scipy.interpolate import BSpline
+
+        # f'(y) here, not in _solve: the trust region rejects a third of its trial points, and
+        # those only need the residual.
+        A, cho, coef, t, yc = self._solve(x)
+        slope = BSpline(t, coef, 3).derivative()(yc)
         G = slope[:, None] * self.P[:, 1:]
-        return G - A @ cho_solve(cho, A.T @ G)
+        # cho_solve returns a Fortran-ordered (n_ctrl, n-1) block, and numpy's A @ X does not
+        # reach BLAS for that layout (~50x slower at F = 3000 frames: it was half of calibrate).
+        return G - A @ np.ascontiguousarray(cho_solve(cho, A.T @ G))
 
 
 def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3, robust_f: bool = True,
@@ -376,7 +403,7 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
     # cross-validation scored). Refitting another f on y afterwards would leave the joint
     # least-squares optimum for weights chosen under a different f.
     vp = _SplineProjection(y[:, None], c, n_ctrl, smooth)
-    _, _, coef, _ = vp._solve(np.zeros(0))
+    _, _, coef, _, _ = vp._solve(np.zeros(0))
     lo, hi = float(y.min()), max(float(y.max()), float(y.min()) + 1e-9)
     f = E.SplineFn(BSpline(E.clamped_knots(lo, hi, n_ctrl), coef, 3, extrapolate=False), lo, hi, linear_ends=True)
     sign = 1 if f.s_lo + f.s_hi >= 0 else -1
@@ -453,10 +480,157 @@ def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14) -> lis
     return out
 
 
+class _CandidateCV:
+    """One candidate's rolling-origin CV, run one fold at a time so that it can stop early
+    (ModelChoice) and resume later with bit-identical results: fold j starts from fold j-1's
+    weights (the folds share most frames), and nothing else carries over between folds."""
+
+    def __init__(self, data: FitData, splits, kb: float, n: int, span: float, nc: int):
+        self.kb, self.n, self.span, self.nc = kb, n, float(span), int(nc)
+        self.data, self.splits = data, splits
+        self.r = thresholds(n, span) if n > 1 else np.zeros(1)
+        self.errs: list[float] = []
+        self._next, self._v, self._P, self._vm = 0, None, None, None
+
+    @property
+    def done(self) -> bool:
+        return self._next >= len(self.splits)
+
+    def step(self) -> None:
+        """Fit and score the next scored fold (rolling_origins' folds with too few frames are
+        skipped, as choose_model always did)."""
+        if self._P is None:  # the operators at the frames and the table's bound, once
+            self._P = self.data.ops_at_frames(self.r, self.kb)
+            self._vm = v_max_for_table(self.data, self.kb, self.n)
+        while not self.done:
+            tr_m, te_m = self.splits[self._next]
+            self._next += 1
+            if te_m.sum() < 3 or tr_m.sum() < 10:
+                continue
+            P, c = self._P, self.data.c
+            w, f, _, _ = fit_weights(P[tr_m], c[tr_m], self.nc, robust_f=False, v0=self._v, v_max=self._vm)
+            self._v = fit_weights.last_v  # warm start of the next fold
+            self.errs.append(float(np.sqrt(np.mean((f(P[te_m] @ w) - c[te_m]) ** 2))))
+            return
+
+    def complete(self) -> "_CandidateCV":
+        while not self.done:
+            self.step()
+        return self
+
+    def lower_bound(self, k_scored: int) -> float:
+        """A lower bound of the final CV RMSE from the folds scored so far: the folds still to
+        come add >= 0 to the sum of squares over the k_scored folds."""
+        return float(np.sqrt(np.sum(np.square(self.errs)) / max(k_scored, 1)))
+
+    def row(self) -> dict:
+        """The choice's candidate row (complete() first)."""
+        errs = np.array(self.errs)
+        return {"b_scale": self.kb, "n": self.n, "r_span": self.span, "n_ctrl": self.nc,
+                "cv_rmse_deg": float(np.sqrt(np.mean(errs ** 2))),
+                "cv_se_deg": float(np.std(errs, ddof=1) / np.sqrt(errs.size)) if errs.size > 1 else 0.0}
+
+
+def _preference(d) -> tuple:
+    """The one-standard-error rule's order (simplest first): fewest operators, then the onset
+    width closest to as measured, then the stiffest f."""
+    return d["n"], -d["b_scale"], d["n_ctrl"]
+
+
+class ModelChoice:
+    """choose_model's rule, computed lazily (the calibration runs it once per B(q) alternative,
+    calibration.choose_b_and_model, and needs every candidate's CV only for the alternative it
+    keeps).
+
+    pick() finds the rule's choice exactly while fitting as few folds as it can prove
+    irrelevant: (1) the best CV (it sets the limit best + its SE) is found by scoring folds
+    best-first (the open candidate with the lowest lower bound of its CV from the folds scored
+    so far, _CandidateCV.lower_bound) and stopping a candidate once that bound exceeds the
+    lowest complete CV: it cannot be the best, whatever its remaining folds; (2) the pick is the first candidate in the rule's order
+    within the limit: a stopped candidate whose lower bound already exceeds the limit is not,
+    any other one is completed and tested. What cannot be skipped: the candidates that could
+    still be the best (their SE is part of the limit) and the ones the order reaches before a
+    pick. result() completes every candidate (the choice dict lists them all) and gives exactly
+    what choose_model gives. Stopping never changes a number: each candidate's folds are the
+    same fits in the same order whether run at once or resumed."""
+
+    def __init__(self, data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD):
+        if model_kind not in ("auto", "play", "pi"):
+            raise ValueError(f"model must be play, pi or auto, not {model_kind!r}")
+        self.data, self.model_kind, self.k = data, model_kind, k
+        splits = rolling_origins(data, k)
+        self.k_scored = sum(1 for tr_m, te_m in splits if te_m.sum() >= 3 and tr_m.sum() >= 10)
+        self.cands = [_CandidateCV(data, splits, *cand) for cand in candidates(data, model_kind, n_ctrl)]
+        self._pick, self._refit = None, None
+
+    # A relative margin for comparing the lower bound (a sum over folds) with a CV RMSE (a mean):
+    # the two round differently, and a stop must never rest on a rounding difference.
+    _MARGIN = 1e-9
+
+    def _exceeds(self, c: _CandidateCV, level: float) -> bool:
+        return c.lower_bound(self.k_scored) > level * (1 + self._MARGIN) + 1e-300
+
+    def pick(self) -> dict:
+        """The chosen candidate's row ({"b_scale", "n", "r_span", "n_ctrl", "cv_rmse_deg",
+        "cv_se_deg"}), by choose_model's rule."""
+        if self._pick is not None:
+            return self._pick
+        # (1) Best first: always score the next fold of the open candidate with the lowest lower
+        # bound (an unscored one has 0), until every open one is above the lowest complete CV.
+        # The order of the fits does not change any of them (_CandidateCV).
+        while True:
+            done = [c for c in self.cands if c.done]
+            best_cv = min((c.row()["cv_rmse_deg"] for c in done), default=None)
+            open_ = [c for c in self.cands if not c.done
+                     and (best_cv is None or not self._exceeds(c, best_cv))]
+            if not open_:
+                break
+            min(open_, key=lambda c: c.lower_bound(self.k_scored)).step()
+        rows = [c.row() for c in self.cands if c.done]
+        best = min(rows, key=lambda d: d["cv_rmse_deg"])  # the first of equal ones, as choose_model
+        limit = best["cv_rmse_deg"] + best["cv_se_deg"]
+        for c in sorted(self.cands, key=lambda c: _preference({"n": c.n, "b_scale": c.kb, "n_ctrl": c.nc})):
+            if not c.done and self._exceeds(c, limit):
+                continue  # its CV is above the limit whatever its remaining folds
+            row = c.complete().row()
+            if row["cv_rmse_deg"] <= limit:
+                self._pick = row
+                return row
+        # Only without any scored fold (every CV NaN; choose_model never had a pick there either).
+        raise ValueError("no candidate of the model choice has a cross-validation score (too few frames per fold)")
+
+    def refit(self) -> tuple[Transition, "E.SplineFn", int, float]:
+        """The pick refitted on all the calibration frames: (Transition without its zero-weight
+        operators, f, sign of f', fit RMSE deg)."""
+        if self._refit is None:
+            p = self.pick()
+            kb, n, span, nc = p["b_scale"], p["n"], p["r_span"], p["n_ctrl"]
+            r = thresholds(n, span) if n > 1 else np.zeros(1)
+            w, f, sign, rms = fit_weights(self.data.ops_at_frames(r, kb), self.data.c, nc,
+                                          v_max=v_max_for_table(self.data, kb, n))
+            keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
+            self._refit = (Transition(r[keep], w[keep] / w[keep].sum(), kb), f, sign, rms)
+        return self._refit
+
+    def result(self, progress=lambda it, **kw: it) -> tuple[Transition, "E.SplineFn", int, dict]:
+        """choose_model's return value: every candidate's CV complete."""
+        for c in progress(self.cands, desc="model choice"):
+            c.complete()
+        p = self.pick()
+        tr, f, sign, rms = self.refit()
+        choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(p["n"]),
+                  "b_scale": p["b_scale"], "r_span": float(p["r_span"]), "n_ctrl": int(p["n_ctrl"]),
+                  "fit_rmse_deg": rms,
+                  "rule": "CV on a rolling origin (fit before, score the next block), one-standard-error rule",
+                  "folds": int(self.k), "b_median": self.data.b_med, "candidates": [c.row() for c in self.cands]}
+        return tr, f, sign, choice
+
+
 def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD,
                  progress=lambda it, **kw: it) -> tuple[Transition, "E.SplineFn", int, dict]:
     """Pick play vs PI, the play width and f's stiffness by cross-validation on the
-    calibration frames, then refit the choice on all of them (module docstring for the rule).
+    calibration frames, then refit the choice on all of them (module docstring for the rule;
+    ModelChoice computes it).
 
     model_kind: "play" (the paper's pure play only), "pi" (operators only) or "auto" (both);
     n_ctrl: f's control points for the pure play (f_remain's N).
@@ -464,37 +638,4 @@ def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: i
     "r_span", "n_ctrl", "fit_rmse_deg", "rule", "folds", "b_median", "candidates": [{"b_scale",
     "n", "r_span", "n_ctrl", "cv_rmse_deg", "cv_se_deg"}]}). Errors: ValueError for an
     unknown model_kind."""
-    if model_kind not in ("auto", "play", "pi"):
-        raise ValueError(f"model must be play, pi or auto, not {model_kind!r}")
-    splits = rolling_origins(data, k)
-    rows = []
-    for kb, n, span, nc in progress(candidates(data, model_kind, n_ctrl), desc="model choice"):
-        r = thresholds(n, span) if n > 1 else np.zeros(1)
-        P = data.ops_at_frames(r, kb)
-        vm = v_max_for_table(data, kb, n)
-        errs, v = [], None
-        for tr_m, te_m in splits:
-            if te_m.sum() < 3 or tr_m.sum() < 10:
-                continue
-            w, f, _, _ = fit_weights(P[tr_m], data.c[tr_m], nc, robust_f=False, v0=v, v_max=vm)
-            v = fit_weights.last_v  # warm start of the next fold: the folds share most frames
-            errs.append(float(np.sqrt(np.mean((f(P[te_m] @ w) - data.c[te_m]) ** 2))))
-        errs = np.array(errs)
-        rows.append({"b_scale": kb, "n": n, "r_span": float(span), "n_ctrl": int(nc),
-                     "cv_rmse_deg": float(np.sqrt(np.mean(errs ** 2))),
-                     "cv_se_deg": float(np.std(errs, ddof=1) / np.sqrt(errs.size)) if errs.size > 1 else 0.0})
-    best = min(rows, key=lambda d: d["cv_rmse_deg"])
-    limit = best["cv_rmse_deg"] + best["cv_se_deg"]
-    # Simplest within one standard error: fewest operators, then the onset width closest to
-    # as measured, then the stiffest f.
-    pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: (d["n"], -d["b_scale"], d["n_ctrl"]))
-    kb, n, span, nc = pick["b_scale"], pick["n"], pick["r_span"], pick["n_ctrl"]
-    r = thresholds(n, span) if n > 1 else np.zeros(1)
-    w, f, sign, rms = fit_weights(data.ops_at_frames(r, kb), data.c, nc, v_max=v_max_for_table(data, kb, n))
-    keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
-    tr = Transition(r[keep], w[keep] / w[keep].sum(), kb)
-    choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(n), "b_scale": kb,
-              "r_span": float(span), "n_ctrl": int(nc), "fit_rmse_deg": rms,
-              "rule": "CV on a rolling origin (fit before, score the next block), one-standard-error rule",
-              "folds": int(k), "b_median": data.b_med, "candidates": rows}
-    return tr, f, sign, choice
+    return ModelChoice(data, model_kind, n_ctrl, k).result(progress)

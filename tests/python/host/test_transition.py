@@ -115,6 +115,30 @@ def test_cv_picks_play_on_play_data_and_pi_on_transition_data(kind):
     assert tr.is_play == (kind == "play")
 
 
+@pytest.mark.parametrize("kind", ["play", "pi"])
+def test_lazy_model_choice_picks_what_the_full_table_picks(kind):
+    # ModelChoice.pick() stops candidates early; the rule recomputed here on the complete
+    # candidate table (best CV, limit = best + its SE, then fewest operators, b_scale closest
+    # to 1, stiffest f) must give the same row, and resuming the stopped candidates must give
+    # the very numbers of an uninterrupted run (bit for bit: same fits in the same order).
+    data, *_ = ref_session(np.zeros(1), np.ones(1))
+    w = np.r_[0.4, np.full(15, 0.6 / 15)] if kind == "pi" else np.ones(1)
+    r = threshold_rule(data) if kind == "pi" else np.zeros(1)
+    data, *_ = ref_session(r, w, seed=1)
+    lazy = T.ModelChoice(data, "auto")
+    pick = lazy.pick()
+    folds_lazy = sum(len(c.errs) for c in lazy.cands)
+    eager = T.ModelChoice(data, "auto")
+    for c in eager.cands:
+        c.complete()
+    rows = [c.row() for c in eager.cands]
+    best = min(rows, key=lambda d: d["cv_rmse_deg"])
+    within = [d for d in rows if d["cv_rmse_deg"] <= best["cv_rmse_deg"] + best["cv_se_deg"]]
+    assert pick == min(within, key=lambda d: (d["n"], -d["b_scale"], d["n_ctrl"]))
+    assert folds_lazy < sum(len(c.errs) for c in eager.cands)  # it did stop something
+    assert lazy.result()[3]["candidates"] == rows
+
+
 def test_table_f_is_the_f_the_weights_were_fitted_with():
     # Monotone data: the f written to the table is the projection's P-spline (the f the CV
     # scored), not a refit; data bending back: the monotone robust spline instead (eq. 9 needs f^-1).
