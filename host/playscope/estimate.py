@@ -844,17 +844,17 @@ def choose_f_ctrl(z: np.ndarray, c: np.ndarray, splits, grid=F_CTRL_GRID, smooth
     smallest training part; 4, a single cubic, always) is fitted on each training part by the
     monotone P-spline (_monotone_pspline, the penalty ``smooth`` relative to the data term as in
     robust_spline), scored by the held-out RMSE per fold; cv = rms over folds, se = their standard
-    error. Choice: the fewest control points within one standard error of the best (the
-    one-standard-error rule of Hastie, Tibshirani & Friedman, "The Elements of Statistical
-    Learning", 2nd ed., sec. 7.10; the rule of choose_stiffness and transition.choose_model): the
-    CV curve of a spline is flat near its minimum, and among near-equal scores the stiffest f
-    extrapolates most safely and carries the least noise into the tables. Returns {"n_ctrl": N,
+    error. Choice: the lowest CV RMSE. The one-standard-error rule (Hastie, Tibshirani & Friedman,
+    ESL 2nd ed., 7.10) was the first rule; its stiffer picks generalised worse (an effect-free
+    simulated record: 0.31 against 0.13 deg on the judged part; the catheter's least-squares
+    f_remain row: 1.20 against 0.83 deg mean), and f is already regularised by its penalty, so
+    the choice is the CV's minimum (docs/robustness.md). Returns {"n_ctrl": N,
     "rule": str, "candidates": [{"n_ctrl", "cv_rmse_deg", "cv_se_deg"}]}; n_ctrl is None when no
     fold has frames to judge (the caller keeps its default). Errors: none (bad folds are skipped).
     """
     z, c = np.asarray(z, float), np.asarray(c, float)
     folds = [(tr, te) for tr, te in splits if te.sum() >= 3 and tr.sum() >= 4 * F_FRAMES_PER_CTRL]
-    rule = "CV on a rolling origin (fit before, score the next block), fewest control points within one SE"
+    rule = "CV on a rolling origin (fit before, score the next block), the lowest CV RMSE"
     if not folds:
         return {"n_ctrl": None, "rule": rule + " (no fold with frames to judge)", "candidates": []}
     n_max = min(int(tr.sum()) for tr, _ in folds) // F_FRAMES_PER_CTRL
@@ -876,9 +876,10 @@ def choose_f_ctrl(z: np.ndarray, c: np.ndarray, splits, grid=F_CTRL_GRID, smooth
                      "cv_se_deg": float(np.std(e, ddof=1) / np.sqrt(e.size)) if e.size > 1 else 0.0})
     if not rows:
         return {"n_ctrl": None, "rule": rule + " (no fold with a z range)", "candidates": []}
-    best = min(rows, key=lambda d: d["cv_rmse_deg"])
-    limit = best["cv_rmse_deg"] + best["cv_se_deg"]
-    pick = min((d for d in rows if d["cv_rmse_deg"] <= limit), key=lambda d: d["n_ctrl"])
+    # The argmin, not the one-standard-error rule: f is a penalised spline (already regularised),
+    # and on an effect-free simulated record the one-SE rule's stiffer pick (N = 8, CV 0.242
+    # against 0.208 for N = 14, within one SE) gave 0.31 deg on the judged part against 0.13.
+    pick = min(rows, key=lambda d: d["cv_rmse_deg"])
     return {"n_ctrl": int(pick["n_ctrl"]), "rule": rule, "candidates": rows}
 
 
