@@ -3,7 +3,7 @@ then screening of every library effect, joint refit of the promising ones, and t
 
 Decision rule (docs/diagnosis.md): an effect is kept only if adding it lowers the validation RMSE
 by a margin taken from the data, max(margin_frac * RMSE, t * SE): 8 % of the RMSE, and t standard
-errors of the paired RMSE difference on the validation rows (its noise part, blocked) (``rmse_gain_se``; t the
+errors of the paired RMSE gain on the validation rows from the measurement noise alone (``rmse_gain_se``; t the
 one-sided Student quantile at alpha / number of screens, ``t_threshold``), AND the BIC on the fit
 rows agrees (drop > bic_min). Effects whose single-effect screens come as close as the kept one, and that
 add nothing once it is in, are named as indistinguishable from it. When nothing is kept and
