@@ -3,7 +3,7 @@ then screening of every library effect, joint refit of the promising ones, and t
 
 Decision rule (docs/diagnosis.md): an effect is kept only if adding it lowers the validation RMSE
 by a margin taken from the data, max(margin_frac * RMSE, t * SE): 8 % of the RMSE, and t standard
-errors of the paired RMSE difference on the validation rows (its noise part, blocked) (``rmse_gain_se``; t the
+errors of the paired RMSE gain on the validation rows from the measurement noise alone (``rmse_gain_se``; t the
 one-sided Student quantile at alpha / number of screens, ``t_threshold``), AND the BIC on the fit
 rows agrees (drop > bic_min). Effects whose single-effect screens come as close as the kept one, and that
 add nothing once it is in, are named as indistinguishable from it. When nothing is kept and
@@ -44,20 +44,11 @@ def noise_floor(data: Data, still_s: float = 0.5, settle_s: float = 0.25) -> tup
     the record has fewer than 20 still samples (motion is smooth at the sample scale, noise is not;
     the MAD keeps the rare jumps at onsets, e.g. a hand-eye shift, out of the floor).
     Returns (sigma_deg, method, n_samples)."""
-    t, y = data.t_m, data.y_m
-    tq = data.t_int
-    dq = np.abs(np.diff(data.q_int, prepend=data.q_int[:1]))
-    moving = dq > 1e-6 * max(data.q_hi - data.q_lo, 1e-9)
-    last_move = np.maximum.accumulate(np.where(moving, tq, -np.inf))
-    idx = np.clip(np.searchsorted(tq, t - data.t_delay_s) - 1, 0, tq.size - 1)
-    since = (t - data.t_delay_s) - last_move[idx]
-    still = (since > settle_s) & (since < 1e9) & np.isfinite(y)
-    # Segment ids: a new segment whenever stillness breaks.
-    seg = np.cumsum(np.r_[True, ~still[:-1] | ~still[1:]])
-    if still.sum() >= 20:
+    y = data.y_m
+    segs = _still_segments(data, still_s, settle_s)
+    if sum(v.size for v in segs) >= 20:
         ss, n, k = 0.0, 0, 0
-        for s_id in np.unique(seg[still]):
-            v = y[still & (seg == s_id)]
+        for v in segs:
             if v.size >= 3:
                 ss += float(np.sum((v - v.mean()) ** 2))
                 n += v.size
@@ -68,6 +59,54 @@ def noise_floor(data: Data, still_s: float = 0.5, settle_s: float = 0.25) -> tup
     d2 = yy[2:] - 2 * yy[1:-1] + yy[:-2]
     mad = float(np.median(np.abs(d2 - np.median(d2))))
     return float(1.4826 * mad / np.sqrt(6)), "second differences (MAD)", int(d2.size)
+
+
+def _still_segments(data: Data, still_s: float = 0.5, settle_s: float = 0.25) -> list[np.ndarray]:
+    """Readings y (deg) of each still period (actuator unmoved, settle_s after it stopped), in time
+    order, one array per period: what is left in them once the period's mean is removed is the
+    measurement noise alone (no motion, so no model misfit)."""
+    t, y = data.t_m, data.y_m
+    tq = data.t_int
+    dq = np.abs(np.diff(data.q_int, prepend=data.q_int[:1]))
+    moving = dq > 1e-6 * max(data.q_hi - data.q_lo, 1e-9)
+    last_move = np.maximum.accumulate(np.where(moving, tq, -np.inf))
+    idx = np.clip(np.searchsorted(tq, t - data.t_delay_s) - 1, 0, tq.size - 1)
+    since = (t - data.t_delay_s) - last_move[idx]
+    still = (since > settle_s) & (since < 1e9) & np.isfinite(y)
+    # Segment ids: a new segment whenever stillness breaks.
+    seg = np.cumsum(np.r_[True, ~still[:-1] | ~still[1:]])
+    return [y[still & (seg == s_id)] for s_id in np.unique(seg[still])]
+
+
+def noise_autocorrelation(data: Data, max_lag: int = 50, still_s: float = 0.5,
+                          settle_s: float = 0.25) -> tuple[np.ndarray, int]:
+    """Autocorrelation of the measurement noise, rho[0..K] (rho[0] = 1), pooled over the still
+    periods (each period's mean removed; lag-k products taken within a period only), truncated at
+    the first lag where it is <= 0 (Geyer's initial positive sequence) and at max_lag rows.
+    Returns (rho, dof): dof = degrees of freedom of the noise variance, the still samples minus one
+    per period, divided by the integrated autocorrelation time 1 + 2 sum rho_k. Without enough
+    still samples (< 20, the floor then comes from second differences, which assume white noise):
+    (array([1.0]), 0)."""
+    segs = [v - v.mean() for v in _still_segments(data, still_s, settle_s) if v.size >= 3]
+    n = sum(v.size for v in segs)
+    if n - len(segs) < 15:
+        return np.ones(1), 0
+    c0 = sum(float(np.dot(v, v)) for v in segs) / n
+    if not c0 > 0:
+        return np.ones(1), 0
+    rho = [1.0]
+    for k in range(1, max_lag + 1):
+        num = sum(float(np.dot(v[k:], v[:-k])) for v in segs if v.size > k)
+        cnt = sum(v.size - k for v in segs if v.size > k)
+        if cnt < 10:
+            break
+        r = num / cnt / c0
+        if r <= 0.0:
+            break
+        rho.append(r)
+    rho = np.asarray(rho)
+    tau = 1.0 + 2.0 * float(np.sum(rho[1:]))
+    return rho, int(max((n - len(segs)) / tau, 1))
 
 
 def _start(model: Model, *fits: Fit) -> np.ndarray:
@@ -81,36 +120,54 @@ def _start(model: Model, *fits: Fit) -> np.ndarray:
     return th
 
 
-def rmse_gain_se(y: np.ndarray, pred_old: np.ndarray, pred_new: np.ndarray, mask: np.ndarray) -> dict:
-    """Validation RMSE gain of a new model over an old one and its standard error, paired and
-    blocked. On the ``mask`` rows (finite ones, in time order), with e = y - pred_new and
+def rmse_gain_se(y: np.ndarray, pred_old: np.ndarray, pred_new: np.ndarray, mask: np.ndarray,
+                 noise_sd: float | None = None, noise_rho: np.ndarray | None = None,
+                 noise_dof: int = 0) -> dict:
+    """Validation RMSE gain of a new model over an old one and its standard error, paired.
+    On the ``mask`` rows (finite ones, in time order), with e = y - pred_new and
     dp = pred_new - pred_old: e_old^2 - e_new^2 = dp^2 + 2 dp e, and the RMSE gain is exactly
-    mean(dp^2 + 2 dp e) / (RMSE_old + RMSE_new). Both fits come from other rows, so given them dp is
-    fixed and the gain's sampling error is that of the cross term 2 dp e: the noise of the
-    validation rows meeting the change of prediction. (The spread of dp^2 over the record is not
-    chance: an effect that acts at a few places of the cycle gains there and nowhere else.)
-    Autocorrelation by blocking: blocks of L consecutive rows, L = ceil(2 tau) with tau = 1 + 2
-    sum rho_k the integrated autocorrelation time of dp e (sum stopped at the first rho_k <= 0,
-    Geyer's initial positive sequence), at least 10 blocks; SE(mean) = sd(block means) /
-    sqrt(n_blocks) (batch means).
+    mean(dp^2 + 2 dp e) / (RMSE_old + RMSE_new). Both fits come from other rows, so given them (and
+    the input) dp is fixed, and so is the structured misfit m of the new model: e = m + eps, eps the
+    measurement noise. The gain's sampling error is that of 2 dp eps alone (the spread of dp^2 and of
+    2 dp m over the record is not chance: an effect that acts at a few places of the cycle gains
+    there and nowhere else, and a misfit left by both models is where it is).
+
+    With the noise known (``noise_sd``, deg, and its autocorrelation ``noise_rho[0..K]``, from the
+    still periods: ``noise_floor``, ``noise_autocorrelation``):
+    Var(mean 2 dp eps) = 4 sigma^2 (sum_j dp_j^2 + 2 sum_k rho_k sum_j dp_j dp_{j+k}) / n^2, exact for
+    stationary noise whatever the misfit; the t quantile then takes ``noise_dof`` degrees of freedom
+    (those of the noise variance). Without it (noise_sd None): the whole e is taken as noise and the
+    SE of the mean of 2 dp e comes from batch means -- blocks of L = ceil(2 tau) rows, tau the
+    integrated autocorrelation time of dp e (Geyer's initial positive sequence), at least 10 blocks,
+    SE = sd(block means) / sqrt(n_blocks). That estimate is right when the new model leaves noise
+    only, and inflated by the misfit when it does not (docs/diagnosis.md section 3 item 2).
     y, pred_old, pred_new: (Nm,) deg; mask: bool (Nm,). Returns {"gain_deg", "se_deg",
-    "n_blocks", "block_rows"}; NaN and 0 blocks with fewer than 20 rows."""
+    "n_blocks", "block_rows", "dof"} (dof: degrees of freedom for ``t_threshold``, n_blocks - 1 when
+    blocked); NaN and 0 blocks with fewer than 20 rows."""
     m = mask & np.isfinite(y) & np.isfinite(pred_old) & np.isfinite(pred_new)
     e = (y - pred_new)[m]
     dp = (pred_new - pred_old)[m]
     n = e.size
     if n < 20:
-        return {"gain_deg": float("nan"), "se_deg": float("nan"), "n_blocks": 0, "block_rows": 0}
+        return {"gain_deg": float("nan"), "se_deg": float("nan"), "n_blocks": 0, "block_rows": 0, "dof": 0}
     r0, r1 = float(np.sqrt(np.mean((e + dp) ** 2))), float(np.sqrt(np.mean(e * e)))
     den = max(r0 + r1, 1e-12)
     gain = float(np.mean(dp * dp + 2.0 * dp * e) / den)
+    if noise_sd is not None:
+        rho = np.ones(1) if noise_rho is None else np.asarray(noise_rho, float)
+        q = float(np.dot(dp, dp))
+        for k in range(1, min(rho.size, n)):
+            q += 2.0 * float(rho[k]) * float(np.dot(dp[k:], dp[:-k]))
+        se_x = float(noise_sd) * np.sqrt(max(q, 0.0)) / n
+        dof = int(noise_dof) if noise_dof > 0 else n - 1
+        return {"gain_deg": gain, "se_deg": 2.0 * se_x / den, "n_blocks": n, "block_rows": 1, "dof": dof}
     x = dp * e
     xc = x - x.mean()
     nf = 1 << int(np.ceil(np.log2(2 * n)))
     f = np.fft.rfft(xc, nf)
     ac = np.fft.irfft(f * np.conj(f), nf)[:n]
     if not ac[0] > 0:
-        return {"gain_deg": gain, "se_deg": 0.0, "n_blocks": n, "block_rows": 1}
+        return {"gain_deg": gain, "se_deg": 0.0, "n_blocks": n, "block_rows": 1, "dof": n - 1}
     ac = ac / ac[0]
     neg = np.nonzero(ac[1:] <= 0.0)[0]
     kmax = int(neg[0]) if neg.size else n - 1
@@ -119,7 +176,7 @@ def rmse_gain_se(y: np.ndarray, pred_old: np.ndarray, pred_new: np.ndarray, mask
     nb = n // L
     b = x[: nb * L].reshape(nb, L).mean(1)
     se_x = float(np.std(b, ddof=1) / np.sqrt(nb))
-    return {"gain_deg": gain, "se_deg": 2.0 * se_x / den, "n_blocks": int(nb), "block_rows": L}
+    return {"gain_deg": gain, "se_deg": 2.0 * se_x / den, "n_blocks": int(nb), "block_rows": L, "dof": int(nb) - 1}
 
 
 def t_threshold(n_blocks: int, n_tests: int, alpha: float = ALPHA) -> float:
@@ -167,6 +224,9 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
         sigma, method, n_still = noise_floor(data)
     else:
         method, n_still = "given", 0
+    # The noise's autocorrelation for the SE of the gains (rmse_gain_se); white when the floor does
+    # not come from still periods (the second-difference floor assumes white noise itself).
+    rho_n, dof_n = noise_autocorrelation(data) if method == "still periods" else (np.ones(1), 0)
     y = data.y_m
     base_model = Model(data)
     base = base_model.fit(fit_mask)
@@ -178,14 +238,15 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
     def on_test(fit, model):
         return judged_rmse(fit, model, tdata, tmask) if has_test else float("nan")
     out = {"noise_floor_deg": sigma, "noise_method": method, "noise_samples": n_still,
+           "noise_tau_rows": 1.0 + 2.0 * float(np.sum(rho_n[1:])),
            "base": {"rmse_fit_deg": base.rmse(y, fit_mask), "rmse_heldout_deg": r0, "bic": base.bic},
            "excess_before_deg": excess(r0, sigma), "screen": [], "kept": []}
     n_tests = len(candidates)
 
     def test_gain(old: Fit, new: Fit, r_old: float) -> dict:
         """Gain on the validation rows, its SE and the margin it must clear (module doc)."""
-        g = rmse_gain_se(y, old.pred, new.pred, eval_mask)
-        thr = t_threshold(g["n_blocks"], n_tests, alpha) * g["se_deg"] if g["n_blocks"] else float("inf")
+        g = rmse_gain_se(y, old.pred, new.pred, eval_mask, noise_sd=sigma, noise_rho=rho_n, noise_dof=dof_n)
+        thr = t_threshold(g["dof"] + 1, n_tests, alpha) * g["se_deg"] if g["n_blocks"] else float("inf")
         g["margin_deg"] = float(max(margin_frac * r_old, thr))
         g["passes"] = bool(g["gain_deg"] >= g["margin_deg"])
         return g
