@@ -22,7 +22,7 @@ def add_parser(sub) -> None:
                     examples=["playscope calibrate sessions/d21 -o d21.cal.json"])
     p.add_argument("session", help="session folder (playscope-session/1)")
     p.add_argument("-o", "--out", required=True, type=T.file_path, help="calibration JSON to write")
-    p.add_argument("-N", "--control-points", type=T.CONTROL_POINTS, default=14, help="B-spline control points (paper: 14)")
+    p.add_argument("-N", "--control-points", type=T.CONTROL_POINTS, default=14, help="most control points of the B(q) spline, and those of the paper's morphological f_remain (paper: 14); the least-squares f_remain takes its own by cross-validation (calibration file: f_fit)")
     p.add_argument("--f-method", choices=["lsq", "morph"], default="lsq",
                    help="f_remain estimator: lsq (default, play-consistent) or morph (paper, section IV)")
     p.add_argument("--model", choices=["play", "pi", "auto"], default="auto",

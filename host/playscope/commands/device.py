@@ -222,7 +222,7 @@ def add_parser(subparsers) -> None:
                         "a real board runs the excitation it was built with")
     p.add_argument("--seed", type=T.SEED, default=0, help="--sim-plant: noise seed")
     p.add_argument("--seconds", type=T.DURATION_S, default=600.0, help="longest run in board seconds (default 600)")
-    p.add_argument("-N", "--control-points", type=T.CONTROL_POINTS, default=14, help="B-spline control points (paper: 14)")
+    p.add_argument("-N", "--control-points", type=T.CONTROL_POINTS, default=14, help="most control points of the B(q) spline, and those of the paper's morphological f_remain (paper: 14); the least-squares f_remain takes its own by cross-validation (calibration file: f_fit)")
     p.add_argument("--vectors", type=T.VECTORS, default=200, help="compensator test steps after flashing (default 200)")
     p.add_argument("--no-flash", action="store_true", help="fit and write tables, do not flash")
     p.add_argument("-o", "--out", "--output", dest="out",
