@@ -101,25 +101,41 @@ def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np
     return float(lags[int(np.argmax(score))])
 
 
-def _solve(F: np.ndarray, V: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _project(F: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The shared part of `_solve` for F (n, f) and Y (n, 2): an orthonormal basis Qf (n, r) of
+    F's span (rank-aware: absent parts are zero columns), Y with F projected out (n, 2) and its
+    sum of squares. Depends on F and Y only, so an episode computes it once for all the
+    candidates (and Nelder-Mead steps) that share F."""
+    U, sv, _ = np.linalg.svd(F, full_matrices=False)
+    Qf = U[:, sv > 1e-9 * sv.max()]
+    Yr = Y - Qf @ (Qf.T @ Y)
+    return Qf, Yr, float(np.sum(Yr * Yr))
+
+
+def _solve(F: np.ndarray, V: np.ndarray, Y: np.ndarray, proj=None) -> tuple[np.ndarray, np.ndarray]:
     """Batched least squares Y ~ [F, V_g]: F (n, f) columns shared by every candidate, V
     (G, n, p) the candidate's own columns, Y (n, 2). F is projected out first (Frisch-Waugh-
-    Lovell), so each candidate is a p x p solve. Returns (RSS (G,), coef of V (G, p, 2)).
+    Lovell), so each candidate is a p x p solve. proj: `_project(F, Y)` when already computed
+    (same numbers, computed once). Returns (RSS (G,), coef of V (G, p, 2)).
     Columns that are identically zero (a part absent from a candidate) get a tiny ridge so the
     solve stays regular without changing the fit."""
-    U, sv, _ = np.linalg.svd(F, full_matrices=False)  # orthonormal basis of F's span (rank-aware:
-    Qf = U[:, sv > 1e-9 * sv.max()]                   # absent parts are zero columns)
-    Yr = Y - Qf @ (Qf.T @ Y)
-    G, n, p = V.shape
-    Vt = np.ascontiguousarray(V.transpose(0, 2, 1)).reshape(G * p, n)  # 2-D products: BLAS, not stacks
+    return _solve_t(np.ascontiguousarray(V.transpose(0, 2, 1)), _project(F, Y) if proj is None else proj)
+
+
+def _solve_t(Vt: np.ndarray, proj) -> tuple[np.ndarray, np.ndarray]:
+    """`_solve` with the candidates' columns as rows, Vt (G, p, n) C-contiguous, and F given by
+    proj = `_project(F, Y)`."""
+    Qf, Yr, yy = proj
+    G, p, n = Vt.shape
+    Vt = Vt.reshape(G * p, n)  # 2-D products: BLAS, not stacks
     Vt = (Vt - (Vt @ Qf) @ Qf.T).reshape(G, p, n)
     A = Vt @ Vt.transpose(0, 2, 1)
     scale = np.maximum(np.diagonal(A, axis1=1, axis2=2).max(axis=1), 1.0)
     A += (1e-10 * scale)[:, None, None] * np.eye(p)[None]
     rhs = (Vt.reshape(G * p, n) @ Yr).reshape(G, p, 2)
     coef = np.linalg.solve(A, rhs)
-    rss = float(np.sum(Yr * Yr)) - (coef * rhs).sum(axis=(1, 2))
-    return np.maximum(rss, 1e-12 * max(float(np.sum(Yr * Yr)), 1e-300)), coef
+    rss = yy - (coef * rhs).sum(axis=(1, 2))
+    return np.maximum(rss, 1e-12 * max(yy, 1e-300)), coef
 
 
 def _col_old(tk, tau0):
@@ -128,9 +144,20 @@ def _col_old(tk, tau0):
 
 
 def _col_ring(tk, tau0, om, al):
-    """Ringing from the stop: e^(-al d) sin(om d), d = t - tau0 > 0 (0 before). (G, n)."""
-    d = np.maximum(tk[None, :] - np.asarray(tau0, float)[:, None], 0.0)
-    return np.exp(-np.asarray(al, float)[:, None] * d) * np.sin(np.asarray(om, float)[:, None] * d)
+    """Ringing from the stop: e^(-al d) sin(om d), d = t - tau0 > 0 (0 before). (G, n).
+    The grids repeat few distinct tau0, om and al, so exp and sin are taken once per distinct
+    (tau0, al) and (tau0, om) pair and multiplied per candidate (the same numbers as per
+    candidate); no ringing (om 0 everywhere) is a zero column."""
+    tau0, om, al = (np.asarray(x, float).ravel() for x in (tau0, om, al))
+    if not np.any(om):
+        return np.zeros((tau0.size, tk.size))
+    ut, ti = np.unique(tau0, return_inverse=True)
+    uo, oi = np.unique(om, return_inverse=True)
+    ua, ai = np.unique(al, return_inverse=True)
+    d = np.maximum(tk[None, :] - ut[:, None], 0.0)  # (T, n)
+    S = np.sin(uo[:, None, None] * d[None])  # (O, T, n)
+    E = np.exp(-ua[:, None, None] * d[None])  # (A, T, n)
+    return E[ai, ti] * S[oi, ti]
 
 
 def _cols_new(tk, tau):
@@ -171,22 +198,31 @@ class _Episode:
         self.stop_back = 5.0  # frames searched before the stop guess (ringing makes it late)
         self.fixed_ring = None  # (om, al) per frame period: the record's ringing, not searched
 
+    def _proj(self, key, cols):
+        """`_project` of the shared columns F = [ones, *cols()] and Y, once per key (the held
+        parameters) for this episode's frames: the grids and polishing steps that hold the
+        same parameters share it."""
+        cache = self.__dict__.setdefault("_proj_cache", {})
+        if key not in cache:
+            cache[key] = _project(np.column_stack([np.ones(self.tk.size), *cols()]), self.Y)
+        return cache[key]
+
     def _solve_stop(self, tau0, om, al, j):
         """Candidates (tau0, ringing, step frame j) with the onset held: (RSS, coef of [old,
         ring, step])."""
-        d, _ = _cols_new(self.tk, [self.tau])
-        F = np.column_stack([np.ones(self.tk.size), d[0]])
-        V = np.stack([_col_old(self.tk, tau0), _col_ring(self.tk, tau0, om, al), _col_step(self.k, j)], axis=2)
-        return _solve(F, V, self.Y)
+        proj = self._proj(("stop", self.tau), lambda: [np.maximum(self.tk - float(self.tau), 0.0)])
+        Vt = np.stack([_col_old(self.tk, tau0), _col_ring(self.tk, tau0, om, al), _col_step(self.k, j)], axis=1)
+        return _solve_t(Vt, proj)
 
     def _solve_onset(self, tau, j):
         """Candidates (onset, step frame) with the stop and ringing held: (RSS, coef of
         [new, step])."""
-        F = np.column_stack([np.ones(self.tk.size), _col_old(self.tk, [self.tau0])[0],
-                             _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
-        d, _ = _cols_new(self.tk, tau)
-        V = np.stack([d, _col_step(self.k, j)], axis=2)
-        return _solve(F, V, self.Y)
+        proj = self._proj(("onset", self.tau0, self.om, self.al),
+                          lambda: [_col_old(self.tk, [self.tau0])[0],
+                                   _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
+        Vt = np.stack([np.maximum(self.tk[None, :] - np.asarray(tau, float)[:, None], 0.0),
+                       _col_step(self.k, j)], axis=1)
+        return _solve_t(Vt, proj)
 
     def fit_stop(self):
         """Stop tau0, ringing (w, alpha) and a step near the stop (a registration flipping at
