@@ -211,7 +211,11 @@ class _Episode:
         """Candidates (tau0, ringing, step frame j) with the onset held: (RSS, coef of [old,
         ring, step])."""
         proj = self._proj(("stop", self.tau), lambda: [np.maximum(self.tk - float(self.tau), 0.0)])
-        Vt = np.stack([_col_old(self.tk, tau0), _col_ring(self.tk, tau0, om, al), _col_step(self.k, j)], axis=1)
+        tau0 = np.asarray(tau0, float)
+        Vt = np.empty((tau0.size, 3, self.tk.size))
+        np.minimum(self.tk[None, :] - tau0[:, None], 0.0, out=Vt[:, 0])  # _col_old
+        Vt[:, 1] = _col_ring(self.tk, tau0, om, al)
+        Vt[:, 2] = _col_step(self.k, j)
         return _solve_t(Vt, proj)
 
     def _solve_onset(self, tau, j):
@@ -220,8 +224,10 @@ class _Episode:
         proj = self._proj(("onset", self.tau0, self.om, self.al),
                           lambda: [_col_old(self.tk, [self.tau0])[0],
                                    _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
-        Vt = np.stack([np.maximum(self.tk[None, :] - np.asarray(tau, float)[:, None], 0.0),
-                       _col_step(self.k, j)], axis=1)
+        tau = np.asarray(tau, float)
+        Vt = np.empty((tau.size, 2, self.tk.size))
+        np.maximum(self.tk[None, :] - tau[:, None], 0.0, out=Vt[:, 0])  # _cols_new's first
+        Vt[:, 1] = _col_step(self.k, j)
         return _solve_t(Vt, proj)
 
     def fit_stop(self):
@@ -239,16 +245,17 @@ class _Episode:
         g0 = np.arange(lo, hi + 1e-9, 0.5)
         om = np.r_[0.0, np.repeat(2 * np.pi * RING_HZ, RING_ALPHA.size)] * self.period_s  # rad / frame
         al = np.r_[0.0, np.tile(RING_ALPHA, RING_HZ.size)] * self.period_s
-        if self.fixed_ring is not None:  # the record's ringing (second pass)
-            om, al = np.array([self.fixed_ring[0]]), np.array([self.fixed_ring[1]])
-        T0, R_ = (x.ravel() for x in np.meshgrid(g0, np.arange(om.size), indexing="ij"))
-        J = np.full(T0.size, float(self.j))
-        rss, _ = self._solve_stop(T0, om[R_], al[R_], J)
-        lw = _logw(rss, self.n_obs, 4.0 * (om[R_] > 0) + 3.0 * (J >= 0))
-        b = int(np.argmax(lw))
-        self.om, self.al = float(om[R_[b]]), float(al[R_[b]])
-        js = np.unique(np.r_[-1, self.j, self.k[(self.tk >= lo - 1) & (self.tk <= hi + 1)]]).astype(float)
-        T0, J = (x.ravel() for x in np.meshgrid(g0, js, indexing="ij"))
+        if self.fixed_ring is not None:  # the record's ringing (second pass): nothing to choose
+            self.om, self.al = float(self.fixed_ring[0]), float(self.fixed_ring[1])
+        else:
+            T0, R_ = np.repeat(g0, om.size), np.tile(np.arange(om.size), g0.size)
+            J = np.full(T0.size, float(self.j))
+            rss, _ = self._solve_stop(T0, om[R_], al[R_], J)
+            lw = _logw(rss, self.n_obs, 4.0 * (om[R_] > 0) + 3.0 * (J >= 0))
+            b = int(np.argmax(lw))
+            self.om, self.al = float(om[R_[b]]), float(al[R_[b]])
+        js = np.unique(np.concatenate(([-1, self.j], self.k[(self.tk >= lo - 1) & (self.tk <= hi + 1)]))).astype(float)
+        T0, J = np.repeat(g0, js.size), np.tile(js, g0.size)
         rss, _ = self._solve_stop(T0, np.full(T0.size, self.om), np.full(T0.size, self.al), J)
         lw = _logw(rss, self.n_obs, 3.0 * (J >= 0))
         b = int(np.argmax(lw))
@@ -259,8 +266,8 @@ class _Episode:
                          options={"xatol": 1e-4, "fatol": 1e-9, "maxiter": 200}).x
             self.om, self.al = float(abs(p[0])), float(abs(p[1]))
         gf = np.arange(max(t0b - 1.0, lo), min(t0b + 1.0, hi) + 1e-9, 0.5 / SUB)
-        js = np.unique(np.r_[-1, self.j]).astype(float)
-        TT, JJ = (x.ravel() for x in np.meshgrid(gf, js, indexing="ij"))
+        js = np.unique([-1, self.j]).astype(float)
+        TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
         rss, coef = self._solve_stop(TT, np.full(TT.size, self.om), np.full(TT.size, self.al), JJ)
         lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0))
         b = int(np.argmax(lw))
@@ -313,21 +320,21 @@ class _Episode:
         tks = self.tk[self.tk > self.tau0 - 1.0]
         band = np.abs(tks[None, :] - gt[:, None]) <= 2.0
         ti, ki = np.nonzero(band)
-        TT = np.r_[gt, gt, gt[ti]]
-        JJ = np.r_[np.full(gt.size, -1.0), np.full(gt.size, float(self.j)), ks[ki].astype(float)]
+        TT = np.concatenate((gt, gt, gt[ti]))
+        JJ = np.concatenate((np.full(gt.size, -1.0), np.full(gt.size, float(self.j)), ks[ki].astype(float)))
         rss, coef = self._solve_onset(TT, JJ)
         lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
         b = int(np.argmax(lw))
         tb, self.j = float(TT[b]), int(JJ[b])
         # No onset in the window unless new motion beats the best still model (level, old
         # motion, ringing, and a step anywhere or none) by BIC: its 3 parameters (v1, tau).
-        jn = np.r_[-1, self.k[self.tk > self.tau0 - 1.0]].astype(float)
+        jn = np.concatenate(([-1], ks)).astype(float)
         rn, _ = self._solve_onset(np.full(jn.size, 1e9), jn)
         null = float(np.max(_logw(rn, self.n_obs, 3.0 * (jn >= 0) + pen_ring)))
         self.found = lw[b] - 1.5 * np.log(self.n_obs) > null
         gf = np.arange(max(tb - 1.5, lo), min(tb + 1.5, hi) + 1e-9, 1.0 / SUB)
         near = self.k[np.abs(self.tk - tb) <= 2.5]
-        js = np.unique(np.r_[-1, self.j, near]).astype(float)
+        js = np.unique(np.concatenate(([-1, self.j], near))).astype(float)
         TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
         rss, coef = self._solve_onset(TT, JJ)
         lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
