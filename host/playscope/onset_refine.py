@@ -122,6 +122,9 @@ def _solve(F: np.ndarray, V: np.ndarray, Y: np.ndarray, proj=None) -> tuple[np.n
     return _solve_t(np.ascontiguousarray(V.transpose(0, 2, 1)), _project(F, Y) if proj is None else proj)
 
 
+_EYE = {p: np.eye(p) for p in (1, 2, 3)}
+
+
 def _solve_t(Vt: np.ndarray, proj) -> tuple[np.ndarray, np.ndarray]:
     """`_solve` with the candidates' columns as rows, Vt (G, p, n) C-contiguous, and F given by
     proj = `_project(F, Y)`."""
@@ -131,7 +134,7 @@ def _solve_t(Vt: np.ndarray, proj) -> tuple[np.ndarray, np.ndarray]:
     Vt = (Vt - (Vt @ Qf) @ Qf.T).reshape(G, p, n)
     A = Vt @ Vt.transpose(0, 2, 1)
     scale = np.maximum(np.diagonal(A, axis1=1, axis2=2).max(axis=1), 1.0)
-    A += (1e-10 * scale)[:, None, None] * np.eye(p)[None]
+    A += (1e-10 * scale)[:, None, None] * (_EYE[p] if p in _EYE else np.eye(p))[None]
     rhs = (Vt.reshape(G * p, n) @ Yr).reshape(G, p, 2)
     coef = np.linalg.solve(A, rhs)
     rss = yy - (coef * rhs).sum(axis=(1, 2))
@@ -151,6 +154,9 @@ def _col_ring(tk, tau0, om, al):
     tau0, om, al = (np.asarray(x, float).ravel() for x in (tau0, om, al))
     if not np.any(om):
         return np.zeros((tau0.size, tk.size))
+    if np.all(om == om[0]) and np.all(al == al[0]):  # one ringing (the record's, a polishing step)
+        d = np.maximum(tk[None, :] - tau0[:, None], 0.0)
+        return np.exp(-al[0] * d) * np.sin(om[0] * d)
     ut, ti = np.unique(tau0, return_inverse=True)
     uo, oi = np.unique(om, return_inverse=True)
     ua, ai = np.unique(al, return_inverse=True)
