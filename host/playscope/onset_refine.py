@@ -216,13 +216,20 @@ class _Episode:
     def _solve_stop(self, tau0, om, al, j):
         """Candidates (tau0, ringing, step frame j) with the onset held: (RSS, coef of [old,
         ring, step])."""
-        proj = self._proj(("stop", self.tau), lambda: [np.maximum(self.tk - float(self.tau), 0.0)])
+        return _solve_t(self._stop_columns(tau0, om, al, j), self._stop_proj())
+
+    def _stop_proj(self):
+        """`_project` of the stop fits' shared columns [ones, new motion from the held onset]."""
+        return self._proj(("stop", self.tau), lambda: [np.maximum(self.tk - float(self.tau), 0.0)])
+
+    def _stop_columns(self, tau0, om, al, j):
+        """The stop candidates' own columns [old, ring, step] as rows: (G, 3, n)."""
         tau0 = np.asarray(tau0, float)
         Vt = np.empty((tau0.size, 3, self.tk.size))
         np.minimum(self.tk[None, :] - tau0[:, None], 0.0, out=Vt[:, 0])  # _col_old
         Vt[:, 1] = _col_ring(self.tk, tau0, om, al)
         Vt[:, 2] = _col_step(self.k, j)
-        return _solve_t(Vt, proj)
+        return Vt
 
     def _solve_onset(self, tau, j):
         """Candidates (onset, step frame) with the stop and ringing held: (RSS, coef of
@@ -267,7 +274,11 @@ class _Episode:
         b = int(np.argmax(lw))
         self.j, t0b = int(J[b]), float(T0[b])
         if self.om > 0 and self.fixed_ring is None:
-            f = lambda p: self._solve_stop([t0b], [abs(p[0])], [abs(p[1])], [self.j])[0][0]  # noqa: E731
+            Vt, proj = self._stop_columns([t0b], [self.om], [self.al], [self.j]), self._stop_proj()
+
+            def f(p):  # the profile RSS of one ringing: only the ring column changes
+                Vt[:, 1] = _col_ring(self.tk, [t0b], [abs(p[0])], [abs(p[1])])
+                return _solve_t(Vt, proj)[0][0]
             p = minimize(f, [self.om, self.al], method="Nelder-Mead",
                          options={"xatol": 1e-4, "fatol": 1e-9, "maxiter": 200}).x
             self.om, self.al = float(abs(p[0])), float(abs(p[1]))
