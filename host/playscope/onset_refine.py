@@ -166,12 +166,6 @@ def _col_ring(tk, tau0, om, al):
     return E[ai, ti] * S[oi, ti]
 
 
-def _cols_new(tk, tau):
-    """New motion from tau: max(t - tau, 0) and its square / 4. tau (G,) -> (G, n) x 2."""
-    d = np.maximum(tk[None, :] - np.asarray(tau, float)[:, None], 0.0)
-    return d, d * d / 4.0
-
-
 def _col_step(k_idx, j):
     """Step at frame j (applies from frame j on); j < 0: none. (G, n)."""
     j = np.asarray(j, float)[:, None]
@@ -226,7 +220,7 @@ class _Episode:
         """The stop candidates' own columns [old, ring, step] as rows: (G, 3, n)."""
         tau0 = np.asarray(tau0, float)
         Vt = np.empty((tau0.size, 3, self.tk.size))
-        np.minimum(self.tk[None, :] - tau0[:, None], 0.0, out=Vt[:, 0])  # _col_old
+        np.minimum(self.tk[None, :] - tau0[:, None], 0.0, out=Vt[:, 0])  # old motion: _col_old
         Vt[:, 1] = _col_ring(self.tk, tau0, om, al)
         Vt[:, 2] = _col_step(self.k, j)
         return Vt
@@ -239,7 +233,7 @@ class _Episode:
                                    _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
         tau = np.asarray(tau, float)
         Vt = np.empty((tau.size, 2, self.tk.size))
-        np.maximum(self.tk[None, :] - tau[:, None], 0.0, out=Vt[:, 0])  # _cols_new's first
+        np.maximum(self.tk[None, :] - tau[:, None], 0.0, out=Vt[:, 0])  # new motion: max(t - tau, 0)
         Vt[:, 1] = _col_step(self.k, j)
         return _solve_t(Vt, proj)
 
