@@ -101,25 +101,44 @@ def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np
     return float(lags[int(np.argmax(score))])
 
 
-def _solve(F: np.ndarray, V: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _project(F: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The shared part of `_solve` for F (n, f) and Y (n, 2): an orthonormal basis Qf (n, r) of
+    F's span (rank-aware: absent parts are zero columns), Y with F projected out (n, 2) and its
+    sum of squares. Depends on F and Y only, so an episode computes it once for all the
+    candidates (and Nelder-Mead steps) that share F."""
+    U, sv, _ = np.linalg.svd(F, full_matrices=False)
+    Qf = U[:, sv > 1e-9 * sv.max()]
+    Yr = Y - Qf @ (Qf.T @ Y)
+    return Qf, Yr, float(np.sum(Yr * Yr))
+
+
+def _solve(F: np.ndarray, V: np.ndarray, Y: np.ndarray, proj=None) -> tuple[np.ndarray, np.ndarray]:
     """Batched least squares Y ~ [F, V_g]: F (n, f) columns shared by every candidate, V
     (G, n, p) the candidate's own columns, Y (n, 2). F is projected out first (Frisch-Waugh-
-    Lovell), so each candidate is a p x p solve. Returns (RSS (G,), coef of V (G, p, 2)).
+    Lovell), so each candidate is a p x p solve. proj: `_project(F, Y)` when already computed
+    (same numbers, computed once). Returns (RSS (G,), coef of V (G, p, 2)).
     Columns that are identically zero (a part absent from a candidate) get a tiny ridge so the
     solve stays regular without changing the fit."""
-    U, sv, _ = np.linalg.svd(F, full_matrices=False)  # orthonormal basis of F's span (rank-aware:
-    Qf = U[:, sv > 1e-9 * sv.max()]                   # absent parts are zero columns)
-    Yr = Y - Qf @ (Qf.T @ Y)
-    G, n, p = V.shape
-    Vt = np.ascontiguousarray(V.transpose(0, 2, 1)).reshape(G * p, n)  # 2-D products: BLAS, not stacks
+    return _solve_t(np.ascontiguousarray(V.transpose(0, 2, 1)), _project(F, Y) if proj is None else proj)
+
+
+_EYE = {p: np.eye(p) for p in (1, 2, 3)}
+
+
+def _solve_t(Vt: np.ndarray, proj) -> tuple[np.ndarray, np.ndarray]:
+    """`_solve` with the candidates' columns as rows, Vt (G, p, n) C-contiguous, and F given by
+    proj = `_project(F, Y)`."""
+    Qf, Yr, yy = proj
+    G, p, n = Vt.shape
+    Vt = Vt.reshape(G * p, n)  # 2-D products: BLAS, not stacks
     Vt = (Vt - (Vt @ Qf) @ Qf.T).reshape(G, p, n)
     A = Vt @ Vt.transpose(0, 2, 1)
     scale = np.maximum(np.diagonal(A, axis1=1, axis2=2).max(axis=1), 1.0)
-    A += (1e-10 * scale)[:, None, None] * np.eye(p)[None]
+    A += (1e-10 * scale)[:, None, None] * (_EYE[p] if p in _EYE else np.eye(p))[None]
     rhs = (Vt.reshape(G * p, n) @ Yr).reshape(G, p, 2)
     coef = np.linalg.solve(A, rhs)
-    rss = float(np.sum(Yr * Yr)) - (coef * rhs).sum(axis=(1, 2))
-    return np.maximum(rss, 1e-12 * max(float(np.sum(Yr * Yr)), 1e-300)), coef
+    rss = yy - (coef * rhs).sum(axis=(1, 2))
+    return np.maximum(rss, 1e-12 * max(yy, 1e-300)), coef
 
 
 def _col_old(tk, tau0):
@@ -128,15 +147,23 @@ def _col_old(tk, tau0):
 
 
 def _col_ring(tk, tau0, om, al):
-    """Ringing from the stop: e^(-al d) sin(om d), d = t - tau0 > 0 (0 before). (G, n)."""
-    d = np.maximum(tk[None, :] - np.asarray(tau0, float)[:, None], 0.0)
-    return np.exp(-np.asarray(al, float)[:, None] * d) * np.sin(np.asarray(om, float)[:, None] * d)
-
-
-def _cols_new(tk, tau):
-    """New motion from tau: max(t - tau, 0) and its square / 4. tau (G,) -> (G, n) x 2."""
-    d = np.maximum(tk[None, :] - np.asarray(tau, float)[:, None], 0.0)
-    return d, d * d / 4.0
+    """Ringing from the stop: e^(-al d) sin(om d), d = t - tau0 > 0 (0 before). (G, n).
+    The grids repeat few distinct tau0, om and al, so exp and sin are taken once per distinct
+    (tau0, al) and (tau0, om) pair and multiplied per candidate (the same numbers as per
+    candidate); no ringing (om 0 everywhere) is a zero column."""
+    tau0, om, al = (np.asarray(x, float).ravel() for x in (tau0, om, al))
+    if not np.any(om):
+        return np.zeros((tau0.size, tk.size))
+    if np.all(om == om[0]) and np.all(al == al[0]):  # one ringing (the record's, a polishing step)
+        d = np.maximum(tk[None, :] - tau0[:, None], 0.0)
+        return np.exp(-al[0] * d) * np.sin(om[0] * d)
+    ut, ti = np.unique(tau0, return_inverse=True)
+    uo, oi = np.unique(om, return_inverse=True)
+    ua, ai = np.unique(al, return_inverse=True)
+    d = np.maximum(tk[None, :] - ut[:, None], 0.0)  # (T, n)
+    S = np.sin(uo[:, None, None] * d[None])  # (O, T, n)
+    E = np.exp(-ua[:, None, None] * d[None])  # (A, T, n)
+    return E[ai, ti] * S[oi, ti]
 
 
 def _col_step(k_idx, j):
@@ -171,22 +198,44 @@ class _Episode:
         self.stop_back = 5.0  # frames searched before the stop guess (ringing makes it late)
         self.fixed_ring = None  # (om, al) per frame period: the record's ringing, not searched
 
+    def _proj(self, key, cols):
+        """`_project` of the shared columns F = [ones, *cols()] and Y, once per key (the held
+        parameters) for this episode's frames: the grids and polishing steps that hold the
+        same parameters share it."""
+        cache = self.__dict__.setdefault("_proj_cache", {})
+        if key not in cache:
+            cache[key] = _project(np.column_stack([np.ones(self.tk.size), *cols()]), self.Y)
+        return cache[key]
+
     def _solve_stop(self, tau0, om, al, j):
         """Candidates (tau0, ringing, step frame j) with the onset held: (RSS, coef of [old,
         ring, step])."""
-        d, _ = _cols_new(self.tk, [self.tau])
-        F = np.column_stack([np.ones(self.tk.size), d[0]])
-        V = np.stack([_col_old(self.tk, tau0), _col_ring(self.tk, tau0, om, al), _col_step(self.k, j)], axis=2)
-        return _solve(F, V, self.Y)
+        return _solve_t(self._stop_columns(tau0, om, al, j), self._stop_proj())
+
+    def _stop_proj(self):
+        """`_project` of the stop fits' shared columns [ones, new motion from the held onset]."""
+        return self._proj(("stop", self.tau), lambda: [np.maximum(self.tk - float(self.tau), 0.0)])
+
+    def _stop_columns(self, tau0, om, al, j):
+        """The stop candidates' own columns [old, ring, step] as rows: (G, 3, n)."""
+        tau0 = np.asarray(tau0, float)
+        Vt = np.empty((tau0.size, 3, self.tk.size))
+        np.minimum(self.tk[None, :] - tau0[:, None], 0.0, out=Vt[:, 0])  # old motion: _col_old
+        Vt[:, 1] = _col_ring(self.tk, tau0, om, al)
+        Vt[:, 2] = _col_step(self.k, j)
+        return Vt
 
     def _solve_onset(self, tau, j):
         """Candidates (onset, step frame) with the stop and ringing held: (RSS, coef of
         [new, step])."""
-        F = np.column_stack([np.ones(self.tk.size), _col_old(self.tk, [self.tau0])[0],
-                             _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
-        d, _ = _cols_new(self.tk, tau)
-        V = np.stack([d, _col_step(self.k, j)], axis=2)
-        return _solve(F, V, self.Y)
+        proj = self._proj(("onset", self.tau0, self.om, self.al),
+                          lambda: [_col_old(self.tk, [self.tau0])[0],
+                                   _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
+        tau = np.asarray(tau, float)
+        Vt = np.empty((tau.size, 2, self.tk.size))
+        np.maximum(self.tk[None, :] - tau[:, None], 0.0, out=Vt[:, 0])  # new motion: max(t - tau, 0)
+        Vt[:, 1] = _col_step(self.k, j)
+        return _solve_t(Vt, proj)
 
     def fit_stop(self):
         """Stop tau0, ringing (w, alpha) and a step near the stop (a registration flipping at
@@ -203,28 +252,33 @@ class _Episode:
         g0 = np.arange(lo, hi + 1e-9, 0.5)
         om = np.r_[0.0, np.repeat(2 * np.pi * RING_HZ, RING_ALPHA.size)] * self.period_s  # rad / frame
         al = np.r_[0.0, np.tile(RING_ALPHA, RING_HZ.size)] * self.period_s
-        if self.fixed_ring is not None:  # the record's ringing (second pass)
-            om, al = np.array([self.fixed_ring[0]]), np.array([self.fixed_ring[1]])
-        T0, R_ = (x.ravel() for x in np.meshgrid(g0, np.arange(om.size), indexing="ij"))
-        J = np.full(T0.size, float(self.j))
-        rss, _ = self._solve_stop(T0, om[R_], al[R_], J)
-        lw = _logw(rss, self.n_obs, 4.0 * (om[R_] > 0) + 3.0 * (J >= 0))
-        b = int(np.argmax(lw))
-        self.om, self.al = float(om[R_[b]]), float(al[R_[b]])
-        js = np.unique(np.r_[-1, self.j, self.k[(self.tk >= lo - 1) & (self.tk <= hi + 1)]]).astype(float)
-        T0, J = (x.ravel() for x in np.meshgrid(g0, js, indexing="ij"))
+        if self.fixed_ring is not None:  # the record's ringing (second pass): nothing to choose
+            self.om, self.al = float(self.fixed_ring[0]), float(self.fixed_ring[1])
+        else:
+            T0, R_ = np.repeat(g0, om.size), np.tile(np.arange(om.size), g0.size)
+            J = np.full(T0.size, float(self.j))
+            rss, _ = self._solve_stop(T0, om[R_], al[R_], J)
+            lw = _logw(rss, self.n_obs, 4.0 * (om[R_] > 0) + 3.0 * (J >= 0))
+            b = int(np.argmax(lw))
+            self.om, self.al = float(om[R_[b]]), float(al[R_[b]])
+        js = np.unique(np.concatenate(([-1, self.j], self.k[(self.tk >= lo - 1) & (self.tk <= hi + 1)]))).astype(float)
+        T0, J = np.repeat(g0, js.size), np.tile(js, g0.size)
         rss, _ = self._solve_stop(T0, np.full(T0.size, self.om), np.full(T0.size, self.al), J)
         lw = _logw(rss, self.n_obs, 3.0 * (J >= 0))
         b = int(np.argmax(lw))
         self.j, t0b = int(J[b]), float(T0[b])
         if self.om > 0 and self.fixed_ring is None:
-            f = lambda p: self._solve_stop([t0b], [abs(p[0])], [abs(p[1])], [self.j])[0][0]  # noqa: E731
+            Vt, proj = self._stop_columns([t0b], [self.om], [self.al], [self.j]), self._stop_proj()
+
+            def f(p):  # the profile RSS of one ringing: only the ring column changes
+                Vt[:, 1] = _col_ring(self.tk, [t0b], [abs(p[0])], [abs(p[1])])
+                return _solve_t(Vt, proj)[0][0]
             p = minimize(f, [self.om, self.al], method="Nelder-Mead",
                          options={"xatol": 1e-4, "fatol": 1e-9, "maxiter": 200}).x
             self.om, self.al = float(abs(p[0])), float(abs(p[1]))
         gf = np.arange(max(t0b - 1.0, lo), min(t0b + 1.0, hi) + 1e-9, 0.5 / SUB)
-        js = np.unique(np.r_[-1, self.j]).astype(float)
-        TT, JJ = (x.ravel() for x in np.meshgrid(gf, js, indexing="ij"))
+        js = np.unique([-1, self.j]).astype(float)
+        TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
         rss, coef = self._solve_stop(TT, np.full(TT.size, self.om), np.full(TT.size, self.al), JJ)
         lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0))
         b = int(np.argmax(lw))
@@ -277,21 +331,21 @@ class _Episode:
         tks = self.tk[self.tk > self.tau0 - 1.0]
         band = np.abs(tks[None, :] - gt[:, None]) <= 2.0
         ti, ki = np.nonzero(band)
-        TT = np.r_[gt, gt, gt[ti]]
-        JJ = np.r_[np.full(gt.size, -1.0), np.full(gt.size, float(self.j)), ks[ki].astype(float)]
+        TT = np.concatenate((gt, gt, gt[ti]))
+        JJ = np.concatenate((np.full(gt.size, -1.0), np.full(gt.size, float(self.j)), ks[ki].astype(float)))
         rss, coef = self._solve_onset(TT, JJ)
         lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
         b = int(np.argmax(lw))
         tb, self.j = float(TT[b]), int(JJ[b])
         # No onset in the window unless new motion beats the best still model (level, old
         # motion, ringing, and a step anywhere or none) by BIC: its 3 parameters (v1, tau).
-        jn = np.r_[-1, self.k[self.tk > self.tau0 - 1.0]].astype(float)
+        jn = np.concatenate(([-1], ks)).astype(float)
         rn, _ = self._solve_onset(np.full(jn.size, 1e9), jn)
         null = float(np.max(_logw(rn, self.n_obs, 3.0 * (jn >= 0) + pen_ring)))
         self.found = lw[b] - 1.5 * np.log(self.n_obs) > null
         gf = np.arange(max(tb - 1.5, lo), min(tb + 1.5, hi) + 1e-9, 1.0 / SUB)
         near = self.k[np.abs(self.tk - tb) <= 2.5]
-        js = np.unique(np.r_[-1, self.j, near]).astype(float)
+        js = np.unique(np.concatenate(([-1, self.j], near))).astype(float)
         TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
         rss, coef = self._solve_onset(TT, JJ)
         lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)

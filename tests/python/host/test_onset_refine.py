@@ -165,3 +165,50 @@ def test_board_samples_stay_valid_input():
     assert ref["board_reasons"] == board.reasons
     g = np.linspace(-1.5, 1.5, 50)
     assert np.mean(np.abs(cal.B(g) - sc.B(g))) / sc.B(g).mean() < 0.05
+
+
+def test_ring_column_factorised_equals_per_candidate_formula():
+    """_col_ring takes exp and sin once per distinct (tau0, al) / (tau0, om) pair: the numbers
+    must be those of e^(-al d) sin(om d) per candidate (bit for bit, so the refinement's grids
+    pick the same cells), and agree with math.exp / math.sin in double precision (measured
+    max error 1.1e-16; bound 1e-15)."""
+    import math
+
+    rng = np.random.default_rng(5)
+    tk = np.sort(rng.uniform(-8.0, 10.0, 37))
+    g0 = np.arange(-4.5, 2.6, 0.5)
+    om = np.r_[0.0, np.repeat(2 * np.pi * R.RING_HZ, R.RING_ALPHA.size)] / FPS
+    al = np.r_[0.0, np.tile(R.RING_ALPHA, R.RING_HZ.size)] / FPS
+    cases = [(np.repeat(g0, om.size), np.tile(om, g0.size), np.tile(al, g0.size)),  # the stop grid
+             (g0, np.full(g0.size, om[7]), np.full(g0.size, al[7])),  # one ringing (second pass)
+             ([0.3], [0.71], [0.12]), (g0, np.zeros(g0.size), np.zeros(g0.size))]  # polishing; none
+    for tau0, w, a in cases:
+        tau0, w, a = (np.asarray(x, float) for x in (tau0, w, a))
+        d = np.maximum(tk[None, :] - tau0[:, None], 0.0)
+        direct = np.exp(-a[:, None] * d) * np.sin(w[:, None] * d)
+        got = R._col_ring(tk, tau0, w, a)
+        assert np.array_equal(got, direct)
+        ref = np.array([[math.exp(-aa * max(t - t0, 0.0)) * math.sin(ww * max(t - t0, 0.0)) for t in tk]
+                        for t0, ww, aa in zip(tau0, w, a)])
+        assert np.max(np.abs(got - ref)) < 1e-15
+
+
+def test_batched_solve_matches_lstsq_and_shared_projection():
+    """_solve's RSS and coefficients against numpy's lstsq on the full design [F, V_g] per
+    candidate (measured: RSS 8e-11 relative, coefficients 6e-9, from the 1e-10 ridge that keeps
+    absent parts regular; bounds 5e-10 and 3e-8), and the projection
+    computed once (_project, as an episode shares it) gives the same numbers as per call."""
+    rng = np.random.default_rng(6)
+    n, G = 40, 25
+    tk = np.linspace(-8, 8, n)
+    F = np.column_stack([np.ones(n), np.maximum(tk - 2.0, 0.0)])
+    V = np.stack([np.minimum(tk[None, :] - rng.uniform(-3, 1, G)[:, None], 0.0), rng.normal(size=(G, n))], axis=2)
+    Y = rng.normal(size=(n, 2)) + 0.3 * V[3]
+    rss, coef = R._solve(F, V, Y)
+    for g in range(G):
+        X = np.column_stack([F, V[g]])
+        c, res, *_ = np.linalg.lstsq(X, Y, rcond=None)
+        assert abs(rss[g] - res.sum()) < 5e-10 * res.sum()
+        assert np.allclose(coef[g], c[2:], rtol=3e-8, atol=0)
+    rss2, coef2 = R._solve(F, V, Y, proj=R._project(F, Y))
+    assert np.array_equal(rss, rss2) and np.array_equal(coef, coef2)
