@@ -7,8 +7,8 @@ errors of the paired RMSE gain on the validation rows from the measurement noise
 one-sided Student quantile at alpha / number of screens, ``t_threshold``), AND the BIC on the fit
 rows agrees (drop > bic_min). Effects whose single-effect screens come as close as the kept one, and that
 add nothing once it is in, are named as indistinguishable from it. When nothing is kept and
-the gap stands above the noise floor, or the kept effects remove less than half of the excess,
-the verdict is "unexplained".
+the gap stands above the noise floor, or the kept effects remove less than half of the excess and
+leave a gap that is not negligible (``verdict``), the verdict is "unexplained".
 """
 
 from __future__ import annotations
@@ -380,16 +380,24 @@ def _share(r_before: float, r_after: float, e0: float, sigma: float) -> float:
 
 
 def verdict(out: dict, unexplained_ratio: float = 1.5, negligible_deg: float = NEGLIGIBLE_DEG) -> str:
-    """One label: the first kept effect when the kept set removes at least half of the excess;
-    "none" when nothing is kept and the gap is negligible (held-out RMSE within
-    unexplained_ratio x the noise floor, or an excess over it below negligible_deg = 0.1 deg);
-    otherwise "stick_slip" when the validation residual of the final model carries the stick-slip
-    signature (``stick_slip_signature``), else "unexplained"."""
+    """One label. A residual is "no gap" when its RMSE is within unexplained_ratio x the noise floor
+    or its excess over the floor is below negligible_deg = 0.1 deg. With effects kept: the first
+    kept effect when the kept set removes at least half of the excess, or when what it leaves is
+    itself no gap (then no gap is left for "unexplained" to report: the same residual with nothing
+    kept would read "none", so keeping an effect that passed the margin and the BIC must not turn
+    the verdict from "none" into "unexplained"). Otherwise, and with nothing kept and a gap that is
+    not negligible: "stick_slip" when the validation residual of the final model carries the
+    stick-slip signature (``stick_slip_signature``), else "unexplained"; nothing kept and no gap:
+    "none"."""
     sig = out.get("stick_slip_signature", {}).get("present", False)
+    floor = max(out["noise_floor_deg"], 1e-9)
+
+    def no_gap(rmse: float, exc: float) -> bool:
+        return rmse <= unexplained_ratio * floor or exc < negligible_deg
     if out["kept"]:
-        if out["final"]["share_of_excess_removed"] >= 0.5:
+        fin = out["final"]
+        if fin["share_of_excess_removed"] >= 0.5 or no_gap(fin["rmse_heldout_deg"], fin["excess_after_deg"]):
             return out["kept"][0]["effect"]
         return "stick_slip" if sig else "unexplained"
-    r0 = out["base"]["rmse_heldout_deg"]
-    small = r0 <= unexplained_ratio * max(out["noise_floor_deg"], 1e-9) or out["excess_before_deg"] < negligible_deg
+    small = no_gap(out["base"]["rmse_heldout_deg"], out["excess_before_deg"])
     return "none" if small else ("stick_slip" if sig else "unexplained")

@@ -200,3 +200,33 @@ def test_stick_slip_signature_tells_a_sawtooth_from_a_symmetric_ripple():
     assert s["present"] and s["skewness"] > 1.0
     r = _stick_signature_case(0.0)
     assert not r["present"] and abs(r["skewness"]) < 0.2
+
+
+def _verdict_input(kept, r0, r1, floor, sig=False):
+    from playscope.diagnose.attribute import _share, excess
+    e0 = excess(r0, floor)
+    return {"kept": [{"effect": k} for k in kept], "noise_floor_deg": floor,
+            "base": {"rmse_heldout_deg": r0}, "excess_before_deg": e0,
+            "final": {"rmse_heldout_deg": r1, "excess_after_deg": excess(r1, floor),
+                      "share_of_excess_removed": _share(r0, r1, e0, floor)},
+            "stick_slip_signature": {"present": sig}}
+
+
+def test_verdict_names_a_kept_effect_that_leaves_no_gap_and_not_one_that_leaves_a_gap():
+    from playscope.diagnose.attribute import verdict
+    # Kept, 40 % of a 0.05 deg excess removed, 0.03 deg left over a 0.04 deg floor: what is left
+    # would read "none" with nothing kept, so the kept effect is named (was "unexplained").
+    v = _verdict_input(["asymmetric_backlash"], 0.0640, 0.0500, 0.04)
+    assert 0.3 < v["final"]["share_of_excess_removed"] < 0.5
+    assert verdict(v) == "asymmetric_backlash"
+    # The same residual with nothing kept is "none": keeping an effect never makes it worse.
+    assert verdict({**v, "kept": []}) == "none"
+    # Kept, 40 % of a 1 deg excess removed, 0.6 deg left: a gap stays -> "unexplained" (or the
+    # stick-slip signature), as before.
+    v = _verdict_input(["camera_delay"], 1.0, 0.6, 0.04)
+    assert v["final"]["share_of_excess_removed"] < 0.5 and verdict(v) == "unexplained"
+    assert verdict(_verdict_input(["camera_delay"], 1.0, 0.6, 0.04, sig=True)) == "stick_slip"
+    # Half or more of a real gap removed: named whatever is left.
+    assert verdict(_verdict_input(["drift"], 1.0, 0.3, 0.04)) == "drift"
+    # Nothing kept and a gap: "unexplained".
+    assert verdict(_verdict_input([], 0.5, 0.5, 0.04)) == "unexplained"
