@@ -26,20 +26,8 @@ GPI_POLY_DEGREE = 3
 # The classical play operators are the project's one kernel (transition.play_ops: Krasnosel'skii
 # & Pokrovskii 1989; Brokate & Sprekels 1996, eq. 2.1): the peer and ours run the same operator,
 # so the comparison is of the models, not of two implementations.
+from .transition import largest_excursion  # noqa: E402  (one rule for both models' threshold spans)
 from .transition import play_ops as play_operators  # noqa: E402
-
-
-def largest_excursion(q: np.ndarray, hysteresis_frac: float = 0.01) -> float:
-    """Largest travel of q between consecutive direction reversals (the first and last
-    samples count as turning points), reversals taken with a hysteresis of hysteresis_frac
-    of the span so that noise does not split a stroke. q: (N,). Returns actuator units."""
-    from .estimate import detect_reversals
-
-    q = np.asarray(q, float)
-    span = float(np.max(q) - np.min(q))
-    _, q1, _ = detect_reversals(np.arange(q.size, dtype=float), q, hysteresis_frac * span)
-    turns = np.r_[q[0], q1, q[-1]]
-    return float(np.max(np.abs(np.diff(turns)))) if turns.size > 1 else span
 
 
 def gpi_thresholds(q_cal: np.ndarray, n: int = GPI_OPERATORS) -> np.ndarray:
