@@ -233,6 +233,10 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     transition.choose_model per alternative, in fewer fits. The alternatives themselves cannot
     be cut short: the B rule's limit is the best alternative's CV + SE, and every alternative's
     row is part of the calibration file (B_fit.model_cv).
+    on: the onset samples (estimate.Onsets); bfit: their fit_backlash_auto result; t_enc, q: (N,)
+    s, actuator units; t_f, c_f: (F,) s, deg; td: acquisition delay, s; model_kind "auto"|"pi";
+    n_ctrl: f's control points for the pure-play candidate (14 from calibrate: the
+    cross-validated f_remain N needs B first); src: file named in errors.
     Returns (BacklashFit, Transition, f, sign, choice dict, [{"smooth", "cv_rmse_deg",
     "cv_se_deg", "model", "b_scale", "n", "b_sample_pick"}] stiffest first)."""
     alts = E.backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)

@@ -385,8 +385,9 @@ def image_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
                          t_f: np.ndarray, obs: np.ndarray, t_delay_s: float, fps: float):
     """Onset threshold of the image (marker, px) detector from the record: the angle rule
     (angle_onset_settings) in 2-D, at the camera's own frame rate. Not used by `calibrate` yet:
-    on the demo's STRAS-like preset, whose tip creeps through the dead band, it fires later than
-    the C detector's automatic threshold and B is worse (docs/robustness.md); pass its
+    on the demo's STRAS-like preset, whose tip creeps through the dead band, it fires earlier on
+    the creep than the C detector's automatic threshold, B moves further from the centre width
+    and the compensation is worse (0.41 against 0.33 deg; docs/robustness.md); pass its
     overrides as `calibrate(onset_cfg=...)` to use it.
 
     1. Bootstrap: the C detector with the fixed T0 = k rms|d|, rms|d| from diff2_noise of u and
