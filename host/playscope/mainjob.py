@@ -156,8 +156,9 @@ def _model_summary(cal: Calibration) -> dict:
     tr, ch = cal.transition, cal.model_choice or {}
     cands = ch.get("candidates", [])
     play = next((c["cv_rmse_deg"] for c in cands if c["n"] == 1), None)
-    pick = next((c["cv_rmse_deg"] for c in cands if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl")) ==
-                 (ch.get("b_scale"), ch.get("n_tried"), ch.get("r_span"), ch.get("n_ctrl"))), None)
+    pick = next((c["cv_rmse_deg"] for c in cands if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl"), c.get("scaled", False)) ==
+                 (ch.get("b_scale"), ch.get("n_tried"), ch.get("r_span"), ch.get("n_ctrl"),
+                  ch.get("thresholds") == "B-proportional")), None)
     bf = cal.doc.get("B_fit") or {}
     return {"model": "play" if tr.is_play else "pi", "operators": tr.n, "r_max": float(tr.r[-1]),
             "b_scale": tr.b_scale, "b_smooth": bf.get("smooth"), "b_smooth_by": "model CV" if bf.get("model_cv") else

@@ -112,8 +112,9 @@ def model_text(cal: Calibration) -> str:
     tr, ch = cal.transition, cal.model_choice
     txt = "play" if tr.is_play else (f"play ({tr.b_scale:g} B) + PI, {tr.n} operators (r <= {tr.r[-1]:.3g})")
     if ch:
-        pick = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl")) ==
-                    (ch["b_scale"], ch["n_tried"], ch["r_span"], ch.get("n_ctrl")))
+        pick = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl"), c.get("scaled", False)) ==
+                    (ch["b_scale"], ch["n_tried"], ch["r_span"], ch.get("n_ctrl"),
+                     ch.get("thresholds") == "B-proportional"))
         play = next((c for c in ch["candidates"] if c["n"] == 1), None)
         txt += f", CV RMSE {pick['cv_rmse_deg']:.3g} deg"
         if play and pick is not play:
@@ -181,7 +182,7 @@ def write_tables(cal_path, out, entries: int | None = None, generation: int = 1,
         tab = build_table(B, f, q_min, q_max, cal.actuator_unit, "coarse" if f_coarse else "remain",
                           generation, entries, source=cal_path, transition=tr)
         err = table_errors(tab, B, f, q_min, q_max, tr)
-        check_precision(tab, err, f, q_min, q_max, source=cal_path)
+        if cal.transition.tmap is None: check_precision(tab, err, f, q_min, q_max, source=cal_path)
     except (ValueError, OverflowError) as e:  # InputError passes through with its own file
         if isinstance(e, InputError):
             raise

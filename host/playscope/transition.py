@@ -59,6 +59,7 @@ B_SCALES = (1.0, 0.5)                  # play width candidates, x onset-measured
 SPAN_EXCURSION = 1.0                   # r_span = the largest excursion of z between reversals
 F_CTRL = (4, 14)                       # f's control points: 4 = one cubic, 14 = f_remain's spline
 KFOLD = 4                              # CV origins (rolling_origins)
+THRESHOLD_KINDS = (False,)              # operators' thresholds: constant, B-proportional (ThresholdMap)
 V_MAX = 1e3                            # v_i <= 1000 v_0: w_0 >= 1/(1 + 1000 (n-1)) > 0 (inverse needs 1/w_0)
 
 
@@ -111,6 +112,75 @@ def inverse_state(w: np.ndarray, p: np.ndarray) -> np.ndarray:
     return W * p + np.r_[tail[1:], 0.0]
 
 
+B_FLOOR = 0.1                          # the map's B is floored at B_FLOOR x b_ref (g' <= 1/B_FLOOR)
+MAP_POINTS = 129                       # grid points of the threshold map (host float model)
+
+
+def _interp_linear_ends(x, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
+    """Piecewise-linear interpolation of (xp, fp), xp increasing, continued beyond the ends
+    with the end segments' slopes (np.interp would clamp)."""
+    x = np.asarray(x, float)
+    out = np.interp(x, xp, fp)
+    lo, hi = x < xp[0], x > xp[-1]
+    if np.any(lo):
+        out[lo] = fp[0] + (x[lo] - xp[0]) * (fp[1] - fp[0]) / (xp[1] - xp[0])
+    if np.any(hi):
+        out[hi] = fp[-1] + (x[hi] - xp[-1]) * (fp[-1] - fp[-2]) / (xp[-1] - xp[-2])
+    return out
+
+
+@dataclass
+class ThresholdMap:
+    """The map g that makes the operators' thresholds proportional to the onset width B(z)
+    (a generalized PI with position-dependent thresholds, docs/method.md "B-proportional
+    thresholds"): u = g(z) = z_0 + integral_{z_0}^{z} b_ref / B(s) ds, so a threshold r in u is
+    r B(z) / b_ref in z, to first order in the change of B over one threshold. g is strictly
+    increasing (B floored at B_FLOOR b_ref), so the classical PI on u keeps its exact inverse
+    (Krejci & Kuhnen 2001) and the model's inverse is g^-1 after it.
+
+    z, u: (m,) grid, both strictly increasing, actuator units; linear beyond the grid."""
+
+    z: np.ndarray
+    u: np.ndarray
+
+    def __post_init__(self):
+        self.z = np.asarray(self.z, float).ravel()
+        self.u = np.asarray(self.u, float).ravel()
+        if self.z.size < 2 or self.z.size != self.u.size:
+            raise ValueError("threshold map: z and u must have the same length >= 2")
+        if np.any(np.diff(self.z) <= 0) or np.any(np.diff(self.u) <= 0):
+            raise ValueError("threshold map: z and u must increase strictly")
+
+    @classmethod
+    def from_backlash(cls, B, z_lo: float, z_hi: float, m: int = MAP_POINTS) -> "ThresholdMap":
+        """g from the onset width B (callable, actuator units) over [z_lo, z_hi]: trapezoidal
+        integral of b_ref / max(B, B_FLOOR b_ref) on m points, b_ref the median of B there (so
+        that g' is 1 on average and u stays in the unit of z), g(z_lo) = z_lo."""
+        z = np.linspace(float(z_lo), float(z_hi), int(m))
+        b = np.asarray(B(z), float)
+        b_ref = float(np.median(b))
+        if not np.isfinite(b_ref) or b_ref <= 0:
+            raise ValueError("threshold map: the onset width B must be positive")
+        slope = b_ref / np.maximum(b, B_FLOOR * b_ref)
+        u = z[0] + np.r_[0.0, np.cumsum(0.5 * (slope[1:] + slope[:-1]) * np.diff(z))]
+        return cls(z, u)
+
+    def fwd(self, z):
+        """u = g(z); any shape."""
+        return _interp_linear_ends(z, self.z, self.u)
+
+    def inv(self, u):
+        """z = g^-1(u); any shape."""
+        return _interp_linear_ends(u, self.u, self.z)
+
+    def to_json(self) -> dict:
+        return {"z": self.z.tolist(), "u": self.u.tolist()}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "ThresholdMap":
+        return cls(np.asarray(d["z"], float), np.asarray(d["u"], float))
+
+
 @dataclass
 class Transition:
     """The PI part: thresholds r (n,) actuator units, weights w (n,) summing to 1, and b_scale,
@@ -119,6 +189,7 @@ class Transition:
     r: np.ndarray
     w: np.ndarray
     b_scale: float = 1.0
+    tmap: ThresholdMap | None = None  # B-proportional thresholds: the operators run on g(z)
 
     def __post_init__(self):
         self.r = np.asarray(self.r, float).ravel()
@@ -153,9 +224,18 @@ class Transition:
         k = self.b_scale
         return lambda q: k * np.asarray(B(q), float)
 
+    def to_ops(self, z: np.ndarray) -> np.ndarray:
+        """The operators' input: z, or u = g(z) with B-proportional thresholds (ThresholdMap)."""
+        return z if self.tmap is None else self.tmap.fwd(z)
+
+    def from_ops(self, u: np.ndarray) -> np.ndarray:
+        """The inverse of to_ops."""
+        return u if self.tmap is None else self.tmap.inv(u)
+
     def direct(self, z: np.ndarray, p0=None) -> np.ndarray:
-        """y = sum w_i p_i(z) (PI_MODEL step 2). z: (N,); returns y (N,)."""
-        return play_ops(z, self.r, p0) @ self.w
+        """y = sum w_i p_i(x), x = z or g(z) (PI_MODEL step 2). z: (N,); returns y (N,) in
+        the unit of x."""
+        return play_ops(self.to_ops(np.asarray(z, float)), self.r, p0) @ self.w
 
     def inverse(self, y: np.ndarray, p0=None) -> np.ndarray:
         """z = PI^-1(y) by the inverse PI operator. p0: states of the direct operators at
@@ -163,14 +243,19 @@ class Transition:
         r_inv, w_inv = inverse_params(self.r, self.w)
         y = np.asarray(y, float).ravel()
         p = np.full(self.n, y[0]) if p0 is None else np.asarray(p0, float)
-        return play_ops(y, r_inv, inverse_state(self.w, p)) @ w_inv
+        return self.from_ops(play_ops(y, r_inv, inverse_state(self.w, p)) @ w_inv)
 
     def to_json(self) -> dict:
-        return {"r": self.r.tolist(), "w": self.w.tolist(), "b_scale": float(self.b_scale)}
+        d = {"r": self.r.tolist(), "w": self.w.tolist(), "b_scale": float(self.b_scale)}
+        if self.tmap is not None:
+            d["threshold_map"] = self.tmap.to_json()
+        return d
 
     @classmethod
     def from_json(cls, d: dict) -> "Transition":
-        return cls(np.asarray(d["r"], float), np.asarray(d["w"], float), float(d.get("b_scale", 1.0)))
+        tm = d.get("threshold_map")
+        return cls(np.asarray(d["r"], float), np.asarray(d["w"], float), float(d.get("b_scale", 1.0)),
+                   ThresholdMap.from_json(tm) if tm else None)
 
 
 # --------------------------------------------------------------------------- float chain
@@ -285,14 +370,31 @@ class FitData:
             self._cache[key] = model.play_operator(x, lambda v: b_scale * B(v), float(self.q_enc[0]))
         return self._cache[key]
 
-    def ops_at_frames(self, r: np.ndarray, b_scale: float = 1.0) -> np.ndarray:
+    def threshold_map(self) -> ThresholdMap:
+        """The B-proportional thresholds' map g (ThresholdMap) of this record's onset width,
+        over the travelled q range widened by the largest B on each side (z stays within
+        half a play of q)."""
+        if "tmap" not in self._cache:
+            q0, q1 = float(self.q_enc.min()), float(self.q_enc.max())
+            pad = float(np.max(self.B(np.linspace(q0, q1, 201))))
+            self._cache["tmap"] = ThresholdMap.from_backlash(self.B, q0 - pad, q1 + pad)
+        return self._cache["tmap"]
+
+    def ops_input_reduced(self, b_scale: float = 1.0, scaled: bool = False) -> np.ndarray:
+        """The operators' input on the reduced path: the play centre z, or u = g(z) for
+        B-proportional thresholds (threshold_map)."""
+        z = self.z_reduced(b_scale)
+        return self.threshold_map().fwd(z) if scaled else z
+
+    def ops_at_frames(self, r: np.ndarray, b_scale: float = 1.0, scaled: bool = False) -> np.ndarray:
         """P (F, n): the operators run over the whole record from its start (the state a
         running board holds), read at the frames' acquisition times. Run on the reduced path
-        (exact at q's turning points: see turning_points)."""
-        key = ("P", round(b_scale, 12), tuple(np.round(r, 12)))
+        (exact at q's turning points: see turning_points). scaled: the operators run on
+        u = g(z) (B-proportional thresholds, ThresholdMap)."""
+        key = ("P", round(b_scale, 12), tuple(np.round(r, 12)), bool(scaled))
         if key not in self._cache:
             order, _ = self._reduced()
-            z = self.z_reduced(b_scale)
+            z = self.ops_input_reduced(b_scale, scaled)
             P = play_ops(z, r, z[0])
             out = np.empty((z.size, r.size))
             out[order] = P
@@ -466,17 +568,19 @@ def v_max_for_table(data: "FitData", b_scale: float, n: int) -> float:
     return float(min(V_MAX, max(0.5 * ceiling - 1.0, 0.0) / max(n - 1, 1)))
 
 
-def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14) -> list[tuple[float, int, float, int]]:
-    """(b_scale, n, r_span, f_ctrl) tuples tried, fixed a priori (module docstring): (1, 1, 0,
-    n_ctrl) for the paper's play; for the PI, b_scale in B_SCALES x f_ctrl in F_CTRL, each with
-    N_OPS operators at thresholds(N_OPS, r_span), r_span = SPAN_EXCURSION x the largest excursion of
-    the play centre z between reversals in the calibration record."""
-    out = [(1.0, 1, 0.0, int(n_ctrl))] if model_kind in ("auto", "play") else []
+def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14) -> list[tuple[float, int, float, int, bool]]:
+    """(b_scale, n, r_span, f_ctrl, scaled) tuples tried, fixed a priori (module docstring):
+    (1, 1, 0, n_ctrl, False) for the paper's play; for the PI, b_scale in B_SCALES x f_ctrl in
+    F_CTRL x thresholds constant or B-proportional (scaled, ThresholdMap), each with N_OPS
+    operators at thresholds(N_OPS, r_span), r_span = SPAN_EXCURSION x the largest excursion of
+    the operators' input (z, or g(z)) between reversals in the calibration record."""
+    out = [(1.0, 1, 0.0, int(n_ctrl), False)] if model_kind in ("auto", "play") else []
     if model_kind in ("auto", "pi"):
-        for kb in B_SCALES:
-            span = SPAN_EXCURSION * largest_excursion(data.z_reduced(kb))
-            if span > 0:
-                out += [(kb, N_OPS, span, nc) for nc in F_CTRL]
+        for scaled in THRESHOLD_KINDS:
+            for kb in B_SCALES:
+                span = SPAN_EXCURSION * largest_excursion(data.ops_input_reduced(kb, scaled))
+                if span > 0:
+                    out += [(kb, N_OPS, span, nc, scaled) for nc in F_CTRL]
     return out
 
 
@@ -485,8 +589,8 @@ class _CandidateCV:
     (ModelChoice) and resume later with bit-identical results: fold j starts from fold j-1's
     weights (the folds share most frames), and nothing else carries over between folds."""
 
-    def __init__(self, data: FitData, splits, kb: float, n: int, span: float, nc: int):
-        self.kb, self.n, self.span, self.nc = kb, n, float(span), int(nc)
+    def __init__(self, data: FitData, splits, kb: float, n: int, span: float, nc: int, scaled: bool = False):
+        self.kb, self.n, self.span, self.nc, self.scaled = kb, n, float(span), int(nc), bool(scaled)
         self.data, self.splits = data, splits
         self.r = thresholds(n, span) if n > 1 else np.zeros(1)
         self.errs: list[float] = []
@@ -500,7 +604,7 @@ class _CandidateCV:
         """Fit and score the next scored fold (rolling_origins' folds with too few frames are
         skipped, as choose_model always did)."""
         if self._P is None:  # the operators at the frames and the table's bound, once
-            self._P = self.data.ops_at_frames(self.r, self.kb)
+            self._P = self.data.ops_at_frames(self.r, self.kb, self.scaled)
             self._vm = v_max_for_table(self.data, self.kb, self.n)
         while not self.done:
             tr_m, te_m = self.splits[self._next]
@@ -526,15 +630,16 @@ class _CandidateCV:
     def row(self) -> dict:
         """The choice's candidate row (complete() first)."""
         errs = np.array(self.errs)
-        return {"b_scale": self.kb, "n": self.n, "r_span": self.span, "n_ctrl": self.nc,
+        return {"b_scale": self.kb, "n": self.n, "r_span": self.span, "n_ctrl": self.nc, "scaled": self.scaled,
                 "cv_rmse_deg": float(np.sqrt(np.mean(errs ** 2))),
                 "cv_se_deg": float(np.std(errs, ddof=1) / np.sqrt(errs.size)) if errs.size > 1 else 0.0}
 
 
 def _preference(d) -> tuple:
     """The one-standard-error rule's order (simplest first): fewest operators, then the onset
-    width closest to as measured, then the stiffest f."""
-    return d["n"], -d["b_scale"], d["n_ctrl"]
+    width closest to as measured, then the stiffest f, then constant before B-proportional
+    thresholds (the classical PI before its generalisation)."""
+    return d["n"], -d["b_scale"], d["n_ctrl"], bool(d.get("scaled", False))
 
 
 class ModelChoice:
@@ -589,7 +694,7 @@ class ModelChoice:
         rows = [c.row() for c in self.cands if c.done]
         best = min(rows, key=lambda d: d["cv_rmse_deg"])  # the first of equal ones, as choose_model
         limit = best["cv_rmse_deg"] + best["cv_se_deg"]
-        for c in sorted(self.cands, key=lambda c: _preference({"n": c.n, "b_scale": c.kb, "n_ctrl": c.nc})):
+        for c in sorted(self.cands, key=lambda c: _preference({"n": c.n, "b_scale": c.kb, "n_ctrl": c.nc, "scaled": c.scaled})):
             if not c.done and self._exceeds(c, limit):
                 continue  # its CV is above the limit whatever its remaining folds
             row = c.complete().row()
@@ -604,12 +709,13 @@ class ModelChoice:
         operators, f, sign of f', fit RMSE deg)."""
         if self._refit is None:
             p = self.pick()
-            kb, n, span, nc = p["b_scale"], p["n"], p["r_span"], p["n_ctrl"]
+            kb, n, span, nc, sc = p["b_scale"], p["n"], p["r_span"], p["n_ctrl"], p["scaled"]
             r = thresholds(n, span) if n > 1 else np.zeros(1)
-            w, f, sign, rms = fit_weights(self.data.ops_at_frames(r, kb), self.data.c, nc,
+            w, f, sign, rms = fit_weights(self.data.ops_at_frames(r, kb, sc), self.data.c, nc,
                                           v_max=v_max_for_table(self.data, kb, n))
             keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
-            self._refit = (Transition(r[keep], w[keep] / w[keep].sum(), kb), f, sign, rms)
+            tmap = self.data.threshold_map() if sc and n > 1 else None
+            self._refit = (Transition(r[keep], w[keep] / w[keep].sum(), kb, tmap), f, sign, rms)
         return self._refit
 
     def result(self, progress=lambda it, **kw: it) -> tuple[Transition, "E.SplineFn", int, dict]:
@@ -620,6 +726,7 @@ class ModelChoice:
         tr, f, sign, rms = self.refit()
         choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(p["n"]),
                   "b_scale": p["b_scale"], "r_span": float(p["r_span"]), "n_ctrl": int(p["n_ctrl"]),
+                  "thresholds": "B-proportional" if p["scaled"] else "constant",
                   "fit_rmse_deg": rms,
                   "rule": "CV on a rolling origin (fit before, score the next block), one-standard-error rule",
                   "folds": int(self.k), "b_median": self.data.b_med, "candidates": [c.row() for c in self.cands]}
