@@ -1,6 +1,7 @@
-/* Calibration-table binary layout (v2): one header and int32 Q16.16 entry arrays.
+/* Calibration-table binary layout (v3): one header and int32 Q16.16 entry arrays.
  *
- * Little-endian, packed. A table is  [pst_header_t][b entries][f entries][r[n]][w[n]]
+ * Little-endian, packed. A v1/v2 table is  [pst_header_t][b entries][f entries][r[n]][w[n]],
+ * a v3 table  [pst_header_v3_t][b entries][f entries][r[n]][w[n]][g entries],
  * and is self-describing: each grid and the operator block give their own byte offset.
  * The CRC-32 covers all total_size bytes with the crc32 field taken as zero, seeded with
  * the table's own layout_version (ps_crc32_update(layout_version, ...)), so a table whose
@@ -13,6 +14,13 @@
  * (Prandtl-Ishlinskii) between the centre z of the play of eq. 3 and f. Version 1 is
  * version 2 with n = 0 (the v1 header's last field `reserved` is the zero pst_pi_t),
  * and still loads, as the pure play of the paper.
+ *
+ * Version 3 adds the threshold map g (docs/method.md, "B-proportional thresholds"): the
+ * operators run on u = g(z) instead of z, g strictly increasing, sampled on its own
+ * power-of-two grid over z (pst_header_v3_t.tmap). Its header is pst_header_t followed by
+ * that grid (header_size 72); v1 and v2 headers stop after pst_header_t (header_size 60).
+ * table_write() writes v3 only for a table with a map, so map-less tables and their CRCs
+ * are the v2 ones.
  * Used by: firmware/core/calib.c (loader), host (writer, through cffi). */
 #ifndef PS_TABLE_H
 #define PS_TABLE_H
@@ -23,7 +31,8 @@
 
 enum {
     PST_MAGIC = 0x42545350,      /* bytes "PSTB" */
-    PST_LAYOUT_VERSION = 2,      /* written by table_write(); 1 is still loaded (pi all zero) */
+    PST_LAYOUT_VERSION = 3,      /* highest loaded; table_write() writes 3 with a threshold map, else 2; 1 still loads */
+    PST_LAYOUT_VERSION_NO_MAP = 2, /* what table_write() writes for a table without a threshold map */
     PST_MAX_ENTRIES = 256,       /* per grid; bounds the loader's RAM */
     PST_MIN_ENTRIES = 2,
     PST_MAX_OPS = 16,            /* play operators of the transition; bounds the per-tick cost */
@@ -63,7 +72,7 @@ PS_STATIC_ASSERT(sizeof(pst_pi_t) == 4, "pst_pi_t must be 4 bytes");
 typedef struct PS_PACKED pst_header {
     uint32_t magic;              /* PST_MAGIC */
     uint16_t layout_version;     /* PST_LAYOUT_VERSION */
-    uint16_t header_size;        /* sizeof(pst_header_t) = 60 */
+    uint16_t header_size;        /* v1, v2: sizeof(pst_header_t) = 60; v3: sizeof(pst_header_v3_t) = 72 */
     uint32_t total_size;         /* bytes, header + all entries */
     uint32_t crc32;              /* see file comment */
     uint32_t generation;         /* +1 per commit; at boot the newest valid slot wins */
@@ -80,7 +89,18 @@ typedef struct PS_PACKED pst_header {
 PS_STATIC_ASSERT(sizeof(pst_header_t) == 60, "pst_header_t must be 60 bytes");
 PS_STATIC_ASSERT(offsetof(pst_header_t, pi) == 56, "pi sits where v1 had `reserved`");
 
-/* Largest table the layout allows, in bytes: two full grids and a full operator block. */
-enum { PST_MAX_TABLE_SIZE = 60 + 2 * 4 * PST_MAX_ENTRIES + 2 * 4 * PST_MAX_OPS };
+/* The v3 header: the v1/v2 header, then the threshold map's grid.
+ * tmap: u = g(z) (actuator units, Q16.16) over the play's centre z, strictly increasing;
+ * its abscissas must cover B's grid (where z can be) and it is read in place like B and f.
+ * n = 0 and offset 0: no map (u = z), as in a v1 or v2 table. */
+typedef struct PS_PACKED pst_header_v3 {
+    pst_header_t base;           /* base.layout_version = 3, base.header_size = 72 */
+    pst_grid_t tmap;             /* the threshold map g */
+} pst_header_v3_t;
+PS_STATIC_ASSERT(sizeof(pst_header_v3_t) == 72, "pst_header_v3_t must be 72 bytes");
+
+/* Largest table the layout allows, in bytes: a v3 header, three full grids and a full
+ * operator block. */
+enum { PST_MAX_TABLE_SIZE = 72 + 3 * 4 * PST_MAX_ENTRIES + 2 * 4 * PST_MAX_OPS };
 
 #endif /* PS_TABLE_H */

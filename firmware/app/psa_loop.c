@@ -77,6 +77,9 @@ static int32_t setpoint_for(psa_loop_t *l, int32_t c_ref_q16)
         return comp_step(&l->comp, c_ref_q16);
     }
     int32_t q = lut_eval(&cal->f_inv, c_ref_q16);
+    /* A threshold map (table v3) puts f over u = g(z): back to actuator units. */
+    if (cal->tmap.n != 0)
+        q = lut_eval(&cal->tmap_inv, q);
     return q < cal->q_min_q16 ? cal->q_min_q16 : q > cal->q_max_q16 ? cal->q_max_q16 : q;
 }
 

@@ -22,7 +22,7 @@ static calib_status_t grid_lut(const uint8_t *blob, const pst_header_t *hd, cons
 {
     if (gr->n < PST_MIN_ENTRIES || gr->n > PST_MAX_ENTRIES)
         return CALIB_ERR_GRID;
-    if (gr->offset < sizeof(pst_header_t) || (gr->offset & 3u) != 0 ||
+    if (gr->offset < hd->header_size || (gr->offset & 3u) != 0 ||
         (uint32_t)gr->offset + 4u * gr->n > hd->total_size)
         return CALIB_ERR_GRID;
     const uint8_t *p = blob + gr->offset;
@@ -81,8 +81,8 @@ static int overlaps(uint32_t at, uint32_t len, const pst_grid_t *gr)
 
 /* The v2 operator block: layout, then shape and inverse (pi_build). Writes only the
  * three outputs, and only on success. */
-static calib_status_t load_pi(const uint8_t *blob, const pst_header_t *hd, const lut_t *b, const lut_t *f,
-                              pi_params_t *dir, pi_params_t *inv, int32_t *err_q16)
+static calib_status_t load_pi(const uint8_t *blob, const pst_header_t *hd, int32_t x_lo, int32_t x_hi,
+                              const lut_t *f, pi_params_t *dir, pi_params_t *inv, int32_t *err_q16)
 {
     const uint16_t n = hd->pi.n;
     if (n > PST_MAX_OPS)
@@ -93,13 +93,14 @@ static calib_status_t load_pi(const uint8_t *blob, const pst_header_t *hd, const
             return CALIB_ERR_PI_LAYOUT;
     } else {
         const uint32_t at = hd->pi.offset, len = 8u * n;
-        if (at < sizeof(pst_header_t) || (at & 3u) != 0 || at + len > hd->total_size ||
+        if (at < hd->header_size || (at & 3u) != 0 || at + len > hd->total_size ||
             overlaps(at, len, &hd->b) || overlaps(at, len, &hd->f))
             return CALIB_ERR_PI_LAYOUT;
         memcpy(r, blob + at, 4u * n);
         memcpy(w, blob + at + 4u * n, 4u * n);
     }
-    /* Inputs: the play's centre z lies on B's grid (z_up / z_down return its abscissas),
+    /* Inputs: the play's centre z lies on B's grid (z_up / z_down return its abscissas), or
+     * with a threshold map u = g(z) within the map's entries [x_lo, x_hi];
      * y* = f^-1(c*) on f's grid. */
     static const calib_status_t map[] = {
         [PI_OK] = CALIB_OK, [PI_ERR_COUNT] = CALIB_ERR_PI_COUNT, [PI_ERR_R0] = CALIB_ERR_PI_R0,
@@ -107,9 +108,72 @@ static calib_status_t load_pi(const uint8_t *blob, const pst_header_t *hd, const
         [PI_ERR_W0] = CALIB_ERR_PI_W0, [PI_ERR_W_NEGATIVE] = CALIB_ERR_PI_W_NEGATIVE,
         [PI_ERR_W_SUM] = CALIB_ERR_PI_W_SUM, [PI_ERR_INVERSE] = CALIB_ERR_PI_INVERSE,
     };
-    pi_status_t ps = pi_build(r, w, n, (int64_t)hd->q_max_q16 - hd->q_min_q16, b->x0_q16, b->x_last_q16,
+    pi_status_t ps = pi_build(r, w, n, (int64_t)hd->q_max_q16 - hd->q_min_q16, x_lo, x_hi,
                               f->x0_q16, f->x_last_q16, dir, inv, err_q16);
     return map[ps];
+}
+
+enum { CALIB_TMAP_RANGE = 1 << 30 };
+
+/* The v3 threshold map: layout (like a grid, plus no overlap with the other blocks and
+ * coverage of B's grid, where the play's centre z lives), strictly increasing entries,
+ * headroom, then the exact error of its inverse table and the inverse's Lipschitz constant
+ * max dz/du (Q16.16, rounded up, saturated). Writes *g, *err_q16, *lip_q16 on success only;
+ * n = 0 (no map) gives g->n = 0, err 0 and lip 1.0. */
+static calib_status_t load_tmap(const uint8_t *blob, const pst_header_t *hd, const pst_grid_t *gr,
+                                const lut_t *b, int32_t b_max, lut_t *g_out, int32_t *err_q16,
+                                int32_t *lip_q16)
+{
+    lut_t g;
+    memset(&g, 0, sizeof g);
+    if (gr->n == 0) {
+        if (gr->offset != 0 || gr->x0_q16 != 0 || gr->step_q16 != 0)
+            return CALIB_ERR_TMAP_GRID;
+        *g_out = g;
+        *err_q16 = 0;
+        *lip_q16 = 65536;
+        return CALIB_OK;
+    }
+    if (grid_lut(blob, hd, gr, &g) != CALIB_OK)
+        return CALIB_ERR_TMAP_GRID;
+    const uint32_t at = gr->offset, len = 4u * gr->n;
+    if (overlaps(at, len, &hd->b) || overlaps(at, len, &hd->f) ||
+        (hd->pi.n != 0 && at < (uint32_t)hd->pi.offset + 8u * hd->pi.n && hd->pi.offset < at + len))
+        return CALIB_ERR_TMAP_GRID;
+    /* z runs over B's grid (the envelopes' abscissas): g must be defined there. */
+    if (g.x0_q16 > b->x0_q16 || g.x_last_q16 < b->x_last_q16)
+        return CALIB_ERR_TMAP_GRID;
+    int64_t min_du = INT64_MAX;
+    for (uint16_t i = 0; i + 1 < g.n; i++) {
+        int64_t du = (int64_t)g.y_q16[i + 1] - g.y_q16[i];
+        if (du <= 0)
+            return CALIB_ERR_TMAP_MONOTONE;
+        min_du = du < min_du ? du : min_du;
+    }
+    /* u = g(z) feeds the operators (their input +- twice the thresholds is checked by
+     * pi_build on this range), z* = g^-1(u*) + B/2 must fit int32. */
+    if (g.y_q16[0] < -CALIB_TMAP_RANGE || g.y_q16[g.n - 1] > CALIB_TMAP_RANGE ||
+        (int64_t)g.x0_q16 - b_max / 2 < INT32_MIN || (int64_t)g.x_last_q16 + b_max / 2 > INT32_MAX)
+        return CALIB_ERR_TMAP_RANGE;
+    int32_t e;
+    if (lut_inverse_error(&g, CALIB_DERIVED_MAX, &e) != LUT_OK)
+        return CALIB_ERR_TMAP_GRID;
+    /* Exact g^-1 is piecewise linear with slopes step / du: max at the smallest du. */
+    int64_t step = (int64_t)1 << g.step_log2;
+    int64_t lip = ((step << 16) + min_du - 1) / min_du; /* load time: divide */
+    *g_out = g;
+    *err_q16 = e;
+    *lip_q16 = lip > INT32_MAX ? INT32_MAX : (int32_t)lip;
+    return CALIB_OK;
+}
+
+/* ceil(a * b / 2^sh), a, b >= 0, saturated at INT32_MAX. */
+static int32_t mul_shift_up_sat(int64_t a, int64_t b, unsigned sh)
+{
+    if (a != 0 && b > (INT64_MAX >> 1) / a)
+        return INT32_MAX;
+    int64_t p = (a * b + (((int64_t)1 << sh) - 1)) >> sh;
+    return p > INT32_MAX ? INT32_MAX : (int32_t)p;
 }
 
 calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
@@ -120,10 +184,16 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     memcpy(&hd, blob, sizeof hd);
     if (hd.magic != PST_MAGIC)
         return CALIB_ERR_MAGIC;
-    if (hd.layout_version < 1 || hd.layout_version > PST_LAYOUT_VERSION || hd.header_size != sizeof hd)
+    /* v1, v2: the 60-byte header; v3: the 72-byte one (the map's grid after it). */
+    const size_t hsize = hd.layout_version >= 3 ? sizeof(pst_header_v3_t) : sizeof hd;
+    if (hd.layout_version < 1 || hd.layout_version > PST_LAYOUT_VERSION || hd.header_size != hsize)
         return CALIB_ERR_VERSION;
-    if (hd.total_size < sizeof hd || hd.total_size > len || hd.total_size > PST_MAX_TABLE_SIZE)
+    if (len < hsize || hd.total_size < hsize || hd.total_size > len || hd.total_size > PST_MAX_TABLE_SIZE)
         return CALIB_ERR_SIZE;
+    pst_grid_t tmap_grid;
+    memset(&tmap_grid, 0, sizeof tmap_grid);
+    if (hd.layout_version >= 3)
+        memcpy(&tmap_grid, blob + offsetof(pst_header_v3_t, tmap), sizeof tmap_grid);
     if (calib_table_crc(blob, hd.total_size) != hd.crc32)
         return CALIB_ERR_CRC;
     if (hd.q_frac_bits != PS_FRAC_BITS || hd.c_frac_bits != PS_FRAC_BITS ||
@@ -168,14 +238,33 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     if ((st = check_envelope(&b, +1, scratch, &e_up)) != CALIB_OK ||
         (st = check_envelope(&b, -1, scratch, &e_down)) != CALIB_OK)
         return st;
+    lut_t g;
+    int32_t e_g_inv, lip;
+    if ((st = load_tmap(blob, &hd, &tmap_grid, &b, b_max, &g, &e_g_inv, &lip)) != CALIB_OK)
+        return st;
+    /* The operators' input: z on B's grid, or u = g(z) within the map's entries. */
+    const int32_t x_lo = g.n ? g.y_q16[0] : b.x0_q16, x_hi = g.n ? g.y_q16[g.n - 1] : b.x_last_q16;
     pi_params_t pi_dir, pi_inv;
     int32_t pi_err;
-    if ((st = load_pi(blob, &hd, &b, &f, &pi_dir, &pi_inv, &pi_err)) != CALIB_OK)
+    if ((st = load_pi(blob, &hd, x_lo, x_hi, &f, &pi_dir, &pi_inv, &pi_err)) != CALIB_OK)
         return st;
+    /* The compensator's centre error (docs/firmware.md, "Precision ceiling"): in u,
+     * E_u = f_inv_err sum|w'| + pi_inv_err (PI^-1 is sum|w'|-Lipschitz); a map adds
+     * L E_u + g^-1's own error, L = max dz/du. */
+    int64_t abs_w = 0;
+    for (uint8_t i = 0; i < pi_inv.n; i++)
+        abs_w += pi_inv.w[i] < 0 ? -(int64_t)pi_inv.w[i] : pi_inv.w[i];
+    int64_t e_u = pi_inv.n ? (int64_t)mul_shift_up_sat(e_f_inv, abs_w, pi_inv.w_frac) + pi_err : e_f_inv;
+    int64_t e_comp = g.n ? (int64_t)mul_shift_up_sat(lip, e_u, 16) + e_g_inv : e_u;
+    if (e_comp > INT32_MAX)
+        e_comp = INT32_MAX;
     /* Each derived table is held to the ceiling on its own: they enter q* and z one at a
-     * time (eqs. 2 and 4/5/9), and the chained bound of docs/firmware.md follows from them. */
+     * time (eqs. 2 and 4/5/9), and the chained bound of docs/firmware.md follows from them.
+     * With a map the compensator's whole chain is held too (it is scaled by L). */
     const int32_t ceiling = calib_precision_ceiling_q16(b_max);
     if (e_f_inv > ceiling || e_up > ceiling || e_down > ceiling || pi_err > ceiling)
+        return CALIB_ERR_PRECISION;
+    if (g.n && (e_g_inv > ceiling || e_comp > ceiling))
         return CALIB_ERR_PRECISION;
 
     /* Everything is checked: from here on nothing can fail, so *out changes only now. */
@@ -190,6 +279,13 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     out->pi_inv = pi_inv;
     out->pi_inv_err_q16 = pi_err;
     out->precision_ceiling_q16 = ceiling;
+    out->tmap = g;
+    memset(&out->tmap_inv, 0, sizeof out->tmap_inv);
+    if (g.n)
+        (void)lut_build_inverse(&g, out->tmap_inv_buf, CALIB_DERIVED_MAX, &out->tmap_inv, NULL);
+    out->tmap_inv_err_q16 = e_g_inv;
+    out->tmap_inv_lip_q16 = lip;
+    out->comp_err_q16 = (int32_t)e_comp;
     out->q_min_q16 = hd.q_min_q16;
     out->q_max_q16 = hd.q_max_q16;
     out->f_sign = (int8_t)(f.y_q16[1] > f.y_q16[0] ? 1 : -1);
@@ -230,6 +326,9 @@ const char *calib_status_str(calib_status_t st)
     case CALIB_ERR_PI_W_SUM: return "transition weights do not sum to 1 (+-2^-8)";
     case CALIB_ERR_PI_INVERSE: return "transition not invertible in Q16.16 (first weight too small)";
     case CALIB_ERR_PRECISION: return "fixed-point error above the precision ceiling (1/16 of the largest play)";
+    case CALIB_ERR_TMAP_GRID: return "invalid threshold map grid (count, step, offset, overlap or not covering B's grid)";
+    case CALIB_ERR_TMAP_MONOTONE: return "threshold map not strictly increasing";
+    case CALIB_ERR_TMAP_RANGE: return "threshold map values or range beyond the fixed-point headroom";
     }
     return "unknown";
 }

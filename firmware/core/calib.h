@@ -37,6 +37,11 @@ typedef enum {
     CALIB_ERR_PI_W_SUM,          /* |sum w - 1| > 2^-8 */
     CALIB_ERR_PI_INVERSE,        /* an inverse weight would overflow Q16.16 (w[0] <= 2^-15), or the inverse leaves +-2^30 */
     CALIB_ERR_PRECISION,         /* a derived table's worst-case fixed-point error exceeds the precision ceiling */
+    /* v3 threshold map (pst_header_v3_t.tmap, u = g(z)). */
+    CALIB_ERR_TMAP_GRID,         /* map grid: count, power-of-two step, offset, alignment, overlap with another
+                                    block, offset != 0 with n = 0, or abscissas not covering B's grid */
+    CALIB_ERR_TMAP_MONOTONE,     /* map entries not strictly increasing: g^-1 would not exist */
+    CALIB_ERR_TMAP_RANGE,        /* map values beyond +-2^30 raw, or its abscissas +- B_max/2 beyond int32 */
 } calib_status_t;
 
 /* Precision ceiling (docs/firmware.md, "Precision ceiling"): a table's own arithmetic may add
@@ -71,9 +76,18 @@ typedef struct {
     pi_params_t pi_inv;          /* its inverse z* = PI^-1[y*] for the compensator (Krejci-Kuhnen) */
     int32_t pi_inv_err_q16;      /* worst-case |pi_inv - exact inverse| (raw); pi_dir's is 1/2 raw */
     int32_t precision_ceiling_q16; /* calib_precision_ceiling_q16(max B entry): what the errors above were held to */
+    lut_t tmap;                  /* v3 threshold map u = g(z) over z, read in place; n = 0: no map (u = z) */
+    lut_t tmap_inv;              /* its inverse z = g^-1(u) over u (derived; n = 0 without a map) */
+    int32_t tmap_inv_err_q16;    /* worst-case |g^-1 table - exact inverse of the g table| (raw); 0 without a map */
+    int32_t tmap_inv_lip_q16;    /* Lipschitz constant of the exact g^-1, max over segments of dz/du, Q16.16
+                                    (saturated at INT32_MAX); 65536 without a map */
+    int32_t comp_err_q16;        /* worst-case |z* - exact| of the compensator's centre (docs/firmware.md):
+                                    E_u = f_inv_err sum|w'| + pi_inv_err, then with a map
+                                    ceil(L E_u) + tmap_inv_err (held to the ceiling); raw, saturated */
     int32_t f_inv_buf[CALIB_DERIVED_MAX];
     int32_t z_up_buf[CALIB_DERIVED_MAX];
     int32_t z_down_buf[CALIB_DERIVED_MAX];
+    int32_t tmap_inv_buf[CALIB_DERIVED_MAX];
 } calib_t;
 
 /* Compute the CRC a table of total_size bytes must carry in its header (crc32 field
@@ -81,9 +95,10 @@ typedef struct {
  * their v1 CRC). blob must hold total_size >= sizeof(pst_header_t) bytes. */
 uint32_t calib_table_crc(const uint8_t *blob, uint32_t total_size);
 
-/* Validate blob[0..len) (layout version 1 or 2) and derive f^-1, the reindexed envelopes
- * and, for a v2 table with operators, the transition and its inverse (pi_build) into *out.
- * The B and f entries are read in place: blob must stay valid (and 4-aligned) while
+/* Validate blob[0..len) (layout version 1, 2 or 3) and derive f^-1, the reindexed envelopes
+ * and, for a v2/v3 table with operators, the transition and its inverse (pi_build) into *out;
+ * for a v3 table with a threshold map, g^-1 (the operators then run on u = g(z)).
+ * The B, f and map entries are read in place: blob must stay valid (and 4-aligned) while
  * *out is in use (the operator block is copied). On any error *out is left unchanged, so
  * a running calibration survives a bad upload. Not per tick: O(n) with 64-bit divides. */
 calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len);

@@ -8,6 +8,7 @@ void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int
      * below, so the first step after a reset (a table commit, in the loop) hits it. */
     cp->f_inv_cell.width = 0;
     cp->b_cell.width = 0;
+    cp->tmap_inv_cell.width = 0;
     cp->cal = cal;
     static const comp_smoothing_t none = {0, 0, 0};
     cp->lim = (lim && lim->v_max_q32 > 0 && lim->a_max_q32 > 0) ? *lim : none;
@@ -24,12 +25,15 @@ void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int
         pi_reset(&cp->pi, &cal->pi_inv, cp->q_ref_q16);
         cp->q_ref_q16 = cp->pi.y_q16;
     }
+    if (cal->tmap.n != 0)
+        cp->q_ref_q16 = lut_eval_fill(&cal->tmap_inv, &cp->tmap_inv_cell, cp->q_ref_q16);
 }
 
 void comp_rebind(comp_t *cp, const calib_t *cal)
 {
     cp->f_inv_cell.width = 0;
     cp->b_cell.width = 0;
+    cp->tmap_inv_cell.width = 0;
     cp->cal = cal;
 }
 

@@ -33,6 +33,7 @@ typedef struct {
     pi_state_t pi;               /* inverse transition operators (not reset, not read when cal->pi_inv.n = 0) */
     lut_cell_t f_inv_cell;       /* cell of cal->f_inv around the last c*, and of cal->b around */
     lut_cell_t b_cell;           /* the last q_c (lut_eval_cell): emptied by comp_reset */
+    lut_cell_t tmap_inv_cell;    /* cell of cal->tmap_inv around the last u* (used only with a map) */
 } comp_t;
 
 /* Convert limits to per-tick Q32.32: v_q16 in actuator units/s, a_q16 in units/s^2
@@ -62,13 +63,15 @@ void comp_b_changed(comp_t *cp);
  *   y*  = f^-1(c*)                         (f_coarse^-1 of eq. 5 or f_remain^-1 of eq. 9)
  *   q_c = PI^-1[y*]                        (the transition's inverse, Krejci-Kuhnen; q_c = y*
  *                                           without operators, so n = 0 is eq. 4 bit for bit)
+ *   q_c = g^-1(q_c)                        (table v3 with a threshold map only)
  *   q*  = q_c + dir * s_f * B(q_c) / 2      dir = sign(c*[k] - c*[k-1]), held when equal;
  *                                           s_f = sign(f'), which turns eq. 5 into eq. 9
  *                                           when f is decreasing
  * then the offset is ramped within the smoothing limits and q* saturated to
  * [q_min, q_max]. Integer-only, no divide; O(1) between reversals, O(n) at one.
  * Error of q_c against the exact inverse on the same table: f^-1's error times
- * sum |w'_i| (the inverse's Lipschitz constant) + cal->pi_inv_err_q16. */
+ * sum |w'_i| (the inverse's Lipschitz constant) + cal->pi_inv_err_q16; with a map that
+ * times max dz/du plus g^-1's own error: cal->comp_err_q16 in all cases. */
 int32_t comp_step(comp_t *cp, int32_t c_ref_q16);
 
 #ifndef PS_CDEF
@@ -104,6 +107,10 @@ __attribute__((always_inline)) static inline int32_t comp_step_inline(comp_t *cp
      * |q_c| <= 2^30 (pi_build bounds it), so q_c + B/2 still fits int32. */
     if (cal->pi_inv.n != 0)
         q_c = pi_step_inline(&cp->pi, &cal->pi_inv, q_c);
+    /* With a threshold map (v3) the operators ran on u = g(z): z* = g^-1(u*), which lies on
+     * the map's grid (calib_load checks it +- B_max/2 fits int32). */
+    if (cal->tmap.n != 0)
+        q_c = lut_eval_cell(&cal->tmap_inv, &cp->tmap_inv_cell, q_c);
     int32_t off = (dir * cal->f_sign) * (lut_eval_cell(&cal->b, &cp->b_cell, q_c) >> 1);
     int32_t q = q_c + off;
     bool reversed = dir != cp->dir;

@@ -5,7 +5,8 @@ void playop_reset(playop_t *p, const calib_t *cal, int32_t z0_q16)
 {
     p->cal = cal;
     p->z_q16 = z0_q16;
-    pi_reset(&p->pi, &cal->pi_dir, z0_q16);
+    /* With a threshold map the operators start at rest at u0 = g(z0). */
+    pi_reset(&p->pi, &cal->pi_dir, cal->tmap.n != 0 ? lut_eval(&cal->tmap, z0_q16) : z0_q16);
 }
 
 int32_t playop_step(playop_t *p, int32_t q_q16)
@@ -20,9 +21,12 @@ int32_t playop_step(playop_t *p, int32_t q_q16)
     else if (z > hi)
         z = hi;
     p->z_q16 = z;
-    /* The transition after the play is taken up: y = PI[z] (identity without operators). */
+    /* The transition after the play is taken up: y = PI[u] (identity without operators),
+     * u = g(z) with a threshold map (v3: thresholds proportional to B), else u = z. */
     int32_t y = z;
+    if (p->cal->tmap.n != 0)
+        y = lut_eval_inline(&p->cal->tmap, z);
     if (p->cal->pi_dir.n != 0)
-        y = pi_step_inline(&p->pi, &p->cal->pi_dir, z);
+        y = pi_step_inline(&p->pi, &p->cal->pi_dir, y);
     return lut_eval_inline(&p->cal->f, y);
 }

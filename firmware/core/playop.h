@@ -12,7 +12,9 @@
  *   z[k] = min(z_down(q[k]), max(z_up(q[k]), z[k-1])),   c[k] = f(z[k]),
  * the play operator of eq. 3 for a monotone f (either sign).
  * With a transition (table v2, cal->pi_dir.n > 0) the centre goes through the
- * Prandtl-Ishlinskii operator first: c = f(y), y = sum_i w_i P_{r_i}[z] (docs/method.md). */
+ * Prandtl-Ishlinskii operator first: c = f(y), y = sum_i w_i P_{r_i}[z] (docs/method.md).
+ * With a threshold map (table v3, cal->tmap.n > 0) the operators run on u = g(z):
+ * y = sum_i w_i P_{r_i}[g(z)] (thresholds proportional to B; without operators y = g(z)). */
 typedef struct {
     const calib_t *cal;
     int32_t z_q16;               /* centre position, actuator units */
@@ -20,12 +22,14 @@ typedef struct {
 } playop_t;
 
 /* Start at centre z0_q16 (e.g. the first q, with the play assumed centred); the
- * transition's operators start at rest there (p_i = z0, clamped to B's grid). */
+ * transition's operators start at rest there (p_i = z0, or g(z0) with a map, clamped to
+ * their validated input range). */
 void playop_reset(playop_t *p, const calib_t *cal, int32_t z0_q16);
 
 /* One step of eq. 3: the bending angle c[k] (deg, Q16) for actuator position q_q16.
  * Error against the exact operator on the same tables: <= cal->z_err_q16 on z, then
- * through the transition (Lipschitz constant sum w_i, plus 1/2 LSB of rounding) and f
+ * through the map (max g' times that, plus 1/2 LSB and g's sampling), the transition
+ * (Lipschitz constant sum w_i, plus 1/2 LSB of rounding) and f
  * (|f'| * y error + 1/2 LSB). n = 0 (or a v1 table): exactly the pure play of eq. 3.
  * Integer-only, no divide: O(1) between reversals, O(n) at one. */
 int32_t playop_step(playop_t *p, int32_t q_q16);

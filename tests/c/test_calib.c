@@ -276,7 +276,7 @@ static void test_v1_and_empty_v2_load_as_pure_play(void **state)
     assert_int_equal(build_pi(1, 4, R4, W4), 0);
     static int32_t r17[17], w17[17];
     assert_int_equal(build_pi(2, 17, r17, w17), 0);
-    assert_int_equal(build_pi(3, 0, NULL, NULL), 0);
+    assert_int_equal(build_pi(PST_LAYOUT_VERSION + 1, 0, NULL, NULL), 0);
 }
 
 static void edit_pi(void (*edit)(pst_header_t *))
