@@ -243,7 +243,9 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     base = T.FitData.from_session(t_enc, q, alts[0][1].B, t_f, c_f, td)
     rows, choices = [], []
     for sm, bf in alts:
-        mc = T.ModelChoice(base.with_B(bf.B), model_kind, n_ctrl)
+        # B-proportional thresholds (transition.ThresholdMap, built from this alternative's B)
+        # are offered when B's shape is measured (transition.threshold_kinds).
+        mc = T.ModelChoice(base.with_B(bf.B), model_kind, n_ctrl, kinds=T.threshold_kinds(bf.kind, on.b.size, bf.n_ctrl))
         pick, (tr, _, _, _) = mc.pick(), mc.refit()
         rows.append({"smooth": sm, "cv_rmse_deg": pick["cv_rmse_deg"], "cv_se_deg": pick["cv_se_deg"],
                      "model": "play" if tr.is_play else "pi", "b_scale": pick["b_scale"], "n": tr.n})
@@ -416,7 +418,8 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
             tr, f_pi, sign_pi, choice = joint[1:5]
         else:
             data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
-            tr, f_pi, sign_pi, choice = T.choose_model(data, model_kind, f_n)
+            tr, f_pi, sign_pi, choice = T.choose_model(data, model_kind, f_n,
+                                                       kinds=T.threshold_kinds(bfit.kind, on.b.size, bfit.n_ctrl))
         if not tr.is_play:
             f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method}
             f, sign, f_method = f_pi, sign_pi, "lsq+pi"

@@ -59,7 +59,9 @@ B_SCALES = (1.0, 0.5)                  # play width candidates, x onset-measured
 SPAN_EXCURSION = 1.0                   # r_span = the largest excursion of z between reversals
 F_CTRL = (4, 14)                       # f's control points: 4 = one cubic, 14 = f_remain's spline
 KFOLD = 4                              # CV origins (rolling_origins)
-THRESHOLD_KINDS = (False,)              # operators' thresholds: constant, B-proportional (ThresholdMap)
+CONSTANT_ONLY = (False,)               # threshold kinds: constant only (the classical PI)
+BOTH_KINDS = (False, True)             # constant, then B-proportional (ThresholdMap)
+MAP_SAMPLES_PER_CTRL = 2               # B samples per B-spline control point to offer the map
 V_MAX = 1e3                            # v_i <= 1000 v_0: w_0 >= 1/(1 + 1000 (n-1)) > 0 (inverse needs 1/w_0)
 
 
@@ -568,7 +570,20 @@ def v_max_for_table(data: "FitData", b_scale: float, n: int) -> float:
     return float(min(V_MAX, max(0.5 * ceiling - 1.0, 0.0) / max(n - 1, 1)))
 
 
-def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14) -> list[tuple[float, int, float, int, bool]]:
+def threshold_kinds(b_kind: str, b_samples: int, b_ctrl: int) -> tuple[bool, ...]:
+    """Which threshold kinds the model choice may offer, from the B fit (rule fixed a priori,
+    docs/method.md "B-proportional thresholds"): the map g is the shape of B(q), so it is
+    offered only when that shape is measured, not interpolated: a B spline (not a constant)
+    with at least MAP_SAMPLES_PER_CTRL onset samples per control point. With fewer (the
+    spline has as many coefficients as samples, N = min(14, M)), B between the samples is
+    the spline's interpolation of their scatter, and thresholds tied to it would follow that
+    scatter. b_kind: BacklashFit.kind; b_samples: onset samples M; b_ctrl: B's control points N."""
+    ok = b_kind == "spline" and b_samples >= MAP_SAMPLES_PER_CTRL * max(int(b_ctrl), 1)
+    return BOTH_KINDS if ok else CONSTANT_ONLY
+
+
+def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14,
+               kinds: tuple[bool, ...] | None = None) -> list[tuple[float, int, float, int, bool]]:
     """(b_scale, n, r_span, f_ctrl, scaled) tuples tried, fixed a priori (module docstring):
     (1, 1, 0, n_ctrl, False) for the paper's play; for the PI, b_scale in B_SCALES x f_ctrl in
     F_CTRL x thresholds constant or B-proportional (scaled, ThresholdMap), each with N_OPS
@@ -576,7 +591,7 @@ def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14) -> lis
     the operators' input (z, or g(z)) between reversals in the calibration record."""
     out = [(1.0, 1, 0.0, int(n_ctrl), False)] if model_kind in ("auto", "play") else []
     if model_kind in ("auto", "pi"):
-        for scaled in THRESHOLD_KINDS:
+        for scaled in (CONSTANT_ONLY if kinds is None else kinds):
             for kb in B_SCALES:
                 span = SPAN_EXCURSION * largest_excursion(data.ops_input_reduced(kb, scaled))
                 if span > 0:
@@ -659,13 +674,15 @@ class ModelChoice:
     what choose_model gives. Stopping never changes a number: each candidate's folds are the
     same fits in the same order whether run at once or resumed."""
 
-    def __init__(self, data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD):
+    def __init__(self, data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD,
+                 kinds: tuple[bool, ...] | None = None):
         if model_kind not in ("auto", "play", "pi"):
             raise ValueError(f"model must be play, pi or auto, not {model_kind!r}")
         self.data, self.model_kind, self.k = data, model_kind, k
+        self.kinds = CONSTANT_ONLY if kinds is None else tuple(kinds)
         splits = rolling_origins(data, k)
         self.k_scored = sum(1 for tr_m, te_m in splits if te_m.sum() >= 3 and tr_m.sum() >= 10)
-        self.cands = [_CandidateCV(data, splits, *cand) for cand in candidates(data, model_kind, n_ctrl)]
+        self.cands = [_CandidateCV(data, splits, *cand) for cand in candidates(data, model_kind, n_ctrl, kinds)]
         self._pick, self._refit = None, None
 
     # A relative margin for comparing the lower bound (a sum over folds) with a CV RMSE (a mean):
@@ -727,6 +744,7 @@ class ModelChoice:
         choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(p["n"]),
                   "b_scale": p["b_scale"], "r_span": float(p["r_span"]), "n_ctrl": int(p["n_ctrl"]),
                   "thresholds": "B-proportional" if p["scaled"] else "constant",
+                  "thresholds_offered": ["B-proportional" if k else "constant" for k in self.kinds],
                   "fit_rmse_deg": rms,
                   "rule": "CV on a rolling origin (fit before, score the next block), one-standard-error rule",
                   "folds": int(self.k), "b_median": self.data.b_med, "candidates": [c.row() for c in self.cands]}
@@ -734,7 +752,7 @@ class ModelChoice:
 
 
 def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD,
-                 progress=lambda it, **kw: it) -> tuple[Transition, "E.SplineFn", int, dict]:
+                 progress=lambda it, **kw: it, kinds: tuple[bool, ...] | None = None) -> tuple[Transition, "E.SplineFn", int, dict]:
     """Pick play vs PI, the play width and f's stiffness by cross-validation on the
     calibration frames, then refit the choice on all of them (module docstring for the rule;
     ModelChoice computes it).
@@ -745,4 +763,4 @@ def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: i
     "r_span", "n_ctrl", "fit_rmse_deg", "rule", "folds", "b_median", "candidates": [{"b_scale",
     "n", "r_span", "n_ctrl", "cv_rmse_deg", "cv_se_deg"}]}). Errors: ValueError for an
     unknown model_kind."""
-    return ModelChoice(data, model_kind, n_ctrl, k).result(progress)
+    return ModelChoice(data, model_kind, n_ctrl, k, kinds).result(progress)
