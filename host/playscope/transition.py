@@ -36,6 +36,9 @@ Settings, all from the calibration data by rules fixed a priori (choose_model, d
               where every stroke shows the transition after the play; the non-negative
               weights prune the count;
   f_ctrl      f's control points, one of F_CTRL = {4 (a single cubic), 14 (f_remain's)};
+  thresholds  constant, or proportional to the onset width B(z) (ThresholdMap: the classical
+              PI on u = g(z), g' = b_ref / B), the latter offered only when B's shape is
+              measured (threshold_kinds: >= 2 onset samples per B control point);
   choice      cross-validation on a rolling origin (rolling_origins: fit on the calibration
               frames before each of KFOLD origins, score the next block, the operators run from
               the record's start), then the one-standard-error rule: the fewest operators, then
