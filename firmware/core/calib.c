@@ -259,13 +259,18 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     if (e_comp > INT32_MAX)
         e_comp = INT32_MAX;
     /* Each derived table is held to the ceiling on its own: they enter q* and z one at a
-     * time (eqs. 2 and 4/5/9), and the chained bound of docs/firmware.md follows from them.
-     * With a map the compensator's whole chain is held too (it is scaled by L). */
+     * time (eqs. 2 and 4/5/9), and the chained bound of docs/firmware.md follows from them
+     * (e_comp, reported, not held: as without a map). */
     const int32_t ceiling = calib_precision_ceiling_q16(b_max);
     if (e_f_inv > ceiling || e_up > ceiling || e_down > ceiling || pi_err > ceiling)
         return CALIB_ERR_PRECISION;
-    if (g.n && (e_g_inv > ceiling || e_comp > ceiling))
-        return CALIB_ERR_PRECISION;
+    if (g.n) {
+        /* With a map the u-side errors reach z* scaled by L, plus g^-1's own: each held as
+         * above, so a map never refuses a table for what its map-less twin is allowed. */
+        int32_t e_in_u = e_f_inv > pi_err ? e_f_inv : pi_err;
+        if (e_g_inv > ceiling || (int64_t)mul_shift_up_sat(lip, e_in_u, 16) + e_g_inv > ceiling)
+            return CALIB_ERR_PRECISION;
+    }
 
     /* Everything is checked: from here on nothing can fail, so *out changes only now. */
     out->b = b;

@@ -58,6 +58,25 @@ size_t fixture_with_ops(fixture_blob_t *blob, uint16_t version, uint16_t n_ops, 
     return table_write(blob->bytes, sizeof blob->bytes, &hd, bb, ff, r_q16, w_q16);
 }
 
+size_t fixture_with_tmap(fixture_blob_t *blob, int32_t x0_q16, int32_t step_q16, uint16_t n,
+                         const int32_t *u_q16)
+{
+    static int32_t bb[PST_MAX_ENTRIES], ff[PST_MAX_ENTRIES], rr[PST_MAX_OPS], ww[PST_MAX_OPS];
+    pst_header_t hd;
+    memcpy(&hd, blob->bytes, sizeof hd);
+    memcpy(bb, blob->bytes + hd.b.offset, 4u * hd.b.n);
+    memcpy(ff, blob->bytes + hd.f.offset, 4u * hd.f.n);
+    if (hd.pi.n) {
+        memcpy(rr, blob->bytes + hd.pi.offset, 4u * hd.pi.n);
+        memcpy(ww, blob->bytes + hd.pi.offset + 4u * hd.pi.n, 4u * hd.pi.n);
+    }
+    hd.layout_version = 3;
+    pst_grid_t tm = {.x0_q16 = x0_q16, .step_q16 = step_q16, .n = n, .offset = 0};
+    memset(blob, 0, sizeof *blob);
+    return table_write_map(blob->bytes, sizeof blob->bytes, &hd, bb, ff, hd.pi.n ? rr : NULL,
+                           hd.pi.n ? ww : NULL, &tm, u_q16);
+}
+
 void fixture_reseal(fixture_blob_t *blob)
 {
     pst_header_t hd;

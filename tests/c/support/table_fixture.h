@@ -41,6 +41,12 @@ size_t fixture_build_pi(fixture_blob_t *blob, const fixture_grid_t *g, fixture_f
 size_t fixture_with_ops(fixture_blob_t *blob, uint16_t version, uint16_t n_ops, const int32_t *r_q16,
                         const int32_t *w_q16);
 
+/* Rewrite the table in blob (v1/v2/v3, its grids and operators kept) as layout v3 with the
+ * threshold map u = g(z): n entries u_q16 on z = x0_q16 + i step_q16 (n = 0: a v3 table
+ * without a map). Returns the new size, 0 if the writer refuses. */
+size_t fixture_with_tmap(fixture_blob_t *blob, int32_t x0_q16, int32_t step_q16, uint16_t n,
+                         const int32_t *u_q16);
+
 /* Recompute the CRC after a test edited the blob on purpose. */
 void fixture_reseal(fixture_blob_t *blob);
 
