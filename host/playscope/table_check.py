@@ -47,6 +47,10 @@ def check_blob(blob: bytes, source=None):
     if not 1 <= hd.layout_version <= lib.PST_LAYOUT_VERSION:
         raise TableFileError(source, "layout_version",
                              f"{hd.layout_version}, this host reads 1..{lib.PST_LAYOUT_VERSION}")
+    if hd.layout_version >= 3:  # v3: the threshold map's grid follows (pst_header_v3_t)
+        hsize = ffi.sizeof("pst_header_v3_t")
+        if len(blob) < hsize:
+            raise TableFileError(source, "size", f"{len(blob)} bytes, shorter than the {hsize}-byte v3 header")
     if hd.header_size != hsize:
         raise TableFileError(source, "header_size", f"{hd.header_size}, expected {hsize}")
     if hd.total_size != len(blob):
@@ -65,6 +69,18 @@ def check_blob(blob: bytes, source=None):
                 or g.step_q16 & (g.step_q16 - 1) or g.offset < hsize or g.offset % 4 \
                 or g.offset + 4 * g.n > hd.total_size:
             raise TableFileError(source, f"{name} grid", f"n {g.n}, step {g.step_q16}, offset {g.offset} "
+                                 f"do not fit a {hd.total_size}-byte table")
+    if hd.layout_version >= 3:
+        h3 = ffi.new("pst_header_v3_t *")
+        ffi.memmove(h3, blob, hsize)
+        g = h3.tmap
+        if g.n == 0:
+            if g.offset != 0:
+                raise TableFileError(source, "tmap grid", f"offset {g.offset} without entries")
+        elif not lib.PST_MIN_ENTRIES <= g.n <= lib.PST_MAX_ENTRIES or g.step_q16 <= 0 \
+                or g.step_q16 & (g.step_q16 - 1) or g.offset < hsize or g.offset % 4 \
+                or g.offset + 4 * g.n > hd.total_size:
+            raise TableFileError(source, "tmap grid", f"n {g.n}, step {g.step_q16}, offset {g.offset} "
                                  f"do not fit a {hd.total_size}-byte table")
     # The table covers its travel: tables writes grids that span [q_min, q_max], so a q bound
     # outside them is a damaged field even when the CRC was left stale.

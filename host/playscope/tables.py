@@ -9,7 +9,9 @@ refusal is a ``TableError`` carrying the loader's reason (``calib_status_str``).
 
 Layout 2 carries the smooth transition (thresholds r, weights w of the PI operators,
 PI_MODEL.md) after the B and f grids; a pure play (n = 1 or no transition) writes no operator.
-Until the C writer takes the operator arrays (branch pi-fw) only the pure play can be written.
+Layout 3 adds the threshold map u = g(z) (transition.ThresholdMap: thresholds proportional to
+B) on its own grid after the operators; it is written only for a transition with a map, so
+map-less tables stay layout 2 byte for byte (table_write_map, firmware/core/table_write.h).
 """
 
 from __future__ import annotations
@@ -45,14 +47,17 @@ def _writer_takes_ops() -> bool:
 
 
 def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: float, unit: str = "mm",
-               f_kind: str = "remain", generation: int = 1, pi_r=None, pi_w=None, source=None) -> bytes:
-    """Lay out and seal one table by the C table_write() (common/ps_table.h).
+               f_kind: str = "remain", generation: int = 1, pi_r=None, pi_w=None, source=None,
+               f_grid: tuple[int, int] | None = None, tmap: tuple[int, int, list] | None = None) -> bytes:
+    """Lay out and seal one table by the C table_write() / table_write_map() (common/ps_table.h).
 
-    b_q16, f_q16: int Q16.16 entries on the grid x0 + i step (same grid for both); q_min,
-    q_max: actuator travel (units); unit "mm" | "deg"; f_kind "remain" | "coarse";
-    pi_r, pi_w: operator thresholds (actuator units) and weights (floats, n <= PST_MAX_OPS), or
-    None for the pure play. Returns the blob. Errors: TableError when the writer refuses it
-    (too many entries or operators) or this build's writer has no operator arrays."""
+    b_q16, f_q16: int Q16.16 entries on the grid x0 + i step (same grid for both unless f_grid =
+    (x0_q16, step_q16) gives f its own); q_min, q_max: actuator travel (units); unit "mm" | "deg";
+    f_kind "remain" | "coarse"; pi_r, pi_w: operator thresholds (actuator units) and weights
+    (floats, n <= PST_MAX_OPS), or None for the pure play; tmap: (x0_q16, step_q16, u_q16) the
+    threshold map's grid and entries (layout 3), or None (layout 2). Returns the blob. Errors:
+    TableError when the writer refuses it (too many entries or operators) or this build's writer
+    has no operator arrays."""
     ffi, lib = core()
     b = [int(v) for v in b_q16]
     f = [int(v) for v in f_q16]
@@ -66,9 +71,20 @@ def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: fl
     hd.q_min_q16, hd.q_max_q16 = int(to_q16(q_min)), int(to_q16(q_max))
     for g, n in ((hd.b, len(b)), (hd.f, len(f))):
         g.x0_q16, g.step_q16, g.n = x0_q16, step_q16, n
-    cap = ffi.sizeof("pst_header_t") + 4 * (len(b) + len(f) + 2 * n_ops) + 16
+    if f_grid is not None:
+        hd.f.x0_q16, hd.f.step_q16 = f_grid
+    n_map = 0 if tmap is None else len(tmap[2])
+    cap = ffi.sizeof("pst_header_v3_t") + 4 * (len(b) + len(f) + 2 * n_ops + n_map) + 16
     buf = ffi.new("uint8_t[]", cap)
-    if _writer_takes_ops():
+    if tmap is not None:
+        hd.pi.n = n_ops
+        r = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_r)]) if n_ops else ffi.NULL
+        w = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_w)]) if n_ops else ffi.NULL
+        grid = ffi.new("pst_grid_t *")
+        grid.x0_q16, grid.step_q16, grid.n = int(tmap[0]), int(tmap[1]), n_map
+        size = lib.table_write_map(buf, cap, hd, ffi.new("int32_t[]", b), ffi.new("int32_t[]", f), r, w, grid,
+                                   ffi.new("int32_t[]", [int(v) for v in tmap[2]]))
+    elif _writer_takes_ops():
         hd.pi.n = n_ops
         r = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_r)]) if n_ops else ffi.NULL
         w = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_w)]) if n_ops else ffi.NULL
@@ -76,7 +92,8 @@ def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: fl
     else:
         size = lib.table_write(buf, cap, hd, ffi.new("int32_t[]", b), ffi.new("int32_t[]", f))
     if size == 0:
-        raise TableError(source, f"table_write refused the table ({len(b)} entries, {n_ops} operators)")
+        raise TableError(source, f"table_write refused the table ({len(b)} entries, {n_ops} operators, "
+                         f"{n_map} map entries)")
     return bytes(ffi.buffer(buf, size))
 
 
@@ -127,6 +144,11 @@ class CalibTable:
             raise TableError(source, f"table refused by calib_load: {ffi.string(lib.calib_status_str(st)).decode()}")
 
     @property
+    def has_map(self) -> bool:
+        """True for a layout-3 table carrying a threshold map (the operators run on u = g(z))."""
+        return int(self.cal.tmap.n) != 0
+
+    @property
     def n_ops(self) -> int:
         """Transition operators carried (0: pure play or a layout-1 table)."""
         hd = header(self.blob)
@@ -168,23 +190,47 @@ def build_table(B, f, q_min: float, q_max: float, unit: str, f_kind: str = "rema
 
     B: widths floored at 0; f made strictly monotone in raw units (a flat stretch of the
     float f would otherwise have no inverse); transition: a transition.Transition (None or
-    n = 1: the pure play, no operator written). Errors: TableError when the writer or the
-    loader refuses the table (e.g. |dB/dq| >= 2), OverflowError beyond the Q16.16 range."""
+    n = 1: the pure play, no operator written). A transition with a threshold map
+    (transition.tmap) writes layout 3: g sampled on its own grid over the play centre's range
+    (B's grid widened by max B/2 on each side, as many entries as the other grids), and f's
+    grid widened to cover y = g(z) there too (f then acts on u). Errors: TableError when the
+    writer or the loader refuses the table (e.g. |dB/dq| >= 2), OverflowError beyond the
+    Q16.16 range."""
     _, lib = core()
     n_max = n_max or lib.PST_MAX_ENTRIES
     x0, step, n = grid_for(q_min, q_max, n_max)
     xs = from_q16(x0 + step * np.arange(n, dtype=np.int64))
     b_raw = np.maximum(to_q16(np.maximum(B(xs), 0.0)), 0).astype(np.int64)
-    f_raw = to_q16(f(xs)).astype(np.int64)
-    sgn = 1 if f_raw[-1] >= f_raw[0] else -1
-    g = sgn * f_raw
-    for i in range(1, n):  # strictly monotone by at least one LSB
-        g[i] = max(g[i], g[i - 1] + 1)
-    f_raw = sgn * g
+    tm = None if transition is None else transition.tmap
+    f_grid = tmap = None
+    fx = xs
+    if tm is not None:
+        half = float(from_q16(int(b_raw.max()))) / 2
+        z_lo, z_hi = float(xs[0]) - half, float(xs[-1]) + half
+        mx0, mstep, mn = grid_for(z_lo, z_hi, n_max)
+        u_raw = _strictly_increasing(to_q16(tm.fwd(from_q16(mx0 + mstep * np.arange(mn, dtype=np.int64))))
+                                     .astype(np.int64), 1)
+        tmap = (mx0, mstep, u_raw.tolist())
+        # y = PI[g(z)] stays within g's values over B's grid (where z lives): f must cover them.
+        u_b = tm.fwd(xs[[0, -1]])
+        fx0, fstep, fn = grid_for(min(q_min, float(u_b[0])), max(float(xs[-1]), float(u_b[1])), n_max)
+        f_grid = (fx0, fstep)
+        fx = from_q16(fx0 + fstep * np.arange(fn, dtype=np.int64))
+    f_raw = to_q16(f(fx)).astype(np.int64)
+    f_raw = _strictly_increasing(f_raw, 1 if f_raw[-1] >= f_raw[0] else -1)
     ops = transition is not None and not transition.is_play
     r, w = (transition.r, _weights_q16_sum_one(transition.w)) if ops else (None, None)
-    blob = write_blob(x0, step, b_raw, f_raw, q_min, q_max, unit, f_kind, generation, r, w, source)
+    blob = write_blob(x0, step, b_raw, f_raw, q_min, q_max, unit, f_kind, generation, r, w, source,
+                      f_grid=f_grid, tmap=tmap)
     return CalibTable(blob, source)
+
+
+def _strictly_increasing(raw: np.ndarray, sgn: int) -> np.ndarray:
+    """raw made strictly monotone in direction sgn (+1 / -1) by at least one LSB per entry."""
+    g = sgn * np.asarray(raw, np.int64).copy()
+    for i in range(1, g.size):
+        g[i] = max(g[i], g[i - 1] + 1)
+    return sgn * g
 
 
 def check_physical(B, f, q_min: float, q_max: float, source=None, n: int = 2001) -> None:
@@ -244,7 +290,7 @@ def table_errors(tab: CalibTable, B, f, q_min: float, q_max: float, transition=N
     c_ref = lo + (hi - lo) * (0.5 + 0.45 * np.sin(np.linspace(0, 6 * np.pi, 3000)))
     sign = 1 if f(np.array([q_max]))[0] > f(np.array([q_min]))[0] else -1
     f_inv = T.f_inverse(f, q_min - span, q_max + span)
-    if tr.is_play:
+    if tr.is_play and tr.tmap is None:
         q_flt = model.compensator(c_ref, B, f_inv, sign)
     else:
         q_flt = T.compensate_chain(c_ref, B, tr, f_inv, sign)
