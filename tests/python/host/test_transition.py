@@ -179,9 +179,14 @@ def test_fitted_table_loads_when_the_data_want_a_tiny_first_weight():
 
 def test_model_play_and_pi_restrict_the_candidates():
     data, *_ = ref_session(np.zeros(1), np.ones(1))
-    assert T.candidates(data, "play") == [(1.0, 1, 0.0, 14)]
+    assert T.candidates(data, "play") == [(1.0, 1, 0.0, 14, False)]
+    assert T.candidates(data, "play", kinds=T.BOTH_KINDS) == [(1.0, 1, 0.0, 14, False)]
     pi = T.candidates(data, "pi")
-    assert {(kb, n, nc) for kb, n, _, nc in pi} == {(kb, T.N_OPS, nc) for kb in T.B_SCALES for nc in T.F_CTRL}
+    assert {(kb, n, nc, sc) for kb, n, _, nc, sc in pi} == {(kb, T.N_OPS, nc, False) for kb in T.B_SCALES
+                                                            for nc in T.F_CTRL}
+    both = T.candidates(data, "pi", kinds=T.BOTH_KINDS)
+    assert {(kb, n, nc, sc) for kb, n, _, nc, sc in both} == {(kb, T.N_OPS, nc, sc) for kb in T.B_SCALES
+                                                              for nc in T.F_CTRL for sc in (False, True)}
     with pytest.raises(ValueError):
         T.choose_model(data, "bogus")
 
