@@ -92,12 +92,15 @@ $(row b_online_sample_241 "b_online_sample, costliest B grid (241 entries, 16 no
 $(row tick_pi_realistic "psa_tick, compensation with the transition model (table v2, 16 operators, bench_pi_load), realistic c* as above" 250 600)
 $(row tick_pi_stress "psa_tick, compensation with the transition model (16 operators), stress: c* reversing every 512 ticks" 250 600)
 $(row comp_step_pi "of which comp_step with the 16 operators (f^-1, PI^-1, B/2 offset, ramp), realistic c*" "" "")
+$(row tick_pimap_realistic "psa_tick, compensation with the transition model and a threshold map (table v3, 16 operators on u = g(z), bench_pi_map_load), realistic c* as above" 250 600)
+$(row tick_pimap_stress "psa_tick, compensation with the transition model and a threshold map (16 operators), stress: c* reversing every 512 ticks" 250 600)
+$(row comp_step_pimap "of which comp_step with the 16 operators and the map (f^-1, PI^-1, g^-1, B/2 offset, ramp), realistic c*" "" "")
 | instruction-count calibration (subs+bne loop) | $cal per iteration | 2.00 | same counter, a loop of exactly 2 instructions |
 | counts of the runs | $infos | | BENCH_INFO lines of bench-m4.elf |
 | desktop throughput of psa_tick (realistic compensation) | $desk_tps ticks/s ($desk_ns ns/tick) | | bench-desktop, best of 5 x 20e6 ticks, desktop-release flags \`$release_flags\`, $cpu |
 | playscope-fw.elf flash, everything | $(kib $flash) | <= 24 KiB ($(verdict "$flash" 24576)) | arm-none-eabi-size -A: .isr_vector + .text + .rodata + .ARM.extab/.exidx + .init/.fini_array + .data initialisers |
 | playscope-fw.elf RAM, everything | $(kib $ram) | <= 24 KiB ($(verdict "$ram" 24576)) | .data $data + .bss $bss (tables, history, loop) + heap minimum $heap_min + stack reservation $stack (__stack_size; high-water mark on the status line) |
-| of which calib_t (table entries + derived f^-1, z_up, z_down) | $(kib $calib_sz) | | sizeof(calib_t) (bench/size_probe.c, nm -S) |
+| of which calib_t (table entries + derived f^-1, z_up, z_down, g^-1) | $(kib $calib_sz) | | sizeof(calib_t) (bench/size_probe.c, nm -S) |
 | b_online_t (on-line B: RAM grid, theta, P), when an image enables it | $(kib $(psize probe_b_online_t)) | | sizeof(b_online_t) (bench/size_probe.c) |
 | of which psa_loop_t (incl. onset_t with the encoder history) | $(kib $loop_sz) | | sizeof(psa_loop_t); enc_hist_t alone $(kib $hist) |
 EOF2

@@ -12,6 +12,10 @@
  * w_0 = 0.25, w_1..15 = 0.05. Returns the calib_load status (CALIB_OK = 0). */
 int bench_pi_load(calib_t *cal);
 
+/* The same table with a threshold map (layout v3, B-proportional thresholds): u = g(z) on
+ * 73 entries over z = -18..18 mm, g' = 1.5 mm / B(z). Returns the calib_load status. */
+int bench_pi_map_load(calib_t *cal);
+
 /* c* in +-30 deg: straight segments of len_min..len_max ticks (uniform, LCG), each to a
  * random target on the other side of the last one, so every segment end is a reversal.
  * At 20 kHz, 5000..10000 ticks is a reversal every 0.25-0.5 s (teleoperation); 512 ticks
