@@ -384,11 +384,13 @@ def _rms2(su: float, sv: float) -> float:
 def image_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.ndarray,
                          t_f: np.ndarray, obs: np.ndarray, t_delay_s: float, fps: float):
     """Onset threshold of the image (marker, px) detector from the record: the angle rule
-    (angle_onset_settings) in 2-D, at the camera's own frame rate. Not used by `calibrate` yet:
-    on the demo's STRAS-like preset, whose tip creeps through the dead band, it fires earlier on
-    the creep than the C detector's automatic threshold, B moves further from the centre width
-    and the compensation is worse (0.41 against 0.33 deg; docs/robustness.md); pass its
-    overrides as `calibrate(onset_cfg=...)` to use it.
+    (angle_onset_settings) in 2-D, at the camera's own frame rate. Used by `calibrate` on every
+    image session (onset_refine.robust_samples) unless a threshold is given. On the demo's
+    STRAS-like preset, whose tip creeps through the dead band, it fires earlier on the creep
+    than the C detector's automatic threshold did, closer to the first motion: with constant
+    transition thresholds that made the compensation worse (0.41 against 0.33 deg); with the
+    B-proportional thresholds (transition.ThresholdMap), whose map wants B's shape, it is
+    0.21 / 0.26 / 0.29 deg on seeds 1-3 (docs/robustness.md).
 
     1. Bootstrap: the C detector with the fixed T0 = k rms|d|, rms|d| from diff2_noise of u and
        v (an upper bound of the still noise from the whole record), k = onset_noise_k(fps x

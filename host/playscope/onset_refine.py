@@ -511,7 +511,9 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
        coarse delay (``coarse_delay``).
     2. Candidates: ``board`` (estimate.Onsets the board measured, e.g. run-insitu) or the
        firmware's detector run here through cffi (estimate.run_onsets) with the configured
-       delay, as the board would have run it (the coarse one when none is configured).
+       delay, as the board would have run it (the coarse one when none is configured), and
+       its threshold from the record (estimate.image_onset_settings) unless onset_cfg gives
+       one; the rule and its figures are in report["board_threshold"].
     3. ``refine`` every reversal; t_delay from the stop times (``delay_from_stops``).
     4. t_delay_from "data" (default): use the record's delay; "config": the configured one.
        They are compared either way; a gap over one frame period is a warning. A configured
@@ -529,8 +531,19 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     tol = max(0.02 * hysteresis, 1e-9 * max(float(np.ptp(q_rev)), 1.0))
     t_stop = motor_stop_times(t_enc, q_rev, rt, rq, tol)
     d0 = coarse_delay(t_f, obs, t_stop, t_enc, q_rev, period)
+    threshold_rule = None
     if board is None:
-        cfg = E.OnsetConfig(t_delay_s=d0 if t_delay_cfg is None else t_delay_cfg, fps=fps, **(onset_cfg or {}))
+        td_board = d0 if t_delay_cfg is None else t_delay_cfg
+        over = dict(onset_cfg or {})
+        if "threshold" not in over:
+            # The detector's threshold from this record's still noise and false-alarm rate
+            # (estimate.image_onset_settings), not the C detector's automatic k = 3 with its
+            # constant 0.05 / 1 px floor and ceiling; at the delay the detector itself runs with.
+            auto, threshold_rule = E.image_onset_settings(t_enc, q, rt, rq, t_f, obs, td_board, fps)
+            over.update(auto)
+        else:
+            threshold_rule = {"rule": "given", "threshold_px": float(over["threshold"])}
+        cfg = E.OnsetConfig(t_delay_s=td_board, fps=fps, **over)
         board = E.run_onsets(t_enc, q, rt, rq, t_f, obs, "image", cfg)
     # The board's candidates by reversal (its t1 is the commanded reversal, up to rounding).
     guess = np.full(rt.size, np.nan)
@@ -587,6 +600,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     report = {
         "method": "joint ML change-point model per reversal (playscope.onset_refine)",
         "board_reasons": board.reasons,
+        "board_threshold": threshold_rule,
         "t_delay": {"configured_s": t_delay_cfg, "record_s": d_data, "record_se_s": d_se, "stops_fitted": n_d,
                     "coarse_s": d0, "first_pass_s": d1, "used_s": td, "from": t_delay_from},
         "ringing": ring_summary(ref),

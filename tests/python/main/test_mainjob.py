@@ -12,10 +12,13 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert rc == 0
     s = json.loads((out / "summary.json").read_text())
     assert s == json.loads((tmp_path / "s.json").read_text())
-    # B(q) from the onsets: near the simulator's B (0.35-0.80 mm) on average. With the STRAS
-    # preset's smooth transition the onset fires part-way through the creep: measured 0.072 mm
-    # on the 90 s main job, seed 1 (0.104 before B's stiffness was chosen by the model's CV).
-    assert s["b_error"]["mean"] < 0.15
+    # B(q) from the onsets. With the STRAS preset's smooth transition (operator widths
+    # B (1 +- spread u)) the tip first moves once (1 - spread) B is taken up and then creeps, so
+    # eq. 1's onset lies between the first-motion width and the centre width B: measured B_est / B
+    # 0.56-0.81 (mean 0.66) on the 90 s main job, seed 1, with the threshold from the record.
+    b = s["b_error"]
+    assert b["spread"] == 0.5
+    assert 1 - b["spread"] - 0.1 < b["ratio_min"] and b["ratio_max"] < 1.0 + 0.1, b
     # Flashed over the emulated USB device, read back identical, compensator bit-exact.
     assert "read back identical" in s["flash"] and "bit-identical" in s["flash"]
     # Table I rows for the paper's three models plus the fixed-point one.
