@@ -119,10 +119,9 @@ def fit_ours(cal_s: Session, cal, q_c: np.ndarray, c_c: np.ndarray) -> Row:
     choice = cal.model_choice or {}
     params = {"model": "play" if tr.is_play else "pi", "n_ops": tr.n, "r": tr.r.tolist(), "w": tr.w.tolist(),
               "b_scale": float(tr.b_scale), "r_span": choice.get("r_span"),
+              "thresholds": "B-proportional" if tr.tmap is not None else "constant",
               "cv": [{k: d.get(k) for k in ("b_scale", "n", "r_span", "cv_rmse_deg")}
                      for d in choice.get("candidates", [])]}
-    if tr.tmap is not None:  # PROTOTYPE: the tables do not carry the map yet
-        return Row("ours", False, cal.predict, {**params, "thresholds": "B-proportional"})
     return _table_row("ours", cal.B_model, cal.f, cal, params, transition=tr)
 
 

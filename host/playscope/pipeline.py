@@ -182,7 +182,7 @@ def write_tables(cal_path, out, entries: int | None = None, generation: int = 1,
         tab = build_table(B, f, q_min, q_max, cal.actuator_unit, "coarse" if f_coarse else "remain",
                           generation, entries, source=cal_path, transition=tr)
         err = table_errors(tab, B, f, q_min, q_max, tr)
-        if cal.transition.tmap is None: check_precision(tab, err, f, q_min, q_max, source=cal_path)
+        check_precision(tab, err, f, q_min, q_max, source=cal_path)
     except (ValueError, OverflowError) as e:  # InputError passes through with its own file
         if isinstance(e, InputError):
             raise
