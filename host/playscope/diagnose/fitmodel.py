@@ -36,7 +36,13 @@ NONLIN = {
     # linear 1 + spread u needed spread < 1 and sat at 0.95 on the catheter).
     "smooth_transition": [("log_spread", 0.5, 0.0, 3.0)],
     "dead_zone": [("w_q", None, 0.0, None), ("z0_q", None, None, None)],
-    "stick_slip": [("step_q", None, 0.0, None)],
+    # Stiction of the carrier in the transmission, Karnopp (1985): a carrier of unit mass tied to
+    # the play output by a spring (natural frequency fn), viscous damping zeta, Coulomb friction with
+    # a static level (breakaway lag static_q, mm of play output) and a kinetic level (kin_ratio of
+    # it), and Karnopp's zero-velocity band (stuck while |v| is inside it and the spring force stays
+    # under the static level). See _karnopp_carrier.
+    "stick_slip": [("static_q", None, 0.0, None), ("kin_ratio", 0.5, 0.0, 1.0),
+                   ("log_fn", np.log(20.0), np.log(8.0), np.log(60.0)), ("zeta", 0.5, 0.05, 1.0)],
     "cable_elongation": [("kappa", 0.3, 0.0, 0.95), ("log_tau", 0.0, np.log(0.05), np.log(10.0))],
     "camera_delay": [("delay_s", 0.0, -0.2, 0.5)],
     # Rate-dependent play, two physical routes to a lag that grows with speed: (1) an extra
@@ -156,17 +162,55 @@ class Fit:
         return out
 
 
-def _hold(z: np.ndarray, step: float, kin: float = 0.0) -> np.ndarray:
-    """Stiction on the play output: held until z is step away, then slips to kin * step behind z."""
-    out = [0.0] * z.size
-    held = float(z[0])
-    back = kin * step
-    for k, v in enumerate(z.tolist()):
-        if v - held >= step:
-            held = v - back
-        elif held - v >= step:
-            held = v + back
-        out[k] = held
+KARNOPP_SUBSTEPS = 8  # integration steps per internal sample (2.5 ms; stable for fn <= 60 Hz)
+
+
+def _karnopp_carrier(z: np.ndarray, rate_hz: float, static: float, kin_ratio: float, fn_hz: float,
+                     zeta: float, substeps: int = KARNOPP_SUBSTEPS) -> np.ndarray:
+    """Stick-slip of a carrier driven through a spring by z (Karnopp 1985, "Computer simulation of
+    stick-slip friction in mechanical dynamic systems", J. Dyn. Sys. Meas. Control 107:100-103).
+    Per unit mass: p'' = wn^2 (z - p) - 2 zeta wn p' - F_f, with
+      |p'| outside the band D:  F_f = Fc sign(p')                        (Coulomb, kinetic)
+      |p'| inside the band D:   F_f = F_app if |F_app| <= Fs (stuck: p'' = 0, p' set to 0),
+                                else Fs sign(F_app)                          (breakaway)
+    F_app = wn^2 (z - p) the spring force, Fs = wn^2 static (a spring stretched by ``static`` mm
+    holds the carrier), Fc = kin_ratio Fs. D = h Fs, the velocity one step of the static force
+    gives (Karnopp's band must be wide enough for a sampled velocity to land in it). Semi-implicit
+    Euler (damping implicit) with step h = 1 / (rate_hz substeps), z linear between samples; a stuck carrier whose
+    spring force stays under Fs over a whole sample is skipped. Starts stuck at p = z[0].
+    z: (N,) mm sampled at rate_hz; returns p (N,) mm at the same samples."""
+    zl = np.asarray(z, float).tolist()
+    out = [0.0] * len(zl)
+    wn = 2.0 * np.pi * fn_hz
+    w2, c2 = wn * wn, 2.0 * zeta * wn
+    Fs = w2 * max(static, 0.0)
+    Fc = kin_ratio * Fs
+    h = 1.0 / (rate_hz * substeps)
+    band = 0.01 * h * Fs
+    p, v = zl[0], 0.0
+    zp = zl[0]
+    for k, zk in enumerate(zl):
+        if v == 0.0 and abs(w2 * (zk - p)) <= Fs and abs(w2 * (zp - p)) <= Fs:
+            out[k] = p
+            zp = zk
+            continue
+        for j in range(1, substeps + 1):
+            zj = zp + (zk - zp) * j / substeps
+            F = w2 * (zj - p)
+            if -band < v < band:
+                if -Fs <= F <= Fs:
+                    v = 0.0
+                    continue
+                vn = v + h * (F - (Fs if F > 0 else -Fs))
+            else:
+                # damping taken implicitly (stable for any zeta at this step)
+                vn = (v + h * (F - (Fc if v > 0 else -Fc))) / (1.0 + h * c2)
+            if v != 0.0 and vn * v <= 0.0 and abs(F) <= Fs:
+                vn = 0.0  # the velocity crossed the band within the step: stuck
+            v = vn
+            p += h * v
+        out[k] = p
+        zp = zk
     return np.asarray(out)
 
 
@@ -237,8 +281,8 @@ class Model:
                     v0, h = 0.03 * span, 0.3 * span
                 elif n == "z0_q":
                     v0, l, h = data.q_lo + 0.2 * span, data.q_lo - 0.1 * span, data.q_hi + 0.1 * span
-                elif n == "step_q":
-                    v0, h = 0.01 * span, 0.2 * span
+                elif n == "static_q":
+                    v0, h = 0.01 * span, 0.1 * span
                 names.append(f"{e}.{n}")
                 init.append(v0)
                 lo.append(l)
@@ -305,7 +349,12 @@ class Model:
             w = np.exp(self._get(theta, "handeye_direction", "log_travel")) * 2 * self.q_half
             sdir = _switch(z.tolist(), w)
         if "stick_slip" in self.effects:
-            z = _hold(z, max(self._get(theta, "stick_slip", "step_q"), 1e-9))
+            # The carrier sticks and slips behind the play output (stiction in the transmission,
+            # before f_remain: the prediction stays linear in f_remain's coefficients).
+            z = _karnopp_carrier(z, INTERNAL_HZ, self._get(theta, "stick_slip", "static_q"),
+                                 self._get(theta, "stick_slip", "kin_ratio"),
+                                 np.exp(self._get(theta, "stick_slip", "log_fn")),
+                                 self._get(theta, "stick_slip", "zeta"))
         if "dead_zone" in self.effects and self.dead_zone_side == "distal":
             # Dead band on the distal side: the bend does not follow the play output while z
             # crosses [z0 - w, z0 + w] (a joint that is slack near one configuration). It is a static
@@ -369,12 +418,7 @@ class Model:
             if best is None or c < best[0]:
                 best = (c, s)
         th = best[1]
-        # stick-slip's step is piecewise constant in theta: FD gradients are zero, so it is
-        # chosen on the grid above and held fixed in the local refinement.
         free = np.ones(th.size, bool)
-        for i, n in enumerate(self.names):
-            if n.endswith("step_q"):
-                free[i] = False
         def fun(p):
             full = th.copy()
             full[free] = p
@@ -430,9 +474,18 @@ class Model:
                             x[self.names.index("dead_zone.w_q")] = w
                             new.append(x)
                 elif e == "stick_slip":
-                    for st in span * np.array([0.003, 0.006, 0.01, 0.015, 0.02, 0.03, 0.045, 0.06]):
+                    # breakaway lag x kinetic ratio x natural frequency (the slips' size and
+                    # their ring are not found from one start)
+                    # (the first start, a stiff well-damped carrier with a tiny breakaway lag, is
+                    # the base model to within a few ms of lag: the fit starts from it)
+                    combos = [(1e-4, 0.5, 60.0, 1.0)] + [(st, kr, fn, 0.5) for st in (0.003, 0.008, 0.02)
+                                                           for kr in (0.3, 0.7) for fn in (12.0, 30.0)]
+                    for st, kr, fn, zt in combos:
                         x = s.copy()
-                        x[self.names.index("stick_slip.step_q")] = st
+                        x[self.names.index("stick_slip.static_q")] = st * span
+                        x[self.names.index("stick_slip.kin_ratio")] = kr
+                        x[self.names.index("stick_slip.log_fn")] = np.log(fn)
+                        x[self.names.index("stick_slip.zeta")] = zt
                         new.append(x)
                 elif e == "cable_elongation":
                     for lt in np.log([0.2, 1.0, 4.0]):
