@@ -20,13 +20,18 @@ static union {
 
 /* The built-in table's grids (firmware/app/psa_builtin_table.c) with 16 operators: thresholds
  * 0.1 mm apart, w_0 = 1/4 and 15 x 1/20 (sum 1). */
-int bench_pi_load(calib_t *cal)
+static void bench_pi_ops(int32_t *r_q16, int32_t *w_q16)
 {
-    int32_t r_q16[PI_OPS], w_q16[PI_OPS];
     for (int i = 0; i < PI_OPS; i++) {
         r_q16[i] = i * (PS_Q16_ONE / 10);
         w_q16[i] = i == 0 ? PS_Q16_ONE / 4 : PS_Q16_ONE / 20;
     }
+}
+
+int bench_pi_load(calib_t *cal)
+{
+    int32_t r_q16[PI_OPS], w_q16[PI_OPS];
+    bench_pi_ops(r_q16, w_q16);
     size_t len = psa_builtin_table_ops(pi_table.bytes, sizeof pi_table.bytes, PST_F_REMAIN, PI_OPS, r_q16, w_q16);
     return (int)calib_load(cal, pi_table.bytes, len);
 }
@@ -48,10 +53,7 @@ enum {
 int bench_pi_map_load(calib_t *cal)
 {
     int32_t r_q16[PI_OPS], w_q16[PI_OPS];
-    for (int i = 0; i < PI_OPS; i++) {
-        r_q16[i] = i * (PS_Q16_ONE / 10);
-        w_q16[i] = i == 0 ? PS_Q16_ONE / 4 : PS_Q16_ONE / 20;
-    }
+    bench_pi_ops(r_q16, w_q16);
     size_t len = psa_builtin_table_ops(map_table.bytes, sizeof map_table.bytes, PST_F_REMAIN, PI_OPS, r_q16, w_q16);
     if (len == 0)
         return -1;
