@@ -27,8 +27,10 @@ def add_parser(sub) -> None:
                    help="f_remain estimator: lsq (default, play-consistent) or morph (paper, section IV)")
     p.add_argument("--model", choices=["play", "pi", "auto"], default="auto",
                    help="play: the paper's pure play; pi: play + Prandtl-Ishlinskii transition operators; "
-                   "auto (default): play or PI and the operator count by cross-validation on this session "
-                   "(docs/method.md, 'Transition'); the choice and its CV errors go into the JSON")
+                   "auto (default): play or PI, the play width, f's stiffness and the thresholds' kind "
+                   "(constant, or proportional to B(q) when B's shape is measured: >= 2 onset samples per B "
+                   "control point) by cross-validation on this session (docs/method.md, 'Transition' and "
+                   "'B-proportional thresholds'); the choice and its CV errors go into the JSON")
     p.add_argument("--fps", type=T.FPS, help="frame rate for angle sessions (default: ~125 frames per stroke, 10-50 Hz)")
     p.add_argument("--t-delay", type=T.T_DELAY_S, help="configured image delay t_delay in s (default: session.json); "
                    "image sessions check it against the record's own delay")
