@@ -38,7 +38,9 @@ def add_parser(sub) -> None:
                    help="image sessions: use the delay measured from the record (data, default) or the configured "
                    "one (config); a gap over one frame period is warned about either way")
     p.add_argument("--hysteresis", type=T.HYSTERESIS, help="reversal detection hysteresis, actuator units (default 1%% of travel)")
-    p.add_argument("--threshold", type=T.THRESHOLD, help="onset threshold T per frame (px or deg); default automatic")
+    p.add_argument("--threshold", type=T.THRESHOLD, help="onset threshold T per frame (px or deg); default: from this record's still noise and a "
+                   "false-alarm rate of 0.01 onsets per reversal (docs/method.md 'Settings from the record', "
+                   "docs/robustness.md), recorded in the JSON")
     add_json_arg(p, "calibration (path), reversals, b_samples, onset_reasons {name: count}, t_delay_s, "
                  "fps_frames, B_range [min,max], t_delay {configured_s, record_s, used_s, ...} and ringing "
                  "{freq_hz, damping_ratio, ...} (image sessions, else null), b_inconsistent (count), warnings, model (play|pi), operators (count)")
