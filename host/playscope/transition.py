@@ -557,19 +557,24 @@ def largest_excursion(x: np.ndarray, hysteresis_frac: float = 0.01) -> float:
     return float(np.max(np.abs(np.diff(turns)))) if turns.size > 1 else span
 
 
-def v_max_for_table(data: "FitData", b_scale: float, n: int) -> float:
+def v_max_for_table(data: "FitData", b_scale: float, n: int, scaled: bool = False) -> float:
     """Bound of v_i = w_i / w_0 that keeps the table loadable: the inverse PI's worst-case
     error is about 1/w_0 Q16 units (pi_build: 1/2 + 1/2 sum|w'_i|, sum|w'_i| = 2/w_0 - 1), and
     calib_load refuses a table whose error exceeds calib_precision_ceiling_q16(B_max) (1/16 of
     the largest play width). With sum v = 1/w_0 <= ceiling/2 (a factor 2 for the other terms)
     the fitted table always loads: v_i <= (ceiling/2 - 1)/(n - 1), at most V_MAX. B_max: the
-    model's play width b_scale x B over the recorded q range."""
+    model's play width b_scale x B over the recorded q range. scaled (a threshold map, layout
+    3): the loader holds the inverse's error times the map's Lipschitz constant L = max dz/du
+    (docs/firmware.md), so the ceiling is divided by L."""
     from .native import core
 
     _, lib = core()
     q = np.linspace(float(data.q_enc.min()), float(data.q_enc.max()), 201)
     b_max_q16 = int(round(b_scale * float(np.max(data.B(q))) * 65536))
     ceiling = float(lib.calib_precision_ceiling_q16(min(max(b_max_q16, 0), 2**31 - 1)))
+    if scaled:
+        tm = data.threshold_map()
+        ceiling /= float(np.max(np.diff(tm.z) / np.diff(tm.u)))
     return float(min(V_MAX, max(0.5 * ceiling - 1.0, 0.0) / max(n - 1, 1)))
 
 
@@ -623,7 +628,7 @@ class _CandidateCV:
         skipped, as choose_model always did)."""
         if self._P is None:  # the operators at the frames and the table's bound, once
             self._P = self.data.ops_at_frames(self.r, self.kb, self.scaled)
-            self._vm = v_max_for_table(self.data, self.kb, self.n)
+            self._vm = v_max_for_table(self.data, self.kb, self.n, self.scaled)
         while not self.done:
             tr_m, te_m = self.splits[self._next]
             self._next += 1
@@ -732,7 +737,7 @@ class ModelChoice:
             kb, n, span, nc, sc = p["b_scale"], p["n"], p["r_span"], p["n_ctrl"], p["scaled"]
             r = thresholds(n, span) if n > 1 else np.zeros(1)
             w, f, sign, rms = fit_weights(self.data.ops_at_frames(r, kb, sc), self.data.c, nc,
-                                          v_max=v_max_for_table(self.data, kb, n))
+                                          v_max=v_max_for_table(self.data, kb, n, sc))
             keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
             tmap = self.data.threshold_map() if sc and n > 1 else None
             self._refit = (Transition(r[keep], w[keep] / w[keep].sum(), kb, tmap), f, sign, rms)
