@@ -5,8 +5,9 @@ Steps (paper Fig. 4 and section V): simulate an in-situ excitation session with 
 (variable B(q), non-linear f_remain, the smooth transition after the play, 80 ms acquisition
 delay) -> track the marker in the video -> onsets and B(q) spline, f_remain and the
 transition operators, play or transition chosen by cross-validation (calibrate) -> Q16.16
-tables (layout 2) -> flash to the virtual board through the emulated USB device, read back,
-compare compensator outputs bit for bit -> Table I and open-loop compensation on a separate
+tables (layout 2, or 3 with the threshold map) -> flash to the virtual board through the
+emulated USB device, read back, compare compensator outputs bit for bit -> Table I and
+open-loop compensation on a separate
 test motion (evaluate) -> HTML report. Prints one summary.
 
 Table I runs under the paper's Table I conditions (section V-F): the motion is along the
