@@ -7,8 +7,8 @@ delay) -> track the marker in the video -> onsets and B(q) spline, f_remain and 
 transition operators, play or transition chosen by cross-validation (calibrate) -> Q16.16
 tables (layout 2, or 3 with the threshold map) -> flash to the virtual board through the
 emulated USB device, read back, compare compensator outputs bit for bit -> Table I and
-open-loop compensation on a separate
-test motion (evaluate) -> HTML report. Prints one summary.
+open-loop compensation on a separate test motion (evaluate) -> HTML report. Prints one
+summary.
 
 Table I runs under the paper's Table I conditions (section V-F): the motion is along the
 image's x axis (Qx) and the camera-robot registration is off mainly on Qy: the hand-eye the
