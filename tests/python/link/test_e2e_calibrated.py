@@ -81,22 +81,27 @@ def test_usb_emulated_virtual_board(calibrated, tmp_path):
 
 @pytest.mark.skipif(shutil.which("qemu-system-arm") is None or find_qemu_image() is None,
                     reason="needs qemu-system-arm and the playscope-link-fw image (stm32f405 preset)")
-def test_qemu_firmware_over_serial(calibrated):
-    path, _, _ = calibrated
-    sent, q_host = _host_run(path.read_bytes())
+def _qemu_flash_and_compensate(blob: bytes, sent: bytes) -> list[int]:
+    """Flash blob to the STM32F405 link firmware under QEMU, check the read-back equals sent,
+    and return the board's compensator outputs on the host's test vector."""
     link = Link(QemuTransport())
     try:
-        r = flash(link, path.read_bytes(), N_VECTORS, log=lambda *_: None)
+        r = flash(link, blob, N_VECTORS, log=lambda *_: None)
         assert r["generation"] == 1
         assert link.read_table() == sent
-        host = T.CalibTable(sent)
-        c = T.test_vector(host, N_VECTORS)
+        c = T.test_vector(T.CalibTable(sent), N_VECTORS)
         link.set_mode("compensation")
         q_board = [link.comp_step(x) for x in c]
         link.set_mode("idle")
     finally:
         link.close()
-    assert q_board == q_host
+    return q_board
+
+
+def test_qemu_firmware_over_serial(calibrated):
+    path, _, _ = calibrated
+    sent, q_host = _host_run(path.read_bytes())
+    assert _qemu_flash_and_compensate(path.read_bytes(), sent) == q_host
 
 
 def test_cli_flash_virtual(calibrated, capsys):
@@ -120,15 +125,4 @@ def test_qemu_runs_a_layout_3_table_bit_for_bit(tmp_path):
     blob = T.build_table(B, f, -5.0, 5.0, "mm", transition=tr).blob
     assert T.header(blob).layout_version == 3
     sent, q_host = _host_run(blob)
-    link = Link(QemuTransport())
-    try:
-        r = flash(link, blob, N_VECTORS, log=lambda *_: None)
-        assert r["generation"] == 1
-        assert link.read_table() == sent
-        c = T.test_vector(T.CalibTable(sent), N_VECTORS)
-        link.set_mode("compensation")
-        q_board = [link.comp_step(x) for x in c]
-        link.set_mode("idle")
-    finally:
-        link.close()
-    assert q_board == q_host
+    assert _qemu_flash_and_compensate(blob, sent) == q_host
