@@ -60,7 +60,8 @@ typedef struct PS_PACKED pst_grid {
 PS_STATIC_ASSERT(sizeof(pst_grid_t) == 12, "pst_grid_t must be 12 bytes");
 
 /* The transition's operator block (v2): r[n] then w[n], int32 Q16.16, at byte offset.
- * r: thresholds in actuator units, r[0] = 0 < r[1] < ... < r[n-1] <= q_max - q_min.
+ * r: thresholds in actuator units, r[0] = 0 < r[1] < ... < r[n-1] <= q_max - q_min (v3 with a
+ * threshold map: thresholds in u = g(z), r[n-1] <= the larger of that and the map's extent).
  * w: weights (dimensionless), w[0] > 0, w[i] >= 0, |sum w - 1| <= 2^-8.
  * n = 0: no transition (pure play, offset 0); n = 1 with w = 1 is the same model. */
 typedef struct PS_PACKED pst_pi {

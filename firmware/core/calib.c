@@ -80,9 +80,12 @@ static int overlaps(uint32_t at, uint32_t len, const pst_grid_t *gr)
 }
 
 /* The v2 operator block: layout, then shape and inverse (pi_build). Writes only the
- * three outputs, and only on success. */
+ * three outputs, and only on success. span_q16: the largest threshold allowed, the extent
+ * of the operators' input (the travel q_max - q_min; with a threshold map, the larger of
+ * that and the map's extent, since the thresholds are then in u = g(z)). */
 static calib_status_t load_pi(const uint8_t *blob, const pst_header_t *hd, int32_t x_lo, int32_t x_hi,
-                              const lut_t *f, pi_params_t *dir, pi_params_t *inv, int32_t *err_q16)
+                              int64_t span_q16, const lut_t *f, pi_params_t *dir, pi_params_t *inv,
+                              int32_t *err_q16)
 {
     const uint16_t n = hd->pi.n;
     if (n > PST_MAX_OPS)
@@ -108,7 +111,7 @@ static calib_status_t load_pi(const uint8_t *blob, const pst_header_t *hd, int32
         [PI_ERR_W0] = CALIB_ERR_PI_W0, [PI_ERR_W_NEGATIVE] = CALIB_ERR_PI_W_NEGATIVE,
         [PI_ERR_W_SUM] = CALIB_ERR_PI_W_SUM, [PI_ERR_INVERSE] = CALIB_ERR_PI_INVERSE,
     };
-    pi_status_t ps = pi_build(r, w, n, (int64_t)hd->q_max_q16 - hd->q_min_q16, x_lo, x_hi,
+    pi_status_t ps = pi_build(r, w, n, span_q16, x_lo, x_hi,
                               f->x0_q16, f->x_last_q16, dir, inv, err_q16);
     return map[ps];
 }
@@ -246,7 +249,11 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     const int32_t x_lo = g.n ? g.y_q16[0] : b.x0_q16, x_hi = g.n ? g.y_q16[g.n - 1] : b.x_last_q16;
     pi_params_t pi_dir, pi_inv;
     int32_t pi_err;
-    if ((st = load_pi(blob, &hd, x_lo, x_hi, &f, &pi_dir, &pi_inv, &pi_err)) != CALIB_OK)
+    /* Thresholds in u with a map: u's extent can exceed the travel where B is below b_ref. */
+    int64_t span = (int64_t)hd.q_max_q16 - hd.q_min_q16;
+    if (g.n && (int64_t)x_hi - x_lo > span)
+        span = (int64_t)x_hi - x_lo;
+    if ((st = load_pi(blob, &hd, x_lo, x_hi, span, &f, &pi_dir, &pi_inv, &pi_err)) != CALIB_OK)
         return st;
     /* The compensator's centre error (docs/firmware.md, "Precision ceiling"): in u,
      * E_u = f_inv_err sum|w'| + pi_inv_err (PI^-1 is sum|w'|-Lipschitz); a map adds

@@ -31,7 +31,7 @@ typedef enum {
     CALIB_ERR_PI_LAYOUT,         /* offset misaligned, inside the header or a grid, or r/w beyond total_size; offset != 0 with n = 0 */
     CALIB_ERR_PI_R0,             /* r[0] != 0 */
     CALIB_ERR_PI_R_ORDER,        /* thresholds not strictly increasing */
-    CALIB_ERR_PI_R_RANGE,        /* r[n-1] > q_max - q_min, or a grid +- twice the thresholds leaves +-2^30 raw */
+    CALIB_ERR_PI_R_RANGE,        /* r[n-1] > q_max - q_min (with a map: > max of that and the map's extent in u), or a grid +- twice the thresholds leaves +-2^30 raw */
     CALIB_ERR_PI_W0,             /* w[0] <= 0: no slope right after the play */
     CALIB_ERR_PI_W_NEGATIVE,     /* a weight below zero */
     CALIB_ERR_PI_W_SUM,          /* |sum w - 1| > 2^-8 */

@@ -98,7 +98,7 @@ def test_offer_rule_needs_two_onset_samples_per_B_control_point():
     assert T.threshold_kinds("constant", 100, 4) == T.CONSTANT_ONLY
 
 
-def session(scaled: bool, seed: int = 0):
+def session(scaled: bool, seed: int = 0, B=B_lin):
     """A fit record whose transition has thresholds proportional to B (scaled) or constant,
     written here with the reference loop: c = f(sum_i w_i P_i(play_{B/2}(q)))."""
     t = np.arange(0, 80, 1 / RATE_HZ)
@@ -106,7 +106,7 @@ def session(scaled: bool, seed: int = 0):
     z, p = [], q[0]
     for v in q:  # play of width B(z): z + B(z)/2 >= v >= z - B(z)/2, solved by fixed point (B' small)
         for _ in range(20):
-            p_new = min(v + B_lin(p) / 2, max(v - B_lin(p) / 2, p))
+            p_new = min(v + B(p) / 2, max(v - B(p) / 2, p))
             if abs(p_new - p) < 1e-13:
                 break
             p = p_new
@@ -116,13 +116,13 @@ def session(scaled: bool, seed: int = 0):
     r = np.array([0.0, 0.15, 0.3, 0.45])
     w = np.array([0.3, 0.3, 0.2, 0.2])
     if scaled:
-        y = sum(wi * ref_scaled_play(z, ri, b_ref, B_lin, z[0]) for ri, wi in zip(r, w))
+        y = sum(wi * ref_scaled_play(z, ri, b_ref, B, z[0]) for ri, wi in zip(r, w))
     else:
         y = sum(wi * ref_scaled_play(z, ri, 1.0, lambda v: 1.0, z[0]) for ri, wi in zip(r, w))
     c = 10.0 * y + 0.4 * y ** 2
     rng = np.random.default_rng(seed)
     k = slice(None, None, 5)
-    return T.FitData(t, q, B_lin, t[k], c[k] + rng.normal(0, 0.02, c[k].size))
+    return T.FitData(t, q, B, t[k], c[k] + rng.normal(0, 0.02, c[k].size))
 
 
 @pytest.mark.parametrize("scaled", [True, False])
@@ -131,3 +131,22 @@ def test_model_choice_names_the_threshold_kind_the_data_were_made_with(scaled):
     _, _, _, ch = T.choose_model(data, "pi", kinds=T.BOTH_KINDS)
     assert ch["thresholds"] == ("B-proportional" if scaled else "constant"), ch["candidates"]
     assert ch["thresholds_offered"] == ["constant", "B-proportional"]
+
+
+def test_a_fitted_map_table_loads_when_B_varies_tenfold():
+    """The thresholds of a map live in u = g(z), whose extent exceeds the travel where B is
+    below b_ref: the loader bounds them by that extent (calib.c), and v_max_for_table divides
+    the precision ceiling by the map's Lipschitz constant, so the fitted table loads. B here
+    runs from 0.06 to 0.66 mm (11x) over the session; the fixed-point chain then stays within
+    its measured 0.023 deg (direct) and 4e-6 mm (compensator) of the float chain."""
+    from playscope import tables as TB
+
+    B_steep = lambda z: 0.06 + 0.15 * np.clip(np.asarray(z, float), 0.0, 4.0)
+    data = session(True, B=B_steep)
+    tr, f, _, ch = T.choose_model(data, "pi", kinds=T.BOTH_KINDS)
+    assert ch["thresholds"] == "B-proportional" and tr.tmap is not None
+    q0, q1 = float(data.q_enc.min()), float(data.q_enc.max())
+    assert tr.r[-1] > q1 - q0  # beyond the travel: refused before the loader took u's extent
+    tab = TB.build_table(B_steep, f, q0, q1, "mm", transition=tr)
+    err = TB.table_errors(tab, B_steep, f, q0, q1, tr)
+    assert tab.has_map and err["direct_c_deg_max"] < 0.07 and err["comp_q_max"] < 1e-4
