@@ -164,7 +164,7 @@ def _run(out: Path, duration_s: float, seed: int, device: str, log) -> dict:
 
 
 def _model_summary(cal: Calibration) -> dict:
-    """What calibrate chose: {"model", "operators", "r_max", "b_scale", "b_smooth" (B(q)'s penalty),
+    """What calibrate chose: {"model", "operators", "r_max", "thresholds" (constant | B-proportional), "b_scale", "b_smooth" (B(q)'s penalty),
     "b_smooth_by", "image_offset_px" [du, dv] (pose estimation), "cv_rmse_deg" {play, chosen}}."""
     tr, ch = cal.transition, cal.model_choice or {}
     cands = ch.get("candidates", [])
@@ -174,6 +174,7 @@ def _model_summary(cal: Calibration) -> dict:
                   ch.get("thresholds") == "B-proportional")), None)
     bf = cal.doc.get("B_fit") or {}
     return {"model": "play" if tr.is_play else "pi", "operators": tr.n, "r_max": float(tr.r[-1]),
+            "thresholds": "B-proportional" if tr.tmap is not None else "constant",
             "b_scale": tr.b_scale, "b_smooth": bf.get("smooth"), "b_smooth_by": "model CV" if bf.get("model_cv") else
             "B-sample CV", "image_offset_px": (cal.doc.get("pose_estimation") or {}).get("image_offset_px"),
             "cv_rmse_deg": {"play": play, "chosen": pick}}
@@ -222,7 +223,9 @@ def _model_text(m: dict | None) -> str:
         return "-"
     cv = m["cv_rmse_deg"]
     txt = "pure play" if m["model"] == "play" else (f"play of {m['b_scale']:g} x the onset B + transition, "
-                                                    f"{m['operators']} operators, r <= {m['r_max']:.3g}")
+                                                    f"{m['operators']} operators, r <= {m['r_max']:.3g}"
+                                                    + (", thresholds proportional to B(q)"
+                                                       if m.get("thresholds") == "B-proportional" else ""))
     if m.get("b_smooth") is not None:
         txt += f", B(q) penalty {m['b_smooth']:g} ({m.get('b_smooth_by', 'CV')})"
     if m.get("image_offset_px"):

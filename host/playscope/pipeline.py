@@ -110,7 +110,8 @@ def model_text(cal: Calibration) -> str:
     """'play' or 'play (b B) + PI, n operators (r <= ...)', with the CV error of the choice when
     calibrate made one (transition.choose_model)."""
     tr, ch = cal.transition, cal.model_choice
-    txt = "play" if tr.is_play else (f"play ({tr.b_scale:g} B) + PI, {tr.n} operators (r <= {tr.r[-1]:.3g})")
+    txt = "play" if tr.is_play else (f"play ({tr.b_scale:g} B) + PI, {tr.n} operators (r <= {tr.r[-1]:.3g}"
+                                     + (", thresholds proportional to B(q))" if tr.tmap is not None else ")"))
     if ch:
         pick = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl"), c.get("scaled", False)) ==
                     (ch["b_scale"], ch["n_tried"], ch["r_span"], ch.get("n_ctrl"),
