@@ -40,12 +40,6 @@ def grid_for(q_min: float, q_max: float, n_max: int) -> tuple[int, int, int]:
     return x0, step, max(n, 2)
 
 
-def _writer_takes_ops() -> bool:
-    """True when the C writer has the v2 signature (operator thresholds and weights)."""
-    ffi, lib = core()
-    return len(ffi.typeof(lib.table_write).args) >= 7
-
-
 def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: float, unit: str = "mm",
                f_kind: str = "remain", generation: int = 1, pi_r=None, pi_w=None, source=None,
                f_grid: tuple[int, int] | None = None, tmap: tuple[int, int, list] | None = None) -> bytes:
@@ -56,14 +50,11 @@ def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: fl
     f_kind "remain" | "coarse"; pi_r, pi_w: operator thresholds (actuator units) and weights
     (floats, n <= PST_MAX_OPS), or None for the pure play; tmap: (x0_q16, step_q16, u_q16) the
     threshold map's grid and entries (layout 3), or None (layout 2). Returns the blob. Errors:
-    TableError when the writer refuses it (too many entries or operators) or this build's writer
-    has no operator arrays."""
+    TableError when the writer refuses it (too many entries, operators or map entries)."""
     ffi, lib = core()
     b = [int(v) for v in b_q16]
     f = [int(v) for v in f_q16]
     n_ops = 0 if pi_r is None else len(pi_r)
-    if n_ops and not _writer_takes_ops():
-        raise TableError(source, "this firmware core writes layout 1 only: no transition operators")
     hd = ffi.new("pst_header_t *")
     hd.generation = generation
     hd.q_unit = lib.PST_Q_UNIT_MM if unit == "mm" else lib.PST_Q_UNIT_DEG
@@ -76,21 +67,15 @@ def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: fl
     n_map = 0 if tmap is None else len(tmap[2])
     cap = ffi.sizeof("pst_header_v3_t") + 4 * (len(b) + len(f) + 2 * n_ops + n_map) + 16
     buf = ffi.new("uint8_t[]", cap)
+    hd.pi.n = n_ops
+    r = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_r)]) if n_ops else ffi.NULL
+    w = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_w)]) if n_ops else ffi.NULL
+    grid, g = ffi.NULL, ffi.NULL  # no map: table_write_map is table_write (layout 2, byte for byte)
     if tmap is not None:
-        hd.pi.n = n_ops
-        r = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_r)]) if n_ops else ffi.NULL
-        w = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_w)]) if n_ops else ffi.NULL
         grid = ffi.new("pst_grid_t *")
         grid.x0_q16, grid.step_q16, grid.n = int(tmap[0]), int(tmap[1]), n_map
-        size = lib.table_write_map(buf, cap, hd, ffi.new("int32_t[]", b), ffi.new("int32_t[]", f), r, w, grid,
-                                   ffi.new("int32_t[]", [int(v) for v in tmap[2]]))
-    elif _writer_takes_ops():
-        hd.pi.n = n_ops
-        r = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_r)]) if n_ops else ffi.NULL
-        w = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_w)]) if n_ops else ffi.NULL
-        size = lib.table_write(buf, cap, hd, ffi.new("int32_t[]", b), ffi.new("int32_t[]", f), r, w)
-    else:
-        size = lib.table_write(buf, cap, hd, ffi.new("int32_t[]", b), ffi.new("int32_t[]", f))
+        g = ffi.new("int32_t[]", [int(v) for v in tmap[2]])
+    size = lib.table_write_map(buf, cap, hd, ffi.new("int32_t[]", b), ffi.new("int32_t[]", f), r, w, grid, g)
     if size == 0:
         raise TableError(source, f"table_write refused the table ({len(b)} entries, {n_ops} operators, "
                          f"{n_map} map entries)")
