@@ -32,6 +32,7 @@ from .calibration import Calibration
 from .errors import InputError
 from .jsonio import plain_json
 from .sim.record import sim_config, write_simulated
+from .transition import picked_candidate
 
 DEFAULT_OUT = "out/main"
 REGISTRATION_QY_DEG = 2.0  # Table I conditions: registration error about the camera x axis (acts on Qy)
@@ -164,14 +165,13 @@ def _run(out: Path, duration_s: float, seed: int, device: str, log) -> dict:
 
 
 def _model_summary(cal: Calibration) -> dict:
-    """What calibrate chose: {"model", "operators", "r_max", "thresholds" (constant | B-proportional), "b_scale", "b_smooth" (B(q)'s penalty),
-    "b_smooth_by", "image_offset_px" [du, dv] (pose estimation), "cv_rmse_deg" {play, chosen}}."""
+    """What calibrate chose: {"model", "operators", "r_max", "thresholds" (constant |
+    B-proportional), "b_scale", "b_smooth" (B(q)'s penalty), "b_smooth_by", "image_offset_px" [du, dv] (pose estimation), "cv_rmse_deg" {play, chosen}}."""
     tr, ch = cal.transition, cal.model_choice or {}
     cands = ch.get("candidates", [])
     play = next((c["cv_rmse_deg"] for c in cands if c["n"] == 1), None)
-    pick = next((c["cv_rmse_deg"] for c in cands if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl"), c.get("scaled", False)) ==
-                 (ch.get("b_scale"), ch.get("n_tried"), ch.get("r_span"), ch.get("n_ctrl"),
-                  ch.get("thresholds") == "B-proportional")), None)
+    row = picked_candidate(ch)
+    pick = row["cv_rmse_deg"] if row else None
     bf = cal.doc.get("B_fit") or {}
     return {"model": "play" if tr.is_play else "pi", "operators": tr.n, "r_max": float(tr.r[-1]),
             "thresholds": "B-proportional" if tr.tmap is not None else "constant",

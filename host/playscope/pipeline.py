@@ -22,6 +22,7 @@ import numpy as np
 
 from .calibration import Calibration
 from .errors import InputError
+from .transition import picked_candidate
 
 
 # --------------------------------------------------------------------------- track
@@ -113,12 +114,11 @@ def model_text(cal: Calibration) -> str:
     txt = "play" if tr.is_play else (f"play ({tr.b_scale:g} B) + PI, {tr.n} operators (r <= {tr.r[-1]:.3g}"
                                      + (", thresholds proportional to B(q))" if tr.tmap is not None else ")"))
     if ch:
-        pick = next(c for c in ch["candidates"] if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl"), c.get("scaled", False)) ==
-                    (ch["b_scale"], ch["n_tried"], ch["r_span"], ch.get("n_ctrl"),
-                     ch.get("thresholds") == "B-proportional"))
+        pick = picked_candidate(ch)
         play = next((c for c in ch["candidates"] if c["n"] == 1), None)
-        txt += f", CV RMSE {pick['cv_rmse_deg']:.3g} deg"
-        if play and pick is not play:
+        if pick:
+            txt += f", CV RMSE {pick['cv_rmse_deg']:.3g} deg"
+        if pick and play and pick is not play:
             txt += f" (play {play['cv_rmse_deg']:.3g})"
     return txt
 

@@ -759,6 +759,16 @@ class ModelChoice:
         return tr, f, sign, choice
 
 
+def picked_candidate(choice: dict) -> dict | None:
+    """The row of choice["candidates"] that the model choice picked (choose_model's choice
+    dict, as stored in the calibration JSON), matched on b_scale, operators tried, r_span,
+    f's control points and threshold kind; None when no row matches (a hand-edited file)."""
+    key = (choice.get("b_scale"), choice.get("n_tried"), choice.get("r_span"), choice.get("n_ctrl"),
+           choice.get("thresholds") == "B-proportional")
+    return next((c for c in choice.get("candidates", [])
+                 if (c["b_scale"], c["n"], c["r_span"], c.get("n_ctrl"), c.get("scaled", False)) == key), None)
+
+
 def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD,
                  progress=lambda it, **kw: it, kinds: tuple[bool, ...] | None = None) -> tuple[Transition, "E.SplineFn", int, dict]:
     """Pick play vs PI, the play width and f's stiffness by cross-validation on the

@@ -131,6 +131,11 @@ def test_model_choice_names_the_threshold_kind_the_data_were_made_with(scaled):
     _, _, _, ch = T.choose_model(data, "pi", kinds=T.BOTH_KINDS)
     assert ch["thresholds"] == ("B-proportional" if scaled else "constant"), ch["candidates"]
     assert ch["thresholds_offered"] == ["constant", "B-proportional"]
+    # The picked row is found again in the stored candidates (what the summaries print).
+    row = T.picked_candidate(ch)
+    assert row is not None and row["scaled"] == scaled and row["n"] == ch["n_tried"]
+    best = min(ch["candidates"], key=lambda c: c["cv_rmse_deg"])  # the one-SE rule's limit
+    assert row["cv_rmse_deg"] <= best["cv_rmse_deg"] + best["cv_se_deg"]
 
 
 def test_a_fitted_map_table_loads_when_B_varies_tenfold():
