@@ -174,10 +174,12 @@ def _karnopp_carrier(z: np.ndarray, rate_hz: float, static: float, kin_ratio: fl
       |p'| inside the band D:   F_f = F_app if |F_app| <= Fs (stuck: p'' = 0, p' set to 0),
                                 else Fs sign(F_app)                          (breakaway)
     F_app = wn^2 (z - p) the spring force, Fs = wn^2 static (a spring stretched by ``static`` mm
-    holds the carrier), Fc = kin_ratio Fs. D = h Fs, the velocity one step of the static force
-    gives (Karnopp's band must be wide enough for a sampled velocity to land in it). Semi-implicit
-    Euler (damping implicit) with step h = 1 / (rate_hz substeps), z linear between samples; a stuck carrier whose
-    spring force stays under Fs over a whole sample is skipped. Starts stuck at p = z[0].
+    holds the carrier), Fc = kin_ratio Fs. D = 0.01 h Fs, a hundredth of the velocity one step of
+    the static force gives (a wider band, h Fs, was tried first: it stuck the carrier between
+    slips that the unit test's generator lets through); a velocity that changes sign within a step
+    while the spring force is under Fs also sticks. Semi-implicit Euler (damping implicit) with
+    step h = 1 / (rate_hz substeps), z linear between samples; a stuck carrier whose spring force
+    stays under Fs over a whole sample is skipped. Starts stuck at p = z[0].
     z: (N,) mm sampled at rate_hz; returns p (N,) mm at the same samples."""
     zl = np.asarray(z, float).tolist()
     out = [0.0] * len(zl)
