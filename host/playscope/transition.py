@@ -65,6 +65,8 @@ KFOLD = 4                              # CV origins (rolling_origins)
 CONSTANT_ONLY = (False,)               # threshold kinds: constant only (the classical PI)
 BOTH_KINDS = (False, True)             # constant, then B-proportional (ThresholdMap)
 MAP_SAMPLES_PER_CTRL = 2               # B samples per B-spline control point to offer the map
+B_FLOOR = 0.1                          # the map's B is floored at B_FLOOR x b_ref (g' <= 1/B_FLOOR)
+MAP_POINTS = 129                       # grid points of the threshold map (host float model)
 V_MAX = 1e3                            # v_i <= 1000 v_0: w_0 >= 1/(1 + 1000 (n-1)) > 0 (inverse needs 1/w_0)
 
 
@@ -117,8 +119,6 @@ def inverse_state(w: np.ndarray, p: np.ndarray) -> np.ndarray:
     return W * p + np.r_[tail[1:], 0.0]
 
 
-B_FLOOR = 0.1                          # the map's B is floored at B_FLOOR x b_ref (g' <= 1/B_FLOOR)
-MAP_POINTS = 129                       # grid points of the threshold map (host float model)
 
 
 def _interp_linear_ends(x, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
@@ -171,14 +171,15 @@ class ThresholdMap:
         return cls(z, u)
 
     def fwd(self, z):
-        """u = g(z); any shape."""
+        """u = g(z): z any shape, actuator units -> u, same shape and unit."""
         return _interp_linear_ends(z, self.z, self.u)
 
     def inv(self, u):
-        """z = g^-1(u); any shape."""
+        """z = g^-1(u): u any shape, actuator units -> z, same shape and unit."""
         return _interp_linear_ends(u, self.u, self.z)
 
     def to_json(self) -> dict:
+        """{"z": [m], "u": [m]} (docs/calibration-format.md, transition.threshold_map)."""
         return {"z": self.z.tolist(), "u": self.u.tolist()}
 
     @classmethod
@@ -230,11 +231,12 @@ class Transition:
         return lambda q: k * np.asarray(B(q), float)
 
     def to_ops(self, z: np.ndarray) -> np.ndarray:
-        """The operators' input: z, or u = g(z) with B-proportional thresholds (ThresholdMap)."""
+        """The operators' input: z, or u = g(z) with B-proportional thresholds (ThresholdMap).
+        z: any shape, actuator units; returns the same shape and unit."""
         return z if self.tmap is None else self.tmap.fwd(z)
 
     def from_ops(self, u: np.ndarray) -> np.ndarray:
-        """The inverse of to_ops."""
+        """The inverse of to_ops: u (any shape, actuator units) -> z, same shape."""
         return u if self.tmap is None else self.tmap.inv(u)
 
     def direct(self, z: np.ndarray, p0=None) -> np.ndarray:
