@@ -37,43 +37,71 @@ def _carrier(q: np.ndarray, half: np.ndarray) -> np.ndarray:
     return out
 
 
+def oracle_grid(t_q: np.ndarray, q: np.ndarray, hz: float = ORACLE_HZ) -> tuple[np.ndarray, np.ndarray]:
+    """The oracle's time grid: hz plus every sharp turning point of q (the clearance output depends
+    on the extremes of q, which a plain decimation would clip when q turns without a hold).
+    t_q, q: actuator log (s, mm). Returns (tg, qg)."""
+    dq = np.sign(np.diff(q))
+    turns = np.flatnonzero(dq[1:] * dq[:-1] < 0) + 1
+    tg = np.union1d(np.arange(t_q[0], t_q[-1], 1 / hz), t_q[turns])
+    return tg, np.interp(tg, t_q, q)
+
+
+def half_width_knots(lo: float, hi: float) -> np.ndarray:
+    """q positions (mm) of the clearance half-width's N_HALF_KNOTS knots over [lo, hi]."""
+    return np.linspace(lo, hi, N_HALF_KNOTS)
+
+
+def map_columns(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Design matrix (N, CHEB_DEG + 1) of the bending map: Chebyshev columns of the carrier
+    position x (mm) normalised over the q range [lo, hi] (clipped at 1.2 of the half span)."""
+    span = max(hi - lo, 1e-9)
+    u = np.clip((x - 0.5 * (lo + hi)) / (0.5 * span + 1e-9), -1.2, 1.2) / 1.2
+    return chebyshev.chebvander(u, CHEB_DEG)
+
+
+def linear_map(A: np.ndarray, y: np.ndarray, sel: np.ndarray) -> np.ndarray:
+    """Chebyshev coefficients (CHEB_DEG + 1,) of the map by linear least squares on rows sel
+    (bool, finite y only)."""
+    m = sel & np.isfinite(y)
+    coef, *_ = np.linalg.lstsq(A[m], y[m], rcond=None)
+    return coef
+
+
+def fit_half_widths(res, starts, span: float, max_nfev: int = 60):
+    """The half-width knots (mm) by scipy.optimize.least_squares of the residual function res
+    (knots -> residual vector), bounded 0..0.6 span, from each start in turn; the lowest cost wins."""
+    best = None
+    for h0 in starts:
+        r = least_squares(res, h0, bounds=(0.0, 0.6 * span), diff_step=1e-3, max_nfev=max_nfev)
+        if best is None or r.cost < best.cost:
+            best = r
+    return best
+
+
 def effect_free_fit(t_q: np.ndarray, q: np.ndarray, t_y: np.ndarray, y: np.ndarray, fit_sel: np.ndarray,
                     judge_sel: np.ndarray) -> dict:
     """Fit the effect-free model on samples fit_sel of (t_y, y), judge on judge_sel.
     t_q, q: actuator log (mm); t_y, y: sensor samples (deg); *_sel: bool (Ny,).
     Returns {"rmse_fit_deg", "rmse_judged_deg", "half_knots_mm"}."""
-    # A 100 Hz grid plus every sharp turning point of q: the clearance output depends on the
-    # extremes of q, which a plain decimation would clip when q turns without a hold.
-    dq = np.sign(np.diff(q))
-    turns = np.flatnonzero(dq[1:] * dq[:-1] < 0) + 1
-    tg = np.union1d(np.arange(t_q[0], t_q[-1], 1 / ORACLE_HZ), t_q[turns])
-    qg = np.interp(tg, t_q, q)
+    tg, qg = oracle_grid(t_q, q)
     lo, hi = float(qg.min()), float(qg.max())
     span = max(hi - lo, 1e-9)
-    kn = np.linspace(lo, hi, N_HALF_KNOTS)
+    kn = half_width_knots(lo, hi)
     ok = np.isfinite(y)
 
     def columns(h):
         x = _carrier(qg, np.interp(qg, kn, h))
-        xs = np.interp(t_y, tg, x)
-        u = np.clip((xs - 0.5 * (lo + hi)) / (0.5 * span + 1e-9), -1.2, 1.2) / 1.2
-        return chebyshev.chebvander(u, CHEB_DEG)
+        return map_columns(np.interp(t_y, tg, x), lo, hi)
 
     def solve(h, sel):
         A = columns(h)
-        m = sel & ok
-        coef, *_ = np.linalg.lstsq(A[m], y[m], rcond=None)
-        return A @ coef
+        return A @ linear_map(A, y, sel)
 
     def res(h):
         return (y - solve(h, fit_sel))[fit_sel & ok]
 
-    best = None
-    for h0 in (0.06, 0.2):
-        r = least_squares(res, np.full(N_HALF_KNOTS, h0 * span), bounds=(0.0, 0.6 * span), diff_step=1e-3,
-                          max_nfev=60)
-        if best is None or r.cost < best.cost:
-            best = r
+    best = fit_half_widths(res, [np.full(N_HALF_KNOTS, h0 * span) for h0 in (0.06, 0.2)], span)
     pred = solve(best.x, fit_sel)
 
     def rms(sel):
@@ -83,16 +111,23 @@ def effect_free_fit(t_q: np.ndarray, q: np.ndarray, t_y: np.ndarray, y: np.ndarr
     return {"rmse_fit_deg": rms(fit_sel), "rmse_judged_deg": rms(judge_sel), "half_knots_mm": best.x.tolist()}
 
 
+def noise_only_rmse(session, judge_sel: np.ndarray) -> float:
+    """RMSE (deg) of the measurement noise alone on judge_sel: the record minus the generator's
+    noise-free reading (session.meta["clean_reading_deg"])."""
+    e = (session.distal["c_deg"] - session.meta["clean_reading_deg"])[judge_sel]
+    return float(np.sqrt(np.mean(e * e)))
+
+
 def identifiable(session, fit_sel: np.ndarray, judge_sel: np.ndarray, margin_frac: float = 0.08,
-                 margin_abs: float = 0.05, ratio: float = 1.5, excess_min: float = 0.1) -> dict:
+                 margin_abs: float = 0.05, ratio: float = 1.5, excess_min: float = 0.1,
+                 free: dict | None = None) -> dict:
     """Is the planted effect of a generator session identifiable in situ? fit_sel/judge_sel: bool
-    over the session's sensor samples. Returns {"identifiable", "rmse_effect_free_deg",
-    "rmse_noise_only_deg"}."""
+    over the session's sensor samples; free: effect_free_fit's result on the same selections, when
+    already computed. Returns {"identifiable", "rmse_effect_free_deg", "rmse_noise_only_deg"}."""
     t_y, y = session.distal["t_s"], session.distal["c_deg"]
-    clean = session.meta["clean_reading_deg"]
-    f = effect_free_fit(session.encoder["t_s"], session.encoder["q"], t_y, y, fit_sel, judge_sel)
-    e = (y - clean)[judge_sel]
-    noise = float(np.sqrt(np.mean(e * e)))
+    f = free if free is not None else effect_free_fit(session.encoder["t_s"], session.encoder["q"], t_y, y,
+                                                      fit_sel, judge_sel)
+    noise = noise_only_rmse(session, judge_sel)
     r = f["rmse_judged_deg"]
     gap = (r - noise >= max(margin_frac * r, margin_abs) and r > ratio * noise
            and np.sqrt(max(r * r - noise * noise, 0.0)) >= excess_min)
