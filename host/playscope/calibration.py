@@ -182,6 +182,50 @@ def auto_fps(t1: np.ndarray, fps_max: float = 50.0, fps_min: float = 10.0) -> fl
 # reversals than folds a fold gets no stroke, and the choice falls back to the paper's play.
 MIN_REVERSALS_TRANSITION = T.KFOLD
 
+# f's slope floors tried, in order, when a table of the fitted f is refused for precision
+# (loadable_f): fractions of f's mean slope over its fitted range. At 1 the floor is the mean
+# slope itself, which only a straight line meets: its inverse is exact, so the last one loads.
+F_SLOPE_FLOORS = (1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0)
+
+
+def loadable_f(refit, f, sign, B, q_range, unit: str, transition=None, source=None):
+    """f as fitted when the board loads its table; else f refitted with the smallest slope floor
+    of F_SLOPE_FLOORS at which it does.
+
+    Why: eq. 9 inverts f, and the loader holds f^-1's fixed-point error to the precision ceiling
+    (calib_load, CALIB_ERR_PRECISION: 1/16 of the largest play). A monotone fit may leave f
+    nearly flat over a stretch where the record's c barely moves (the whole of data_2_2 gave
+    |f'| = 2e-4 deg/mm at one point against 9.8 median): f^-1 then jumps there and the table is
+    refused, so a valid calibration could not be flashed. The floor |f'| >= k x mean slope
+    (estimate.robust_spline's min_slope) is raised only until the loader, the one judge of
+    the table, accepts it (tables.build_table: the same table `playscope tables` writes).
+    refit(min_slope) -> (f, sign): the same estimator with the floor (deg per actuator unit).
+    B: the table's play width; q_range: (q_min, q_max); transition: the table's operators.
+    Returns (f, sign, floor or None). Errors: TableError for any other refusal (not f's)."""
+    from .native import core
+    from .tables import TableError, build_table
+
+    _, lib = core()
+
+    def loads(fn) -> bool:
+        try:
+            build_table(B, fn, q_range[0], q_range[1], unit, "remain", transition=transition, source=source)
+            return True
+        except TableError as e:
+            if e.status != lib.CALIB_ERR_PRECISION:
+                raise
+            return False
+
+    if loads(f):
+        return f, sign, None
+    mean_slope = abs(f.y_hi - f.y_lo) / max(f.hi - f.lo, 1e-12)
+    for k in F_SLOPE_FLOORS:
+        g, sg = refit(k * mean_slope)
+        if loads(g):
+            return g, sg, {"min_slope": k * mean_slope, "fraction_of_mean": k,
+                           "why": "table of the unconstrained f refused (CALIB_ERR_PRECISION: f nearly flat)"}
+    raise TableError(source, "f^-1 stays above the precision ceiling even for a straight f")
+
 
 def _command_lag(s: Session, t_enc, q, rt, rq, hyst) -> float:
     """Delay from a commanded q to the angle sensor (servo lag + sensor delay), s: the lag at
@@ -407,6 +451,12 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     if f_method not in fits:
         raise ValueError(f"f_method must be 'lsq' or 'morph', not {f_method!r}")
     f, sign = fits[f_method]
+    # The product's f must load on the board (loadable_f), for the pure play as for the PI below.
+    refit_play = {"lsq": lambda ms: E.f_remain_lsq(q_c, c_c, B, f_n, z=z_c, min_slope=ms)[:2],
+                  "morph": lambda ms: E.f_remain_morph(q_c, c_c, n_ctrl, min_slope=ms)[:2]}[f_method]
+    q_rng = (float(q.min()), float(q.max()))
+    f, sign, floor_play = loadable_f(refit_play, f, sign, B, q_rng, s.actuator_unit, source=src)
+    floor = floor_play
     alt = "morph" if f_method == "lsq" else "lsq"
     tr, choice, f_play, play_doc = T.Transition.play(), None, None, None
     if model_kind == "auto" and rt.size < MIN_REVERSALS_TRANSITION:
@@ -421,7 +471,12 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
             tr, f_pi, sign_pi, choice = T.choose_model(data, model_kind, f_n,
                                                        kinds=T.threshold_kinds(bfit.kind, on.b.size, bfit.n_ctrl))
         if not tr.is_play:
-            f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method}
+            f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method, "slope_floor": floor_play}
+            data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
+            y_f = data.ops_at_frames(tr.r, tr.b_scale, tr.tmap is not None) @ tr.w  # the PI's output at the frames
+            nc = int(choice["n_ctrl"]) if choice and choice.get("n_ctrl") else f_n
+            f_pi, sign_pi, floor = loadable_f(lambda ms: T.fit_f(y_f, data.c, nc, sign=sign_pi, min_slope=ms),
+                                              f_pi, sign_pi, tr.play_width(B), q_rng, s.actuator_unit, tr, src)
             f, sign, f_method = f_pi, sign_pi, "lsq+pi"
     doc = {
         "format": FORMAT, "actuator_unit": s.actuator_unit, "source": src,
@@ -437,7 +492,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
                            for i in np.nonzero(bfit.inconsistent)[0]],
         "warnings": warnings,
         "B": B.to_json(),
-        "f_remain": {**f.to_json(), "sign": sign, "method": f_method},
+        "f_remain": {**f.to_json(), "sign": sign, "method": f_method, "slope_floor": floor},
         "f_fit": {"n_ctrl": f_n, **{k: v for k, v in f_cv.items() if k != "n_ctrl"}},
         "f_remain_alt": {**fits[alt][0].to_json(), "sign": fits[alt][1], "method": alt},
         "f_coarse": {"q_per_rad": s.robot.q_per_rad},

@@ -465,7 +465,7 @@ def _slope_matrix(t: np.ndarray, n_ctrl: int, degree: int = 3) -> np.ndarray:
 
 def robust_spline(x: np.ndarray, y: np.ndarray, n_ctrl: int, lo: float, hi: float, smooth: float = 1e-3,
                   monotone: int = 0, iters: int = 15, huber_k: float = 1.345, sigma: np.ndarray | None = None,
-                  lower: float | None = None, max_slope: float | None = None):
+                  lower: float | None = None, max_slope: float | None = None, min_slope: float = 0.0):
     """Robust cubic B-spline fit y ~ s(x) with n_ctrl control points on [lo, hi].
 
     Least squares with a small second-difference penalty on the coefficients (P-spline,
@@ -476,7 +476,11 @@ def robust_spline(x: np.ndarray, y: np.ndarray, n_ctrl: int, lo: float, hi: floa
     less the median sigma^2, a random-effects weighting), times the Huber weight of the
     standardised residual. monotone=+1/-1 constrains the coefficients to be
     non-decreasing/non-increasing (sufficient for a monotone spline), solved by
-    scipy.optimize.lsq_linear. lower / max_slope: coefficients >= lower (so s >= lower) and
+    scipy.optimize.lsq_linear; min_slope >= 0 (y per x) then holds |s'| >= min_slope on [lo, hi]:
+    s' is the quadratic spline with coefficients 3 (c_{j+1} - c_j) / (t_{j+4} - t_{j+1}) (de Boor,
+    "A Practical Guide to Splines", X (12)), a convex combination of them at every x, so
+    bounding each difference by min_slope (t_{j+4} - t_{j+1}) / 3 bounds s' (the tables' f^-1
+    needs f's slope away from 0: calibration.loadable_f). lower / max_slope: coefficients >= lower (so s >= lower) and
     |s'| <= max_slope (through the derivative's coefficients, _slope_matrix), a quadratic
     programme solved by scipy.optimize.minimize (SLSQP) from the unconstrained solution.
     x, y: (M,). Returns (BSpline, weights (M,) normalised to max 1).
@@ -495,7 +499,7 @@ def robust_spline(x: np.ndarray, y: np.ndarray, n_ctrl: int, lo: float, hi: floa
     # Monotone: coef = T @ theta with theta[1:] >= 0 (sign-adjusted cumulative sum).
     if monotone:
         T = np.tril(np.ones((n_ctrl, n_ctrl))) * np.where(np.arange(n_ctrl) == 0, 1.0, float(monotone))[None, :]
-        lb = np.r_[-np.inf, np.zeros(n_ctrl - 1)]
+        lb = np.r_[-np.inf, float(min_slope) * (t[4:n_ctrl + 3] - t[1:n_ctrl]) / 3.0]
     constrained = lower is not None or max_slope is not None
     if constrained:
         from scipy.optimize import LinearConstraint, minimize
@@ -789,19 +793,21 @@ def characteristic(t_enc, q, t_f, c_f, t_delay_s: float) -> tuple[np.ndarray, np
 
 
 def f_remain_lsq(q_c: np.ndarray, c: np.ndarray, B, n_ctrl: int = 14, smooth: float = 1e-3,
-                 z_range: tuple[float, float] | None = None, z: np.ndarray | None = None):
+                 z_range: tuple[float, float] | None = None, z: np.ndarray | None = None,
+                 min_slope: float = 0.0):
     """f_remain by play-consistent least squares (our estimator).
 
     With B fixed from the onsets, the play operator gives the centre z[k] from q alone
     (eq. 3), and the model says c[k] = f(z[k]); f is then a monotone robust spline
     regression of c on z, using every frame (transitions included) instead of the loop's
     outline only. q_c, c: (F,) in time order; z: the play centre if the caller has it
-    (model.play_operator(q_c, B)). Returns (SplineFn, sign of f', z (F,)).
+    (model.play_operator(q_c, B)); min_slope: |f'| >= min_slope, deg per actuator unit
+    (robust_spline). Returns (SplineFn, sign of f', z (F,)).
     """
     z = model.play_operator(q_c, B) if z is None else np.asarray(z, float)
     sign = 1 if np.corrcoef(z, c)[0, 1] >= 0 else -1
     lo, hi = (float(z.min()), float(z.max())) if z_range is None else z_range
-    spl, _ = robust_spline(z, c, n_ctrl, lo, hi, smooth, monotone=sign)
+    spl, _ = robust_spline(z, c, n_ctrl, lo, hi, smooth, monotone=sign, min_slope=min_slope)
     return SplineFn(spl, lo, hi, linear_ends=True), sign, z
 
 
@@ -887,7 +893,7 @@ def choose_f_ctrl(z: np.ndarray, c: np.ndarray, splits, grid=F_CTRL_GRID, smooth
 
 
 def f_remain_morph(q_c: np.ndarray, c: np.ndarray, n_ctrl: int = 14, size: int = 512, close_px: int = 7,
-                   smooth: float = 1e-3):
+                   smooth: float = 1e-3, min_slope: float = 0.0):
     """f_remain by the paper's method (section IV): the characteristic drawn as an image,
     holes filled by morphology, then for each row (a value of c) the middle between the
     leftmost and rightmost filled pixels (extremal horizontal values), then a spline.
@@ -923,7 +929,7 @@ def f_remain_morph(q_c: np.ndarray, c: np.ndarray, n_ctrl: int = 14, size: int =
         c_row.append(chi - (r - m) / sy)
     q_mid, c_row = np.array(q_mid), np.array(c_row)
     sign = 1 if np.corrcoef(q_c, c)[0, 1] >= 0 else -1
-    spl, _ = robust_spline(q_mid, c_row, n_ctrl, qlo, qhi, smooth, monotone=sign)
+    spl, _ = robust_spline(q_mid, c_row, n_ctrl, qlo, qhi, smooth, monotone=sign, min_slope=min_slope)
     return SplineFn(spl, qlo, qhi, linear_ends=True), sign, (q_mid, c_row)
 
 

@@ -26,7 +26,10 @@ from .native import core, from_q16, to_q16
 
 
 class TableError(InputError):
-    """A table that cannot be written, stamped or loaded (one line: source and reason)."""
+    """A table that cannot be written, stamped or loaded (one line: source and reason).
+    status: the loader's calib_status_t when calib_load refused it, else None."""
+
+    status: int | None = None
 
 
 # --------------------------------------------------------------------------- writing
@@ -126,7 +129,9 @@ class CalibTable:
         self.cal = ffi.new("calib_t *")
         st = lib.calib_load(self.cal, self._buf, len(self.blob))
         if st != lib.CALIB_OK:
-            raise TableError(source, f"table refused by calib_load: {ffi.string(lib.calib_status_str(st)).decode()}")
+            err = TableError(source, f"table refused by calib_load: {ffi.string(lib.calib_status_str(st)).decode()}")
+            err.status = int(st)  # calib_status_t, for callers that can mend one reason (calibration.loadable_f)
+            raise err
 
     @property
     def has_map(self) -> bool:

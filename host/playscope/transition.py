@@ -410,11 +410,13 @@ class FitData:
         return self._cache[key]
 
 
-def _fit_f(y, c, n_ctrl, smooth, sign=None):
-    """f: monotone robust cubic spline of c on y over y's range, linear ends (as f_remain)."""
+def fit_f(y, c, n_ctrl, smooth=1e-3, sign=None, min_slope: float = 0.0):
+    """f: monotone robust cubic spline of c on y over y's range, linear ends (as f_remain).
+    y, c: (F,) operator output (actuator units) and angle (deg) at the frames; min_slope:
+    |f'| >= min_slope, deg per actuator unit (estimate.robust_spline). Returns (SplineFn, sign)."""
     sign = sign or (1 if np.corrcoef(y, c)[0, 1] >= 0 else -1)
     lo, hi = float(y.min()), float(y.max())
-    spl, _ = E.robust_spline(y, c, n_ctrl, lo, hi, smooth, monotone=sign)
+    spl, _ = E.robust_spline(y, c, n_ctrl, lo, hi, smooth, monotone=sign, min_slope=min_slope)
     return E.SplineFn(spl, lo, hi, linear_ends=True), sign
 
 
@@ -525,7 +527,7 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
     sign = 1 if f.s_lo + f.s_hi >= 0 else -1
     if robust_f and not _strictly_monotone(f, lo, hi, sign):
         # The table needs f strictly monotone (eq. 9's f^-1): only then the constrained fit.
-        f, sign = _fit_f(y, c, n_ctrl, smooth)
+        f, sign = fit_f(y, c, n_ctrl, smooth)
     return w, f, sign, float(np.sqrt(np.mean((f(y) - c) ** 2)))
 
 
