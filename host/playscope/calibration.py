@@ -478,6 +478,12 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
             f_pi, sign_pi, floor = loadable_f(lambda ms: T.fit_f(y_f, data.c, nc, sign=sign_pi, min_slope=ms),
                                               f_pi, sign_pi, tr.play_width(B), q_rng, s.actuator_unit, tr, src)
             f, sign, f_method = f_pi, sign_pi, "lsq+pi"
+    for name, fl in (("f_remain" if tr.is_play else "the pure play's f_remain", floor_play),
+                     ("f of the transition model", None if tr.is_play else floor)):
+        if fl:
+            warnings.append(f"{name} held to |f'| >= {fl['min_slope']:.3g} deg per {s.actuator_unit} "
+                            f"({fl['fraction_of_mean']:g} of its mean slope): fitted freely it was nearly flat "
+                            f"somewhere and the board refused to invert it (slope_floor in the JSON)")
     doc = {
         "format": FORMAT, "actuator_unit": s.actuator_unit, "source": src,
         "q_range": [float(q.min()), float(q.max())],
