@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from scipy.linalg import cho_factor, cho_solve
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from . import estimate as E
 from . import model
@@ -509,7 +509,7 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
         # F x (n-1) Jacobian per step): "lsmr"'s inexact steps stalled short of the optimum on
         # some folds (their RMSE up to 60 % above exact's) and were slower. The SVD of a tall,
         # thin matrix is fastest on one BLAS thread (threaded it took twice as long on 2 cores).
-        with threadpool_limits(1, user_api="blas"):
+        with _blas_controller().limit(limits=1, user_api="blas"):
             v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, v_max), ftol=1e-6, xtol=1e-5,
                                   max_nfev=60, tr_solver="exact").x
     fit_weights.last_v = v[1:].copy()
@@ -529,6 +529,14 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
         # The table needs f strictly monotone (eq. 9's f^-1): only then the constrained fit.
         f, sign = fit_f(y, c, n_ctrl, smooth)
     return w, f, sign, float(np.sqrt(np.mean((f(y) - c) ** 2)))
+
+
+def _blas_controller() -> ThreadpoolController:
+    """One threadpoolctl controller for the process: building one scans every loaded library
+    (2 ms, 0.3 s over a calibration's fits); its limit() is then a few microseconds."""
+    if not hasattr(_blas_controller, "c"):
+        _blas_controller.c = ThreadpoolController()
+    return _blas_controller.c
 
 
 def _strictly_monotone(f, lo: float, hi: float, sign: int, n: int = 2001) -> bool:
