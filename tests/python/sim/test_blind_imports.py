@@ -97,7 +97,17 @@ def test_generator_imports_no_diagnosis_or_effect_forms():
     # What it may use: the session container and the excitation trajectory (no model form).
     assert mods <= {"playscope", "playscope.session", "playscope.atomic", "playscope.errors", "playscope.sim",
                     "playscope.sim.withheld", "playscope.sim.withheld.plant",
-                    "playscope.sim.withheld.variants", "playscope.sim.withheld.oracle"}, mods
+                    "playscope.sim.withheld.variants", "playscope.sim.withheld.oracle",
+                    "playscope.sim.withheld.recover"}, mods
+
+
+def test_the_recoverability_oracle_is_on_the_generator_side():
+    # recover.py knows the planted effect's form (the generator's own hooks): it is walked with the
+    # generator, and nothing in the diagnosis, the harness aside, may import it.
+    assert "sim/withheld/recover.py" in GENERATOR
+    diagnosis = sorted(str(p.relative_to(PKG)) for p in (PKG / "diagnose").glob("*.py") if p.name != "selftest.py")
+    bad = sorted(f for f in diagnosis if "playscope.sim.withheld.recover" in _closure([f]))
+    assert not bad, f"the diagnosis imports the recoverability oracle: {bad}"
 
 
 def test_no_name_defined_on_both_sides():

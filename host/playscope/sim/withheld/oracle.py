@@ -52,12 +52,30 @@ def half_width_knots(lo: float, hi: float) -> np.ndarray:
     return np.linspace(lo, hi, N_HALF_KNOTS)
 
 
-def map_columns(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """Design matrix (N, CHEB_DEG + 1) of the bending map: Chebyshev columns of the carrier
-    position x (mm) normalised over the q range [lo, hi] (clipped at 1.2 of the half span)."""
+def _normalised(x, lo: float, hi: float):
     span = max(hi - lo, 1e-9)
-    u = np.clip((x - 0.5 * (lo + hi)) / (0.5 * span + 1e-9), -1.2, 1.2) / 1.2
-    return chebyshev.chebvander(u, CHEB_DEG)
+    return np.clip((x - 0.5 * (lo + hi)) / (0.5 * span + 1e-9), -1.2, 1.2) / 1.2
+
+
+def map_columns(x: np.ndarray, lo: float, hi: float, inside: tuple[float, float] | None = None) -> np.ndarray:
+    """Design matrix (N, CHEB_DEG + 1) of the bending map: Chebyshev columns of the carrier
+    position x (mm) normalised over the q range [lo, hi] (clipped at 1.2 of the half span).
+    inside: None (the effect-free oracle's map), or the carrier range (x_lo, x_hi) the map was
+    fitted on, beyond which the columns continue along their tangent at the edge (a degree-15 series
+    is not extrapolated: 0.05 mm beyond its data it was measured 0.4-0.9 deg off)."""
+    u = _normalised(x, lo, hi)
+    A = chebyshev.chebvander(u, CHEB_DEG)
+    if inside is not None:
+        ue = _normalised(np.asarray(inside, float), lo, hi)
+        D = np.zeros((CHEB_DEG + 1, CHEB_DEG + 1))   # column j: Chebyshev coefficients of T_j'
+        for j in range(1, CHEB_DEG + 1):
+            d = chebyshev.chebder(np.eye(CHEB_DEG + 1)[j])
+            D[:d.size, j] = d
+        for e, out in ((ue[0], u < ue[0]), (ue[1], u > ue[1])):
+            if out.any():
+                Ve = chebyshev.chebvander(np.array([e]), CHEB_DEG)
+                A[out] = Ve + (u[out] - e)[:, None] * (Ve @ D)
+    return A
 
 
 def linear_map(A: np.ndarray, y: np.ndarray, sel: np.ndarray) -> np.ndarray:
@@ -68,12 +86,16 @@ def linear_map(A: np.ndarray, y: np.ndarray, sel: np.ndarray) -> np.ndarray:
     return coef
 
 
-def fit_half_widths(res, starts, span: float, max_nfev: int = 60):
+def fit_half_widths(res, starts, span: float, max_nfev: int = 60, extra_bounds=()):
     """The half-width knots (mm) by scipy.optimize.least_squares of the residual function res
-    (knots -> residual vector), bounded 0..0.6 span, from each start in turn; the lowest cost wins."""
+    (knots -> residual vector), bounded 0..0.6 span, from each start in turn; the lowest cost wins.
+    extra_bounds: (lo, hi) of parameters appended after the knots (each start then carries them)."""
+    lb = [0.0] * N_HALF_KNOTS + [b[0] for b in extra_bounds]
+    ub = [0.6 * span] * N_HALF_KNOTS + [b[1] for b in extra_bounds]
     best = None
     for h0 in starts:
-        r = least_squares(res, h0, bounds=(0.0, 0.6 * span), diff_step=1e-3, max_nfev=max_nfev)
+        r = least_squares(res, h0, bounds=(lb, ub) if extra_bounds else (0.0, 0.6 * span), diff_step=1e-3,
+                          max_nfev=max_nfev)
         if best is None or r.cost < best.cost:
             best = r
     return best
