@@ -86,16 +86,17 @@ def linear_map(A: np.ndarray, y: np.ndarray, sel: np.ndarray) -> np.ndarray:
     return coef
 
 
-def fit_half_widths(res, starts, span: float, max_nfev: int = 60, extra_bounds=()):
+def fit_half_widths(res, starts, span: float, max_nfev: int = 60, extra_bounds=(), ftol: float = 1e-8):
     """The half-width knots (mm) by scipy.optimize.least_squares of the residual function res
     (knots -> residual vector), bounded 0..0.6 span, from each start in turn; the lowest cost wins.
-    extra_bounds: (lo, hi) of parameters appended after the knots (each start then carries them)."""
+    extra_bounds: (lo, hi) of parameters appended after the knots (each start then carries them);
+    ftol: least_squares' relative cost tolerance."""
     lb = [0.0] * N_HALF_KNOTS + [b[0] for b in extra_bounds]
     ub = [0.6 * span] * N_HALF_KNOTS + [b[1] for b in extra_bounds]
     best = None
     for h0 in starts:
         r = least_squares(res, h0, bounds=(lb, ub) if extra_bounds else (0.0, 0.6 * span), diff_step=1e-3,
-                          max_nfev=max_nfev)
+                          max_nfev=max_nfev, ftol=ftol)
         if best is None or r.cost < best.cost:
             best = r
     return best

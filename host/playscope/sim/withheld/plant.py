@@ -57,7 +57,29 @@ def perturbed(rng: np.random.Generator) -> Plant:
 
 def clearance(q: np.ndarray, below: np.ndarray, above: np.ndarray, x0: float | None = None) -> np.ndarray:
     """Carrier position x (N,) mm: x stays put unless q - x leaves [-above, below] (the tendon
-    takes up the slack and drags the carrier). below/above: (N,) slack on each side, mm."""
+    takes up the slack and drags the carrier). below/above: (N,) slack on each side, mm.
+
+    Each step clamps x to [q - below, q + above], and clamps compose into clamps ([a1, b1] then
+    [a2, b2] is [clamp(a1, a2, b2), clamp(b1, a2, b2)]), so a parallel prefix of log2(N) vector
+    passes gives the sequential recursion's values bit for bit (it only selects edge values; 4x
+    faster on a 60 000-sample record). Where an edge pair is inverted (q - below > q + above) the
+    recursion's if/elif is not a clamp: the loop is run instead (``_clearance_loop``)."""
+    lo = np.asarray(q, float) - below
+    hi = np.asarray(q, float) + above
+    if lo.size == 0 or np.any(lo > hi):
+        return _clearance_loop(q, below, above, x0)
+    a, b = lo.copy(), hi.copy()
+    s = 1
+    while s < a.size:
+        na = np.minimum(np.maximum(a[:-s], a[s:]), b[s:])
+        nb = np.minimum(np.maximum(b[:-s], a[s:]), b[s:])
+        a[s:], b[s:] = na, nb
+        s *= 2
+    return np.minimum(np.maximum(float(q[0] if x0 is None else x0), a), b)
+
+
+def _clearance_loop(q: np.ndarray, below: np.ndarray, above: np.ndarray, x0: float | None = None) -> np.ndarray:
+    """The sequential form of ``clearance`` (the reference; used for inverted edges)."""
     out = np.empty(q.size)
     x = float(q[0] if x0 is None else x0)
     lo_e = (q - below).tolist()

@@ -63,6 +63,8 @@ RULE_SHARE = 0.25       # recoverable: r_eff - n <= RULE_SHARE (r_free - n) (the
 GRID_POINTS = 9         # log grid of the strength over [min/4, 4 max] of the variant's strengths
 GRID_NFEV = 30          # least_squares iterations of the knots at each grid point (warm-started)
 GRID_ALT = 3            # alternations at each grid point (effects after the bend)
+SEARCH_FTOL = 1e-4      # the knots' least_squares stops when the cost changes by less (grid, refine)
+FINAL_FTOL = 1e-6
 REFINE_ITER = 6         # bounded Brent iterations on log strength
 FINAL_NFEV = 30         # the final refit at the chosen strength
 FINAL_ALT = 4
@@ -73,27 +75,6 @@ FLAT_STARTS = (0.06, 0.2)   # the final refit also starts from the effect-free o
 CENTRE_SCAN = 0.15      # nuisance q_c: within mid +- CENTRE_SCAN x span of q, fitted with the knots ...
 CENTRE_STEPS = 19       # ... from the previous centre and from the best of a scan at this many points
 RNG_SEED = 20240610     # the oracle's own random stream for hooks that draw (a sensor's jitter)
-
-
-def _clearance(q: np.ndarray, below: np.ndarray, above: np.ndarray) -> np.ndarray:
-    """plant.clearance, the same values by a parallel prefix: each step is a clamp to
-    [q - below, q + above], clamps compose into clamps ([a1, b1] then [a2, b2] is
-    [clamp(a1, a2, b2), clamp(b1, a2, b2)]), so log2(N) vector passes replace the sequential loop
-    (3x faster on the 60 000-sample state grid). Only selects edge values, so the result is bit
-    for bit the loop's; falls back to the loop when an edge pair is inverted (the loop's if/elif
-    then differs from a clamp). (N,) mm."""
-    lo, hi = q - below, q + above
-    if np.any(lo > hi):
-        return clearance(q, below, above)
-    a, b = lo.copy(), hi.copy()
-    s = 1
-    while s < a.size:
-        a1, b1 = a[:-s], b[:-s]
-        na = np.minimum(np.maximum(a1, a[s:]), b[s:])
-        nb = np.minimum(np.maximum(b1, a[s:]), b[s:])
-        a[s:], b[s:] = na, nb
-        s *= 2
-    return np.minimum(np.maximum(float(q[0]), a), b)
 
 
 class _InSituPlant:
@@ -149,6 +130,7 @@ class _Oracle:
         self.newton_refused = 0      # refused Gauss-Newton steps; NEWTON_REFUSALS of them before any was
         self.newton_accepted = 0     # accepted: the derivative is useless (a staircase), none tried after
         self.centre_in_fit = True    # the nuisance centre fitted with the knots (hooks before the bend)
+        self.ftol = SEARCH_FTOL      # least_squares' relative cost tolerance (FINAL_FTOL for the last refit)
 
     # ------------------------------------------------------------------ the pipeline of plant.run
     def carrier(self, k: float, q0: float, h: np.ndarray) -> dict:
@@ -165,7 +147,7 @@ class _Oracle:
         if ctx["x"] is None:
             if not (np.array_equal(ctx["below"], half) and np.array_equal(ctx["above"], half)):
                 self.acted.add("clearance")
-            ctx["x"] = _clearance(ctx["qa"], ctx["below"], ctx["above"])
+            ctx["x"] = clearance(ctx["qa"], ctx["below"], ctx["above"])
         else:
             self.acted.add("clearance")
         x = ctx["x"]
@@ -242,7 +224,7 @@ class _Oracle:
             hs = [h] + ([np.full(h.size, f * self.span) for f in FLAT_STARTS] if fresh and it == 0 else [])
             starts = [np.append(hh, np.clip(q0, lo_c, hi_c)) for hh in hs] if nuisance else hs
             p = fit_half_widths(res, starts, self.span, max_nfev=nfev,
-                                extra_bounds=[(lo_c, hi_c)] if nuisance else ()).x
+                                extra_bounds=[(lo_c, hi_c)] if nuisance else (), ftol=self.ftol).x
             h, q0 = (p[:N_HALF_KNOTS], float(p[-1])) if nuisance else (p, q0)
             ctx = self.carrier(k, q0, h)
             if nuisance and not plain:
@@ -371,7 +353,9 @@ def recoverable(session, variant, fit_sel: np.ndarray, judge_sel: np.ndarray, fr
     o.v = None
     ctx = o.carrier(0.0, o.plant._q_c, h_free)
     coef_free = linear_map(o.columns(ctx["x"], o.t_y), o.y, o.fit)
+    o.ftol = FINAL_FTOL
     base = o.refit(0.0, o.plant._q_c, h_free, coef_free, 1, FINAL_NFEV, fresh=True)
+    o.ftol = SEARCH_FTOL
     o.v, o.acted = v, set()
     start = base
 
@@ -403,6 +387,7 @@ def recoverable(session, variant, fit_sel: np.ndarray, judge_sel: np.ndarray, fr
     for f in tried:
         if f.rmse_fit < best.rmse_fit:
             best = f
+    o.ftol = FINAL_FTOL
     final = o.at(best.k, best, nuisance, FINAL_ALT, FINAL_NFEV, fresh=True, rounds=2)
     if final.rmse_fit > best.rmse_fit:
         final = best
