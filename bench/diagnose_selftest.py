@@ -5,8 +5,10 @@ Part 1: records from the withheld-effect generator (host/playscope/sim/withheld:
 least two physically different implementations of every library effect, each at two strengths),
 4 nulls, 2 out-of-library effects (tip vibration, ratcheting backlash); identity hidden. Every
 planted case counts. Prints the per-effect table with "identifiable in situ?" (the generator's own
-effect-free oracle), the confusion matrix, top-1, false discoveries, and the recovered shrink
-against the generator's truth on the test part.
+effect-free oracle) and "recoverable in situ?" (its oracle that knows the planted effect's form and
+fits the rest in situ, sim/withheld/recover.py), the confusion matrix, top-1, false discoveries,
+and the recovered shrink against the generator's truth on the test part, over the identifiable
+and over the recoverable cases.
 Part 2: the catheter recordings (read in place, never copied; skipped when absent): fit on the
 first half, select effects on the next quarter, report on the last quarter (test), per file.
 
@@ -15,7 +17,7 @@ else ../shared/data/real/catheter next to the repository.
 
 Usage: .venv/bin/python bench/diagnose_selftest.py [--quick] [--workers 2] [--json out.json]
        [--real-only] [--catheter DIR] [--effects a,b] [--nulls N] [--no-ool] [--seed S]
-       [--selftest-only]
+       [--selftest-only] [--no-recover]
        (a subset while developing, e.g. --effects viscous_hysteresis,cable_elongation --nulls 0
        --no-ool --seed 1000 --selftest-only; the reported figures are seed 0 with every case)
        (full: 42 cases, ~20 min on 2 busy shared cores; --quick: strong strength only, 2 nulls, 22 cases,
@@ -53,6 +55,8 @@ def main(argv=None) -> int:
     ap.add_argument("--nulls", type=int, help="number of null cases (default 4, --quick 2)")
     ap.add_argument("--no-ool", action="store_true", help="leave out the out-of-library cases")
     ap.add_argument("--seed", type=int, default=0, help="case seed (0 is the reported one; develop on others)")
+    ap.add_argument("--no-recover", action="store_true",
+                    help="skip the recoverability oracle (no 'recoverable' column; about a third faster)")
     a = ap.parse_args(argv)
     out = {}
     if not a.real_only:
@@ -64,7 +68,7 @@ def main(argv=None) -> int:
                 ap.error(f"unknown effect(s) {', '.join(bad)}; choose from {', '.join(selftest.LIB_EFFECTS)}")
         nulls = a.nulls if a.nulls is not None else (2 if a.quick else 4)
         sc = selftest.run("strong" if a.quick else "both", nulls, not a.no_ool, seed=a.seed, workers=a.workers,
-                          effects=effects, log=lambda s: print(s, flush=True))
+                          effects=effects, log=lambda s: print(s, flush=True), recover=not a.no_recover)
         print(selftest.format_report(sc))
         out["selftest"] = sc
     folder = catheter_dir(a.catheter, default=ROOT.parent / "shared" / "data" / "real" / "catheter")

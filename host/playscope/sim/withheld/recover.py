@@ -69,7 +69,8 @@ REFINE_ITER = 6         # bounded Brent iterations on log strength
 FINAL_NFEV = 30         # the final refit at the chosen strength
 FINAL_ALT = 4
 NEWTON_ITER = 2         # Gauss-Newton steps of the map after each alternation (effects after the bend)
-NEWTON_REFUSALS = 3     # this many refused steps before any accepted: the derivative is taken as useless
+NEWTON_TRIAL = 3        # after this many steps, Gauss-Newton is kept only if it gained on average ...
+NEWTON_MIN_GAIN = 0.01  # ... this share of the fit RMSE a step (a staircase's derivative is useless)
 NEWTON_STEP_DEG = 1e-3  # forward-difference step of the map's coefficients (deg)
 FLAT_STARTS = (0.06, 0.2)   # the final refit also starts from the effect-free oracle's flat knots (x span)
 CENTRE_SCAN = 0.15      # nuisance q_c: within mid +- CENTRE_SCAN x span of q, fitted with the knots ...
@@ -127,8 +128,8 @@ class _Oracle:
         self.guard = True        # the map continues along its tangent outside the fitted carrier range
         self.plant = _InSituPlant(0.5 * (self.lo + self.hi), self.lo, self.hi, np.zeros(1))
         self.acted: set[str] = set()
-        self.newton_refused = 0      # refused Gauss-Newton steps; NEWTON_REFUSALS of them before any was
-        self.newton_accepted = 0     # accepted: the derivative is useless (a staircase), none tried after
+        self.newton_tried = 0        # Gauss-Newton steps tried, and their summed relative gain in fit RMSE:
+        self.newton_gain = 0.0       # under NEWTON_MIN_GAIN a step on average, no more are tried
         self.centre_in_fit = True    # the nuisance centre fitted with the knots (hooks before the bend)
         self.ftol = SEARCH_FTOL      # least_squares' relative cost tolerance (FINAL_FTOL for the last refit)
 
@@ -240,10 +241,13 @@ class _Oracle:
 
     def newton(self, ctx: dict, k: float, coef: np.ndarray, pred: np.ndarray, d: np.ndarray):
         """One Gauss-Newton step of the map through the whole pipeline after the bend (Jacobian by
-        forward differences of the coefficients, the knots held), kept only if it lowers the fit
-        RMSE (a staircase or a switch has no useful derivative: the step is then refused)."""
-        if self.newton_refused >= NEWTON_REFUSALS and self.newton_accepted == 0:
+        forward differences of the coefficients, the knots held; a full then a half step), kept
+        only if it lowers the fit RMSE. A staircase or a switch has no useful derivative: once the
+        steps tried gain under NEWTON_MIN_GAIN on average, none is tried (its 16 evaluations of
+        the pipeline are the cost of a refit for a slow hook)."""
+        if self.newton_tried >= NEWTON_TRIAL and self.newton_gain < NEWTON_MIN_GAIN * self.newton_tried:
             return coef, pred, d
+        self.newton_tried += 1
         J = np.empty((pred.size, coef.size))
         for j in range(coef.size):
             dc = np.zeros(coef.size)
@@ -253,10 +257,10 @@ class _Oracle:
         step = linear_map(J, self.y - pred, self.fit)
         for a in (1.0, 0.5):
             p2, d2, _, _ = self.post(ctx, k, coef + a * step)
-            if self.rms_fit(p2) < r0:
-                self.newton_accepted += 1
+            r2 = self.rms_fit(p2)
+            if r2 < r0:
+                self.newton_gain += (r0 - r2) / r0
                 return coef + a * step, p2, d2
-        self.newton_refused += 1
         return coef, pred, d
 
     def centre_bounds(self) -> tuple[float, float]:
