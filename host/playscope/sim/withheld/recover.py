@@ -4,43 +4,59 @@ The blind self-test asks the diagnosis to recover the shrink of a planted effect
 the truth on the recoverable cases, measured against the generator's truth, not an oracle of the
 diagnoser's" (issue 10). Which cases are recoverable is decided here, on the generator's side, by
 an experiment: could a model that has the planted effect's exact form, but has to estimate
-everything else in situ like any user, recover 75 % of what the truth recovers?
+everything else in situ like any user, take out 75 % of what the effect-free model leaves over the
+noise? Knowing the form is legitimate here because this is the generator's oracle; nothing of it
+reaches the diagnosis.
 
 What the oracle knows: the planted variant's hook (``variants.Variant.fn``), applied at the stage
-where the generator applies it (plant.run: "actuator", "clearance", "carrier", "bend", "sensor",
-"reading"), to the oracle's own intermediate signals (its actuator position, clearance edges,
-carrier position, bend, sample times and reading), on the plant's own state grid (STATE_HZ: the
-hooks' time constants are written for it).
+where plant.run applies it ("actuator", "clearance", "carrier", "bend", "sensor", "reading") to the
+oracle's own intermediate signals (actuator position qa, clearance edges below/above, carrier
+position x, bend c, sample times t_seen, reading cs; the ctx keys of plant.run), on the plant's
+state grid (STATE_HZ: the hooks' time constants and integrators are written for it).
 What it does not know, and fits on the fit samples only:
-  - the base model: the effect-free oracle's model (oracle.py: clearance half-width h(q) piecewise
-    linear at 9 knots, evaluated at the actuator position the hook leaves; bending map a
-    Chebyshev series of degree 15 in the normalised carrier position), its knots by
-    least_squares warm-started at the effect-free fit, its map by linear least squares;
-  - the strength: a log grid of GRID_POINTS over [min/4, max x 4] of the variant's ``strengths``
-    (the planted value is never read), the base refitted at each point, then a bounded Brent
-    search on log strength between the grid neighbours of the best point, then a final refit;
-  - any plant quantity the hook reads (``ctx["plant"]``): answered by ``_InSituPlant`` from the
-    oracle's own fit. The hooks read only the straight position q_c (the dead zones' centre),
-    fitted as a nuisance by a scan over the middle 30 % of the q range (the form says "near
-    straight", the excitation is centred on it) and a bounded refinement; and bend(x) (the distal
-    dead zone's c0 = bend(q_c)), the oracle's own map. Any other plant attribute raises.
-How the base is refitted with the effect in: an effect before the bend (actuator, clearance,
-carrier) changes the carrier position, so at a given strength the map stays linear (variable
-projection: the knots by least_squares, the map solved inside). A sensor hook that only moves the
-sample times (a transport delay) is linear too (the map's columns at the seen times). Any other
-effect after the bend (a stiction on the bend, a distal dead zone, a creep, an additive reading,
-a buffered sensor) is refitted by a fixed small number of alternations: the effect's contribution
-d = prediction - base, from the current base, is held while the base (knots and map) is refitted to
-y - d, then recomputed from the new base; the alternation with the lowest fit RMSE is kept (its
-prediction is always the full pipeline's, never the linearised one).
+  - the base model: the effect-free oracle's (oracle.py): clearance half-width h piecewise linear
+    at 9 knots, evaluated at the actuator position the hook leaves; bending map a Chebyshev series
+    of degree 15 in the normalised carrier position. Knots by least_squares, map by linear least
+    squares. One change, applied to both figures of the rule: outside the carrier range seen on
+    the fit samples the map continues along its tangent (``map_columns(inside=...)``); the series
+    itself, 0.05 mm beyond its data at the top of the range, was measured 0.4-0.9 deg off (dev
+    seed 1000), which would decide small cases by extrapolation rather than by the effect.
+  - the strength: a log grid of GRID_POINTS over [min/4, 4 max] of the variant's ``strengths``
+    (the planted value is never read; the grid cannot reach zero), each point refitted from its
+    weaker neighbour's fit (continuation; the first from the effect-free fit), then bounded Brent
+    on log strength between the best point's neighbours, then a final refit at the best strength
+    (more alternations, also from the effect-free oracle's flat knots).
+  - any plant quantity the hook reads (``ctx["plant"]``), answered by ``_InSituPlant`` from the
+    oracle's own fit; any other attribute raises. The hooks read only the straight position q_c
+    (the dead zones' centre, a nuisance fitted within the middle 30 % of the q range: the form
+    says "near straight" and the excitation is centred on it) and bend(x) (the distal dead zone's
+    c0 = bend(q_c): the oracle's own map).
+How the base is refitted with the effect in. Before the bend (actuator, clearance, carrier) the
+effect changes the carrier position, and the map stays linear: variable projection, the knots
+(with the centre, for the actuator dead zone) by least_squares, the map solved inside. A sensor
+hook that only moves the sample times (transport delay) is linear too (columns at the seen
+times). Any other effect after the bend (stiction or a dead zone on the bend, creep, a reading
+offset, a buffered sensor) by a fixed number of alternations (GRID_ALT, FINAL_ALT): its
+contribution d = prediction - base is held while the knots and map are refitted to y - d, then
+recomputed; after each, NEWTON_ITER Gauss-Newton steps of the map through the whole pipeline
+(Jacobian by forward differences, the knots held), kept only when they lower the fit RMSE, and no
+longer tried once they gain under 1 % a step (a staircase has no useful derivative). The distal
+dead zone's centre is scanned with the base held. The fit with the lowest fit RMSE is kept; its
+prediction is always the full pipeline's.
 
 The rule: with n the noise-only RMSE on the judged samples (the record minus the generator's
-noise-free reading, as oracle.identifiable), r_free the effect-free oracle's judged RMSE and
-r_eff this oracle's, the case is recoverable when r_eff - n <= 0.25 (r_free - n): knowing the form,
-what is left over the noise is at most a quarter of what the effect-free model leaves, i.e. the
-shrink it recovers is within 25 % of the truth's excess. Otherwise even the effect's own form,
-fitted in situ, does not get there (the base model's own misfit, a parameter the record does not
-pin down, or a state the record does not determine, e.g. where each slip of a stiction falls).
+noise-free reading, as oracle.identifiable), r_free the effect-free model's judged RMSE and r_eff
+this oracle's, both from this code (same grid, same guarded map), the case is recoverable when
+    r_eff - n <= RULE_SHARE (r_free - n),   RULE_SHARE = 0.25:
+knowing the form, what is left over the noise is at most a quarter of what the effect-free model
+leaves, i.e. the oracle itself would meet the issue's criterion (a shrink within 25 % of the
+truth's). Otherwise even the effect's own form, fitted in situ, does not get there: the base's
+own misfit is a large part of a small effect's excess, the record does not pin a parameter down
+(a soft distal dead zone: the map is free inside the band), or the effect depends on a state the
+base does not reproduce exactly (where each slip of a stiction falls; the sample at which a seat
+switches). The same rule with the effect-free oracle's own r_free and an unguarded map is
+returned as ``recoverable_unguarded``; a refit at the planted strength (``planted``) is a
+diagnostic of the search, never used by the rule.
 
 Units: q, x, knots in mm; c, y, RMSE in deg; t in s; strength in the variant's ``unit``.
 Nothing here imports playscope.diagnose, and the diagnosis imports nothing from here
