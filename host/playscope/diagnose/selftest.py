@@ -194,13 +194,14 @@ def score(results: list[dict]) -> dict:
     asked = any("recoverable" in r for r in lib)
     for r in lib:
         p = per.setdefault(r["effect"], {"n": 0, "correct": 0, "identifiable": 0, "correct_identifiable": 0,
-                                         "recoverable": 0, "shrink_within_recoverable": 0})
+                                         **({"recoverable": 0, "shrink_within_recoverable": 0} if asked else {})})
         p["n"] += 1
         p["correct"] += r["verdict"] == r["truth"]
         p["identifiable"] += bool(r.get("identifiable"))
         p["correct_identifiable"] += bool(r.get("identifiable")) and r["verdict"] == r["truth"]
-        p["recoverable"] += bool(r.get("recoverable"))
-        p["shrink_within_recoverable"] += bool(r.get("recoverable")) and _within(r)
+        if asked:
+            p["recoverable"] += bool(r.get("recoverable"))
+            p["shrink_within_recoverable"] += bool(r.get("recoverable")) and r["shrink_true_deg"] > 0 and _within(r)
     ident = [r for r in lib if r.get("identifiable")]
     rec = [r for r in lib if r.get("recoverable")]
     within_all = [_within(r) for r in ident if r["shrink_true_deg"] > 0]

@@ -79,3 +79,24 @@ def test_the_oracle_does_not_read_the_plant():
     assert p.q_c == 0.1 and p.asked == {"q_c"}
     with pytest.raises(AttributeError):
         p.noise_deg
+
+
+def test_the_self_test_scores_the_shrink_over_the_recoverable_cases():
+    # The harness' score: top-1 and the identifiable figures unchanged, the shrink criterion also
+    # over the recoverable cases (a miss that is recoverable counts, one that is not does not).
+    from playscope.diagnose.selftest import format_report, score
+    case = lambda effect, verdict, ident, rec, got: {
+        "effect": effect, "truth": effect, "verdict": verdict, "kept": [], "identifiable": ident,
+        "recoverable": rec, "shrink_recovered_deg": got, "shrink_true_deg": 1.0, "variant": "v", "strength": 1.0,
+        "recover": {"strength_fitted": 1.0, "rmse_free_deg": 1.0, "rmse_effect_deg": 0.1, "noise_deg": 0.05,
+                    "excess_left": 0.05}}
+    sc = score([case("drift", "drift", True, True, 0.9), case("drift", "drift", True, True, 0.5),
+                case("stick_slip", "stick_slip", True, False, 0.0), case("dead_zone", "none", False, True, 0.0)])
+    assert sc["top1"] == 0.75 and sc["n_identifiable"] == 3
+    assert (sc["n_shrink_within_identifiable"], sc["n_shrink_identifiable"]) == (1, 3)
+    assert (sc["n_shrink_within_recoverable"], sc["n_shrink_recoverable"]) == (1, 3)
+    assert sc["n_recoverable"] == 3 and sc["n_recoverable_identifiable"] == 2
+    assert sc["per_effect"]["drift"]["recoverable"] == 2 and sc["per_effect"]["drift"]["shrink_within_recoverable"] == 1
+    text = format_report(sc)
+    assert "1 of 3 recoverable cases" in text and "1 of 3 identifiable cases" in text
+    assert "stick_slip/v@1: 0.000 / 1.000; stick_slip; identifiable yes; recoverable no" in text
