@@ -20,8 +20,10 @@ Usage: .venv/bin/python bench/diagnose_selftest.py [--quick] [--workers 2] [--js
        [--selftest-only] [--no-recover]
        (a subset while developing, e.g. --effects viscous_hysteresis,cable_elongation --nulls 0
        --no-ool --seed 1000 --selftest-only; the reported figures are seed 0 with every case)
-       (full: 42 cases, ~20 min on 2 busy shared cores; --quick: strong strength only, 2 nulls, 22 cases,
-       4 min 10 s with the catheter part on 2 idle cores; --real-only ~2 min)
+       (full: 42 cases, ~20 min on 2 busy shared cores, 16 min on 2 quieter ones with the recoverability
+       oracle, which takes about 45 % of the case time (--no-recover skips it); --quick: strong strength
+       only, 2 nulls, 22 cases, 4 min 10 s with the catheter part on 2 idle cores (before the oracle);
+       --real-only ~2 min)
 """
 
 from __future__ import annotations
