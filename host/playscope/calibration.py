@@ -11,6 +11,7 @@ The calibration file (docs/calibration-format.md), "format": "playscope-calibrat
 
 from __future__ import annotations
 
+import functools
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -472,10 +473,16 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
                                                        kinds=T.threshold_kinds(bfit.kind, on.b.size, bfit.n_ctrl))
         if not tr.is_play:
             f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method, "slope_floor": floor_play}
-            data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
-            y_f = data.ops_at_frames(tr.r, tr.b_scale, tr.tmap is not None) @ tr.w  # the PI's output at the frames
             nc = int(choice["n_ctrl"]) if choice and choice.get("n_ctrl") else f_n
-            f_pi, sign_pi, floor = loadable_f(lambda ms: T.fit_f(y_f, data.c, nc, sign=sign_pi, min_slope=ms),
+
+            @functools.cache
+            def pi_frames():
+                # The PI's output at the frames: only when f must be refitted (the operators run
+                # over the whole encoder record, so not on every calibration).
+                data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
+                return data.ops_at_frames(tr.r, tr.b_scale, tr.tmap is not None) @ tr.w, data.c
+
+            f_pi, sign_pi, floor = loadable_f(lambda ms: T.fit_f(*pi_frames(), nc, sign=sign_pi, min_slope=ms),
                                               f_pi, sign_pi, tr.play_width(B), q_rng, s.actuator_unit, tr, src)
             f, sign, f_method = f_pi, sign_pi, "lsq+pi"
     for name, fl in (("f_remain" if tr.is_play else "the pure play's f_remain", floor_play),

@@ -48,6 +48,7 @@ Units: q, z, y, r in actuator units (mm or deg of command), c in deg, t in s.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -504,11 +505,12 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
         vp = _SplineProjection(P, c, n_ctrl, smooth)
         x0 = np.full(n - 1, min(1.0, v_max) / (n - 1)) if v0 is None else np.clip(v0, 0.0, v_max)
         # ftol 1e-6, xtol 1e-5: the CV compares RMSEs to about 1 %, far coarser than the
-        # defaults (1e-8); on bench_host's session xtol 1e-5 ends the fits after 13 instead of
-        # 17 evaluations with the same RMSEs to 1e-6. tr_solver "exact" (an SVD of the
-        # F x (n-1) Jacobian per step): "lsmr"'s inexact steps stalled short of the optimum on
-        # some folds (their RMSE up to 60 % above exact's) and were slower. The SVD of a tall,
-        # thin matrix is fastest on one BLAS thread (threaded it took twice as long on 2 cores).
+        # defaults (1e-8). Measured on bench_host's session (its 111 fits, captured): xtol 1e-5
+        # takes 12.8 instead of 16.5 evaluations per fit, and with lsmr it moved no fit's RMSE
+        # by more than 1.3e-6 (relative). tr_solver "exact" (an SVD of the F x (n-1) Jacobian per
+        # step): "lsmr"'s inexact steps stalled short of the optimum on some folds (RMSE up to
+        # 60 % above exact's); exact took 3.1 s CPU for the 111 fits against lsmr's 4.9, on one
+        # BLAS thread. Threaded (2 cores, both busy) the same fits took 6.9 s wall.
         with _blas_controller().limit(limits=1, user_api="blas"):
             v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, v_max), ftol=1e-6, xtol=1e-5,
                                   max_nfev=60, tr_solver="exact").x
@@ -531,12 +533,11 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
     return w, f, sign, float(np.sqrt(np.mean((f(y) - c) ** 2)))
 
 
+@functools.cache
 def _blas_controller() -> ThreadpoolController:
     """One threadpoolctl controller for the process: building one scans every loaded library
     (2 ms, 0.3 s over a calibration's fits); its limit() is then a few microseconds."""
-    if not hasattr(_blas_controller, "c"):
-        _blas_controller.c = ThreadpoolController()
-    return _blas_controller.c
+    return ThreadpoolController()
 
 
 def _strictly_monotone(f, lo: float, hi: float, sign: int, n: int = 2001) -> bool:

@@ -73,3 +73,20 @@ def test_other_refusals_are_not_mended():
     with pytest.raises(TableError) as e:
         loadable_f(refit_for(z, c), f0, s0, steep_B, Q_RANGE, "mm")
     assert e.value.status != core()[1].CALIB_ERR_PRECISION
+
+
+@pytest.mark.parametrize("model_kind", ["play", "auto"])
+def test_calibrate_whole_data_2_2_writes_tables_the_board_loads(real_catheter_dir, model_kind):
+    """The case that found it: the whole of data_2_2 gives a pure-play f nearly flat at one point
+    (|f'| 2e-4 deg/mm, table refused). Through calibrate, every f it returns (the product's, and
+    the pure play's kept beside a PI) loads, and the floor is recorded and warned about."""
+    from playscope.calibration import calibrate
+    from playscope.importer import import_catheter
+
+    cal = calibrate(import_catheter(real_catheter_dir / "data_2_2.txt"), model_kind=model_kind)
+    q0, q1 = cal.q_range
+    build_table(cal.B_model, cal.f, q0, q1, cal.actuator_unit, transition=cal.transition)
+    build_table(cal.B, cal.f_play, q0, q1, cal.actuator_unit)
+    play_doc = cal.doc["f_remain"] if cal.transition.is_play else cal.doc["transition"]["f_remain_play"]
+    assert play_doc["slope_floor"] is not None and play_doc["slope_floor"]["fraction_of_mean"] in F_SLOPE_FLOORS
+    assert any("held to |f'|" in w for w in cal.warnings)
