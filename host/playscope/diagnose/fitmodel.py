@@ -36,9 +36,7 @@ NONLIN = {
     # Widths B exp(sigma u) / mean, u in [-1, 1]: any spread with positive widths (the former
     # linear 1 + spread u needed spread < 1 and sat at 0.95 on the catheter).
     "smooth_transition": [("log_spread", 0.5, 0.0, 3.0)],
-    # Dead band of half-width w around z0, its corners rounded over corner_frac * w on each side of
-    # an edge (_dead_band; 0 is the hard band): a joint's or a routing's slack is taken up gradually.
-    "dead_zone": [("w_q", None, 0.0, None), ("z0_q", None, None, None), ("corner_frac", 0.3, 0.0, 1.0)],
+    "dead_zone": [("w_q", None, 0.0, None), ("z0_q", None, None, None)],
     # Stiction of the carrier in the transmission, Karnopp (1985): a carrier of unit mass tied to
     # the play output by a spring (natural frequency fn), viscous damping zeta, Coulomb friction with
     # a static level (breakaway lag static_q, mm of play output) and a kinetic level (kin_ratio of
@@ -66,22 +64,6 @@ NONLIN = {
 LINEAR = {"handeye_direction": "delta_deg", "drift": "rate_deg_per_min"}
 C_LIBRARY = list(NONLIN)  # effects visible in a record of c
 DEAD_ZONE_SIDES = ("actuator", "distal")
-
-
-def _dead_band(u: np.ndarray, w: float, r: float) -> np.ndarray:
-    """Output of a dead band of half-width w (mm) for an input u (mm, (N,)) measured from its
-    centre: sign(u) g(|u| - w), with g(a) = max(a, 0) (the hard band) when r = 0, else g the
-    quadratically smoothed hinge -- 0 for a <= -r, (a + r)^2 / (4 r) for |a| < r, a for a >= r --
-    whose slope rises linearly from 0 to 1 over [-r, r] around each edge (C1; Rennie & Srebro,
-    IJCAI 2005 workshop, "smooth hinge"). r <= w keeps the output 0 at the centre and monotone.
-    Why rounded: a slack taken up gradually (a joint, a routing) has no kink, and the hard band
-    recovered half or less of a rounded one's shrink on the blind generator's development seeds
-    3000-3500 (docs/diagnosis.md section 3 item 1)."""
-    a = np.abs(u) - w
-    if r <= 0.0:
-        return np.sign(u) * np.maximum(a, 0.0)
-    g = np.where(a <= -r, 0.0, np.where(a >= r, a, (a + r) ** 2 / (4.0 * r)))
-    return np.sign(u) * g
 
 
 def lowpass(x: np.ndarray, tau_s: float, rate_hz: float) -> np.ndarray:
@@ -329,10 +311,6 @@ class Model:
     def _get(self, theta, e, n):
         return float(theta[self.names.index(f"{e}.{n}")])
 
-    def _corner(self, theta) -> float:
-        """Corner half-width of the dead band as a fraction of its half-width (see _dead_band)."""
-        return self._get(theta, "dead_zone", "corner_frac")
-
     def _band(self, theta) -> tuple[float, float]:
         """Dead band (centre z0, half-width w), mm, with w capped at the centre's distance to the
         nearer end of the record's q range. Why: a band that reaches past the travel has an edge
@@ -354,7 +332,7 @@ class Model:
             # Dead band on the actuator side, before the play: the cable does not move while q
             # crosses [z0 - w, z0 + w].
             zc, w = self._band(theta)
-            q = zc + _dead_band(q - zc, w, self._corner(theta) * w)
+            q = q - np.clip(q - zc, -w, w)
         Bk = np.maximum(theta[:N_KNOTS], 0.0)
         alpha = self._get(theta, "asymmetric_backlash", "alpha") if "asymmetric_backlash" in self.effects else 0.0
         z0 = float(q[0])
@@ -398,7 +376,7 @@ class Model:
             # crosses [z0 - w, z0 + w] (a joint that is slack near one configuration). It is a static
             # map of z, but with kinks f_remain's 12 knots cannot follow; same parameters (q units).
             zc, w = self._band(theta)
-            z = zc + _dead_band(z - zc, w, self._corner(theta) * w)
+            z = z - np.clip(z - zc, -w, w)
         x = np.clip((z - self.q_mid) / self.q_half, -1.5, 1.5)
         Phi = BSpline.design_matrix(x, self.ftk, 3).toarray()
         if "cable_elongation" in self.effects:

@@ -4,9 +4,8 @@ and a band cannot reach past the record's q range (fitmodel.Model._band).
 Record: the blind generator's soft distal dead zone (4 deg, rounded) of development seed 2000, the
 case the self-test missed before the profiled start: the full fit then went from the lowest
 unrefined start, a band at the edge of the travel that f_remain absorbs as a shift, and the test
-part's RMSE against the noise-free reading stayed near the base's (0.167 against 0.174 deg with the
-hard band; 0.074 with the rounded one, still from a band at the edge). With the profiled start the
-band is found near straight and that RMSE is 0.023 deg (measured, rounded band).
+part's RMSE against the noise-free reading stayed at the base's (0.167 against 0.174 deg). With
+the profiled start the band is found near straight and that RMSE is 0.039 deg (measured).
 """
 
 from __future__ import annotations
@@ -46,11 +45,11 @@ def test_distal_band_near_straight_is_found_from_the_grid(monkeypatch):
     span = data.q_hi - data.q_lo
     # Near straight (the excitation is centred on it) and of the planted size, not at an edge.
     assert abs(z0 - 0.5 * (data.q_hi + data.q_lo)) < 0.1 * span and 0.02 * span < w < 0.08 * span
-    assert _test_rmse_vs_clean(f, y_clean, sp.test) < 0.045  # measured 0.023
+    assert _test_rmse_vs_clean(f, y_clean, sp.test) < 0.06  # measured 0.039
     # The same fit with the unrefined comparison of the starts stays on the plateau.
     monkeypatch.setattr(Model, "_profile_dead_zone", lambda self, th, mask: th)
     f0 = m.fit(sp.fit, th0, uncertainty=False)
-    assert _test_rmse_vs_clean(f0, y_clean, sp.test) > 0.05  # measured 0.074
+    assert _test_rmse_vs_clean(f0, y_clean, sp.test) > 0.12  # measured 0.167
 
 
 def test_a_band_cannot_reach_past_the_travel():
@@ -64,8 +63,7 @@ def test_a_band_cannot_reach_past_the_travel():
     assert m._band(th)[1] == 0.0
     # The soft distal band of 8 deg (development seed 2000): without the cap the fit put a band at
     # the top end of the travel, 0.68 deg off on test rows 0.05 mm beyond the fitted range
-    # (test RMSE against the noise-free reading 0.157 deg); with it, near straight, 0.026 deg
-    # (hard band), 0.025 (rounded band).
+    # (test RMSE against the noise-free reading 0.157 deg); with it, near straight, 0.026 deg.
     base = Model(data).fit(sp.fit, uncertainty=False)
     th0 = m.init.copy()
     th0[: fitmodel.N_KNOTS] = base.theta[: fitmodel.N_KNOTS]
@@ -73,23 +71,4 @@ def test_a_band_cannot_reach_past_the_travel():
     z0 = f.theta[i_c]
     span = data.q_hi - data.q_lo
     assert abs(z0 - 0.5 * (data.q_hi + data.q_lo)) < 0.1 * span
-    assert _test_rmse_vs_clean(f, y_clean, sp.test) < 0.05  # measured 0.025
-
-
-def test_rounded_band_is_the_hard_band_at_zero_corner_and_smooth_otherwise():
-    u = np.linspace(-2.0, 2.0, 4001)
-    w = 0.5
-    hard = fitmodel._dead_band(u, w, 0.0)
-    assert np.array_equal(hard, u - np.clip(u, -w, w))
-    r = 0.2
-    soft = fitmodel._dead_band(u, w, r)
-    # Equal to the hard band outside the corners, 0 inside the band's core, odd, C1 (slope continuous).
-    far = np.abs(np.abs(u) - w) >= r
-    assert np.allclose(soft[far], hard[far], atol=1e-12)
-    assert np.all(soft[np.abs(u) <= w - r] == 0.0)
-    assert np.allclose(soft, -soft[::-1], atol=1e-12)
-    slope = np.diff(soft) / np.diff(u)
-    assert np.all(slope >= -1e-12) and np.all(slope <= 1 + 1e-9) and np.max(np.abs(np.diff(slope))) < 0.02
-    # At an edge the rounded band sits r / 4 above the hard one (the smooth hinge's offset).
-    i = np.argmin(np.abs(u - w))
-    assert abs(soft[i] - r / 4) < 1e-9
+    assert _test_rmse_vs_clean(f, y_clean, sp.test) < 0.05  # measured 0.026
