@@ -318,7 +318,10 @@ class Model:
         f_remain would otherwise have to bend into, and beyond the data it predicts c frozen. Such
         a band fitted an end of the range on development seed 2000 (soft distal dead zone 8 deg:
         centre 2.86 mm, band to 3.03 mm against a fitted range to 2.91 mm) and put 0.68 deg of error
-        on the test rows that went 0.05 mm further. A band at the edge is the base model."""
+        on the test rows that went 0.05 mm further. A band at the edge is the base model.
+        The range is the actuator's over the whole record (that of the frame's record when one is
+        given), as for z0's bounds: the commanded input of every part, never a reading of the
+        validation or test rows. theta: (n_params,) in self.names order. Returns (z0_mm, w_mm)."""
         zc = self._get(theta, "dead_zone", "z0_q")
         w = self._get(theta, "dead_zone", "w_q")
         lo, hi = self.q_range
@@ -481,7 +484,10 @@ class Model:
         Compared unrefined, the plateau wins and the full fit stays on it (blind self-test, dev
         seed 2000: the soft distal band near straight, found from the centre start when refined,
         was missed; the band went to the edge of the travel). PROFILE_NFEV iterations of two
-        parameters cost about 3 PROFILE_NFEV model evaluations a start."""
+        parameters cost about 3 PROFILE_NFEV model evaluations a start (at most 24; its share of
+        the self-test's wall time was not measured apart).
+        th: (n_params,) start; mask: bool (Nm,) fit rows. Returns a new (n_params,) start with w_q
+        and z0_q refined inside their bounds."""
         idx = [self.names.index("dead_zone.w_q"), self.names.index("dead_zone.z0_q")]
         lo, hi = self.lo[idx], self.hi[idx]
 
