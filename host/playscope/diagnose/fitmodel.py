@@ -266,6 +266,7 @@ class Model:
         if side not in DEAD_ZONE_SIDES:
             raise ValueError(f"dead_zone_side must be one of {DEAD_ZONE_SIDES}, not {side!r}")
         self.dead_zone_side = side
+        self.frame = frame
         ref = frame.d if frame is not None else data
         span = ref.q_hi - ref.q_lo
         self.q_mid = 0.5 * (ref.q_hi + ref.q_lo)
@@ -311,30 +312,51 @@ class Model:
     def _get(self, theta, e, n):
         return float(theta[self.names.index(f"{e}.{n}")])
 
-    def _band(self, theta) -> tuple[float, float]:
+    def _band(self, theta, ends: tuple[float, float]) -> tuple[float, float]:
         """Dead band (centre z0, half-width w), mm, with w capped at the centre's distance to the
-        nearer end of the record's q range. Why: a band that reaches past the travel has an edge
-        that no sample shows; inside the data it is then a flat at the end of the range that
-        f_remain would otherwise have to bend into, and beyond the data it predicts c frozen. Such
-        a band fitted an end of the range on development seed 2000 (soft distal dead zone 8 deg:
-        centre 2.86 mm, band to 3.03 mm against a fitted range to 2.91 mm) and put 0.68 deg of error
-        on the test rows that went 0.05 mm further. A band at the edge is the base model.
-        The range is the actuator's over the whole record (that of the frame's record when one is
-        given), as for z0's bounds: the commanded input of every part, never a reading of the
-        validation or test rows. theta: (n_params,) in self.names order. Returns (z0_mm, w_mm)."""
+        nearer end of the range ``ends`` (mm) of the variable the band acts on. Why: a band that
+        reaches past that range has an edge that no sample shows; inside the data it is then a flat
+        at the end of the range that f_remain would otherwise have to bend into, and beyond the
+        data it predicts c frozen. Such a band fitted an end of the range on development seed 2000
+        (soft distal dead zone 8 deg: centre 2.86 mm, band to 3.03 mm against a fitted range to
+        2.91 mm) and put 0.68 deg of error on the test rows that went 0.05 mm further. A band at
+        the edge is the base model.
+        ends: the actuator side acts on q, so its range is q's (``q_range``); the distal side acts
+        on the play output z, whose range is q's narrowed by half the play at each end
+        (``_z_ends``). Both are the commanded input over the whole record (that of the frame's
+        record when one is given), pushed through the model's own play for z: never a reading of
+        the validation or test rows. theta: (n_params,) in self.names order. Returns (z0_mm, w_mm)."""
         zc = self._get(theta, "dead_zone", "z0_q")
         w = self._get(theta, "dead_zone", "w_q")
-        lo, hi = self.q_range
+        lo, hi = ends
         return zc, min(w, max(zc - lo, 0.0), max(hi - zc, 0.0))
 
-    def design(self, theta: np.ndarray) -> np.ndarray:
-        """Design matrix (Nm, n_coef) at the measurement rows for nonlinear parameters theta."""
+    def _z_ends(self, theta, z: np.ndarray) -> tuple[float, float]:
+        """Range (mm) of the play output z over the whole record for the distal band's cap
+        (``_band``); z: (N_int,) this model's play output at theta. With a frame the frame's
+        record's z is used, so a band fitted on one record keeps its width on another.
+        Why not q's range (the rule before): the distal band acts on z, which stops half a play
+        short of q at each end. Capped by q's range, a band could still end where z ends and act
+        as a saturation: on development seed 4000 (soft distal dead zone 8 deg) one sat at
+        z0 = 2.73 mm, w = 0.07 mm, its upper edge at the end of z (q to 2.95 mm, half the play
+        about 0.15 mm), and held c at 33 deg where the test rows reached 34 deg: test RMSE
+        0.057 -> 0.166 deg. Capped by z's range the fit finds the band near straight (z0 -0.12 mm,
+        w 0.36 mm) and the test RMSE goes 0.057 -> 0.050."""
+        if self.frame is not None:
+            z = self.frame._play_output(theta)[0]
+        return float(np.min(z)), float(np.max(z))
+
+    def _play_output(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The carrier: play output z (N_int,) mm on the internal grid (self.d.t_int) and the held
+        direction of its motion (N_int,) +-1, for nonlinear parameters theta: the actuator-side
+        band, the play operator(s) with the transition / asymmetry / viscous lag, the registration
+        switch and the stick-slip carrier. Everything design() puts before f_remain."""
         d = self.d
         q = d.q_int
         if "dead_zone" in self.effects and self.dead_zone_side == "actuator":
             # Dead band on the actuator side, before the play: the cable does not move while q
             # crosses [z0 - w, z0 + w].
-            zc, w = self._band(theta)
+            zc, w = self._band(theta, self.q_range)
             q = q - np.clip(q - zc, -w, w)
         Bk = np.maximum(theta[:N_KNOTS], 0.0)
         alpha = self._get(theta, "asymmetric_backlash", "alpha") if "asymmetric_backlash" in self.effects else 0.0
@@ -374,11 +396,17 @@ class Model:
                                  self._get(theta, "stick_slip", "kin_ratio"),
                                  np.exp(self._get(theta, "stick_slip", "log_fn")),
                                  self._get(theta, "stick_slip", "zeta"))
+        return z, sdir
+
+    def design(self, theta: np.ndarray) -> np.ndarray:
+        """Design matrix (Nm, n_coef) at the measurement rows for nonlinear parameters theta."""
+        d = self.d
+        z, sdir = self._play_output(theta)
         if "dead_zone" in self.effects and self.dead_zone_side == "distal":
             # Dead band on the distal side: the bend does not follow the play output while z
             # crosses [z0 - w, z0 + w] (a joint that is slack near one configuration). It is a static
             # map of z, but with kinks f_remain's 12 knots cannot follow; same parameters (q units).
-            zc, w = self._band(theta)
+            zc, w = self._band(theta, self._z_ends(theta, z))
             z = z - np.clip(z - zc, -w, w)
         x = np.clip((z - self.q_mid) / self.q_half, -1.5, 1.5)
         Phi = BSpline.design_matrix(x, self.ftk, 3).toarray()

@@ -1,5 +1,6 @@
 """The dead band's start is chosen after refining its own parameters (fitmodel.Model._profile_dead_zone),
-and a band cannot reach past the record's q range (fitmodel.Model._band).
+and a band cannot reach past the range of what it acts on (fitmodel.Model._band): q's on the
+actuator side, the play output z's on the distal side (fitmodel.Model._z_ends).
 
 Record: the blind generator's soft distal dead zone (4 deg, rounded) of development seed 2000, the
 case the self-test missed before the profiled start: the full fit then went from the lowest
@@ -18,8 +19,8 @@ from playscope.diagnose.selftest import cases, make_session
 from playscope.diagnose.split import choose_split
 
 
-def _case(strength=4.0):
-    c = next(c for c in cases("both", 4, True, seed=2000)
+def _case(strength=4.0, seed=2000):
+    c = next(c for c in cases("both", 4, True, seed=seed)
              if c["variant"] == "distal_side" and c["strength"] == strength)
     s = make_session(c)
     data = from_session(s)
@@ -58,9 +59,9 @@ def test_a_band_cannot_reach_past_the_travel(monkeypatch):
     th = m.init.copy()
     i_w, i_c = m.names.index("dead_zone.w_q"), m.names.index("dead_zone.z0_q")
     th[[i_w, i_c]] = 0.3, data.q_hi - 0.1
-    assert np.allclose(m._band(th), (data.q_hi - 0.1, 0.1))
+    assert np.allclose(m._band(th, m.q_range), (data.q_hi - 0.1, 0.1))
     th[[i_w, i_c]] = 0.3, data.q_hi + 0.2
-    assert m._band(th)[1] == 0.0
+    assert m._band(th, m.q_range)[1] == 0.0
     # The soft distal band of 8 deg (development seed 2000), fitted from the base model's B as
     # attribute's distal screen starts it: with the cap, near straight, test RMSE against the
     # noise-free reading 0.026 deg; without it the band goes to the top end of the travel (centre
@@ -72,7 +73,30 @@ def test_a_band_cannot_reach_past_the_travel(monkeypatch):
     span = data.q_hi - data.q_lo
     assert abs(f.theta[i_c] - 0.5 * (data.q_hi + data.q_lo)) < 0.1 * span
     assert _test_rmse_vs_clean(f, y_clean, sp.test) < 0.05  # measured 0.026
-    monkeypatch.setattr(Model, "_band", lambda self, t: (self._get(t, "dead_zone", "z0_q"),
-                                                          self._get(t, "dead_zone", "w_q")))
+    monkeypatch.setattr(Model, "_band", lambda self, t, ends: (self._get(t, "dead_zone", "z0_q"),
+                                                                self._get(t, "dead_zone", "w_q")))
     f0 = m.fit(sp.fit, th0, uncertainty=False)
     assert _test_rmse_vs_clean(f0, y_clean, sp.test) > 0.10  # measured 0.157
+
+
+def test_the_distal_band_is_capped_by_the_play_outputs_range(monkeypatch):
+    # Development seed 3400, soft distal dead zone of 8 deg. The distal band acts on z, which stops
+    # about half a play short of q at each end (here z -2.54..2.70 mm against q -2.80..2.95).
+    # Capped by q's range, the fit from the base model's B puts the band at z0 = 2.79 mm, past the
+    # end of z, where it holds c at the top of the travel: test RMSE against the noise-free
+    # reading 0.144 deg, worse than the base model's 0.090. Capped by z's range it finds the band
+    # near straight (z0 -0.08 mm): 0.064 deg. All three measured.
+    data, y_clean, sp = _case(8.0, seed=3400)
+    base = Model(data).fit(sp.fit, uncertainty=False)
+    m = Model(data, ["dead_zone"], dead_zone_side="distal")
+    th0 = m.init.copy()
+    th0[: fitmodel.N_KNOTS] = base.theta[: fitmodel.N_KNOTS]
+    i_c = m.names.index("dead_zone.z0_q")
+    z_lo, z_hi = m._z_ends(th0, m._play_output(th0)[0])
+    assert data.q_lo < z_lo < z_hi < data.q_hi
+    f = m.fit(sp.fit, th0, uncertainty=False)
+    assert z_lo + 0.25 * (z_hi - z_lo) < f.theta[i_c] < z_hi - 0.25 * (z_hi - z_lo)
+    assert _test_rmse_vs_clean(f, y_clean, sp.test) < 0.075  # measured 0.064 (base 0.090)
+    monkeypatch.setattr(Model, "_z_ends", lambda self, t, z: self.q_range)
+    f0 = m.fit(sp.fit, th0, uncertainty=False)
+    assert _test_rmse_vs_clean(f0, y_clean, sp.test) > 0.11  # measured 0.144
