@@ -3,7 +3,8 @@
 
 Part 1: records from the withheld-effect generator (host/playscope/sim/withheld: own plant, at
 least two physically different implementations of every library effect, each at two strengths),
-4 nulls, 2 out-of-library effects (tip vibration, ratcheting backlash); identity hidden. Every
+20 nulls (the first 4 drawn where the case list always drew them; selftest.score says why 20),
+2 out-of-library effects (tip vibration, ratcheting backlash); identity hidden. Every
 planted case counts. Prints the per-effect table with "identifiable in situ?" (the generator's own
 effect-free oracle) and "recoverable in situ?" (its oracle that knows the planted effect's form and
 fits the rest in situ, sim/withheld/recover.py), the confusion matrix, top-1, false discoveries,
@@ -20,8 +21,8 @@ Usage: .venv/bin/python bench/diagnose_selftest.py [--quick] [--workers 2] [--js
        [--selftest-only] [--no-recover]
        (a subset while developing, e.g. --effects viscous_hysteresis,cable_elongation --nulls 0
        --no-ool --seed 1000 --selftest-only; the reported figures are seed 0 with every case)
-       (full: 42 cases, ~20 min on 2 busy shared cores, 16 min on 2 quieter ones with the recoverability
-       oracle, which takes about 45 % of the case time (--no-recover skips it); --quick: strong strength
+       (full: 58 cases, ~20 min on 2 quieter cores with the recoverability oracle, which takes about
+       45 % of an in-library case's time (--no-recover skips it); --quick: strong strength
        only, 2 nulls, 22 cases, 4 min 10 s with the catheter part on 2 idle cores (before the oracle);
        --real-only ~2 min)
 """
@@ -54,7 +55,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", help="write all results as JSON")
     ap.add_argument("--effects", help="comma-separated library effects to plant (a subset while developing; "
                     "the reported figure is the full list)")
-    ap.add_argument("--nulls", type=int, help="number of null cases (default 4, --quick 2)")
+    ap.add_argument("--nulls", type=int, help=f"number of null cases (default {selftest.REPORTED_NULLS}, --quick 2)")
     ap.add_argument("--no-ool", action="store_true", help="leave out the out-of-library cases")
     ap.add_argument("--seed", type=int, default=0, help="case seed (0 is the reported one; develop on others)")
     ap.add_argument("--no-recover", action="store_true",
@@ -68,7 +69,7 @@ def main(argv=None) -> int:
             bad = [e for e in effects if e not in selftest.LIB_EFFECTS]
             if bad:
                 ap.error(f"unknown effect(s) {', '.join(bad)}; choose from {', '.join(selftest.LIB_EFFECTS)}")
-        nulls = a.nulls if a.nulls is not None else (2 if a.quick else 4)
+        nulls = a.nulls if a.nulls is not None else (2 if a.quick else selftest.REPORTED_NULLS)
         sc = selftest.run("strong" if a.quick else "both", nulls, not a.no_ool, seed=a.seed, workers=a.workers,
                           effects=effects, log=lambda s: print(s, flush=True), recover=not a.no_recover)
         print(selftest.format_report(sc))

@@ -42,7 +42,7 @@ def add_parser(sub) -> None:
     p.add_argument("--html", metavar="PATH", help="write an HTML page with the plots")
     p.add_argument("--json", metavar="PATH", help=f"write results as JSON. Keys: {JSON_KEYS}")
     p.add_argument("--selftest", action="store_true", help="run the blind self-test instead (simulated cases)")
-    p.add_argument("--full", action="store_true", help="self-test at full size (2 strengths, 4 nulls, 2 out-of-library)")
+    p.add_argument("--full", action="store_true", help="self-test at full size (2 strengths, 20 nulls, 2 out-of-library)")
     p.add_argument("--workers", type=argtypes.int_range(1, 64), default=2, help="self-test processes (default 2)")
     p.set_defaults(func=run)
 
@@ -55,7 +55,8 @@ def run(args) -> int:
 
     if args.selftest:
         from ..diagnose import selftest
-        sc = selftest.run("both" if args.full else "strong", 4 if args.full else 2, True, workers=args.workers,
+        nulls = selftest.REPORTED_NULLS if args.full else 2
+        sc = selftest.run("both" if args.full else "strong", nulls, True, workers=args.workers,
                           log=lambda s: print(s, file=sys.stderr, flush=True))
         print(selftest.format_report(sc))
         dump_json(args.json, {"selftest": sc})

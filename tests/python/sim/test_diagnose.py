@@ -230,3 +230,21 @@ def test_verdict_names_a_kept_effect_that_leaves_no_gap_and_not_one_that_leaves_
     assert verdict(_verdict_input(["drift"], 1.0, 0.3, 0.04)) == "drift"
     # Nothing kept and a gap: "unexplained".
     assert verdict(_verdict_input([], 0.5, 0.5, 0.04)) == "unexplained"
+
+
+def test_more_nulls_keep_every_earlier_case_and_the_rate_has_its_exact_interval():
+    from playscope.diagnose.selftest import FIRST_NULLS
+    few, many = cases("both", FIRST_NULLS, True, seed=0), cases("both", 20, True, seed=0)
+    # Every case of the 4-null list (ids, seeds) is in the 20-null list unchanged; the extra
+    # nulls come after the out-of-library cases.
+    assert many[: len(few)] == [{**c, **({"null_batch": "first"} if c["effect"] is None else {})} for c in few]
+    extra = many[len(few):]
+    assert len(extra) == 20 - FIRST_NULLS and all(c["null_batch"] == "extra" for c in extra)
+    assert len({c["seed"] for c in many}) == len(many)
+    null = lambda kept, batch: {"effect": None, "truth": "none", "verdict": "none", "kept": kept,
+                                "null_batch": batch, "shrink_recovered_deg": 0.0, "shrink_true_deg": 0.0}
+    sc = score([null(["dead_zone"], "first")] + [null([], "first")] * 3 + [null([], "extra")] * 16)
+    assert sc["n_false_discoveries"] == 1 and sc["n_nulls"] == 20 and sc["n_false_discoveries_first"] == 1
+    # Clopper-Pearson for 1 of 20 (scipy's exact interval; reference values 0.0013, 0.2487).
+    assert np.allclose(sc["false_discovery_ci95"], [0.00126509, 0.24873276], atol=1e-6)
+    assert "95 % CI 0-25 %" in format_report(sc) and "first 4 nulls: 1" in format_report(sc)
