@@ -245,6 +245,7 @@ def test_more_nulls_keep_every_earlier_case_and_the_rate_has_its_exact_interval(
                                 "null_batch": batch, "shrink_recovered_deg": 0.0, "shrink_true_deg": 0.0}
     sc = score([null(["dead_zone"], "first")] + [null([], "first")] * 3 + [null([], "extra")] * 16)
     assert sc["n_false_discoveries"] == 1 and sc["n_nulls"] == 20 and sc["n_false_discoveries_first"] == 1
-    # Clopper-Pearson for 1 of 20 (scipy's exact interval; reference values 0.0013, 0.2487).
+    # Clopper-Pearson for 1 of 20: the beta quantiles Beta(0.025; 1, 20) and Beta(0.975; 2, 19),
+    # 0.0012651 and 0.2487328 (computed apart with scipy.stats.beta.ppf).
     assert np.allclose(sc["false_discovery_ci95"], [0.00126509, 0.24873276], atol=1e-6)
     assert "95 % CI 0-25 %" in format_report(sc) and "first 4 nulls: 1" in format_report(sc)
