@@ -122,6 +122,8 @@ def run_case(case: dict, duration_s: float = 120.0, candidates=C_LIBRARY, oracle
            "rmse_val_base_deg": res["base"]["rmse_heldout_deg"], "rmse_val_after_deg": res["final"]["rmse_heldout_deg"],
            "rmse_base_deg": r0, "rmse_after_deg": res["test"]["rmse_final_deg"], "rmse_noise_only_deg": r_noise,
            "shrink_true_deg": r0 - r_noise, "shrink_recovered_deg": r0 - res["test"]["rmse_final_deg"]}
+    if "null_batch" in case:
+        out["null_batch"] = case["null_batch"]
     if oracle and case["effect"] is not None:
         ts = s.distal["t_s"]
         fsel = _rows_to_samples(data.t_m, sp.fit, ts)

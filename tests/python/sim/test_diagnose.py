@@ -51,6 +51,7 @@ def test_blind_selftest_small_scores():
     results = [run_case(c, 60.0, small, oracle=False) for c in cl]
     sc = score(results)
     assert sc["n_planted"] == 2 and sc["top1"] == 1.0 and sc["false_discovery_nulls"] == 0.0
+    assert results[-1]["null_batch"] == "first" and sc["n_nulls_first"] == 1
     for r in results[:2]:
         assert abs(r["shrink_recovered_deg"] - r["shrink_true_deg"]) <= 0.08 * r["shrink_true_deg"]
     assert "confusion" in format_report(sc)
