@@ -189,7 +189,8 @@ def main(argv=None) -> int:
         from playscope.diagnose.selftest import format_report
         print(format_report(sc))
         table.append(("diagnosis blind self-test: top-1 over every planted case / false discoveries on nulls",
-                      f"{100 * sc['top1']:.0f} % of {sc['n_planted']} / {100 * sc['false_discovery_nulls']:.0f} % of {sc['n_nulls']}",
+                      f"{100 * sc['top1']:.0f} % of {sc['n_planted']} / {sc['n_false_discoveries']} of {sc['n_nulls']} "
+                      f"(95 % CI {100 * sc['false_discovery_ci95'][0]:.0f}-{100 * sc['false_discovery_ci95'][1]:.0f} %)",
                       ">= 90 % / <= 10 %", f"top-1 among identifiable {100 * sc['top1_identifiable']:.0f} % of "
                       f"{sc['n_identifiable']}; out-of-library unexplained {100 * sc['ool_unexplained']:.0f} %", c))
         table.append(("diagnosis blind self-test: recovered shrink within 25 % of the generator's truth",
