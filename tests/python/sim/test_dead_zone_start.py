@@ -121,3 +121,20 @@ def test_rounded_band_is_the_hard_band_at_zero_corner_and_smooth_otherwise():
     # At an edge the rounded band sits r / 4 above the hard one (the smooth hinge's offset).
     i = np.argmin(np.abs(u - w))
     assert abs(soft[i] - r / 4) < 1e-9
+
+
+def test_a_band_fitted_on_one_record_keeps_its_cap_on_another():
+    # Across records (attribute.judged_rmse, the paper's protocol) the distal band's cap comes
+    # from the fitted record's z, not from the record it is evaluated on: the same band.
+    a, _, _ = _case(8.0, seed=2000)
+    c = next(c for c in cases("both", 4, True, seed=3400) if c["variant"] == "distal_side")
+    b = from_session(make_session(c, duration_s=40.0))  # a shorter record: another q range
+    m = Model(a, ["dead_zone"], dead_zone_side="distal")
+    th = m.init.copy()
+    th[m.names.index("dead_zone.z0_q")] = 2.6
+    th[m.names.index("dead_zone.w_q")] = 0.5
+    own = m._z_ends(th, m._play_output(th)[0])
+    mb = Model(b, m.effects, frame=m)
+    zb = mb._play_output(th)[0]
+    assert mb._z_ends(th, zb) == own != (float(zb.min()), float(zb.max()))
+    assert m._band(th, own) == mb._band(th, mb._z_ends(th, zb)) and m._band(th, own)[1] < 0.5
