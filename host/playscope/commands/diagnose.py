@@ -14,7 +14,8 @@ JSON_KEYS = ("sessions.<name>: noise_floor_deg, noise_method, base{rmse_fit_deg,
              "screen[{effect, rmse_heldout_deg, delta_rmse_deg, delta_bic, promising, params}], "
              "kept[{effect, params{name: [value, sd]}, rmse_before_deg, rmse_after_deg, share_of_excess_removed, "
              "indistinguishable_from}], final{effects, rmse_heldout_deg, excess_after_deg, share_of_excess_removed}, "
-             "verdict, atlas_before, atlas_after, geometry{base_px, screen, kept} (image sessions); selftest: confusion, top1, false_discovery_nulls, cases")
+             "verdict, atlas_before, atlas_after, geometry{base_px, screen, kept} (image sessions); selftest: confusion, "
+             "top1, false_discovery_nulls, n_false_discoveries, false_discovery_ci95, n_false_discoveries_first, cases")
 
 
 DESCRIPTION = """\
