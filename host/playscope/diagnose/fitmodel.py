@@ -72,8 +72,9 @@ def _dead_band(u: np.ndarray, w: float, r: float) -> np.ndarray:
     """Output of a dead band of half-width w (mm) for an input u (mm, (N,)) measured from its
     centre: sign(u) g(|u| - w), with g(a) = max(a, 0) (the hard band) when r = 0, else g the
     quadratically smoothed hinge -- 0 for a <= -r, (a + r)^2 / (4 r) for |a| < r, a for a >= r --
-    whose slope rises linearly from 0 to 1 over [-r, r] around each edge (C1; Rennie & Srebro,
-    IJCAI 2005 workshop, "smooth hinge"). r <= w keeps the output 0 at the centre and monotone.
+    whose slope rises linearly from 0 to 1 over [-r, r] around each edge (C1; a two-sided form of
+    the quadratically smoothed hinge of Rennie & Srebro, IJCAI 2005 workshop, whose quadratic sits
+    on one side of the kink). r <= w keeps the output 0 at the centre and monotone. Returns (N,) mm.
     Why rounded: a slack taken up gradually (a joint, a routing) has no kink, and the hard band
     recovered half or less of a rounded one's shrink on the blind generator's development seeds
     3000-3500 (docs/diagnosis.md section 3 item 1)."""
@@ -372,7 +373,9 @@ class Model:
         """The carrier: play output z (N_int,) mm on the internal grid (self.d.t_int) and the held
         direction of its motion (N_int,) +-1, for nonlinear parameters theta: the actuator-side
         band, the play operator(s) with the transition / asymmetry / viscous lag, the registration
-        switch and the stick-slip carrier. Everything design() puts before f_remain."""
+        switch and the stick-slip carrier: everything design() computes before the distal band
+        and f_remain. For a model with a frame this is also run on the frame's record by
+        ``_z_ends`` at each design() call (one carrier more; such models are only evaluated)."""
         d = self.d
         q = d.q_int
         if "dead_zone" in self.effects and self.dead_zone_side == "actuator":
