@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Every benchmark figure the issues ask for, in one Markdown table
+"""Every benchmark figure of the project, in one Markdown table
 (figure | measured | target | paper or baseline | command).
 
 Runs, in order: bench/bench_firmware.sh (M4 instructions per tick, desktop ticks/s, image
@@ -11,7 +11,13 @@ the pose-based baseline, paper Fig. 7),
 (diagnosis self-test accuracy). Only figures measured in this run are printed; a part that
 fails or is skipped says so in its row.
 
-Usage: .venv/bin/python bench/run_all.py [--skip-selftest] [--catheter DIR]   (~5 min)
+It writes docs/results.md (machine, date, commit, the figure table, then every bench's own
+tables as it printed them) and the README's summary table (between the `results:begin` and
+`results:end` markers): no figure in README.md or docs/ is typed by hand; docs link to
+docs/results.md. tests/python/host/test_results_doc.py checks that the README's table is the
+one in docs/results.md.
+
+Usage: .venv/bin/python bench/run_all.py [--skip-selftest] [--catheter DIR] [--no-write]   (~5 min)
 """
 
 from __future__ import annotations
@@ -30,12 +36,150 @@ PY = sys.executable
 PLAYSCOPE = [PY, "-m", "playscope.cli"]
 
 
+RESULTS = ROOT / "docs" / "results.md"
+README = ROOT / "README.md"
+BEGIN, END = "<!-- results:begin -->", "<!-- results:end -->"
+# The README's excerpt of the main job's output: from its Table I to its compensation line.
+EXCERPT_BEGIN, EXCERPT_END = "<!-- mainjob:begin -->", "<!-- mainjob:end -->"
+EXCERPT: list[str] = []
+# Figures that go to the README's summary, by the first words of their row (the rest stay in
+# docs/results.md). A row missing from a run is left out, not carried over from an older run.
+SUMMARY = (
+    "main job: open-loop compensation RMSE with the transition",
+    "main job: B(q) error",
+    "B error, independent Fig. 7 replica, 3 registration forms",
+    "catheter in situ, state carried, ours mean / worst",
+    "calibrate a 3-min 25 Hz session",
+    "M4 instructions per call: `psa_tick`, compensation, realistic",
+    "USART image flash, everything",
+    "USART image RAM, everything",
+    "diagnosis blind self-test: top-1",
+)
+# Every bench's own output, kept whole for docs/results.md: (title, command, stdout).
+RAW: list[tuple[str, str, str]] = []
+
+
 def sh(cmd: list[str], timeout: float = 1800) -> str:
-    """stdout of cmd run from the repository root; raises RuntimeError with its stderr."""
+    """stdout of cmd run from the repository root; raises RuntimeError with its stderr.
+    The output is also kept (RAW) for docs/results.md."""
     r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
     if r.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed ({r.returncode}): {r.stderr.strip()[-300:]}")
+    shown = " ".join(Path(c).name if c == PY else c for c in cmd).replace(" -m playscope.cli", " playscope")
+    RAW.append((shown, shown, r.stdout))
     return r.stdout
+
+
+FIGURE = ROOT / "docs" / "img" / "main-job-characteristic.png"
+
+
+def save_report_figure(report: Path, alt: str, dest: Path) -> None:
+    """Copy the PNG embedded in the HTML report under <img alt=ALT> to dest (the README's
+    picture is the main job's own figure, regenerated with the figures)."""
+    import base64
+    m = re.search(r'<img alt="%s" src="data:image/png;base64,([A-Za-z0-9+/=]+)"' % re.escape(alt),
+                  report.read_text())
+    if not m:
+        raise RuntimeError(f"{report}: no figure '{alt}'")
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    dest.write_bytes(base64.b64decode(m[1]))
+
+
+def main_job_excerpt(out: str) -> list[str]:
+    """The lines of the main job's stdout from its Table I heading to its open-loop
+    compensation line (what the README shows a newcomer)."""
+    lines = out.splitlines()
+    i = next((k for k, ln in enumerate(lines) if ln.startswith("Table I")), None)
+    j = next((k for k, ln in enumerate(lines) if ln.startswith("Open-loop compensation")), None)
+    if i is None or j is None or j < i:
+        raise RuntimeError("playscope demo printed no Table I / compensation lines")
+    return [ln for ln in lines[i:j + 1]]
+
+
+def replace_block(text: str, begin: str, end: str, block: str, where: Path) -> str:
+    i, j = text.find(begin), text.find(end)
+    if i < 0 or j < i:
+        raise SystemExit(f"run_all: {where} has no {begin} ... {end} block; docs/results.md written")
+    return text[:i] + block + text[j + len(end):]
+
+
+def machine() -> str:
+    """One line: the machine the figures were measured on."""
+    import os
+    import platform
+    cpu = "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return (f"{platform.system()} {platform.release()}, {cpu}, {os.cpu_count()} cores, "
+            f"Python {platform.python_version()}")
+
+
+def commit() -> str:
+    """HEAD's short hash, with '+ uncommitted changes' when the tree differs from it."""
+    try:
+        h = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                           text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
+                               capture_output=True, text=True).stdout.strip()
+        return h + (" + uncommitted changes" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown (not a git checkout)"
+
+
+def md_table(rows, header=("figure", "measured", "target", "paper / baseline", "command")) -> str:
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(out)
+
+
+def summary_block(table, stamp: str) -> str:
+    """The README's summary: the SUMMARY rows of this run (figure, measured, target)."""
+    rows = [(r[0], r[1], r[2]) for key in SUMMARY for r in table if r[0].startswith(key)]
+    return (f"{BEGIN}\n_Generated by `bench/run_all.py` on {stamp}; every figure, with its worst case "
+            f"and command, in [docs/results.md](docs/results.md)._\n\n"
+            + md_table(rows, ("figure", "measured", "target")) + f"\n{END}")
+
+
+def write_results(table, wall_s: float) -> None:
+    """docs/results.md from this run, and the README's summary block (which must already
+    hold the two markers: the README's prose around it is not generated)."""
+    import datetime
+    stamp = f"{datetime.date.today().isoformat()}, commit {commit()}"
+    block = summary_block(table, stamp)
+    parts = [
+        "# Results",
+        "",
+        "Generated by `bench/run_all.py`; do not edit by hand (run it again). Every figure in the "
+        "README and in docs/ comes from this page.",
+        "",
+        f"- date and commit: {stamp}",
+        f"- machine: {machine()}",
+        f"- wall time of the run: {wall_s:.0f} s",
+        "",
+        "## Summary (the README's table)",
+        "",
+        block,
+        "",
+        "## Every figure",
+        "",
+        md_table(table),
+        "",
+        "## Each bench as it printed",
+        "",
+    ]
+    for title, cmd, out in RAW:
+        parts += [f"### `{cmd}`", "", out.strip(), ""]
+    RESULTS.write_text("\n".join(parts) + "\n")
+    text = replace_block(README.read_text(), BEGIN, END, block, README)
+    if EXCERPT:
+        text = replace_block(text, EXCERPT_BEGIN, EXCERPT_END,
+                             EXCERPT_BEGIN + "\n```\n" + "\n".join(EXCERPT) + "\n```\n" + EXCERPT_END, README)
+    README.write_text(text)
 
 
 def md_rows(text: str) -> dict[str, list[str]]:
@@ -60,7 +204,10 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-selftest", action="store_true", help="leave out the diagnosis self-test (the slowest part)")
     ap.add_argument("--catheter", default=str(ROOT.parent / "shared/data/real/catheter"),
                     help="folder of the real catheter recordings (read in place)")
+    ap.add_argument("--no-write", action="store_true",
+                    help="print the table only; leave docs/results.md and the README as they are")
     a = ap.parse_args(argv)
+    t_run = time.perf_counter()
     table: list[tuple[str, str, str, str, str]] = []
 
     def part(name, fn):
@@ -109,7 +256,7 @@ def main(argv=None) -> int:
                           f"(p95 {m[9]} us, worst {m[10]} us)", "", "", "bench/bench_link.py"))
 
     def fig7():
-        # Issue 15: Fig. 7 replica on independently rendered records (bench/marker_render.py).
+        # Fig. 7 replica on independently rendered records (bench/marker_render.py).
         # It exits 1 when its acceptance is not met; the summary line is read either way.
         out = subprocess.run([PY, "bench/fig7_replica.py"], cwd=ROOT, capture_output=True, text=True,
                              timeout=3600).stdout
@@ -132,9 +279,12 @@ def main(argv=None) -> int:
     def mainjob():
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
-            sh(PLAYSCOPE + ["demo", "--out", f"{tmp}/main", "--json", f"{tmp}/s.json"])
+            out = sh(PLAYSCOPE + ["demo", "--out", f"{tmp}/main", "--json", f"{tmp}/s.json"])
             wall = time.perf_counter() - t0
+            EXCERPT[:] = main_job_excerpt(out)
             s = json.loads(Path(f"{tmp}/s.json").read_text())
+            if not a.no_write:
+                save_report_figure(Path(f"{tmp}/main/report.html"), "characteristic", FIGURE)
         c = "playscope demo"
         b = s["b_error"]
         table.append(("main job: B(q) error vs the simulator's centre width, mean / max", f"{b['mean']:.4f} / {b['max']:.4f} mm", "", "", c))
@@ -210,7 +360,7 @@ def main(argv=None) -> int:
 
     part("firmware", firmware)
 
-    # The transition model's rows (issue 9: 16 operators, realistic and stress) come with
+    # The transition model's rows (16 operators, realistic and stress) come with
     # the firmware part above, from the same bench_firmware.sh run.
     part("host", host)
     part("link", link)
@@ -218,7 +368,7 @@ def main(argv=None) -> int:
     part("main job", mainjob)
     part("real data", real)
 
-    # -- issue 9: in situ with state carried, every model on the same split (bench/insitu_real.py)
+    # -- in situ with state carried, every model on the same split (bench/insitu_real.py)
     def insitu_real():
         with tempfile.TemporaryDirectory() as tmp:
             sh([PY, "bench/insitu_real.py", "--catheter", a.catheter, "--json", f"{tmp}/i.json"])
@@ -235,7 +385,7 @@ def main(argv=None) -> int:
 
     part("in-situ real data", insitu_real)
 
-    # -- issue 13 item 4: on-line update during use (bench/online_real.py; docs/online.md)
+    # -- on-line update during use (bench/online_real.py; docs/online.md)
     def online_real():
         with tempfile.TemporaryDirectory() as tmp:
             sh([PY, "bench/online_real.py", a.catheter, "--json", f"{tmp}/o.json"])
@@ -258,10 +408,10 @@ def main(argv=None) -> int:
     if not a.skip_selftest:
         part("diagnosis self-test", selftest)
 
-    print("| figure | measured | target | paper / baseline | command |")
-    print("|---|---|---|---|---|")
-    for row in table:
-        print("| " + " | ".join(row) + " |")
+    print(md_table(table))
+    if not a.no_write:
+        write_results(table, time.perf_counter() - t_run)
+        print(f"[bench] wrote {RESULTS.relative_to(ROOT)} and the README's summary", file=sys.stderr)
     return 0
 
 
