@@ -34,6 +34,7 @@ typedef struct {
     lut_cell_t f_inv_cell;       /* cell of cal->f_inv around the last c*, and of cal->b around */
     lut_cell_t b_cell;           /* the last q_c (lut_eval_cell): emptied by comp_reset */
     lut_cell_t tmap_inv_cell;    /* cell of cal->tmap_inv around the last u* (used only with a map) */
+    relax_state_t relax;         /* inverse relaxation (v4; not read when cal->relax.kappa_q16 = 0) */
 } comp_t;
 
 /* Convert limits to per-tick Q32.32: v_q16 in actuator units/s, a_q16 in units/s^2
@@ -61,6 +62,9 @@ void comp_b_changed(comp_t *cp);
 
 /* One step of eq. 4: q*[k] for reference c*[k] (deg, Q16).
  *   y*  = f^-1(c*)                         (f_coarse^-1 of eq. 5 or f_remain^-1 of eq. 9)
+ *   y*  = R^-1[y*]                         (table v4 with a relaxation only, relax.h; a held c*
+ *                                           holds q*, skipping the inverse's settling of at most
+ *                                           m times the last tick's travel)
  *   q_c = PI^-1[y*]                        (the transition's inverse, Krejci-Kuhnen; q_c = y*
  *                                           without operators, so n = 0 is eq. 4 bit for bit)
  *   q_c = g^-1(q_c)                        (table v3 with a threshold map only)
@@ -103,6 +107,10 @@ __attribute__((always_inline)) static inline int32_t comp_step_inline(comp_t *cp
      * flip (f_sign) is exactly the difference between eq. 5 and eq. 9. The sum fits
      * int32: calib_load checks the f grid widened by B_max / 2 does. */
     int32_t q_c = lut_eval_cell(&cal->f_inv, &cp->f_inv_cell, c_ref_q16);
+    /* The relaxation's inverse (v4): the y the relaxation turns into y*; clamped to f's grid,
+     * the range the transition's inverse was validated on. */
+    if (cal->relax.kappa_q16 != 0)
+        q_c = relax_inverse_inline(&cp->relax, &cal->relax, q_c);
     /* The transition's inverse: the centre that the direct model maps to y* = f^-1(c*).
      * |q_c| <= 2^30 (pi_build bounds it), so q_c + B/2 still fits int32. */
     if (cal->pi_inv.n != 0)
