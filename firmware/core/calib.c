@@ -311,6 +311,8 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     out->tmap_inv_lip_q16 = lip;
     out->comp_err_q16 = (int32_t)e_comp;
     out->relax = relax;
+    out->stages = (uint8_t)((pi_inv.n ? CALIB_STAGE_PI : 0) | (g.n ? CALIB_STAGE_TMAP : 0) |
+                            (relax.kappa_q16 ? CALIB_STAGE_RELAX : 0));
     out->q_min_q16 = hd.q_min_q16;
     out->q_max_q16 = hd.q_max_q16;
     out->f_sign = (int8_t)(f.y_q16[1] > f.y_q16[0] ? 1 : -1);

@@ -60,6 +60,13 @@ enum { CALIB_PRECISION_B_DIV = 16, CALIB_PRECISION_FLOOR_Q16 = 16 };
 /* The ceiling for a table whose largest B entry is b_max_q16 (raw): max(b_max / 16, 16). */
 int32_t calib_precision_ceiling_q16(int32_t b_max_q16);
 
+/* calib_t.stages: which optional stages a table carries (derived by calib_load). */
+enum {
+    CALIB_STAGE_PI = 1,          /* transition operators (pi_dir.n / pi_inv.n != 0) */
+    CALIB_STAGE_TMAP = 2,        /* threshold map (tmap.n != 0) */
+    CALIB_STAGE_RELAX = 4,       /* travel-domain relaxation (relax.kappa_q16 != 0) */
+};
+
 /* Everything the direct model and the compensator read, derived once per load. */
 typedef struct {
     lut_t b;                     /* B(q): backlash width, actuator units (Q16) over q */
@@ -90,6 +97,8 @@ typedef struct {
                                     ceil(f_inv_err (1 + m)) + 1), then with a map
                                     ceil(L E_u) + tmap_inv_err (held to the ceiling); raw, saturated */
     relax_params_t relax;        /* v4 travel-domain relaxation on y before f; kappa_q16 = 0: none */
+    uint8_t stages;              /* CALIB_STAGE_* bits of the stages between f^-1 and B/2 this table has:
+                                    0 is the pure play, whose tick tests this one byte instead of three */
     int32_t f_inv_buf[CALIB_DERIVED_MAX];
     int32_t z_up_buf[CALIB_DERIVED_MAX];
     int32_t z_down_buf[CALIB_DERIVED_MAX];

@@ -107,18 +107,24 @@ __attribute__((always_inline)) static inline int32_t comp_step_inline(comp_t *cp
      * flip (f_sign) is exactly the difference between eq. 5 and eq. 9. The sum fits
      * int32: calib_load checks the f grid widened by B_max / 2 does. */
     int32_t q_c = lut_eval_cell(&cal->f_inv, &cp->f_inv_cell, c_ref_q16);
-    /* The relaxation's inverse (v4): the y the relaxation turns into y*; clamped to f's grid,
-     * the range the transition's inverse was validated on. */
-    if (cal->relax.kappa_q16 != 0)
-        q_c = relax_inverse_inline(&cp->relax, &cal->relax, q_c);
-    /* The transition's inverse: the centre that the direct model maps to y* = f^-1(c*).
-     * |q_c| <= 2^30 (pi_build bounds it), so q_c + B/2 still fits int32. */
-    if (cal->pi_inv.n != 0)
-        q_c = pi_step_inline(&cp->pi, &cal->pi_inv, q_c);
-    /* With a threshold map (v3) the operators ran on u = g(z): z* = g^-1(u*), which lies on
-     * the map's grid (calib_load checks it +- B_max/2 fits int32). */
-    if (cal->tmap.n != 0)
-        q_c = lut_eval_cell(&cal->tmap_inv, &cp->tmap_inv_cell, q_c);
+    /* The pure play (eq. 4 as written) tests one byte; the other models their stages. */
+    const uint8_t stages = cal->stages;
+    if (stages != 0) {
+        /* The relaxation's inverse (v4): the y the relaxation turns into y*; clamped to f's
+         * grid, the range the transition's inverse was validated on. Called, not inlined:
+         * inlined, its 64-bit temporaries cost the other models' ticks 7 instructions of
+         * register saves (bench/bench_firmware.sh). */
+        if (stages & CALIB_STAGE_RELAX)
+            q_c = relax_inverse(&cp->relax, &cal->relax, q_c);
+        /* The transition's inverse: the centre that the direct model maps to y* = f^-1(c*).
+         * |q_c| <= 2^30 (pi_build bounds it), so q_c + B/2 still fits int32. */
+        if (stages & CALIB_STAGE_PI)
+            q_c = pi_step_inline(&cp->pi, &cal->pi_inv, q_c);
+        /* With a threshold map (v3) the operators ran on u = g(z): z* = g^-1(u*), which lies
+         * on the map's grid (calib_load checks it +- B_max/2 fits int32). */
+        if (stages & CALIB_STAGE_TMAP)
+            q_c = lut_eval_cell(&cal->tmap_inv, &cp->tmap_inv_cell, q_c);
+    }
     int32_t off = (dir * cal->f_sign) * (lut_eval_cell(&cal->b, &cp->b_cell, q_c) >> 1);
     int32_t q = q_c + off;
     bool reversed = dir != cp->dir;

@@ -64,28 +64,29 @@ int32_t relax_inverse(relax_state_t *s, const relax_params_t *rp, int32_t v_q16)
 
 #ifndef PS_CDEF
 /* The state update shared by both directions: g = min(|v - v_prev| / lambda, 1 - kappa)
- * without a divide (compare with lambda first, so |dv| * inv_lam < 2^47), r += g (x - r). */
+ * without a divide (compare with lambda first, so |dv| * inv_lam < 2^47), r += g (x - r).
+ * x, v, r16 within the build range (+-2^30), so every difference fits int32 and the products
+ * are single 32x32->64 multiplies (the board's tick is 32-bit wherever it can be). */
 __attribute__((always_inline)) static inline void relax_update_inline(relax_state_t *s, const relax_params_t *rp,
-                                                                       int32_t x_q16, int32_t v_q16, int64_t r16)
+                                                                       int32_t x_q16, int32_t v_q16, int32_t r16)
 {
-    int64_t dv = (int64_t)v_q16 - s->v_prev_q16;
-    uint64_t adv = (uint64_t)(dv < 0 ? -dv : dv);
-    s->v_prev_q16 = v_q16;
-    if (adv == 0)
+    int32_t dv = v_q16 - s->v_prev_q16;
+    if (dv == 0)
         return;                  /* no travel, no relaxation: the recursion is rate-independent */
-    int64_t g_q31 = rp->g_max_q31;                                  /* the cap 1 - kappa */
-    if (adv < (uint64_t)rp->lambda_q16) {
-        int64_t g = (int64_t)((adv * rp->inv_lam_q47) >> 16);       /* < 2^31 */
-        g_q31 = g < g_q31 ? g : g_q31;
+    s->v_prev_q16 = v_q16;
+    uint32_t adv = (uint32_t)(dv < 0 ? -dv : dv);
+    int32_t g_q31 = rp->g_max_q31;                                  /* the cap 1 - kappa */
+    if (adv < (uint32_t)rp->lambda_q16) {
+        uint32_t g = (uint32_t)(((uint64_t)adv * rp->inv_lam_q47) >> 16); /* < 2^31 */
+        g_q31 = (int32_t)g < g_q31 ? (int32_t)g : g_q31;
     }
-    int64_t d = (int64_t)x_q16 - r16;                               /* |d| < 2^31: inputs within +-2^30 */
-    s->r_q32 += (d * g_q31 + (1 << 14)) >> 15;                      /* Q47 -> Q32 */
+    s->r_q32 += ((int64_t)(x_q16 - r16) * g_q31 + (1 << 14)) >> 15; /* Q47 -> Q32 */
 }
 
 __attribute__((always_inline)) static inline int32_t relax_direct_inline(relax_state_t *s, const relax_params_t *rp,
                                                                           int32_t x_q16)
 {
-    int64_t r16 = (s->r_q32 + (1 << 15)) >> 16;
+    int32_t r16 = (int32_t)((s->r_q32 + (1 << 15)) >> 16);
     int32_t v = x_q16 + (int32_t)(((int64_t)rp->kappa_q16 * (r16 - x_q16) + (1 << 15)) >> 16);
     relax_update_inline(s, rp, x_q16, v, r16);
     return v;
@@ -94,14 +95,12 @@ __attribute__((always_inline)) static inline int32_t relax_direct_inline(relax_s
 __attribute__((always_inline)) static inline int32_t relax_inverse_inline(relax_state_t *s, const relax_params_t *rp,
                                                                            int32_t v_q16)
 {
-    int64_t r16 = (s->r_q32 + (1 << 15)) >> 16;
+    int32_t r16 = (int32_t)((s->r_q32 + (1 << 15)) >> 16);
+    /* m (v - r) up to 9 x 2^31: the correction is clamped in 64 bits, once. */
     int64_t x = v_q16 + (((int64_t)rp->m_q24 * (v_q16 - r16) + (1 << 23)) >> 24);
-    if (x < rp->x_min_q16)
-        x = rp->x_min_q16;
-    if (x > rp->x_max_q16)
-        x = rp->x_max_q16;
-    relax_update_inline(s, rp, (int32_t)x, v_q16, r16);
-    return (int32_t)x;
+    int32_t xc = x < rp->x_min_q16 ? rp->x_min_q16 : (x > rp->x_max_q16 ? rp->x_max_q16 : (int32_t)x);
+    relax_update_inline(s, rp, xc, v_q16, r16);
+    return xc;
 }
 #endif
 

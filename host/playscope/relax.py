@@ -124,6 +124,8 @@ class RelaxFit:
     rmse_deg: float
     rmse_without_deg: float
     nfev: int
+    f_without: object = None     # f fitted the same way on the unrelaxed output (the control)
+    sign_without: int = 0
 
     def to_json(self) -> dict:
         return {**self.relax.to_json(), "rmse_deg": self.rmse_deg, "rmse_without_deg": self.rmse_without_deg,
@@ -147,7 +149,7 @@ def fit(y_enc: np.ndarray, t_enc: np.ndarray, t_frame: np.ndarray, c: np.ndarray
     evaluation: kappa moves the output's scale, which f absorbs). x0: (kappa, lambda as a
     fraction of y's range). Parameters: kappa in [0, KAPPA_MAX], log lambda within
     [LAMBDA_MIN_FRAC, LAMBDA_MAX_FRAC] x y's range. Returns RelaxFit (rmse_without_deg: the
-    same f fit with kappa = 0). Errors: ValueError when y has no range."""
+    same f fit with kappa = 0, whose f is f_without). Errors: ValueError when y has no range."""
     y_enc, t_enc = np.asarray(y_enc, float), np.asarray(t_enc, float)
     t_frame, c = np.asarray(t_frame, float), np.asarray(c, float)
     span = float(np.ptp(y_enc))
@@ -179,8 +181,8 @@ def fit(y_enc: np.ndarray, t_enc: np.ndarray, t_frame: np.ndarray, c: np.ndarray
     e, f, sg, rl = cache[(round(best.x[0], 12), round(best.x[1], 12))]
     rm = float(np.sqrt(np.mean(e ** 2)))
     if rm >= base:  # never worse than the model without it (kappa = 0 is in the family)
-        return RelaxFit(Relaxation(0.0, rl.lam), f0, s0, base, base, len(cache))
-    return RelaxFit(rl, f, sg, rm, base, len(cache))
+        return RelaxFit(Relaxation(0.0, rl.lam), f0, s0, base, base, len(cache), f0, s0)
+    return RelaxFit(rl, f, sg, rm, base, len(cache), f0, s0)
 
 
 # --------------------------------------------------------------------------- table fields
@@ -205,3 +207,30 @@ def from_table_fields(kappa_q16: int, lambda_q16: int) -> Relaxation | None:
     if kappa_q16 == 0:
         return None
     return Relaxation(kappa_q16 / Q16, lambda_q16 / Q16)
+
+
+# --------------------------------------------------------------------------- on a calibration
+def transition_output(q: np.ndarray, B, tr, z0: float | None = None) -> np.ndarray:
+    """y (N,) = PI[g(play(q))], the transition's output the relaxation acts on: q (N,) actuator
+    units from the record's start, B the onset width callable, tr a transition.Transition
+    (its own play width and threshold map applied)."""
+    from . import model
+
+    return tr.direct(model.play_operator(np.asarray(q, float), tr.play_width(B), z0))
+
+
+def fit_on_calibration(t_enc: np.ndarray, q: np.ndarray, B, tr, t_frame: np.ndarray, c: np.ndarray,
+                       n_ctrl: int, sign: int | None = None) -> RelaxFit:
+    """The relaxation of a calibration: (kappa, lambda) and f refitted on the relaxed output by
+    the transition's own f fit (transition.fit_f: monotone robust spline, n_ctrl control points,
+    f's sign kept), given the onset play B, the transition tr (b_scale, operators, map) as the
+    calibration chose them. t_enc, q: (N,) the calibration part's encoder record (s, actuator
+    units); t_frame, c: (F,) frame acquisition times (s, delay already removed) and angles (deg),
+    NaN rows dropped here. Returns RelaxFit (kappa 0 when the relaxation does not lower the
+    calibration part's residual). Errors: ValueError when the transition's output does not move."""
+    from . import transition as T
+
+    ok = np.isfinite(c)
+    t_frame, c = np.asarray(t_frame, float)[ok], np.asarray(c, float)[ok]
+    y = transition_output(q, B, tr)
+    return fit(y, np.asarray(t_enc, float), t_frame, c, lambda v, cc: T.fit_f(v, cc, n_ctrl, sign=sign))
