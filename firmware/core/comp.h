@@ -50,7 +50,8 @@ comp_smoothing_t comp_smoothing_from_rates(int32_t v_q16, int32_t a_q16, uint32_
  * psa_set_table re-arms the loop, which resets). */
 void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int32_t c0_q16);
 
-/* Hot swap (psa_set_table during a pure-play compensation): run cal from the next step with
+/* Hot swap (psa_set_table during a pure-play compensation, neither table with operators or a
+ * relaxation, whose states belong to their table): run cal from the next step with
  * the state kept (direction, offset, ramp); both cached cells are emptied, since they hold
  * the previous table's entries. O(1). */
 void comp_rebind(comp_t *cp, const calib_t *cal);
