@@ -95,6 +95,9 @@ $(row comp_step_pi "of which comp_step with the 16 operators (f^-1, PI^-1, B/2 o
 $(row tick_pimap_realistic "psa_tick, compensation with the transition model and a threshold map (table v3, 16 operators on u = g(z), bench_pi_map_load), realistic c* as above" 250 600)
 $(row tick_pimap_stress "psa_tick, compensation with the transition model and a threshold map (16 operators), stress: c* reversing every 512 ticks" 250 600)
 $(row comp_step_pimap "of which comp_step with the 16 operators and the map (f^-1, PI^-1, g^-1, B/2 offset, ramp), realistic c*" "" "")
+$(row tick_pirelax_realistic "psa_tick, compensation with the map model plus the travel-domain relaxation (table v4, bench_pi_relax_load: kappa 0.3, lambda 0.5 mm), realistic c* as above" 250 600)
+$(row tick_pirelax_stress "psa_tick, compensation with the map model plus the relaxation, stress: c* reversing every 512 ticks" 250 600)
+$(row comp_step_pirelax "of which comp_step with the operators, the map and the relaxation's inverse (f^-1, R^-1, PI^-1, g^-1, B/2 offset, ramp), realistic c*" "" "")
 | instruction-count calibration (subs+bne loop) | $cal per iteration | 2.00 | same counter, a loop of exactly 2 instructions |
 | counts of the runs | $infos | | BENCH_INFO lines of bench-m4.elf |
 | desktop throughput of psa_tick (realistic compensation) | $desk_tps ticks/s ($desk_ns ns/tick) | | bench-desktop, best of 5 x 20e6 ticks, desktop-release flags \`$release_flags\`, $cpu |

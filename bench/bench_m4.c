@@ -40,6 +40,7 @@ static psa_loop_t loop;
 static calib_t cal[2];
 static calib_t cal_pi;           /* the transition model: 16 play operators (bench_pi.c, pi-fw) */
 static calib_t cal_pimap;        /* the same with a threshold map (table v3, bench_pi_map_load) */
+static calib_t cal_pirelax;      /* the same plus the travel-domain relaxation (table v4, bench_pi_relax_load) */
 static union {
     uint32_t align;
     uint8_t bytes[PST_MAX_TABLE_SIZE];
@@ -435,6 +436,13 @@ int main(void)
     run_compensation("tick_pimap_realistic", &cal_pimap, TICK_HZ / 4, TICK_HZ / 2, 1);
     run_compensation("tick_pimap_stress", &cal_pimap, 512, 512, 1);
     run_parts("comp_step_pimap", NULL, &cal_pimap);
+    if (bench_pi_relax_load(&cal_pirelax) != CALIB_OK) {
+        console_put_str("BENCH setup failed (relaxation table)\r\n");
+        return 1;
+    }
+    run_compensation("tick_pirelax_realistic", &cal_pirelax, TICK_HZ / 4, TICK_HZ / 2, 1);
+    run_compensation("tick_pirelax_stress", &cal_pirelax, 512, 512, 1);
+    run_parts("comp_step_pirelax", NULL, &cal_pirelax);
     run_excitation("tick_exc_realistic", PS_Q16_ONE * 13 / 10, PS_Q16_ONE * 35 / 100, true, &obs);
     report("observe_px", &obs);
     /* The same excitation seen by an angle sensor instead of the camera (psa_observe_deg). */

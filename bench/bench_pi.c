@@ -50,7 +50,7 @@ enum {
 /* The 16-operator table above with a threshold map (layout v3): u = g(z) = -18 mm +
  * integral_{-18}^{z} b_ref / B, b_ref = B(0) = 1.5 mm, B held at its end values beyond the
  * grid (trapezoid rule on the map's grid; set-up only, the doubles never reach the tick). */
-int bench_pi_map_load(calib_t *cal)
+static int map_load(calib_t *cal, const pst_relax_t *relax)
 {
     int32_t r_q16[PI_OPS], w_q16[PI_OPS];
     bench_pi_ops(r_q16, w_q16);
@@ -74,8 +74,20 @@ int bench_pi_map_load(calib_t *cal)
     }
     h.layout_version = 0;
     pst_grid_t tm = {.x0_q16 = MAP_X0_Q16, .step_q16 = MAP_STEP_Q16, .n = MAP_N, .offset = 0};
-    len = table_write_map(map_table.bytes, sizeof map_table.bytes, &h, b, f, r_q16, w_q16, &tm, u);
+    len = table_write_relax(map_table.bytes, sizeof map_table.bytes, &h, b, f, r_q16, w_q16, &tm, u, relax);
     return (int)calib_load(cal, map_table.bytes, len);
+}
+
+int bench_pi_map_load(calib_t *cal)
+{
+    return map_load(cal, NULL);
+}
+
+int bench_pi_relax_load(calib_t *cal)
+{
+    /* kappa 0.3, lambda 0.5 mm: a relaxation of the catheter's order (docs/method.md) */
+    static const pst_relax_t rx = {.kappa_q16 = 19661, .lambda_q16 = 32768};
+    return map_load(cal, &rx);
 }
 
 static uint32_t lcg(uint32_t *s)

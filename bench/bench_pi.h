@@ -16,6 +16,10 @@ int bench_pi_load(calib_t *cal);
  * 73 entries over z = -18..18 mm, g' = 1.5 mm / B(z). Returns the calib_load status. */
 int bench_pi_map_load(calib_t *cal);
 
+/* The threshold-map table above plus the travel-domain relaxation (layout 4, kappa 0.3,
+ * lambda 0.5 mm): the costliest model the board runs. Returns calib_load's status. */
+int bench_pi_relax_load(calib_t *cal);
+
 /* c* in +-30 deg: straight segments of len_min..len_max ticks (uniform, LCG), each to a
  * random target on the other side of the last one, so every segment end is a reversal.
  * At 20 kHz, 5000..10000 ticks is a reversal every 0.25-0.5 s (teleoperation); 512 ticks

@@ -1,7 +1,8 @@
-/* Calibration-table binary layout (v3): one header and int32 Q16.16 entry arrays.
+/* Calibration-table binary layout (v4): one header and int32 Q16.16 entry arrays.
  *
  * Little-endian, packed. A v1/v2 table is  [pst_header_t][b entries][f entries][r[n]][w[n]],
  * a v3 table  [pst_header_v3_t][b entries][f entries][r[n]][w[n]][g entries],
+ * a v4 table  [pst_header_v4_t][b entries][f entries][r[n]][w[n]][g entries],
  * and is self-describing: each grid and the operator block give their own byte offset.
  * The CRC-32 covers all total_size bytes with the crc32 field taken as zero, seeded with
  * the table's own layout_version (ps_crc32_update(layout_version, ...)), so a table whose
@@ -21,6 +22,12 @@
  * that grid (header_size 72); v1 and v2 headers stop after pst_header_t (header_size 60).
  * table_write() writes v3 only for a table with a map, so map-less tables and their CRCs
  * are the v2 ones.
+ *
+ * Version 4 adds the travel-domain relaxation (docs/method.md, "Travel-domain relaxation"):
+ * two header fields (pst_relax_t) after the v3 header (header_size 80), no entry block. The
+ * relaxation acts on the transition's output y before f: c = f(R[y]). table_write_relax()
+ * writes v4 only for a table with a relaxation (kappa != 0), so every other table and its CRC
+ * is the v2 or v3 one.
  * Used by: firmware/core/calib.c (loader), host (writer, through cffi). */
 #ifndef PS_TABLE_H
 #define PS_TABLE_H
@@ -31,7 +38,7 @@
 
 enum {
     PST_MAGIC = 0x42545350,      /* bytes "PSTB" */
-    PST_LAYOUT_VERSION = 3,      /* highest loaded; table_write() writes 3 with a threshold map, else 2; 1 still loads */
+    PST_LAYOUT_VERSION = 4,      /* highest loaded; written: 4 with a relaxation, else 3 with a threshold map, else 2; 1 still loads */
     PST_LAYOUT_VERSION_NO_MAP = 2, /* what table_write() writes for a table without a threshold map */
     PST_MAX_ENTRIES = 256,       /* per grid; bounds the loader's RAM */
     PST_MIN_ENTRIES = 2,
@@ -73,7 +80,7 @@ PS_STATIC_ASSERT(sizeof(pst_pi_t) == 4, "pst_pi_t must be 4 bytes");
 typedef struct PS_PACKED pst_header {
     uint32_t magic;              /* PST_MAGIC */
     uint16_t layout_version;     /* PST_LAYOUT_VERSION */
-    uint16_t header_size;        /* v1, v2: sizeof(pst_header_t) = 60; v3: sizeof(pst_header_v3_t) = 72 */
+    uint16_t header_size;        /* v1, v2: sizeof(pst_header_t) = 60; v3: 72 (pst_header_v3_t); v4: 80 (pst_header_v4_t) */
     uint32_t total_size;         /* bytes, header + all entries */
     uint32_t crc32;              /* see file comment */
     uint32_t generation;         /* +1 per commit; at boot the newest valid slot wins */
@@ -100,8 +107,28 @@ typedef struct PS_PACKED pst_header_v3 {
 } pst_header_v3_t;
 PS_STATIC_ASSERT(sizeof(pst_header_v3_t) == 72, "pst_header_v3_t must be 72 bytes");
 
-/* Largest table the layout allows, in bytes: a v3 header, three full grids and a full
+/* The travel-domain relaxation (v4): v = y + kappa (r - y), r relaxing towards y over a
+ * travel lambda (firmware/core/relax.h). kappa = 0 and lambda = 0: none (the v3 model). */
+typedef struct PS_PACKED pst_relax {
+    int32_t kappa_q16;           /* creeping share of the output, Q16.16, 0..PST_RELAX_KAPPA_MAX_Q16 */
+    int32_t lambda_q16;          /* travel constant, actuator units Q16.16, >= 1 raw when kappa != 0 */
+} pst_relax_t;
+PS_STATIC_ASSERT(sizeof(pst_relax_t) == 8, "pst_relax_t must be 8 bytes");
+
+enum {
+    PST_RELAX_KAPPA_MAX_Q16 = 58982, /* 0.9: the inverse's gain 1/(1 - kappa) stays <= 10 */
+};
+
+/* The v4 header: the v3 header, then the relaxation's fields. */
+typedef struct PS_PACKED pst_header_v4 {
+    pst_header_v3_t v3;          /* v3.base.layout_version = 4, v3.base.header_size = 80 */
+    pst_relax_t relax;
+} pst_header_v4_t;
+PS_STATIC_ASSERT(sizeof(pst_header_v4_t) == 80, "pst_header_v4_t must be 80 bytes");
+PS_STATIC_ASSERT(offsetof(pst_header_v4_t, relax) == 72, "the relaxation follows the v3 header");
+
+/* Largest table the layout allows, in bytes: a v4 header, three full grids and a full
  * operator block. */
-enum { PST_MAX_TABLE_SIZE = 72 + 3 * 4 * PST_MAX_ENTRIES + 2 * 4 * PST_MAX_OPS };
+enum { PST_MAX_TABLE_SIZE = 80 + 3 * 4 * PST_MAX_ENTRIES + 2 * 4 * PST_MAX_OPS };
 
 #endif /* PS_TABLE_H */

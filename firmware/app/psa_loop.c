@@ -20,7 +20,9 @@ bool psa_set_table(psa_loop_t *l, const calib_t *cal)
     if (l->mode == PSA_MODE_EXCITATION)
         return false;
     if (l->mode == PSA_MODE_COMPENSATION && !l->comp_armed && cal != NULL && l->cal != NULL &&
-        cal->pi_inv.n == 0 && l->cal->pi_inv.n == 0) {
+        cal->pi_inv.n == 0 && l->cal->pi_inv.n == 0 &&
+        cal->relax.kappa_q16 == 0 && l->cal->relax.kappa_q16 == 0) {
+        /* (Operators and the relaxation carry state from their own table: those re-arm.) */
         /* Hot swap during use (a host refresh of f_remain, an offset or B): the compensator
          * keeps its direction, offset and ramp and runs the new table from the next tick. */
         l->cal = cal;

@@ -187,8 +187,10 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     memcpy(&hd, blob, sizeof hd);
     if (hd.magic != PST_MAGIC)
         return CALIB_ERR_MAGIC;
-    /* v1, v2: the 60-byte header; v3: the 72-byte one (the map's grid after it). */
-    const size_t hsize = hd.layout_version >= 3 ? sizeof(pst_header_v3_t) : sizeof hd;
+    /* v1, v2: the 60-byte header; v3: the 72-byte one (the map's grid after it); v4: 80 bytes
+     * (the relaxation's fields after that). */
+    const size_t hsize = hd.layout_version >= 4 ? sizeof(pst_header_v4_t)
+                         : hd.layout_version == 3 ? sizeof(pst_header_v3_t) : sizeof hd;
     if (hd.layout_version < 1 || hd.layout_version > PST_LAYOUT_VERSION || hd.header_size != hsize)
         return CALIB_ERR_VERSION;
     if (len < hsize || hd.total_size < hsize || hd.total_size > len || hd.total_size > PST_MAX_TABLE_SIZE)
@@ -197,6 +199,9 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     memset(&tmap_grid, 0, sizeof tmap_grid);
     if (hd.layout_version >= 3)
         memcpy(&tmap_grid, blob + offsetof(pst_header_v3_t, tmap), sizeof tmap_grid);
+    pst_relax_t relax_f = {0, 0};
+    if (hd.layout_version >= 4)
+        memcpy(&relax_f, blob + offsetof(pst_header_v4_t, relax), sizeof relax_f);
     if (calib_table_crc(blob, hd.total_size) != hd.crc32)
         return CALIB_ERR_CRC;
     if (hd.q_frac_bits != PS_FRAC_BITS || hd.c_frac_bits != PS_FRAC_BITS ||
@@ -261,7 +266,14 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     int64_t abs_w = 0;
     for (uint8_t i = 0; i < pi_inv.n; i++)
         abs_w += pi_inv.w[i] < 0 ? -(int64_t)pi_inv.w[i] : pi_inv.w[i];
-    int64_t e_u = pi_inv.n ? (int64_t)mul_shift_up_sat(e_f_inv, abs_w, pi_inv.w_frac) + pi_err : e_f_inv;
+    /* The relaxation (v4) on y before f: the compensator's R^-1 gains 1 + m on y*'s error,
+     * plus its own rounding (1 raw); the direct model's R is a convex combination (gain 1). */
+    relax_params_t relax;
+    if (relax_build(relax_f.kappa_q16, relax_f.lambda_q16, f.x0_q16, f.x_last_q16, &relax) != RELAX_OK)
+        return CALIB_ERR_RELAX;
+    int64_t e_y = relax.kappa_q16 ? (int64_t)mul_shift_up_sat(e_f_inv, ((int64_t)1 << 24) + relax.m_q24, 24) + 1
+                                  : e_f_inv;
+    int64_t e_u = pi_inv.n ? (int64_t)mul_shift_up_sat(e_y, abs_w, pi_inv.w_frac) + pi_err : e_y;
     int64_t e_comp = g.n ? (int64_t)mul_shift_up_sat(lip, e_u, 16) + e_g_inv : e_u;
     if (e_comp > INT32_MAX)
         e_comp = INT32_MAX;
@@ -298,6 +310,9 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     out->tmap_inv_err_q16 = e_g_inv;
     out->tmap_inv_lip_q16 = lip;
     out->comp_err_q16 = (int32_t)e_comp;
+    out->relax = relax;
+    out->stages = (uint8_t)((pi_inv.n ? CALIB_STAGE_PI : 0) | (g.n ? CALIB_STAGE_TMAP : 0) |
+                            (relax.kappa_q16 ? CALIB_STAGE_RELAX : 0));
     out->q_min_q16 = hd.q_min_q16;
     out->q_max_q16 = hd.q_max_q16;
     out->f_sign = (int8_t)(f.y_q16[1] > f.y_q16[0] ? 1 : -1);
@@ -341,6 +356,7 @@ const char *calib_status_str(calib_status_t st)
     case CALIB_ERR_TMAP_GRID: return "invalid threshold map grid (count, step, offset, overlap or not covering B's grid)";
     case CALIB_ERR_TMAP_MONOTONE: return "threshold map not strictly increasing";
     case CALIB_ERR_TMAP_RANGE: return "threshold map values or range beyond the fixed-point headroom";
+    case CALIB_ERR_RELAX: return "relaxation fields invalid (kappa outside 0..0.9, lambda below 1 raw, or input range)";
     }
     return "unknown";
 }

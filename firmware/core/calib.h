@@ -6,6 +6,7 @@
 #include <stdint.h>
 #include "lut.h"
 #include "pi.h"
+#include "relax.h"
 #include "ps_table.h"
 
 #ifndef CALIB_DERIVED_MAX
@@ -42,6 +43,9 @@ typedef enum {
                                     block, offset != 0 with n = 0, or abscissas not covering B's grid */
     CALIB_ERR_TMAP_MONOTONE,     /* map entries not strictly increasing: g^-1 would not exist */
     CALIB_ERR_TMAP_RANGE,        /* map values beyond +-2^30 raw, or its abscissas +- B_max/2 beyond int32 */
+    /* v4 relaxation (pst_header_v4_t.relax). */
+    CALIB_ERR_RELAX,             /* kappa outside 0..0.9, lambda < 1 raw with kappa != 0 (or != 0 without),
+                                    or f's grid (the relaxation's input range) beyond +-2^30 */
 } calib_status_t;
 
 /* Precision ceiling (docs/firmware.md, "Precision ceiling"): a table's own arithmetic may add
@@ -55,6 +59,13 @@ enum { CALIB_PRECISION_B_DIV = 16, CALIB_PRECISION_FLOOR_Q16 = 16 };
 
 /* The ceiling for a table whose largest B entry is b_max_q16 (raw): max(b_max / 16, 16). */
 int32_t calib_precision_ceiling_q16(int32_t b_max_q16);
+
+/* calib_t.stages: which optional stages a table carries (derived by calib_load). */
+enum {
+    CALIB_STAGE_PI = 1,          /* transition operators (pi_dir.n / pi_inv.n != 0) */
+    CALIB_STAGE_TMAP = 2,        /* threshold map (tmap.n != 0) */
+    CALIB_STAGE_RELAX = 4,       /* travel-domain relaxation (relax.kappa_q16 != 0) */
+};
 
 /* Everything the direct model and the compensator read, derived once per load. */
 typedef struct {
@@ -82,8 +93,12 @@ typedef struct {
     int32_t tmap_inv_lip_q16;    /* Lipschitz constant of the exact g^-1, max over segments of dz/du, Q16.16
                                     (saturated at INT32_MAX); 65536 without a map */
     int32_t comp_err_q16;        /* worst-case |z* - exact| of the compensator's centre (docs/firmware.md):
-                                    E_u = f_inv_err sum|w'| + pi_inv_err, then with a map
+                                    E_u = E_y sum|w'| + pi_inv_err, E_y = f_inv_err (with a relaxation
+                                    ceil(f_inv_err (1 + m)) + 1), then with a map
                                     ceil(L E_u) + tmap_inv_err (held to the ceiling); raw, saturated */
+    relax_params_t relax;        /* v4 travel-domain relaxation on y before f; kappa_q16 = 0: none */
+    uint8_t stages;              /* CALIB_STAGE_* bits of the stages between f^-1 and B/2 this table has:
+                                    0 is the pure play, whose tick tests this one byte instead of three */
     int32_t f_inv_buf[CALIB_DERIVED_MAX];
     int32_t z_up_buf[CALIB_DERIVED_MAX];
     int32_t z_down_buf[CALIB_DERIVED_MAX];
@@ -95,9 +110,10 @@ typedef struct {
  * their v1 CRC). blob must hold total_size >= sizeof(pst_header_t) bytes. */
 uint32_t calib_table_crc(const uint8_t *blob, uint32_t total_size);
 
-/* Validate blob[0..len) (layout version 1, 2 or 3) and derive f^-1, the reindexed envelopes
+/* Validate blob[0..len) (layout version 1, 2, 3 or 4) and derive f^-1, the reindexed envelopes
  * and, for a v2/v3 table with operators, the transition and its inverse (pi_build) into *out;
- * for a v3 table with a threshold map, g^-1 (the operators then run on u = g(z)).
+ * for a v3 table with a threshold map, g^-1 (the operators then run on u = g(z)); for a v4
+ * table with a relaxation, its derived constants (relax_build: m = kappa/(1-kappa), 1/lambda).
  * The B, f and map entries are read in place: blob must stay valid (and 4-aligned) while
  * *out is in use (the operator block is copied). On any error *out is left unchanged, so
  * a running calibration survives a bad upload. Not per tick: O(n) with 64-bit divides. */

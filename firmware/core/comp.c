@@ -19,6 +19,7 @@ void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int
     cp->resid_v_q32 = 0;
     cp->ramping = false;
     cp->q_ref_q16 = lut_eval_fill(&cal->f_inv, &cp->f_inv_cell, c0_q16);
+    relax_reset(&cp->relax, cp->q_ref_q16); /* at rest: R^-1 of y0 is y0 */
     /* Without operators comp_step never reads cp->pi: skip its reset (it clears all 16
      * operator slots, ~70 instructions on the tick that arms the compensator). */
     if (cal->pi_inv.n != 0) {

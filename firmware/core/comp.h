@@ -34,6 +34,7 @@ typedef struct {
     lut_cell_t f_inv_cell;       /* cell of cal->f_inv around the last c*, and of cal->b around */
     lut_cell_t b_cell;           /* the last q_c (lut_eval_cell): emptied by comp_reset */
     lut_cell_t tmap_inv_cell;    /* cell of cal->tmap_inv around the last u* (used only with a map) */
+    relax_state_t relax;         /* inverse relaxation (v4; not read when cal->relax.kappa_q16 = 0) */
 } comp_t;
 
 /* Convert limits to per-tick Q32.32: v_q16 in actuator units/s, a_q16 in units/s^2
@@ -49,7 +50,8 @@ comp_smoothing_t comp_smoothing_from_rates(int32_t v_q16, int32_t a_q16, uint32_
  * psa_set_table re-arms the loop, which resets). */
 void comp_reset(comp_t *cp, const calib_t *cal, const comp_smoothing_t *lim, int32_t c0_q16);
 
-/* Hot swap (psa_set_table during a pure-play compensation): run cal from the next step with
+/* Hot swap (psa_set_table during a pure-play compensation, neither table with operators or a
+ * relaxation, whose states belong to their table): run cal from the next step with
  * the state kept (direction, offset, ramp); both cached cells are emptied, since they hold
  * the previous table's entries. O(1). */
 void comp_rebind(comp_t *cp, const calib_t *cal);
@@ -61,6 +63,9 @@ void comp_b_changed(comp_t *cp);
 
 /* One step of eq. 4: q*[k] for reference c*[k] (deg, Q16).
  *   y*  = f^-1(c*)                         (f_coarse^-1 of eq. 5 or f_remain^-1 of eq. 9)
+ *   y*  = R^-1[y*]                         (table v4 with a relaxation only, relax.h; a held c*
+ *                                           holds q*, skipping the inverse's settling of at most
+ *                                           m times the last tick's travel)
  *   q_c = PI^-1[y*]                        (the transition's inverse, Krejci-Kuhnen; q_c = y*
  *                                           without operators, so n = 0 is eq. 4 bit for bit)
  *   q_c = g^-1(q_c)                        (table v3 with a threshold map only)
@@ -103,14 +108,24 @@ __attribute__((always_inline)) static inline int32_t comp_step_inline(comp_t *cp
      * flip (f_sign) is exactly the difference between eq. 5 and eq. 9. The sum fits
      * int32: calib_load checks the f grid widened by B_max / 2 does. */
     int32_t q_c = lut_eval_cell(&cal->f_inv, &cp->f_inv_cell, c_ref_q16);
-    /* The transition's inverse: the centre that the direct model maps to y* = f^-1(c*).
-     * |q_c| <= 2^30 (pi_build bounds it), so q_c + B/2 still fits int32. */
-    if (cal->pi_inv.n != 0)
-        q_c = pi_step_inline(&cp->pi, &cal->pi_inv, q_c);
-    /* With a threshold map (v3) the operators ran on u = g(z): z* = g^-1(u*), which lies on
-     * the map's grid (calib_load checks it +- B_max/2 fits int32). */
-    if (cal->tmap.n != 0)
-        q_c = lut_eval_cell(&cal->tmap_inv, &cp->tmap_inv_cell, q_c);
+    /* The pure play (eq. 4 as written) tests one byte; the other models their stages. */
+    const uint8_t stages = cal->stages;
+    if (stages != 0) {
+        /* The relaxation's inverse (v4): the y the relaxation turns into y*; clamped to f's
+         * grid, the range the transition's inverse was validated on. Called, not inlined:
+         * inlined, its 64-bit temporaries cost the other models' ticks 7 instructions of
+         * register saves (bench/bench_firmware.sh). */
+        if (stages & CALIB_STAGE_RELAX)
+            q_c = relax_inverse(&cp->relax, &cal->relax, q_c);
+        /* The transition's inverse: the centre that the direct model maps to y* = f^-1(c*).
+         * |q_c| <= 2^30 (pi_build bounds it), so q_c + B/2 still fits int32. */
+        if (stages & CALIB_STAGE_PI)
+            q_c = pi_step_inline(&cp->pi, &cal->pi_inv, q_c);
+        /* With a threshold map (v3) the operators ran on u = g(z): z* = g^-1(u*), which lies
+         * on the map's grid (calib_load checks it +- B_max/2 fits int32). */
+        if (stages & CALIB_STAGE_TMAP)
+            q_c = lut_eval_cell(&cal->tmap_inv, &cp->tmap_inv_cell, q_c);
+    }
     int32_t off = (dir * cal->f_sign) * (lut_eval_cell(&cal->b, &cp->b_cell, q_c) >> 1);
     int32_t q = q_c + off;
     bool reversed = dir != cp->dir;

@@ -14,16 +14,19 @@
  * With a transition (table v2, cal->pi_dir.n > 0) the centre goes through the
  * Prandtl-Ishlinskii operator first: c = f(y), y = sum_i w_i P_{r_i}[z] (docs/method.md).
  * With a threshold map (table v3, cal->tmap.n > 0) the operators run on u = g(z):
- * y = sum_i w_i P_{r_i}[g(z)] (thresholds proportional to B; without operators y = g(z)). */
+ * y = sum_i w_i P_{r_i}[g(z)] (thresholds proportional to B; without operators y = g(z)).
+ * With a relaxation (table v4, cal->relax.kappa_q16 != 0) f reads the relaxed y:
+ * c = f(R[y]), R the travel-domain relaxation of relax.h. */
 typedef struct {
     const calib_t *cal;
     int32_t z_q16;               /* centre position, actuator units */
     pi_state_t pi;               /* transition operators (unused when cal->pi_dir.n = 0) */
+    relax_state_t relax;         /* relaxation on y (unused when cal->relax.kappa_q16 = 0) */
 } playop_t;
 
 /* Start at centre z0_q16 (e.g. the first q, with the play assumed centred); the
  * transition's operators start at rest there (p_i = z0, or g(z0) with a map, clamped to
- * their validated input range). */
+ * their validated input range), the relaxation at rest at their output. */
 void playop_reset(playop_t *p, const calib_t *cal, int32_t z0_q16);
 
 /* One step of eq. 3: the bending angle c[k] (deg, Q16) for actuator position q_q16.

@@ -15,21 +15,31 @@ size_t table_write_map(uint8_t *buf, size_t cap, const pst_header_t *hd_in, cons
                        const int32_t *f_q16, const int32_t *pi_r_q16, const int32_t *pi_w_q16,
                        const pst_grid_t *tmap, const int32_t *tmap_q16)
 {
-    pst_header_v3_t h3;
-    memset(&h3, 0, sizeof h3);
-    h3.base = *hd_in;
-    pst_header_t *hd = &h3.base;
+    return table_write_relax(buf, cap, hd_in, b_q16, f_q16, pi_r_q16, pi_w_q16, tmap, tmap_q16, NULL);
+}
+
+size_t table_write_relax(uint8_t *buf, size_t cap, const pst_header_t *hd_in, const int32_t *b_q16,
+                         const int32_t *f_q16, const int32_t *pi_r_q16, const int32_t *pi_w_q16,
+                         const pst_grid_t *tmap, const int32_t *tmap_q16, const pst_relax_t *relax)
+{
+    pst_header_v4_t h4;
+    memset(&h4, 0, sizeof h4);
+    h4.v3.base = *hd_in;
+    pst_header_t *hd = &h4.v3.base;
     const int has_map = tmap != NULL && tmap->n != 0;
+    const int has_relax = relax != NULL && relax->kappa_q16 != 0;
     uint16_t version = hd->layout_version;
     if (version == 0)
-        version = has_map ? 3u : (uint16_t)PST_LAYOUT_VERSION_NO_MAP;
+        version = has_relax ? 4u : has_map ? 3u : (uint16_t)PST_LAYOUT_VERSION_NO_MAP;
     const uint16_t n_ops = hd->pi.n;
     if (hd->b.n > PST_MAX_ENTRIES || hd->f.n > PST_MAX_ENTRIES || n_ops > PST_MAX_OPS ||
         version > PST_LAYOUT_VERSION || (version == 1 && n_ops != 0) ||
         (n_ops != 0 && (pi_r_q16 == NULL || pi_w_q16 == NULL)) ||
-        (has_map && (version != 3 || tmap->n > PST_MAX_ENTRIES || tmap_q16 == NULL)))
+        (has_map && (version < 3 || tmap->n > PST_MAX_ENTRIES || tmap_q16 == NULL)) ||
+        (has_relax && version != 4))
         return 0;
-    const size_t hsize = version >= 3 ? sizeof(pst_header_v3_t) : sizeof(pst_header_t);
+    const size_t hsize = version >= 4 ? sizeof(pst_header_v4_t)
+                         : version == 3 ? sizeof(pst_header_v3_t) : sizeof(pst_header_t);
     const uint16_t n_map = has_map ? tmap->n : 0;
     size_t total = hsize + 4u * hd->b.n + 4u * hd->f.n + 8u * n_ops + 4u * n_map;
     if (total > cap)
@@ -45,11 +55,13 @@ size_t table_write_map(uint8_t *buf, size_t cap, const pst_header_t *hd_in, cons
     const uint32_t after_f = (uint32_t)hd->f.offset + 4u * hd->f.n;
     hd->pi.offset = n_ops ? (uint16_t)after_f : 0;
     if (has_map) {
-        h3.tmap = *tmap;
-        h3.tmap.offset = (uint16_t)(after_f + 8u * n_ops);
+        h4.v3.tmap = *tmap;
+        h4.v3.tmap.offset = (uint16_t)(after_f + 8u * n_ops);
     }
+    if (has_relax)
+        h4.relax = *relax;
     hd->crc32 = 0;
-    memcpy(buf, &h3, hsize);
+    memcpy(buf, &h4, hsize);
     memcpy(buf + hd->b.offset, b_q16, 4u * hd->b.n); /* little-endian targets only, as the layout */
     memcpy(buf + hd->f.offset, f_q16, 4u * hd->f.n);
     if (n_ops) {
@@ -57,7 +69,7 @@ size_t table_write_map(uint8_t *buf, size_t cap, const pst_header_t *hd_in, cons
         memcpy(buf + hd->pi.offset + 4u * n_ops, pi_w_q16, 4u * n_ops);
     }
     if (has_map)
-        memcpy(buf + h3.tmap.offset, tmap_q16, 4u * n_map);
+        memcpy(buf + h4.v3.tmap.offset, tmap_q16, 4u * n_map);
     hd->crc32 = calib_table_crc(buf, (uint32_t)total);
     memcpy(buf + offsetof(pst_header_t, crc32), &hd->crc32, sizeof hd->crc32);
     return total;

@@ -28,4 +28,13 @@ size_t table_write_map(uint8_t *buf, size_t cap, const pst_header_t *hd, const i
                        const int32_t *f_q16, const int32_t *pi_r_q16, const int32_t *pi_w_q16,
                        const pst_grid_t *tmap, const int32_t *tmap_q16);
 
+/* table_write_map() plus the travel-domain relaxation of layout v4 (*relax: kappa_q16,
+ * lambda_q16, written in the header after the map's grid; no entry block). relax NULL or
+ * relax->kappa_q16 = 0: exactly table_write_map() (v2 or v3, byte for byte). With a
+ * relaxation layout_version must be 0 or 4; the header is pst_header_v4_t (80 bytes), the map
+ * optional (grid n = 0). Returns the size, or 0 as table_write(). */
+size_t table_write_relax(uint8_t *buf, size_t cap, const pst_header_t *hd, const int32_t *b_q16,
+                         const int32_t *f_q16, const int32_t *pi_r_q16, const int32_t *pi_w_q16,
+                         const pst_grid_t *tmap, const int32_t *tmap_q16, const pst_relax_t *relax);
+
 #endif /* TABLE_WRITE_H */

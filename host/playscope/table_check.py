@@ -47,10 +47,11 @@ def check_blob(blob: bytes, source=None):
     if not 1 <= hd.layout_version <= lib.PST_LAYOUT_VERSION:
         raise TableFileError(source, "layout_version",
                              f"{hd.layout_version}, this host reads 1..{lib.PST_LAYOUT_VERSION}")
-    if hd.layout_version >= 3:  # v3: the threshold map's grid follows (pst_header_v3_t)
-        hsize = ffi.sizeof("pst_header_v3_t")
+    if hd.layout_version >= 3:  # v3: the threshold map's grid follows (pst_header_v3_t); v4: the relaxation
+        hsize = ffi.sizeof("pst_header_v4_t" if hd.layout_version >= 4 else "pst_header_v3_t")
         if len(blob) < hsize:
-            raise TableFileError(source, "size", f"{len(blob)} bytes, shorter than the {hsize}-byte v3 header")
+            raise TableFileError(source, "size", f"{len(blob)} bytes, shorter than the {hsize}-byte "
+                                 f"v{hd.layout_version} header")
     if hd.header_size != hsize:
         raise TableFileError(source, "header_size", f"{hd.header_size}, expected {hsize}")
     if hd.total_size != len(blob):
@@ -72,7 +73,7 @@ def check_blob(blob: bytes, source=None):
                                  f"do not fit a {hd.total_size}-byte table")
     if hd.layout_version >= 3:
         h3 = ffi.new("pst_header_v3_t *")
-        ffi.memmove(h3, blob, hsize)
+        ffi.memmove(h3, blob, ffi.sizeof("pst_header_v3_t"))
         g = h3.tmap
         if g.n == 0:
             if g.offset != 0:

@@ -45,14 +45,17 @@ def grid_for(q_min: float, q_max: float, n_max: int) -> tuple[int, int, int]:
 
 def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: float, unit: str = "mm",
                f_kind: str = "remain", generation: int = 1, pi_r=None, pi_w=None, source=None,
-               f_grid: tuple[int, int] | None = None, tmap: tuple[int, int, list] | None = None) -> bytes:
+               f_grid: tuple[int, int] | None = None, tmap: tuple[int, int, list] | None = None,
+               relax: tuple[int, int] | None = None) -> bytes:
     """Lay out and seal one table by the C table_write() / table_write_map() (common/ps_table.h).
 
     b_q16, f_q16: int Q16.16 entries on the grid x0 + i step (same grid for both unless f_grid =
     (x0_q16, step_q16) gives f its own); q_min, q_max: actuator travel (units); unit "mm" | "deg";
     f_kind "remain" | "coarse"; pi_r, pi_w: operator thresholds (actuator units) and weights
     (floats, n <= PST_MAX_OPS), or None for the pure play; tmap: (x0_q16, step_q16, u_q16) the
-    threshold map's grid and entries (layout 3), or None (layout 2). Returns the blob. Errors:
+    threshold map's grid and entries (layout 3), or None (layout 2); relax: (kappa_q16,
+    lambda_q16) of the travel-domain relaxation (layout 4; playscope.relax.table_fields), or None
+    / kappa 0 for none. Returns the blob. Errors:
     TableError when the writer refuses it (too many entries, operators or map entries)."""
     ffi, lib = core()
     b = [int(v) for v in b_q16]
@@ -68,7 +71,7 @@ def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: fl
     if f_grid is not None:
         hd.f.x0_q16, hd.f.step_q16 = f_grid
     n_map = 0 if tmap is None else len(tmap[2])
-    cap = ffi.sizeof("pst_header_v3_t") + 4 * (len(b) + len(f) + 2 * n_ops + n_map) + 16
+    cap = ffi.sizeof("pst_header_v4_t") + 4 * (len(b) + len(f) + 2 * n_ops + n_map) + 16
     buf = ffi.new("uint8_t[]", cap)
     hd.pi.n = n_ops
     r = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_r)]) if n_ops else ffi.NULL
@@ -78,7 +81,13 @@ def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: fl
         grid = ffi.new("pst_grid_t *")
         grid.x0_q16, grid.step_q16, grid.n = int(tmap[0]), int(tmap[1]), n_map
         g = ffi.new("int32_t[]", [int(v) for v in tmap[2]])
-    size = lib.table_write_map(buf, cap, hd, ffi.new("int32_t[]", b), ffi.new("int32_t[]", f), r, w, grid, g)
+    rx = ffi.NULL
+    if relax is not None and int(relax[0]) != 0:
+        rx = ffi.new("pst_relax_t *")
+        rx.kappa_q16, rx.lambda_q16 = int(relax[0]), int(relax[1])
+        if tmap is None:
+            grid = ffi.new("pst_grid_t *")  # n = 0: no map in the v4 header
+    size = lib.table_write_relax(buf, cap, hd, ffi.new("int32_t[]", b), ffi.new("int32_t[]", f), r, w, grid, g, rx)
     if size == 0:
         raise TableError(source, f"table_write refused the table ({len(b)} entries, {n_ops} operators, "
                          f"{n_map} map entries)")
@@ -175,11 +184,12 @@ class CalibTable:
 
 # --------------------------------------------------------------------------- building
 def build_table(B, f, q_min: float, q_max: float, unit: str, f_kind: str = "remain", generation: int = 1,
-                n_max: int | None = None, source=None, transition=None) -> CalibTable:
+                n_max: int | None = None, source=None, transition=None, relax=None) -> CalibTable:
     """Sample B and f on power-of-two grids over the travel and write a table by table_write().
 
     B: widths floored at 0; f made strictly monotone in raw units (a flat stretch of the
-    float f would otherwise have no inverse); transition: a transition.Transition (None or
+    float f would otherwise have no inverse); relax: a playscope.relax.Relaxation on the
+    transition's output before f (layout 4), or None; transition: a transition.Transition (None or
     n = 1: the pure play, no operator written). A transition with a threshold map
     (transition.tmap) writes layout 3: g sampled on its own grid over the play centre's range
     (B's grid widened by max B/2 on each side, as many entries as the other grids), and f's
@@ -210,8 +220,10 @@ def build_table(B, f, q_min: float, q_max: float, unit: str, f_kind: str = "rema
     f_raw = _strictly_increasing(f_raw, 1 if f_raw[-1] >= f_raw[0] else -1)
     ops = transition is not None and not transition.is_play
     r, w = (transition.r, _weights_q16_sum_one(transition.w)) if ops else (None, None)
+    from .relax import table_fields
+
     blob = write_blob(x0, step, b_raw, f_raw, q_min, q_max, unit, f_kind, generation, r, w, source,
-                      f_grid=f_grid, tmap=tmap)
+                      f_grid=f_grid, tmap=tmap, relax=table_fields(relax) if relax is not None else None)
     return CalibTable(blob, source)
 
 

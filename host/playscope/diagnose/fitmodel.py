@@ -47,6 +47,12 @@ NONLIN = {
     "stick_slip": [("static_q", None, 0.0, None), ("kin_ratio", 0.5, 0.0, 1.0),
                    ("log_fn", np.log(20.0), np.log(8.0), np.log(60.0)), ("zeta", 0.5, 0.05, 1.0)],
     "cable_elongation": [("kappa", 0.3, 0.0, 0.95), ("log_tau", 0.0, np.log(0.05), np.log(10.0))],
+    # The same creep over the travel instead of time (rate-independent, Dahl / Duhem type;
+    # playscope.relax): the carrier relaxes towards the play output over a travel lambda (q
+    # units; log, bounds from the q span in Model), kappa of it creeping. A lag whose fitted tau
+    # scales with each record's period is this effect; kept apart from cable_elongation so
+    # records at several speeds tell them apart (tau moves with speed, lambda does not).
+    "travel_relaxation": [("kappa", 0.3, 0.0, 0.9), ("log_lambda_q", None, None, None)],
     "camera_delay": [("delay_s", 0.0, -0.2, 0.5)],
     # Rate-dependent play, two physical routes to a lag that grows with speed: (1) an extra
     # half-width beta * |dq/dt| (speed low-passed with tau_v; sheath friction with a viscous part:
@@ -307,6 +313,8 @@ class Model:
                     v0, l, h = data.q_lo + 0.2 * span, data.q_lo - 0.1 * span, data.q_hi + 0.1 * span
                 elif n == "static_q":
                     v0, h = 0.01 * span, 0.1 * span
+                elif n == "log_lambda_q":
+                    v0, l, h = np.log(0.1 * span), np.log(0.002 * span), np.log(2.0 * span)
                 names.append(f"{e}.{n}")
                 init.append(v0)
                 lo.append(l)
@@ -421,6 +429,12 @@ class Model:
                                  self._get(theta, "stick_slip", "kin_ratio"),
                                  np.exp(self._get(theta, "stick_slip", "log_fn")),
                                  self._get(theta, "stick_slip", "zeta"))
+        if "travel_relaxation" in self.effects:
+            # After the play and the carrier, before the distal band and f_remain: where the
+            # product's board runs it (c = f(R[y]), playscope.relax).
+            from ..relax import Relaxation
+            z = Relaxation(self._get(theta, "travel_relaxation", "kappa"),
+                           float(np.exp(self._get(theta, "travel_relaxation", "log_lambda_q")))).direct(z)
         return z, sdir
 
     def design(self, theta: np.ndarray) -> np.ndarray:
@@ -587,6 +601,11 @@ class Model:
                     for lt in np.log([0.2, 1.0, 4.0]):
                         x = s.copy()
                         x[self.names.index("cable_elongation.log_tau")] = lt
+                        new.append(x)
+                elif e == "travel_relaxation":
+                    for lf in (0.02, 0.1, 0.4):
+                        x = s.copy()
+                        x[self.names.index("travel_relaxation.log_lambda_q")] = np.log(lf * span)
                         new.append(x)
                 elif e == "smooth_transition":
                     for sp in (0.3, 0.8, 1.5):

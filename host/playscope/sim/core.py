@@ -192,6 +192,10 @@ def transmission(cfg: SimConfig, t: np.ndarray, q: np.ndarray, eff: EffectSet,
         z = np.mean(zs, axis=0)
     else:
         z = play_asym(q, B, alpha)
+    kr = eff.get("travel_relaxation", "kappa")
+    if kr > 0:
+        from ..relax import Relaxation
+        z = Relaxation(kr, eff.get("travel_relaxation", "lambda_q")).direct(z)
     c = cfg.f_fn()(z)
     w = eff.get("dead_zone", "width_deg")
     if w > 0:

@@ -77,6 +77,30 @@ size_t fixture_with_tmap(fixture_blob_t *blob, int32_t x0_q16, int32_t step_q16,
                            hd.pi.n ? ww : NULL, &tm, u_q16);
 }
 
+size_t fixture_with_relax(fixture_blob_t *blob, int32_t kappa_q16, int32_t lambda_q16)
+{
+    static int32_t bb[PST_MAX_ENTRIES], ff[PST_MAX_ENTRIES], rr[PST_MAX_OPS], ww[PST_MAX_OPS], gg[PST_MAX_ENTRIES];
+    pst_header_t hd;
+    memcpy(&hd, blob->bytes, sizeof hd);
+    pst_grid_t tm = {0, 0, 0, 0};
+    if (hd.layout_version >= 3)
+        memcpy(&tm, blob->bytes + offsetof(pst_header_v3_t, tmap), sizeof tm);
+    memcpy(bb, blob->bytes + hd.b.offset, 4u * hd.b.n);
+    memcpy(ff, blob->bytes + hd.f.offset, 4u * hd.f.n);
+    if (hd.pi.n) {
+        memcpy(rr, blob->bytes + hd.pi.offset, 4u * hd.pi.n);
+        memcpy(ww, blob->bytes + hd.pi.offset + 4u * hd.pi.n, 4u * hd.pi.n);
+    }
+    if (tm.n)
+        memcpy(gg, blob->bytes + tm.offset, 4u * tm.n);
+    hd.layout_version = 4;
+    tm.offset = 0;
+    pst_relax_t rx = {.kappa_q16 = kappa_q16, .lambda_q16 = lambda_q16};
+    memset(blob, 0, sizeof *blob);
+    return table_write_relax(blob->bytes, sizeof blob->bytes, &hd, bb, ff, hd.pi.n ? rr : NULL,
+                             hd.pi.n ? ww : NULL, &tm, tm.n ? gg : NULL, &rx);
+}
+
 void fixture_reseal(fixture_blob_t *blob)
 {
     pst_header_t hd;

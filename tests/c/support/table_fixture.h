@@ -47,6 +47,10 @@ size_t fixture_with_ops(fixture_blob_t *blob, uint16_t version, uint16_t n_ops, 
 size_t fixture_with_tmap(fixture_blob_t *blob, int32_t x0_q16, int32_t step_q16, uint16_t n,
                          const int32_t *u_q16);
 
+/* Rewrite the table in blob (v1-v4, its grids, operators and map kept) as layout v4 with the
+ * relaxation (kappa_q16, lambda_q16). Returns the new size, 0 if the writer refuses. */
+size_t fixture_with_relax(fixture_blob_t *blob, int32_t kappa_q16, int32_t lambda_q16);
+
 /* Recompute the CRC after a test edited the blob on purpose. */
 void fixture_reseal(fixture_blob_t *blob);
 

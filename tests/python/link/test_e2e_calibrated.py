@@ -126,3 +126,20 @@ def test_qemu_runs_a_layout_3_table_bit_for_bit(tmp_path):
     assert T.header(blob).layout_version == 3
     sent, q_host = _host_run(blob)
     assert _qemu_flash_and_compensate(blob, sent) == q_host
+
+
+def test_qemu_runs_a_layout_4_table_bit_for_bit(tmp_path):
+    """A table with the travel-domain relaxation (layout 4: R^-1 on the board before PI^-1, with
+    the threshold map) flashed to the STM32F405 link firmware under QEMU: read back identical,
+    and the board's compensator equals the host's run of the same C, bit for bit."""
+    from playscope.relax import Relaxation
+    from playscope.transition import ThresholdMap, Transition, thresholds
+
+    B = lambda q: 0.3 + 0.03 * (np.asarray(q, float) + 5.0)
+    f = lambda q: 3.0 * np.asarray(q, float) + 0.04 * np.asarray(q, float) ** 2
+    tr = Transition(thresholds(8, 0.8), np.r_[0.4, np.full(7, 0.6 / 7)], 1.0,
+                    ThresholdMap.from_backlash(B, -5.3, 5.3))
+    blob = T.build_table(B, f, -5.0, 5.0, "mm", transition=tr, relax=Relaxation(0.4, 0.3)).blob
+    assert T.header(blob).layout_version == 4
+    sent, q_host = _host_run(blob)
+    assert _qemu_flash_and_compensate(blob, sent) == q_host
