@@ -42,7 +42,6 @@ from typing import Callable
 import numpy as np
 
 from . import estimate as E
-from . import model
 from . import transition as T
 
 POLY_SPLINE_CTRL, POLY_GRID = 32, 400  # const_play's poly5 carried as a spline of 32 control points
@@ -150,14 +149,44 @@ def monotone_spline_of(g, lo: float, hi: float, sign: int, min_slope: float = 0.
     return E.SplineFn(spl, lo, hi, linear_ends=True), sign
 
 
+def constant_play_lsq(q_c: np.ndarray, c: np.ndarray, degree: int = 5, levels: int = 3, n_grid: int = 41):
+    """estimate.fit_constant_play's model and criterion (constant play of width w, polynomial of
+    degree 5 on its centre, least squares), with w found by nested grids instead of a scalar
+    search: each level evaluates n_grid widths at once (transition.play_ops runs them as one
+    pass of operators of thresholds w/2, the same centre as model.play_operator with a constant
+    B), the next refines between the best one's neighbours. levels 3: w to 1/(20^2 40) of half
+    the span of q. ~10x faster than the scalar search (which solves the play's edges per width).
+    q_c, c: (F,) in time order. Returns (w, polynomial callable, centre z (F,) at w)."""
+    span = float(q_c.max() - q_c.min())
+    zsc, q0 = max(span, 1e-12), float(q_c.min())
+    lo, hi = 0.0, 0.5 * span
+    best = (np.inf, 0.0, None, None)
+    for _ in range(levels):
+        grid = np.linspace(lo, hi, n_grid)
+        Z = T.play_ops(q_c, 0.5 * grid)
+        costs = []
+        for j in range(grid.size):
+            V = np.vander((Z[:, j] - q0) / zsc, degree + 1)
+            coef, *_ = np.linalg.lstsq(V, c, rcond=None)
+            cost = float(np.sum((V @ coef - c) ** 2))
+            costs.append(cost)
+            if cost < best[0]:
+                best = (cost, float(grid[j]), coef, Z[:, j].copy())
+        i = int(np.argmin(costs))
+        lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+        if hi <= lo:
+            break
+    _, w, coef, z = best
+    return w, (lambda x: np.polyval(coef, (np.asarray(x, float) - q0) / zsc)), z
+
+
 def fit_const_play(ctx: Context, train=None) -> Member:
-    """Constant play + polynomial of degree 5, both least squares on the frames' q
-    (estimate.fit_constant_play, the constant-play baseline's own fit: Reilink et al.), the
+    """Constant play + polynomial of degree 5, both least squares on the frames' q (the
+    constant-play baseline's model and criterion, constant_play_lsq: Reilink et al.), the
     polynomial then carried as a monotone spline (monotone_spline_of) so the board can invert it."""
     m = _all(ctx, train)
     qf, c = ctx.q_frames()[m], ctx.data.c[m]
-    w, poly, Bc = E.fit_constant_play(qf, c)
-    z = model.play_operator(qf, Bc)
+    w, poly, z = constant_play_lsq(qf, c)
     sign = 1 if np.corrcoef(z, c)[0, 1] >= 0 else -1
     lo, hi = float(z.min()), float(z.max())
     f, sign = monotone_spline_of(poly, lo, hi, sign)
