@@ -60,7 +60,10 @@ TIE_DEG = 1e-3
 
 def run_file(reader, path: Path, splits) -> dict:
     """{split: evaluate_insitu document, or {"error": message}} for one file."""
-    s = reader(path)
+    try:
+        s = reader(path)
+    except InputError as e:  # a file the reader refuses is that file's error, not the bench's
+        return {fr: {"error": str(e)} for fr in splits}
     out = {}
     for fr in splits:
         try:

@@ -73,7 +73,8 @@ def import_endoscope(path, c_col: int | None = None) -> Session:
 
     c_col: the measured-angle column; None: 5 when the file has at least 6 columns and its name
     starts with "conf" (the tracker records), else 3. Rows before the command first moves are
-    dropped (the long records open with a block of zeros, stamps included). Repeated stamps
+    dropped (the long records open with a block of zeros, stamps included), and so are trailing
+    rows whose stamp went back to 0 for good (a logger whose clock stopped). Repeated stamps
     keep the last row (session.regularize_time, noted in Session.notes). q_source is "command":
     the servo's lag is inside the data, so `calibrate` measures it from the record.
     Errors: InputError naming the file (and row) for a missing file, a non-numeric field or a
@@ -97,6 +98,14 @@ def import_endoscope(path, c_col: int | None = None) -> Session:
     start = max(int(moving[0]) - 1, 0) if moving.size else 0
     rows = rows[start:]
     notes = [f"{path}: {start} row(s) before the command first moves dropped"] if start else []
+    # A logger whose clock stops writes its last rows with stamp 0 (conf90_60.txt: the last 1 099
+    # rows, q held): they cannot be placed in time, so they end the record.
+    t_raw = rows[:, ENDOSCOPE_T_COL]
+    late = np.nonzero((t_raw == 0) & (np.arange(t_raw.size) > 0) & (np.maximum.accumulate(t_raw) > 0))[0]
+    if late.size and np.all(t_raw[late[0]:] == 0):
+        notes.append(f"{path}: the last {t_raw.size - late[0]} row(s) have time stamp 0 after "
+                     f"{t_raw[late[0] - 1]:g} s (the logger's clock stopped): dropped")
+        rows = rows[:late[0]]
     tab = {"t_s": rows[:, ENDOSCOPE_T_COL], "q": rows[:, ENDOSCOPE_Q_COL], "c_deg": rows[:, c_col]}
     from .session import regularize_time
 
