@@ -421,13 +421,22 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         on = rob.onsets
     else:
         on = onsets if onsets is not None else E.run_onsets(t_enc, q, rt, rq, t_f, obs, s.distal_kind, cfg)
-    if on.b.size == 0:
+    no_onset = on.b.size == 0
+    if no_onset:
         why = ", ".join(f"{k} {v}" for k, v in on.reasons.items() if v) or "none reached"
-        raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset ({why}); "
-                         "check that the distal end moves after each reversal and the back-and-forth exceeds the play")
-    bfit = E.fit_backlash_auto(on.q_mean, on.b, n_ctrl, source=src, sigma=on.sigma_b)
+        if not across_families:
+            raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset "
+                             f"({why}); check that the distal end moves after each reversal and the back-and-forth "
+                             "exceeds the play")
+        # The families that fit their play from c alone still hold (families.FAMILIES_FROM_C); B
+        # (set below from the frames) is then the constant play's width, not a measurement.
+        warnings.append(f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset ({why}): "
+                        "the play's width is fitted on c alone (constant play), the onset families are not offered")
+        bfit = E.BacklashFit(None, np.zeros(0), np.zeros(0), np.zeros(0, bool), 0.0, kind="fitted on c", n_ctrl=4)
+    else:
+        bfit = E.fit_backlash_auto(on.q_mean, on.b, n_ctrl, source=src, sigma=on.sigma_b)
     B, w = bfit.B, bfit.weight
-    if bfit.kind == "constant":
+    if bfit.kind == "constant" and not no_onset:
         ci = "unknown (one sample without an uncertainty)" if bfit.ci95 is None else \
             f"95 % CI {bfit.ci95[0]:.3g}..{bfit.ci95[1]:.3g}"
         why = (f"only {on.b.size} B sample(s) (B(q) needs >= {E.MIN_SPLINE_SAMPLES})" if on.b.size < E.MIN_SPLINE_SAMPLES
@@ -447,6 +456,12 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         c_f, res, offset = pose_with_offset(im, obs, model.f_coarse(q_f, s.robot.q_per_rad))
         lm = {"residual_px_median": float(np.nanmedian(res)), "residual_px_max": float(np.nanmax(res)),
               "image_offset_px": [float(v) for v in offset]}
+    if no_onset:
+        from .families import constant_play_lsq, constant_spline
+
+        q_c0, c_c0 = E.characteristic(t_enc, q, t_f, c_f, td)
+        B = bfit.B = constant_spline(constant_play_lsq(q_c0, c_c0)[0], float(q.min()), float(q.max()))
+        model_kind = "play"  # no onset B to anchor the transition on
     model_cv = None
     if model_kind != "play" and rt.size >= MIN_REVERSALS_TRANSITION:
         # B(q)'s stiffness by the model's own cross-validation on c (see choose_b_and_model).
@@ -508,7 +523,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         play_f, play_sign = (f, sign) if tr.is_play else (f_play, int(play_doc["sign"]))
         ctx = FAM.Context(T.FitData.from_session(t_enc, q, B, t_f, c_f, td), choice, tr, f, sign, play_f, play_sign,
                           int(f_n), q_rng, s.actuator_unit)
-        member, fam_choice = FAM.choose(ctx, int(rt.size), source=src)
+        member, fam_choice = FAM.choose(ctx, int(rt.size), FAM.FAMILIES_FROM_C if no_onset else None, source=src)
         if fam_choice["rule"].startswith("thin"):
             warnings.append(f"model {member.family}: {fam_choice['rule']}")
         if member.family != ("onset_play" if tr.is_play else "onset_transition"):

@@ -240,6 +240,8 @@ FAMILIES: list[Family] = [
     Family("pi_const", "modified PI, strictly increasing (narrowest play as B + operators + monotone f)", fit_pi_const),
 ]
 FALLBACK = "const_play"  # thin records
+# Records without any motion onset (no B measured): only the families whose play is fitted on c.
+FAMILIES_FROM_C = [f for f in FAMILIES if f.name in ("const_play", "pi_const")]
 
 
 def table_of(ctx: Context, m: Member, source=None):

@@ -172,6 +172,11 @@ def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: s
     def tables():
         cal = state["cal"]
         nb = cal.n_b_samples
+        if nb == 0:  # calibrate fitted the play on c alone: there is no onset B to tabulate
+            why = f"{src or '<input>'}: no motion onset in the calibration part, so no onset B"
+            rows["paper"] = Row("paper", True, None, {"b_samples": 0}, refused=why)
+            rows["onset_lsq"] = Row("onset_lsq", True, None, {"b_samples": 0, "t_delay_s": cal.t_delay_s}, refused=why)
+            return
         rows["paper"] = _table_row("paper", cal.B, state["paper_f"], cal, {"b_samples": nb, "f_remain": "morph"},
                                    source=src)
         rows["onset_lsq"] = _table_row("onset_lsq", cal.B, cal.f_play, cal, {"b_samples": nb, "f_remain": "lsq",

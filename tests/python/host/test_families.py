@@ -231,3 +231,35 @@ def test_refusal_of_every_family_is_an_error_naming_none_loadable(pi_context, mo
     monkeypatch.setattr(FAM, "table_of", refuse)
     with pytest.raises(ValueError, match="no model family"):
         FAM.choose(pi_context, 10)
+
+
+def test_record_without_any_onset_keeps_a_play_fitted_on_c():
+    # No B sample from the onsets (as a record whose tip is never still after a reversal, the
+    # detector's no_still): the families fitted on c alone still give a table.
+    from playscope.estimate import Onsets
+
+    s = play_record()
+    none = Onsets(*(np.zeros(0) for _ in range(6)), reasons={"no_still": 15})
+    with pytest.raises(Exception, match="no usable reversal"):
+        calibrate(s, model_kind="play", onsets=none)
+    cal = calibrate(s, model_kind="auto", onsets=none)
+    assert cal.n_b_samples == 0 and cal.family in {f.name for f in FAM.FAMILIES_FROM_C}
+    assert any("no usable reversal" in w for w in cal.warnings)
+    print(cal.family, {d["family"]: d["cv_rmse_deg"] for d in cal.family_choice["candidates"]})
+    # The constant play fitted on c is the generating play (width 0.8 mm), and the model fits.
+    assert cal.B_model(np.array([0.0]))[0] == pytest.approx(0.8, rel=0.1) or cal.family == "pi_const"
+    c_hat = cal.predict(s.encoder["q"])
+    e = np.interp(s.distal["t_s"], s.encoder["t_s"], c_hat) - s.distal["c_deg"]
+    assert np.sqrt(np.mean(e * e)) < 0.1
+
+
+def test_evaluation_without_any_onset_refuses_the_onset_rows_and_scores_ours(monkeypatch):
+    from playscope import estimate as E
+
+    none = E.Onsets(*(np.zeros(0) for _ in range(6)), reasons={"no_still": 3})
+    monkeypatch.setattr(E, "run_onsets", lambda *a, **k: none)
+    doc = insitu.evaluate_insitu(play_record(), 0.5, source="rec.txt")
+    r = doc["rows"]
+    assert "no motion onset" in r["onset_lsq"]["refused"] and "rec.txt" in r["paper"]["refused"]
+    assert r["ours"]["refused"] is None and r["ours"]["rmse_deg"] < 0.1
+    assert r["ours"]["rmse_deg"] <= r["const_play"]["rmse_deg"] + 1e-3
