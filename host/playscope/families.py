@@ -323,7 +323,16 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
 
     fams = FAMILIES if families is None else families
     splits = T.rolling_origins(ctx.data, T.KFOLD)
-    rows = [score(ctx, f, splits, source) for f in fams]
+    # One BLAS thread: the fits are small (frames x 6..16), and threads spinning for a core the
+    # other processes hold cost more than they give (as transition.fit_weights).
+    with T._blas_controller().limit(limits=1, user_api="blas"):
+        rows = []
+        for f in fams:
+            if f.name == "onset_transition" and ctx.onset_tr.is_play and rows and rows[0]["family"] == "onset_play":
+                # Its own choice found no transition: the same member as onset_play on every fold.
+                rows.append({**rows[0], "family": f.name, "label": f.label})
+                continue
+            rows.append(score(ctx, f, splits, source))
     thin = reversals < MIN_REVERSALS_CHOICE
     scored = [r for r in rows if r["cv_rmse_deg"] is not None]
     order = []
