@@ -202,6 +202,12 @@ MIN_REVERSALS_TRANSITION = T.KFOLD
 # slope itself, which only a straight line meets: its inverse is exact, so the last one loads.
 F_SLOPE_FLOORS = (1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0)
 
+# Without any motion onset the play is fitted on c alone (families.FAMILIES_FROM_C), but only when
+# the tip moves: its span over the calibration frames must exceed this many times the median
+# |second difference| of c (1.65 sigma for white noise, so a still tip's span of ~6 sigma stays
+# below; a cosine stroke of m frames has it ~5/m^2 of its span, far below at any frame rate).
+STILL_SPAN_NOISE = 20
+
 
 def loadable_f(refit, f, sign, B, q_range, unit: str, transition=None, source=None):
     """f as fitted when the board loads its table; else f refitted with the smallest slope floor
@@ -460,6 +466,14 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         from .families import constant_play_lsq, constant_spline
 
         q_c0, c_c0 = E.characteristic(t_enc, q, t_f, c_f, td)
+        c_ok = c_c0[np.isfinite(c_c0)]
+        noise = float(np.median(np.abs(np.diff(c_ok, 2)))) if c_ok.size > 2 else 0.0
+        if c_ok.size < 3 or np.ptp(c_ok) <= STILL_SPAN_NOISE * noise:
+            # A tip whose span is within its own noise has not followed q at all: nothing to fit
+            # a play on.
+            raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset "
+                             f"({why}), and the distal end spans only {np.ptp(c_ok) if c_ok.size else 0:.3g} deg; "
+                             "check that it moves after each reversal and the back-and-forth exceeds the play")
         B = bfit.B = constant_spline(constant_play_lsq(q_c0, c_c0)[0], float(q.min()), float(q.max()))
         model_kind = "play"  # no onset B to anchor the transition on
     model_cv = None

@@ -317,8 +317,8 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
 
     reversals: direction reversals in the calibration part (thin-record rule). Returns (Member,
     choice dict {"family", "rule", "reversals", "candidates": [score rows]}). A chosen family
-    whose full table is refused gives way to the next best. Errors: ValueError when no family
-    gives a loadable table."""
+    whose full table is refused gives way to the next best. Errors: InputError naming source
+    when no family gives a loadable table."""
     from .errors import InputError
 
     fams = FAMILIES if families is None else families
@@ -358,4 +358,5 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
                 if thin else "rolling-origin CV RMSE through the fixed-point tables, one-standard-error rule "
                 "(fewest parameters fitted to c first)")
         return m, {"family": name, "rule": rule, "reversals": int(reversals), "folds": T.KFOLD, "candidates": rows}
-    raise ValueError(f"no model family gives a table the board loads ({last})")
+    raise InputError(source, f"no model family gives a table the board loads (the last refusal: "
+                     f"{getattr(last, 'message', last)}); check that the distal end follows the actuator")

@@ -229,8 +229,10 @@ def test_refusal_of_every_family_is_an_error_naming_none_loadable(pi_context, mo
         raise TableError("rec.txt", "table refused by calib_load: test")
 
     monkeypatch.setattr(FAM, "table_of", refuse)
-    with pytest.raises(ValueError, match="no model family"):
-        FAM.choose(pi_context, 10)
+    from playscope.errors import InputError
+
+    with pytest.raises(InputError, match="rec.txt: no model family gives a table"):
+        FAM.choose(pi_context, 10, source="rec.txt")
 
 
 def test_record_without_any_onset_keeps_a_play_fitted_on_c():
