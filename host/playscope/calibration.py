@@ -45,6 +45,8 @@ class Calibration:
     model_choice: dict | None = None
     f_play_fit: E.SplineFn | None = None
     f_play_sign: int | None = None
+    B_product: E.SplineFn | None = None  # the chosen family's play width when it is not the onset B
+    family_choice: dict | None = None    # families.choose's dict (model_family in the JSON)
 
     # Typed views of the file's fields (docs/calibration-format.md): the rest of the host reads
     # these, never doc[...] (doc is the file as written, kept for save()).
@@ -127,8 +129,17 @@ class Calibration:
 
     @property
     def B_model(self):
-        """Play width of the model: B, or b_scale x B with the transition (transition.py)."""
-        return self.transition.play_width(self.B)
+        """Play width of the model the table carries: b_scale x B (the onset B, transition.py),
+        or the chosen family's own B (a constant play: families.py) when it is not the onset B."""
+        return self.transition.play_width(self.B if self.B_product is None else self.B_product)
+
+    @property
+    def family(self) -> str:
+        """The model family the table carries (families.FAMILIES names); files written before
+        the choice across families: onset_transition, or onset_play for a pure play."""
+        if self.family_choice:
+            return str(self.family_choice["family"])
+        return "onset_play" if self.transition.is_play else "onset_transition"
 
     @property
     def f_play(self) -> E.SplineFn:
@@ -139,7 +150,7 @@ class Calibration:
         """Direct model c = f_remain(PI(play(q; B))) (eqs. 2, 3 and PI_MODEL), state run from
         q[0]; q (N,) actuator units -> c (N,) deg."""
         if self.transition.is_play:
-            return model.direct_model(q, self.B, self.f, z0)
+            return model.direct_model(q, self.B_model, self.f, z0)
         return T.direct_chain(q, self.B_model, self.transition, self.f, z0)
 
     def f_coarse(self, q):
@@ -165,10 +176,13 @@ class Calibration:
         try:
             tr = d.get("transition") or {}
             fp = tr.get("f_remain_play")
+            fam = d.get("model_family") or {}
+            bp = fam.get("B")
             return cls(E.SplineFn.from_json(d["B"]), E.SplineFn.from_json(d["f_remain"]),
                        int(d["f_remain"]["sign"]), float(d["f_coarse"]["q_per_rad"]), d,
                        T.Transition.from_json(tr) if "r" in tr else T.Transition.play(), tr.get("choice"),
-                       E.SplineFn.from_json(fp) if fp else None, int(fp["sign"]) if fp else None)
+                       E.SplineFn.from_json(fp) if fp else None, int(fp["sign"]) if fp else None,
+                       E.SplineFn.from_json(bp) if bp else None, fam.get("choice"))
         except (KeyError, TypeError, ValueError) as e:
             raise InputError(path, f"malformed calibration: {e}") from None
 
@@ -187,6 +201,12 @@ MIN_REVERSALS_TRANSITION = T.KFOLD
 # (loadable_f): fractions of f's mean slope over its fitted range. At 1 the floor is the mean
 # slope itself, which only a straight line meets: its inverse is exact, so the last one loads.
 F_SLOPE_FLOORS = (1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0)
+
+# Without any motion onset the play is fitted on c alone (families.FAMILIES_FROM_C), but only when
+# the tip moves: its span over the calibration frames must exceed this many times the median
+# |second difference| of c (1.65 sigma for white noise, so a still tip's span of ~6 sigma stays
+# below; a cosine stroke of m frames has it ~5/m^2 of its span, far below at any frame rate).
+STILL_SPAN_NOISE = 20
 
 
 def loadable_f(refit, f, sign, B, q_range, unit: str, transition=None, source=None):
@@ -345,6 +365,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
       or for lost markers.
     """
     src = source or (str(s.path) if s.path else None)
+    across_families = model_kind == "auto"
     t_enc, q = s.encoder["t_s"], s.encoder["q"]
     q_rev = s.encoder.get("q_cmd", q)
     span = float(np.ptp(q))
@@ -406,13 +427,22 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         on = rob.onsets
     else:
         on = onsets if onsets is not None else E.run_onsets(t_enc, q, rt, rq, t_f, obs, s.distal_kind, cfg)
-    if on.b.size == 0:
+    no_onset = on.b.size == 0
+    if no_onset:
         why = ", ".join(f"{k} {v}" for k, v in on.reasons.items() if v) or "none reached"
-        raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset ({why}); "
-                         "check that the distal end moves after each reversal and the back-and-forth exceeds the play")
-    bfit = E.fit_backlash_auto(on.q_mean, on.b, n_ctrl, source=src, sigma=on.sigma_b)
+        if not across_families:
+            raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset "
+                             f"({why}); check that the distal end moves after each reversal and the back-and-forth "
+                             "exceeds the play")
+        # The families that fit their play from c alone still hold (families.FAMILIES_FROM_C); B
+        # (set below from the frames) is then the constant play's width, not a measurement.
+        warnings.append(f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset ({why}): "
+                        "the play's width is fitted on c alone (constant play), the onset families are not offered")
+        bfit = E.BacklashFit(None, np.zeros(0), np.zeros(0), np.zeros(0, bool), 0.0, kind="fitted on c", n_ctrl=4)
+    else:
+        bfit = E.fit_backlash_auto(on.q_mean, on.b, n_ctrl, source=src, sigma=on.sigma_b)
     B, w = bfit.B, bfit.weight
-    if bfit.kind == "constant":
+    if bfit.kind == "constant" and not no_onset:
         ci = "unknown (one sample without an uncertainty)" if bfit.ci95 is None else \
             f"95 % CI {bfit.ci95[0]:.3g}..{bfit.ci95[1]:.3g}"
         why = (f"only {on.b.size} B sample(s) (B(q) needs >= {E.MIN_SPLINE_SAMPLES})" if on.b.size < E.MIN_SPLINE_SAMPLES
@@ -432,6 +462,20 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         c_f, res, offset = pose_with_offset(im, obs, model.f_coarse(q_f, s.robot.q_per_rad))
         lm = {"residual_px_median": float(np.nanmedian(res)), "residual_px_max": float(np.nanmax(res)),
               "image_offset_px": [float(v) for v in offset]}
+    if no_onset:
+        from .families import constant_play_lsq, constant_spline
+
+        q_c0, c_c0 = E.characteristic(t_enc, q, t_f, c_f, td)
+        c_ok = c_c0[np.isfinite(c_c0)]
+        noise = float(np.median(np.abs(np.diff(c_ok, 2)))) if c_ok.size > 2 else 0.0
+        if c_ok.size < 3 or np.ptp(c_ok) <= STILL_SPAN_NOISE * noise:
+            # A tip whose span is within its own noise has not followed q at all: nothing to fit
+            # a play on.
+            raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset "
+                             f"({why}), and the distal end spans only {np.ptp(c_ok) if c_ok.size else 0:.3g} deg; "
+                             "check that it moves after each reversal and the back-and-forth exceeds the play")
+        B = bfit.B = constant_spline(constant_play_lsq(q_c0, c_c0)[0], float(q.min()), float(q.max()))
+        model_kind = "play"  # no onset B to anchor the transition on
     model_cv = None
     if model_kind != "play" and rt.size >= MIN_REVERSALS_TRANSITION:
         # B(q)'s stiffness by the model's own cross-validation on c (see choose_b_and_model).
@@ -485,6 +529,25 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
             f_pi, sign_pi, floor = loadable_f(lambda ms: T.fit_f(*pi_frames(), nc, sign=sign_pi, min_slope=ms),
                                               f_pi, sign_pi, tr.play_width(B), q_rng, s.actuator_unit, tr, src)
             f, sign, f_method = f_pi, sign_pi, "lsq+pi"
+    B_product, fam_choice = None, None
+    if across_families:
+        # The family the table carries, by the rolling-origin CV through the tables (families.py).
+        from . import families as FAM
+
+        play_f, play_sign = (f, sign) if tr.is_play else (f_play, int(play_doc["sign"]))
+        ctx = FAM.Context(T.FitData.from_session(t_enc, q, B, t_f, c_f, td), choice, tr, f, sign, play_f, play_sign,
+                          int(f_n), q_rng, s.actuator_unit)
+        member, fam_choice = FAM.choose(ctx, int(rt.size), FAM.FAMILIES_FROM_C if no_onset else None, source=src)
+        if fam_choice["rule"].startswith("thin"):
+            warnings.append(f"model {member.family}: {fam_choice['rule']}")
+        if member.family != ("onset_play" if tr.is_play else "onset_transition"):
+            if tr.is_play:  # the pure play's f stays beside the product's (f_remain_play: the onset_lsq row)
+                f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method, "slope_floor": floor_play}
+            tr, f, sign, floor = member.transition, member.f, member.sign, None
+            f_method = {"onset_play": "lsq", "const_play": "lsq+const_play", "pi_const": "lsq+pi_const"}.get(
+                member.family, "lsq+" + member.family)
+            if member.family not in ("onset_play", "onset_transition"):
+                B_product = member.B
     for name, fl in (("f_remain" if tr.is_play else "the pure play's f_remain", floor_play),
                      ("f of the transition model", None if tr.is_play else floor)):
         if fl:
@@ -512,8 +575,10 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         "pose_estimation": lm,
         "transition": {**tr.to_json(), "model": "play" if tr.is_play else "pi", "choice": choice,
                        "f_remain_play": play_doc},
+        "model_family": None if fam_choice is None else
+        {"family": fam_choice["family"], "B": None if B_product is None else B_product.to_json(), "choice": fam_choice},
     }
     from .jsonio import plain_json
 
     return Calibration(B, f, sign, s.robot.q_per_rad, plain_json(doc), tr, plain_json(choice), f_play,
-                       None if f_play is None else int(play_doc["sign"]))
+                       None if f_play is None else int(play_doc["sign"]), B_product, plain_json(fam_choice))

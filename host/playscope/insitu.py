@@ -14,7 +14,11 @@ through Session.slice_time) and scored on exactly the same test part (t >= t_spl
   gpi         generalized Prandtl-Ishlinskii, 16 play operators (w >= 0) + cubic in q,
               scipy.optimize.lsq_linear (playscope.peers.GeneralizedPI), double precision
   bouc_wen    Bouc-Wen, n = 1, scipy.optimize.least_squares (playscope.peers.BoucWen), double
-  ours        onset B(q) + play-operator transition + f_remain (issue 9), fixed-point tables
+  mpi         modified Prandtl-Ishlinskii: 16 play operators (w >= 0) then a monotone-free output
+              spline, by variable projection (playscope.peers.ModifiedPI), double precision
+  ours        the model family chosen inside the calibration part (playscope.families: onset play,
+              onset B + transition, generalized PI made invertible, constant play + poly5, by
+              rolling-origin CV through the tables), fixed-point tables
 
 The baselines and peers are fitted on the calibration frames the chain itself sees (angle
 block-averaged at the chain's frame rate, or the per-frame pose estimate of eq. 8), so no
@@ -33,11 +37,11 @@ from . import estimate as E
 from . import model
 from .calibration import calibrate
 from .errors import InputError
-from .peers import BoucWen, GeneralizedPI
+from .peers import BoucWen, GeneralizedPI, ModifiedPI
 from .session import Session
 
 FORMAT = "playscope-insitu/1"
-ROWS = ["linear", "const_play", "paper", "onset_lsq", "gpi", "bouc_wen", "ours"]
+ROWS = ["linear", "const_play", "paper", "onset_lsq", "gpi", "bouc_wen", "mpi", "ours"]
 LABELS = {
     "linear": "linear (c = a q + b)",
     "const_play": "constant play + poly5",
@@ -45,23 +49,28 @@ LABELS = {
     "onset_lsq": "onset B + least-squares f_remain",
     "gpi": "generalized PI: 16 plays (w >= 0) + cubic, lsq_linear",
     "bouc_wen": "Bouc-Wen (n = 1), least_squares",
-    "ours": "ours: onset B + transition + f_remain",
+    "mpi": "modified PI: 16 plays (w >= 0) + output spline",
+    "ours": "ours: model family chosen by CV through the tables",
 }
 MIN_PART_S = 1.0  # a part shorter than this cannot hold a reversal cycle of any instrument
 
 JSON_KEYS = ("format, session, distal_kind, judged_against, state, split {t_split_s, fraction, t_start_s, "
              "t_end_s, cal_frames, test_samples}, order [row], rows {row: {label, fixed_point, rmse_deg, "
-             "max_deg, cal_rmse_deg (in sample, t < t_split), params}}, notes [str]; rows: " + ", ".join(ROWS))
+             "max_deg, cal_rmse_deg (in sample, t < t_split), refused (the loader's reason naming the file, or null; "
+             "the three figures are then null), params}}, notes [str]; rows: " + ", ".join(ROWS))
 
 
 @dataclass
 class Row:
-    """One fitted model: predict maps the whole record's q (N,) to c (N,) deg, state from q[0]."""
+    """One fitted model: predict maps the whole record's q (N,) to c (N,) deg, state from q[0].
+    refused: why the board's loader refused the row's table (naming the file; predict is then
+    None and the row is reported, not scored), else None."""
 
     name: str
     fixed_point: bool
-    predict: Callable[[np.ndarray], np.ndarray]
+    predict: Callable[[np.ndarray], np.ndarray] | None
     params: dict = field(default_factory=dict)
+    refused: str | None = None
 
 
 def split_time(t_s: np.ndarray, split: float | str) -> float:
@@ -101,28 +110,39 @@ def calibration_frames(cal_s: Session, cal) -> tuple[np.ndarray, np.ndarray]:
     return E.characteristic(t_enc, q, t_f, c_f, td)
 
 
-def _table_row(name, B, f, cal, params, transition=None) -> Row:
-    from .tables import build_table
+def _table_row(name, B, f, cal, params, transition=None, source=None) -> Row:
+    """A row the board runs: its table (tables.build_table) through playop_step; a table the
+    loader refuses gives a refused row (the reason, naming source) instead of an error, so the
+    other rows are still scored."""
+    from .tables import TableError, build_table
 
     q0, q1 = cal.q_range
-    tab = build_table(B, f, q0, q1, cal.actuator_unit, "remain", transition=transition)
+    try:
+        tab = build_table(B, f, q0, q1, cal.actuator_unit, "remain", transition=transition, source=source)
+    except TableError as e:
+        return Row(name, True, None, params, refused=str(e))
+    except OverflowError as e:  # beyond the Q16.16 range
+        return Row(name, True, None, params, refused=f"{source or '<input>'}: {e}")
     return Row(name, True, tab.predict, {**params, "table_bytes": len(tab.blob), "table_ops": tab.n_ops})
 
 
-def fit_ours(cal_s: Session, cal, q_c: np.ndarray, c_c: np.ndarray) -> Row:
-    """Ours with the transition (PI_MODEL.md, branch pi-fit): onset B(q) (scaled by the chosen
-    b_scale: cal.B_model), then the PI operators on the play centre and f_remain of their
-    output, operator count, span and b_scale chosen by cross-validation inside the calibration
-    part (calibrate(model_kind="auto") -> transition.choose_model); run on the layout-2 table
-    that carries the operators, through the firmware's playop_step."""
+def fit_ours(cal_s: Session, cal, q_c: np.ndarray, c_c: np.ndarray, source: str | None = None) -> Row:
+    """Ours: the table of the model family `calibrate` chose inside the calibration part
+    (calibrate(model_kind="auto") -> families.choose: onset play, onset B + PI transition, the
+    generalized PI made invertible or constant play + poly5, by rolling-origin CV through the
+    tables; the transition's own operator count, span and b_scale by transition.choose_model),
+    run through the firmware's playop_step. A table the loader refuses is a refused row."""
     tr = cal.transition
     choice = cal.model_choice or {}
     params = {"model": "play" if tr.is_play else "pi", "n_ops": tr.n, "r": tr.r.tolist(), "w": tr.w.tolist(),
               "b_scale": float(tr.b_scale), "r_span": choice.get("r_span"),
               "thresholds": "B-proportional" if tr.tmap is not None else "constant",
               "cv": [{k: d.get(k) for k in ("b_scale", "n", "r_span", "cv_rmse_deg")}
-                     for d in choice.get("candidates", [])]}
-    return _table_row("ours", cal.B_model, cal.f, cal, params, transition=tr)
+                     for d in choice.get("candidates", [])],
+              "family": cal.family,
+              "family_cv": [{k: d.get(k) for k in ("family", "cv_rmse_deg", "refused")}
+                            for d in (cal.family_choice or {}).get("candidates", [])]}
+    return _table_row("ours", cal.B_model, cal.f, cal, params, transition=tr, source=source)
 
 
 def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: str | None = None) -> dict[str, Row]:
@@ -152,9 +172,15 @@ def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: s
     def tables():
         cal = state["cal"]
         nb = cal.n_b_samples
-        rows["paper"] = _table_row("paper", cal.B, state["paper_f"], cal, {"b_samples": nb, "f_remain": "morph"})
+        if nb == 0:  # calibrate fitted the play on c alone: there is no onset B to tabulate
+            why = f"{src or '<input>'}: no motion onset in the calibration part, so no onset B"
+            rows["paper"] = Row("paper", True, None, {"b_samples": 0}, refused=why)
+            rows["onset_lsq"] = Row("onset_lsq", True, None, {"b_samples": 0, "t_delay_s": cal.t_delay_s}, refused=why)
+            return
+        rows["paper"] = _table_row("paper", cal.B, state["paper_f"], cal, {"b_samples": nb, "f_remain": "morph"},
+                                   source=src)
         rows["onset_lsq"] = _table_row("onset_lsq", cal.B, cal.f_play, cal, {"b_samples": nb, "f_remain": "lsq",
-                                                                             "t_delay_s": cal.t_delay_s})
+                                                                             "t_delay_s": cal.t_delay_s}, source=src)
 
     def gpi():
         m = GeneralizedPI.fit(*state["qc"])
@@ -164,12 +190,16 @@ def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: s
         m = BoucWen.fit(*state["qc"])
         rows["bouc_wen"] = Row("bouc_wen", False, m.predict, m.params())
 
+    def mpi():
+        m = ModifiedPI.fit(*state["qc"])
+        rows["mpi"] = Row("mpi", False, m.predict, m.params())
+
     def ours():
-        rows["ours"] = fit_ours(cal_s, state["cal"], *state["qc"])
+        rows["ours"] = fit_ours(cal_s, state["cal"], *state["qc"], source=src)
 
     steps = [("calibrate (onsets, B, transition choice, f_remain)", chain), ("linear, constant play", baselines),
-             ("fixed-point tables", tables), ("generalized PI", gpi), ("Bouc-Wen", bouc_wen),
-             ("ours with transition", ours)]
+             ("fixed-point tables", tables), ("generalized PI", gpi), ("Bouc-Wen", bouc_wen), ("modified PI", mpi),
+             ("ours: the chosen family", ours)]
     bar = progress(steps, desc="fit", total=len(steps))
     for label, fn in bar:
         if hasattr(bar, "set_postfix_str"):
@@ -202,7 +232,7 @@ def score_rows(rows: dict[str, Row], s: Session, t_split: float, t_delay_s: floa
                progress=lambda it, **kw: it) -> tuple[dict, dict, dict, str, int]:
     """Run every row over the whole record from its first sample and score t >= t_split.
     Returns ({row: rmse_deg}, {row: max_abs_deg}, {row: rmse_deg on the calibration part, in
-    sample}, judged_against, samples scored)."""
+    sample}, judged_against, samples scored); a refused row (Row.refused) has None in each."""
     t_m, c_m, what = judged_samples(s, t_split, t_delay_s)
     t_c, c_c, _ = judged_samples(s, t_split, t_delay_s, part="cal")
     if t_m.size == 0:
@@ -210,6 +240,9 @@ def score_rows(rows: dict[str, Row], s: Session, t_split: float, t_delay_s: floa
     q, t_enc = s.encoder["q"], s.encoder["t_s"]
     rm, mx, rc = {}, {}, {}
     for name, row in progress(rows.items(), desc="run over the record", total=len(rows)):
+        if row.refused is not None:
+            rm[name] = mx[name] = rc[name] = None
+            continue
         c_hat = row.predict(q)
         e = np.interp(t_m, t_enc, c_hat) - c_m
         rm[name] = float(np.sqrt(np.mean(e * e)))
@@ -241,8 +274,8 @@ def evaluate_insitu(s: Session, split: float | str = 0.5, progress=lambda it, **
                   "t_end_s": float(t[-1]), "cal_frames": int(rows["gpi"].params["fit_frames"]), "test_samples": n},
         "order": ROWS,
         "rows": {k: {"label": LABELS[k], "fixed_point": r.fixed_point, "rmse_deg": rm[k], "max_deg": mx[k],
-                     "cal_rmse_deg": rc[k], "params": r.params} for k, r in rows.items()},
-        "notes": [],
+                     "cal_rmse_deg": rc[k], "refused": r.refused, "params": r.params} for k, r in rows.items()},
+        "notes": [f"row {k} not scored: {r.refused}" for k, r in rows.items() if r.refused],
     }
 
 
@@ -256,6 +289,10 @@ def format_insitu(doc: dict) -> str:
              "|---|---|---|---|---|"]
     for k in doc["order"]:
         r = doc["rows"][k]
+        if r.get("refused"):
+            lines.append(f"| {r['label']} | {'yes' if r['fixed_point'] else 'no (float)'} | refused | refused | "
+                         f"refused: {r['refused']} |")
+            continue
         lines.append(f"| {r['label']} | {'yes' if r['fixed_point'] else 'no (float)'} | "
                      f"{r['rmse_deg']:.3f} | {r['max_deg']:.3f} | {r['cal_rmse_deg']:.3f} |")
     return "\n".join(lines + [""])

@@ -102,6 +102,48 @@ class GeneralizedPI:
                 "active_operators": int(np.sum(self.w > 0))}
 
 
+# --------------------------------------------------------------------------- modified PI
+MPI_F_CTRL = 8  # control points of the output nonlinearity (a continuous superposition of dead zones)
+
+
+@dataclass
+class ModifiedPI:
+    """Modified Prandtl-Ishlinskii model: a PI operator followed by a memoryless monotone output
+    nonlinearity,
+
+        y[k] = sum_i w_i F_{r_i}[q][k],   w_i >= 0, w_0 > 0, sum w = 1;   c[k] = g(y[k]),
+
+    (Kuhnen, Eur. J. Control 9(4) 407-418, 2003: the superposition operator S of one-sided dead
+    zones after the PI; here S is its continuous limit, a cubic spline of MPI_F_CTRL control
+    points). Thresholds by gpi_thresholds(); weights and g jointly by variable projection
+    (transition.fit_weights, double precision, no table bound), g the unconstrained P-spline.
+
+    r: (n,) thresholds, actuator units; w: (n,) dimensionless; g: callable y -> c (deg).
+    """
+
+    r: np.ndarray
+    w: np.ndarray
+    g: object
+
+    @classmethod
+    def fit(cls, q: np.ndarray, c: np.ndarray, n_ops: int = GPI_OPERATORS) -> "ModifiedPI":
+        """Fit on one calibration path (q, c): (F,) each, in time order, finite."""
+        from .transition import fit_weights
+
+        q, c = np.asarray(q, float), np.asarray(c, float)
+        r = gpi_thresholds(q, n_ops)
+        w, g, _, _ = fit_weights(play_operators(q, r), c, MPI_F_CTRL, robust_f=False)
+        return cls(r, w, g)
+
+    def predict(self, q: np.ndarray) -> np.ndarray:
+        """c (N,) deg over the path q (N,), every operator centred at q[0]."""
+        return self.g(play_operators(np.asarray(q, float), self.r) @ self.w)
+
+    def params(self) -> dict:
+        return {"thresholds": self.r.tolist(), "weights": self.w.tolist(), "g_ctrl": MPI_F_CTRL,
+                "active_operators": int(np.sum(self.w > 0))}
+
+
 # --------------------------------------------------------------------------- Bouc-Wen
 def bouc_wen_h(x: np.ndarray, beta: float, gamma: float, h0: float = 0.0) -> np.ndarray:
     """Hysteretic state of the Bouc-Wen model with A = 1, n = 1, driven by the path x:

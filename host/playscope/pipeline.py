@@ -150,46 +150,87 @@ class TableWritten:
     path: str  # as given
     table: object
     errors: dict
+    adapted: str | None = None  # what write_tables changed to meet the precision ceiling, if anything
 
     def line(self) -> str:
         tab, err = self.table, self.errors
         return (f"{self.path}: {len(tab.blob)} bytes, crc32 {tab.cal.crc32:#010x}, {tab.cal.b.n} entries per grid, "
                 f"{tab.n_ops} transition operators; "
-                f"worst |c_fixed - c_float| {err['direct_c_deg_max']:.2e} deg, |q*_fixed - q*_float| {err['comp_q_max']:.2e}")
+                f"worst |c_fixed - c_float| {err['direct_c_deg_max']:.2e} deg, |q*_fixed - q*_float| {err['comp_q_max']:.2e}"
+                + (f"; {self.adapted}" if self.adapted else ""))
 
     def to_json(self) -> dict:
         tab = self.table
         return {"table": self.path, "bytes": len(tab.blob), "crc32": int(tab.cal.crc32),
-                "entries": int(tab.cal.b.n), "operators": tab.n_ops, "errors": self.errors}
+                "entries": int(tab.cal.b.n), "operators": tab.n_ops, "errors": self.errors, "adapted": self.adapted}
 
 
 def write_tables(cal_path, out, entries: int | None = None, generation: int = 1,
                  f_coarse: bool = False) -> TableWritten:
     """Calibration file -> Q16.16 table blob at out (common/ps_table.h, laid out by the firmware's
     table_write()), loaded back with calib_load() and measured against the float model.
-    f_coarse: store f_coarse (eq. 5) instead of f_remain (eq. 9). Errors: InputError naming
-    cal_path when the model cannot be tabulated."""
+    f_coarse: store f_coarse (eq. 5) instead of f_remain (eq. 9). A table that misses the
+    precision ceiling (CALIB_ERR_PRECISION, or check_precision) is tried again on denser grids,
+    up to PST_MAX_ENTRIES per grid (the only layout setting the board leaves free: the header's
+    units and the weights' Q format are fixed by common/ps_table.h); what was changed is in
+    TableWritten.adapted. Errors: InputError naming cal_path when the model cannot be tabulated;
+    for a precision refusal at the densest grid, the quantity (f^-1's error when it is the one)
+    and by how much it misses the ceiling."""
     from .atomic import write_bytes_atomic
     from .calibration_check import load_calibration
-    from .tables import build_table, check_physical, check_precision, table_errors
+    from .native import core
+    from .tables import TableError, build_table, check_physical, check_precision, f_inverse_error, table_errors
 
     cal = load_calibration(cal_path)
     q_min, q_max = cal.q_range
     f = cal.f_coarse if f_coarse else cal.f
     tr = None if f_coarse else cal.transition
     B = cal.B if f_coarse else cal.B_model
-    try:
-        check_physical(B, f, q_min, q_max, source=cal_path)
-        tab = build_table(B, f, q_min, q_max, cal.actuator_unit, "coarse" if f_coarse else "remain",
-                          generation, entries, source=cal_path, transition=tr)
-        err = table_errors(tab, B, f, q_min, q_max, tr)
-        check_precision(tab, err, f, q_min, q_max, source=cal_path)
-    except (ValueError, OverflowError) as e:  # InputError passes through with its own file
-        if isinstance(e, InputError):
-            raise
-        raise InputError(cal_path, f"cannot make a table of it: {' '.join(str(e).split())}") from None
+    lib = core()[1]
+    n_max = int(lib.PST_MAX_ENTRIES)
+    tries = [entries] if entries else [n_max]
+    while tries[-1] < n_max:
+        tries.append(min(2 * tries[-1], n_max))
+    adapted = None
+    for k, n in enumerate(tries):
+        try:
+            check_physical(B, f, q_min, q_max, source=cal_path)
+            tab = build_table(B, f, q_min, q_max, cal.actuator_unit, "coarse" if f_coarse else "remain",
+                              generation, n, source=cal_path, transition=tr)
+            err = table_errors(tab, B, f, q_min, q_max, tr)
+            check_precision(tab, err, f, q_min, q_max, source=cal_path)
+        except TableError as e:
+            precision = e.status == lib.CALIB_ERR_PRECISION or "precision ceiling" in e.message
+            if not precision:
+                raise
+            if k + 1 < len(tries):
+                continue
+            raise TableError(cal_path, _precision_refusal(e, B, f, q_min, q_max, n, tr, f_inverse_error)) from None
+        except (ValueError, OverflowError) as e:  # InputError passes through with its own file
+            if isinstance(e, InputError):
+                raise
+            raise InputError(cal_path, f"cannot make a table of it: {' '.join(str(e).split())}") from None
+        if k:
+            adapted = f"grid density raised from {tries[0]} to {n} entries to meet the precision ceiling"
+        break
     write_bytes_atomic(out, tab.blob)
-    return TableWritten(os.fspath(out), tab, err)
+    return TableWritten(os.fspath(out), tab, err, adapted)
+
+
+def _precision_refusal(e, B, f, q_min, q_max, n, tr, f_inverse_error) -> str:
+    """The refusal of a table no layout the board holds brings under the precision ceiling:
+    the loader's reason, the quantity and by how much (f^-1's exact error when it is the one)."""
+    msg = f"{e.message}; no layout the board holds meets it (tried up to {n} entries per grid)"
+    try:
+        fe = f_inverse_error(B, f, q_min, q_max, n)
+    except Exception:  # noqa: BLE001  (the figure is extra information, never a second failure)
+        return msg
+    if fe["ratio"] > 1:
+        return (msg + f": the inverse f table's error is {fe['f_inv_err']:.3g} against a ceiling of {fe['ceiling']:.3g} "
+                f"actuator units ({fe['ratio']:.1f} times over): f is nearly flat somewhere; recalibrate "
+                "(its slope floor) or give f more slope")
+    which = "the play's envelopes (z_up/z_down)" if tr is None or tr.is_play else "the play's envelopes or the PI inverse"
+    return msg + f": f^-1 is within it ({fe['ratio']:.2f} of the ceiling), so {which} miss it"
 
 
 # --------------------------------------------------------------------------- flash

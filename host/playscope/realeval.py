@@ -157,7 +157,9 @@ def evaluate_real(folder, progress=lambda it, **kw: it, across: bool = True) -> 
 
 def format_in_situ(res: dict) -> str:
     """The in-situ table of evaluate_real()'s result: one row per model, one column per file,
-    then the mean and the worst file (RMSE, deg; every file in the mean)."""
+    then the mean and the worst file (RMSE, deg; every file in the mean). A row refused on a
+    file (its table refused by the loader, evaluate_insitu's "refused") reads "refused" there,
+    and its mean is not given."""
     files = list(res["in_situ"])
     rows = res.get("in_situ_rows", insitu.ROWS)
     lines = ["**In situ, state carried: fit on the first half of each file, judged on the second "
@@ -165,8 +167,10 @@ def format_in_situ(res: dict) -> str:
              "| model | " + " | ".join(files) + " | mean | worst |", "|---" * (len(files) + 3) + "|"]
     for m in rows:
         v = [res["in_situ"][f][m] for f in files]
-        lines.append(f"| {insitu.LABELS[m]} | " + " | ".join(f"{x:.2f}" for x in v) +
-                     f" | {np.mean(v):.2f} | {np.max(v):.2f} |")
+        ok = [x for x in v if x is not None]  # None: the row's table was refused on that file
+        tail = f" | {np.mean(ok):.2f} | {np.max(ok):.2f} |" if len(ok) == len(v) else \
+            f" | {len(v) - len(ok)} refused | {max(ok):.2f} |" if ok else " | refused | refused |"
+        lines.append(f"| {insitu.LABELS[m]} | " + " | ".join("refused" if x is None else f"{x:.2f}" for x in v) + tail)
     return "\n".join(lines + [""])
 
 

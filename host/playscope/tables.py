@@ -227,6 +227,36 @@ def build_table(B, f, q_min: float, q_max: float, unit: str, f_kind: str = "rema
     return CalibTable(blob, source)
 
 
+# Entries of each table the loader derives (firmware/core/calib.h CALIB_DERIVED_MAX, a macro the
+# cdef does not carry): f^-1 is built on at most this many.
+CALIB_DERIVED_MAX = 512
+
+
+def f_inverse_error(B, f, q_min: float, q_max: float, n_max: int | None = None) -> dict:
+    """The loader's own figures for a pure-play table's f^-1, computed by the firmware's
+    lut_inverse_error() on the f grid build_table() writes (no transition, no map): {"f_inv_err"
+    (actuator units, exact worst case of the f^-1 table against the exact inverse of the f
+    table), "ceiling" (calib_precision_ceiling_q16 of the largest play, units), "ratio",
+    "entries"}. Used to name by how much a table misses the precision ceiling."""
+    ffi, lib = core()
+    n_max = n_max or lib.PST_MAX_ENTRIES
+    x0, step, n = grid_for(q_min, q_max, n_max)
+    xs = from_q16(x0 + step * np.arange(n, dtype=np.int64))
+    b_raw = np.maximum(to_q16(np.maximum(B(xs), 0.0)), 0).astype(np.int64)
+    f_raw = to_q16(f(xs)).astype(np.int64)
+    f_raw = _strictly_increasing(f_raw, 1 if f_raw[-1] >= f_raw[0] else -1)
+    buf = ffi.new("int32_t[]", [int(v) for v in f_raw])
+    lut = ffi.new("lut_t *")
+    if lib.lut_init(lut, buf, int(n), int(x0), int(step)) != 0:
+        raise TableError(None, "f's grid is not a valid table")
+    err = ffi.new("int32_t *")
+    if lib.lut_inverse_error(lut, CALIB_DERIVED_MAX, err) != 0:
+        raise TableError(None, "f is not strictly monotone on the table's grid")
+    ceiling = int(lib.calib_precision_ceiling_q16(int(min(b_raw.max(), 2**31 - 1))))
+    return {"f_inv_err": float(err[0]) / 65536, "ceiling": ceiling / 65536, "ratio": float(err[0]) / ceiling,
+            "entries": int(n)}
+
+
 def _strictly_increasing(raw: np.ndarray, sgn: int) -> np.ndarray:
     """raw made strictly monotone in direction sgn (+1 / -1) by at least one LSB per entry."""
     g = sgn * np.asarray(raw, np.int64).copy()

@@ -102,6 +102,9 @@ def test_reversals_without_onset_are_refused():
     s.distal["c_deg"] = np.full_like(s.distal["c_deg"], 10.0)  # the tip never moves
     with pytest.raises(InputError, match="no usable reversal: none of the 3 direction reversals"):
         calibrate(s, model_kind="play")
+    # The model choice across families would fit a play on c alone, but a still tip has none.
+    with pytest.raises(InputError, match="no usable reversal: .* the distal end spans only 0 deg"):
+        calibrate(s, model_kind="auto")
 
 
 # ------------------------------------------------------------------ item 2: irregular inputs

@@ -1,0 +1,267 @@
+"""The model choice across families (playscope.families) inside `calibrate`, thin records, a
+refused row in the in-situ evaluation, and each family's table through the loader.
+
+The synthetic records come from generators written here, sharing no code with the fitters: a
+per-threshold play loop in plain Python, cosine strokes between turning points, and the angle
+block-sampled by np.interp."""
+
+from __future__ import annotations
+
+import os
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from playscope import families as FAM
+from playscope import insitu
+from playscope import transition as T
+from playscope.calibration import Calibration, calibrate
+from playscope.session import Robot, Session
+from playscope.tables import CalibTable, TableError, build_table
+
+# As tests/python/conftest.py: $PLAYSCOPE_REAL_DATA, else ../shared/data/real (read in place).
+ENDOSCOPE = Path(os.environ.get("PLAYSCOPE_REAL_DATA", Path(__file__).resolve().parents[3].parent / "shared" / "data"
+                                / "real")) / "endoscope"
+
+
+# --------------------------------------------------------------------------- generators
+def strokes(tops, lows, per_stroke=900):
+    """q (mm) from 0 through alternating tops and lows along cosine profiles."""
+    pts = [0.0]
+    for a, b in zip(tops, lows):
+        pts += [a, b]
+    seg = np.linspace(0, 1, per_stroke, endpoint=False)
+    q = np.concatenate([a + (b - a) * 0.5 * (1 - np.cos(np.pi * seg)) for a, b in zip(pts[:-1], pts[1:])])
+    return np.r_[q, pts[-1]]
+
+
+def play_loop(q, r):
+    """Classical play operator of threshold r, state at q[0] (Brokate & Sprekels)."""
+    out, y = [], q[0]
+    for x in q:
+        if x - y > r:
+            y = x - r
+        elif y - x > r:
+            y = x + r
+        out.append(y)
+    return np.array(out)
+
+
+def session_of(q, c, rate_hz=500.0, fps=25.0, noise_deg=0.02, seed=0) -> Session:
+    """An angle session: encoder at rate_hz, angle sampled at fps with Gaussian noise."""
+    t = np.arange(q.size) / rate_hz
+    tf = np.arange(0.0, t[-1], 1.0 / fps)
+    cf = np.interp(tf, t, c) + np.random.default_rng(seed).normal(0, noise_deg, tf.size)
+    return Session(actuator_unit="mm", distal_kind="angle", robot=Robot("constant_curvature", 20.0, 0.0, 3.0),
+                   encoder={"t_s": t, "q": q}, distal={"t_s": tf, "c_deg": cf}, t_delay_s=0.0)
+
+
+TOPS = [4.0, 3.2, 2.6, 3.6, 4.0, 2.2, 3.0, 4.0]
+LOWS = [-3.0, -2.2, -3.6, -1.8, -3.0, -2.6, -3.6, 0.0]
+
+
+def play_record():
+    """Constant play (width 0.8 mm) + a smooth increasing f: the pure play's family."""
+    q = strokes(TOPS, LOWS)
+    z = play_loop(q, 0.4)
+    return session_of(q, 9.0 * z + 3.0 * np.tanh(0.6 * z))
+
+
+def pi_record():
+    """A PI operator without a sharp play: weights spread over thresholds 0..1.4 mm, small at 0,
+    so the tip creeps after each reversal; f linear."""
+    q = strokes(TOPS, LOWS)
+    r = np.linspace(0.0, 1.4, 8)
+    w = np.r_[0.04, np.full(7, 0.96 / 7)]
+    y = sum(wi * play_loop(q, ri) for wi, ri in zip(w, r))
+    return session_of(q, 10.0 * y)
+
+
+def spy_context(monkeypatch):
+    """Calls to families.choose record their Context (what calibrate built)."""
+    seen = {}
+    real = FAM.choose
+
+    def spy(ctx, reversals, families=None, source=None):
+        seen["ctx"], seen["reversals"] = ctx, reversals
+        return real(ctx, reversals, families, source)
+
+    monkeypatch.setattr(FAM, "choose", spy)
+    return seen
+
+
+# --------------------------------------------------------------------------- the choice
+# right: families that hold the generating model; wrong: ones that cannot (onset_transition reduces to
+# the pure play when its own choice finds no transition, so it is neither for the play record).
+@pytest.mark.parametrize("record,right,wrong", [(play_record, {"onset_play", "const_play"}, {"pi_const"}),
+                                                (pi_record, {"onset_transition", "pi_const"}, {"onset_play", "const_play"})])
+def test_choice_picks_the_family_that_generated_the_record(record, right, wrong):
+    cal = calibrate(record(), model_kind="auto")
+    ch = cal.family_choice
+    cvs = {d["family"]: d["cv_rmse_deg"] for d in ch["candidates"]}
+    print(record.__name__, cal.family, cvs)
+    assert [d["family"] for d in ch["candidates"]] == [f.name for f in FAM.FAMILIES]
+    assert cal.family in right, cvs
+    # The other kind is clearly worse on the same folds: the choice sees a difference, not noise.
+    other = min(v for k, v in cvs.items() if k in wrong)
+    assert other > 1.5 * cvs[cal.family]
+    # What the table carries is the chosen family's, and the JSON says so.
+    assert cal.doc["model_family"]["family"] == cal.family
+    assert ("B" in cal.doc["model_family"]) and (cal.doc["model_family"]["B"] is None) == \
+        (cal.family in ("onset_play", "onset_transition"))
+
+
+def test_calibration_round_trip_writes_the_same_table(tmp_path):
+    cal = calibrate(pi_record(), model_kind="auto")
+    cal.save(tmp_path / "cal.json")
+    back = Calibration.load(tmp_path / "cal.json")
+    assert back.family == cal.family and back.family_choice == cal.family_choice
+    a = build_table(cal.B_model, cal.f, *cal.q_range, "mm", transition=cal.transition).blob
+    b = build_table(back.B_model, back.f, *back.q_range, "mm", transition=back.transition).blob
+    assert a == b
+
+
+# --------------------------------------------------------------------------- every family's table
+@pytest.fixture(scope="module")
+def pi_context():
+    mp = pytest.MonkeyPatch()
+    seen = spy_context(mp)
+    calibrate(pi_record(), model_kind="auto")
+    mp.undo()
+    return seen["ctx"]
+
+
+@pytest.mark.parametrize("fam", FAM.FAMILIES, ids=lambda f: f.name)
+def test_each_family_table_loads_bit_exact_and_follows_its_float_model(pi_context, fam):
+    ctx = pi_context
+    m = fam.fit(ctx, None)
+    tab = FAM.table_of(ctx, m)
+    q = ctx.data.q_enc
+    c_tab = tab.predict(q)
+    # The blob as the board receives it: a fresh load gives the same fixed-point run, bit for bit.
+    np.testing.assert_array_equal(CalibTable(tab.blob).predict(q), c_tab)
+    # Strictly increasing f (eq. 9's inverse) and a PI the Krejci-Kuhnen inverse holds (w_0 > 0).
+    y = np.linspace(m.f.lo, m.f.hi, 2001)
+    assert np.all(m.sign * np.diff(m.f(y)) > 0)
+    assert m.transition.w[0] > 0 and np.all(m.transition.w >= 0)
+    # Fixed point against the double-precision chain c = f(PI(play(q; B))): the tables' grids and
+    # Q16 rounding only (measured <= 6.6e-4 deg on this record, all four families).
+    c_float = T.direct_chain(q, m.B, m.transition, m.f)
+    err = float(np.max(np.abs(c_tab - c_float)))
+    print(fam.name, "fixed vs float max", err)
+    assert err < 3e-3
+    # The CV's shortcut (the table run on the record's turning points and the frames) gives the
+    # full run's values at the frames.
+    t = ctx.data.t_enc
+    np.testing.assert_allclose(FAM.predict_frames(ctx, tab), np.interp(ctx.data.t_frame, t, c_tab), atol=0.02)
+
+
+# --------------------------------------------------------------------------- thin records
+def thin_record(seed=0):
+    """2 cycles (4 reversals in the whole record, 2 in each half): play + a creep after it."""
+    q = strokes([4.0, 4.0], [-3.0, 0.0], per_stroke=2500)
+    z = play_loop(q, 0.5)
+    y = 0.5 * z + 0.5 * play_loop(z, 0.6)
+    return session_of(q, 8.0 * y + 2.0 * np.tanh(0.5 * y), seed=seed)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_thin_record_falls_back_to_constant_play_and_is_never_worse(seed):
+    doc = insitu.evaluate_insitu(thin_record(seed), 0.5)
+    r = doc["rows"]
+    assert r["ours"]["params"]["family"] == "const_play"
+    # The same model as the constant play + poly5 row, carried by Q16.16 tables.
+    assert r["ours"]["rmse_deg"] <= r["const_play"]["rmse_deg"] + 1e-3
+    assert abs(r["ours"]["rmse_deg"] - r["const_play"]["rmse_deg"]) < 1e-3
+
+
+@pytest.mark.skipif(not ENDOSCOPE.is_dir(), reason="real endoscope recordings not present")
+@pytest.mark.parametrize("stem", ["30", "60", "120"])
+def test_thin_endoscope_development_records(stem):
+    from playscope.importer import import_endoscope
+
+    doc = insitu.evaluate_insitu(import_endoscope(ENDOSCOPE / f"{stem}.txt"), 0.5)
+    r = doc["rows"]
+    assert r["ours"]["refused"] is None
+    assert r["ours"]["rmse_deg"] <= r["const_play"]["rmse_deg"] + 1e-3
+
+
+# --------------------------------------------------------------------------- refused rows
+def test_a_refused_table_is_its_rows_refusal_naming_the_file():
+    cal = types.SimpleNamespace(q_range=(-1.0, 1.0), actuator_unit="mm")
+    # f flat over half the travel: f^-1 jumps there, far above the precision ceiling (B / 16).
+    flat = lambda q: 10.0 * np.minimum(np.asarray(q, float), 0.0) + 1e-9 * np.asarray(q, float)  # noqa: E731
+    row = insitu._table_row("paper", lambda q: np.full(np.shape(q), 0.2), flat, cal, {}, source="rec.txt")
+    assert row.predict is None and "rec.txt" in row.refused and "refused by calib_load" in row.refused
+
+
+def test_evaluation_goes_on_past_a_refused_row(monkeypatch):
+    s = play_record()
+
+    def refused(cal_s, cal, q_c, c_c, source=None):
+        return insitu.Row("ours", True, None, {"family": cal.family}, refused=f"{source}: table refused by calib_load: x")
+
+    monkeypatch.setattr(insitu, "fit_ours", refused)
+    doc = insitu.evaluate_insitu(s, 0.5, source="rec.txt")
+    assert doc["rows"]["ours"]["refused"].startswith("rec.txt") and doc["rows"]["ours"]["rmse_deg"] is None
+    assert all(doc["rows"][k]["rmse_deg"] > 0 for k in insitu.ROWS if k != "ours")
+    assert any("ours" in n and "rec.txt" in n for n in doc["notes"])
+    assert "refused: rec.txt" in insitu.format_insitu(doc)
+
+
+@pytest.mark.skipif(not ENDOSCOPE.is_dir(), reason="real endoscope recordings not present")
+def test_real_record_with_a_refused_row_does_not_abort():
+    from playscope.importer import import_endoscope
+
+    path = ENDOSCOPE / "120.txt"
+    doc = insitu.evaluate_insitu(import_endoscope(path), 0.5, source=str(path))
+    scored = [k for k in insitu.ROWS if doc["rows"][k]["refused"] is None]
+    assert "ours" in scored and len(scored) >= len(insitu.ROWS) - 1
+    for k in insitu.ROWS:
+        if doc["rows"][k]["refused"]:
+            assert str(path) in doc["rows"][k]["refused"]
+
+
+def test_refusal_of_every_family_is_an_error_naming_none_loadable(pi_context, monkeypatch):
+    def refuse(ctx, m, source=None):
+        raise TableError("rec.txt", "table refused by calib_load: test")
+
+    monkeypatch.setattr(FAM, "table_of", refuse)
+    from playscope.errors import InputError
+
+    with pytest.raises(InputError, match="rec.txt: no model family gives a table"):
+        FAM.choose(pi_context, 10, source="rec.txt")
+
+
+def test_record_without_any_onset_keeps_a_play_fitted_on_c():
+    # No B sample from the onsets (as a record whose tip is never still after a reversal, the
+    # detector's no_still): the families fitted on c alone still give a table.
+    from playscope.estimate import Onsets
+
+    s = play_record()
+    none = Onsets(*(np.zeros(0) for _ in range(6)), reasons={"no_still": 15})
+    with pytest.raises(Exception, match="no usable reversal"):
+        calibrate(s, model_kind="play", onsets=none)
+    cal = calibrate(s, model_kind="auto", onsets=none)
+    assert cal.n_b_samples == 0 and cal.family in {f.name for f in FAM.FAMILIES_FROM_C}
+    assert any("no usable reversal" in w for w in cal.warnings)
+    print(cal.family, {d["family"]: d["cv_rmse_deg"] for d in cal.family_choice["candidates"]})
+    # The constant play fitted on c is the generating play (width 0.8 mm), and the model fits.
+    assert cal.B_model(np.array([0.0]))[0] == pytest.approx(0.8, rel=0.1) or cal.family == "pi_const"
+    c_hat = cal.predict(s.encoder["q"])
+    e = np.interp(s.distal["t_s"], s.encoder["t_s"], c_hat) - s.distal["c_deg"]
+    assert np.sqrt(np.mean(e * e)) < 0.1
+
+
+def test_evaluation_without_any_onset_refuses_the_onset_rows_and_scores_ours(monkeypatch):
+    from playscope import estimate as E
+
+    none = E.Onsets(*(np.zeros(0) for _ in range(6)), reasons={"no_still": 3})
+    monkeypatch.setattr(E, "run_onsets", lambda *a, **k: none)
+    doc = insitu.evaluate_insitu(play_record(), 0.5, source="rec.txt")
+    r = doc["rows"]
+    assert "no motion onset" in r["onset_lsq"]["refused"] and "rec.txt" in r["paper"]["refused"]
+    assert r["ours"]["refused"] is None and r["ours"]["rmse_deg"] < 0.1
+    assert r["ours"]["rmse_deg"] <= r["const_play"]["rmse_deg"] + 1e-3
