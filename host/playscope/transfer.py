@@ -10,6 +10,8 @@ Rows, all scored on exactly the same samples:
 
   in_situ            ours with the transition fitted on the record's own warm-up part only
                      (the protocol of insitu.py with the split at the warm-up): the reference
+  in_situ_affine     the same with the offset and gain refresh below: where nothing drifts
+                     the refresh must not make it worse
   in_situ_const_play constant play + poly5 fitted on the same frames of that part
 Every row is run in double precision except the on-line B rows (the board's fixed-point RLS
 grid, through cffi); the endoscope's wide play exceeds the fixed-point table's precision
@@ -46,10 +48,12 @@ from .insitu import calibration_frames
 from .session import Robot, Session, regularize_time
 
 FORMAT = "playscope-transfer/1"
-ROWS = ["in_situ", "in_situ_const_play", "static", "static_transition", "online_b_only", "online_offset_only",
-        "online", "transition_offset", "const_play_ref", "const_play_ref_offset"]
+ROWS = ["in_situ", "in_situ_affine", "in_situ_const_play", "static", "static_transition", "online_b_only", "online_offset_only",
+        "online", "transition_offset", "const_play_ref", "const_play_ref_offset", "static_affine", "transition_affine",
+        "const_play_ref_affine"]
 LABELS = {
     "in_situ": "in situ: ours (transition) fitted on the record's own warm-up (reference)",
+    "in_situ_affine": "in situ: the same + offset and gain refresh (no drift to learn)",
     "in_situ_const_play": "in situ: constant play + poly5 fitted on the record's own warm-up",
     "static": "transferred as is: ours, pure play",
     "static_transition": "transferred as is: ours with transition",
@@ -59,7 +63,11 @@ LABELS = {
     "transition_offset": "transferred with transition + offset refresh",
     "const_play_ref": "constant play + poly5 of the calibration record, as is",
     "const_play_ref_offset": "constant play + poly5 of the calibration record + offset refresh",
+    "static_affine": "transferred + offset and gain refresh",
+    "transition_affine": "transferred with transition + offset and gain refresh",
+    "const_play_ref_affine": "constant play + poly5 of the calibration record + offset and gain refresh",
 }
+GAIN_BOUNDS = (0.5, 2.0)  # the gain refresh's clamp: a factor 2 either way, far outside any record's fitted gain
 WARMUP = 0.5  # fraction of the duration; the only split giving every endoscope record >= 2 reversals before it
 JSON_KEYS = ("format, calibration {file, reversals, b_samples}, settings {warmup, refresh_s}, order [row], labels "
              "{row: str}, files {name: {config_deg (sheath angle from the file name, null for the catheter), "
@@ -123,6 +131,32 @@ def _offset_refreshed(s, c_hat: np.ndarray, fps: float, refresh_s: float) -> np.
     return c_hat + O._offset_timeline(t, t_f, r_f, refresh_s, 1.0 / fps)
 
 
+def _affine_refreshed(s, c_hat: np.ndarray, fps: float, refresh_s: float, prior_var: float) -> np.ndarray:
+    """a + g c_hat, with (a, g) refreshed every refresh_s from the frames complete before the
+    refresh: least squares of the frame angles on c_hat with a prior g = 1 worth one frame of
+    spread prior_var (deg^2; the calibration record's angle variance), so that the first frames,
+    which barely move, leave the gain at 1; g clamped to GAIN_BOUNDS; a = c_hat's offset alone
+    (g = 1, a = 0) before the first frame. The offset-only refresh is the case prior_var -> inf.
+    Causal as online._offset_timeline: (a, g) at t use frames ending before the last refresh."""
+    from . import estimate as E
+
+    t = s.encoder["t_s"]
+    t_f, c_f = E.frames_from_angle(s.distal["t_s"], s.distal["c_deg"], fps)
+    x_f = np.interp(t_f, t, c_hat)
+    ok = np.isfinite(c_f)
+    tf, x, y = t_f[ok] + 0.5 / fps, x_f[ok], c_f[ok]
+    cs = [np.concatenate([[0.0], np.cumsum(v)]) for v in (np.ones_like(x), x, y, x * x, x * y)]
+    t_r = t[0] + refresh_s * np.floor((t - t[0]) / refresh_s)
+    n = np.searchsorted(tf, t_r, side="left")
+    N, Sx, Sy, Sxx, Sxy = (c[n] for c in cs)
+    Nn = np.maximum(N, 1)
+    mx, my = Sx / Nn, Sy / Nn
+    g = (Sxy - Nn * mx * my + prior_var) / (Sxx - Nn * mx * mx + prior_var)
+    g = np.where(N > 0, np.clip(g, *GAIN_BOUNDS), 1.0)
+    a = np.where(N > 0, my - g * mx, 0.0)
+    return a + g * c_hat
+
+
 def _in_situ(s, t_split: float, src: str) -> tuple[np.ndarray, np.ndarray]:
     """Ours with the transition (calibrate, model_kind "auto") and the constant play + poly5,
     both fitted on the samples of s with t < t_split only (on the frames the chain sees,
@@ -148,6 +182,7 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
     cal = calibrate(s_ref, f_method="lsq", model_kind="play", source=str(cal_path))
     cal_tr = calibrate(s_ref, f_method="lsq", model_kind="auto", source=str(cal_path))
     ref_const = O.const_play_ref(s_ref, cal.fps_frames)
+    prior_var = float(np.var(s_ref.distal["c_deg"]))
     st = O.OnlineSettings(refresh_s=refresh_s, score_after=warmup)
     files = {}
     for p in progress(list(paths), desc="transfer"):
@@ -164,6 +199,10 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
              "static_transition": O.rmse((c_tr - c_true)[mask]), "const_play_ref": O.rmse((c_cp - c_true)[mask]),
              "transition_offset": O.rmse((_offset_refreshed(s, c_tr, 1.0 / cal.onset_config["frame_period_s"],
                                                             refresh_s) - c_true)[mask])}
+        fps = 1.0 / cal.onset_config["frame_period_s"]
+        c_st = cal.predict(q)
+        for k, c_hat in (("in_situ_affine", ins[0]), ("static_affine", c_st), ("transition_affine", c_tr), ("const_play_ref_affine", c_cp)):
+            r[k] = O.rmse((_affine_refreshed(s, c_hat, fps, refresh_s, prior_var) - c_true)[mask])
         for k in ("static", "online_b_only", "online_offset_only", "online", "const_play_ref_offset"):
             r[k] = on["rmse_deg"][k]
         files[Path(p).stem] = {"config_deg": config_angle(p), "t_split_s": t_split,
