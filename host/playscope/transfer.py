@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import model
 from . import online as O
 from . import transition as T
 from .calibration import calibrate
@@ -168,7 +169,7 @@ def _in_situ(s, t_split: float, src: str) -> tuple[np.ndarray, np.ndarray]:
     cal = calibrate(cal_s, f_method="lsq", model_kind="auto", source=src)
     _, fp, Bc = E.fit_constant_play(*calibration_frames(cal_s, cal))
     q = s.encoder["q"]
-    return cal.predict(q), O.model.direct_model(q, Bc, fp)
+    return cal.predict(q), model.direct_model(q, Bc, fp)
 
 
 def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float = 1.0,
@@ -183,6 +184,7 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
     cal_tr = calibrate(s_ref, f_method="lsq", model_kind="auto", source=str(cal_path))
     ref_const = O.const_play_ref(s_ref, cal.fps_frames)
     prior_var = float(np.var(s_ref.distal["c_deg"]))
+    fps = 1.0 / cal.onset_config["frame_period_s"]  # the board's detector frame rate, as online.evaluate_online
     st = O.OnlineSettings(refresh_s=refresh_s, score_after=warmup)
     files = {}
     for p in progress(list(paths), desc="transfer"):
@@ -194,15 +196,13 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
         c_true = np.interp(t, s.distal["t_s"], s.distal["c_deg"])
         ins = _in_situ(s, t_split, str(p))
         c_tr = T.direct_chain(q, cal_tr.B_model, cal_tr.transition, cal_tr.f)
-        c_cp = O.model.direct_model(q, *ref_const)
-        r = {"in_situ": O.rmse((ins[0] - c_true)[mask]), "in_situ_const_play": O.rmse((ins[1] - c_true)[mask]),
-             "static_transition": O.rmse((c_tr - c_true)[mask]), "const_play_ref": O.rmse((c_cp - c_true)[mask]),
-             "transition_offset": O.rmse((_offset_refreshed(s, c_tr, 1.0 / cal.onset_config["frame_period_s"],
-                                                            refresh_s) - c_true)[mask])}
-        fps = 1.0 / cal.onset_config["frame_period_s"]
-        c_st = cal.predict(q)
-        for k, c_hat in (("in_situ_affine", ins[0]), ("static_affine", c_st), ("transition_affine", c_tr), ("const_play_ref_affine", c_cp)):
-            r[k] = O.rmse((_affine_refreshed(s, c_hat, fps, refresh_s, prior_var) - c_true)[mask])
+        c_cp = model.direct_model(q, *ref_const)
+        err = lambda c_hat: O.rmse((c_hat - c_true)[mask])  # noqa: E731
+        r = {"in_situ": err(ins[0]), "in_situ_const_play": err(ins[1]), "static_transition": err(c_tr),
+             "const_play_ref": err(c_cp), "transition_offset": err(_offset_refreshed(s, c_tr, fps, refresh_s))}
+        for k, c_hat in (("in_situ_affine", ins[0]), ("static_affine", cal.predict(q)), ("transition_affine", c_tr),
+                         ("const_play_ref_affine", c_cp)):
+            r[k] = err(_affine_refreshed(s, c_hat, fps, refresh_s, prior_var))
         for k in ("static", "online_b_only", "online_offset_only", "online", "const_play_ref_offset"):
             r[k] = on["rmse_deg"][k]
         files[Path(p).stem] = {"config_deg": config_angle(p), "t_split_s": t_split,

@@ -14,7 +14,8 @@ from playscope import online as O
 from playscope.errors import InputError
 from playscope.transfer import (ROWS, config_angle, drift, evaluate_transfer, read_endoscope, read_record)
 
-REAL_CATHETER = Path(os.environ.get("PLAYSCOPE_REAL_DATA", Path(__file__).resolve().parents[3].parent / "shared" / "data" / "real")) / "catheter"
+_REAL = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "real"  # as conftest.REAL_CATHETER
+REAL_CATHETER = Path(os.environ.get("PLAYSCOPE_REAL_DATA", _REAL)) / "catheter"
 
 
 def _write(path, rows):
@@ -23,8 +24,8 @@ def _write(path, rows):
 
 def test_endoscope_reader_drops_zero_block_and_keeps_last_of_repeated_stamps(tmp_path):
     # t, q, (unused), c: a zero-stamped block, then stamps repeated with the newest value last.
-    rows = [[0, 0, 0, 0]] * 3 + [[0.025, 1, 9, 0.5], [0.025, 1.5, 9, 0.7], [0.05, 2, 9, 1.0],
-                                 [0.05, 2.5, 9, 1.2], [0.075, 3, 9, 1.5]] + [[0.1 + 0.025 * k, 3 + k, 9, 2 + k] for k in range(8)]
+    rows = ([[0, 0, 0, 0]] * 3 + [[0.025, 1, 9, 0.5], [0.025, 1.5, 9, 0.7], [0.05, 2, 9, 1.0], [0.05, 2.5, 9, 1.2],
+                                  [0.075, 3, 9, 1.5]] + [[0.1 + 0.025 * k, 3 + k, 9, 2 + k] for k in range(8)])
     p = tmp_path / "30.txt"
     _write(p, rows)
     s = read_endoscope(p)
