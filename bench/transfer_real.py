@@ -6,6 +6,7 @@ used elsewhere").
 - Endoscope development files only (30, 60, 120 deg and conf0_60): calibrated on 60.txt (the
   middle of the short records' configurations), run on each other. The other endoscope files
   are set aside and never read here.
+- Endoscope, every development file as the calibration one in turn (a compact table).
 - What drifts: every record calibrated in situ on its whole length, compared with the
   calibration record.
 
@@ -50,6 +51,17 @@ def main(argv=None) -> int:
         if a.plot_dir:
             Path(a.plot_dir).mkdir(parents=True, exist_ok=True)
             plot_transfer(out[k], Path(a.plot_dir) / f"transfer_{k}.png")
+    # Every development configuration as the calibration one (the table above takes 60 deg).
+    pairs = {c.stem: evaluate_transfer(c, [f for f in ef if f != c], a.warmup) for c in ef}
+    out["endoscope_pairs"] = pairs
+    keys = ("in_situ", "online", "transition_offset", "transition_affine", "const_play_ref_offset", "const_play_ref_affine")
+    print("**Endoscope, every development record as the calibration one (RMSE after the warm-up, deg)**\n")
+    print("| calibrated on | run on | " + " | ".join(pairs[ENDOSCOPE_CAL]["labels"][k] for k in keys) + " |")
+    print("|---|---" + "|---" * len(keys) + "|")
+    for c, doc in pairs.items():
+        for n, f in doc["files"].items():
+            print(f"| {c} | {n} | " + " | ".join(f"{f['rmse_deg'][k]:.2f}" for k in keys) + " |")
+    print()
     out["drift_catheter"] = drift(cf, cf[0])
     out["drift_endoscope"] = drift(ef, ecal)
     print(format_drift(out["drift_catheter"]))
