@@ -231,7 +231,7 @@ def format_transfer(doc: dict) -> str:
     return "\n".join(lines + [""])
 
 
-def plot_transfer(doc: dict, path, rows=("in_situ", "static", "online", "online_offset_only", "transition_offset",
+def plot_transfer(doc: dict, path, rows=("in_situ", "static", "online", "online_offset_only", "transition_offset", "transition_affine",
                                          "const_play_ref_offset")) -> None:
     """PNG of the RMSE of rows against the configuration angle (or the record's index when the
     records carry none), the calibration record marked."""
