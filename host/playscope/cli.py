@@ -45,6 +45,7 @@ COMMAND_MODULES = [
     ("playscope.commands.report", None),
     ("playscope.commands.evaluate_real", None),
     ("playscope.commands.evaluate_insitu", None),
+    ("playscope.commands.evaluate_transfer", None),
     ("playscope.commands.simulate", "playscope.sim"),
     ("playscope.commands.diagnose", "playscope.diagnose"),
     ("playscope.commands.device", "playscope.device"),

@@ -1,0 +1,79 @@
+"""A calibration made on one record used on others, on the real recordings (read in place):
+prints the transfer tables and the table of what drifts (docs/online.md, "Calibrated once,
+used elsewhere").
+
+- Catheter: calibrated on data_2_1, run on data_2_2..5 (sessions).
+- Endoscope development files only (30, 60, 120 deg and conf0_60): calibrated on 60.txt (the
+  middle of the short records' configurations), run on each other. The other endoscope files
+  are set aside and never read here.
+- Endoscope, every development file as the calibration one in turn (a compact table).
+- What drifts: every record calibrated in situ on its whole length, compared with the
+  calibration record.
+
+Usage: .venv/bin/python bench/transfer_real.py [DATA_REAL] [--warmup F] [--json OUT] [--plot-dir DIR]
+(about 40 s)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from playscope.transfer import WARMUP, drift, evaluate_transfer, format_drift, format_transfer, plot_transfer
+
+DEFAULT = Path(__file__).resolve().parents[1] / ".." / ".." / "shared" / "data" / "real"
+ENDOSCOPE_DEV = ["30", "60", "120", "conf0_60"]  # development files; the others are set aside
+ENDOSCOPE_CAL = "60"
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("real", nargs="?", default=str(DEFAULT if DEFAULT.is_dir() else Path("/work/shared/data/real")))
+    p.add_argument("--warmup", type=float, default=WARMUP, help=f"fraction before scoring (default {WARMUP})")
+    p.add_argument("--json", help="also write every result here")
+    p.add_argument("--plot-dir", help="write transfer_catheter.png and transfer_endoscope.png here")
+    a = p.parse_args(argv)
+    cath, endo = Path(a.real) / "catheter", Path(a.real) / "endoscope"
+    if not cath.is_dir() or not endo.is_dir():
+        print(f"transfer_real: no catheter/ and endoscope/ under {a.real}", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    cf = sorted(cath.glob("data_2_*.txt"))
+    ef = [endo / f"{n}.txt" for n in ENDOSCOPE_DEV]
+    ecal = endo / f"{ENDOSCOPE_CAL}.txt"
+    out = {"catheter": evaluate_transfer(cf[0], cf[1:], a.warmup),
+           "endoscope": evaluate_transfer(ecal, [f for f in ef if f != ecal], a.warmup)}
+    for k in ("catheter", "endoscope"):
+        print(format_transfer(out[k]))
+        if a.plot_dir:
+            Path(a.plot_dir).mkdir(parents=True, exist_ok=True)
+            plot_transfer(out[k], Path(a.plot_dir) / f"transfer_{k}.png")
+    # Every development configuration as the calibration one (the table above takes 60 deg).
+    pairs = {c.stem: evaluate_transfer(c, [f for f in ef if f != c], a.warmup) for c in ef}
+    out["endoscope_pairs"] = pairs
+    keys = ("in_situ", "online", "transition_offset", "transition_affine", "const_play_ref_offset", "const_play_ref_affine")
+    print("**Endoscope, every development record as the calibration one (RMSE after the warm-up, deg)**\n")
+    print("| calibrated on | run on | " + " | ".join(pairs[ENDOSCOPE_CAL]["labels"][k] for k in keys) + " |")
+    print("|---|---" + "|---" * len(keys) + "|")
+    for c, doc in pairs.items():
+        for n, f in doc["files"].items():
+            print(f"| {c} | {n} | " + " | ".join(f"{f['rmse_deg'][k]:.2f}" for k in keys) + " |")
+    print()
+    out["drift_catheter"] = drift(cf, cf[0])
+    out["drift_endoscope"] = drift(ef, ecal)
+    print(format_drift(out["drift_catheter"]))
+    print(format_drift(out["drift_endoscope"]))
+    print(f"({time.perf_counter() - t0:.1f} s)")
+    if a.json:
+        for k in ("drift_catheter", "drift_endoscope"):
+            for d in out[k]["files"].values():
+                d.pop("cal", None)
+        Path(a.json).write_text(json.dumps(out, indent=1, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
