@@ -44,9 +44,9 @@ from . import online as O
 from . import transition as T
 from .calibration import calibrate
 from .errors import InputError
-from .importer import import_catheter
+from .importer import import_catheter, import_endoscope
 from .insitu import calibration_frames
-from .session import Robot, Session, regularize_time
+from .session import Session
 
 FORMAT = "playscope-transfer/1"
 ROWS = ["in_situ", "in_situ_affine", "in_situ_const_play", "static", "static_transition", "online_b_only", "online_offset_only",
@@ -75,8 +75,6 @@ JSON_KEYS = ("format, calibration {file, reversals, b_samples}, settings {warmup
              "t_split_s, rmse_deg {row: float}, b_samples (learnt on line)}}, mean {row: float}, worst {row: float}")
 
 # Endoscope files: column of the distal angle by file name (README of the data set).
-_ENDO_C_COL = {"conf": 5}
-_ENDO_DEFAULT_C_COL = 3
 
 
 def config_angle(path) -> float | None:
@@ -88,27 +86,9 @@ def config_angle(path) -> float | None:
 
 
 def read_endoscope(path) -> Session:
-    """One endoscope record (headerless CSV, column 0 time s, 1 commanded angle q deg, 3 tip
-    pitch deg, or 5 for the conf*_60 files) as an angle session in deg. The leading block
-    stamped 0 (before the motion) is dropped; rows sharing a stamp keep the last
-    (session.regularize_time, noted in Session.notes). Errors: InputError naming the file."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "file not found")
-    c_col = _ENDO_C_COL["conf"] if path.stem.startswith("conf") else _ENDO_DEFAULT_C_COL
-    try:
-        a = np.loadtxt(path, delimiter=",", usecols=(0, 1, c_col), ndmin=2)
-    except (ValueError, IndexError) as e:
-        raise InputError(path, f"not the endoscope layout (comma-separated, >= {c_col + 1} numeric columns): {e}") from None
-    if a.shape[0] < 10 or not np.all(np.isfinite(a)):
-        raise InputError(path, "fewer than 10 rows or a non-finite value")
-    a = a[np.argmax(a[:, 0] > 0):] if np.any(a[:, 0] > 0) else a
-    tab, note = regularize_time({"t_s": a[:, 0], "q": a[:, 1], "c": a[:, 2]}, path)
-    t = tab["t_s"]
-    return Session(notes=[note] if note else [], actuator_unit="deg", distal_kind="angle",
-                   robot=Robot("constant_curvature", 30.0, 0.0, 180.0 / np.pi),  # q is an angle: 1 deg per deg
-                   encoder={"t_s": t, "q": tab["q"]}, distal={"t_s": t.copy(), "c_deg": tab["c"]},
-                   t_delay_s=0.0, meta={"source": {"file": str(path), "columns": [0, 1, c_col]}})
+    """One endoscope record as an angle session in deg: the project's one reader of that layout,
+    importer.import_endoscope (errors: InputError naming the file and row)."""
+    return import_endoscope(path)
 
 
 def read_record(path) -> Session:
