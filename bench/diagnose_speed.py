@@ -29,7 +29,12 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=275.0, help="record length, s (default 275)")
     ap.add_argument("--case", choices=("stick_slip", "null"), default="stick_slip")
     a = ap.parse_args(argv)
-    from playscope.diagnose import kernels, selftest
+    from playscope.diagnose import selftest
+    try:
+        from playscope.diagnose import kernels
+        native = "on" if kernels.available() else "OFF (Python references)"
+    except ImportError:  # a checkout from before the C kernels (to time it the same way)
+        native = "absent (this checkout predates them)"
     from playscope.diagnose.fitmodel import from_session
     from playscope.diagnose.run import diagnose_data
 
@@ -39,7 +44,7 @@ def main(argv=None) -> int:
         case = selftest.cases("strong", 0, False, seed=1000, effects=("stick_slip",))[0]
     data = from_session(selftest.make_session(case, a.duration))
     print(f"record: {a.case} ({case.get('variant') or '-'}), {a.duration:.0f} s, {data.t_m.size} rows; "
-          f"C kernels {'on' if kernels.available() else 'OFF (Python references)'}; {os.cpu_count()} cpus")
+          f"C kernels {native}; {os.cpu_count()} cpus")
     times, verdicts = [], set()
     print(f"{'run':>4s} {'seconds':>8s} {'load 1 min':>10s}  verdict")
     for i in range(a.runs):

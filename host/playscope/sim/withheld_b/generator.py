@@ -42,13 +42,14 @@ def draw_plant(rng: np.random.Generator) -> PlantB:
 
 def sweep_excitation(duration_s: float, rng: np.random.Generator, q_span: float = 2.8) -> tuple[np.ndarray, np.ndarray]:
     """q(t) (mm) at RATE_HZ: a sine whose frequency glides 0.15-0.35 Hz, amplitude 0.4-0.9 mm and
-    centre within +-(q_span - amplitude), all slowly wandering; held 1.2 s every 20 s."""
+    centre within +-(q_span - amplitude), wandering with periods of 13, 17 and 29 s (so every quarter of a 120-s record spans the range
+    the fit part saw); held 1.2 s every 20 s."""
     n = int(duration_s * RATE_HZ) + 1
     t = np.arange(n) / RATE_HZ
-    f = 0.25 + 0.1 * np.sin(2 * np.pi * t / 47.0 + rng.uniform(0, 6.28))
+    f = 0.25 + 0.1 * np.sin(2 * np.pi * t / 13.0 + rng.uniform(0, 6.28))
     phase = 2 * np.pi * np.cumsum(f) / RATE_HZ
-    amp = 0.65 + 0.25 * np.sin(2 * np.pi * t / 61.0 + rng.uniform(0, 6.28))
-    centre = (q_span - 0.9) * np.sin(2 * np.pi * t / 83.0 + rng.uniform(0, 6.28))
+    amp = 0.65 + 0.25 * np.sin(2 * np.pi * t / 17.0 + rng.uniform(0, 6.28))
+    centre = (q_span - 0.9) * np.sin(2 * np.pi * t / 29.0 + rng.uniform(0, 6.28))
     q = centre + amp * np.sin(phase)
     pause = int(1.2 * RATE_HZ)
     for start in range(int(10 * RATE_HZ), n - pause, int(20 * RATE_HZ)):
@@ -113,11 +114,14 @@ def simulate(plant: PlantB, t: np.ndarray, q: np.ndarray, effect, k: float, rng:
 
 
 # ------------------------------------------------------------------ library effects, other forms
-def asym_ratio(stage, ctx, r):
-    """The two tendons' slacks in the ratio r : 1 at the same total width (a worn pulley side)."""
+def loaded_side_slack(stage, ctx, a):
+    """One tendon stretches under the bending load: the slack taken up going up grows by a times
+    its nominal value from one end of the travel to the other; the other side keeps its own (a
+    constant ratio of the two slacks would be a shift of the band that the bend map absorbs)."""
     if stage == "edges":
-        W = ctx["w_up"] + ctx["w_dn"]
-        ctx["w_up"], ctx["w_dn"] = W * r / (1 + r), W / (1 + r)
+        q = ctx["q"]
+        u = (q - q.min()) / max(float(np.ptp(q)), 1e-9)
+        ctx["w_up"] = ctx["w_up"] * (1 + a * u)
 
 
 def pi_transition(stage, ctx, s):
@@ -248,7 +252,7 @@ def anchor_slips(stage, ctx, step):
 
 # library name -> (form, (moderate, strong), unit); out-of-library label -> (form, strength, unit)
 LIBRARY = {
-    "asymmetric_backlash": (asym_ratio, (1.8, 2.6), "ratio"),
+    "asymmetric_backlash": (loaded_side_slack, (1.0, 2.0), "1"),
     "smooth_transition": (pi_transition, (0.5, 0.8), "1"),
     "dead_zone": (softplus_deadzone, (0.2, 0.4), "mm"),
     "stick_slip": (random_stiction, (0.8, 1.5), "deg"),
