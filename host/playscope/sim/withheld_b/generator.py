@@ -46,15 +46,17 @@ def sweep_excitation(duration_s: float, rng: np.random.Generator, q_span: float 
     the fit part saw); held 1.2 s every 20 s."""
     n = int(duration_s * RATE_HZ) + 1
     t = np.arange(n) / RATE_HZ
-    f = 0.25 + 0.1 * np.sin(2 * np.pi * t / 13.0 + rng.uniform(0, 6.28))
-    phase = 2 * np.pi * np.cumsum(f) / RATE_HZ
-    amp = 0.65 + 0.25 * np.sin(2 * np.pi * t / 17.0 + rng.uniform(0, 6.28))
-    centre = (q_span - 0.9) * np.sin(2 * np.pi * t / 29.0 + rng.uniform(0, 6.28))
-    q = centre + amp * np.sin(phase)
+    # the motion's own clock: it stands still during each pause, so q holds and resumes smoothly
+    moving = np.ones(n)
     pause = int(1.2 * RATE_HZ)
     for start in range(int(10 * RATE_HZ), n - pause, int(20 * RATE_HZ)):
-        q[start:start + pause] = q[start]
-        q[start + pause:] += q[start] - q[start + pause]  # resume from where it stopped
+        moving[start:start + pause] = 0.0
+    tau = np.cumsum(moving) / RATE_HZ
+    f = 0.25 + 0.1 * np.sin(2 * np.pi * tau / 13.0 + rng.uniform(0, 6.28))
+    phase = 2 * np.pi * np.cumsum(f * moving) / RATE_HZ
+    amp = 0.65 + 0.25 * np.sin(2 * np.pi * tau / 17.0 + rng.uniform(0, 6.28))
+    centre = (q_span - 0.9) * np.sin(2 * np.pi * tau / 29.0 + rng.uniform(0, 6.28))
+    q = centre + amp * np.sin(phase)
     return t, q
 
 
