@@ -18,7 +18,7 @@ else ../shared/data/real/catheter next to the repository.
 
 Usage: .venv/bin/python bench/diagnose_selftest.py [--quick] [--workers 2] [--json out.json]
        [--real-only] [--catheter DIR] [--effects a,b] [--nulls N] [--no-ool] [--seed S]
-       [--selftest-only] [--no-recover]
+       [--selftest-only] [--no-recover] [--second | --second-only] [--second-nulls N]
        (a subset while developing, e.g. --effects viscous_hysteresis,cable_elongation --nulls 0
        --no-ool --seed 1000 --selftest-only; the reported figures are seed 0 with every case)
        (full: 58 cases, ~20 min on 2 quieter cores with the recoverability oracle, which takes about
@@ -58,11 +58,25 @@ def main(argv=None) -> int:
     ap.add_argument("--nulls", type=int, help=f"number of null cases (default {selftest.REPORTED_NULLS}, --quick 2)")
     ap.add_argument("--no-ool", action="store_true", help="leave out the out-of-library cases")
     ap.add_argument("--seed", type=int, default=0, help="case seed (0 is the reported one; develop on others)")
+    ap.add_argument("--second", action="store_true",
+                    help="also run the self-test on the second, independent generator (sim/withheld_b), reported apart")
+    ap.add_argument("--second-only", action="store_true", help="only the second generator's self-test")
+    ap.add_argument("--second-nulls", type=int, default=10, help="nulls of the second generator (default 10)")
     ap.add_argument("--no-recover", action="store_true",
                     help="skip the recoverability oracle (no 'recoverable' column; about a third faster)")
     a = ap.parse_args(argv)
     out = {}
+    if a.second or a.second_only:
+        sc2 = selftest.run_second(a.seed, a.second_nulls, not a.no_ool, workers=a.workers,
+                                  strengths="strong" if a.quick else "both", log=lambda s: print(s, flush=True))
+        print("second generator (sim/withheld_b):")
+        print(selftest.format_report(sc2))
+        out["selftest_second"] = sc2
+        if a.second_only:
+            a.real_only = True
+            a.selftest_only = True
     if not a.real_only:
+        print("first generator (sim/withheld):")
         effects = selftest.LIB_EFFECTS
         if a.effects:
             effects = tuple(e.strip() for e in a.effects.split(",") if e.strip())

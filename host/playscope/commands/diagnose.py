@@ -14,7 +14,7 @@ JSON_KEYS = ("sessions.<name>: noise_floor_deg, noise_method, base{rmse_fit_deg,
              "screen[{effect, rmse_heldout_deg, delta_rmse_deg, delta_bic, promising, params}], "
              "kept[{effect, params{name: [value, sd]}, rmse_before_deg, rmse_after_deg, share_of_excess_removed, "
              "indistinguishable_from}], final{effects, rmse_heldout_deg, excess_after_deg, share_of_excess_removed}, "
-             "verdict, atlas_before, atlas_after, geometry{base_px, screen, kept} (image sessions); selftest: confusion, "
+             "verdict, hint{effect, why} (unexplained verdicts), stick_slip_signature, atlas_before, atlas_after, geometry{base_px, screen, kept} (image sessions); selftest: confusion, "
              "top1, false_discovery_nulls, n_false_discoveries, false_discovery_ci95, n_false_discoveries_first, cases")
 
 
@@ -95,6 +95,8 @@ def run(args) -> int:
         print(f"{name}: noise floor {res['noise_floor_deg']:.3f} deg ({res['noise_method']}); split {res['split']['method']}; "
               f"validation RMSE {res['base']['rmse_heldout_deg']:.3f} -> {r['rmse_heldout_deg']:.3f} deg; "
               f"{where} {t['rmse_base_deg']:.3f} -> {t['rmse_final_deg']:.3f} deg; verdict {res['verdict']}")
+        if res.get("hint"):
+            print(f"  closest library effect (a hint, not a verdict): {res['hint']['effect']} -- {res['hint']['why']}")
         for n in res["record_notes"]:
             print(f"  warning: {n}")
         for k in res["kept"]:

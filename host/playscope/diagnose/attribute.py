@@ -27,6 +27,13 @@ MAX_EFFECTS = 3
 # out-of-library ringing/ratcheting <= 0.05 (ratcheting -0.31, one-sided rule), a viscous damped
 # contact 0.46 (named by its kept lag first; the rule is only asked when nothing explains the gap).
 SKEW_MIN = 0.3
+# Stick-slip slips recur all along a moving leg; a ringing rung by each reversal, or a registration
+# offset that flips with the direction, puts its skewed increments just after the reversals of
+# the distal motion. The signature is therefore also asked on the leg interiors alone: rows more
+# than SETTLE_S after the last direction change of the fitted model's c (the end of the play's dead
+# travel). Set on development seeds 1000-3000 of the blind generator with added out-of-library
+# ringings and direction-flipping offsets (docs/diagnosis.md section 3 item 7).
+SETTLE_S = 0.5
 FRESH_START = ("dead_zone", "viscous_hysteresis")
 
 
@@ -361,12 +368,14 @@ def attribute(data: Data, fit_mask: np.ndarray, eval_mask: np.ndarray, candidate
                     "excess_after_deg": excess(cur_r, sigma),
                     "share_of_excess_removed": _share(r0, cur_r, out["excess_before_deg"], sigma)}
     out["verdict"] = verdict(out) if "verdict_model" not in out else "stick_slip"
+    out["hint"] = hint(out) if out["verdict"] == "unexplained" else None
     out["_fits"] = {"base": base, "final": current}
     out["_models"] = {"base": base_model, "final": cur_model}
     return out
 
 
-def stick_slip_signature(data: Data, fit: Fit, mask: np.ndarray, skew_min: float = SKEW_MIN) -> dict:
+def stick_slip_signature(data: Data, fit: Fit, mask: np.ndarray, skew_min: float = SKEW_MIN,
+                         settle_s: float = SETTLE_S) -> dict:
     """Residual signature of stick-slip that needs no phase: while the actuator moves, the tip
     sticks (the residual drifts slowly against the motion) and slips (it jumps back with the
     motion), so the increments of the residual, signed by the direction of motion, are skewed
@@ -377,7 +386,12 @@ def stick_slip_signature(data: Data, fit: Fit, mask: np.ndarray, skew_min: float
     or turns), consecutive pairs only. Present when the sample skewness exceeds
     max(skew_min, 3 sqrt(6 / n)): 3 standard errors of the skewness of a symmetric sample keep
     chance out, skew_min (0.3, see SKEW_MIN) keeps out the mild skew of other misfits.
-    Returns {"skewness", "n", "threshold", "present"}."""
+    Phase with the motion: the same skewness on the leg interiors alone (rows more than settle_s
+    after the last change of direction of the fitted model's c, ``fit.pred``), where stick-slip
+    still slips and a reversal's ringing or a direction-flipping offset has nothing left; present
+    needs both (a skew confined to the reversals is reported as ``at_reversals_only``).
+    Returns {"skewness", "n", "threshold", "skewness_interior", "n_interior", "threshold_interior",
+    "at_reversals_only", "present"}."""
     from scipy.stats import skew
     q = np.interp(data.t_m - data.t_delay_s, data.t_int, data.q_int)
     dq = np.gradient(q, data.t_m)
@@ -387,11 +401,44 @@ def stick_slip_signature(data: Data, fit: Fit, mask: np.ndarray, skew_min: float
     dr = np.diff(r) * np.sign(dq[1:])
     ok = moving[1:] & moving[:-1] & mask[1:] & mask[:-1] & np.isfinite(dr)
     n = int(ok.sum())
+    nan = float("nan")
     if n < 50:
-        return {"skewness": float("nan"), "n": n, "threshold": float("nan"), "present": False}
+        return {"skewness": nan, "n": n, "threshold": nan, "skewness_interior": nan, "n_interior": 0,
+                "threshold_interior": nan, "at_reversals_only": False, "present": False}
     g = float(skew(dr[ok]))
     thr = max(skew_min, 3.0 * np.sqrt(6.0 / n))
-    return {"skewness": g, "n": n, "threshold": float(thr), "present": bool(g > thr)}
+    # time since the fitted c last changed direction (held_direction of the prediction)
+    from ..model import held_direction
+    sd = held_direction(fit.pred, 1e-9 * max(float(np.ptp(fit.pred)), 1e-12))
+    change = np.r_[True, np.diff(sd) != 0]
+    last = np.maximum.accumulate(np.where(change, np.arange(sd.size), 0))
+    inner = ok & ((data.t_m - data.t_m[last])[1:] > settle_s)
+    ni = int(inner.sum())
+    gi = float(skew(dr[inner])) if ni >= 50 else nan
+    thri = max(skew_min, 3.0 * np.sqrt(6.0 / max(ni, 1)))
+    inner_ok = bool(ni >= 50 and gi > thri)
+    return {"skewness": g, "n": n, "threshold": float(thr), "skewness_interior": gi, "n_interior": ni,
+            "threshold_interior": float(thri), "at_reversals_only": bool(g > thr and not inner_ok),
+            "present": bool(g > thr and inner_ok)}
+
+
+def hint(out: dict) -> dict | None:
+    """The closest library effect for an "unexplained" verdict (never a verdict itself): the first
+    kept effect, when one was kept but explains too little, else the screened effect with the
+    lowest validation RMSE among those that lowered it, else stick-slip when its signature was
+    seen at the reversals only. Returns {"effect", "why"} or None."""
+    if out["kept"]:
+        k = out["kept"][0]
+        return {"effect": k["effect"], "why": f"kept, but the kept set removes "
+                f"{100 * out['final']['share_of_excess_removed']:.0f} % of the excess (under half)"}
+    best = min((r for r in out["screen"] if r["delta_rmse_deg"] > 0), key=lambda r: r["rmse_heldout_deg"], default=None)
+    if best is not None:
+        return {"effect": best["effect"], "why": f"lowers the validation RMSE by {best['delta_rmse_deg']:.3f} deg alone, "
+                "short of the margin or the BIC"}
+    if out.get("stick_slip_signature", {}).get("at_reversals_only"):
+        return {"effect": "stick_slip", "why": "skewed residual increments, but only just after reversals "
+                "(a ringing or a direction-flipping offset, not slips along the legs)"}
+    return None
 
 
 def _share(r_before: float, r_after: float, e0: float, sigma: float) -> float:

@@ -23,6 +23,7 @@ from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
 from ..model import play_on_edges
+from . import kernels
 
 N_KNOTS = 9
 N_FKNOTS = 12  # interior knots of the cubic B-spline f_remain
@@ -93,8 +94,13 @@ def _dead_band(u: np.ndarray, w: float, r: float) -> np.ndarray:
 
 def lowpass(x: np.ndarray, tau_s: float, rate_hz: float) -> np.ndarray:
     """First-order low-pass tau dy/dt = x - y of a uniformly sampled (N,) signal, y[0] = x[0]
-    (the diagnosis' own filter; the simulators keep theirs)."""
+    (the diagnosis' own filter; the simulators keep theirs). x may also be (N, M): each column
+    filtered alone."""
     a = np.exp(-1.0 / (tau_s * rate_hz))
+    if np.ndim(x) == 2:
+        # every column of an (N, M) array at once, each as the 1-D call would filter it
+        y, _ = lfilter([1 - a], [1, -a], x, axis=0, zi=a * x[:1])
+        return y
     y, _ = lfilter([1 - a], [1, -a], x, zi=[a * x[0]])
     return y
 
@@ -192,7 +198,7 @@ KARNOPP_SUBSTEPS = 8  # integration steps per internal sample (2.5 ms; stable fo
 
 
 def _karnopp_carrier(z: np.ndarray, rate_hz: float, static: float, kin_ratio: float, fn_hz: float,
-                     zeta: float, substeps: int = KARNOPP_SUBSTEPS) -> np.ndarray:
+                     zeta: float, substeps: int = KARNOPP_SUBSTEPS, native: bool = True) -> np.ndarray:
     """Stick-slip of a carrier driven through a spring by z (Karnopp 1985, "Computer simulation of
     stick-slip friction in mechanical dynamic systems", J. Dyn. Sys. Meas. Control 107:100-103).
     Per unit mass: p'' = wn^2 (z - p) - 2 zeta wn p' - F_f, with
@@ -206,15 +212,18 @@ def _karnopp_carrier(z: np.ndarray, rate_hz: float, static: float, kin_ratio: fl
     while the spring force is under Fs also sticks. Semi-implicit Euler (damping implicit) with
     step h = 1 / (rate_hz substeps), z linear between samples; a stuck carrier whose spring force
     stays under Fs over a whole sample is skipped. Starts stuck at p = z[0].
-    z: (N,) mm sampled at rate_hz; returns p (N,) mm at the same samples."""
-    zl = np.asarray(z, float).tolist()
-    out = [0.0] * len(zl)
+    z: (N,) mm sampled at rate_hz; returns p (N,) mm at the same samples. native: the C kernel
+    (kernels.karnopp, the same arithmetic) when it is compiled; False runs this Python reference."""
     wn = 2.0 * np.pi * fn_hz
     w2, c2 = wn * wn, 2.0 * zeta * wn
     Fs = w2 * max(static, 0.0)
     Fc = kin_ratio * Fs
     h = 1.0 / (rate_hz * substeps)
     band = 0.01 * h * Fs
+    if native and kernels.available():
+        return kernels.karnopp(z, w2, c2, Fs, Fc, h, band, substeps)
+    zl = np.asarray(z, float).tolist()
+    out = [0.0] * len(zl)
     p, v = zl[0], 0.0
     zp = zl[0]
     for k, zk in enumerate(zl):
@@ -242,11 +251,16 @@ def _karnopp_carrier(z: np.ndarray, rate_hz: float, static: float, kin_ratio: fl
     return np.asarray(out)
 
 
-def _switch(z: list, travel: float) -> np.ndarray:
+def _switch(z: list, travel: float, native: bool = True) -> np.ndarray:
     """Direction state that goes from -1 to +1 over a travel ``travel`` of z (a play of width
-    travel on z, normalised): s += 2 dz / travel, clipped to [-1, 1]; starts at +1."""
+    travel on z, normalised): s += 2 dz / travel, clipped to [-1, 1]; starts at +1. native: the
+    C kernel when compiled (same arithmetic); False runs this Python reference."""
+    g = 2.0 / max(travel, 1e-12)
+    if native and kernels.available() and len(z):
+        return kernels.switch(z, g)
+    z = np.asarray(z, float).tolist()
     out = [0.0] * len(z)
-    st, g = 1.0, 2.0 / max(travel, 1e-12)
+    st = 1.0
     for k in range(1, len(z)):
         st += g * (z[k] - z[k - 1])
         st = 1.0 if st > 1.0 else (-1.0 if st < -1.0 else st)
@@ -255,11 +269,14 @@ def _switch(z: list, travel: float) -> np.ndarray:
     return np.asarray(out)
 
 
-def _viscous_play(z_lo: np.ndarray, z_hi: np.ndarray, z0: float, a: float) -> np.ndarray:
+def _viscous_play(z_lo: np.ndarray, z_hi: np.ndarray, z0: float, a: float, native: bool = True) -> np.ndarray:
     """Play whose output relaxes towards its band instead of being carried by it (a viscous
     contact): p[k] = p[k-1] + a (clip(p[k-1], z_lo[k], z_hi[k]) - p[k-1]), a = 1 - exp(-dt/tau_c).
     a = 1 is the play operator of eq. 3; a < 1 lags while an edge pushes, by ~ speed x tau_c, and
-    holds still once the edge has left (the band contains p). z_lo, z_hi: (N,); returns p (N,)."""
+    holds still once the edge has left (the band contains p). z_lo, z_hi: (N,); returns p (N,).
+    native: the C kernel when compiled (same arithmetic); False runs this Python reference."""
+    if native and kernels.available():
+        return kernels.viscous_play(z_lo, z_hi, z0, a)
     lo = np.asarray(z_lo, float).tolist()
     hi = np.asarray(z_hi, float).tolist()
     out = [0.0] * len(lo)
@@ -269,6 +286,22 @@ def _viscous_play(z_lo: np.ndarray, z_hi: np.ndarray, z0: float, a: float) -> np
         p += a * (c - p)
         out[k] = p
     return np.asarray(out)
+
+
+def _play(z_lo: np.ndarray, z_hi: np.ndarray, z0: float) -> np.ndarray:
+    """The play operator on band edges (model.play_on_edges, eq. 3) through the C kernel when it
+    is compiled (bit for bit the same), else model.play_on_edges itself. (N,) mm."""
+    return kernels.play_on_edges(z_lo, z_hi, z0) if kernels.available() else play_on_edges(z_lo, z_hi, z0)
+
+
+def _bspline_dense(x: np.ndarray, t: np.ndarray, k: int) -> np.ndarray:
+    """BSpline.design_matrix(x, t, k).toarray() without the sparse-to-dense pass (the same
+    values, scattered from the CSR arrays). x: (N,) inside the base interval; returns (N, len(t) - k - 1)."""
+    D = BSpline.design_matrix(x, t, k)
+    nb = t.size - k - 1
+    out = np.zeros((x.size, nb))
+    out.ravel()[np.repeat(np.arange(x.size) * nb, np.diff(D.indptr)) + D.indices] = D.data
+    return out
 
 
 def _direction(z: np.ndarray) -> np.ndarray:
@@ -416,12 +449,12 @@ class Model:
             # down), inverted on the z grid by np.interp (z + B(z)/2 is increasing for |B'| < 2).
             zu = np.interp(q - vh, *self._edge(self.zg, (1 + alpha) * r * Bg / 2))
             zd = np.interp(q + vh, *self._edge(self.zg, -(1 - alpha) * r * Bg / 2))
-            zs.append(play_on_edges(zu, zd, z0) if a_c >= 1.0 else _viscous_play(zu, zd, z0, a_c))
+            zs.append(_play(zu, zd, z0) if a_c >= 1.0 else _viscous_play(zu, zd, z0, a_c))
         z = zs[0] if len(zs) == 1 else np.mean(zs, axis=0)
         sdir = _direction(z)
         if "handeye_direction" in self.effects:
             w = np.exp(self._get(theta, "handeye_direction", "log_travel")) * 2 * self.q_half
-            sdir = _switch(z.tolist(), w)
+            sdir = _switch(z, w)
         if "stick_slip" in self.effects:
             # The carrier sticks and slips behind the play output (stiction in the transmission,
             # before f_remain: the prediction stays linear in f_remain's coefficients).
@@ -437,8 +470,12 @@ class Model:
                            float(np.exp(self._get(theta, "travel_relaxation", "log_lambda_q")))).direct(z)
         return z, sdir
 
-    def design(self, theta: np.ndarray) -> np.ndarray:
-        """Design matrix (Nm, n_coef) at the measurement rows for nonlinear parameters theta."""
+    def design(self, theta: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """Design matrix (Nm, n_coef) at the measurement rows for nonlinear parameters theta; with
+        ``rows`` (bool (Nm,)) only those rows, (rows.sum(), n_coef), the same values. Why rows: a
+        fit needs its own rows only (half of a record), and the basis is then built only up to
+        the last internal sample they reach (everything before it is causal: the play, the
+        elongation's low-pass), which halves the cost of each of a fit's evaluations."""
         d = self.d
         z, sdir = self._play_output(theta)
         if "dead_zone" in self.effects and self.dead_zone_side == "distal":
@@ -447,28 +484,42 @@ class Model:
             # map of z, but with kinks f_remain's 12 knots cannot follow; same parameters (q units).
             zc, w = self._band(theta, self._z_ends(theta, z))
             z = zc + _dead_band(z - zc, w, self._corner(theta) * w)
-        x = np.clip((z - self.q_mid) / self.q_half, -1.5, 1.5)
-        Phi = BSpline.design_matrix(x, self.ftk, 3).toarray()
+        delay = d.t_delay_s + (self._get(theta, "camera_delay", "delay_s") if "camera_delay" in self.effects else 0.0)
+        tq = d.t_m - delay
+        t_m = d.t_m
+        n_int = d.t_int.size
+        if rows is not None:
+            tq, t_m = tq[rows], t_m[rows]
+            # internal samples up to the first one past the last row (np.interp's bracket)
+            n_int = min(int(np.searchsorted(d.t_int, tq.max(), side="right")) + 1, n_int) if tq.size else 2
+        t_int = d.t_int[:n_int]
+        x = np.clip((z[:n_int] - self.q_mid) / self.q_half, -1.5, 1.5)
+        Phi = _bspline_dense(x, self.ftk, 3)
         if "cable_elongation" in self.effects:
             kappa = self._get(theta, "cable_elongation", "kappa")
             tau = np.exp(self._get(theta, "cable_elongation", "log_tau"))
-            lp = np.column_stack([lowpass(Phi[:, j], tau, INTERNAL_HZ) for j in range(Phi.shape[1])])
-            Phi = Phi + kappa * (lp - Phi)
-        delay = d.t_delay_s + (self._get(theta, "camera_delay", "delay_s") if "camera_delay" in self.effects else 0.0)
-        tq = d.t_m - delay
-        cols = [np.interp(tq, d.t_int, Phi[:, j]) for j in range(Phi.shape[1])]
+            Phi = Phi + kappa * (lowpass(Phi, tau, INTERNAL_HZ) - Phi)
+        extra = []
         if "drift" in self.effects:
-            cols.append((d.t_m - 0.5 * (d.t_m[0] + d.t_m[-1])) / 60.0)
+            extra.append((t_m - 0.5 * (d.t_m[0] + d.t_m[-1])) / 60.0)
         if "handeye_direction" in self.effects:
             idx = np.clip(np.searchsorted(d.t_int, tq) - 1, 0, d.t_int.size - 1)
-            cols.append(sdir[idx])
-        return np.column_stack(cols)
+            extra.append(sdir[idx])
+        nb = Phi.shape[1]
+        A = np.empty((tq.size, nb + len(extra)))
+        PT = np.ascontiguousarray(Phi.T)
+        for j in range(nb):
+            A[:, j] = np.interp(tq, t_int, PT[j])
+        for j, c in enumerate(extra):
+            A[:, nb + j] = c
+        return A
 
     def _solve(self, theta, mask):
-        A = self.design(theta)
+        """(A_m, coef, m): the design at the rows m = mask & finite y only, and f_remain's (and the
+        other linear) coefficients solved on them."""
         y = self.d.y_m
         m = mask & np.isfinite(y)
-        Am = A[m]
+        Am = self.design(theta, m)
         # Normal equations: ~14 well-conditioned columns (B-spline basis), 6x cheaper than lstsq's
         # SVD in the inner loop; lstsq only when the system is singular (e.g. a dead column).
         try:
@@ -477,15 +528,15 @@ class Model:
             coef = np.linalg.solve(G, Am.T @ y[m])
         except np.linalg.LinAlgError:
             coef, *_ = np.linalg.lstsq(Am, y[m], rcond=None)
-        return A, coef, m
+        return Am, coef, m
 
     def predict(self, theta: np.ndarray, coef: np.ndarray) -> np.ndarray:
         """c (Nm,) deg predicted with given nonlinear parameters and linear coefficients."""
         return self.design(theta) @ coef
 
     def residual(self, theta, mask):
-        A, coef, m = self._solve(theta, mask)
-        return self.d.y_m[m] - A[m] @ coef
+        Am, coef, m = self._solve(theta, mask)
+        return self.d.y_m[m] - Am @ coef
 
     def fit(self, mask: np.ndarray, theta0: np.ndarray | None = None, grid: bool = True,
             uncertainty: bool = True) -> Fit:
@@ -512,8 +563,9 @@ class Model:
                             ftol=1e-6, xtol=1e-6)
         th = th.copy()
         th[free] = res.x
-        A, coef, m = self._solve(th, mask)
-        r = self.d.y_m[m] - A[m] @ coef
+        Am, coef, m = self._solve(th, mask)
+        A = self.design(th)
+        r = self.d.y_m[m] - Am @ coef
         n = int(m.sum())
         rho = float(np.corrcoef(r[:-1], r[1:])[0, 1]) if n > 3 else 0.0
         # Correlation beyond 0.9 is model misfit rather than noise: it is not allowed to shrink the
@@ -537,7 +589,7 @@ class Model:
             cov[np.ix_(free, free)] = cov_free
             fit.cov_theta = cov
             try:
-                fit.cov_coef = np.linalg.pinv(A[m].T @ A[m]) * s2
+                fit.cov_coef = np.linalg.pinv(Am.T @ Am) * s2
             except np.linalg.LinAlgError:
                 pass
         return fit

@@ -120,3 +120,15 @@ def test_the_walker_sees_a_forbidden_import(tmp_path):
     mods = _closure(["diagnose/selftest.py"])
     assert any(m.startswith("playscope.sim.withheld") for m in mods)
     assert any(m.startswith("playscope.diagnose.fitmodel") for m in mods)
+
+
+SECOND = sorted(str(p.relative_to(PKG)) for p in (PKG / "sim" / "withheld_b").glob("*.py"))
+
+
+def test_second_generator_shares_no_code_with_the_first_or_the_fitter():
+    assert "sim/withheld_b/generator.py" in SECOND
+    mods = _closure(SECOND)
+    assert mods <= {"playscope", "playscope.session", "playscope.atomic", "playscope.errors", "playscope.sim",
+                    "playscope.sim.withheld_b", "playscope.sim.withheld_b.generator"}, mods
+    common = (_defined(SECOND) & (_defined(FORMS) | _defined(GENERATOR))) - {"__all__"}
+    assert not common, f"defined in the second generator and elsewhere: {sorted(common)}"

@@ -98,3 +98,52 @@ def test_karnopp_carrier_sticks_then_slips_and_nests_the_play():
     # no friction, stiff well-damped carrier: follows z within a few ms of lag
     p0 = _karnopp_carrier(z, INTERNAL_HZ, 0.0, 0.5, 60.0, 1.0)
     assert np.max(np.abs(p0 - z)) < 0.03
+
+
+def _legs(rate_hz=50.0, duration_s=120.0, speed=0.8, amp=1.4, hold_s=0.3):
+    """Back-and-forth legs of amp mm at speed mm/s with holds at the turns: (t (N,) s, q (N,) mm,
+    direction (N,) +-1 of the motion, held)."""
+    t = np.arange(0.0, duration_s, 1.0 / rate_hz)
+    q, d, pos, hold = np.empty(t.size), 1.0, 0.0, 0.0
+    dirs = np.empty(t.size)
+    for k in range(t.size):
+        if hold > 0:
+            hold -= 1.0 / rate_hz
+        else:
+            pos += d * speed / rate_hz
+            if d * pos >= amp / 2:
+                d, hold = -d, hold_s
+        q[k], dirs[k] = pos, d
+    return t, q, dirs
+
+
+def test_signature_needs_slips_along_the_legs_not_at_the_reversals():
+    """Residual increments skewed towards the motion all along each leg (slow drift against the
+    motion, quick slips with it, 6 a second) carry the stick-slip signature; the same skew put
+    only at the reversals -- a +-1.5 deg offset that flips with the direction, or a ringing rung at
+    each reversal -- is reported at_reversals_only, not present."""
+    from types import SimpleNamespace
+
+    from playscope.diagnose.attribute import stick_slip_signature
+    from playscope.diagnose.fitmodel import Data
+
+    from playscope.model import held_direction, play_on_edges
+
+    t, q, _ = _legs()
+    # the bend follows a play of 0.3 mm: the distal motion reverses after the dead travel, while q moves
+    pred = 10.0 * play_on_edges(q - 0.15, q + 0.15, q[0])
+    dirs = held_direction(pred, 1e-9)
+    noise = np.random.default_rng(0).normal(0, 0.02, t.size)
+    mask = t > 60.0
+    slips = dirs * 0.3 * (1.0 - (t * 6.0) % 1.0)          # sawtooth: drift against, slip with the motion
+    flip = 1.5 * dirs                                       # offset flipping with the distal direction
+    since = t - t[np.maximum.accumulate(np.where(np.r_[True, np.diff(dirs) != 0], np.arange(t.size), 0))]
+    ring = dirs * 1.0 * np.exp(-since / 0.4) * np.sin(2 * np.pi * 3.0 * since) * (since < 3.0)
+    out = {}
+    for name, r in (("slips", slips), ("flip", flip), ("ring", ring)):
+        data = Data(t, q, t, pred + r + noise, 0.0)
+        out[name] = stick_slip_signature(data, SimpleNamespace(pred=pred), mask)
+    assert out["slips"]["present"] and out["slips"]["skewness_interior"] > 0.6
+    assert out["flip"]["skewness"] > out["flip"]["threshold"]       # the old, phase-blind rule fired
+    assert out["flip"]["at_reversals_only"] and not out["flip"]["present"]
+    assert not out["ring"]["present"]

@@ -1,0 +1,78 @@
+"""The diagnosis' C kernels and vectorised design agree bit for bit with their Python references
+(the recursions in fitmodel.py / model.py, np.interp column by column, the sparse B-spline
+design matrix), on inputs that exercise every branch: sticks and slips, clipping at both band
+edges, ties with the band, knots hit exactly, rows outside the grid."""
+
+import numpy as np
+import pytest
+from scipy.interpolate import BSpline
+
+from playscope.diagnose import fitmodel, kernels
+from playscope.model import play_on_edges
+
+pytestmark = pytest.mark.skipif(not kernels.available(), reason="no C compiler for the diagnosis kernels")
+
+
+def _drive(n=6000, seed=0):
+    """A back-and-forth input with holds, ramps and noise (mm), and band edges around it."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 50.0
+    q = 1.2 * np.sin(2 * np.pi * t / 7.0) + 0.3 * np.sin(2 * np.pi * t / 1.3) + rng.normal(0, 0.01, n)
+    q[1000:1200] = q[1000]  # a hold: the recursions' still branches
+    half = 0.15 + 0.05 * np.cos(q)
+    return q, q - half, q + half
+
+
+def test_play_and_viscous_play_bit_for_bit():
+    q, lo, hi = _drive()
+    lo[50] = hi[50] = 0.25  # a zero-width band: ties of min and max
+    for z0 in (0.0, lo[0], 5.0):
+        assert np.array_equal(kernels.play_on_edges(lo, hi, z0), play_on_edges(lo, hi, z0))
+        for a in (1.0, 0.3, 0.01):
+            assert np.array_equal(fitmodel._viscous_play(lo, hi, z0, a),
+                                  fitmodel._viscous_play(lo, hi, z0, a, native=False))
+
+
+def test_switch_bit_for_bit():
+    q, _, _ = _drive(seed=1)
+    for travel in (1e-3, 0.05, 0.4, 10.0):
+        assert np.array_equal(fitmodel._switch(q, travel), fitmodel._switch(q, travel, native=False))
+    assert np.array_equal(fitmodel._switch(q[:1], 0.1), fitmodel._switch(q[:1], 0.1, native=False))
+
+
+@pytest.mark.parametrize("static,kin,fn,zeta", [(0.02, 0.5, 20.0, 0.5), (0.05, 0.2, 12.0, 0.05),
+                                                 (1e-4, 0.5, 60.0, 1.0), (0.0, 0.5, 20.0, 0.5)])
+def test_karnopp_bit_for_bit(static, kin, fn, zeta):
+    z, _, _ = _drive(seed=2)
+    c = fitmodel._karnopp_carrier(z, 50.0, static, kin, fn, zeta)
+    r = fitmodel._karnopp_carrier(z, 50.0, static, kin, fn, zeta, native=False)
+    assert np.array_equal(c, r)
+    if static > 0.01:  # the carrier really sticks and slips here (else the test proves little)
+        assert np.mean(np.diff(c) == 0.0) > 0.1 and np.max(np.abs(c - z)) > static
+
+
+@pytest.mark.parametrize("effects,side", [((), "actuator"), (("cable_elongation", "camera_delay"), "actuator"),
+                                          (("dead_zone", "drift"), "distal"), (("handeye_direction", "stick_slip"), "actuator")])
+def test_design_on_rows_is_the_full_design_sliced(effects, side):
+    """A fit's rows only (the first part of the record, with gaps) give the rows of the full design."""
+    q, _, _ = _drive(n=3000, seed=5)
+    t = np.arange(q.size) / 50.0
+    tm = np.arange(0.013, t[-1], 0.021)
+    data = fitmodel.Data(t, q, tm, np.interp(tm, t, 10 * q), 0.0)
+    m = fitmodel.Model(data, effects, dead_zone_side=side)
+    th = m.init.copy()
+    if "camera_delay" in effects:
+        th[m.names.index("camera_delay.delay_s")] = 0.037
+    full = m.design(th)
+    for rows in (tm < 0.5 * tm[-1], (tm < 0.7 * tm[-1]) & (np.arange(tm.size) % 3 > 0), tm > 0.0):
+        assert np.array_equal(m.design(th, rows), full[rows])
+
+
+def test_bspline_dense_and_lowpass_columns():
+    x = np.clip(np.random.default_rng(4).uniform(-2, 2, 4000), -1.5, 1.5)
+    inner = np.linspace(-1, 1, fitmodel.N_FKNOTS + 2)
+    t = np.r_[[-1.5] * 4, inner[1:-1], [1.5] * 4]
+    P = fitmodel._bspline_dense(x, t, 3)
+    assert np.array_equal(P, BSpline.design_matrix(x, t, 3).toarray())
+    L = fitmodel.lowpass(P, 0.3, 50.0)
+    assert np.array_equal(L, np.column_stack([fitmodel.lowpass(P[:, j], 0.3, 50.0) for j in range(P.shape[1])]))
