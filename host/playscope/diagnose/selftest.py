@@ -145,8 +145,13 @@ def run(strengths: str = "both", nulls: int = 4, ool: bool = True, seed: int = 0
     """Run the whole self-test; returns score() of the results. recover: ask the recoverability
     oracle too (about a third of the run's time)."""
     cl = cases(strengths, nulls, ool, seed, effects)
+    return score(_run_all(functools.partial(run_case, recover=recover), cl, duration_s, workers, log))
+
+
+def _run_all(one, cl: list, duration_s: float, workers: int, log) -> list:
+    """one(case, duration_s) over every case of cl, in order, on `workers` processes; logs a line
+    per result as it arrives."""
     results = []
-    one = functools.partial(run_case, recover=recover)
     if workers > 1:
         # One BLAS thread per worker: small least-squares problems gain nothing from threads, and
         # oversubscribed cores made the self-test an order of magnitude slower.
@@ -161,7 +166,7 @@ def run(strengths: str = "both", nulls: int = 4, ool: bool = True, seed: int = 0
             r = one(c, duration_s)
             results.append(r)
             log(_line(r))
-    return score(results)
+    return results
 
 
 def run_case_second(case: dict, duration_s: float = 120.0, candidates=C_LIBRARY) -> dict:
@@ -199,20 +204,7 @@ def run_second(seed: int = 0, nulls: int = 10, ool: bool = True, duration_s: flo
     from the first generator's."""
     from ..sim.withheld_b.generator import LIBRARY, cases as cases_b
     cl = cases_b(seed, tuple(effects) if effects else tuple(LIBRARY), nulls, ool, strengths)
-    results = []
-    if workers > 1:
-        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ.setdefault(var, "1")
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
-            for r in ex.map(run_case_second, cl, [duration_s] * len(cl)):
-                results.append(r)
-                log(_line(r))
-    else:
-        for c in cl:
-            r = run_case_second(c, duration_s)
-            results.append(r)
-            log(_line(r))
-    return score(results)
+    return score(_run_all(run_case_second, cl, duration_s, workers, log))
 
 
 def _yes(v) -> str:
