@@ -21,7 +21,7 @@ import os
 import sys
 
 from . import __version__, jsonio
-from .atomic import check_output, output_guard
+from .atomic import check_flash_file, check_output, output_guard
 from .errors import InputError
 
 # Argument dests that name what a command writes; every other path-valued argument that
@@ -132,10 +132,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         ins, outs = _paths(args)
-        force = bool(getattr(args, "force", False) or getattr(args, "overwrite", False))
+        force = bool(getattr(args, "force", False))
         with output_guard(ins, force):
             for o in outs:  # before any work: a refused output costs nothing
                 check_output(o)
+            check_flash_file(getattr(args, "flash_file", None))
             return _run_command(args)
     except KeyboardInterrupt:
         print("playscope: interrupted", file=sys.stderr)

@@ -64,7 +64,8 @@ def add_parser(sub) -> None:
     p.add_argument("--unit", choices=["mm", "deg"], default="mm", help="actuator unit (default mm)")
     p.add_argument("--q-per-rad", type=_finite("non-zero number"), default=5.0,
                    help="f_coarse: actuator units per rad (default 5)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing session folder")
+    p.add_argument("--force", "--overwrite", dest="force", action="store_true",
+                   help="replace an existing session folder (only one holding nothing but session files)")
     add_json_arg(p, "session (path), rows (int), t_span_s (float), streams (per-stream import notes, bags)")
     p.set_defaults(func=run)
 
@@ -88,12 +89,12 @@ def run(a) -> int:
         notes = report.lines()
         for line in notes:
             print(f"{a.source}: {line}", file=sys.stderr)
-        write_bag_session(s, frames, a.out, overwrite=a.overwrite)
+        write_bag_session(s, frames, a.out, overwrite=a.force)
     else:
         s = import_csv(a.source, a.t_col, a.q_col, a.c_col, a.time_scale, a.q_scale, a.unit, a.q_per_rad)
         notes = list(s.notes)
         warn(notes)
-        write_session(s, a.out, overwrite=a.overwrite)
+        write_session(s, a.out, overwrite=a.force)
     t = s.encoder["t_s"]
     print(f"{a.out}: {t.size} rows, {t[-1] - t[0]:.1f} s")
     dump_json(a.json, {"session": str(a.out), "rows": int(t.size), "t_span_s": float(t[-1] - t[0]),
