@@ -42,6 +42,12 @@ typedef enum {
                                     block, offset != 0 with n = 0, or abscissas not covering B's grid */
     CALIB_ERR_TMAP_MONOTONE,     /* map entries not strictly increasing: g^-1 would not exist */
     CALIB_ERR_TMAP_RANGE,        /* map values beyond +-2^30 raw, or its abscissas +- B_max/2 beyond int32 */
+    /* Physical plausibility (ps_table.h, PST_PLAUS_*): one code per rule. */
+    CALIB_ERR_TRAVEL,            /* q_max - q_min below PST_PLAUS_TRAVEL_MIN_Q16 */
+    CALIB_ERR_B_TRAVEL,          /* a backlash width above the travel q_max - q_min */
+    CALIB_ERR_C_RANGE,           /* an f entry beyond +-PST_PLAUS_C_ABS_MAX_Q16 (360 deg) */
+    CALIB_ERR_C_SPAN,            /* f moves less than PST_PLAUS_C_SPAN_MIN_Q16 (1 deg) over its grid */
+    CALIB_ERR_F_SLOPE,           /* |df/dq| above PST_PLAUS_F_SLOPE_MAX deg per actuator unit on a segment */
 } calib_status_t;
 
 /* Precision ceiling (docs/firmware.md, "Precision ceiling"): a table's own arithmetic may add

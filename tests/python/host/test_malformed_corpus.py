@@ -236,6 +236,10 @@ def cases() -> list[tuple[str, list[str], object]]:
             "coef", [(-1) ** k * 20.0 for k in range(len(d["f_remain"]["coef"]))]))),
         # A play of 2 raw units: the table's own rounding would exceed it (CALIB_ERR_PRECISION).
         ("B tiny", _json_edit("cal.json", lambda d: d["B"].__setitem__("coef", [3e-5] * len(d["B"]["coef"])))),
+        # Implausible for the travel (PST_PLAUS_*): a play of 100 mm, f scaled x500.
+        ("B 100 mm", _json_edit("cal.json", lambda d: d["B"].__setitem__("coef", [100.0] * len(d["B"]["coef"])))),
+        ("f_remain x500", _json_edit("cal.json", lambda d: d["f_remain"].__setitem__(
+            "coef", [500.0 * c for c in d["f_remain"]["coef"]]))),
     ]:
         add(f"cal.json {name}", TAB, dmg)
     for name, dmg in [("missing", _delete("cal.json")), ("list", _write("cal.json", "[]")),
@@ -246,6 +250,11 @@ def cases() -> list[tuple[str, list[str], object]]:
     from .goodfiles import table_damages
 
     for name, dmg in table_damages():
+        add(f"table {name}", FLASH, dmg)
+    # Valid CRC, intact structure, impossible physics (ps_table.h PST_PLAUS_*): refused by rule.
+    from .goodfiles import table_nonsense
+
+    for name, _code, dmg in table_nonsense():
         add(f"table {name}", FLASH, dmg)
     add("table missing", FLASH, _delete("table.pstb"))
     add("table empty", FLASH, _write("table.pstb", b""))
