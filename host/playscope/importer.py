@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .session import Robot, Session, read_csv
+from .session import Robot, Session, read_csv, time_origin
 
 CATHETER = {"t": "Time", "q": "Tendon Disp.", "c": "Angle x"}
 # Nominal f_coarse for the catheter: about 63 deg of bending over 5.5 mm of tendon.
@@ -47,10 +47,10 @@ def import_csv(path, t_col: str, q_col: str, c_col: str, time_scale: float = 1.0
     notes: list[str] = []
     d = read_csv(path, [t_col, q_col, c_col], time_col=t_col, notes=notes)  # repeated/backward stamps repaired
     t = d[t_col] * time_scale
-    return Session(notes=notes, actuator_unit=unit, distal_kind="angle",
+    return time_origin(Session(notes=notes, actuator_unit=unit, distal_kind="angle",
                    robot=Robot("constant_curvature", bend_length_mm, tip_length_mm, q_per_rad),
                    encoder={"t_s": t, "q": d[q_col] * q_scale}, distal={"t_s": t.copy(), "c_deg": d[c_col]},
-                   t_delay_s=0.0, meta={"source": {"file": str(path), "columns": [t_col, q_col, c_col]}})
+                   t_delay_s=0.0, meta={"source": {"file": str(path), "columns": [t_col, q_col, c_col]}}))
 
 
 def import_catheter(path) -> Session:

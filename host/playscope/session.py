@@ -110,6 +110,9 @@ class Session:
     meta: dict[str, Any] = field(default_factory=dict)
     q_source: str = "measured"
     notes: list[str] = field(default_factory=list)
+    # The files' time of the session's first stamp, integer us: load_session makes every t_s
+    # relative to it (time_origin), write_session adds it back, so the files keep their clock.
+    t_origin_us: int = 0
 
     # Observations used by the estimator, whichever the distal kind.
     def observations(self) -> tuple[np.ndarray, np.ndarray]:
@@ -320,18 +323,34 @@ def t_col_fmt(x: float) -> str:
     return f"{x:.9g}"
 
 
-def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str] | None = None) -> None:
-    """Write equal-length 1-D arrays as a CSV with a header; NaN becomes an empty field."""
+def _fmt_us(u: int) -> str:
+    """Integer microseconds as exact decimal seconds, trailing zeros dropped."""
+    sign, u = ("-", -u) if u < 0 else ("", u)
+    q, r = divmod(u, 1_000_000)
+    return f"{sign}{q}" if r == 0 else f"{sign}{q}.{r:06d}".rstrip("0")
+
+
+def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str] | None = None,
+              t_origin_us: int = 0) -> None:
+    """Write equal-length 1-D arrays as a CSV with a header; NaN becomes an empty field.
+    The time column t_s is written to the microsecond, exactly (t_origin_us added back:
+    Session.t_origin_us), whatever its magnitude: %.9g would keep whole seconds of an epoch
+    stamp."""
     names = list(columns)
     arrays = [np.asarray(columns[n], float) for n in names]
     n = len(arrays[0]) if arrays else 0
     formats = formats or {}
     fmts = [formats.get(nm, "{:.9g}") for nm in names]
+    cols = []
+    for nm, a, f in zip(names, arrays, fmts):
+        if nm == "t_s" and nm not in formats and np.all(np.isfinite(a)):
+            cols.append([_fmt_us(int(u)) for u in time_us(a) + int(t_origin_us)])
+        else:
+            cols.append(["" if not math.isfinite(x) else f.format(x) for x in a.tolist()])
     with open(path, "w", newline="") as fh:
         fh.write(",".join(names) + "\n")
         for i in range(n):
-            fh.write(",".join("" if not math.isfinite(a[i]) else f.format(a[i])
-                              for a, f in zip(arrays, fmts)) + "\n")
+            fh.write(",".join(c[i] for c in cols) + "\n")
 
 
 # --------------------------------------------------------------------------- JSON
@@ -524,6 +543,39 @@ def load_session(folder: str | os.PathLike) -> Session:
             raise InputError(folder / "marker.csv", "file not found (and no video.* with frames.csv)")
     if (folder / "truth.csv").is_file():
         s.truth = read_csv(folder / "truth.csv", ["t_s", "c_deg"])
+    time_origin(s)
+    return s
+
+
+def time_us(t) -> np.ndarray:
+    """Time stamps in s (float64) -> int64 microseconds, rounded to the nearest. Exact for
+    decimal stamps with at most 6 decimals below 2^31 s (an epoch stamp of 1.7e9 s is held
+    to 1.2e-7 s by float64; x 1e6 adds <= 0.125, so the rounding recovers the decimal's us)."""
+    return np.round(np.asarray(t, dtype=np.float64) * 1e6).astype(np.int64)
+
+
+def time_origin(s: "Session") -> "Session":
+    """Make every t_s of s relative to the session's first stamp (the earliest first row of
+    its streams), through integer microseconds, in place; s.t_origin_us keeps the files'
+    time of that stamp. The same motion then gives bit-identical times, hence the same
+    calibration, whatever the clock's origin (0, a device uptime, an epoch stamp of 1.7e9 s
+    as ROS bags carry): float64 seconds at 1.7e9 s would hold only 0.24 us steps, and every
+    difference taken from them would carry that rounding. Stamps are quantised to 1 us.
+    A repeated stamp after the quantisation keeps the last row (as regularize_time)."""
+    tabs = [t for t in (s.encoder, s.distal, s.marker, s.frames, s.truth) if t is not None and len(t["t_s"])]
+    if not tabs:
+        return s
+    us = [time_us(t["t_s"]) for t in tabs]
+    origin = min(int(u[0]) for u in us)
+    for tab, u in zip(tabs, us):
+        rel = u - origin
+        keep = np.r_[rel[1:] != rel[:-1], True] if rel.size > 1 else np.ones(rel.size, bool)
+        if not keep.all():  # sub-microsecond rows: keep the last of each
+            for k in list(tab):
+                tab[k] = tab[k][keep]
+            rel = rel[keep]
+        tab["t_s"] = rel / 1e6
+    s.t_origin_us += origin
     return s
 
 
@@ -546,13 +598,14 @@ def write_session(s: Session, folder: str | os.PathLike, overwrite: bool = False
     with atomic_path(folder) as tmp:
         tmp.mkdir()
         (tmp / "session.json").write_text(json.dumps(s.to_json(), indent=2) + "\n")
-        write_csv(tmp / "encoder.csv", s.encoder)
+        o = s.t_origin_us
+        write_csv(tmp / "encoder.csv", s.encoder, t_origin_us=o)
         if s.marker is not None:
-            write_csv(tmp / "marker.csv", {k: s.marker[k] for k in ("t_s", "u_px", "v_px")})
+            write_csv(tmp / "marker.csv", {k: s.marker[k] for k in ("t_s", "u_px", "v_px")}, t_origin_us=o)
         if s.distal is not None:
-            write_csv(tmp / "distal.csv", {k: s.distal[k] for k in ("t_s", "c_deg")})
+            write_csv(tmp / "distal.csv", {k: s.distal[k] for k in ("t_s", "c_deg")}, t_origin_us=o)
         if s.truth is not None:
-            write_csv(tmp / "truth.csv", s.truth)
+            write_csv(tmp / "truth.csv", s.truth, t_origin_us=o)
         if s.frames is not None and s.video is not None:
-            write_csv(tmp / "frames.csv", s.frames, {"frame": "{:.0f}"})
+            write_csv(tmp / "frames.csv", s.frames, {"frame": "{:.0f}"}, t_origin_us=o)
     return folder
