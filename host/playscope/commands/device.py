@@ -15,7 +15,7 @@ def _add_device_args(p) -> None:
     p.add_argument("--device", choices=["virtual", "qemu", "usb"], default="virtual",
                    help="board to talk to (default: virtual, the desktop build as a process)")
     p.add_argument("--flash-file", type=T.file_path, help="virtual: file-backed A/B flash kept across runs")
-    p.add_argument("--elf", type=T.existing_file, help="qemu: link firmware image (default: build/stm32f405/link-fw)")
+    p.add_argument("--elf", type=T.elf_file, help="qemu: link firmware image (default: build/stm32f405/link-fw)")
     p.add_argument("--address", type=T.host_port, help="qemu: host:port of an already running QEMU serial")
 
 
