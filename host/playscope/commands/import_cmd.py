@@ -94,7 +94,8 @@ def run(a) -> int:
         csv_only = [o for o, v in (("--t-col", a.t_col), ("--q-col", a.q_col), ("--c-col", a.c_col),
                                    ("--time-scale", a.time_scale != 1.0)) if v]
         if csv_only:
-            raise InputError(None, f"{', '.join(csv_only)}: CSV options, not used for a bag (give topics instead)")
+            raise InputError(a.source, f"{', '.join(csv_only)}: CSV options, and this is a ROS bag (give topics: "
+                             "--q-topic, --c-topic, --image-topic)")
         try:
             s, report, frames = import_bag(a.source, a.q_topic, a.c_topic, a.image_topic, a.geometry, a.unit,
                                            a.q_scale, a.c_scale, q_per_rad, a.t_delay)
@@ -112,7 +113,7 @@ def run(a) -> int:
         bag_only = [o for o, v in (("--q-topic", a.q_topic), ("--c-topic", a.c_topic),
                                    ("--image-topic", a.image_topic), ("--geometry", a.geometry)) if v]
         if bag_only:
-            raise InputError(None, f"{', '.join(bag_only)}: ROS bag options, and {a.source} is a CSV (use --t-col, "
+            raise InputError(a.source, f"{', '.join(bag_only)}: ROS bag options, and this is a CSV (use --t-col, "
                              "--q-col, --c-col)")
         s = import_csv(a.source, a.t_col, a.q_col, a.c_col, a.time_scale, a.q_scale, a.unit, a.q_per_rad,
                        c_scale=a.c_scale, t_delay_s=a.t_delay, q_source=a.q_source)

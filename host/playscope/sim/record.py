@@ -53,6 +53,10 @@ def sim_config(preset_name: str = "stras", config_json: str | None = None, effec
     return cfg
 
 
+_JSON_KIND = {"NoneType": "null", "str": "a string", "list": "a list", "int": "a number", "float": "a number",
+              "bool": "a boolean"}
+
+
 def _config_overrides(cfg, config_json):
     """cfg with the keys of the JSON object in the file config_json replaced. Errors:
     InputError naming the file for anything but an object of known keys whose values have
@@ -64,8 +68,8 @@ def _config_overrides(cfg, config_json):
     new = read_json(Path(config_json), "SimConfig JSON")
     d = cfg.to_json()
     if not isinstance(new, dict):
-        raise InputError(config_json, f"--config takes a JSON object of SimConfig keys, this file holds a "
-                         f"{type(new).__name__}; known keys: {', '.join(sorted(d))}")
+        raise InputError(config_json, f"--config takes a JSON object of SimConfig keys, this file holds "
+                         f"{_JSON_KIND.get(type(new).__name__, type(new).__name__)}; known keys: {', '.join(sorted(d))}")
     for k, v in new.items():
         if k not in d:
             raise InputError(config_json, f"unknown SimConfig key {k!r}; known keys: {', '.join(sorted(d))}")
