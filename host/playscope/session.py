@@ -575,7 +575,34 @@ def load_session(folder: str | os.PathLike) -> Session:
                       ("frames.csv", s.frames)):
         if tab is not None:
             check_span(tab, folder / name, notes)
+    s.encoder, note = thin_encoder(s.encoder, folder / "encoder.csv")
+    if note:
+        notes.append(note)
     return s
+
+
+# Encoder logs denser than this are thinned at load (thin_encoder): 1 ms is under 1/25 of a
+# frame of a 25 fps camera and 1/10 of a 100 Hz angle sensor, the distal rates the onsets are
+# seen at, and q moves about 1 um in 1 ms at the excitation's speed; a denser log only costs
+# memory (the transition fit runs its operators over every encoder sample: a 27-minute 5 kHz
+# log needed 5.3 GB).
+ENCODER_MAX_HZ = 1000.0
+
+
+def thin_encoder(enc: dict, path, max_hz: float = ENCODER_MAX_HZ) -> tuple[dict, str | None]:
+    """Keep the first sample of each 1/max_hz bin of time (from the session's first stamp)
+    when the log's median rate is above max_hz; else enc unchanged. Returns (table, note)."""
+    t = enc["t_s"]
+    if t.size < 3:
+        return enc, None
+    dt = float(np.median(np.diff(t)))
+    if dt <= 0 or 1.0 / dt <= max_hz * 1.01:
+        return enc, None
+    bins = np.floor(t * max_hz).astype(np.int64)
+    keep = np.r_[True, bins[1:] != bins[:-1]]
+    note = (f"{path}: a {1 / dt:.0f} Hz log, thinned to {max_hz:.0f} Hz at load (the first sample of each "
+            f"{1000 / max_hz:g} ms: {int(keep.sum())} of {t.size} rows kept)")
+    return {k: v[keep] for k, v in enc.items()}, note
 
 
 # A bending angle beyond ten turns is a corrupt reading, not a pose (an unwrapped multi-turn
