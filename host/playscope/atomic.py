@@ -85,6 +85,11 @@ def check_output(dest: str | os.PathLike) -> None:
         raise InputError(dest, f"is a file of the input {_guard['files'][d]}; write the output elsewhere")
     if os.path.lexists(dest) and not _guard["force"]:
         raise InputError(dest, "exists; pass --force to replace it")
+    parent = d.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not os.access(parent, os.W_OK | os.X_OK):  # before any work, not after it
+        raise InputError(dest, f"cannot write into {parent}: permission denied; choose another folder")
     if os.path.isdir(dest):
         _check_folder_replaceable(Path(dest))
 
@@ -190,8 +195,11 @@ def atomic_path(dest: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
     """
     check_output(dest)
     dest = Path(dest)
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=suffix + ".tmp", dir=dest.parent)
+    try:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=suffix + ".tmp", dir=dest.parent)
+    except OSError as e:  # name the output the user gave, not the temporary beside it
+        raise InputError(dest, f"cannot write here: {e.strerror or e}; check the folder's permissions") from None
     os.close(fd)
     tmp = Path(tmp_name)
     tmp.unlink()  # caller decides whether it becomes a file or a folder

@@ -194,3 +194,28 @@ def test_force_replaces_only_the_same_kind(tmp_path, good, capsys):
     assert main(["tables", str(g["cal"]), "-o", str(other), "--force"]) == 2
     assert "holds JSON and this command writes a table" in capsys.readouterr().err
     assert _digest(tmp_path) == before
+
+
+def test_unwritable_output_folder_named_before_work(tmp_path, good, capsys, monkeypatch):
+    """A read-only output folder is refused before any work, naming the output the user gave
+    (tests run as root, so the folder's refusal is simulated as os.access would report it);
+    a failure at the write itself names the output too, never the temporary beside it."""
+    import tempfile
+
+    g = copy_good(good, tmp_path)
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, m: False if os.fspath(p) == str(ro) else real(p, m))
+    assert main(["calibrate", str(g["session"]), "-o", str(ro / "c.json"), "--fps", "25"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"playscope: error: {ro / 'c.json'}: cannot write into {ro}: permission denied; choose another folder"
+    monkeypatch.setattr(os, "access", real)
+
+    def denied(*a, **k):
+        raise PermissionError(13, "Permission denied", str(ro / ".c.json.x.tmp"))
+
+    monkeypatch.setattr(tempfile, "mkstemp", denied)
+    assert main(["tables", str(g["cal"]), "-o", str(ro / "t.pstb")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert ".tmp" not in err and f"{ro / 't.pstb'}: cannot write here: Permission denied" in err, err
