@@ -581,12 +581,13 @@ def load_session(folder: str | os.PathLike) -> Session:
     return s
 
 
-# Encoder logs denser than this are thinned at load (thin_encoder): 1 ms is under 1/25 of a
-# frame of a 25 fps camera and 1/10 of a 100 Hz angle sensor, the distal rates the onsets are
-# seen at, and q moves about 1 um in 1 ms at the excitation's speed; a denser log only costs
-# memory (the transition fit runs its operators over every encoder sample: a 27-minute 5 kHz
-# log needed 5.3 GB).
-ENCODER_MAX_HZ = 1000.0
+# Encoder logs denser than this are thinned at load (thin_encoder). 500 Hz is the rate the
+# method is validated at (the simulator's default; the catheter logs are ~300 Hz): 2 ms is
+# 1/20 of a frame of a 25 fps camera and 1/5 of a 100 Hz angle sensor, the rates the onsets
+# are seen at, and q moves about 2 um in 2 ms at the excitation's speed. A denser log only
+# costs memory: the calibration holds about 2.3 kB per encoder sample (a 27-minute log with
+# encoder noise: 3.7 GB at 1 kHz; bench/bench_large_log.py).
+ENCODER_MAX_HZ = 500.0
 
 
 def thin_encoder(enc: dict, path, max_hz: float = ENCODER_MAX_HZ) -> tuple[dict, str | None]:
