@@ -127,6 +127,29 @@ typedef struct PS_PACKED pst_header_v4 {
 PS_STATIC_ASSERT(sizeof(pst_header_v4_t) == 80, "pst_header_v4_t must be 80 bytes");
 PS_STATIC_ASSERT(offsetof(pst_header_v4_t, relax) == 72, "the relaxation follows the v3 header");
 
+/* Physical plausibility (calib_load, CALIB_ERR_TRAVEL .. CALIB_ERR_F_SLOPE): a table passes
+ * these from the fields it already has (q range, grids, B and f entries), so a table
+ * with a valid CRC but nonsense physics (a play wider than the travel, a bending angle of
+ * thousands of degrees, an f that barely moves) is refused by the board and by the host,
+ * which runs the same loader. Values in Q16.16 of the table's own units (q: mm or deg of
+ * the actuator, f: deg of bending).
+ *  - travel q_max - q_min >= PST_PLAUS_TRAVEL_MIN_Q16 (1/16 unit): a travel of a few raw
+ *    units is a damaged field, not an instrument;
+ *  - B(q) <= q_max - q_min on every entry: a play wider than the travel is never taken up,
+ *    the tip would not move after a reversal;
+ *  - |f(q)| <= PST_PLAUS_C_ABS_MAX_Q16 (360 deg) on every entry: one full turn bounds any
+ *    bending angle of a continuum section;
+ *  - |f(q_last) - f(q_0)| >= PST_PLAUS_C_SPAN_MIN_Q16 (1 deg) over f's grid: a bending DOF
+ *    that moves less than a degree over its whole travel has no f to invert;
+ *  - |f(q_{i+1}) - f(q_i)| <= PST_PLAUS_F_SLOPE_MAX x step on every segment (360 deg per
+ *    actuator unit): a turn per mm of cable or per degree of motor is no instrument. */
+enum {
+    PST_PLAUS_TRAVEL_MIN_Q16 = 1 << 12,
+    PST_PLAUS_C_ABS_MAX_Q16 = 360 << 16,
+    PST_PLAUS_C_SPAN_MIN_Q16 = 1 << 16,
+    PST_PLAUS_F_SLOPE_MAX = 360,
+};
+
 /* Largest table the layout allows, in bytes: a v4 header, three full grids and a full
  * operator block. */
 enum { PST_MAX_TABLE_SIZE = 80 + 3 * 4 * PST_MAX_ENTRIES + 2 * 4 * PST_MAX_OPS };

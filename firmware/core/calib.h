@@ -46,6 +46,12 @@ typedef enum {
     /* v4 relaxation (pst_header_v4_t.relax). */
     CALIB_ERR_RELAX,             /* kappa outside 0..0.9, lambda < 1 raw with kappa != 0 (or != 0 without),
                                     or f's grid (the relaxation's input range) beyond +-2^30 */
+    /* Physical plausibility (ps_table.h, PST_PLAUS_*): one code per rule. */
+    CALIB_ERR_TRAVEL,            /* q_max - q_min below PST_PLAUS_TRAVEL_MIN_Q16 */
+    CALIB_ERR_B_TRAVEL,          /* a backlash width above the travel q_max - q_min */
+    CALIB_ERR_C_RANGE,           /* an f entry beyond +-PST_PLAUS_C_ABS_MAX_Q16 (360 deg) */
+    CALIB_ERR_C_SPAN,            /* f moves less than PST_PLAUS_C_SPAN_MIN_Q16 (1 deg) over its grid */
+    CALIB_ERR_F_SLOPE,           /* |df/dq| above PST_PLAUS_F_SLOPE_MAX deg per actuator unit on a segment */
 } calib_status_t;
 
 /* Precision ceiling (docs/firmware.md, "Precision ceiling"): a table's own arithmetic may add

@@ -1,7 +1,14 @@
 /* File-backed flash port: each erase/program is flushed so a killed process leaves a real partial write. */
+/* fdopen, flock: POSIX and BSD calls outside -std=c11 */
+#define _DEFAULT_SOURCE
 #include "pss_flash_file.h"
 
+#include <errno.h>
+#include <fcntl.h>
 #include <string.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 static int file_erase(void *ctx, uint8_t slot)
 {
@@ -52,21 +59,40 @@ int pss_file_open(pss_file_t *ff, const char *path, uint32_t slot_size)
 {
     memset(ff, 0, sizeof(*ff));
     ff->slot_size = slot_size;
-    ff->f = fopen(path, "r+b");
+    /* Open without truncating or creating first: the lock and the size are checked before a
+     * single byte is written. */
+    int fd = open(path, O_RDWR | O_CREAT, 0644);
+    if (fd < 0)
+        return PSS_FILE_ERR_OPEN;
+    if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+        int e = errno;
+        close(fd);
+        errno = e;
+        return e == EWOULDBLOCK ? PSS_FILE_ERR_LOCKED : PSS_FILE_ERR_OPEN;
+    }
+    struct stat st;
+    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode) ||
+        (st.st_size != 0 && (uint64_t)st.st_size != 2ull * slot_size)) {
+        close(fd);
+        return PSS_FILE_ERR_NOT_IMAGE;
+    }
+    const int fresh = st.st_size == 0; /* just created (or an empty file): erase both slots */
+    ff->f = fdopen(fd, "r+b");
     if (!ff->f) {
-        ff->f = fopen(path, "w+b");
-        if (!ff->f)
-            return -1;
-        ff->port.ctx = ff;
-        if (file_erase(ff, 0) != 0 || file_erase(ff, 1) != 0)
-            return -1;
+        close(fd);
+        return PSS_FILE_ERR_OPEN;
+    }
+    ff->port.ctx = ff;
+    if (fresh && (file_erase(ff, 0) != 0 || file_erase(ff, 1) != 0)) {
+        pss_file_close(ff);
+        return PSS_FILE_ERR_OPEN;
     }
     ff->port.slot_size = slot_size;
     ff->port.erase = file_erase;
     ff->port.program = file_program;
     ff->port.read = file_read;
     ff->port.ctx = ff;
-    return 0;
+    return PSS_FILE_OK;
 }
 
 void pss_file_close(pss_file_t *ff)

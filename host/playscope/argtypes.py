@@ -66,6 +66,36 @@ def existing_file(text: str) -> str:
     return text
 
 
+def elf_file(text: str) -> str:
+    """An existing ELF executable (the QEMU board's firmware image): its first bytes are
+    checked here, so a wrong file is named instead of failing later as a broken pipe."""
+    existing_file(text)
+    try:
+        with open(text, "rb") as fh:
+            head = fh.read(4)
+    except OSError as e:
+        raise argparse.ArgumentTypeError(f"{text}: cannot read: {e.strerror or e}") from None
+    if head != b"\x7fELF":
+        raise argparse.ArgumentTypeError(f"{text}: not an ELF firmware image (build it with "
+                                         "`cmake --build --preset stm32f405`)")
+    return text
+
+
+def split_spec(text: str) -> str:
+    """A split of a record: a fraction in (0, 1), or a time in s from its first sample with an
+    s suffix ("30s", finite, > 0). Returned as given (insitu.split_time reads it)."""
+    t = text.strip()
+    body = t[:-1] if t.endswith("s") else t
+    try:
+        v = float(body)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a fraction in (0, 1) like 0.5, or a time like 30s") from None
+    if not math.isfinite(v) or v <= 0 or (not t.endswith("s") and v >= 1):
+        raise argparse.ArgumentTypeError(f"{text!r}: give a fraction in (0, 1) like 0.5, or a finite time > 0 "
+                                         "like 30s")
+    return t
+
+
 def file_path(text: str) -> str:
     """A path for a file to write: not empty, not a folder (its folder is made when missing)."""
     if not text:

@@ -6,12 +6,10 @@ from __future__ import annotations
 
 
 def q16_limit() -> float:
-    """|q| (actuator units) the board's int32 Q format holds: (2^(31 - PS_FRAC_BITS) - 1),
-    PS_FRAC_BITS taken from common/ps_fixed.h through the native loader, never retyped."""
-    from .native import core
+    """|q| (actuator units) the board's int32 Q format holds (session.q_limit, the one definition)."""
+    from .session import q_limit
 
-    _, lib = core()
-    return float((1 << (31 - lib.PS_FRAC_BITS)) - 1)
+    return q_limit()
 
 
 def load_calibration(path):

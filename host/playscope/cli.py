@@ -20,8 +20,8 @@ import json
 import os
 import sys
 
-from . import __version__, jsonio
-from .atomic import check_output, output_guard
+from . import __version__
+from .atomic import check_flash_file, check_output, output_guard
 from .errors import InputError
 
 # Argument dests that name what a command writes; every other path-valued argument that
@@ -52,6 +52,32 @@ COMMAND_MODULES = [
     ("playscope.commands.demo", None),
 ]
 
+# Each command's name, module and one-line help, so `playscope --help`, `--version` and an
+# unknown command answer without importing any command module (numpy, OpenCV, the native
+# core: about 1 s); a command imports only its own module. tests/python/host/test_cli_examples.py
+# checks each line equals the help its module declares.
+COMMANDS = {
+    "import": ("playscope.commands.import_cmd", "bring a CSV recording or a ROS bag into a session folder"),
+    "track": ("playscope.commands.track", "find the coloured marker in a session's video -> marker.csv"),
+    "calibrate": ("playscope.commands.calibrate", "estimate B(q) and f_remain from a session"),
+    "tables": ("playscope.commands.tables", "write the firmware's fixed-point lookup tables"),
+    "evaluate": ("playscope.commands.evaluate", "prediction (Table I) and compensation errors on a test session"),
+    "report": ("playscope.commands.report", "HTML report with the paper's figures"),
+    "evaluate-real": ("playscope.commands.evaluate_real",
+                      "in situ and across-session RMSE tables on the catheter recordings"),
+    "evaluate-insitu": ("playscope.commands.evaluate_insitu", "in-situ RMSE of every model on one session split in time"),
+    "simulate": ("playscope.commands.simulate",
+                 "simulated session (robot with B(q) + f_remain, effects, endoscope camera)"),
+    "diagnose": ("playscope.commands.diagnose",
+                 "sim-to-real gap: held-out gap, localisation, attribution to library effects"),
+    "flash": ("playscope.commands.device", "upload a table, commit, read back and check bit for bit"),
+    "device": ("playscope.commands.device", "board information"),
+    "run-insitu": ("playscope.commands.device", "in-situ calibration on the board: excitation, marker from a "
+                   "camera/video, B samples from the board's onset detector, fit, tables, flash"),
+    "demo": ("playscope.commands.demo", "the main job on the built-in simulated instrument, end to end"),
+}
+NEEDS = dict(COMMAND_MODULES)
+
 DESCRIPTION = """\
 In situ backlash estimation for tendon-driven continuum robots (Fig. 4 of the paper):
   import      bring a foreign CSV recording (e.g. the EM-tracked catheter) into a session
@@ -75,15 +101,26 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"playscope: error: {where + ': ' if where else ''}{message}; see `{self.prog} --help`\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The full parser (every command module imported), or with only="flash" etc. the one
+    module holding that command, the others as stubs that only name themselves (enough for
+    the top-level --help and for refusing an unknown command); only="" imports none."""
     p = Parser(prog="playscope", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action="version", version=f"playscope {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    for name, needs in COMMAND_MODULES:
+    want = None if only is None else (COMMANDS[only][0] if only in COMMANDS else "")
+    done = set()
+    for name, (module, help_) in COMMANDS.items():
+        needs = NEEDS[module]
         # Only a missing optional package is silent; a broken one still fails loudly.
         if needs is not None and importlib.util.find_spec(needs) is None:
             continue
-        importlib.import_module(name).add_parser(sub)
+        if want is None or module == want:
+            if module not in done:
+                importlib.import_module(module).add_parser(sub)
+                done.add(module)
+        else:
+            sub.add_parser(name, help=help_)
     for sp in _all_subparsers(sub):
         if "--force" not in sp._option_string_actions:
             sp.add_argument("--force", action="store_true",
@@ -122,8 +159,19 @@ def _paths(args) -> tuple[list[str], list[str]]:
     return ins, outs
 
 
+def _command_word(argv: list[str]) -> str:
+    """The subcommand named in argv (the first word not starting with '-'), or ""."""
+    for a in argv:
+        if not a.startswith("-"):
+            return a
+        if a == "--":
+            break
+    return ""
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(_command_word(argv))
     try:
         args = parser.parse_args(argv)
     except SystemExit as e:  # --help, --version, or a refused value (one line already printed)
@@ -133,10 +181,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         ins, outs = _paths(args)
-        force = bool(getattr(args, "force", False) or getattr(args, "overwrite", False))
+        force = bool(getattr(args, "force", False))
         with output_guard(ins, force):
             for o in outs:  # before any work: a refused output costs nothing
                 check_output(o)
+            check_flash_file(getattr(args, "flash_file", None))
             return _run_command(args)
     except KeyboardInterrupt:
         print("playscope: interrupted", file=sys.stderr)
@@ -152,6 +201,7 @@ def _run_command(args) -> int:
     """args.func(args), its stdout silenced under --quiet or --json - (the JSON itself still
     reaches stdout: jsonio.STDOUT), under a busy line (commands.common.busy) unless the command
     shows progress of its own (own_progress)."""
+    from . import jsonio
     from .commands.common import busy
 
     bar = contextlib.nullcontext() if getattr(args, "own_progress", False) else busy(f"playscope {args.command}")

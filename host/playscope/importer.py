@@ -8,49 +8,108 @@ licence: read in place, never copied) map as: Time -> t_s, "Tendon Disp." (mm) -
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 import numpy as np
 
 from .errors import InputError
-from .session import Robot, Session, read_csv
+from .session import Robot, Session, read_csv, time_origin
 
 CATHETER = {"t": "Time", "q": "Tendon Disp.", "c": "Angle x"}
 # Nominal f_coarse for the catheter: about 63 deg of bending over 5.5 mm of tendon.
 CATHETER_Q_PER_RAD = 5.0
 
 
-def import_csv(path, t_col: str, q_col: str, c_col: str, time_scale: float = 1.0, q_scale: float = 1.0,
-               unit: str = "mm", q_per_rad: float = CATHETER_Q_PER_RAD, bend_length_mm: float = 30.0,
-               tip_length_mm: float = 0.0) -> Session:
-    """Read one CSV with a header into an angle session (encoder and distal share rows).
+def resolve_column(spec, header: list[str], has_header: bool, path, option: str) -> str:
+    """The header name a --*-col value means: a name of the header, or a 1-based column number
+    ("2"; the only way into a headerless file). Errors: InputError naming the file and option."""
+    spec = str(spec).strip()
+    if has_header and spec in header:
+        if header.count(spec) > 1:
+            raise InputError(path, f"{option} {spec!r}: the header holds that name {header.count(spec)} times "
+                             f"({','.join(header)}); give the column's number instead", 1)
+        return spec
+    if spec.isdigit() and 1 <= int(spec) <= len(header):
+        return header[int(spec) - 1]
+    if spec.isdigit():
+        raise InputError(path, f"{option} {spec}: the file has {len(header)} columns (1..{len(header)})", 1)
+    if not has_header:
+        raise InputError(path, f"{option} {spec!r}: the file has no header row (its first row is numbers): give "
+                         f"a column number 1..{len(header)}", 1)
+    raise InputError(path, f"missing column {spec!r} given by {option} (header: {','.join(header)}; or give a "
+                     "column number)", 1)
 
-    t_col, q_col, c_col: header names; time_scale, q_scale multiply the raw columns (e.g.
-    1e-3 for ms, 1e-3 for um). Repeated and backward time stamps are repaired as for a
-    session (session.regularize_time; what was done is in Session.notes). Errors: InputError
-    naming the file and row (missing column, NaN, a clock reset)."""
+
+def import_csv(path, t_col=None, q_col=None, c_col=None, time_scale: float = 1.0, q_scale: float = 1.0,
+               unit: str = "mm", q_per_rad: float | None = None, bend_length_mm: float = 30.0,
+               tip_length_mm: float = 0.0, c_scale: float = 1.0, t_delay_s: float | None = None,
+               q_source: str = "measured") -> Session:
+    """Read one CSV into an angle session (encoder and distal share rows).
+
+    t_col, q_col, c_col: header names or 1-based column numbers (as str or int); None takes
+    the catheter's names with a header, columns 1, 2, 3 without one. A file whose first row
+    is all numbers has no header (noted in Session.notes). time_scale, q_scale, c_scale
+    multiply the time, actuator and angle columns (1e-3 for ms or um, 57.29578 for rad ->
+    deg). q_per_rad (f_coarse, actuator units per rad of bending) defaults by unit: 5 mm/rad
+    (the catheter) for mm, 180/pi deg/rad (1:1) for deg. t_delay_s: the angle sensor's delay
+    behind the encoder clock (None: 0, one clock; calibrate measures it from the record when
+    q_source is "command"). q_source: "measured" or "command" (session.json actuator.q_source).
+    Repeated and backward time stamps are repaired as for a session (session.regularize_time).
+    Errors: InputError naming the file, the row or the option."""
+    from .inputfile import MAX_CSV_BYTES, check_input_file
+    from .session import Q_SOURCES, check_range, q_limit
+
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "file not found")
+    check_input_file(path, "CSV file", MAX_CSV_BYTES)
     try:
         with open(path, newline="", encoding="utf-8") as fh:
-            header = [h.strip() for h in next(csv.reader(fh), [])]
+            first = [h.strip() for h in next(csv.reader(fh), [])]
     except UnicodeDecodeError as e:
         raise InputError(path, f"not UTF-8 text (byte {e.start}): a CSV with a header row was expected", 1) from None
     except csv.Error as e:
         raise InputError(path, f"not a CSV file ({e})", 1) from None
     except OSError as e:
         raise InputError(path, f"cannot read: {e.strerror or e}; check the permissions") from None
-    for col in (t_col, q_col, c_col):
-        if col not in header:
-            raise InputError(path, f"missing column {col!r} (header: {','.join(header)})", 1)
+    if not first:
+        raise InputError(path, "empty file (no header row and no data)", 1)
+    has_header = not all(_is_number(x) for x in first)
+    header = first if has_header else [str(j + 1) for j in range(len(first))]
+    defaults = (CATHETER["t"], CATHETER["q"], CATHETER["c"]) if has_header else ("1", "2", "3")
+    cols = [resolve_column(v if v is not None else d, header, has_header, path, opt)
+            for v, d, opt in zip((t_col, q_col, c_col), defaults, ("--t-col", "--q-col", "--c-col"))]
+    if len(set(cols)) < 3:
+        raise InputError(path, f"--t-col, --q-col and --c-col name the same column twice ({', '.join(cols)})")
+    if q_source not in Q_SOURCES:
+        raise InputError(None, f"--q-source must be one of {Q_SOURCES}, got {q_source!r}")
     notes: list[str] = []
-    d = read_csv(path, [t_col, q_col, c_col], time_col=t_col, notes=notes)  # repeated/backward stamps repaired
-    t = d[t_col] * time_scale
-    return Session(notes=notes, actuator_unit=unit, distal_kind="angle",
-                   robot=Robot("constant_curvature", bend_length_mm, tip_length_mm, q_per_rad),
-                   encoder={"t_s": t, "q": d[q_col] * q_scale}, distal={"t_s": t.copy(), "c_deg": d[c_col]},
-                   t_delay_s=0.0, meta={"source": {"file": str(path), "columns": [t_col, q_col, c_col]}})
+    if not has_header:
+        notes.append(f"{path}: no header row (the first row is numbers): columns by number, t = {cols[0]}, "
+                     f"q = {cols[1]}, c = {cols[2]}")
+    d = read_csv(path, cols, time_col=cols[0], notes=notes, header=header if not has_header else None)
+    n = d[cols[0]].size
+    if n < 2:
+        raise InputError(path, f"{n} row(s) with a distinct time stamp after repairs: a session needs at least two "
+                         "(are all stamps equal? check --t-col and --time-scale)")
+    t = d[cols[0]] * time_scale
+    enc = {"t_s": t, "q": d[cols[1]] * q_scale}
+    dist = {"t_s": t.copy(), "c_deg": d[cols[2]] * c_scale}
+    check_range(enc, "q", path, notes, q_limit(), unit)
+    if q_per_rad is None:
+        q_per_rad = CATHETER_Q_PER_RAD if unit == "mm" else 180.0 / math.pi
+    return time_origin(Session(notes=notes, actuator_unit=unit, distal_kind="angle",
+                               robot=Robot("constant_curvature", bend_length_mm, tip_length_mm, q_per_rad),
+                               encoder=enc, distal=dist, t_delay_s=0.0 if t_delay_s is None else float(t_delay_s),
+                               q_source=q_source,
+                               meta={"source": {"file": str(path), "columns": cols, "header": has_header,
+                                                "time_scale": time_scale, "q_scale": q_scale, "c_scale": c_scale}}))
+
+
+def _is_number(x: str) -> bool:
+    try:
+        return math.isfinite(float(x))
+    except ValueError:
+        return False
 
 
 def import_catheter(path) -> Session:

@@ -61,7 +61,7 @@ def track_session(session_dir, out=None, cfg=None, overwrite: bool = False, prog
     video = find_video(folder)
     out = Path(out) if out else folder / "marker.csv"
     if out.exists() and not overwrite:
-        raise FileExistsError(f"{out}: exists (use --overwrite)")
+        raise FileExistsError(f"{out}: exists (use --force)")
     cfg = cfg or TrackConfig()
     try:
         cfg.check()

@@ -302,7 +302,7 @@ def write_bag_session(s, frames, folder, overwrite: bool = False) -> Path:
 
     folder = Path(folder)
     if folder.exists() and not overwrite:
-        raise FileExistsError(f"{folder}: exists (use --overwrite)")
+        raise FileExistsError(f"{folder}: exists (use --force)")
     with atomic_path(folder) as tmp:
         if frames is None:
             write_session(s, tmp)

@@ -110,6 +110,9 @@ class Session:
     meta: dict[str, Any] = field(default_factory=dict)
     q_source: str = "measured"
     notes: list[str] = field(default_factory=list)
+    # The files' time of the session's first stamp, integer us: load_session makes every t_s
+    # relative to it (time_origin), write_session adds it back, so the files keep their clock.
+    t_origin_us: int = 0
 
     # Observations used by the estimator, whichever the distal kind.
     def observations(self) -> tuple[np.ndarray, np.ndarray]:
@@ -150,24 +153,27 @@ class Session:
 
 # --------------------------------------------------------------------------- CSV
 def read_csv(path: Path, required: list[str], optional: list[str] = (), nullable: set[str] = frozenset(),
-             time_col: str | None = "t_s", notes: list[str] | None = None) -> dict[str, np.ndarray]:
+             time_col: str | None = "t_s", notes: list[str] | None = None,
+             header: list[str] | None = None) -> dict[str, np.ndarray]:
     """Read a numeric CSV with a header row into float64 arrays.
 
     required/optional: column names (others are kept too). nullable: columns whose empty
     fields mean "lost" (NaN); anywhere else an empty, non-numeric, NaN or infinite field is
-    an error. time_col must be strictly increasing, unless ``notes`` (a list) is given: then
+    an error. header: the column names of a file without a header row (its first line is
+    data, row 1); None reads them from the first line. time_col must be strictly increasing, unless ``notes`` (a list) is given: then
     repeated and backward time stamps are repaired by ``regularize_time`` and what it did is
     appended to notes as one line.
     Errors: InputError(file, message, row) with the 1-based line number.
     """
+    from .inputfile import MAX_CSV_BYTES, check_input_file
+
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "file not found")
-    fast = _read_csv_fast(path, required, nullable)
+    check_input_file(path, "CSV file", MAX_CSV_BYTES)
+    fast = _read_csv_fast(path, required, nullable, header)
     if fast is not None:
         out = fast
     else:
-        out = _read_csv_checked(path, required, nullable)
+        out = _read_csv_checked(path, required, nullable, header)
     if time_col is not None and notes is not None:
         out, note = regularize_time(out, path, time_col)
         if note:
@@ -255,17 +261,21 @@ def drop_held(tab: dict[str, np.ndarray], cols: list[str], path) -> tuple[dict[s
     return {k: v[keep] for k, v in tab.items()}, note
 
 
-def _read_csv_fast(path: Path, required, nullable) -> dict[str, np.ndarray] | None:
+def _read_csv_fast(path: Path, required, nullable, given_header=None) -> dict[str, np.ndarray] | None:
     """np.loadtxt (C parser) for the common clean file; None when anything looks off, so
     the row-by-row reader runs and names the offending row."""
     try:
-        with open(path, newline="") as fh:
-            header = [h.strip() for h in fh.readline().split(",")]
-        if any(n not in header for n in required):
+        if given_header is None:
+            with open(path, newline="") as fh:
+                header = [h.strip() for h in fh.readline().split(",")]
+        else:
+            header = list(given_header)
+        if any(n not in header for n in required) or len(set(header)) != len(header):
             return None
         with warnings.catch_warnings():  # "no data": the checked reader reports it as one line
             warnings.simplefilter("ignore")
-            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float)
+            data = np.loadtxt(path, delimiter=",", skiprows=0 if given_header is not None else 1, ndmin=2,
+                              dtype=float)
     except (ValueError, OSError, IndexError):
         return None
     if data.shape[0] == 0 or data.shape[1] != len(header) or not np.all(np.isfinite(data)):
@@ -273,17 +283,22 @@ def _read_csv_fast(path: Path, required, nullable) -> dict[str, np.ndarray] | No
     return {h: data[:, j].copy() for j, h in enumerate(header)}
 
 
-def _read_csv_checked(path: Path, required, nullable) -> dict[str, np.ndarray]:
+def _read_csv_checked(path: Path, required, nullable, given_header=None) -> dict[str, np.ndarray]:
+    first_row = 2 if given_header is None else 1  # file row of the first data row
     try:
         with open(path, newline="", encoding="utf-8") as fh:
             reader = csv.reader(fh)
             try:
-                header = [h.strip() for h in next(reader)]
+                header = [h.strip() for h in next(reader)] if given_header is None else list(given_header)
             except StopIteration:
                 raise InputError(path, "empty file (no header row)", 1) from None
             for name in required:
                 if name not in header:
                     raise InputError(path, f"missing column {name!r} (header: {','.join(header)})", 1)
+            dup = sorted({h for h in header if header.count(h) > 1})
+            if dup:
+                raise InputError(path, f"column {dup[0]!r} appears {header.count(dup[0])} times in the header "
+                                 f"({','.join(header)}): which one is meant? rename or drop the others", 1)
             rows = list(reader)
     except UnicodeDecodeError as e:
         raise InputError(path, f"not UTF-8 text (byte {e.start}): a CSV of numbers was expected") from None
@@ -295,7 +310,7 @@ def _read_csv_checked(path: Path, required, nullable) -> dict[str, np.ndarray]:
     data = np.full((len(rows), ncol), np.nan)
     null_idx = {header.index(n) for n in nullable if n in header}
     for i, row in enumerate(rows):
-        lineno = i + 2
+        lineno = i + first_row
         if len(row) != ncol:
             raise InputError(path, f"expected {ncol} fields, found {len(row)} (truncated or malformed row)", lineno)
         for j, cell in enumerate(row):
@@ -312,7 +327,7 @@ def _read_csv_checked(path: Path, required, nullable) -> dict[str, np.ndarray]:
                 raise InputError(path, f"non-finite value in column {header[j]!r}: {cell!r}", lineno)
             data[i, j] = x
     if len(rows) == 0:
-        raise InputError(path, "no data rows", 2)
+        raise InputError(path, "no data rows", first_row)
     return {h: data[:, j].copy() for j, h in enumerate(header)}
 
 
@@ -320,18 +335,34 @@ def t_col_fmt(x: float) -> str:
     return f"{x:.9g}"
 
 
-def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str] | None = None) -> None:
-    """Write equal-length 1-D arrays as a CSV with a header; NaN becomes an empty field."""
+def _fmt_us(u: int) -> str:
+    """Integer microseconds as exact decimal seconds, trailing zeros dropped."""
+    sign, u = ("-", -u) if u < 0 else ("", u)
+    q, r = divmod(u, 1_000_000)
+    return f"{sign}{q}" if r == 0 else f"{sign}{q}.{r:06d}".rstrip("0")
+
+
+def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str] | None = None,
+              t_origin_us: int = 0) -> None:
+    """Write equal-length 1-D arrays as a CSV with a header; NaN becomes an empty field.
+    The time column t_s is written to the microsecond, exactly (t_origin_us added back:
+    Session.t_origin_us), whatever its magnitude: %.9g would keep whole seconds of an epoch
+    stamp."""
     names = list(columns)
     arrays = [np.asarray(columns[n], float) for n in names]
     n = len(arrays[0]) if arrays else 0
     formats = formats or {}
     fmts = [formats.get(nm, "{:.9g}") for nm in names]
+    cols = []
+    for nm, a, f in zip(names, arrays, fmts):
+        if nm == "t_s" and nm not in formats and np.all(np.isfinite(a)):
+            cols.append([_fmt_us(int(u)) for u in time_us(a) + int(t_origin_us)])
+        else:
+            cols.append(["" if not math.isfinite(x) else f.format(x) for x in a.tolist()])
     with open(path, "w", newline="") as fh:
         fh.write(",".join(names) + "\n")
         for i in range(n):
-            fh.write(",".join("" if not math.isfinite(a[i]) else f.format(a[i])
-                              for a, f in zip(arrays, fmts)) + "\n")
+            fh.write(",".join(c[i] for c in cols) + "\n")
 
 
 # --------------------------------------------------------------------------- JSON
@@ -341,7 +372,10 @@ MAX_JSON_BYTES = 16 << 20  # a session.json or calibration is a few kB; refuse j
 def read_json(path: Path, what: str = "JSON file"):
     """Read and parse a small JSON file a user gave. Errors: InputError naming the file (and
     line) for a missing, unreadable, oversized, non-UTF-8, malformed or too deeply nested file."""
+    from .inputfile import check_input_file
+
     path = Path(path)
+    check_input_file(path, what)  # a pipe or a device is refused before it is opened
     try:
         raw = path.read_bytes() if path.stat().st_size <= MAX_JSON_BYTES else None
     except FileNotFoundError:
@@ -435,8 +469,9 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
         out["hand_eye"] = HandEye(R, _matrix(_get(h, "t_mm", path, "hand_eye."), (3,), path, "hand_eye.t_mm"))
     if d.get("t_delay_s") is not None:
         out["t_delay_s"] = _get(d, "t_delay_s", path, "", float)
-        if out["t_delay_s"] < 0:
-            raise InputError(path, "t_delay_s must be >= 0")
+        if not 0 <= out["t_delay_s"] <= MAX_T_DELAY_S:
+            raise InputError(path, f"t_delay_s {out['t_delay_s']!r} s outside [0, {MAX_T_DELAY_S:g}] s (the delay "
+                             "from capture to time stamp of the camera or angle sensor)")
     known = {"format", "actuator", "distal", "robot", "camera", "hand_eye", "t_delay_s"}
     out["meta"] = {k: v for k, v in d.items() if k not in known}
     return out
@@ -445,6 +480,9 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
 # --------------------------------------------------------------------------- camera sanity
 MAX_IMAGE_PX = 100_000   # px per side: beyond any sensor, and keeps the corner radius finite
 MAX_FPS = 100_000.0      # Hz
+MAX_FOV_DEG = 179.0      # deg across the image's larger side: a fisheye's is up to ~200 only with
+                         # its own model, which the pinhole + radial model here is not
+MAX_T_DELAY_S = 10.0     # s: the acquisition delay range calibrate --t-delay takes
 
 
 def check_camera(cam: Camera, path) -> None:
@@ -463,6 +501,13 @@ def check_camera(cam: Camera, path) -> None:
     if not (fx > 0 and fy > 0) or np.any(np.abs(K[1, :1]) > 1e-9) or np.any(np.abs(K[2] - [0, 0, 1]) > 1e-9):
         raise InputError(path, f"camera.K is singular or not an intrinsic matrix (need fx > 0, fy > 0 and rows "
                          f"[0, fy, cy], [0, 0, 1]; got fx {fx:g}, fy {fy:g}, last row {K[2].tolist()})")
+    # A focal length that gives a field of view of MAX_FOV_DEG or more across the image is not
+    # a lens (fx = 1e-9 px would put the whole half-space into one pixel).
+    f_min = max(cam.width, cam.height) / 2 / math.tan(math.radians(MAX_FOV_DEG / 2))
+    if fx < f_min or fy < f_min:
+        raise InputError(path, f"camera.K focal lengths fx {fx:g} px, fy {fy:g} px give a field of view of "
+                         f"{MAX_FOV_DEG:g} deg or more over a {cam.width}x{cam.height} image (need >= {f_min:.3g} px); "
+                         "check the calibration's units (px)")
     cx, cy = K[0, 2], K[1, 2]
     k1, k2, _, _, k3 = (float(x) for x in np.asarray(cam.dist, float))
     # Normalised radius of the farthest image corner (skew ignored: it only shears).
@@ -495,19 +540,20 @@ def load_session(folder: str | os.PathLike) -> Session:
     """
     folder = Path(folder)
     if not folder.is_dir():
-        raise InputError(folder, "session folder not found")
+        raise InputError(folder, "is not a folder (a session is a folder holding session.json)" if folder.exists()
+                         else "session folder not found")
     jpath = folder / "session.json"
-    if not jpath.is_file():
-        raise InputError(jpath, "file not found")
     d = read_json(jpath, "session.json")
     kw = parse_meta(d, jpath)
     notes: list[str] = []
     enc = read_csv(folder / "encoder.csv", ["t_s", "q"], ["q_cmd"], notes=notes)
     if len(enc["t_s"]) < 2:
         raise InputError(folder / "encoder.csv", "fewer than two samples")
+    check_range(enc, "q", folder / "encoder.csv", notes, q_limit(), kw["actuator_unit"])
     s = Session(encoder=enc, path=folder, notes=notes, **kw)
     if kw["distal_kind"] == "angle":
         s.distal = read_csv(folder / "distal.csv", ["t_s", "c_deg"], nullable={"c_deg"}, notes=notes)
+        check_range(s.distal, "c_deg", folder / "distal.csv", notes, MAX_ABS_C_DEG, "deg")
         s.distal = _noted(drop_held(s.distal, ["c_deg"], folder / "distal.csv"), notes)
     else:
         if (folder / "marker.csv").is_file():
@@ -524,6 +570,118 @@ def load_session(folder: str | os.PathLike) -> Session:
             raise InputError(folder / "marker.csv", "file not found (and no video.* with frames.csv)")
     if (folder / "truth.csv").is_file():
         s.truth = read_csv(folder / "truth.csv", ["t_s", "c_deg"])
+    time_origin(s)
+    for name, tab in (("encoder.csv", s.encoder), ("distal.csv", s.distal), ("marker.csv", s.marker),
+                      ("frames.csv", s.frames)):
+        if tab is not None:
+            check_span(tab, folder / name, notes)
+    s.encoder, note = thin_encoder(s.encoder, folder / "encoder.csv")
+    if note:
+        notes.append(note)
+    return s
+
+
+# Encoder logs denser than this are thinned at load (thin_encoder). 500 Hz is the rate the
+# method is validated at (the simulator's default; the catheter logs are ~300 Hz): 2 ms is
+# 1/20 of a frame of a 25 fps camera and 1/5 of a 100 Hz angle sensor, the rates the onsets
+# are seen at, and q moves about 2 um in 2 ms at the excitation's speed. A denser log only
+# costs memory: the calibration holds about 2.3 kB per encoder sample (a 27-minute log with
+# encoder noise: 3.7 GB at 1 kHz; bench/bench_large_log.py).
+ENCODER_MAX_HZ = 500.0
+
+
+def thin_encoder(enc: dict, path, max_hz: float = ENCODER_MAX_HZ) -> tuple[dict, str | None]:
+    """Keep the first sample of each 1/max_hz bin of time (from the session's first stamp)
+    when the log's median rate is above max_hz; else enc unchanged. Returns (table, note)."""
+    t = enc["t_s"]
+    if t.size < 3:
+        return enc, None
+    dt = float(np.median(np.diff(t)))
+    if dt <= 0 or 1.0 / dt <= max_hz * 1.01:
+        return enc, None
+    bins = np.floor(t * max_hz).astype(np.int64)
+    keep = np.r_[True, bins[1:] != bins[:-1]]
+    note = (f"{path}: a {1 / dt:.0f} Hz log, thinned to {max_hz:.0f} Hz at load (the first sample of each "
+            f"{1000 / max_hz:g} ms: {int(keep.sum())} of {t.size} rows kept)")
+    return {k: v[keep] for k, v in enc.items()}, note
+
+
+# A bending angle beyond ten turns is a corrupt reading, not a pose (an unwrapped multi-turn
+# sensor stays far below it on a continuum section).
+MAX_ABS_C_DEG = 3600.0
+# The board counts time in uint32 microseconds from the session's first stamp.
+MAX_SPAN_US = 2**32 - 1
+
+
+def q_limit() -> float:
+    """|q| (actuator units) the board's int32 Q format holds: (2^(31 - PS_FRAC_BITS) - 1),
+    PS_FRAC_BITS taken from common/ps_fixed.h through the native loader, never retyped."""
+    from .native import core
+
+    _, lib = core()
+    return float((1 << (31 - lib.PS_FRAC_BITS)) - 1)
+
+
+def _row(k: int, path, notes: list[str]) -> int | None:
+    """The file row of table index k, when the loader dropped no row of that file."""
+    return None if any(n.startswith(f"{path}:") for n in notes) else k + 2
+
+
+def check_range(tab: dict, col: str, path, notes: list[str], limit: float, unit: str) -> None:
+    """Refuse (InputError naming file and row) a value of tab[col] beyond +-limit (NaN = lost
+    is left to the caller's rules)."""
+    v = tab[col]
+    with np.errstate(invalid="ignore"):
+        bad = np.nonzero(np.abs(v) > limit)[0]
+    if bad.size:
+        k = int(bad[0])
+        raise InputError(path, f"{col} = {v[k]:.6g} {unit} at t_s = {tab['t_s'][k]:.9g} s is beyond +-{limit:g} "
+                         f"{unit} ({bad.size} such row(s)): a corrupt value or the wrong unit/column", _row(k, path, notes))
+
+
+def check_span(tab: dict, path, notes: list[str]) -> None:
+    """Refuse a stream spanning more than the board's uint32 us clock (71.6 min) from the
+    session's first stamp, naming the row after the largest gap: one corrupt stamp (1e9 s)
+    looks exactly like that."""
+    t = tab["t_s"]
+    if t.size == 0 or t[-1] * 1e6 <= MAX_SPAN_US:
+        return
+    gaps = np.diff(t) if t.size > 1 else np.array([t[0]])
+    k = int(np.argmax(gaps)) + 1 if t.size > 1 else 0
+    raise InputError(path, f"spans {t[-1]:.6g} s from the session's first stamp, beyond the 71.6 min the board's "
+                     f"clock holds; the largest gap is {gaps.max():.6g} s before t_s = {t[k]:.9g} s (a corrupt time "
+                     "stamp there?); otherwise split the recording", _row(k, path, notes))
+
+
+def time_us(t) -> np.ndarray:
+    """Time stamps in s (float64) -> int64 microseconds, rounded to the nearest. Exact for
+    decimal stamps with at most 6 decimals below 2^31 s (an epoch stamp of 1.7e9 s is held
+    to 1.2e-7 s by float64; x 1e6 adds <= 0.125, so the rounding recovers the decimal's us)."""
+    return np.round(np.asarray(t, dtype=np.float64) * 1e6).astype(np.int64)
+
+
+def time_origin(s: "Session") -> "Session":
+    """Make every t_s of s relative to the session's first stamp (the earliest first row of
+    its streams), through integer microseconds, in place; s.t_origin_us keeps the files'
+    time of that stamp. The same motion then gives bit-identical times, hence the same
+    calibration, whatever the clock's origin (0, a device uptime, an epoch stamp of 1.7e9 s
+    as ROS bags carry): float64 seconds at 1.7e9 s would hold only 0.24 us steps, and every
+    difference taken from them would carry that rounding. Stamps are quantised to 1 us.
+    A repeated stamp after the quantisation keeps the last row (as regularize_time)."""
+    tabs = [t for t in (s.encoder, s.distal, s.marker, s.frames, s.truth) if t is not None and len(t["t_s"])]
+    if not tabs:
+        return s
+    us = [time_us(t["t_s"]) for t in tabs]
+    origin = min(int(u[0]) for u in us)
+    for tab, u in zip(tabs, us):
+        rel = u - origin
+        keep = np.r_[rel[1:] != rel[:-1], True] if rel.size > 1 else np.ones(rel.size, bool)
+        if not keep.all():  # sub-microsecond rows: keep the last of each
+            for k in list(tab):
+                tab[k] = tab[k][keep]
+            rel = rel[keep]
+        tab["t_s"] = rel / 1e6
+    s.t_origin_us += origin
     return s
 
 
@@ -546,13 +704,14 @@ def write_session(s: Session, folder: str | os.PathLike, overwrite: bool = False
     with atomic_path(folder) as tmp:
         tmp.mkdir()
         (tmp / "session.json").write_text(json.dumps(s.to_json(), indent=2) + "\n")
-        write_csv(tmp / "encoder.csv", s.encoder)
+        o = s.t_origin_us
+        write_csv(tmp / "encoder.csv", s.encoder, t_origin_us=o)
         if s.marker is not None:
-            write_csv(tmp / "marker.csv", {k: s.marker[k] for k in ("t_s", "u_px", "v_px")})
+            write_csv(tmp / "marker.csv", {k: s.marker[k] for k in ("t_s", "u_px", "v_px")}, t_origin_us=o)
         if s.distal is not None:
-            write_csv(tmp / "distal.csv", {k: s.distal[k] for k in ("t_s", "c_deg")})
+            write_csv(tmp / "distal.csv", {k: s.distal[k] for k in ("t_s", "c_deg")}, t_origin_us=o)
         if s.truth is not None:
-            write_csv(tmp / "truth.csv", s.truth)
+            write_csv(tmp / "truth.csv", s.truth, t_origin_us=o)
         if s.frames is not None and s.video is not None:
-            write_csv(tmp / "frames.csv", s.frames, {"frame": "{:.0f}"})
+            write_csv(tmp / "frames.csv", s.frames, {"frame": "{:.0f}"}, t_origin_us=o)
     return folder

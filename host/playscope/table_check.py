@@ -108,6 +108,9 @@ def check_blob(blob: bytes, source=None):
 def read_table_file(path) -> bytes:
     """Read and check a table file. Errors: InputError (missing, a folder, unreadable,
     or any check_blob refusal)."""
+    from .inputfile import check_input_file
+
+    check_input_file(path, "table file")  # a pipe or a device is refused before it is opened
     try:
         with open(path, "rb") as fh:
             data = fh.read(max_table_size() + 1)

@@ -332,7 +332,20 @@ def track_video(video: Path, frames_csv: Path, cfg: TrackConfig | None = None, p
     if truncated:
         warn = (f"{video}: video ends at frame {k - 1} (frames.csv lists up to {n_list - 1}); "
                 f"marker.csv holds the {int(keep.sum())} frames decoded")
+    n_kept = int(keep.sum())
+    n_lost = int(np.isnan(u[keep]).sum())
+    if n_kept and n_lost > LOST_WARN_FRACTION * n_kept:
+        most = max(reasons, key=reasons.get) if reasons else "unknown"
+        c = cfg or TrackConfig()
+        lost_line = (f"{video}: the marker was lost in {n_lost} of {n_kept} frames (most often: {most}); "
+                     f"check --marker / --hue ({c.hue_lo}..{c.hue_hi}), --s-min, --v-min, --area against the video")
+        warn = lost_line if warn is None else f"{warn}; {lost_line}"
     return TrackResult(t[keep], u[keep], v[keep], int(fr.size), k, truncated, secs, reasons, warn)
+
+
+# Above this fraction of lost frames, `track` warns: a marker.csv that is mostly empty is an
+# option or lighting problem, not a result (a good recording loses a few percent at most).
+LOST_WARN_FRACTION = 0.5
 
 
 def write_marker_csv(path: Path, res: TrackResult) -> None:

@@ -225,7 +225,18 @@ int main(int argc, char **argv)
     static uint8_t ram_flash[2 * VB_SLOT_SIZE];
     const pss_flash_t *flash;
     if (flash_path) {
-        if (pss_file_open(&ff, flash_path, VB_SLOT_SIZE) != 0) {
+        int rc = pss_file_open(&ff, flash_path, VB_SLOT_SIZE);
+        if (rc == PSS_FILE_ERR_LOCKED) {
+            fprintf(stderr, "%s: flash file in use by another board process; one board per flash file\n",
+                    flash_path);
+            return 1;
+        }
+        if (rc == PSS_FILE_ERR_NOT_IMAGE) {
+            fprintf(stderr, "%s: not a board flash image (a regular file of %u bytes); left untouched\n",
+                    flash_path, 2u * VB_SLOT_SIZE);
+            return 1;
+        }
+        if (rc != PSS_FILE_OK) {
             perror(flash_path);
             return 1;
         }

@@ -15,7 +15,7 @@ def _add_device_args(p) -> None:
     p.add_argument("--device", choices=["virtual", "qemu", "usb"], default="virtual",
                    help="board to talk to (default: virtual, the desktop build as a process)")
     p.add_argument("--flash-file", type=T.file_path, help="virtual: file-backed A/B flash kept across runs")
-    p.add_argument("--elf", type=T.existing_file, help="qemu: link firmware image (default: build/stm32f405/link-fw)")
+    p.add_argument("--elf", type=T.elf_file, help="qemu: link firmware image (default: build/stm32f405/link-fw)")
     p.add_argument("--address", type=T.host_port, help="qemu: host:port of an already running QEMU serial")
 
 
@@ -86,6 +86,7 @@ def _run_insitu(link, args) -> int:
     """`playscope run-insitu` on an open link (the work: device/insitu.py). Returns the exit status."""
     import numpy as np
 
+    from ..atomic import write_bytes_atomic, write_text_atomic
     from ..device.flash import flash
     from ..device.insitu import (VideoSource, calibrate_run, exc_duration_s, read_geometry, run_loop,
                                  session_of, write_samples_csv)
@@ -135,7 +136,7 @@ def _run_insitu(link, args) -> int:
     s = session_of(run, robot, camera, hand_eye, t_delay)
     if out:
         write_samples_csv(out / "b_samples.csv", run.samples)
-        write_session(s, out / "session", overwrite=True)
+        write_session(s, out / "session", overwrite=True)  # guarded: an existing one needs --force
     try:
         cal = calibrate_run(run, s, args.control_points)
     except InputError as e:
@@ -156,7 +157,7 @@ def _run_insitu(link, args) -> int:
               f"q in [{g[0]:.2f}, {g[-1]:.2f}]; board samples mean {eb.mean():.3f} mm")
     if out:
         cal.save(out / "calibration.json")
-        (out / "table.bin").write_bytes(tab.blob)
+        write_bytes_atomic(out / "table.bin", tab.blob)
     if not args.no_flash:
         try:
             result["flash"] = flash(link, tab.blob, args.vectors)
@@ -164,7 +165,7 @@ def _run_insitu(link, args) -> int:
             print(f"playscope: run-insitu: flash failed: {e}", file=sys.stderr)
             return 1
     if out:
-        (out / "result.json").write_text(json.dumps(result, indent=1) + "\n")
+        write_text_atomic(out / "result.json", json.dumps(result, indent=1) + "\n")
     dump_json(args.json, result)
     return 0
 

@@ -18,13 +18,15 @@ been running all along) and is scored on the part after the split: bending-angle
 
 
 def add_parser(sub) -> None:
+    from .. import argtypes
+
     p = add_command(sub, "evaluate-insitu", "in-situ RMSE of every model on one session split in time", DESCRIPTION,
                     examples=["playscope evaluate-insitu sessions/d21 --split 0.5 --json insitu.json",
                               "playscope evaluate-insitu ../shared/data/real/endoscope/30.txt --split 0.75"])
     p.add_argument("session", help="session folder (an angle session, or an image session: scored against "
                    "truth.csv when present, else the per-frame pose estimate), or a recording file read in "
                    "place: the catheter's CSV with a header, or the endoscope's headerless CSV")
-    p.add_argument("--split", default="0.5", help="fraction of the duration in (0, 1), or a time from the "
+    p.add_argument("--split", default="0.5", type=argtypes.split_spec, help="fraction of the duration in (0, 1), or a time from the "
                    "first sample with an s suffix, e.g. 30s (default 0.5)")
     add_json_arg(p, JSON_KEYS + ". rmse_deg/max_deg over the samples with t >= t_split; fixed_point true when "
                  "the row is scored through the firmware's playop_step on a Q16.16 table")

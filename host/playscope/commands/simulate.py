@@ -43,7 +43,8 @@ def add_parser(sub) -> None:
     p.add_argument("--blind", action="store_true", help="leave the effect list out of session.json")
     p.add_argument("--reimage", metavar="SRC", help="re-image a recording with a measured angle instead: a session "
                                                      "folder (distal.kind angle) or a catheter CSV (data_2_*.txt)")
-    p.add_argument("--overwrite", action="store_true")
+    p.add_argument("--force", "--overwrite", dest="force", action="store_true",
+                   help="replace an existing session folder (only one holding nothing but session files)")
     add_json_arg(p, "session (path), encoder_rows, frames (null for an angle session), video (path or null)")
     p.set_defaults(func=run)
 
@@ -59,7 +60,7 @@ def build_config(args):
 def run(args) -> int:
     from ..sim.record import write_simulated
 
-    res = write_simulated(build_config(args), args.out, args.video, args.blind, args.reimage, args.overwrite)
+    res = write_simulated(build_config(args), args.out, args.video, args.blind, args.reimage, args.force)
     print(res.summary_line(), file=sys.stderr)
     dump_json(args.json, res.to_json())
     return 0

@@ -35,7 +35,7 @@ def add_parser(sub) -> None:
                    help="blob area bounds in px^2 (default 12 and 5%% of the frame)")
     p.add_argument("--circ-min", type=T.float_range(0.0, 1.0), default=0.45, help="minimum circularity 4 pi A/P^2 (default 0.45)")
     p.add_argument("--roi", type=T.int_range(4, 4096), default=48, help="ROI half-size around the last position, px (default 48)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing marker CSV")
+    p.add_argument("--force", "--overwrite", dest="force", action="store_true", help="replace an existing marker CSV")
     add_json_arg(p, "marker_csv (path), video (path), frames_listed, frames_decoded, frames_tracked, lost, "
                  "lost_fraction, truncated (bool), reasons {reason: count}, seconds, fps, warning (str|null)")
     p.set_defaults(func=run, own_progress=True)
@@ -47,7 +47,7 @@ def run(a) -> int:
         cfg = TrackConfig(lo, hi, a.s_min, a.v_min, *(a.area or (12.0, None)), a.circ_min, a.roi)
     except ValueError as e:
         raise InputError(None, f"track options: {e}") from None
-    res = track_session(a.session, a.out, cfg, a.overwrite, progress=lambda **kw: progress(**kw))
+    res = track_session(a.session, a.out, cfg, a.force, progress=lambda **kw: progress(**kw))
     if res.warning:
         print(f"playscope: warning: {res.warning}", file=sys.stderr)
     return emit(a, res)

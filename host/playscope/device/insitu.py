@@ -250,11 +250,16 @@ def calibrate_run(run: InsituRun, session, n_ctrl: int = 14):
 def write_samples_csv(path, samples: list) -> None:
     """The B samples of a run (dicts with reason, reason_code, t1_s, t2_s (s), q1, q2, q_mean,
     b (actuator units)) as one CSV row each at path. Errors: OSError from the file system."""
+    import io
+
+    from ..atomic import write_text_atomic
+
     keys = ["reason", "reason_code", "t1_s", "t2_s", "q1", "q2", "q_mean", "b"]
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=keys)
-        w.writeheader()
-        w.writerows(samples)
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=keys)
+    w.writeheader()
+    w.writerows(samples)
+    write_text_atomic(path, buf.getvalue())  # through the output guard, like every write of a command
 
 
 def read_geometry(path: str):

@@ -47,16 +47,32 @@ class PipeTransport(Transport):
 
     def __init__(self, argv: list[str], name: str = "virtual"):
         self.name = name
+        import tempfile
+
+        # The board's stderr (it prints only start-up refusals: flash file locked or not an
+        # image, bad options) goes to a file, so its reason becomes the one error line.
+        self._err = tempfile.TemporaryFile()
         try:
-            self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, bufsize=0)
+            self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._err,
+                                         bufsize=0)
         except OSError as e:
             raise TransportError(f"cannot start {argv[0]}: {e}") from None
+
+    def _why(self) -> str:
+        """The board's last stderr line, if it exited saying why."""
+        try:
+            self.proc.wait(timeout=1)
+        except subprocess.TimeoutExpired:
+            pass
+        self._err.seek(0)
+        lines = self._err.read()[-4096:].decode("utf-8", "replace").strip().splitlines()
+        return f": {lines[-1]}" if lines else ""
 
     def write(self, data: bytes) -> None:
         try:
             self.proc.stdin.write(data)
         except BrokenPipeError:
-            raise TransportError(f"{self.name} board exited (status {self.proc.poll()})") from None
+            raise TransportError(f"{self.name} board exited (status {self.proc.poll()}){self._why()}") from None
 
     def read(self, timeout_s: float) -> bytes:
         r, _, _ = select.select([self.proc.stdout], [], [], max(timeout_s, 0.0))
@@ -64,7 +80,7 @@ class PipeTransport(Transport):
             return b""
         data = os.read(self.proc.stdout.fileno(), 4096)
         if not data:
-            raise TransportError(f"{self.name} board closed the link (status {self.proc.poll()})")
+            raise TransportError(f"{self.name} board closed the link (status {self.proc.poll()}){self._why()}")
         return data
 
     def close(self) -> None:
@@ -76,6 +92,7 @@ class PipeTransport(Transport):
                 self.proc.terminate()
                 self.proc.wait()
         self.proc.stdout.close()
+        self._err.close()
 
 
 def virtual_transport(flash_file: str | os.PathLike | None = None, extra_args=()) -> PipeTransport:

@@ -14,6 +14,8 @@ Stages (where the effect acts in the chain q -> z -> c -> observation):
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 
 
@@ -173,7 +175,13 @@ def parse_effect(spec: str) -> tuple[str, dict[str, float]]:
     for item in rest.split(","):
         k, _, v = item.partition("=")
         e.param(k.strip())
-        params[k.strip()] = float(v)
+        try:
+            x = float(v)
+        except ValueError:
+            raise ValueError(f"--effect {spec}: {k.strip()}={v!r} is not a number") from None
+        if not math.isfinite(x):
+            raise ValueError(f"--effect {spec}: {k.strip()} must be a finite number, got {v!r}")
+        params[k.strip()] = x
     return name, params
 
 

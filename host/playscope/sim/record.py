@@ -33,9 +33,7 @@ def sim_config(preset_name: str = "stras", config_json: str | None = None, effec
 
     cfg = preset(preset_name)
     if config_json:
-        d = cfg.to_json()
-        d.update(json.loads(Path(config_json).read_text()))
-        cfg = SimConfig.from_json(d)
+        cfg = _config_overrides(cfg, config_json)
     if no_preset_effects:
         cfg.effects = {}
     for spec in effects:
@@ -53,6 +51,42 @@ def sim_config(preset_name: str = "stras", config_json: str | None = None, effec
     if kind:
         cfg.distal_kind = kind
     return cfg
+
+
+_JSON_KIND = {"NoneType": "null", "str": "a string", "list": "a list", "int": "a number", "float": "a number",
+              "bool": "a boolean"}
+
+
+def _config_overrides(cfg, config_json):
+    """cfg with the keys of the JSON object in the file config_json replaced. Errors:
+    InputError naming the file for anything but an object of known keys whose values have
+    the type of the preset's (a number for a number, an object for an object, ...)."""
+    from ..errors import InputError
+    from ..session import read_json
+    from .core import SimConfig
+
+    new = read_json(Path(config_json), "SimConfig JSON")
+    d = cfg.to_json()
+    if not isinstance(new, dict):
+        raise InputError(config_json, f"--config takes a JSON object of SimConfig keys, this file holds "
+                         f"{_JSON_KIND.get(type(new).__name__, type(new).__name__)}; known keys: {', '.join(sorted(d))}")
+    for k, v in new.items():
+        if k not in d:
+            raise InputError(config_json, f"unknown SimConfig key {k!r}; known keys: {', '.join(sorted(d))}")
+        want = d[k]
+        num = (int, float)
+        ok = (v is None or want is None or (isinstance(want, bool) and isinstance(v, bool))
+              or (isinstance(want, num) and not isinstance(want, bool) and isinstance(v, num)
+                  and not isinstance(v, bool))
+              or (type(want) in (str, list, dict) and isinstance(v, type(want))))
+        if not ok:
+            raise InputError(config_json, f"key {k!r}: expected {type(want).__name__} like the preset's "
+                             f"{json.dumps(want)[:60]}, got {type(v).__name__} {json.dumps(v)[:60]}")
+    d.update(new)
+    try:
+        return SimConfig.from_json(d)
+    except (TypeError, KeyError, ValueError, AttributeError) as e:
+        raise InputError(config_json, f"not a valid SimConfig: {e}") from None
 
 
 def reimage(src: str, cfg, seed: int = 0):

@@ -96,3 +96,27 @@ def test_quiet_prints_no_summary_and_json_path_writes_the_file(tmp_path, capsys)
     assert json.loads((tmp_path / "s2.json").read_text())["rows"] == 200
     assert cli.main(["import", str(src), "-o", str(tmp_path / "s3")]) == 0
     assert capsys.readouterr().out == f"{tmp_path / 's3'}: 200 rows, 2.0 s\n"
+
+
+def test_lazy_parser_names_every_command_with_its_modules_help():
+    """cli.COMMANDS (what `playscope --help` shows without importing a command module) says
+    what each module declares, and lists every command the full parser has."""
+    full = {}
+    for a in cli.build_parser()._actions:
+        if isinstance(a, argparse._SubParsersAction):
+            full = {c.dest: c.help for c in a._choices_actions}
+    assert full == {k: v[1] for k, v in cli.COMMANDS.items()}
+
+
+@pytest.mark.parametrize("argv", [["--version"], ["--help"], ["frobnicate"]])
+def test_help_and_version_import_no_command_module(argv):
+    """Start-up: --help, --version and an unknown command import neither numpy nor a command
+    module (bench/bench_startup.py measures the time)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from playscope.cli import main\n"
+            f"rc = main({argv!r})\n"
+            "print(sorted(m for m in sys.modules if m == 'numpy' or m.startswith('playscope.commands.')))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.stdout.strip().splitlines()[-1] == "[]", r.stdout + r.stderr

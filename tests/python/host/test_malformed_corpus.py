@@ -1,8 +1,12 @@
-"""Issue 14, no tracebacks: a corpus of malformed inputs, generated here from one set of valid
-files (goodfiles.make_good), each damaged one way: command-line values, session folders,
-calibration JSON, table blobs, foreign CSVs, outputs aimed at inputs. Every case must end
-with exit status 2, exactly one stderr line ``playscope: error: ...``, and no file created,
-changed or removed."""
+"""No tracebacks, no hangs, nothing of the user's changed: a corpus of malformed, hostile or
+implausible inputs, generated here from one set of valid files (goodfiles.make_good), each
+damaged one way: command-line values, session folders, calibration JSON, table blobs
+(structural damage and valid-CRC tables with impossible physics), foreign CSVs, outputs aimed
+at inputs or at a user's files (the board's flash file, --force over other kinds, folders
+holding a user's file), named pipes and devices as inputs, simulate --config files. Every
+case must end within CASE_TIMEOUT_S with exit status 2, exactly one stderr line
+``playscope: error: ...``, and no file created, changed or removed (SHA-256 of every file
+before and after)."""
 
 from __future__ import annotations
 
@@ -84,6 +88,46 @@ def _set(path: str, value):
         else:
             d[keys[-1]] = value
     return fn
+
+
+def _fifo(rel: str):
+    """rel replaced by a named pipe nobody writes: opening it for reading would block forever."""
+    def f(g):
+        p = g["root"] / rel
+        if p.is_dir():
+            import shutil
+            shutil.rmtree(p)
+        elif p.exists():
+            p.unlink()
+        os.mkfifo(p)
+    return f
+
+
+def _link(rel: str, target: str):
+    """rel replaced by a symlink to target (a device such as /dev/urandom never ends)."""
+    def f(g):
+        p = g["root"] / rel
+        if p.exists():
+            p.unlink()
+        os.symlink(target, p)
+    return f
+
+
+def _user_folder(rel: str, own: str = "notes.txt"):
+    """A folder rel holding a session and a user's own file (which nothing may delete)."""
+    def f(g):
+        import shutil
+        d = g["root"] / rel
+        shutil.copytree(g["session"], d)
+        (d / own).write_text("my notes\n")
+    return f
+
+
+def _both(*fs):
+    def f(g):
+        for x in fs:
+            x(g)
+    return f
 
 
 DELETE = object()
@@ -236,6 +280,10 @@ def cases() -> list[tuple[str, list[str], object]]:
             "coef", [(-1) ** k * 20.0 for k in range(len(d["f_remain"]["coef"]))]))),
         # A play of 2 raw units: the table's own rounding would exceed it (CALIB_ERR_PRECISION).
         ("B tiny", _json_edit("cal.json", lambda d: d["B"].__setitem__("coef", [3e-5] * len(d["B"]["coef"])))),
+        # Implausible for the travel (PST_PLAUS_*): a play of 100 mm, f scaled x500.
+        ("B 100 mm", _json_edit("cal.json", lambda d: d["B"].__setitem__("coef", [100.0] * len(d["B"]["coef"])))),
+        ("f_remain x500", _json_edit("cal.json", lambda d: d["f_remain"].__setitem__(
+            "coef", [500.0 * c for c in d["f_remain"]["coef"]]))),
     ]:
         add(f"cal.json {name}", TAB, dmg)
     for name, dmg in [("missing", _delete("cal.json")), ("list", _write("cal.json", "[]")),
@@ -246,6 +294,11 @@ def cases() -> list[tuple[str, list[str], object]]:
     from .goodfiles import table_damages
 
     for name, dmg in table_damages():
+        add(f"table {name}", FLASH, dmg)
+    # Valid CRC, intact structure, impossible physics (ps_table.h PST_PLAUS_*): refused by rule.
+    from .goodfiles import table_nonsense
+
+    for name, _code, dmg in table_nonsense():
         add(f"table {name}", FLASH, dmg)
     add("table missing", FLASH, _delete("table.pstb"))
     add("table empty", FLASH, _write("table.pstb", b""))
@@ -271,6 +324,102 @@ def cases() -> list[tuple[str, list[str], object]]:
     add("import over its own folder", ["import", "{csv}", "-o", "{root}", "--overwrite"])
     add("report onto the session", ["report", "{cal}", "{session}", "-o", "{session}/session.json", "--force"])
     add("simulate over its --reimage source", ["simulate", "{session}", "--reimage", "{session}", "--overwrite"])
+
+    # ---- nothing of the user's overwritten: the board's flash file and --force's limits
+    for target in ("{table}", "{cal}", "{csv}", "{session}/session.json", "{session}/encoder.csv",
+                   "{session}/distal.csv", "{session}/truth.csv", "{session}"):
+        for force in ([], ["--force"]):
+            add(f"flash-file onto {target}{' ' + force[0] if force else ''}",
+                ["flash", "{table}", "--flash-file", target] + force)
+    add("flash-file a FIFO", ["flash", "{table}", "--flash-file", "{root}/pipe"], _fifo("pipe"))
+    add("flash-file a device", ["flash", "{table}", "--flash-file", "{root}/dev"], _link("dev", "/dev/zero"))
+    for opt in ("--overwrite", "--force"):
+        add(f"simulate {opt} over a folder with a user's file",
+            ["simulate", "{root}/d", "--duration", "2", opt], _user_folder("d"))
+        add(f"import {opt} over a folder with a user's file", IMPORT[:-1] + ["{root}/d", opt], _user_folder("d"))
+        add(f"import {opt} over a folder with a user's CSV", IMPORT[:-1] + ["{root}/d", opt],
+            _user_folder("d", "my_log.csv"))
+    add("tables --force onto a JSON", ["tables", "{cal}", "-o", "{root}/other.json", "--force"],
+        _write("other.json", '{"mine": 1}\n'))
+    add("calibrate --force onto a table", CAL[:3] + ["{root}/other.pstb", "--fps", "25", "--force"],
+        lambda g: (g["root"] / "other.pstb").write_bytes(g["table"].read_bytes()))
+    add("calibrate --force onto a CSV", CAL[:3] + ["{csv}", "--fps", "25", "--force"])
+    add("tables --force onto a folder", ["tables", "{cal}", "-o", "{root}/d", "--force"], _user_folder("d"))
+
+    # ---- non-regular inputs: refused, never opened (a FIFO would hang, a device never ends)
+    add("evaluate cal.json a FIFO", ["evaluate", "{session}", "{cal}"], _fifo("cal.json"))
+    add("tables cal.json a FIFO", TAB, _fifo("cal.json"))
+    add("tables cal.json -> /dev/urandom", TAB, _link("cal.json", "/dev/urandom"))
+    add("tables cal.json -> /dev/zero", TAB, _link("cal.json", "/dev/zero"))
+    add("flash table a FIFO", FLASH, _fifo("table.pstb"))
+    add("flash table -> /dev/urandom", FLASH, _link("table.pstb", "/dev/urandom"))
+    add("calibrate encoder.csv a FIFO", CAL, _fifo(S + "encoder.csv"))
+    add("calibrate encoder.csv -> /dev/urandom", CAL, _link(S + "encoder.csv", "/dev/urandom"))
+    add("calibrate distal.csv a FIFO", CAL, _fifo(S + "distal.csv"))
+    add("calibrate session.json a FIFO", CAL, _fifo(S + "session.json"))
+    add("calibrate session.json -> /dev/zero", CAL, _link(S + "session.json", "/dev/zero"))
+    add("calibrate session a FIFO", CAL, _fifo("session"))
+    add("import CSV a FIFO", IMPORT, _fifo("rec.csv"))
+    add("import CSV -> /dev/urandom", IMPORT, _link("rec.csv", "/dev/urandom"))
+    add("evaluate session.json a FIFO", ["evaluate", "{session}", "{cal}"], _fifo(S + "session.json"))
+
+    # ---- simulate --config: a JSON object of known keys with the preset's types
+    SIM = ["simulate", "{root}/sim", "--duration", "2", "--config", "{root}/c.json"]
+    for name, text in [("unknown key", '{"bogus": 1}'), ("a string", '"stras"'), ("a list", "[1, 2]"),
+                       ("null", "null"), ("seed a string", '{"seed": "x"}'), ("K a number", '{"K": 5}'),
+                       ("trajectory a list", '{"trajectory": [1]}'), ("fps a string", '{"fps": "25"}'),
+                       ("not JSON", "fps = 25"), ("empty", ""), ("binary", JUNK)]:
+        add(f"simulate --config {name}", SIM, _write("c.json", text))
+    add("simulate --config missing", SIM)
+    add("simulate --config a FIFO", SIM, _fifo("c.json"))
+    for v in ("nan", "inf", "x", ""):
+        add(f"simulate --effect drift rate {v!r}", ["simulate", "{root}/sim", "--duration", "2", "--effect",
+                                                    f"drift:rate_deg_per_min={v}"])
+
+    # ---- values that gave unclear messages: now named by file and row or option
+    add("encoder.csv one t_s = 1e9 (last row)", CAL, _csv_edit(S + "encoder.csv", lambda L: L.__setitem__(
+        -1, "1000000000," + L[-1].split(",", 1)[1])))
+    add("encoder.csv one t_s = 1e9 (mid row)", CAL, _csv_edit(S + "encoder.csv", lambda L: L.__setitem__(
+        500, "1000000000," + L[500].split(",", 1)[1])))
+    add("encoder.csv q = 1e300", CAL, _csv_edit(S + "encoder.csv", lambda L: L.__setitem__(
+        50, L[50].split(",")[0] + ",1e300")))
+    add("encoder.csv q = -40000", CAL, _csv_edit(S + "encoder.csv", lambda L: L.__setitem__(
+        50, L[50].split(",")[0] + ",-40000")))
+    add("encoder.csv header t_s,q,q", CAL, _csv_edit(S + "encoder.csv", lambda L: [
+        L.__setitem__(i, f"{L[i]},{L[i].split(',')[1]}" if i else "t_s,q,q") for i in range(len(L))]))
+    add("distal.csv c_deg = 1e6", CAL, _csv_edit(S + "distal.csv", lambda L: L.__setitem__(
+        9, L[9].split(",")[0] + ",1e6")))
+    for v in (1e6, 11.0, -0.5, float("inf")):
+        add(f"session.json t_delay_s {v}", CAL, _json_edit(S + "session.json", _set("t_delay_s", v)))
+    for fx in (1e-9, 0.5, -380.0):
+        add(f"session.json camera fx {fx}", CAL, _json_edit(S + "session.json", _set("camera", {
+            "width": 720, "height": 576, "fps": 25, "K": [[fx, 0, 360], [0, 380, 288], [0, 0, 1]]})))
+    add("flash --elf not an ELF", ["flash", "{table}", "--device", "qemu", "--elf", "{root}/fake.elf"],
+        _write("fake.elf", "root:x:0:0:root:/root:/bin/bash\n"))
+    add("flash --elf empty", ["flash", "{table}", "--device", "qemu", "--elf", "{root}/fake.elf"],
+        _write("fake.elf", b""))
+    for v in ("nan", "nans", "1.5", "0", "-3s", "infs", "x", ""):
+        add(f"evaluate-insitu --split {v!r}", ["evaluate-insitu", "{session}", f"--split={v}"])
+
+    # ---- a user's own CSV: options applied or refused, never ignored
+    add("import all stamps 0", IMPORT, _write("rec.csv", "Time,Tendon Disp.,Angle x\n" +
+                                               "".join(f"0,{k * 0.1},{k}\n" for k in range(50))))
+    add("import header Time,q,q", ["import", "{csv}", "-o", "{root}/imported", "--t-col", "Time", "--q-col", "q",
+                                   "--c-col", "3"], _write("rec.csv", "Time,q,q\n0,1,2\n1,2,3\n2,3,4\n"))
+    for opt, v in (("--t-col", "9"), ("--t-col", "0"), ("--q-col", "nope"), ("--c-col", "Time")):
+        add(f"import {opt} {v}", IMPORT + [opt, v])
+    add("import headerless by name", IMPORT + ["--t-col", "Time"],
+        _csv_edit("rec.csv", lambda L: L.pop(0)))
+    add("import headerless text row", IMPORT, _csv_edit("rec.csv", lambda L: [L.pop(0), L.__setitem__(30, "1,x,2")]))
+    add("import bag option on a CSV", IMPORT + ["--q-topic", "/joint_states"])
+    add("import --geometry on a CSV", IMPORT + ["--geometry", "{session}/session.json"])
+    add("import --q-source bogus", IMPORT + ["--q-source", "bogus"])
+    add("import --c-scale nan", IMPORT + ["--c-scale", "nan"])
+    add("import --c-scale 0", IMPORT + ["--c-scale", "0"])
+    add("import --t-delay 1e6", IMPORT + ["--t-delay", "1e6"])
+    add("import --t-delay -1", IMPORT + ["--t-delay", "-1"])
+    add("import --q-per-rad inf", IMPORT + ["--q-per-rad", "inf"])
+    add("import q = 1e300", IMPORT, _csv_edit("rec.csv", lambda L: L.__setitem__(40, L[40].split(",")[0] + ",1e300,1")))
     return out
 
 
@@ -278,7 +427,8 @@ CASES = cases()
 
 
 def test_corpus_size():
-    assert len(CASES) >= 150, len(CASES)
+    assert len(CASES) >= 300, len(CASES)
+    assert len({c[0] for c in CASES}) == len(CASES)  # ids unique
 
 
 @pytest.fixture(scope="module")
@@ -287,15 +437,32 @@ def good(tmp_path_factory):
 
 
 def _digest(root) -> dict:
+    """SHA-256 of every regular file under root; links and pipes by what they are (never
+    opened: a FIFO would block, /dev/urandom never ends)."""
+    import stat
+
     out = {}
     for dirpath, dirs, names in os.walk(root):
         for n in dirs:
             out[os.path.join(dirpath, n)] = "dir"
         for n in names:
             p = os.path.join(dirpath, n)
-            with open(p, "rb") as fh:
-                out[p] = hashlib.sha256(fh.read()).hexdigest()
+            m = os.lstat(p).st_mode
+            if stat.S_ISLNK(m):
+                out[p] = "link " + os.readlink(p)
+            elif not stat.S_ISREG(m):
+                out[p] = f"special {stat.S_IFMT(m)}"
+            else:
+                with open(p, "rb") as fh:
+                    out[p] = hashlib.sha256(fh.read()).hexdigest()
     return out
+
+
+CASE_TIMEOUT_S = 120  # a case still running after this is a hang (the slowest case takes ~3 s)
+
+
+class _Hang(Exception):
+    pass
 
 
 def test_undamaged_inputs_pass(good, tmp_path, capsys):
@@ -314,9 +481,20 @@ def test_malformed_input(name, argv, damage, good, tmp_path, capsys):
         damage(g)
     names = {k: str(v) for k, v in g.items()}
     before = _digest(tmp_path)
-    with warnings.catch_warnings(record=True) as caught:  # a warning would be a second stderr line
-        warnings.simplefilter("always")
-        rc = main([a.format(**names) for a in argv])
+    import signal
+
+    def hang(*_):
+        raise _Hang(f"case still running after {CASE_TIMEOUT_S} s")
+
+    old = signal.signal(signal.SIGALRM, hang)
+    signal.alarm(CASE_TIMEOUT_S)
+    try:
+        with warnings.catch_warnings(record=True) as caught:  # a warning would be a second stderr line
+            warnings.simplefilter("always")
+            rc = main([a.format(**names) for a in argv])
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
     err = capsys.readouterr().err
     shown = [str(w.message) for w in caught if issubclass(w.category, (UserWarning, RuntimeWarning))]
     assert not shown, shown

@@ -132,3 +132,90 @@ def test_work_folders_are_neither_inputs_nor_outputs(tmp_path, good):
     assert ins == [str(tmp_path)] and outs == []
     ins, outs = _paths(p.parse_args(["simulate", str(tmp_path / "new"), "--reimage", str(g["session"])]))
     assert ins == [str(g["session"])] and outs == [str(tmp_path / "new")]
+
+
+@pytest.mark.parametrize("target", ["{table}", "{cal}", "{session}/encoder.csv", "{session}/session.json",
+                                    "{session}"])
+def test_flash_file_never_replaces_a_user_file(target, tmp_path, good, capsys):
+    """--flash-file goes through the guard: an input, or anything that is not a board flash
+    image (2 x 128 KiB), is refused before the board starts, with or without --force."""
+    g = copy_good(good, tmp_path)
+    names = {k: str(v) for k, v in g.items()}
+    before = _digest(tmp_path)
+    for force in ([], ["--force"]):
+        assert main(["flash", names["table"], "--flash-file", target.format(**names)] + force) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("playscope: error: ") and "\n" not in err, err
+        assert "is an input" in err or "not a board flash image" in err or "is a folder" in err, err
+    assert _digest(tmp_path) == before
+
+
+def test_flash_file_locked_by_its_board(tmp_path, good, capsys):
+    """One board process per flash file: while another holds it (flock), a second is refused
+    with the board's reason, and the image is left as it was."""
+    import fcntl
+
+    g = copy_good(good, tmp_path)
+    img = tmp_path / "board.flash"
+    assert main(["flash", str(g["table"]), "--flash-file", str(img), "--vectors", "5"]) == 0
+    capsys.readouterr()
+    first = img.read_bytes()
+    with open(img, "r+b") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        assert main(["flash", str(g["table"]), "--flash-file", str(img), "--vectors", "5"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "in use by another board process" in err and "\n" not in err, err
+    assert img.read_bytes() == first
+    assert main(["flash", str(g["table"]), "--flash-file", str(img), "--vectors", "5"]) == 0  # lock released
+    assert "generation 2" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("opt", ["--force", "--overwrite"])
+def test_replacing_a_folder_keeps_unrelated_files(opt, tmp_path, good, capsys):
+    """--force and --overwrite are one option; a folder is replaced only when it holds nothing
+    but files playscope writes, so a user's own file in it is never deleted."""
+    g = copy_good(good, tmp_path)
+    out = tmp_path / "d"
+    assert main(["import", str(g["csv"]), "-o", str(out)]) == 0
+    assert main(["import", str(g["csv"]), "-o", str(out), opt]) == 0          # a session folder: replaced
+    (out / "notes.txt").write_text("mine\n")
+    before = _digest(tmp_path)
+    assert main(["import", str(g["csv"]), "-o", str(out), opt]) == 2
+    assert "notes.txt" in capsys.readouterr().err
+    assert main(["simulate", str(out), "--duration", "5", opt]) == 2
+    assert _digest(tmp_path) == before
+
+
+def test_force_replaces_only_the_same_kind(tmp_path, good, capsys):
+    g = copy_good(good, tmp_path)
+    other = tmp_path / "other.json"
+    other.write_text('{"mine": 1}\n')
+    before = _digest(tmp_path)
+    assert main(["tables", str(g["cal"]), "-o", str(other), "--force"]) == 2
+    assert "holds JSON and this command writes a table" in capsys.readouterr().err
+    assert _digest(tmp_path) == before
+
+
+def test_unwritable_output_folder_named_before_work(tmp_path, good, capsys, monkeypatch):
+    """A read-only output folder is refused before any work, naming the output the user gave
+    (tests run as root, so the folder's refusal is simulated as os.access would report it);
+    a failure at the write itself names the output too, never the temporary beside it."""
+    import tempfile
+
+    g = copy_good(good, tmp_path)
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, m: False if os.fspath(p) == str(ro) else real(p, m))
+    assert main(["calibrate", str(g["session"]), "-o", str(ro / "c.json"), "--fps", "25"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"playscope: error: {ro / 'c.json'}: cannot write into {ro}: permission denied; choose another folder"
+    monkeypatch.setattr(os, "access", real)
+
+    def denied(*a, **k):
+        raise PermissionError(13, "Permission denied", str(ro / ".c.json.x.tmp"))
+
+    monkeypatch.setattr(tempfile, "mkstemp", denied)
+    assert main(["tables", str(g["cal"]), "-o", str(ro / "t.pstb")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert ".tmp" not in err and f"{ro / 't.pstb'}: cannot write here: Permission denied" in err, err
