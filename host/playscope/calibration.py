@@ -24,6 +24,7 @@ from . import transition as T
 from .atomic import write_text_atomic
 from .errors import InputError
 from .session import Session
+from .tables import F_SLOPE_FLOORS
 
 FORMAT = "playscope-calibration/1"
 
@@ -197,10 +198,6 @@ def auto_fps(t1: np.ndarray, fps_max: float = 50.0, fps_min: float = 10.0) -> fl
 # reversals than folds a fold gets no stroke, and the choice falls back to the paper's play.
 MIN_REVERSALS_TRANSITION = T.KFOLD
 
-# f's slope floors tried, in order, when a table of the fitted f is refused for precision
-# (loadable_f): fractions of f's mean slope over its fitted range. At 1 the floor is the mean
-# slope itself, which only a straight line meets: its inverse is exact, so the last one loads.
-F_SLOPE_FLOORS = (1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0)
 
 # Without any motion onset the play is fitted on c alone (families.FAMILIES_FROM_C), but only when
 # the tip moves: its span over the calibration frames must exceed this many times the median

@@ -247,11 +247,10 @@ FAMILIES_FROM_C = [f for f in FAMILIES if f.name in ("const_play", "pi_const")]
 def table_of(ctx: Context, m: Member, source=None):
     """The board's table of a member (tables.build_table); when the loader refuses it for
     precision (f nearly flat somewhere, so f^-1 jumps), f is refitted with the slope floors of
-    calibration.F_SLOPE_FLOORS in turn (as calibration.loadable_f) and m.f, m.sign updated to
+    tables.F_SLOPE_FLOORS in turn (as calibration.loadable_f) and m.f, m.sign updated to
     the one that loads. Errors: TableError (the last refusal), OverflowError."""
-    from .calibration import F_SLOPE_FLOORS
     from .native import core
-    from .tables import TableError, build_table
+    from .tables import F_SLOPE_FLOORS, TableError, build_table
 
     def build():
         return build_table(m.B, m.f, ctx.q_range[0], ctx.q_range[1], ctx.unit, "remain",

@@ -24,6 +24,11 @@ from . import model
 from .errors import InputError
 from .native import core, from_q16, to_q16
 
+# f's slope floors tried, in order, when a table of the fitted f is refused for precision
+# (loadable_f): fractions of f's mean slope over its fitted range. At 1 the floor is the mean
+# slope itself, which only a straight line meets: its inverse is exact, so the last one loads.
+F_SLOPE_FLOORS = (1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0)
+
 
 class TableError(InputError):
     """A table that cannot be written, stamped or loaded (one line: source and reason).

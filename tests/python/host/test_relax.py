@@ -128,6 +128,6 @@ def test_bad_fields_are_refused():
     with pytest.raises(TB.TableError, match="relaxation"):
         blob = TB.write_blob(*TB.grid_for(Q_MIN, Q_MAX, 256)[:2],
                              np.full(TB.grid_for(Q_MIN, Q_MAX, 256)[2], 19661),
-                             (65536 * 3 * np.arange(TB.grid_for(Q_MIN, Q_MAX, 256)[2])).tolist(),
+                             (65536 * (np.arange(TB.grid_for(Q_MIN, Q_MAX, 256)[2]) - 128)).tolist(),  # within +-360 deg
                              Q_MIN, Q_MAX, pi_r=tr.r, pi_w=tr.w, relax=(60000, 65536))
         TB.CalibTable(blob)
