@@ -359,7 +359,7 @@ static void run_commit(void)
     info("commit_failures", bad);
 }
 
-/* On-line B update (issue 13 item 4, b_online.c): b_online_sample on its own, the path an
+/* On-line B update (b_online.c): b_online_sample on its own, the path an
  * observation that completes an onset takes (psa_observe_*'s hook), never psa_tick. Samples
  * spread over the travel at widths near the table's (every node's row of P in play): on the
  * built-in table's B (33 entries: 9 nodes) and on the costliest grid: 241 entries, 16 nodes (the

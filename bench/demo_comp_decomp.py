@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Where the main job's open-loop compensation error comes from (issue 9, second acceptance item).
+"""Where the main job's open-loop compensation error comes from (against its 0.3 deg target).
 
 Reads a finished `playscope demo --out DIR` (its two simulated sessions and calibration.json)
 and replaces one input of the transition's model choice at a time by what only the simulator

@@ -3,7 +3,7 @@
 against single-step (pose estimation) B. Constant 15 deg backlash, +-1.5 deg direction-dependent
 hand-eye error, 15 deg/s bending speed, 25 Hz camera with 80 ms delay. The simulator and the
 estimator come from the same project, so this is the baseline comparison only; the B error
-figure judged for issue 15 comes from bench/fig7_replica.py (an independent renderer).
+figure judged comes from bench/fig7_replica.py (an independent renderer).
 
 Compares the backlash estimated in two steps (onsets in the image, playscope.calibration: the
 board's detector refined on the host) with the single-step estimate from pose reconstruction (c per frame by eq. 8 with the nominal hand-eye, then the horizontal width of the

@@ -1,4 +1,4 @@
-"""On-line update during use on the real catheter recordings (issue 13 item 4): prints the
+"""On-line update during use on the real catheter recordings: prints the
 table of docs/online.md. Calibrate the pure play on data_2_1, run every other file from its
 start with the board's RLS on B (firmware/core/b_online.c through cffi) and the host's offset
 refresh, score after its first 20 %; beside it the same model without update and a constant

@@ -1,5 +1,5 @@
 """The transition model on the shared catheter recordings, in situ with state carried, on the
-fixed-point tables (issue 9 acceptance row; the full comparison with textbook peers is
+fixed-point tables (the full comparison with textbook peers is
 `playscope evaluate` / evaluate-real on branch insitu-eval).
 
 Per file: `calibrate(first half, model_kind=...)` (onset B, f_remain, transition chosen by

@@ -192,7 +192,7 @@ typedef struct PS_PACKED psp_comp_resp {
 } psp_comp_resp_t;
 PS_STATIC_ASSERT(sizeof(psp_comp_resp_t) == 4, "psp_comp_resp_t must be 4 bytes");
 
-/* On-line B update during use (issue 13 item 4, docs/online.md): the B samples the onset
+/* On-line B update during use (docs/online.md): the B samples the onset
  * detector completes are queued and learnt outside the tick (firmware/core/b_online.h). */
 enum psp_learn_op {
     PSP_LEARN_QUERY = 0,         /* report the state, change nothing */

@@ -1,5 +1,5 @@
 /* On-line B(q): recursive least squares with forgetting on a linear B-spline correction of the
- * flashed B grid (issue 13 item 4; docs/firmware.md, "On-line B update").
+ * flashed B grid (docs/firmware.md, "On-line B update").
  *
  * Model: B(q) = B_flashed(q) + sum_i theta_i h_i(q), h_i the hat function of node i (nodes on
  * every 2^k-th grid entry, so the correction is exactly linear between grid entries and the

@@ -1,5 +1,5 @@
 /* On-line update of the backlash width B(q) from the onset samples that arrive during use
- * (issue 13 item 4): recursive least squares with exponential forgetting, fixed point.
+ * by recursive least squares with exponential forgetting, fixed point.
  * docs/firmware.md, "On-line B update", gives the model, the settings' rule and the cost. */
 #ifndef B_ONLINE_H
 #define B_ONLINE_H

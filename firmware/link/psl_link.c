@@ -289,7 +289,7 @@ static uint16_t do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8
         return err;
     /* Not during an excitation (its trajectory spans the running table's range); during
      * compensation the loop swaps tables without stopping (psa_set_table: a host refresh of
-     * f_remain, an offset or B during use, issue 13 item 4). */
+     * f_remain, an offset or B during use). */
     if (l->mode == PSP_MODE_EXCITATION || l->up_have != l->up_size)
         return PSP_ERR_STATE;
     /* From here the upload is consumed, taken or refused: the session closes, and a host

@@ -1,5 +1,5 @@
 """Reusable argparse ``type=`` callables: every command-line value is range-checked here, so a
-bad value is one line from argparse (exit 2), never a traceback deep in the chain (issue 14).
+bad value is one line from argparse (exit 2), never a traceback deep in the chain.
 
 Each factory returns a callable ``str -> value`` raising argparse.ArgumentTypeError with the
 accepted range; the callables carry a readable ``__name__`` for argparse's messages.

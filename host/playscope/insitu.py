@@ -1,5 +1,5 @@
 """In-situ evaluation of one session, with state carried: calibrate on the part before a split,
-score the part after, every model run from the record's first sample (issue 9, item 5).
+score the part after, every model run from the record's first sample.
 
 This is what a board that has been running all along would have predicted: the play and
 hysteresis states at the split are those the part before left, not a fresh reset. Every

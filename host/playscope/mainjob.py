@@ -36,7 +36,7 @@ from .transition import picked_candidate
 
 DEFAULT_OUT = "out/main"
 REGISTRATION_QY_DEG = 2.0  # Table I conditions: registration error about the camera x axis (acts on Qy)
-ACCEPT_COMP_DEG = 0.3      # issue 9: open-loop compensation RMSE with the transition on
+ACCEPT_COMP_DEG = 0.3      # open-loop compensation RMSE with the transition on
 
 
 def declare_registration_error(session_dir: Path, rx_deg: float) -> None:
@@ -210,7 +210,7 @@ def format_summary(s: dict) -> str:
         ours = next((k for k in ("f_remain+B+PI_fixed", "f_remain+B+PI", "f_remain+B_fixed") if k in comp), None)
         if ours and "f_remain+B" in comp:
             v = comp[ours]["c_rmse_deg"]
-            lines.append(f"acceptance (issue 9, transition on): {ours} {v:.3f} deg "
+            lines.append(f"acceptance (transition on): {ours} {v:.3f} deg "
                          f"({'<=' if v <= ACCEPT_COMP_DEG else '>'} {ACCEPT_COMP_DEG} deg), pure play f_remain+B "
                          f"{comp['f_remain+B']['c_rmse_deg']:.3f} deg in the same run")
     lines += ["", f"report: {s['report']}", f"total {s['total_s']:.1f} s (" +

@@ -1,4 +1,4 @@
-"""On-line update during use (issue 13 item 4): the across-session protocol with the board's
+"""On-line update during use: the across-session protocol with the board's
 B(q) learnt from the onsets of the new session and an offset of f refreshed by the host.
 
 Protocol (docs/online.md): calibrate the pure play (onset B(q) + f_remain) on a reference

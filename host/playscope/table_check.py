@@ -5,7 +5,7 @@ first field that disagrees: size, magic, layout_version, header_size, total_size
 formats, the actuator range q_min/q_max (against the grids, so one flipped bit in q_max is
 named even when the CRC was left stale), the grids, then the CRC-32 (calib_table_crc, the
 board's own function), and last the firmware loader calib_load() for the physical rules.
-A table that fails is never resealed or sent: `flash` calls this first (issue 14).
+A table that fails is never resealed or sent: `flash` calls this first.
 """
 
 from __future__ import annotations

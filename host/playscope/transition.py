@@ -1,4 +1,4 @@
-"""The smooth transition after the play (issue 9, PI_MODEL): Prandtl-Ishlinskii operators on the
+"""The smooth transition after the play (PI_MODEL): Prandtl-Ishlinskii operators on the
 play centre z, their classical inverse, and the in-situ fit with its model choice.
 
 Direct model per sample k (docs/method.md, "Transition"):

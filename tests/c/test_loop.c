@@ -160,7 +160,7 @@ static void test_excitation_feeds_the_detector(void **state)
     assert_int_equal(qh, loop.q_ref_q16);
 }
 
-/* A table committed during compensation (a host refresh during use, issue 13 item 4): the loop
+/* A table committed during compensation (a host refresh during use): the loop
  * carries on bit for bit as the core's compensator that keeps its state and switches table;
  * a re-armed one (no direction known) would step q* by B/2 (checked to differ). */
 static calib_t cal2;

@@ -319,8 +319,8 @@ static void test_replay_and_order(void **state)
     seq = 1;
 }
 
-/* A commit during compensation is taken without stopping the loop (a host refresh during use,
- * issue 13 item 4): the compensator carries its state onto the new table, bit for bit the
+/* A commit during compensation is taken without stopping the loop (a host refresh during
+ * use): the compensator carries its state onto the new table, bit for bit the
  * core's comp_step with its table switched. During an excitation it is refused and the upload
  * kept for a commit once idle. */
 static void test_commit_during_compensation_not_excitation(void **state)
@@ -465,7 +465,7 @@ static psp_learn_state_t learn(uint8_t op)
     return st;
 }
 
-/* On-line B update over the link (PSP_MSG_LEARN, issue 13 item 4): during compensation a B
+/* On-line B update over the link (PSP_MSG_LEARN): during compensation a B
  * sample an observation completes is queued, not learnt in the request or the tick; the
  * background step learns it and publishes B (the compensator runs it from the next step);
  * the state reported matches an independent b_online run on the same table bit for bit (CRC

@@ -26,7 +26,7 @@ library (docs/diagnosis.md).
 
 
 def add_parser(sub) -> None:
-    from .. import argtypes  # range-checked values (issue 14)
+    from .. import argtypes  # range-checked values
 
     p = add_command(sub, "diagnose", "sim-to-real gap: held-out gap, localisation, attribution to library effects", DESCRIPTION,
                     examples=["playscope diagnose sessions/d21 --html diag.html --json diag.json",
@@ -62,7 +62,7 @@ def run(args) -> int:
         print(selftest.format_report(sc))
         dump_json(args.json, {"selftest": sc})
         return 0
-    from .common import load_session_noted  # prints what loading repaired (issue 13)
+    from .common import load_session_noted  # prints what loading repaired
 
     items = [(str(s), lambda s=s: load_session_noted(s)) for s in args.sessions]
     if args.catheter:

@@ -1,4 +1,4 @@
-"""Shrink measured in the product (issue 10 item 4): the test-part RMSE of `calibrate` (the
+"""Shrink measured in the product: the test-part RMSE of `calibrate` (the
 product's own model, float) fitted on the fit part of a record, without and with the effects the
 diagnosis kept that the product can represent:
   smooth_transition -> the transition model of the model issue (calibrate model_kind="auto": the

@@ -43,7 +43,7 @@ def _product(session, data, fit_mask, test_mask, kept: list) -> dict:
     return product_rmse(session, data, fit_mask, test_mask, [k["effect"] for k in kept], delay)
 
 
-# Hook for the product's own model (issue 10 item 4): a callable (session, data, fit_mask,
+# Hook for the product's own model: a callable (session, data, fit_mask,
 # test_mask, kept) -> {"play", "with_kept", "model", "not_in_product"} test-part RMSEs (deg) of
 # `calibrate` (product.py); None leaves the column "not measured".
 PRODUCT_RMSE = _product

@@ -1,4 +1,4 @@
-"""Blind self-test of the diagnosis (issue 10): records from the withheld-effect generator
+"""Blind self-test of the diagnosis: records from the withheld-effect generator
 (playscope.sim.withheld, written apart from the diagnosis' forms), one effect per record in one of
 at least two physically different implementations at two strengths, nulls, and out-of-library
 effects; the identity hidden from the diagnosis.

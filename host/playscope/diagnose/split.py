@@ -1,4 +1,4 @@
-"""How a record is split for the diagnosis (paper protocol, issue 10): fit / validation / test.
+"""How a record is split for the diagnosis (paper protocol): fit / validation / test.
 
 The paper calibrates on an excitation and judges on a separate test motion; `diagnose` accepts
 exactly that (a calibration record and a test record). In a single record the judged parts must

@@ -1,4 +1,4 @@
-"""Issue 14, camera sanity: a singular or non-finite K, and distortion coefficients that fold
+"""Camera sanity: a singular or non-finite K, and distortion coefficients that fold
 the image, are refused with one line naming session.json. The fold rule is checked against
 OpenCV's own projection (cv2.projectPoints), which shares no code with session.check_camera."""
 

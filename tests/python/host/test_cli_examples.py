@@ -1,4 +1,4 @@
-"""Every `playscope` command's --help ends with examples that parse (issue 12), and the common
+"""Every `playscope` command's --help ends with examples that parse, and the common
 options mean the same everywhere: --json PATH writes the result to PATH, --json - to stdout in
 place of the summary, --quiet prints no summary (docs/host.md, "Common options")."""
 

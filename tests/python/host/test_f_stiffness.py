@@ -1,4 +1,4 @@
-"""f_remain's stiffness from the calibration frames (issue 13 item 3, estimate.choose_f_ctrl):
+"""f_remain's stiffness from the calibration frames (estimate.choose_f_ctrl):
 rolling-origin cross-validation over F_CTRL_GRID, fewest control points within one standard
 error. Synthetic frames with a known f; the fold scores are checked against an independent
 spline fit (scipy's make_lsq_spline, no penalty, no monotone constraint: on monotone data the

@@ -1,4 +1,4 @@
-"""The image path's onset threshold from the record (issue 13 item 3, estimate.image_onset_settings):
+"""The image path's onset threshold from the record (estimate.image_onset_settings):
 k from the false-alarm rate in 2-D (sqrt(ln(n / alpha))), the noise floor measured on still
 segments, at two marker noise levels. Not wired into `calibrate` (docs/robustness.md: on the
 demo's creeping STRAS-like preset it made B worse), so it is tested on its own here."""

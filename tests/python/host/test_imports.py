@@ -1,4 +1,4 @@
-"""The host package's import graph (issue 12): the command line sits on top. No library module
+"""The host package's import graph: the command line sits on top. No library module
 imports playscope.cli or playscope.commands (the commands call the library, never the other
 way), and the modules import each other without a circle, counting the imports made inside
 functions too (a deferred import hides a circle, it does not remove it). Read from the source

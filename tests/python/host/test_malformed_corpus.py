@@ -69,7 +69,7 @@ def _csv_edit(rel: str, fn):
 
 def _clock_reset(first: int, back_s: float = 1000.0):
     """Lines from ``first`` on moved back by back_s seconds: a clock reset (or two joined logs),
-    refused; one stray backward row is dropped with a warning by design (issue 13, item 2)."""
+    refused; one stray backward row is dropped with a warning by design."""
     def fn(lines):
         for i in range(first, len(lines)):
             t, rest = lines[i].split(",", 1)
@@ -271,7 +271,7 @@ def cases() -> list[tuple[str, list[str], object]]:
         ("f_remain sign 0", _json_edit("cal.json", _set("f_remain.sign", 0))),
         ("q_per_rad 0", _json_edit("cal.json", _set("f_coarse.q_per_rad", 0))),
         ("actuator unit", _json_edit("cal.json", _set("actuator_unit", "furlong"))),
-        # Physically impossible models (issue 14, item 2): refused by tables.check_physical.
+        # Physically impossible models: refused by tables.check_physical.
         ("B negative", _json_edit("cal.json", lambda d: d["B"].__setitem__("coef", [-0.3] * len(d["B"]["coef"])))),
         ("B all zero", _json_edit("cal.json", lambda d: d["B"].__setitem__("coef", [0.0] * len(d["B"]["coef"])))),
         ("f_remain all zero", _json_edit("cal.json", lambda d: d["f_remain"].__setitem__(

@@ -1,4 +1,4 @@
-"""Issue 14, never overwrite inputs: every write goes through atomic.atomic_path, whose guard
+"""Never overwrite inputs: every write goes through atomic.atomic_path, whose guard
 (armed by the CLI per command) refuses a file of the input session, an input itself or a
 folder holding one, and an existing output without --force; writes stay atomic."""
 

@@ -1,4 +1,4 @@
-"""Issue 14, property-based (Hypothesis): whatever bytes or JSON a user hands to session parsing,
+"""Property-based (Hypothesis): whatever bytes or JSON a user hands to session parsing,
 calibration loading or the table check, the result is a value or a PlayscopeError, never any
 other exception."""
 

@@ -67,7 +67,7 @@ def test_bad_encoder_rows_name_file_and_row(tmp_path, line, text, msg):
 
 
 def test_backward_time_one_row_repaired_clock_reset_refused(tmp_path):
-    """Issue 13: one row stamped before its predecessor is dropped with a note (it used to be
+    """One row stamped before its predecessor is dropped with a note (it used to be
     refused); time going back for the rest of the file is a clock reset, refused at its row."""
     s = angle_session()
     write_session(s, tmp_path / "s")

@@ -1,4 +1,4 @@
-"""The precision ceiling (issue 14, item 2): `tables` and the board's loader refuse a table
+"""The precision ceiling: `tables` and the board's loader refuse a table
 whose fixed-point error would approach the play it corrects (docs/firmware.md)."""
 
 import numpy as np

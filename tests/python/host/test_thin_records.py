@@ -1,4 +1,4 @@
-"""Thin and irregular records (issue 13, items 1-3): calibrate degrades instead of refusing,
+"""Thin and irregular records: calibrate degrades instead of refusing,
 irregular logs are repaired by documented choices with a counted message, and the onset
 settings come from the record. Fixtures are generated here (recorded-style: a sensor at its
 own rate, repeated stamps, a held sensor, a commanded q), never copied from the shared data."""

@@ -1,4 +1,4 @@
-"""End to end in CI (issue 4): a simulated session -> `playscope calibrate` -> `playscope tables`
+"""End to end in CI: a simulated session -> `playscope calibrate` -> `playscope tables`
 -> flashed to the virtual board over the emulated USB device (ps_usbemu, the host's unmodified
 pyusb/libusb) AND to the STM32F405 link firmware under QEMU over USART1 -> read back identical
 -> the boards' compensator outputs equal the host's run of the same C code, bit for bit.

@@ -1,4 +1,4 @@
-"""A table committed while the virtual board compensates (issue 13 item 4: the host refreshes
+"""A table committed while the virtual board compensates (the host refreshes
 f_remain and an offset during use without stopping the loop). ps_vboard runs psa_tick between
 requests all along; after the commit the board's set-points are, bit for bit, the core's
 compensator that kept its state and switched to the new table."""

@@ -1,4 +1,4 @@
-"""Issue 14, integrity end to end: a damaged table file is refused before anything reaches a
+"""Integrity end to end: a damaged table file is refused before anything reaches a
 board, with a message naming the field (flipped data byte, flipped CRC, flipped q_max bit with
 a stale CRC), on the virtual board, through the CLI, and over the emulated USB device."""
 

@@ -1,4 +1,4 @@
-"""Issue 14, one owner per upload: two hosts on one virtual board (ps_vboard --listen, one TCP
+"""One owner per upload: two hosts on one virtual board (ps_vboard --listen, one TCP
 port each, shared tables and upload session). The second host is told "busy" until the first
 commits, aborts or times out; concurrent flashes never leave a table nobody committed."""
 

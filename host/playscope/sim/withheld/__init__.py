@@ -1,4 +1,4 @@
-"""Generator of withheld effects for the blind self-test of `playscope diagnose` (issue 10).
+"""Generator of withheld effects for the blind self-test of `playscope diagnose`.
 
 Written apart from the diagnosis on purpose: nothing here imports `playscope.diagnose`,
 `playscope.model` or the simulator's effect code (`sim.core`, `sim.effects`), and the

@@ -2,7 +2,7 @@
 
 The blind self-test asks the diagnosis to recover the shrink of a planted effect "within 25 % of
 the truth on the recoverable cases, measured against the generator's truth, not an oracle of the
-diagnoser's" (issue 10). Which cases are recoverable is decided here, on the generator's side, by
+diagnoser's". Which cases are recoverable is decided here, on the generator's side, by
 an experiment: could a model that has the planted effect's exact form, but has to estimate
 everything else in situ like any user, take out 75 % of what the effect-free model leaves over the
 noise? Knowing the form is legitimate here because this is the generator's oracle; nothing of it
