@@ -6,7 +6,7 @@ acquisition time t - t_delay, and is compared with the measurement:
   f_coarse          c = f_coarse(q)                         (no backlash)
   f_coarse+B        c = f_coarse(z), z = play(q; B)         (eqs. 2-3)
   f_remain+B        c = f_remain(z)                         (eqs. 2-3, the paper's full model)
-  f_remain+B+PI     c = f_remain(PI(z))                     (with the smooth transition, PI_MODEL;
+  f_remain+B+PI     c = f_remain(PI(z))                     (with the smooth transition, docs/method.md;
                                                              only when the calibration carries one)
   <row>_fixed       the table's model through the firmware's playop_step() on Q16.16 tables
                     (f_remain+B_fixed for a pure-play table, f_remain+B+PI_fixed with operators)
@@ -19,7 +19,7 @@ Compensation (section V-G, Fig. 12): a reference c*(t) is turned into actuator c
   f_coarse_inv      q = f_coarse^-1(c*)                     (no compensation)
   f_coarse+B        eq. 4 with eq. 5 (B, f_coarse)
   f_remain+B        eq. 4 with eq. 9 (B, f_remain)
-  f_remain+B+PI     f_remain^-1, the inverse PI operator, then eq. 4 (PI_MODEL inverse)
+  f_remain+B+PI     f_remain^-1, the inverse PI operator, then eq. 4 (the transition model's inverse, docs/method.md)
   <row>_fixed       the firmware's comp_step() on the Q16.16 table
 and each command runs open loop through a plant: the simulator's truth model when the
 session records its parameters (session.json "simulator"), or a callable given by the

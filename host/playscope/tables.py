@@ -8,7 +8,7 @@ drift. A table is loaded with the firmware's ``calib_load()`` and run with its `
 refusal is a ``TableError`` carrying the loader's reason (``calib_status_str``).
 
 Layout 2 carries the smooth transition (thresholds r, weights w of the PI operators,
-PI_MODEL.md) after the B and f grids; a pure play (n = 1 or no transition) writes no operator.
+docs/method.md, "Transition model") after the B and f grids; a pure play (n = 1 or no transition) writes no operator.
 Layout 3 adds the threshold map u = g(z) (transition.ThresholdMap: thresholds proportional to
 B) on its own grid after the operators; it is written only for a transition with a map, so
 map-less tables stay layout 2 byte for byte (table_write_map, firmware/core/table_write.h).

@@ -1,4 +1,4 @@
-"""The smooth transition after the play (PI_MODEL): Prandtl-Ishlinskii operators on the
+"""The smooth transition after the play (docs/method.md, "Transition model"): Prandtl-Ishlinskii operators on the
 play centre z, their classical inverse, and the in-situ fit with its model choice.
 
 Direct model per sample k (docs/method.md, "Transition"):
@@ -74,7 +74,7 @@ V_MAX = 1e3                            # v_i <= 1000 v_0: w_0 >= 1/(1 + 1000 (n-
 
 # --------------------------------------------------------------------------- operators
 def play_ops(x: np.ndarray, r: np.ndarray, p0: np.ndarray | float | None = None) -> np.ndarray:
-    """Classical play operators of thresholds r over the input x (PI_MODEL step 2).
+    """Classical play operators of thresholds r over the input x (the transition model, docs/method.md).
 
     p_i[k] = min(x[k] + r_i, max(x[k] - r_i, p_i[k-1])), p_i[-1] = p0 (default x[0]: every
     operator centred). x: (N,), r: (n,) >= 0. Returns P (N, n) in the unit of x."""
@@ -242,7 +242,7 @@ class Transition:
         return u if self.tmap is None else self.tmap.inv(u)
 
     def direct(self, z: np.ndarray, p0=None) -> np.ndarray:
-        """y = sum w_i p_i(x), x = z or g(z) (PI_MODEL step 2). z: (N,); returns y (N,) in
+        """y = sum w_i p_i(x), x = z or g(z) (the transition model, docs/method.md). z: (N,); returns y (N,) in
         the unit of x."""
         return play_ops(self.to_ops(np.asarray(z, float)), self.r, p0) @ self.w
 
@@ -269,14 +269,14 @@ class Transition:
 
 # --------------------------------------------------------------------------- float chain
 def direct_chain(q: np.ndarray, B, tr: Transition, f, z0: float | None = None) -> np.ndarray:
-    """c = f(PI(play(q; B))) from the record's start (PI_MODEL direct model). q: (N,); B: the
+    """c = f(PI(play(q; B))) from the record's start (the transition model's direct model, docs/method.md). q: (N,); B: the
     model's play width (tr.play_width(B_onset))."""
     z = model.play_operator(q, B, z0)
     return f(tr.direct(z))
 
 
 def compensate_chain(c_ref: np.ndarray, B, tr: Transition, f_inv, f_sign: int) -> np.ndarray:
-    """q* for a reference c* (PI_MODEL inverse), B the model's play width: y* = f^-1(c*), z* = PI^-1(y*), then
+    """q* for a reference c* (the transition model's inverse, docs/method.md), B the model's play width: y* = f^-1(c*), z* = PI^-1(y*), then
     q* = z* + dir B(z*)/2 with dir the direction of z* (= f_sign x direction of c*, eqs. 4/5/9),
     held while z* is still, 0 before it first moves. c_ref: (N,) deg; returns q* (N,)."""
     y = f_inv(np.asarray(c_ref, float).ravel())
@@ -481,7 +481,7 @@ class _SplineProjection:
 
 def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3, robust_f: bool = True,
                 v0: np.ndarray | None = None, v_max: float = V_MAX):
-    """Weights w and f for c ~ f(P w) (PI_MODEL steps 2-3), by variable projection.
+    """Weights w and f for c ~ f(P w) (the transition model, docs/method.md), by variable projection.
 
     P: (F, n) operator outputs at the frames, c: (F,) deg. For given weights f is linear in
     its spline coefficients, so it is solved exactly inside (P-spline least squares, N =

@@ -1,4 +1,4 @@
-"""The transition model (PI_MODEL.md): fit, model choice, inverse, v2 tables against the C loader.
+"""The transition model (docs/method.md, "Transition model"): fit, model choice, inverse, v2 tables against the C loader.
 
 Data come from an independent double-precision generator written here (scalar loops of the
 play and the PI operator, no code shared with playscope.transition or playscope.model)."""
