@@ -17,7 +17,8 @@ files, as a user's data would be. What it varies is what a bench varies:
               that the largest excursion is about ring_px in the image;
   camera      pinhole looking at the bending plane, frames at fps with each capture time
               jittered uniformly by +-jitter of a frame period (stamps exact: capture time + delay),
-              exposure averaged over 4 ms, Gaussian marker noise per axis;
+              each frame the mean over a 4 ms exposure centred on its capture time (the
+              true delay is from that centre), Gaussian marker noise per axis;
   registration the camera frame rotated by +-reg_deg about its y axis, the sign following the
               distal direction, flipping a uniform 0..1 frame period after the tip reverses.
 
@@ -177,7 +178,7 @@ def render(r: Rendering) -> dict:
         sign[j:] = dz[i]
     n = int((t[-1] - 0.5 - 0.2) / T)
     tcap = 0.5 + np.arange(n) * T + rng.uniform(-r.jitter, r.jitter, n) * T
-    sub = np.linspace(-0.004, 0.0, 4)
+    sub = np.linspace(-0.002, 0.002, 4)  # a 4 ms exposure centred on the capture time
     tc = tcap[:, None] + sub[None, :]
     u, v = project(np.interp(tc, t, c), np.radians(r.reg_deg) * np.interp(tc, t, sign), r)
     u = u.mean(axis=1) + rng.normal(0.0, r.noise_px, n)
