@@ -49,6 +49,7 @@ NB = 160                              # b grid points
 RING_HZ = np.arange(1.5, 7.01, 0.5)   # ringing searched (Hz) when the record rings
 RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
 DELAY_REVERSALS = 24
+JUMP_T = 4.0                          # signed-jump mean / standard error for a record's jump
 PACE_FRAMES = 4                       # frames over which the play should be taken up (pacing)
 
 
@@ -90,6 +91,7 @@ class _Rev:
         self.b_grid = np.linspace(0.0, min(b_max, 0.95 * d_end), NB) if d_end > 0 else np.zeros(0)
         self.period = period
         self.b_of_q = b_of_q
+        self.jump = None  # the record's jump vector J (px), the jump being s J; None: free
 
     def onset_scene(self, b: np.ndarray) -> np.ndarray:
         """Scene time at which q has come back by b from q1 (first encoder sample)."""
@@ -128,25 +130,65 @@ class _Rev:
             cols.append(np.exp(-al * t2) * np.sin(om * t2))
         X = np.stack(cols, axis=-1)                                       # (nb, n, p)
         N = 2 * self.n
-        outs = [self._rss(X)]
-        pen = [0.0]
+        # A record with jumps (chosen over the record) has one at every reversal: the no-jump
+        # candidate would otherwise win where b and the jump cannot be told apart (no frame in
+        # the dead band), and b would take the jump in; with the jump, b spreads over the frame
+        # interval instead, and sigma_b says so.
+        outs = [] if steps else [self._rss(X)]
+        pen = [] if steps else [0.0]
         if steps:
             after = ts[None, :] > t_on[:, None]                           # frames after the onset
             first = np.cumsum(after, axis=1)                              # 1 at the onset's first frame
             for m in (1, 2):
+                # The jump from frame m on: the record's jump vector (s J, known) when given,
+                # else a free level; a rotation being a change of view, it also scales the
+                # image curve a little (a slope from frame m on, 0 at the onset).
                 st = (first >= m).astype(float)
-                outs.append(self._rss(np.concatenate([X, st[..., None]], axis=-1)))
-                pen.append(np.log(N))                                     # 2 parameters: (2/2) log N
+                if self.jump is not None:
+                    Yg = self.Y[None] - st[..., None] * (self.s * self.jump)[None, None, :]
+                    outs.append(self._rss(np.concatenate([X, (st * w)[..., None]], axis=-1), Yg))
+                else:
+                    outs.append(self._rss(np.concatenate([X, st[..., None], (st * w)[..., None]], axis=-1)))
+                pen.append(0.0)
         rss = np.stack(outs, axis=1)                                      # (nb, J)
-        return -0.5 * N * np.log(np.maximum(rss, 1e-300)) - np.array(pen)[None, :], b
+        pen_steps = 2 * np.log(N) if steps else 0.0                       # 4 parameters: (4/2) log N
+        return -0.5 * N * np.log(np.maximum(rss, 1e-300)) - np.array(pen)[None, :] - pen_steps, b
 
-    def _rss(self, X: np.ndarray) -> np.ndarray:
-        """Residual sum of squares of Y (n, 2) on each candidate's columns X (G, n, p)."""
+    def jump_px(self, d: float, b: np.ndarray) -> np.ndarray:
+        """The jump's image vector (px, (2,)) of the best jump candidate at delay d over b."""
+        lw, _ = self.logw(d, b, True, None)
+        i, m = np.unravel_index(int(np.argmax(lw)), lw.shape)
+        self._keep = (i, m + 1)
+        ts = self.tf - d
+        qk = np.interp(ts, self.te, self.qe)
+        Dk = np.interp(ts, self.te, self.D)
+        post = ts > self.t1
+        bb = b[i]
+        w = np.where(post, self.q1 - self.s * np.maximum(Dk - bb, 0.0), qk)
+        if self.b_of_q is not None:
+            bq = self.b_of_q(qk)
+            w = w + np.where(post, np.where(Dk > bb, 0.5 * self.s * (bq - self.b_of_q(np.array([self.q1 - self.s * bb]))[0]), 0.0),
+                             -0.5 * self.s * (bq - float(self.b_of_q(np.array([self.q1]))[0])))
+        w = (w - self.q1) / max(float(np.max(self.D)), 1e-9)
+        t_on = float(self.onset_scene(np.array([bb]))[0])
+        st = (np.cumsum(ts > t_on) >= m + 1).astype(float)
+        X = np.column_stack([np.ones_like(w), w, w * w, w * w * w, st, st * w])
+        coef, *_ = np.linalg.lstsq(X, self.Y, rcond=None)
+        return coef[4]
+
+    def _rss(self, X: np.ndarray, Yg: np.ndarray | None = None) -> np.ndarray:
+        """Residual sum of squares of Y (n, 2), or of each candidate's own Yg (G, n, 2), on each
+        candidate's columns X (G, n, p)."""
         A = np.einsum("gnp,gnq->gpq", X, X)
         A += 1e-9 * np.maximum(np.einsum("gpp->g", A), 1.0)[:, None, None] * np.eye(X.shape[2])[None]
-        r = np.einsum("gnp,nc->gpc", X, self.Y)
+        if Yg is None:
+            r = np.einsum("gnp,nc->gpc", X, self.Y)
+            yy = float(np.sum(self.Y * self.Y))
+        else:
+            r = np.einsum("gnp,gnc->gpc", X, Yg)
+            yy = np.einsum("gnc,gnc->g", Yg, Yg)
         coef = np.linalg.solve(A, r)
-        return np.maximum(float(np.sum(self.Y * self.Y)) - np.einsum("gpc,gpc->g", coef, r), 1e-12)
+        return np.maximum(yy - np.einsum("gpc,gpc->g", coef, r), 1e-12)
 
 
 def _lse(x: np.ndarray, axis=None) -> np.ndarray:
@@ -191,31 +233,47 @@ def _delay_profile(revs, grid, steps, ring) -> np.ndarray:
     return L
 
 
-def _choose(revs, d, ring_grid=True) -> tuple[bool, tuple | None, dict]:
-    """Jumps and ringing for the record, by the summed best log weight (BIC) at delay d."""
-    def score(steps, ring):
+def _choose(revs, d, ring_grid=True) -> tuple[np.ndarray | None, tuple | None, dict]:
+    """The record's jump and ringing at delay d.
+
+    Jump: each reversal's best free jump, signed by its direction (a registration or channel
+    error follows the direction of motion); the record has one when their mean is over
+    JUMP_T standard errors from 0 (a jump that comes and goes, or fits noise, averages out).
+    It is then the mean vector J, the same at every reversal up to the sign (s J), so b and the
+    jump are no longer confounded when no frame falls in the dead band. Ringing: a (Hz, 1/s)
+    from the grid when it beats none by BIC, summed over the reversals.
+    Returns (J (2,) px or None, ring or None, doc)."""
+    J = np.array([rv.s * rv.jump_px(d, rv.b_grid[::4]) for rv in revs])
+    m = J.mean(axis=0)
+    se = J.std(axis=0, ddof=1) / np.sqrt(len(J))
+    ratio = float(np.linalg.norm(m) / max(np.linalg.norm(se), 1e-12))
+    jump = m if ratio > JUMP_T else None
+    for rv in revs:
+        rv.jump = jump
+    steps = jump is not None
+
+    def score(ring):
         return float(sum(np.max(rv.logw(d, rv.b_grid[::4], steps, ring)[0]) for rv in revs))
-    base = score(False, None)
-    with_steps = score(True, None)
-    steps = with_steps > base
-    best, ring = max(base, with_steps), None
-    doc = {"loglik_plain": base, "loglik_steps": with_steps}
+    best, ring = score(None), None
+    doc = {"jump_px": None if jump is None else [float(x) for x in jump], "jump_mean_px": [float(x) for x in m],
+           "jump_se_px": [float(x) for x in se], "jump_ratio": ratio, "loglik_no_ring": best}
     if ring_grid:
         n_p = 4 * 2 * len(revs)  # 4 ring columns x 2 image axes per reversal
         pen = 0.5 * n_p * np.log(np.mean([2 * rv.n for rv in revs]))
         for hz in RING_HZ:
             for al in RING_ALPHA:
-                sc = score(steps, (hz, al)) - pen
+                sc = score((hz, al)) - pen
                 if sc > best:
                     best, ring = sc, (float(hz), float(al))
         doc["ring_penalty"] = float(pen)
-    return steps, ring, doc
+    return jump, ring, doc
 
 
-def _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick) -> np.ndarray:
-    """Coarse delay scan 0..d_max on a quarter-frame grid: per delay its own frame windows, the
-    score the per-observation mean log likelihood (jumps allowed, b marginal), since the
-    frame sets differ between delays. Returns (grid, score)."""
+def _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick) -> tuple[np.ndarray, np.ndarray]:
+    """Coarse delay scan 0..d_max on a quarter-frame grid: per delay its own frame windows
+    (a window common to the whole scan would leave the short strokes no frames), the score
+    the per-observation mean of -0.5 log(RSS / N) over the reversals (jumps free, best b),
+    since the frame sets differ between delays. Returns (grid, score)."""
     grid = np.arange(0.0, d_max + 1e-9, T / 4)
     score = np.full(grid.size, -np.inf)
     for i, d in enumerate(grid):
@@ -223,12 +281,11 @@ def _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick) -> np.ndarray
         revs = [revs[k] for k in pick if revs[k] is not None]
         if len(revs) < 2:
             continue
-        tot, n = 0.0, 0
+        tot = 0.0
         for rv in revs:
             lw, _ = rv.logw(d, rv.b_grid[::4], True, None)
-            tot += float(np.max(lw)) / (2 * rv.n) - 0.5 * np.log(2 * rv.n)  # -0.5 log(RSS / N)
-            n += 1
-        score[i] = tot / n
+            tot += float(np.max(lw)) / (2 * rv.n) - 0.5 * np.log(2 * rv.n)
+        score[i] = tot / len(revs)
     return grid, score
 
 
@@ -264,16 +321,25 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
         return empty, {"usable_reversals": len(usable), "scan_s": d0}
     b2 = min(b_max, 2.0 * float(np.percentile(first.b[first.ok], 90)))
     bq = _b_of_q(rq, first)
-    grid = d0 + np.arange(-1.5 * SUB, 1.5 * SUB + 1) * T / SUB
-    grid = grid[grid >= 0.0]
-    d_lo, d_hi = float(grid[0]), float(grid[-1])
-    revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq)
-    sub = [revs[k] for k in pick if revs[k] is not None]
-    steps, ring, choice = _choose(sub, d0)
-    L = _delay_profile(sub, grid, steps, ring)
-    w = np.exp(L - L.max())
-    w /= w.sum()
-    d = float(np.sum(w * grid))
+    dc = d0
+    for it in range(3):  # the jump and ringing are chosen at the current delay: again if it moved
+        grid = dc + np.arange(-1.5 * SUB, 1.5 * SUB + 1) * T / SUB
+        grid = grid[grid >= 0.0]
+        d_lo, d_hi = float(grid[0]), float(grid[-1])
+        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq)
+        sub = [revs[k] for k in pick if revs[k] is not None]
+        jump, ring, choice = _choose(sub, dc)
+        steps = jump is not None
+        for rv in revs:
+            if rv is not None:
+                rv.jump = jump
+        L = _delay_profile(sub, grid, steps, ring)
+        w = np.exp(L - L.max())
+        w /= w.sum()
+        d = float(np.sum(w * grid))
+        if abs(d - dc) < T / 4:
+            break
+        dc = float(grid[int(np.argmax(L))])
     sd = float(np.sqrt(np.sum(w * (grid - d) ** 2) + (T / SUB) ** 2 / 12))
     cw = np.cumsum(w)
     lo = float(grid[min(np.searchsorted(cw, 0.025), grid.size - 1)]) - 0.5 * T / SUB
@@ -281,8 +347,9 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
     out = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring or (0.0, 0.0), b2),
                   revs, d)
     out.b_of_q = bq
+    out.jump = jump
     doc = {"usable_reversals": len(usable), "delay_reversals": len(sub), "delay_grid_step_s": T / SUB,
-           "scan_s": d0, "choice": choice, "b_max": b2, "steps": steps,
+           "scan_s": d0, "iterations": it + 1, "choice": choice, "b_max": b2, "steps": steps,
            "ring": None if ring is None else {"hz": ring[0], "decay_per_s": ring[1]}}
     return out, doc
 
@@ -324,6 +391,9 @@ def refit_at(pf: PlayFit, t_enc, q, rt, rq, t_f, obs, period_s: float, d: float)
     Returns a new PlayFit (the delay figures kept)."""
     M = rt.size
     revs = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, pf.b_max, period_s, getattr(pf, "b_of_q", None))
+    for rv in revs:
+        if rv is not None:
+            rv.jump = getattr(pf, "jump", None)
     out = PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool), pf.t_delay_s,
                   pf.t_delay_ci_s, pf.t_delay_sd_s, pf.steps, pf.ring, pf.b_max)
     return samples(out, revs, d)
