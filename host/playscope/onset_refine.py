@@ -601,6 +601,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         d_se = d_stops_se if n_d >= 4 else period
         ci_lo, ci_hi = d_data - 1.96 * d_se, d_data + 1.96 * d_se
         how = "image stop - motor stop, median"
+    if np.isfinite(d_data) and d_data < 0:  # a delay cannot be negative (the stops can say so on a sine)
+        d_data, ci_lo, ci_hi = 0.0, max(ci_lo, 0.0), max(ci_hi, 0.0)
     have = bool(np.isfinite(d_data))
     if not use_shape:
         pf.ok[:] = False
