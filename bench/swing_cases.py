@@ -1,0 +1,42 @@
+"""The renderings of bench/swing_render.py that the onset and delay rules are judged on.
+
+DEVELOPMENT: the rules may be settled on these. SET_ASIDE: run once, at the end, after the
+rules are settled; never used to choose a setting. Both were fixed (this file committed)
+before any onset rule was changed. Each entry: (category, limit % of mean B, Rendering).
+Categories follow the acceptance: "none" and "registration" (<= 5 %), "delay" (a wrong
+configured delay) and "ringing" (<= 10 %).
+"""
+
+from __future__ import annotations
+
+from swing_render import Rendering as R
+
+DEVELOPMENT = [
+    ("none", 5.0, R("dev-swings25", 101)),
+    ("none", 5.0, R("dev-sine30", 102, shape="sine", fps=30.0, noise_px=0.2, delay_s=0.12, delay_cfg_s=0.12)),
+    ("none", 5.0, R("dev-tri60", 103, shape="triangle", swing_s=0.5, fps=60.0, noise_px=0.05, delay_s=0.05,
+                    delay_cfg_s=0.05, b_lo=0.15, b_hi=0.25)),
+    ("registration", 5.0, R("dev-reg-swings25", 104, reg_deg=1.5)),
+    ("registration", 5.0, R("dev-reg-sine25", 105, shape="sine", reg_deg=1.5, noise_px=0.3, delay_s=0.18,
+                            delay_cfg_s=0.18)),
+    ("delay", 10.0, R("dev-delay180-cfg80", 106, delay_s=0.18, delay_cfg_s=0.08)),
+    ("delay", 10.0, R("dev-delay40-cfg140", 107, shape="triangle", swing_s=0.35, fps=30.0, delay_s=0.04,
+                      delay_cfg_s=0.14)),
+    ("ringing", 10.0, R("dev-ring3-swings25", 108, ring_hz=3.0, ring_zeta=0.05)),
+    ("ringing", 10.0, R("dev-ring5-sine30", 109, shape="sine", fps=30.0, ring_hz=5.0, ring_zeta=0.08)),
+]
+
+SET_ASIDE = [
+    ("none", 5.0, R("sa-swings30", 201, fps=30.0, noise_px=0.1, delay_s=0.1, delay_cfg_s=0.1, b_lo=0.13,
+                    b_hi=0.28, b_qc=0.5)),
+    ("none", 5.0, R("sa-sine25", 202, shape="sine", noise_px=0.25, delay_s=0.06, delay_cfg_s=0.06)),
+    ("none", 5.0, R("sa-swings60", 203, fps=60.0, swing_s=0.15, noise_px=0.15, delay_s=0.2, delay_cfg_s=0.2)),
+    ("registration", 5.0, R("sa-reg-swings25", 204, reg_deg=1.5, delay_s=0.09, delay_cfg_s=0.09)),
+    ("registration", 5.0, R("sa-reg-tri30", 205, shape="triangle", swing_s=0.4, fps=30.0, reg_deg=1.5,
+                            noise_px=0.08)),
+    ("delay", 10.0, R("sa-delay150-cfg50", 206, delay_s=0.15, delay_cfg_s=0.05, fps=30.0)),
+    ("delay", 10.0, R("sa-delay70-nocfg", 207, shape="sine", delay_s=0.07, delay_cfg_s=None)),
+    ("ringing", 10.0, R("sa-ring2-swings25", 208, ring_hz=2.0, ring_zeta=0.04)),
+    ("ringing", 10.0, R("sa-ring4-tri60", 209, shape="triangle", swing_s=0.3, fps=60.0, ring_hz=4.0,
+                        ring_zeta=0.1)),
+]

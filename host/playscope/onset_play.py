@@ -1,0 +1,399 @@
+"""Eq. 1 from the actuator's own trajectory: B samples and t_delay that hold when the play is
+taken up within a frame.
+
+Around a reversal (t1, q1) the play operator (eq. 3) gives the tip's drive z exactly, for a
+width b, from the actuator record alone: on the old branch z = q - s b/2 (s = +1 when q rose
+to q1), then z holds until q has come back by b, then z = q + s b/2. Up to the constant
+-s b/2 (taken up by the image offset) that is
+
+    w(t; b) = q(t)                           t <= t1
+            = q1 - s max(D(t) - b, 0)         t > t1,  D(t) = max over [t1, t] of s (q1 - q)
+
+and the marker of frame k (stamped t_k, captured at t_k - t_delay) is, near the reversal,
+
+    p_k = A + K w_k + K2 w_k^2                  the image of z (a smooth curve, locally quadratic)
+          + S [k >= j]                          optional: a registration / channel jump at the
+                                                onset's first or second frame (j)
+          + ringing (optional, the record's frequency and decay): a free-phase ring carried
+            over from the previous reversal and rings started at the stop t1 and at the onset
+
+p (2,) px; A, K, K2, S and the ring amplitudes are 2-vectors, linear given (b, j, t_delay), so
+each candidate is one least-squares solve. With Gaussian noise of unknown variance the profile
+likelihood is RSS^(-N/2) (N = 2 x frames); the onset's own time is not a parameter: the frames
+see the whole shape of q (a constant-speed leg, a raised-cosine swing, a sine) through w, so a
+play taken up between two frames is still measured by where the new branch lies, not by a
+"still" frame. b's posterior under a flat prior on a grid gives each B sample and its
+sigma; when a jump at the onset and b cannot be told apart (no frame inside the dead band),
+the posterior spreads over the frame interval and sigma_b says so (about the travel of one
+frame period / sqrt(12)).
+
+t_delay: the same model on up to 24 reversals spread over the record, on a grid of delays
+(1/16 frame) around a first guess, each reversal's likelihood marginalised over b and the jump;
+their sum (independent reversals) is the record's likelihood of t_delay. The estimate is its
+posterior mean, the interval its 2.5-97.5 % points, widened by the grid step.
+
+Units: t s, q actuator units, image px. Source: eq. 1 and eq. 3 of the paper; Schwarz (1978)
+for the BIC penalties of the optional parts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SUB = 16                              # delay grid points per frame period
+DELAY_SPAN = 3.0                      # the delay grid reaches +- this many frames from the guess
+PRE_S, POST_S = 1.0, 3.5              # window around t1 (s, scene clock)
+NB = 160                              # b grid points
+RING_HZ = np.arange(1.5, 7.01, 0.5)   # ringing searched (Hz) when the record rings
+RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
+DELAY_REVERSALS = 24
+JUMP_T = 4.0                          # signed-jump mean / standard error for a record's jump
+PACE_FRAMES = 4                       # frames over which the play should be taken up (pacing)
+
+
+@dataclass
+class PlayFit:
+    """Per reversal (M,): b (posterior mean, actuator units), sigma_b, t2_s (image clock onset
+    for that b: q back by b from q1, plus t_delay), ok; and the record's t_delay_s with its
+    95 % interval (lo, hi), the choice of steps / ringing and the b grid's top b_max."""
+
+    b: np.ndarray
+    sigma_b: np.ndarray
+    t2_s: np.ndarray
+    ok: np.ndarray
+    t_delay_s: float
+    t_delay_ci_s: tuple
+    t_delay_sd_s: float
+    steps: bool
+    ring: tuple
+    b_max: float
+
+
+class _Rev:
+    """One reversal's data: encoder window, direction, frames (fixed set), the b grid."""
+
+    def __init__(self, t_enc, q, t1, q1, s, t_start, t_end, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=None):
+        # Encoder samples for every frame's scene time under every delay of the grid.
+        i0 = max(np.searchsorted(t_enc, t_start - (d_hi - d_lo)) - 1, 0)
+        i1 = min(np.searchsorted(t_enc, t_end + (d_hi - d_lo)) + 1, t_enc.size)
+        self.te, self.qe = t_enc[i0:i1], q[i0:i1]
+        self.t1, self.q1, self.s = t1, q1, s
+        after = self.te > t1
+        back = np.where(after, s * (q1 - self.qe), 0.0)
+        self.D = np.maximum.accumulate(np.maximum(back, 0.0))  # travel back from q1 (nondecreasing)
+        # Frames whose scene time lies in the window for every delay on the grid.
+        sel = (t_f - d_lo >= t_start) & (t_f - d_hi <= t_end) & np.all(np.isfinite(obs), axis=1)
+        self.tf, self.Y = t_f[sel], obs[sel] - obs[sel].mean(axis=0)
+        self.n = int(sel.sum())
+        d_end = float(self.D[-1])
+        self.b_grid = np.linspace(0.0, min(b_max, 0.95 * d_end), NB) if d_end > 0 else np.zeros(0)
+        self.period = period
+        self.b_of_q = b_of_q
+        self.jump = None  # the record's jump vector J (px), the jump being s J; None: free
+
+    def onset_scene(self, b: np.ndarray) -> np.ndarray:
+        """Scene time at which q has come back by b from q1 (first encoder sample)."""
+        i = np.clip(np.searchsorted(self.D, b, side="left"), 0, self.te.size - 1)
+        return self.te[i]
+
+    def logw(self, d: float, b: np.ndarray, steps: bool, ring) -> tuple[np.ndarray, np.ndarray]:
+        """Log weight (profile likelihood less BIC penalties) of each candidate (b, jump frame);
+        returns (lw (nb, J), b) with J = 1 (no jump) or 3 (none, onset frame, the next)."""
+        ts = self.tf - d
+        qk = np.interp(ts, self.te, self.qe)
+        Dk = np.interp(ts, self.te, self.D)
+        post = ts > self.t1
+        scale = max(float(np.max(self.D)), 1e-9)
+        w = np.where(post[None, :], self.q1 - self.s * np.maximum(Dk[None, :] - b[:, None], 0.0), qk[None, :])
+        if self.b_of_q is not None:
+            # B changes with q: z = q - s B(q)/2 on the old branch, q + s B(q)/2 on the new one,
+            # so each branch drifts from "q plus a constant" by half the change of B (the
+            # record's first-pass B(q)); relative to the stop and to the onset respectively.
+            bq = self.b_of_q(qk)
+            q_on = self.q1 - self.s * b
+            w = w + np.where(post[None, :], np.where(Dk[None, :] > b[:, None],
+                                                     0.5 * self.s * (bq[None, :] - self.b_of_q(q_on)[:, None]), 0.0),
+                             -0.5 * self.s * (bq - float(self.b_of_q(np.array([self.q1]))[0]))[None, :])
+        w = (w - self.q1) / scale                                         # (nb, n)
+        t_on = self.onset_scene(b)                                        # (nb,)
+        cols = [np.ones_like(w), w, w * w, w * w * w]
+        if ring is not None and ring[0] > 0:
+            om, al = 2 * np.pi * ring[0], ring[1]
+            tau = ts - ts[0]
+            e = np.exp(-al * tau)
+            cols += [np.broadcast_to(e * np.sin(om * tau), w.shape), np.broadcast_to(e * np.cos(om * tau), w.shape)]
+            t0 = np.maximum(ts - self.t1, 0.0)
+            cols.append(np.broadcast_to(np.exp(-al * t0) * np.sin(om * t0), w.shape))
+            t2 = np.maximum(ts[None, :] - t_on[:, None], 0.0)
+            cols.append(np.exp(-al * t2) * np.sin(om * t2))
+        X = np.stack(cols, axis=-1)                                       # (nb, n, p)
+        N = 2 * self.n
+        # A record with jumps (chosen over the record) has one at every reversal: the no-jump
+        # candidate would otherwise win where b and the jump cannot be told apart (no frame in
+        # the dead band), and b would take the jump in; with the jump, b spreads over the frame
+        # interval instead, and sigma_b says so.
+        outs = [] if steps else [self._rss(X)]
+        pen = [] if steps else [0.0]
+        if steps:
+            after = ts[None, :] > t_on[:, None]                           # frames after the onset
+            first = np.cumsum(after, axis=1)                              # 1 at the onset's first frame
+            for m in (1, 2):
+                # The jump from frame m on: the record's jump vector (s J, known) when given,
+                # else a free level; a rotation being a change of view, it also scales the
+                # image curve a little (a slope from frame m on, 0 at the onset).
+                st = (first >= m).astype(float)
+                if self.jump is not None:
+                    Yg = self.Y[None] - st[..., None] * (self.s * self.jump)[None, None, :]
+                    outs.append(self._rss(np.concatenate([X, (st * w)[..., None]], axis=-1), Yg))
+                else:
+                    outs.append(self._rss(np.concatenate([X, st[..., None], (st * w)[..., None]], axis=-1)))
+                pen.append(0.0)
+        rss = np.stack(outs, axis=1)                                      # (nb, J)
+        pen_steps = 2 * np.log(N) if steps else 0.0                       # 4 parameters: (4/2) log N
+        return -0.5 * N * np.log(np.maximum(rss, 1e-300)) - np.array(pen)[None, :] - pen_steps, b
+
+    def jump_px(self, d: float, b: np.ndarray) -> np.ndarray:
+        """The jump's image vector (px, (2,)) of the best jump candidate at delay d over b."""
+        lw, _ = self.logw(d, b, True, None)
+        i, m = np.unravel_index(int(np.argmax(lw)), lw.shape)
+        self._keep = (i, m + 1)
+        ts = self.tf - d
+        qk = np.interp(ts, self.te, self.qe)
+        Dk = np.interp(ts, self.te, self.D)
+        post = ts > self.t1
+        bb = b[i]
+        w = np.where(post, self.q1 - self.s * np.maximum(Dk - bb, 0.0), qk)
+        if self.b_of_q is not None:
+            bq = self.b_of_q(qk)
+            w = w + np.where(post, np.where(Dk > bb, 0.5 * self.s * (bq - self.b_of_q(np.array([self.q1 - self.s * bb]))[0]), 0.0),
+                             -0.5 * self.s * (bq - float(self.b_of_q(np.array([self.q1]))[0])))
+        w = (w - self.q1) / max(float(np.max(self.D)), 1e-9)
+        t_on = float(self.onset_scene(np.array([bb]))[0])
+        st = (np.cumsum(ts > t_on) >= m + 1).astype(float)
+        X = np.column_stack([np.ones_like(w), w, w * w, w * w * w, st, st * w])
+        coef, *_ = np.linalg.lstsq(X, self.Y, rcond=None)
+        return coef[4]
+
+    def _rss(self, X: np.ndarray, Yg: np.ndarray | None = None) -> np.ndarray:
+        """Residual sum of squares of Y (n, 2), or of each candidate's own Yg (G, n, 2), on each
+        candidate's columns X (G, n, p)."""
+        A = np.einsum("gnp,gnq->gpq", X, X)
+        A += 1e-9 * np.maximum(np.einsum("gpp->g", A), 1.0)[:, None, None] * np.eye(X.shape[2])[None]
+        if Yg is None:
+            r = np.einsum("gnp,nc->gpc", X, self.Y)
+            yy = float(np.sum(self.Y * self.Y))
+        else:
+            r = np.einsum("gnp,gnc->gpc", X, Yg)
+            yy = np.einsum("gnc,gnc->g", Yg, Yg)
+        coef = np.linalg.solve(A, r)
+        return np.maximum(yy - np.einsum("gpc,gpc->g", coef, r), 1e-12)
+
+
+def _lse(x: np.ndarray, axis=None) -> np.ndarray:
+    m = np.max(x, axis=axis, keepdims=True)
+    return np.squeeze(m, axis=axis) + np.log(np.sum(np.exp(x - m), axis=axis))
+
+
+def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=None) -> list:
+    """A _Rev per reversal (None where the old branch is not known to be engaged: the first
+    reversal, or q not moved by b_max since the previous one)."""
+    out = []
+    for r in range(rt.size):
+        if r == 0:
+            out.append(None)
+            continue
+        s = 1.0 if rq[r] > rq[r - 1] else -1.0
+        i0, i1 = np.searchsorted(t_enc, [rt[r - 1], rt[r]])
+        moved = np.nonzero(np.abs(q[i0:i1] - rq[r - 1]) > b_max)[0]
+        if moved.size == 0:
+            out.append(None)
+            continue
+        t_start = max(t_enc[i0 + moved[0]], rt[r] - PRE_S)
+        t_end = min(rt[r + 1] if r + 1 < rt.size else t_enc[-1], rt[r] + POST_S)
+        # The new branch no further from q1 than b_max plus the old branch's reach, so both
+        # branches see the same stretch of the image curve.
+        span = float(np.ptp(q[np.searchsorted(t_enc, t_start):i1 + 1]))
+        j1 = np.searchsorted(t_enc, rt[r])
+        j2 = np.searchsorted(t_enc, t_end)
+        far = np.nonzero(s * (rq[r] - q[j1:j2]) > b_max + span)[0]
+        if far.size:
+            t_end = min(t_end, t_enc[j1 + far[0]])
+        rv = _Rev(t_enc, q, rt[r], rq[r], s, t_start, t_end, t_f, obs, d_lo, d_hi, b_max, period, b_of_q)
+        out.append(rv if rv.n >= 8 and rv.b_grid.size else None)
+    return out
+
+
+def _delay_profile(revs, grid, steps, ring) -> np.ndarray:
+    """Sum over reversals of log p(frames | t_delay), marginal over b and the jump. (grid,)"""
+    L = np.zeros(grid.size)
+    for rv in revs:
+        L += np.array([_lse(rv.logw(d, rv.b_grid[::4], steps, ring)[0]) for d in grid])
+    return L
+
+
+def _choose(revs, d, ring_grid=True) -> tuple[np.ndarray | None, tuple | None, dict]:
+    """The record's jump and ringing at delay d.
+
+    Jump: each reversal's best free jump, signed by its direction (a registration or channel
+    error follows the direction of motion); the record has one when their mean is over
+    JUMP_T standard errors from 0 (a jump that comes and goes, or fits noise, averages out).
+    It is then the mean vector J, the same at every reversal up to the sign (s J), so b and the
+    jump are no longer confounded when no frame falls in the dead band. Ringing: a (Hz, 1/s)
+    from the grid when it beats none by BIC, summed over the reversals.
+    Returns (J (2,) px or None, ring or None, doc)."""
+    J = np.array([rv.s * rv.jump_px(d, rv.b_grid[::4]) for rv in revs])
+    m = J.mean(axis=0)
+    se = J.std(axis=0, ddof=1) / np.sqrt(len(J))
+    ratio = float(np.linalg.norm(m) / max(np.linalg.norm(se), 1e-12))
+    jump = m if ratio > JUMP_T else None
+    for rv in revs:
+        rv.jump = jump
+    steps = jump is not None
+
+    def score(ring):
+        return float(sum(np.max(rv.logw(d, rv.b_grid[::4], steps, ring)[0]) for rv in revs))
+    best, ring = score(None), None
+    doc = {"jump_px": None if jump is None else [float(x) for x in jump], "jump_mean_px": [float(x) for x in m],
+           "jump_se_px": [float(x) for x in se], "jump_ratio": ratio, "loglik_no_ring": best}
+    if ring_grid:
+        n_p = 4 * 2 * len(revs)  # 4 ring columns x 2 image axes per reversal
+        pen = 0.5 * n_p * np.log(np.mean([2 * rv.n for rv in revs]))
+        for hz in RING_HZ:
+            for al in RING_ALPHA:
+                sc = score((hz, al)) - pen
+                if sc > best:
+                    best, ring = sc, (float(hz), float(al))
+        doc["ring_penalty"] = float(pen)
+    return jump, ring, doc
+
+
+def _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick) -> tuple[np.ndarray, np.ndarray]:
+    """Coarse delay scan 0..d_max on a quarter-frame grid: per delay its own frame windows
+    (a window common to the whole scan would leave the short strokes no frames), the score
+    the per-observation mean of -0.5 log(RSS / N) over the reversals (jumps free, best b),
+    since the frame sets differ between delays. Returns (grid, score)."""
+    grid = np.arange(0.0, d_max + 1e-9, T / 4)
+    score = np.full(grid.size, -np.inf)
+    for i, d in enumerate(grid):
+        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, b_max, T)
+        revs = [revs[k] for k in pick if revs[k] is not None]
+        if len(revs) < 2:
+            continue
+        tot = 0.0
+        for rv in revs:
+            lw, _ = rv.logw(d, rv.b_grid[::4], True, None)
+            tot += float(np.max(lw)) / (2 * rv.n) - 0.5 * np.log(2 * rv.n)
+        score[i] = tot / len(revs)
+    return grid, score
+
+
+def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: np.ndarray, obs: np.ndarray,
+        period_s: float, b_max: float, d_max: float = 0.5) -> tuple[PlayFit, dict]:
+    """B samples and t_delay from the record (module doc). t_enc, q (N,) encoder; rt, rq (M,)
+    reversals; t_f (F,), obs (F, 2) px (NaN = lost); period_s the frame period; b_max the
+    largest play considered (actuator units); d_max the largest delay searched (s).
+
+    1. Delay scan 0..d_max (quarter frame) on up to 24 reversals spread over the record.
+    2. B samples there without jumps or ringing; a first B(q) (cubic) and b_max from them.
+    3. With that B(q): the record's jumps and ringing (BIC, summed over the 24), then the
+       delay's likelihood on a 1/16-frame grid +-1.5 frames around the scan's best.
+    4. Every reversal's B sample at the delay's posterior mean.
+    Returns (PlayFit, doc with the choices and the delay figures)."""
+    T = period_s
+    M = rt.size
+    nanv = lambda: np.full(M, np.nan)  # noqa: E731
+    revs0 = _reversals(t_enc, q, rt, rq, t_f, obs, 0.0, 0.0, b_max, T)
+    usable = [i for i, rv in enumerate(revs0) if rv is not None]
+    empty = PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), float("nan"), (float("nan"), float("nan")),
+                    float("nan"), False, (0.0, 0.0), b_max)
+    if len(usable) < 4:
+        return empty, {"usable_reversals": len(usable)}
+    pick = [usable[i] for i in np.unique(np.linspace(0, len(usable) - 1, min(len(usable), DELAY_REVERSALS))
+                                         .round().astype(int))]
+    wg, ws = _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick)
+    d0 = float(wg[int(np.argmax(ws))])
+    revs = _reversals(t_enc, q, rt, rq, t_f, obs, d0, d0, b_max, T)
+    first = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d0, (d0, d0), T, False, (0.0, 0.0), b_max),
+                    revs, d0)
+    if first.ok.sum() < 4:
+        return empty, {"usable_reversals": len(usable), "scan_s": d0}
+    b2 = min(b_max, 2.0 * float(np.percentile(first.b[first.ok], 90)))
+    bq = _b_of_q(rq, first)
+    dc = d0
+    for it in range(3):  # the jump and ringing are chosen at the current delay: again if it moved
+        grid = dc + np.arange(-1.5 * SUB, 1.5 * SUB + 1) * T / SUB
+        grid = grid[grid >= 0.0]
+        d_lo, d_hi = float(grid[0]), float(grid[-1])
+        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq)
+        sub = [revs[k] for k in pick if revs[k] is not None]
+        jump, ring, choice = _choose(sub, dc)
+        steps = jump is not None
+        for rv in revs:
+            if rv is not None:
+                rv.jump = jump
+        L = _delay_profile(sub, grid, steps, ring)
+        w = np.exp(L - L.max())
+        w /= w.sum()
+        d = float(np.sum(w * grid))
+        if abs(d - dc) < T / 4:
+            break
+        dc = float(grid[int(np.argmax(L))])
+    sd = float(np.sqrt(np.sum(w * (grid - d) ** 2) + (T / SUB) ** 2 / 12))
+    cw = np.cumsum(w)
+    lo = float(grid[min(np.searchsorted(cw, 0.025), grid.size - 1)]) - 0.5 * T / SUB
+    hi = float(grid[min(np.searchsorted(cw, 0.975), grid.size - 1)]) + 0.5 * T / SUB
+    out = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring or (0.0, 0.0), b2),
+                  revs, d)
+    out.b_of_q = bq
+    out.jump = jump
+    doc = {"usable_reversals": len(usable), "delay_reversals": len(sub), "delay_grid_step_s": T / SUB,
+           "scan_s": d0, "iterations": it + 1, "choice": choice, "b_max": b2, "steps": steps,
+           "ring": None if ring is None else {"hz": ring[0], "decay_per_s": ring[1]}}
+    return out, doc
+
+
+def _b_of_q(rq: np.ndarray, pf: PlayFit):
+    """A smooth first-pass B(q): cubic least squares of the samples against their mid q, held
+    constant beyond the sampled range. Returns a callable q -> B."""
+    ok = pf.ok
+    s = np.sign(np.r_[0.0, np.diff(rq)])
+    qm = rq[ok] - s[ok] * pf.b[ok] / 2
+    lo, hi = float(qm.min()), float(qm.max())
+    deg = 3 if ok.sum() >= 12 else 0
+    c = np.polyfit(qm, pf.b[ok], deg)
+    return lambda x: np.polyval(c, np.clip(x, lo, hi))
+
+
+def samples(pf: PlayFit, revs: list, d: float) -> PlayFit:
+    """Fill pf's per-reversal b, sigma_b, t2_s at delay d (every usable reversal)."""
+    ring = pf.ring if pf.ring[0] > 0 else None
+    for r, rv in enumerate(revs):
+        if rv is None:
+            continue
+        lw, b = rv.logw(d, rv.b_grid, pf.steps, ring)
+        m = _lse(lw, axis=1)
+        wb = np.exp(m - m.max())
+        wb /= wb.sum()
+        mean = float(np.sum(wb * b))
+        step = float(b[1] - b[0]) if b.size > 1 else 0.0
+        sd = float(np.sqrt(np.sum(wb * (b - mean) ** 2) + step * step / 12))
+        if mean >= 0.97 * b[-1]:  # the onset is not inside the window: no sample
+            continue
+        pf.b[r], pf.sigma_b[r], pf.ok[r] = mean, sd, True
+        pf.t2_s[r] = float(rv.onset_scene(np.array([mean]))[0]) + d
+    return pf
+
+
+def refit_at(pf: PlayFit, t_enc, q, rt, rq, t_f, obs, period_s: float, d: float) -> PlayFit:
+    """pf's B samples again at delay d (a configured delay that stands), with pf's choices.
+    Returns a new PlayFit (the delay figures kept)."""
+    M = rt.size
+    revs = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, pf.b_max, period_s, getattr(pf, "b_of_q", None))
+    for rv in revs:
+        if rv is not None:
+            rv.jump = getattr(pf, "jump", None)
+    out = PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool), pf.t_delay_s,
+                  pf.t_delay_ci_s, pf.t_delay_sd_s, pf.steps, pf.ring, pf.b_max)
+    return samples(out, revs, d)
