@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Fig. 7 replica that is not circular (paper V-B, issue 15): B(q) error of `playscope
+"""Fig. 7 replica that is not circular (paper V-B): B(q) error of `playscope
 calibrate` on marker records rendered by bench/marker_render.py, a renderer written apart from
 the detector, the host refinement and playscope.sim (it imports numpy only).
 
@@ -62,7 +62,7 @@ def cases(quick: bool) -> list[tuple[str, str, float, dict]]:
 
 
 def board_only(s, sc, g) -> float | None:
-    """Before issue 15, for comparison: the board's C detector alone (estimate.run_onsets with the
+    """Before the host refinement, for comparison: the board's C detector alone (estimate.run_onsets with the
     configured delay, as calibrate ran it), same B fit. % of mean true B; None when it refuses."""
     t, q = s.encoder["t_s"], s.encoder["q"]
     rt, rq, _ = E.detect_reversals(t, q, 0.01 * np.ptp(q))

@@ -1,4 +1,4 @@
-"""Independent renderer of marker records for checking the onset estimator (issue 15).
+"""Independent renderer of marker records for checking the onset estimator.
 
 Written apart from playscope: it imports numpy and the standard library only, and shares no
 code with the onset detector, playscope.onset_refine or playscope.sim (a test checks the

@@ -148,7 +148,7 @@ class Calibration:
         return self.f if self.f_play_fit is None else self.f_play_fit
 
     def predict(self, q: np.ndarray, z0: float | None = None) -> np.ndarray:
-        """Direct model c = f_remain(PI(play(q; B))) (eqs. 2, 3 and PI_MODEL), state run from
+        """Direct model c = f_remain(PI(play(q; B))) (eqs. 2, 3 and the transition model, docs/method.md), state run from
         q[0]; q (N,) actuator units -> c (N,) deg."""
         if self.transition.is_play:
             return model.direct_model(q, self.B_model, self.f, z0)
@@ -347,8 +347,8 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
       refinement's candidates; angle sessions: fitted as they are).
     model_kind: "play" (the paper's pure play), "pi" (play + transition operators) or "auto"
       (default: play or PI and the operator count by cross-validation on the session itself,
-      transition.choose_model); with a transition, f_remain is f of y (PI_MODEL step 3).
-    Thin records degrade (issue 13): 1-3 B samples give a constant B with its 95 % interval, more
+      transition.choose_model); with a transition, f_remain is f of y (the transition model, docs/method.md).
+    Thin records degrade: 1-3 B samples give a constant B with its 95 % interval, more
       a B(q) spline of min(n_ctrl, samples) control points with its stiffness by cross-validation
       (estimate.fit_backlash_auto); angle sessions take their frame rate and onset threshold from
       the record (estimate.angle_onset_settings); each fallback is a line in doc["warnings"].

@@ -235,7 +235,7 @@ def run_onsets(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.nd
 
 
 # --------------------------------------------------------------------------- onset settings from the record
-# Issue 13 item 3: the angle-sensor detector's frame rate and threshold come from the record by
+# The angle-sensor detector's frame rate and threshold come from the record by
 # these rules (docs/method.md, "Settings from the record"); nothing here was set on a file.
 FALSE_ONSETS_PER_REVERSAL = 0.01  # alpha: one false onset in a hundred reversals (the robust B fit absorbs it)
 # Frames the detector needs inside a dead band: settle_frames (1) + ONSET_NOISE_LEARN_PAIRS (8)
@@ -724,7 +724,7 @@ def choose_stiffness(q: np.ndarray, b: np.ndarray, n_ctrl: int, lo: float, hi: f
 
 def fit_backlash_auto(q_mean: np.ndarray, b: np.ndarray, n_max: int = 14, q_range: tuple[float, float] | None = None,
                       source: str | None = None, max_slope: float = 1.5, sigma: np.ndarray | None = None) -> BacklashFit:
-    """B from whatever number of onset samples the record holds (issue 13, item 1).
+    """B from whatever number of onset samples the record holds.
 
     - M = 0: InputError naming ``source`` (nothing to fit).
     - 1 <= M < 4: constant B (weighted mean) with its 95 % confidence interval
@@ -811,7 +811,7 @@ def f_remain_lsq(q_c: np.ndarray, c: np.ndarray, B, n_ctrl: int = 14, smooth: fl
     return SplineFn(spl, lo, hi, linear_ends=True), sign, z
 
 
-# f_remain's stiffness (issue 13 item 3): its number of control points, chosen by cross-validation on
+# f_remain's stiffness: its number of control points, chosen by cross-validation on
 # the calibration frames. Candidates fixed a priori: a single cubic (4) up to 2x the paper's 14.
 F_CTRL_GRID = (4, 6, 8, 10, 14, 20, 28)
 F_FRAMES_PER_CTRL = 10  # a candidate needs >= 10 training frames per coefficient in every fold

@@ -1,4 +1,4 @@
-"""Host onset refinement (issue 15) against planted onsets from bench/marker_render.py, a
+"""Host onset refinement against planted onsets from bench/marker_render.py, a
 renderer that shares no code with the detector, the refinement or playscope.sim."""
 
 import ast
@@ -72,7 +72,7 @@ def test_planted_onsets_recovered_below_a_frame(plain):
 
 def test_registration_jump_at_onset_does_not_pull_onsets_early():
     rob, err, _ = refined(seed=1, form="rot_distal", size_deg=3.0)
-    # A line through the first moving frames, jump included, comes 1-2 frames early (issue 15).
+    # A line through the first moving frames, jump included, comes 1-2 frames early.
     # Measured (seeds 0-2): mean -0.36..-0.08, mean abs 0.36-0.61 frame.
     assert abs(err.mean()) < 0.5 and np.abs(err).mean() < 1.0
     assert rob.report["steps"]["reversals_with_step"] >= 0.9 * rob.onsets.t2_s.size
@@ -137,7 +137,7 @@ def test_cli_calibrate_t_delay_from(tmp_path, capsys):
     assert main(["calibrate", str(tmp_path / "s"), "-o", str(out), "--json", str(tmp_path / "r.json")]) == 0
     err = capsys.readouterr().err
     r = json.loads((tmp_path / "r.json").read_text())
-    # One delay warning; the others are issue 13's notes (q without encoder noise, B's model).
+    # One delay warning; the others are the loading notes (q without encoder noise, B's model).
     assert len([w for w in r["warnings"] if w.startswith("t_delay")]) == 1 and r["t_delay"]["configured_s"] == 0.18
     assert err.count("playscope: warning: t_delay") == 1
     d = json.loads(out.read_text())
