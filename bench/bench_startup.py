@@ -18,15 +18,19 @@ LINES = [["--version"], ["--help"], ["calibrate", "--help"], ["flash", "--help"]
 
 def main(n: int = 10) -> None:
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1] / "host"))
-    print(f"{'command':28s} {'mean s':>8s} {'worst s':>8s}  (n = {n})")
+    print(f"| command (n = {n}) | mean s | worst s |\n|---|---|---|")
     for argv in LINES:
         ts = []
         for _ in range(n):
             t0 = time.perf_counter()
             subprocess.run([sys.executable, "-m", "playscope.cli", *argv], env=env, capture_output=True, check=True)
             ts.append(time.perf_counter() - t0)
-        print(f"{'playscope ' + ' '.join(argv):28s} {sum(ts) / n:8.3f} {max(ts):8.3f}")
+        print(f"| playscope {' '.join(argv)} | {sum(ts) / n:.3f} | {max(ts):.3f} |")
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 10)
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("n", nargs="?", type=int, default=10, help="runs per command line (default 10)")
+    main(ap.parse_args().n)

@@ -54,6 +54,8 @@ SUMMARY = (
     "USART image flash, everything",
     "USART image RAM, everything",
     "diagnosis blind self-test: top-1",
+    "diagnose a 275-s record",
+    "start-up `playscope --version`",
 )
 # Every bench's own output, kept whole for docs/results.md: (title, command, stdout).
 RAW: list[tuple[str, str, str]] = []
@@ -204,6 +206,8 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-selftest", action="store_true", help="leave out the diagnosis self-test (the slowest part)")
     ap.add_argument("--catheter", default=str(ROOT.parent / "shared/data/real/catheter"),
                     help="folder of the real catheter recordings (read in place)")
+    ap.add_argument("--swings", action="store_true",
+                    help="also run bench/swing_bench.py on both groups of fast-swing renderings (slow)")
     ap.add_argument("--no-write", action="store_true",
                     help="print the table only; leave docs/results.md and the README as they are")
     a = ap.parse_args(argv)
@@ -405,6 +409,45 @@ def main(argv=None) -> int:
                       "off the tick (on the observation that completes an onset)", "", "bench/bench_firmware.sh"))
 
     part("on-line update", online_real)
+
+    # -- a calibration used in another session or configuration (bench/transfer_real.py)
+    def transfer():
+        out = sh([PY, "bench/transfer_real.py"])
+        rows = md_rows(out.split("\n**")[0])  # the first table: the catheter, calibrated on data_2_1
+        ref = find(rows, "constant play + poly5 of the calibration record + offset refresh")
+        ours = find(rows, "transferred with transition + offset refresh")
+        table.append(("catheter calibrated on data_2_1, run on data_2_2..5: transition + offset refresh, mean (worst)",
+                      f"{ours[-2]} ({ours[-1]}) deg", "<= 0.8 x constant play with the same refresh",
+                      f"constant play of data_2_1 + offset refresh {ref[-2]} ({ref[-1]}) deg", "bench/transfer_real.py"))
+
+    part("transfer", transfer)
+
+    def startup():
+        out = sh([PY, "bench/bench_startup.py", "10"])
+        for key in ("playscope --version", "playscope --help"):
+            r = find(md_rows(out), key)
+            table.append((f"start-up `{key}`: mean / worst of 10", f"{r[0]} / {r[1]} s", "< 0.3 s", "",
+                          "bench/bench_startup.py"))
+
+    part("start-up", startup)
+
+    def diagnose_speed():
+        out = sh([PY, "bench/diagnose_speed.py", "--runs", "5"])
+        m = re.search(r"median ([\d.]+) s\s+worst ([\d.]+) s", out)
+        if not m:
+            raise RuntimeError("bench/diagnose_speed.py printed no median")
+        table.append(("diagnose a 275-s record (attribution and atlas): median / worst of 5", f"{m[1]} / {m[2]} s",
+                      "median <= 20 s", "", "bench/diagnose_speed.py"))
+
+    part("diagnosis speed", diagnose_speed)
+
+    def swings():
+        for group in ("development", "set-aside"):
+            sh([PY, "bench/swing_bench.py", "--group", group], timeout=3600)
+        # the per-rendering and per-category tables go to docs/results.md as printed
+
+    if a.swings:
+        part("fast-swing onsets", swings)
     if not a.skip_selftest:
         part("diagnosis self-test", selftest)
 
