@@ -61,6 +61,8 @@ class Member:
     f: E.SplineFn
     sign: int
     refit_f: Callable[[float], tuple] | None = None  # min_slope -> (f, sign): f again with |f'| floored
+    f_ctrl: int = 0  # f's control points (transition.fit_f), for f refitted on a relaxed output
+    relax: object = None  # relax.Relaxation on the transition's output before f (layout 4), or None
 
 
 @dataclass
@@ -102,11 +104,11 @@ def _all(ctx: Context, train) -> np.ndarray:
 def fit_onset_play(ctx: Context, train=None) -> Member:
     """Onset B(q) as measured, no operator, f: monotone least squares of c on the play centre."""
     if train is None:
-        return Member("onset_play", ctx.data.B, T.Transition.play(), ctx.play_f, ctx.play_sign)
+        return Member("onset_play", ctx.data.B, T.Transition.play(), ctx.play_f, ctx.play_sign, f_ctrl=ctx.f_n)
     z = ctx.data.ops_at_frames(np.zeros(1))[:, 0]
     f, sign = T.fit_f(z[train], ctx.data.c[train], ctx.f_n)
     return Member("onset_play", ctx.data.B, T.Transition.play(), f, sign,
-                  lambda ms: T.fit_f(z[train], ctx.data.c[train], ctx.f_n, sign=sign, min_slope=ms))
+                  lambda ms: T.fit_f(z[train], ctx.data.c[train], ctx.f_n, sign=sign, min_slope=ms), ctx.f_n)
 
 
 def fit_onset_transition(ctx: Context, train=None) -> Member:
@@ -116,8 +118,9 @@ def fit_onset_transition(ctx: Context, train=None) -> Member:
     if train is None or ctx.choice is None or tr.is_play:
         if train is not None and tr.is_play:
             m = fit_onset_play(ctx, train)
-            return Member("onset_transition", m.B, m.transition, m.f, m.sign)
-        return Member("onset_transition", ctx.data.B, tr, ctx.onset_f, ctx.onset_sign)
+            return Member("onset_transition", m.B, m.transition, m.f, m.sign, f_ctrl=m.f_ctrl)
+        nc = int(ctx.choice["n_ctrl"]) if ctx.choice and ctx.choice.get("n_ctrl") else ctx.f_n
+        return Member("onset_transition", ctx.data.B, tr, ctx.onset_f, ctx.onset_sign, f_ctrl=nc)
     ch = ctx.choice
     kb, n, span, nc = float(ch["b_scale"]), int(ch["n_tried"]), float(ch["r_span"]), int(ch["n_ctrl"])
     scaled = ch.get("thresholds") == "B-proportional"
@@ -128,7 +131,7 @@ def fit_onset_transition(ctx: Context, train=None) -> Member:
     tmap = ctx.data.threshold_map() if scaled and n > 1 else None
     y = P[train] @ w
     return Member("onset_transition", ctx.data.B, T.Transition(r[keep], w[keep] / w[keep].sum(), kb, tmap), f, sign,
-                  lambda ms: T.fit_f(y, ctx.data.c[train], nc, sign=sign, min_slope=ms))
+                  lambda ms: T.fit_f(y, ctx.data.c[train], nc, sign=sign, min_slope=ms), nc)
 
 
 def _const_B(ctx: Context, width: float) -> E.SplineFn:
@@ -218,7 +221,36 @@ def fit_pi_const(ctx: Context, train=None) -> Member:
     keep = (w > 0) | (np.arange(rz.size) == 0)
     y = P[m] @ w
     return Member("pi_const", B, T.Transition(rz[keep], w[keep] / w[keep].sum()), f, sign,
-                  lambda ms: T.fit_f(y, d.c[m], MPI_F_CTRL, sign=sign, min_slope=ms))
+                  lambda ms: T.fit_f(y, d.c[m], MPI_F_CTRL, sign=sign, min_slope=ms), MPI_F_CTRL)
+
+
+def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: str):
+    """fit(ctx, train) of base's family followed by the travel-domain relaxation (playscope.relax)
+    on its transition's output, before f: c = f(R[PI[play(q)]]). Base's B and operators are kept;
+    (kappa, lambda) and f (base's f_ctrl control points, base's sign) are fitted together on the
+    training frames by relax.fit, over the encoder record from its start up to the last
+    training frame (nothing after it is read). When the relaxation does not lower the training
+    residual (relax.fit returns kappa 0) the member is base's, without a relaxation."""
+
+    def fit(ctx: Context, train=None) -> Member:
+        from . import relax as R
+
+        m = base(ctx, train)
+        d, sel = ctx.data, _all(ctx, train)
+        t_f, c = d.t_frame[sel], d.c[sel]
+        n = min(int(np.searchsorted(d.t_enc, t_f.max(), side="right")) + 1, d.t_enc.size)
+        t_enc = d.t_enc[:n]
+        y = R.transition_output(d.q_enc[:n], m.B, m.transition)
+        nc = m.f_ctrl or ctx.f_n
+        rf = R.fit(y, t_enc, t_f, c, lambda v, cc: T.fit_f(v, cc, nc, sign=m.sign))
+        if rf.relax.is_identity:
+            return Member(name, m.B, m.transition, m.f, m.sign, m.refit_f, nc)
+        v = R.at_frames(y, t_enc, t_f, rf.relax)
+        return Member(name, m.B, m.transition, rf.f, rf.sign,
+                      lambda ms: T.fit_f(v, c, nc, sign=rf.sign, min_slope=ms), nc, rf.relax)
+
+    fit.__doc__ = f"{base.__name__} + travel-domain relaxation (with_relaxation)."
+    return fit
 
 
 @dataclass(frozen=True)
@@ -238,10 +270,21 @@ FAMILIES: list[Family] = [
     Family("const_play", "constant play + smooth monotone f", fit_const_play),
     Family("onset_transition", "onset B + PI transition + f", fit_onset_transition),
     Family("pi_const", "modified PI, strictly increasing (narrowest play as B + operators + monotone f)", fit_pi_const),
+    # With the travel-domain relaxation (2 parameters more than their base, and f refitted): after
+    # every family without it, so the rule keeps it only when it beats them all by more than one SE.
+    # const_play keeps its polynomial f (the model fitted by hand): no relaxed variant.
+    Family("onset_play_relax", "onset B + relaxation + least-squares f",
+           with_relaxation(fit_onset_play, "onset_play_relax")),
+    Family("onset_transition_relax", "onset B + PI transition + relaxation + f",
+           with_relaxation(fit_onset_transition, "onset_transition_relax")),
+    Family("pi_const_relax", "modified PI, strictly increasing + relaxation + monotone f",
+           with_relaxation(fit_pi_const, "pi_const_relax")),
 ]
 FALLBACK = "const_play"  # thin records
 # Records without any motion onset (no B measured): only the families whose play is fitted on c.
-FAMILIES_FROM_C = [f for f in FAMILIES if f.name in ("const_play", "pi_const")]
+FAMILIES_FROM_C = [f for f in FAMILIES if f.name in ("const_play", "pi_const", "pi_const_relax")]
+# Families that carry the onset-measured B (eq. 1) as their play (times the transition's b_scale).
+ONSET_FAMILIES = ("onset_play", "onset_transition", "onset_play_relax", "onset_transition_relax")
 
 
 def table_of(ctx: Context, m: Member, source=None):
@@ -254,8 +297,9 @@ def table_of(ctx: Context, m: Member, source=None):
     from .tables import TableError, build_table
 
     def build():
-        return build_table(m.B, m.f, ctx.q_range[0], ctx.q_range[1], ctx.unit, "remain",
-                           transition=m.transition, source=source)
+        # The model's play width: b_scale x the onset B for the transition (as Calibration.B_model).
+        return build_table(m.transition.play_width(m.B), m.f, ctx.q_range[0], ctx.q_range[1], ctx.unit, "remain",
+                           transition=m.transition, source=source, relax=m.relax)
 
     try:
         return build()
@@ -278,7 +322,12 @@ def table_of(ctx: Context, m: Member, source=None):
 def predict_frames(ctx: Context, tab) -> np.ndarray:
     """c (F,) deg at the frames, by the table run on the firmware's playop_step from the
     record's start over its reduced path (transition.FitData._reduced: exact for the play and
-    PI operators, which only see q's turning points)."""
+    PI operators, which only see q's turning points). A table with a relaxation runs over every
+    encoder sample, as the board at its tick rate (the relaxation's per-tick step depends on the
+    path between turning points), read at the frames by linear interpolation."""
+    d = ctx.data
+    if int(tab.cal.relax.kappa_q16) != 0:
+        return np.interp(d.t_frame, d.t_enc, tab.predict(d.q_enc))
     order, x = ctx.data._reduced()
     y = tab.predict(x)
     out = np.empty_like(y)
@@ -327,10 +376,12 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
     # other processes hold cost more than they give (as transition.fit_weights).
     with T._blas_controller().limit(limits=1, user_api="blas"):
         rows = []
+        same = {"onset_transition": "onset_play", "onset_transition_relax": "onset_play_relax"}
         for f in fams:
-            if f.name == "onset_transition" and ctx.onset_tr.is_play and rows and rows[0]["family"] == "onset_play":
-                # Its own choice found no transition: the same member as onset_play on every fold.
-                rows.append({**rows[0], "family": f.name, "label": f.label})
+            twin = next((r for r in rows if r["family"] == same.get(f.name)), None)
+            if ctx.onset_tr.is_play and twin is not None:
+                # Its own choice found no transition: the same member as its pure-play twin on every fold.
+                rows.append({**twin, "family": f.name, "label": f.label})
                 continue
             rows.append(score(ctx, f, splits, source))
     thin = reversals < MIN_REVERSALS_CHOICE
@@ -357,6 +408,7 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
         rule = (f"thin record ({reversals} reversals < {MIN_REVERSALS_CHOICE}): the model fitted by hand"
                 if thin else "rolling-origin CV RMSE through the fixed-point tables, one-standard-error rule "
                 "(fewest parameters fitted to c first)")
-        return m, {"family": name, "rule": rule, "reversals": int(reversals), "folds": T.KFOLD, "candidates": rows}
+        return m, {"family": name, "rule": rule, "reversals": int(reversals), "folds": T.KFOLD, "candidates": rows,
+                   "relax": None if m.relax is None else m.relax.to_json()}
     raise InputError(source, f"no model family gives a table the board loads (the last refusal: "
                      f"{getattr(last, 'message', last)}); check that the distal end follows the actuator")
