@@ -44,6 +44,7 @@ import numpy as np
 from . import estimate as E
 from . import transition as T
 
+RELAX_FIT_SAMPLES = 20000  # the relaxation's (kappa, lambda) search runs on at most this many path samples
 POLY_SPLINE_CTRL, POLY_GRID = 32, 400  # const_play's poly5 carried as a spline of 32 control points
 MIN_REVERSALS_CHOICE = T.KFOLD  # below (2-3 reversals): const_play (thin record, module docstring)
 MIN_TRAIN_FRAMES, MIN_TEST_FRAMES = 10, 3  # a fold with fewer is skipped (as transition's CV)
@@ -224,13 +225,36 @@ def fit_pi_const(ctx: Context, train=None) -> Member:
                   lambda ms: T.fit_f(y, d.c[m], MPI_F_CTRL, sign=sign, min_slope=ms), MPI_F_CTRL)
 
 
+def _fast_f(n_ctrl: int, sign: int):
+    """f fitted by one monotone least-squares pass (estimate.robust_spline, Huber off): the
+    relaxation's search refits f at every (kappa, lambda) it tries; the final f is the robust one."""
+    def fit(v, c):
+        lo, hi = float(v.min()), float(v.max())
+        spl, _ = E.robust_spline(v, c, n_ctrl, lo, hi, 1e-3, monotone=sign, huber_k=1e12, iters=1)
+        return E.SplineFn(spl, lo, hi, linear_ends=True), sign
+    return fit
+
+
+def search_path(y: np.ndarray, n_max: int = RELAX_FIT_SAMPLES) -> np.ndarray:
+    """Indices of y (N,) the relaxation's search runs on: every k-th sample (k = ceil(N /
+    n_max)) and every turning point of y (transition.turning_points), sorted. The per-sample
+    step then travels up to k ticks' worth; the member's f is fitted on the full path and its
+    CV runs the board's table over every tick."""
+    k = int(np.ceil(y.size / n_max))
+    if k <= 1:
+        return np.arange(y.size)
+    return np.union1d(np.r_[np.arange(0, y.size, k), y.size - 1], T.turning_points(y))
+
+
 def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: str):
     """fit(ctx, train) of base's family followed by the travel-domain relaxation (playscope.relax)
     on its transition's output, before f: c = f(R[PI[play(q)]]). Base's B and operators are kept;
-    (kappa, lambda) and f (base's f_ctrl control points, base's sign) are fitted together on the
-    training frames by relax.fit, over the encoder record from its start up to the last
-    training frame (nothing after it is read). When the relaxation does not lower the training
-    residual (relax.fit returns kappa 0) the member is base's, without a relaxation."""
+    (kappa, lambda) are searched by relax.fit on the training frames (f refitted at each point
+    by one least-squares pass, _fast_f; starts at lambda = 0.1 and 0.02 of y's range; the path
+    thinned to RELAX_FIT_SAMPLES, search_path), over the encoder record from its start up to
+    the last training frame (nothing after it is read); f (base's f_ctrl control points and
+    sign, transition.fit_f) is then fitted on the full path's relaxed output. When the
+    relaxation does not lower the training residual (kappa 0) the member is base's, without it."""
 
     def fit(ctx: Context, train=None) -> Member:
         from . import relax as R
@@ -242,12 +266,17 @@ def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: 
         t_enc = d.t_enc[:n]
         y = R.transition_output(d.q_enc[:n], m.B, m.transition)
         nc = m.f_ctrl or ctx.f_n
-        rf = R.fit(y, t_enc, t_f, c, lambda v, cc: T.fit_f(v, cc, nc, sign=m.sign))
+        k = search_path(y)
+        rf = R.fit(y[k], t_enc[k], t_f, c, lambda v, cc: T.fit_f(v, cc, nc, sign=m.sign), max_nfev=40,
+                   fit_f_search=_fast_f(nc, m.sign))
         if rf.relax.is_identity:
             return Member(name, m.B, m.transition, m.f, m.sign, m.refit_f, nc)
         v = R.at_frames(y, t_enc, t_f, rf.relax)
-        return Member(name, m.B, m.transition, rf.f, rf.sign,
-                      lambda ms: T.fit_f(v, c, nc, sign=rf.sign, min_slope=ms), nc, rf.relax)
+        f, sign = T.fit_f(v, c, nc, sign=m.sign)
+        if np.sqrt(np.mean((f(v) - c) ** 2)) >= rf.rmse_without_deg:  # on the full path it does not help
+            return Member(name, m.B, m.transition, m.f, m.sign, m.refit_f, nc)
+        return Member(name, m.B, m.transition, f, sign,
+                      lambda ms: T.fit_f(v, c, nc, sign=sign, min_slope=ms), nc, rf.relax)
 
     fit.__doc__ = f"{base.__name__} + travel-domain relaxation (with_relaxation)."
     return fit
@@ -270,21 +299,22 @@ FAMILIES: list[Family] = [
     Family("const_play", "constant play + smooth monotone f", fit_const_play),
     Family("onset_transition", "onset B + PI transition + f", fit_onset_transition),
     Family("pi_const", "modified PI, strictly increasing (narrowest play as B + operators + monotone f)", fit_pi_const),
-    # With the travel-domain relaxation (2 parameters more than their base, and f refitted): after
-    # every family without it, so the rule keeps it only when it beats them all by more than one SE.
-    # const_play keeps its polynomial f (the model fitted by hand): no relaxed variant.
+    # With the travel-domain relaxation (2 parameters more, f refitted): after every family without
+    # it, so the rule keeps it only when it beats them all by more than one SE. On the onset
+    # play and on the onset transition (the same member when the transition's own choice found
+    # none). Each costs several times its base; the same on pi_const is one more entry.
     Family("onset_play_relax", "onset B + relaxation + least-squares f",
            with_relaxation(fit_onset_play, "onset_play_relax")),
     Family("onset_transition_relax", "onset B + PI transition + relaxation + f",
            with_relaxation(fit_onset_transition, "onset_transition_relax")),
-    Family("pi_const_relax", "modified PI, strictly increasing + relaxation + monotone f",
-           with_relaxation(fit_pi_const, "pi_const_relax")),
 ]
 FALLBACK = "const_play"  # thin records
 # Records without any motion onset (no B measured): only the families whose play is fitted on c.
-FAMILIES_FROM_C = [f for f in FAMILIES if f.name in ("const_play", "pi_const", "pi_const_relax")]
+FAMILIES_FROM_C = [f for f in FAMILIES if f.name in ("const_play", "pi_const")]
 # Families that carry the onset-measured B (eq. 1) as their play (times the transition's b_scale).
 ONSET_FAMILIES = ("onset_play", "onset_transition", "onset_play_relax", "onset_transition_relax")
+TWIN = {"onset_transition": "onset_play", "onset_transition_relax": "onset_play_relax"}  # same without a transition
+RELAXED = {"onset_play_relax": "onset_play", "onset_transition_relax": "onset_transition"}  # relaxed: its base
 
 
 def table_of(ctx: Context, m: Member, source=None):
@@ -376,13 +406,29 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
     # other processes hold cost more than they give (as transition.fit_weights).
     with T._blas_controller().limit(limits=1, user_api="blas"):
         rows = []
-        same = {"onset_transition": "onset_play", "onset_transition_relax": "onset_play_relax"}
+        full = {}
         for f in fams:
-            twin = next((r for r in rows if r["family"] == same.get(f.name)), None)
+            twin = next((r for r in rows if r["family"] == TWIN.get(f.name)), None)
             if ctx.onset_tr.is_play and twin is not None:
                 # Its own choice found no transition: the same member as its pure-play twin on every fold.
                 rows.append({**twin, "family": f.name, "label": f.label})
+                if TWIN[f.name] in full:
+                    full[f.name] = full[TWIN[f.name]]
                 continue
+            if f.name in RELAXED:
+                # Fitted on every calibration frame first: when the relaxation does not lower that
+                # residual the member is its base's, whatever the folds say, so its CV is not run.
+                try:
+                    full[f.name] = f.fit(ctx, None)
+                except (InputError, OverflowError, ValueError, np.linalg.LinAlgError) as e:
+                    rows.append({"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None,
+                                 "folds": 0, "refused": str(getattr(e, "message", e))})
+                    continue
+                if full[f.name].relax is None:
+                    rows.append({"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None,
+                                 "folds": 0, "refused": None, "skipped": "the relaxation does not lower the "
+                                 f"calibration residual (kappa 0): the member is {RELAXED[f.name]}'s"})
+                    continue
             rows.append(score(ctx, f, splits, source))
     thin = reversals < MIN_REVERSALS_CHOICE
     scored = [r for r in rows if r["cv_rmse_deg"] is not None]
@@ -400,7 +446,7 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
     last = None
     for name in order:
         try:
-            m = by_name[name].fit(ctx, None)
+            m = full[name] if name in full else by_name[name].fit(ctx, None)
             table_of(ctx, m, source)
         except (InputError, OverflowError, ValueError) as e:
             last = e
