@@ -17,6 +17,11 @@ monotone f (f table, eq. 9). They differ in what B is and in whether operators a
                     fits by hand (Reilink et al.'s constant play + polynomial, with f kept
                     monotone so the board can invert it)
 
+  onset_play_relax, onset_transition_relax
+                    the onset play / onset transition with the travel-domain relaxation
+                    (playscope.relax) on the transition's output before f (with_relaxation;
+                    layout-4 tables), after every family without it in the rule's order
+
 The registry FAMILIES is the single list the choice runs; one more family is one more entry
 (a name, a label and fit(ctx, train) -> Member).
 
