@@ -73,10 +73,12 @@ class Relaxation:
         """v (N,) for input x (N,), actuator units; r0: state at rest before x[0] (default x[0])."""
         return _run(np.asarray(x, float).ravel(), self.kappa, self.lam, r0, inverse=False)
 
-    def inverse(self, v: np.ndarray, r0: float | None = None) -> np.ndarray:
+    def inverse(self, v: np.ndarray, r0: float | None = None, clip: tuple[float, float] | None = None) -> np.ndarray:
         """x (N,) with direct(x) = v (N,) exactly (in exact arithmetic); r0 as in direct (default
-        v[0], which is x[0] for a record that starts at rest)."""
-        return _run(np.asarray(v, float).ravel(), self.kappa, self.lam, r0, inverse=True)
+        v[0], which is x[0] for a record that starts at rest). clip: (lo, hi) actuator units, x
+        held there before the state update, as the board's inverse holds it to its table's input
+        range (relax_params_t x_min, x_max)."""
+        return _run(np.asarray(v, float).ravel(), self.kappa, self.lam, r0, inverse=True, clip=clip)
 
     def to_json(self) -> dict:
         return {"kappa": self.kappa, "lambda": self.lam}
@@ -86,7 +88,7 @@ class Relaxation:
         return cls(float(d["kappa"]), float(d["lambda"]))
 
 
-def _run(s: np.ndarray, kappa: float, lam: float, r0, inverse: bool) -> np.ndarray:
+def _run(s: np.ndarray, kappa: float, lam: float, r0, inverse: bool, clip=None) -> np.ndarray:
     """The recursion of the module doc over s (the input x, or with inverse=True the output v)."""
     out = np.empty(s.size)
     if s.size == 0:
@@ -100,6 +102,8 @@ def _run(s: np.ndarray, kappa: float, lam: float, r0, inverse: bool) -> np.ndarr
         if inverse:
             v = sk
             x = v + m * (v - r)
+            if clip is not None:
+                x = min(max(x, clip[0]), clip[1])
             out[k] = x
         else:
             x = sk

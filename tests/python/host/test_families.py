@@ -344,3 +344,22 @@ def test_evaluation_without_any_onset_refuses_the_onset_rows_and_scores_ours(mon
     assert "no motion onset" in r["onset_lsq"]["refused"] and "rec.txt" in r["paper"]["refused"]
     assert r["ours"]["refused"] is None and r["ours"]["rmse_deg"] < 0.1
     assert r["ours"]["rmse_deg"] <= r["const_play"]["rmse_deg"] + 1e-3
+
+
+
+def test_relaxed_calibration_through_playscope_tables(relaxed_cal, tmp_path):
+    # `playscope tables` writes the relaxed model (layout 4): the same blob as the chosen table,
+    # and its precision check holds against the double chain with the relaxation (direct model
+    # and compensator, tables.table_errors).
+    from playscope import pipeline
+    from playscope.tables import header
+
+    cal = relaxed_cal
+    cal.save(tmp_path / "cal.json")
+    w = pipeline.write_tables(tmp_path / "cal.json", tmp_path / "t.bin")
+    assert header(w.table.blob).layout_version == 4
+    assert w.table.blob == build_table(cal.B_model, cal.f, *cal.q_range, "mm", transition=cal.transition,
+                                       relax=cal.relax).blob
+    print("relaxed table errors", w.errors)
+    # measured 2.9e-4 deg and 4.3e-5 mm (the compensator compared within a tick, tables.table_errors)
+    assert w.errors["direct_c_deg_max"] < 3e-3 and w.errors["comp_q_max"] < 1e-3
