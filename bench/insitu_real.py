@@ -83,6 +83,13 @@ def ratios(doc: dict) -> tuple[float | None, str | None]:
     return rows["ours"]["rmse_deg"] / peers[best], best
 
 
+def family_cell(doc: dict) -> str:
+    """The family ours carries, with its relaxation's kappa and lambda (actuator units) if any."""
+    p = doc["rows"]["ours"]["params"]
+    rl = p.get("relax")
+    return p.get("family", "?") + ("" if not rl else f" (kappa {rl['kappa']:.2f}, lambda {rl['lambda']:.3g})")
+
+
 def table(inst: str, fr: float, docs: dict, kinds: dict) -> tuple[str, dict]:
     """One Markdown table (instrument, split) and its summary."""
     files = list(docs)
@@ -103,8 +110,7 @@ def table(inst: str, fr: float, docs: dict, kinds: dict) -> tuple[str, dict]:
     rat = {f: ratios(d) for f, d in ok.items()}
     lines.append("| ours / best peer (peer) | " + " | ".join(
         "-" if f not in rat or rat[f][0] is None else f"{rat[f][0]:.3f} ({rat[f][1]})" for f in files) + " |")
-    lines.append("| family chosen | " + " | ".join(
-        ok[f]["rows"]["ours"]["params"].get("family", "?") if f in ok else "-" for f in files) + " |")
+    lines.append("| family chosen | " + " | ".join(family_cell(ok[f]) if f in ok else "-" for f in files) + " |")
     summ = {}
     for kind in ("development", "lockbox"):
         v = [rat[f][0] for f in files if f in rat and rat[f][0] is not None and kinds[f] == kind]
@@ -160,7 +166,9 @@ def main(argv=None) -> int:
             key = f"{inst}@{fr:g}"
             out["tables"][key] = {f: ({"error": d["error"]} if "error" in d else
                                       {r: d["rows"][r]["rmse_deg"] for r in ROWS} |
-                                      {"family": d["rows"]["ours"]["params"].get("family")})
+                                      {"family": d["rows"]["ours"]["params"].get("family"),
+                                       "relax": d["rows"]["ours"]["params"].get("relax"),
+                                       "family_cv": d["rows"]["ours"]["params"].get("family_cv")})
                                   for f, d in docs.items()}
             out["summary"][key] = summ
             dv = summ.get("development")

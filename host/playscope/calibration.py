@@ -143,6 +143,17 @@ class Calibration:
         return "onset_play" if self.transition.is_play else "onset_transition"
 
     @property
+    def relax(self):
+        """The travel-domain relaxation the chosen family carries on the transition's output
+        before f (playscope.relax.Relaxation, layout-4 table), or None."""
+        d = (self.family_choice or {}).get("relax")
+        if not d:
+            return None
+        from .relax import Relaxation
+
+        return Relaxation.from_json(d)
+
+    @property
     def f_play(self) -> E.SplineFn:
         """f_remain of the pure-play model (eqs. 2, 3, 9: f on z), kept beside the transition's."""
         return self.f if self.f_play_fit is None else self.f_play_fit
@@ -150,6 +161,9 @@ class Calibration:
     def predict(self, q: np.ndarray, z0: float | None = None) -> np.ndarray:
         """Direct model c = f_remain(PI(play(q; B))) (eqs. 2, 3 and the transition model, docs/method.md), state run from
         q[0]; q (N,) actuator units -> c (N,) deg."""
+        rl = self.relax
+        if rl is not None:  # c = f(R[PI(play(q))]) (playscope.relax)
+            return self.f(rl.direct(self.transition.direct(model.play_operator(np.asarray(q, float), self.B_model, z0))))
         if self.transition.is_play:
             return model.direct_model(q, self.B_model, self.f, z0)
         return T.direct_chain(q, self.B_model, self.transition, self.f, z0)
@@ -537,13 +551,13 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         member, fam_choice = FAM.choose(ctx, int(rt.size), FAM.FAMILIES_FROM_C if no_onset else None, source=src)
         if fam_choice["rule"].startswith("thin"):
             warnings.append(f"model {member.family}: {fam_choice['rule']}")
-        if member.family != ("onset_play" if tr.is_play else "onset_transition"):
+        if member.family != ("onset_play" if tr.is_play else "onset_transition") or member.relax is not None:
             if tr.is_play:  # the pure play's f stays beside the product's (f_remain_play: the onset_lsq row)
                 f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method, "slope_floor": floor_play}
             tr, f, sign, floor = member.transition, member.f, member.sign, None
             f_method = {"onset_play": "lsq", "const_play": "lsq+const_play", "pi_const": "lsq+pi_const"}.get(
                 member.family, "lsq+" + member.family)
-            if member.family not in ("onset_play", "onset_transition"):
+            if member.family not in FAM.ONSET_FAMILIES:
                 B_product = member.B
     for name, fl in (("f_remain" if tr.is_play else "the pure play's f_remain", floor_play),
                      ("f of the transition model", None if tr.is_play else floor)):

@@ -132,7 +132,7 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
 
             q0, q1 = cal.q_range
             table = build_table(cal.B_model, cal.f, q0, q1, cal.actuator_unit, "remain",
-                                transition=cal.transition)
+                                transition=cal.transition, relax=cal.relax)
             table_src = "built from the calibration"
         except Exception as e:  # no compiler / C core: float rows only
             table, table_src = None, None
@@ -143,7 +143,7 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
     # Direct models over the whole encoder log, then read at acquisition times (eqs. 2-3).
     z = model.play_operator(q, cal.B)
     c_enc = {"f_coarse": fc(q), "f_coarse+B": fc(z), "f_remain+B": cal.f_play(z)}
-    if not cal.transition.is_play:
+    if not cal.transition.is_play or cal.relax is not None:
         c_enc["f_remain+B+PI"] = cal.predict(q)
     fixed = None if table is None else ("f_remain+B+PI_fixed" if table.n_ops else "f_remain+B_fixed")
     if table is not None:
@@ -187,9 +187,12 @@ def evaluate(cal: Calibration, s: Session, table=None, plant=None, plant_note: s
     comp_q = {"f_coarse_inv": fc_inv(c_ref),
               "f_coarse+B": model.compensator(c_ref, cal.B, fc_inv, fc_sign),
               "f_remain+B": model.compensator(c_ref, cal.B, f_inv, cal.f_play_sign or cal.f_sign)}
-    if not cal.transition.is_play:
-        comp_q["f_remain+B+PI"] = T.compensate_chain(c_ref, cal.B_model, cal.transition, inverse_of(cal.f, q0, q1),
-                                                     cal.f_sign)
+    if not cal.transition.is_play or cal.relax is not None:
+        f_inv_pi = inverse_of(cal.f, q0, q1)
+        if cal.relax is not None:  # R^-1 on f^-1(c*), before the PI inverse (relax.py)
+            f_inv_y, rl = f_inv_pi, cal.relax
+            f_inv_pi = lambda c: rl.inverse(f_inv_y(c))  # noqa: E731
+        comp_q["f_remain+B+PI"] = T.compensate_chain(c_ref, cal.B_model, cal.transition, f_inv_pi, cal.f_sign)
     if table is not None:
         comp_q[fixed] = table.compensate(c_ref)
     comp_c: dict = {}

@@ -17,6 +17,11 @@ monotone f (f table, eq. 9). They differ in what B is and in whether operators a
                     fits by hand (Reilink et al.'s constant play + polynomial, with f kept
                     monotone so the board can invert it)
 
+  onset_play_relax, onset_transition_relax
+                    the onset play / onset transition with the travel-domain relaxation
+                    (playscope.relax) on the transition's output before f (with_relaxation;
+                    layout-4 tables), after every family without it in the rule's order
+
 The registry FAMILIES is the single list the choice runs; one more family is one more entry
 (a name, a label and fit(ctx, train) -> Member).
 
@@ -44,6 +49,7 @@ import numpy as np
 from . import estimate as E
 from . import transition as T
 
+RELAX_FIT_SAMPLES = 20000  # the relaxation's (kappa, lambda) search runs on at most this many path samples
 POLY_SPLINE_CTRL, POLY_GRID = 32, 400  # const_play's poly5 carried as a spline of 32 control points
 MIN_REVERSALS_CHOICE = T.KFOLD  # below (2-3 reversals): const_play (thin record, module docstring)
 MIN_TRAIN_FRAMES, MIN_TEST_FRAMES = 10, 3  # a fold with fewer is skipped (as transition's CV)
@@ -61,6 +67,8 @@ class Member:
     f: E.SplineFn
     sign: int
     refit_f: Callable[[float], tuple] | None = None  # min_slope -> (f, sign): f again with |f'| floored
+    f_ctrl: int = 0  # f's control points (transition.fit_f), for f refitted on a relaxed output
+    relax: object = None  # relax.Relaxation on the transition's output before f (layout 4), or None
 
 
 @dataclass
@@ -102,11 +110,11 @@ def _all(ctx: Context, train) -> np.ndarray:
 def fit_onset_play(ctx: Context, train=None) -> Member:
     """Onset B(q) as measured, no operator, f: monotone least squares of c on the play centre."""
     if train is None:
-        return Member("onset_play", ctx.data.B, T.Transition.play(), ctx.play_f, ctx.play_sign)
+        return Member("onset_play", ctx.data.B, T.Transition.play(), ctx.play_f, ctx.play_sign, f_ctrl=ctx.f_n)
     z = ctx.data.ops_at_frames(np.zeros(1))[:, 0]
     f, sign = T.fit_f(z[train], ctx.data.c[train], ctx.f_n)
     return Member("onset_play", ctx.data.B, T.Transition.play(), f, sign,
-                  lambda ms: T.fit_f(z[train], ctx.data.c[train], ctx.f_n, sign=sign, min_slope=ms))
+                  lambda ms: T.fit_f(z[train], ctx.data.c[train], ctx.f_n, sign=sign, min_slope=ms), ctx.f_n)
 
 
 def fit_onset_transition(ctx: Context, train=None) -> Member:
@@ -116,8 +124,9 @@ def fit_onset_transition(ctx: Context, train=None) -> Member:
     if train is None or ctx.choice is None or tr.is_play:
         if train is not None and tr.is_play:
             m = fit_onset_play(ctx, train)
-            return Member("onset_transition", m.B, m.transition, m.f, m.sign)
-        return Member("onset_transition", ctx.data.B, tr, ctx.onset_f, ctx.onset_sign)
+            return Member("onset_transition", m.B, m.transition, m.f, m.sign, f_ctrl=m.f_ctrl)
+        nc = int(ctx.choice["n_ctrl"]) if ctx.choice and ctx.choice.get("n_ctrl") else ctx.f_n
+        return Member("onset_transition", ctx.data.B, tr, ctx.onset_f, ctx.onset_sign, f_ctrl=nc)
     ch = ctx.choice
     kb, n, span, nc = float(ch["b_scale"]), int(ch["n_tried"]), float(ch["r_span"]), int(ch["n_ctrl"])
     scaled = ch.get("thresholds") == "B-proportional"
@@ -128,7 +137,7 @@ def fit_onset_transition(ctx: Context, train=None) -> Member:
     tmap = ctx.data.threshold_map() if scaled and n > 1 else None
     y = P[train] @ w
     return Member("onset_transition", ctx.data.B, T.Transition(r[keep], w[keep] / w[keep].sum(), kb, tmap), f, sign,
-                  lambda ms: T.fit_f(y, ctx.data.c[train], nc, sign=sign, min_slope=ms))
+                  lambda ms: T.fit_f(y, ctx.data.c[train], nc, sign=sign, min_slope=ms), nc)
 
 
 def _const_B(ctx: Context, width: float) -> E.SplineFn:
@@ -218,7 +227,64 @@ def fit_pi_const(ctx: Context, train=None) -> Member:
     keep = (w > 0) | (np.arange(rz.size) == 0)
     y = P[m] @ w
     return Member("pi_const", B, T.Transition(rz[keep], w[keep] / w[keep].sum()), f, sign,
-                  lambda ms: T.fit_f(y, d.c[m], MPI_F_CTRL, sign=sign, min_slope=ms))
+                  lambda ms: T.fit_f(y, d.c[m], MPI_F_CTRL, sign=sign, min_slope=ms), MPI_F_CTRL)
+
+
+def _fast_f(n_ctrl: int, sign: int):
+    """f fitted by one monotone least-squares pass (estimate.robust_spline, Huber off): the
+    relaxation's search refits f at every (kappa, lambda) it tries; the final f is the robust one."""
+    def fit(v, c):
+        lo, hi = float(v.min()), float(v.max())
+        spl, _ = E.robust_spline(v, c, n_ctrl, lo, hi, 1e-3, monotone=sign, huber_k=1e12, iters=1)
+        return E.SplineFn(spl, lo, hi, linear_ends=True), sign
+    return fit
+
+
+def search_path(y: np.ndarray, n_max: int = RELAX_FIT_SAMPLES) -> np.ndarray:
+    """Indices of y (N,) the relaxation's search runs on: every k-th sample (k = ceil(N /
+    n_max)) and every turning point of y (transition.turning_points), sorted. The per-sample
+    step then travels up to k ticks' worth; the member's f is fitted on the full path and its
+    CV runs the board's table over every tick."""
+    k = int(np.ceil(y.size / n_max))
+    if k <= 1:
+        return np.arange(y.size)
+    return np.union1d(np.r_[np.arange(0, y.size, k), y.size - 1], T.turning_points(y))
+
+
+def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: str):
+    """fit(ctx, train) of base's family followed by the travel-domain relaxation (playscope.relax)
+    on its transition's output, before f: c = f(R[PI[play(q)]]). Base's B and operators are kept;
+    (kappa, lambda) are searched by relax.fit on the training frames (f refitted at each point
+    by one least-squares pass, _fast_f; starts at lambda = 0.1 and 0.02 of y's range; the path
+    thinned to RELAX_FIT_SAMPLES, search_path), over the encoder record from its start up to
+    the last training frame (nothing after it is read); f (base's f_ctrl control points and
+    sign, transition.fit_f) is then fitted on the full path's relaxed output. When the
+    relaxation does not lower the training residual (kappa 0) the member is base's, without it."""
+
+    def fit(ctx: Context, train=None) -> Member:
+        from . import relax as R
+
+        m = base(ctx, train)
+        d, sel = ctx.data, _all(ctx, train)
+        t_f, c = d.t_frame[sel], d.c[sel]
+        n = min(int(np.searchsorted(d.t_enc, t_f.max(), side="right")) + 1, d.t_enc.size)
+        t_enc = d.t_enc[:n]
+        y = R.transition_output(d.q_enc[:n], m.B, m.transition)
+        nc = m.f_ctrl or ctx.f_n
+        k = search_path(y)
+        rf = R.fit(y[k], t_enc[k], t_f, c, lambda v, cc: T.fit_f(v, cc, nc, sign=m.sign), max_nfev=40,
+                   fit_f_search=_fast_f(nc, m.sign))
+        if rf.relax.is_identity:
+            return Member(name, m.B, m.transition, m.f, m.sign, m.refit_f, nc)
+        v = R.at_frames(y, t_enc, t_f, rf.relax)
+        f, sign = T.fit_f(v, c, nc, sign=m.sign)
+        if np.sqrt(np.mean((f(v) - c) ** 2)) >= rf.rmse_without_deg:  # on the full path it does not help
+            return Member(name, m.B, m.transition, m.f, m.sign, m.refit_f, nc)
+        return Member(name, m.B, m.transition, f, sign,
+                      lambda ms: T.fit_f(v, c, nc, sign=sign, min_slope=ms), nc, rf.relax)
+
+    fit.__doc__ = f"{base.__name__} + travel-domain relaxation (with_relaxation)."
+    return fit
 
 
 @dataclass(frozen=True)
@@ -238,10 +304,22 @@ FAMILIES: list[Family] = [
     Family("const_play", "constant play + smooth monotone f", fit_const_play),
     Family("onset_transition", "onset B + PI transition + f", fit_onset_transition),
     Family("pi_const", "modified PI, strictly increasing (narrowest play as B + operators + monotone f)", fit_pi_const),
+    # With the travel-domain relaxation (2 parameters more, f refitted): after every family without
+    # it, so the rule keeps it only when it beats them all by more than one SE. On the onset
+    # play and on the onset transition (the same member when the transition's own choice found
+    # none). Each costs several times its base; the same on pi_const is one more entry.
+    Family("onset_play_relax", "onset B + relaxation + least-squares f",
+           with_relaxation(fit_onset_play, "onset_play_relax")),
+    Family("onset_transition_relax", "onset B + PI transition + relaxation + f",
+           with_relaxation(fit_onset_transition, "onset_transition_relax")),
 ]
 FALLBACK = "const_play"  # thin records
 # Records without any motion onset (no B measured): only the families whose play is fitted on c.
 FAMILIES_FROM_C = [f for f in FAMILIES if f.name in ("const_play", "pi_const")]
+# Families that carry the onset-measured B (eq. 1) as their play (times the transition's b_scale).
+ONSET_FAMILIES = ("onset_play", "onset_transition", "onset_play_relax", "onset_transition_relax")
+TWIN = {"onset_transition": "onset_play", "onset_transition_relax": "onset_play_relax"}  # same without a transition
+RELAXED = {"onset_play_relax": "onset_play", "onset_transition_relax": "onset_transition"}  # relaxed: its base
 
 
 def table_of(ctx: Context, m: Member, source=None):
@@ -253,8 +331,9 @@ def table_of(ctx: Context, m: Member, source=None):
     from .tables import F_SLOPE_FLOORS, TableError, build_table
 
     def build():
-        return build_table(m.B, m.f, ctx.q_range[0], ctx.q_range[1], ctx.unit, "remain",
-                           transition=m.transition, source=source)
+        # The model's play width: b_scale x the onset B for the transition (as Calibration.B_model).
+        return build_table(m.transition.play_width(m.B), m.f, ctx.q_range[0], ctx.q_range[1], ctx.unit, "remain",
+                           transition=m.transition, source=source, relax=m.relax)
 
     try:
         return build()
@@ -277,7 +356,12 @@ def table_of(ctx: Context, m: Member, source=None):
 def predict_frames(ctx: Context, tab) -> np.ndarray:
     """c (F,) deg at the frames, by the table run on the firmware's playop_step from the
     record's start over its reduced path (transition.FitData._reduced: exact for the play and
-    PI operators, which only see q's turning points)."""
+    PI operators, which only see q's turning points). A table with a relaxation runs over every
+    encoder sample, as the board at its tick rate (the relaxation's per-tick step depends on the
+    path between turning points), read at the frames by linear interpolation."""
+    d = ctx.data
+    if int(tab.cal.relax.kappa_q16) != 0:
+        return np.interp(d.t_frame, d.t_enc, tab.predict(d.q_enc))
     order, x = ctx.data._reduced()
     y = tab.predict(x)
     out = np.empty_like(y)
@@ -326,11 +410,29 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
     # other processes hold cost more than they give (as transition.fit_weights).
     with T._blas_controller().limit(limits=1, user_api="blas"):
         rows = []
+        full = {}
         for f in fams:
-            if f.name == "onset_transition" and ctx.onset_tr.is_play and rows and rows[0]["family"] == "onset_play":
-                # Its own choice found no transition: the same member as onset_play on every fold.
-                rows.append({**rows[0], "family": f.name, "label": f.label})
+            twin = next((r for r in rows if r["family"] == TWIN.get(f.name)), None)
+            if ctx.onset_tr.is_play and twin is not None:
+                # Its own choice found no transition: the same member as its pure-play twin on every fold.
+                rows.append({**twin, "family": f.name, "label": f.label})
+                if TWIN[f.name] in full:
+                    full[f.name] = full[TWIN[f.name]]
                 continue
+            if f.name in RELAXED:
+                # Fitted on every calibration frame first: when the relaxation does not lower that
+                # residual the member is its base's, whatever the folds say, so its CV is not run.
+                try:
+                    full[f.name] = f.fit(ctx, None)
+                except (InputError, OverflowError, ValueError, np.linalg.LinAlgError) as e:
+                    rows.append({"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None,
+                                 "folds": 0, "refused": str(getattr(e, "message", e))})
+                    continue
+                if full[f.name].relax is None:
+                    rows.append({"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None,
+                                 "folds": 0, "refused": None, "skipped": "the relaxation does not lower the "
+                                 f"calibration residual (kappa 0): the member is {RELAXED[f.name]}'s"})
+                    continue
             rows.append(score(ctx, f, splits, source))
     thin = reversals < MIN_REVERSALS_CHOICE
     scored = [r for r in rows if r["cv_rmse_deg"] is not None]
@@ -348,7 +450,7 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
     last = None
     for name in order:
         try:
-            m = by_name[name].fit(ctx, None)
+            m = full[name] if name in full else by_name[name].fit(ctx, None)
             table_of(ctx, m, source)
         except (InputError, OverflowError, ValueError) as e:
             last = e
@@ -356,6 +458,7 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
         rule = (f"thin record ({reversals} reversals < {MIN_REVERSALS_CHOICE}): the model fitted by hand"
                 if thin else "rolling-origin CV RMSE through the fixed-point tables, one-standard-error rule "
                 "(fewest parameters fitted to c first)")
-        return m, {"family": name, "rule": rule, "reversals": int(reversals), "folds": T.KFOLD, "candidates": rows}
+        return m, {"family": name, "rule": rule, "reversals": int(reversals), "folds": T.KFOLD, "candidates": rows,
+                   "relax": None if m.relax is None else m.relax.to_json()}
     raise InputError(source, f"no model family gives a table the board loads (the last refusal: "
                      f"{getattr(last, 'message', last)}); check that the distal end follows the actuator")

@@ -110,7 +110,7 @@ def calibration_frames(cal_s: Session, cal) -> tuple[np.ndarray, np.ndarray]:
     return E.characteristic(t_enc, q, t_f, c_f, td)
 
 
-def _table_row(name, B, f, cal, params, transition=None, source=None) -> Row:
+def _table_row(name, B, f, cal, params, transition=None, source=None, relax=None) -> Row:
     """A row the board runs: its table (tables.build_table) through playop_step; a table the
     loader refuses gives a refused row (the reason, naming source) instead of an error, so the
     other rows are still scored."""
@@ -118,7 +118,8 @@ def _table_row(name, B, f, cal, params, transition=None, source=None) -> Row:
 
     q0, q1 = cal.q_range
     try:
-        tab = build_table(B, f, q0, q1, cal.actuator_unit, "remain", transition=transition, source=source)
+        tab = build_table(B, f, q0, q1, cal.actuator_unit, "remain", transition=transition, source=source,
+                          relax=relax)
     except TableError as e:
         return Row(name, True, None, params, refused=str(e))
     except OverflowError as e:  # beyond the Q16.16 range
@@ -142,7 +143,9 @@ def fit_ours(cal_s: Session, cal, q_c: np.ndarray, c_c: np.ndarray, source: str 
               "family": cal.family,
               "family_cv": [{k: d.get(k) for k in ("family", "cv_rmse_deg", "refused")}
                             for d in (cal.family_choice or {}).get("candidates", [])]}
-    return _table_row("ours", cal.B_model, cal.f, cal, params, transition=tr, source=source)
+    rl = cal.relax
+    params["relax"] = None if rl is None else rl.to_json()
+    return _table_row("ours", cal.B_model, cal.f, cal, params, transition=tr, source=source, relax=rl)
 
 
 def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: str | None = None) -> dict[str, Row]:

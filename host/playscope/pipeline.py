@@ -186,6 +186,7 @@ def write_tables(cal_path, out, entries: int | None = None, generation: int = 1,
     f = cal.f_coarse if f_coarse else cal.f
     tr = None if f_coarse else cal.transition
     B = cal.B if f_coarse else cal.B_model
+    rl = None if f_coarse else cal.relax  # the chosen family's travel-domain relaxation (layout 4)
     lib = core()[1]
     n_max = int(lib.PST_MAX_ENTRIES)
     tries = [entries] if entries else [n_max]
@@ -196,8 +197,8 @@ def write_tables(cal_path, out, entries: int | None = None, generation: int = 1,
         try:
             check_physical(B, f, q_min, q_max, source=cal_path)
             tab = build_table(B, f, q_min, q_max, cal.actuator_unit, "coarse" if f_coarse else "remain",
-                              generation, n, source=cal_path, transition=tr)
-            err = table_errors(tab, B, f, q_min, q_max, tr)
+                              generation, n, source=cal_path, transition=tr, relax=rl)
+            err = table_errors(tab, B, f, q_min, q_max, tr, rl)
             check_precision(tab, err, f, q_min, q_max, source=cal_path)
         except TableError as e:
             precision = e.status == lib.CALIB_ERR_PRECISION or "precision ceiling" in e.message

@@ -73,10 +73,12 @@ class Relaxation:
         """v (N,) for input x (N,), actuator units; r0: state at rest before x[0] (default x[0])."""
         return _run(np.asarray(x, float).ravel(), self.kappa, self.lam, r0, inverse=False)
 
-    def inverse(self, v: np.ndarray, r0: float | None = None) -> np.ndarray:
+    def inverse(self, v: np.ndarray, r0: float | None = None, clip: tuple[float, float] | None = None) -> np.ndarray:
         """x (N,) with direct(x) = v (N,) exactly (in exact arithmetic); r0 as in direct (default
-        v[0], which is x[0] for a record that starts at rest)."""
-        return _run(np.asarray(v, float).ravel(), self.kappa, self.lam, r0, inverse=True)
+        v[0], which is x[0] for a record that starts at rest). clip: (lo, hi) actuator units, x
+        held there before the state update, as the board's inverse holds it to its table's input
+        range (relax_params_t x_min, x_max)."""
+        return _run(np.asarray(v, float).ravel(), self.kappa, self.lam, r0, inverse=True, clip=clip)
 
     def to_json(self) -> dict:
         return {"kappa": self.kappa, "lambda": self.lam}
@@ -86,7 +88,7 @@ class Relaxation:
         return cls(float(d["kappa"]), float(d["lambda"]))
 
 
-def _run(s: np.ndarray, kappa: float, lam: float, r0, inverse: bool) -> np.ndarray:
+def _run(s: np.ndarray, kappa: float, lam: float, r0, inverse: bool, clip=None) -> np.ndarray:
     """The recursion of the module doc over s (the input x, or with inverse=True the output v)."""
     out = np.empty(s.size)
     if s.size == 0:
@@ -100,6 +102,8 @@ def _run(s: np.ndarray, kappa: float, lam: float, r0, inverse: bool) -> np.ndarr
         if inverse:
             v = sk
             x = v + m * (v - r)
+            if clip is not None:
+                x = min(max(x, clip[0]), clip[1])
             out[k] = x
         else:
             x = sk
@@ -139,7 +143,7 @@ def at_frames(y_enc: np.ndarray, t_enc: np.ndarray, t_frame: np.ndarray, rl: Rel
 
 
 def fit(y_enc: np.ndarray, t_enc: np.ndarray, t_frame: np.ndarray, c: np.ndarray, fit_f, x0=(0.3, 0.1),
-        max_nfev: int = 60) -> RelaxFit:
+        max_nfev: int = 60, fit_f_search=None, starts=(None, 0.02)) -> RelaxFit:
     """(kappa, lambda) by scipy.optimize.least_squares, given the rest of the model.
 
     y_enc (N,): the transition's output (actuator units) at the encoder times t_enc (N,) s, run
@@ -149,7 +153,10 @@ def fit(y_enc: np.ndarray, t_enc: np.ndarray, t_frame: np.ndarray, c: np.ndarray
     evaluation: kappa moves the output's scale, which f absorbs). x0: (kappa, lambda as a
     fraction of y's range). Parameters: kappa in [0, KAPPA_MAX], log lambda within
     [LAMBDA_MIN_FRAC, LAMBDA_MAX_FRAC] x y's range. Returns RelaxFit (rmse_without_deg: the
-    same f fit with kappa = 0, whose f is f_without). Errors: ValueError when y has no range."""
+    same f fit with kappa = 0, whose f is f_without). fit_f_search: a cheaper f fit of the same
+    signature used while (kappa, lambda) are searched (f is then fitted once more by fit_f at
+    the best point); starts: the lambda starts as fractions of y's range (None: x0's).
+    Errors: ValueError when y has no range."""
     y_enc, t_enc = np.asarray(y_enc, float), np.asarray(t_enc, float)
     t_frame, c = np.asarray(t_frame, float), np.asarray(c, float)
     span = float(np.ptp(y_enc))
@@ -167,18 +174,22 @@ def fit(y_enc: np.ndarray, t_enc: np.ndarray, t_frame: np.ndarray, c: np.ndarray
         if key not in cache:
             rl = Relaxation(min(max(p[0], 0.0), KAPPA_MAX), float(np.exp(p[1])))
             v = at_frames(y_enc, t_enc, t_frame, rl)
-            f, sg = fit_f(v, c)
+            f, sg = (fit_f_search or fit_f)(v, c)
             cache[key] = (f(v) - c, f, sg, rl)
         return cache[key][0]
 
     best = None
     # Two starts in lambda (short and long creep): the residual is not convex in log lambda.
-    for lam_frac in (x0[1], 0.02):
+    for lam_frac in (x0[1] if st is None else st for st in starts):
         p0 = np.clip([x0[0], np.log(lam_frac * span)], lo + 1e-9, hi - 1e-9)
         res = least_squares(resid, p0, bounds=(lo, hi), x_scale=[0.1, 0.5], diff_step=1e-3, max_nfev=max_nfev)
         if best is None or res.cost < best.cost:
             best = res
     e, f, sg, rl = cache[(round(best.x[0], 12), round(best.x[1], 12))]
+    if fit_f_search is not None:
+        v = at_frames(y_enc, t_enc, t_frame, rl)
+        f, sg = fit_f(v, c)
+        e = f(v) - c
     rm = float(np.sqrt(np.mean(e ** 2)))
     if rm >= base:  # never worse than the model without it (kappa = 0 is in the family)
         return RelaxFit(Relaxation(0.0, rl.lam), f0, s0, base, base, len(cache), f0, s0)

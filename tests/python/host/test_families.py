@@ -18,6 +18,7 @@ from playscope import families as FAM
 from playscope import insitu
 from playscope import transition as T
 from playscope.calibration import Calibration, calibrate
+from playscope.model import play_operator
 from playscope.session import Robot, Session
 from playscope.tables import CalibTable, TableError, build_table
 
@@ -79,6 +80,30 @@ def pi_record():
     return session_of(q, 10.0 * y)
 
 
+def relax_loop(x, kappa, lam):
+    """The travel-domain relaxation written from its equations (docs/method.md): output
+    v = x + kappa (r - x), then r moves towards x by min(|v - v_prev| / lam, 1 - kappa) of the
+    gap; r and v_prev start at x[0]."""
+    out, r, vp = [], x[0], None
+    for xk in x:
+        v = xk + kappa * (r - xk)
+        vp = v if vp is None else vp
+        r += min(abs(v - vp) / lam, 1.0 - kappa) * (xk - r)
+        vp = v
+        out.append(v)
+    return np.array(out)
+
+
+KAPPA, LAM = 0.4, 0.6  # planted relaxation: 40 % of the output creeps over 0.6 mm of travel
+
+
+def relaxed_record():
+    """The play record's play (0.8 mm) and f, with a relaxation on the play centre before f."""
+    q = strokes(TOPS, LOWS)
+    v = relax_loop(play_loop(q, 0.4), KAPPA, LAM)
+    return session_of(q, 9.0 * v + 3.0 * np.tanh(0.6 * v))
+
+
 def spy_context(monkeypatch):
     """Calls to families.choose record their Context (what calibrate built)."""
     seen = {}
@@ -123,6 +148,58 @@ def test_calibration_round_trip_writes_the_same_table(tmp_path):
     assert a == b
 
 
+# --------------------------------------------------------------------------- the relaxation as a family
+@pytest.fixture(scope="module")
+def relaxed_cal():
+    return calibrate(relaxed_record(), model_kind="auto")
+
+
+def test_choice_takes_the_relaxation_on_a_record_that_has_one(relaxed_cal):
+    cal = relaxed_cal
+    cvs = {d["family"]: d["cv_rmse_deg"] for d in cal.family_choice["candidates"]}
+    print(cal.family, cal.relax, cvs)
+    assert cal.family.endswith("_relax") and cal.relax is not None, cvs
+    # Every family without it is worse on the same folds by more than the chosen one's SE.
+    plain = min(v for k, v in cvs.items() if not k.endswith("_relax") and v is not None)
+    assert plain > cvs[cal.family] + next(d["cv_se_deg"] for d in cal.family_choice["candidates"]
+                                          if d["family"] == cal.family)
+    # The planted (kappa, lambda), fitted on every calibration frame (measured 0.374, 0.613 mm).
+    assert cal.relax.kappa == pytest.approx(KAPPA, abs=0.08) and cal.relax.lam == pytest.approx(LAM, rel=0.25)
+    assert cal.doc["model_family"]["choice"]["relax"] == cal.relax.to_json()
+
+
+@pytest.mark.parametrize("record", [play_record, pi_record])
+def test_choice_leaves_the_relaxation_out_on_records_without_one(record):
+    cal = calibrate(record(), model_kind="auto")
+    assert not cal.family.endswith("_relax") and cal.relax is None
+    assert cal.family_choice["relax"] is None
+
+
+def test_chosen_relaxed_table_is_layout_4_bit_exact_and_follows_the_double_chain(relaxed_cal, tmp_path):
+    from playscope.tables import header
+
+    cal = relaxed_cal
+    tab = build_table(cal.B_model, cal.f, *cal.q_range, "mm", transition=cal.transition, relax=cal.relax)
+    assert header(tab.blob).layout_version == 4
+    q = relaxed_record().encoder["q"]
+    c_tab = tab.predict(q)
+    np.testing.assert_array_equal(CalibTable(tab.blob).predict(q), c_tab)
+    # Against the double chain c = f(R[PI(play(q))]) (Calibration.predict): grids and Q16 rounding.
+    err = float(np.max(np.abs(c_tab - cal.predict(q))))
+    print("relaxed table: fixed vs float max", err)
+    assert err < 0.02
+    # The calibration file carries it: loaded back, the same v4 table byte for byte.
+    cal.save(tmp_path / "cal.json")
+    back = Calibration.load(tmp_path / "cal.json")
+    assert back.relax == cal.relax
+    assert build_table(back.B_model, back.f, *back.q_range, "mm", transition=back.transition,
+                       relax=back.relax).blob == tab.blob
+    # The board's row of evaluate-insitu runs the same table.
+    row = insitu.fit_ours(None, cal, None, None)
+    assert row.params["relax"] == cal.relax.to_json() and row.params["table_bytes"] == len(tab.blob)
+    np.testing.assert_array_equal(row.predict(q), c_tab)
+
+
 # --------------------------------------------------------------------------- every family's table
 @pytest.fixture(scope="module")
 def pi_context():
@@ -146,9 +223,11 @@ def test_each_family_table_loads_bit_exact_and_follows_its_float_model(pi_contex
     y = np.linspace(m.f.lo, m.f.hi, 2001)
     assert np.all(m.sign * np.diff(m.f(y)) > 0)
     assert m.transition.w[0] > 0 and np.all(m.transition.w >= 0)
-    # Fixed point against the double-precision chain c = f(PI(play(q; B))): the tables' grids and
-    # Q16 rounding only (measured <= 6.6e-4 deg on this record, all four families).
-    c_float = T.direct_chain(q, m.B, m.transition, m.f)
+    # Fixed point against the double-precision chain c = f(R[PI(play(q; B))]) (R: the relaxation,
+    # identity without one): the tables' grids and Q16 rounding only (measured <= 6.6e-4 deg on
+    # this record, the four families without a relaxation).
+    y = m.transition.direct(play_operator(q, m.transition.play_width(m.B)))
+    c_float = m.f(y if m.relax is None else relax_loop(y, m.relax.kappa, m.relax.lam))
     err = float(np.max(np.abs(c_tab - c_float)))
     print(fam.name, "fixed vs float max", err)
     assert err < 3e-3
@@ -265,3 +344,22 @@ def test_evaluation_without_any_onset_refuses_the_onset_rows_and_scores_ours(mon
     assert "no motion onset" in r["onset_lsq"]["refused"] and "rec.txt" in r["paper"]["refused"]
     assert r["ours"]["refused"] is None and r["ours"]["rmse_deg"] < 0.1
     assert r["ours"]["rmse_deg"] <= r["const_play"]["rmse_deg"] + 1e-3
+
+
+
+def test_relaxed_calibration_through_playscope_tables(relaxed_cal, tmp_path):
+    # `playscope tables` writes the relaxed model (layout 4): the same blob as the chosen table,
+    # and its precision check holds against the double chain with the relaxation (direct model
+    # and compensator, tables.table_errors).
+    from playscope import pipeline
+    from playscope.tables import header
+
+    cal = relaxed_cal
+    cal.save(tmp_path / "cal.json")
+    w = pipeline.write_tables(tmp_path / "cal.json", tmp_path / "t.bin")
+    assert header(w.table.blob).layout_version == 4
+    assert w.table.blob == build_table(cal.B_model, cal.f, *cal.q_range, "mm", transition=cal.transition,
+                                       relax=cal.relax).blob
+    print("relaxed table errors", w.errors)
+    # measured 2.9e-4 deg and 4.3e-5 mm (the compensator compared within a tick, tables.table_errors)
+    assert w.errors["direct_c_deg_max"] < 3e-3 and w.errors["comp_q_max"] < 1e-3
