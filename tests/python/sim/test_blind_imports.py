@@ -91,11 +91,15 @@ def test_generator_imports_no_diagnosis_or_effect_forms():
     assert len(GENERATOR) >= 3
     mods = _closure(GENERATOR)
     forbidden = ("playscope.diagnose", "playscope.model", "playscope.sim.core", "playscope.sim.effects",
-                 "playscope.estimate", "playscope.calibration", "playscope.native")
+                 "playscope.estimate", "playscope.calibration")
     bad = sorted(m for m in mods if m.startswith(forbidden))
     assert not bad, f"the withheld-effect generator imports fitted forms: {bad}"
     # What it may use: the session container and the excitation trajectory (no model form).
+    # playscope.native and playscope.inputfile come in through the session container's loader
+    # (the Q format's |q| limit, regular-file checks): never called while a record is generated,
+    # which test_generators_never_run_the_native_core checks at run time.
     assert mods <= {"playscope", "playscope.session", "playscope.atomic", "playscope.errors", "playscope.sim",
+                    "playscope.native", "playscope.inputfile",
                     "playscope.sim.withheld", "playscope.sim.withheld.plant",
                     "playscope.sim.withheld.variants", "playscope.sim.withheld.oracle",
                     "playscope.sim.withheld.recover"}, mods
@@ -129,6 +133,27 @@ def test_second_generator_shares_no_code_with_the_first_or_the_fitter():
     assert "sim/withheld_b/generator.py" in SECOND
     mods = _closure(SECOND)
     assert mods <= {"playscope", "playscope.session", "playscope.atomic", "playscope.errors", "playscope.sim",
+                    "playscope.native", "playscope.inputfile",  # the session loader's, see above
                     "playscope.sim.withheld_b", "playscope.sim.withheld_b.generator"}, mods
     common = (_defined(SECOND) & (_defined(FORMS) | _defined(GENERATOR))) - {"__all__"}
     assert not common, f"defined in the second generator and elsewhere: {sorted(common)}"
+
+
+def test_generators_never_run_the_native_core(monkeypatch):
+    """The firmware's C (play operator, tables) reaches the generators' import closure only
+    through the session loader: generating a record of either generator never runs it."""
+    import playscope.native as native
+
+    def refuse(*a, **k):
+        raise AssertionError("a generator ran the native core (the fitted forms' code)")
+
+    monkeypatch.setattr(native, "core", refuse)
+    monkeypatch.setattr(native, "_cached", None, raising=False)
+    from playscope.diagnose.selftest import cases as cases_a
+    from playscope.diagnose.selftest import make_session
+    from playscope.sim.withheld_b.generator import cases as cases_b
+    from playscope.sim.withheld_b.generator import session as session_b
+
+    s_a = make_session(cases_a(nulls=1)[0], 20.0)
+    s_b = session_b(cases_b(0, nulls=1)[0], 20.0)
+    assert s_a.encoder["q"].size > 100 and s_b.encoder["q"].size > 100
