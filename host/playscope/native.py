@@ -18,6 +18,7 @@ Usage:  from playscope.native import core;  ffi, lib = core()
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import os
@@ -174,6 +175,7 @@ def core():
         return _cached
 
 
+@functools.lru_cache(maxsize=None)  # fixed for the process: one compiled core per run
 def constant(c_name: str) -> int:
     """The integer constant `c_name` of the C headers (an enum value or a VALUE_ONLY macro),
     e.g. constant("PST_MAX_ENTRIES") -> 256. Errors: AttributeError for an unknown name."""
