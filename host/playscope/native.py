@@ -13,6 +13,10 @@ Host and board must agree bit for bit, so the host runs the same C sources:
   build/desktop after an incremental ``cmake --build --target``, or built in a private build
   folder in the cache when the checkout has no build yet.
 
+- Constants (CONSTANTS): ``native.Q16_ONE``, ``native.MAX_OPS``, ``native.USB_VID``, ... and
+  ``constant("PST_...")``, read from the compiled C on first access; the only place the host
+  names them (tests/python/host/test_constants_from_c.py fails on a literal copy elsewhere).
+
 Usage:  from playscope.native import core;  ffi, lib = core()
 """
 
