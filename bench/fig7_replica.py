@@ -96,7 +96,7 @@ def run_case(kw: dict, seed: int) -> dict:
     tab = build_table(cal.B, cal.f, q0, q1, "mm")
     h = core()[0].sizeof("pst_header_t")
     n = (len(tab.blob) - h) // 8  # [header][n B entries][n f entries], int32 Q16.16
-    tab_min = float(np.frombuffer(tab.blob[h:h + 4 * n], np.int32).min()) / 65536.0
+    tab_min = float(np.frombuffer(tab.blob[h:h + 4 * n], np.int32).min()) / core()[1].PS_Q16_ONE
     ring = cal.onset_refine["ringing"]
     return {"board_pct": board_only(s, sc, g), "err_deg": float(np.degrees(err_mm / sc.q_per_rad)),
             "err_pct": 100 * err_mm / float(np.mean(true)),

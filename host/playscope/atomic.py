@@ -106,6 +106,13 @@ def _check_folder_replaceable(folder: Path) -> None:
                              "it: write the output to a new folder")
 
 
+def _table_magic() -> int:
+    # The table's magic number as the C defines it (PST_MAGIC, the bytes "PSTB").
+    from .native import constant
+
+    return constant("PST_MAGIC")
+
+
 def sniff_kind(path: str | os.PathLike) -> str:
     """What a file holds, from its first bytes: "folder", "table" (PSTB magic), "flash image"
     (FLASH_IMAGE_BYTES long), "json", "html", "text" (UTF-8 without NUL), else "binary"."""
@@ -118,7 +125,7 @@ def sniff_kind(path: str | os.PathLike) -> str:
             head = fh.read(4096)
     except OSError:
         return "unreadable"
-    if head[:4] == b"PSTB":
+    if len(head) >= 4 and int.from_bytes(head[:4], "little") == _table_magic():
         return "table"
     if size == FLASH_IMAGE_BYTES:
         return "flash image"

@@ -14,6 +14,7 @@ from scipy.optimize import lsq_linear
 
 from . import model
 from .errors import InputError
+from . import native
 from .native import core, enum_names, from_q16, to_q16
 
 
@@ -102,6 +103,11 @@ def frames_from_angle(t: np.ndarray, c: np.ndarray, fps: float) -> tuple[np.ndar
 
 
 # --------------------------------------------------------------------------- onsets (C)
+# onset_config_t.jump_ratio_q8 is Q8 (onset.h), the one field not in Q16.16; the C names no
+# constant for its scale.
+JUMP_RATIO_SCALE = 1 << 8
+
+
 @dataclass
 class OnsetConfig:
     """Host view of onset_config_t (firmware/core/onset.h); units s, and px or deg per frame.
@@ -132,10 +138,10 @@ class OnsetConfig:
             "threshold_q16": (self.threshold, lambda x: int(to_q16(x))),
             "threshold_floor_q16": (self.threshold_floor, lambda x: int(to_q16(x))),
             "threshold_max_q16": (self.threshold_max, lambda x: int(to_q16(x))),
-            "noise_k2_q16": (self.noise_k, lambda x: int(round(x * x * 65536))),
+            "noise_k2_q16": (self.noise_k, lambda x: int(round(x * x * lib.PS_Q16_ONE))),
             "settle_frames": (self.settle_frames, int),
             "max_lost_frames": (self.max_lost_frames, int),
-            "jump_ratio_q8": (self.jump_ratio, lambda x: int(round(x * 256))),
+            "jump_ratio_q8": (self.jump_ratio, lambda x: int(round(x * JUMP_RATIO_SCALE))),
             "timeout_us": (self.timeout_s, lambda x: int(round(x * 1e6))),
         }
         for name, (val, fn) in conv.items():
@@ -151,11 +157,11 @@ class OnsetConfig:
         for f, _ in ffi.typeof("onset_config_t").fields:
             v = getattr(c, f)
             if f.endswith("_q16") and f != "noise_k2_q16":
-                out[f[:-4]] = v / 65536.0
+                out[f[:-4]] = v / lib.PS_Q16_ONE
             elif f.endswith("_us"):
                 out[f[:-3] + "_s"] = v / 1e6
             elif f == "noise_k2_q16":
-                out["noise_k"] = float(np.sqrt(v / 65536.0))
+                out["noise_k"] = float(np.sqrt(v / lib.PS_Q16_ONE))
             else:
                 out[f] = int(v)
         return out
@@ -332,7 +338,7 @@ def angle_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
     tf0, cf0 = frames_from_angle(t_s, c_deg, fps0)
     T0 = k0 * diff2_noise(cf0)
     doc["bootstrap_threshold_deg"] = T0
-    boot = {"threshold": max(T0, 2.0 / 65536.0)} if np.isfinite(T0) else {"noise_k": k0}
+    boot = {"threshold": max(T0, 2.0 / native.Q16_ONE)} if np.isfinite(T0) else {"noise_k": k0}
     on0 = run_onsets(t_enc, q, rev_t, rev_q, tf0, np.column_stack([cf0, np.zeros_like(cf0)]), "angle",
                      OnsetConfig(t_delay_s=t_delay_s, fps=fps0, jump_ratio=0.0, **boot))
     doc["bootstrap_onsets"] = int(on0.b.size)
@@ -359,7 +365,7 @@ def angle_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
     if not np.isfinite(sig):
         doc["rule"] = "automatic T (no noise estimate)"
         return fps, {"jump_ratio": 0.0, "noise_k": k}, doc
-    T = max(k * sig, 2.0 / 65536.0)  # a fixed threshold of 0 would mean "automatic" to the C detector
+    T = max(k * sig, 2.0 / native.Q16_ONE)  # a fixed threshold of 0 would mean "automatic" to the C detector
     doc["threshold_deg"] = T
     return fps, {"jump_ratio": 0.0, "threshold": T}, doc
 
@@ -414,7 +420,7 @@ def image_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
     if not np.isfinite(s0) or s0 <= 0:
         doc["rule"] = "C defaults (no noise estimate)"
         return {}, doc
-    T0 = max(k * s0, 2.0 / 65536.0)
+    T0 = max(k * s0, 2.0 / native.Q16_ONE)
     doc["bootstrap_threshold_px"] = T0
     on0 = run_onsets(t_enc, q, rev_t, rev_q, t_f, obs, "image", OnsetConfig(t_delay_s=t_delay_s, fps=fps, threshold=T0))
     doc["bootstrap_onsets"] = int(on0.b.size)
@@ -434,7 +440,7 @@ def image_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
     else:
         sig = s0
         doc["rule"] = "T = k x diff2_noise (2-D; too few still frame pairs)"
-    T = max(k * sig, 2.0 / 65536.0)
+    T = max(k * sig, 2.0 / native.Q16_ONE)
     doc["threshold_px"] = T
     return {"threshold": T}, doc
 

@@ -13,11 +13,16 @@ Host and board must agree bit for bit, so the host runs the same C sources:
   build/desktop after an incremental ``cmake --build --target``, or built in a private build
   folder in the cache when the checkout has no build yet.
 
+- Constants (CONSTANTS): ``native.Q16_ONE``, ``native.MAX_OPS``, ``native.USB_VID``, ... and
+  ``constant("PST_...")``, read from the compiled C on first access; the only place the host
+  names them (tests/python/host/test_constants_from_c.py fails on a literal copy elsewhere).
+
 Usage:  from playscope.native import core;  ffi, lib = core()
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import os
@@ -35,6 +40,28 @@ COMMON = REPO / "common"
 CORE = REPO / "firmware" / "core"
 CDEF_HEADERS = [COMMON / n for n in ("ps_fixed.h", "ps_table.h", "ps_proto.h", "ps_frame.h")] + [
     CORE / f"{n}.h" for n in ("lut", "calib", "playop", "comp", "enc_hist", "onset", "exc", "table_write", "b_online")]
+# The USB ids live with the USB device core (firmware/link/usb); only these names are taken from it
+# (its functions belong to the board, not to the host's module). A name cdef'd as "#define NAME ..."
+# gets its value from the C compiler, never from Python.
+USB = REPO / "firmware" / "link" / "usb"
+USB_HEADER = USB / "psu_device.h"
+VALUE_ONLY = {"PSU_VID": USB_HEADER, "PSU_PID": USB_HEADER, "PSU_EP_OUT": USB_HEADER, "PSU_EP_IN": USB_HEADER,
+              "CALIB_DERIVED_MAX": CORE / "calib.h"}
+# Constants the host reads from the C, by their Python name: ``native.Q16_ONE`` etc. (attribute
+# access compiles the core on first use; importing this module does not).
+CONSTANTS = {
+    "Q16_ONE": "PS_Q16_ONE",              # Q16.16 scale: value = raw / Q16_ONE
+    "FRAC_BITS": "PS_FRAC_BITS",
+    "MAX_OPS": "PST_MAX_OPS",             # play operators of the transition
+    "MAX_ENTRIES": "PST_MAX_ENTRIES",     # entries per grid the loader accepts
+    "MIN_ENTRIES": "PST_MIN_ENTRIES",
+    "MAX_TABLE_SIZE": "PST_MAX_TABLE_SIZE",
+    "CALIB_DERIVED_MAX": "CALIB_DERIVED_MAX",  # entries of each table the loader derives (f^-1, z)
+    "USB_VID": "PSU_VID",                 # the board's USB vendor and product id
+    "USB_PID": "PSU_PID",
+    "USB_EP_OUT": "PSU_EP_OUT",           # bulk endpoints: host -> board frames, board -> host
+    "USB_EP_IN": "PSU_EP_IN",
+}
 # Headers whose structs are runtime state, not wire or table layout: cdef'd unpacked.
 UNPACKED_COMMON = {"ps_frame.h"}
 MODULE = "_playscope_native"
@@ -60,7 +87,7 @@ def _sources() -> list[Path]:
 
 def _fingerprint() -> str:
     h = hashlib.sha256(sys.version.encode())
-    for p in _sources() + sorted(CORE.glob("*.h")) + sorted(COMMON.glob("*.h")):
+    for p in _sources() + sorted(CORE.glob("*.h")) + sorted(COMMON.glob("*.h")) + sorted(USB.glob("*.h")):
         h.update(p.name.encode())
         h.update(p.read_bytes())
     h.update(Path(__file__).read_bytes())
@@ -108,9 +135,11 @@ def _build(target_dir: Path) -> None:
     ffi.cdef(packed, packed=True)
     ffi.cdef(plain)
     ffi.cdef("uint32_t ps_crc32_update(uint32_t crc, const void *buf, size_t len);")
-    includes = "".join(f'#include "{h.name}"\n' for h in CDEF_HEADERS) + '#include "ps_crc32.h"\n'
+    ffi.cdef("".join(f"#define {n} ...\n" for n in VALUE_ONLY))
+    extra = sorted({h.name for h in VALUE_ONLY.values()} - {h.name for h in CDEF_HEADERS})
+    includes = "".join(f'#include "{h}"\n' for h in [h.name for h in CDEF_HEADERS] + extra) + '#include "ps_crc32.h"\n'
     ffi.set_source(MODULE, includes, sources=[str(p) for p in _sources()],
-                   include_dirs=[str(COMMON), str(CORE)],
+                   include_dirs=[str(COMMON), str(CORE), str(USB)],
                    extra_compile_args=["-std=c11", "-O2", "-Wno-address-of-packed-member"])
     target_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target_dir) as tmp:
@@ -148,6 +177,21 @@ def core():
             raise NativeBuildError(f"{CORE}: firmware sources not found (set PLAYSCOPE_SRC)")
         _cached = _load(cache_root() / f"native-{_fingerprint()}")
         return _cached
+
+
+@functools.lru_cache(maxsize=None)  # fixed for the process: one compiled core per run
+def constant(c_name: str) -> int:
+    """The integer constant `c_name` of the C headers (an enum value or a VALUE_ONLY macro),
+    e.g. constant("PST_MAX_ENTRIES") -> 256. Errors: AttributeError for an unknown name."""
+    return int(getattr(core()[1], c_name))
+
+
+def __getattr__(name: str) -> int:
+    # Module attributes read from the C on first access (PEP 562), so `import playscope.native`
+    # stays cheap and the CLI's --help never compiles the core.
+    if name in CONSTANTS:
+        return constant(CONSTANTS[name])
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def enum_names(ctype: str, prefix: str, lower: bool = True) -> dict[int, str]:
@@ -226,7 +270,7 @@ def to_q16(x) -> "np.ndarray":
     an out-of-range fixed-point value)."""
     import numpy as np
 
-    a = np.asarray(x, float) * 65536.0
+    a = np.asarray(x, float) * float(constant("PS_Q16_ONE"))
     r = np.sign(a) * np.floor(np.abs(a) + 0.5)
     if np.any(~np.isfinite(r)) or np.any(np.abs(r) > 2**31 - 1):
         bad = np.asarray(x, float).ravel()[np.argmax((~np.isfinite(r) | (np.abs(r) > 2**31 - 1)).ravel())]
@@ -238,4 +282,4 @@ def from_q16(raw) -> "np.ndarray":
     """Raw Q16.16 int32 -> float64 value."""
     import numpy as np
 
-    return np.asarray(raw, np.int64).astype(float) / 65536.0
+    return np.asarray(raw, np.int64).astype(float) / float(constant("PS_Q16_ONE"))

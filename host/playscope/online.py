@@ -62,7 +62,7 @@ def onset_config_from(cal) -> E.OnsetConfig:
     return E.OnsetConfig(t_delay_s=c["t_delay_s"], fps=1.0 / c["frame_period_s"], threshold=c["threshold"],
                          threshold_floor=c["threshold_floor"], threshold_max=c["threshold_max"],
                          noise_k=c["noise_k"], settle_frames=c["settle_frames"],
-                         max_lost_frames=c["max_lost_frames"], jump_ratio=c["jump_ratio_q8"] / 256.0,
+                         max_lost_frames=c["max_lost_frames"], jump_ratio=c["jump_ratio_q8"] / E.JUMP_RATIO_SCALE,
                          timeout_s=c["timeout_s"])
 
 

@@ -46,7 +46,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-KAPPA_MAX = 0.9            # 1/(1 - kappa) <= 10: the inverse's gain on the output's rounding
+KAPPA_MAX = 0.9            # 1/(1 - kappa) <= 10: the inverse's gain on the output's rounding; 0.9 rounds
+                           # to PST_RELAX_KAPPA_MAX_Q16, the loader's bound
 LAMBDA_MIN_FRAC = 1e-3     # lambda >= 1e-3 x the travel range: below, a step (the plain play) is as good
 LAMBDA_MAX_FRAC = 2.0      # lambda <= 2 x the travel range: beyond, r barely moves over the record
 
@@ -197,8 +198,6 @@ def fit(y_enc: np.ndarray, t_enc: np.ndarray, t_frame: np.ndarray, c: np.ndarray
 
 
 # --------------------------------------------------------------------------- table fields
-Q16 = 65536
-
 
 def table_fields(rl: Relaxation | None) -> tuple[int, int]:
     """(kappa_q16, lambda_q16) for pst_relax_t (common/ps_table.h, layout 4): kappa in
@@ -206,8 +205,10 @@ def table_fields(rl: Relaxation | None) -> tuple[int, int]:
     Errors: ValueError when lambda does not fit Q16.16."""
     if rl is None or rl.is_identity:
         return 0, 0
-    k = int(round(rl.kappa * Q16))
-    lam = int(round(rl.lam * Q16))
+    from . import native
+
+    k = int(round(rl.kappa * native.Q16_ONE))
+    lam = int(round(rl.lam * native.Q16_ONE))
     if not 1 <= lam < 2 ** 31:
         raise ValueError(f"relaxation lambda {rl.lam} does not fit the table's Q16.16")
     return k, lam
@@ -217,7 +218,9 @@ def from_table_fields(kappa_q16: int, lambda_q16: int) -> Relaxation | None:
     """The double model of a table's stored fields (what the board runs, before its rounding)."""
     if kappa_q16 == 0:
         return None
-    return Relaxation(kappa_q16 / Q16, lambda_q16 / Q16)
+    from . import native
+
+    return Relaxation(kappa_q16 / native.Q16_ONE, lambda_q16 / native.Q16_ONE)
 
 
 # --------------------------------------------------------------------------- on a calibration

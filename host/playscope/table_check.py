@@ -60,11 +60,11 @@ def check_blob(blob: bytes, source=None):
     if hd.total_size > lib.PST_MAX_TABLE_SIZE:
         raise TableFileError(source, "total_size", f"{hd.total_size} bytes, above PST_MAX_TABLE_SIZE "
                              f"{lib.PST_MAX_TABLE_SIZE}")
-    if hd.q_frac_bits != 16 or hd.c_frac_bits != 16:  # PS_FRAC_BITS: the only Q format (ps_fixed.h)
+    if hd.q_frac_bits != lib.PS_FRAC_BITS or hd.c_frac_bits != lib.PS_FRAC_BITS:  # the only Q format (ps_fixed.h)
         raise TableFileError(source, "q_frac_bits/c_frac_bits", f"Q{hd.q_frac_bits}/Q{hd.c_frac_bits}, expected Q16")
     if hd.q_min_q16 >= hd.q_max_q16:
-        raise TableFileError(source, "q_min/q_max", f"empty actuator range [{hd.q_min_q16 / 65536:g}, "
-                             f"{hd.q_max_q16 / 65536:g}]")
+        raise TableFileError(source, "q_min/q_max", f"empty actuator range [{hd.q_min_q16 / lib.PS_Q16_ONE:g}, "
+                             f"{hd.q_max_q16 / lib.PS_Q16_ONE:g}]")
     for name, g in (("b", hd.b), ("f", hd.f)):
         if not lib.PST_MIN_ENTRIES <= g.n <= lib.PST_MAX_ENTRIES or g.step_q16 <= 0 \
                 or g.step_q16 & (g.step_q16 - 1) or g.offset < hsize or g.offset % 4 \
@@ -88,9 +88,11 @@ def check_blob(blob: bytes, source=None):
     lo = max(hd.b.x0_q16, hd.f.x0_q16)
     hi = min(_grid_end(hd.b), _grid_end(hd.f))
     if hd.q_min_q16 < lo:
-        raise TableFileError(source, "q_min", f"{hd.q_min_q16 / 65536:g} lies below the grids' start {lo / 65536:g}")
+        raise TableFileError(source, "q_min", f"{hd.q_min_q16 / lib.PS_Q16_ONE:g} lies below the grids' start "
+                             f"{lo / lib.PS_Q16_ONE:g}")
     if hd.q_max_q16 > hi:
-        raise TableFileError(source, "q_max", f"{hd.q_max_q16 / 65536:g} lies beyond the grids' end {hi / 65536:g}")
+        raise TableFileError(source, "q_max", f"{hd.q_max_q16 / lib.PS_Q16_ONE:g} lies beyond the grids' end "
+                             f"{hi / lib.PS_Q16_ONE:g}")
     crc = lib.calib_table_crc(blob, hd.total_size)
     if crc != hd.crc32:
         raise TableFileError(source, "crc32", f"stored {hd.crc32:#010x}, the bytes give {crc:#010x} "

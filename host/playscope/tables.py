@@ -22,6 +22,7 @@ import numpy as np
 
 from . import model
 from .errors import InputError
+from . import native
 from .native import core, from_q16, to_q16
 
 # f's slope floors tried, in order, when a table of the fitted f is refused for precision
@@ -232,11 +233,6 @@ def build_table(B, f, q_min: float, q_max: float, unit: str, f_kind: str = "rema
     return CalibTable(blob, source)
 
 
-# Entries of each table the loader derives (firmware/core/calib.h CALIB_DERIVED_MAX, a macro the
-# cdef does not carry): f^-1 is built on at most this many.
-CALIB_DERIVED_MAX = 512
-
-
 def f_inverse_error(B, f, q_min: float, q_max: float, n_max: int | None = None) -> dict:
     """The loader's own figures for a pure-play table's f^-1, computed by the firmware's
     lut_inverse_error() on the f grid build_table() writes (no transition, no map): {"f_inv_err"
@@ -255,10 +251,10 @@ def f_inverse_error(B, f, q_min: float, q_max: float, n_max: int | None = None) 
     if lib.lut_init(lut, buf, int(n), int(x0), int(step)) != 0:
         raise TableError(None, "f's grid is not a valid table")
     err = ffi.new("int32_t *")
-    if lib.lut_inverse_error(lut, CALIB_DERIVED_MAX, err) != 0:
+    if lib.lut_inverse_error(lut, lib.CALIB_DERIVED_MAX, err) != 0:
         raise TableError(None, "f is not strictly monotone on the table's grid")
     ceiling = int(lib.calib_precision_ceiling_q16(int(min(b_raw.max(), 2**31 - 1))))
-    return {"f_inv_err": float(err[0]) / 65536, "ceiling": ceiling / 65536, "ratio": float(err[0]) / ceiling,
+    return {"f_inv_err": float(err[0]) / lib.PS_Q16_ONE, "ceiling": ceiling / lib.PS_Q16_ONE, "ratio": float(err[0]) / ceiling,
             "entries": int(n)}
 
 
@@ -278,7 +274,7 @@ def check_physical(B, f, q_min: float, q_max: float, source=None, n: int = 2001)
     it may not turn back by more than one LSB. build_table() itself floors B and forces f
     monotone by one LSB, so without this check such a calibration would load and run with an
     error of tens of degrees. Errors: TableError naming the rule and where it breaks."""
-    lsb = 1.0 / 65536
+    lsb = 1.0 / native.Q16_ONE
     q = np.linspace(q_min, q_max, n)
     b = np.asarray(B(q), float)
     c = np.asarray(f(q), float)
@@ -303,7 +299,7 @@ def _weights_q16_sum_one(w: np.ndarray) -> np.ndarray:
     """Weights rounded to Q16.16 with the rounding remainder put on w_0, so that the raw sum
     is exactly 1.0 (the loader allows 2^-8; exact keeps y on the centre line)."""
     raw = to_q16(w).astype(np.int64)
-    raw[0] += 65536 - int(raw.sum())
+    raw[0] += native.Q16_ONE - int(raw.sum())
     return from_q16(raw)
 
 
@@ -333,7 +329,7 @@ def table_errors(tab: CalibTable, B, f, q_min: float, q_max: float, transition=N
     f_inv = T.f_inverse(f, q_min - span, q_max + span)
     if relax is not None and not relax.is_identity:
         f_inv0 = f_inv
-        rx = (float(tab.cal.relax.x_min_q16) / 65536, float(tab.cal.relax.x_max_q16) / 65536)  # the board's clamp
+        rx = (float(tab.cal.relax.x_min_q16) / native.Q16_ONE, float(tab.cal.relax.x_max_q16) / native.Q16_ONE)  # the board's clamp
         f_inv = lambda c: relax.inverse(f_inv0(c), clip=rx)  # noqa: E731
     if tr.is_play and tr.tmap is None and (relax is None or relax.is_identity):
         q_flt = model.compensator(c_ref, B, f_inv, sign)
@@ -348,7 +344,8 @@ def table_errors(tab: CalibTable, B, f, q_min: float, q_max: float, transition=N
         dq[1:-1] = np.minimum(dq[1:-1], np.minimum(np.abs(q_fix[1:-1] - q_flt[:-2]), np.abs(q_fix[1:-1] - q_flt[2:])))
     return {"direct_c_deg_max": float(np.max(np.abs(c_fix - c_flt))),
             "comp_q_max": float(np.max(dq[1:])),
-            "f_inv_err": float(tab.cal.f_inv_err_q16) / 65536, "z_err": float(tab.cal.z_err_q16) / 65536}
+            "f_inv_err": float(tab.cal.f_inv_err_q16) / native.Q16_ONE,
+            "z_err": float(tab.cal.z_err_q16) / native.Q16_ONE}
 
 
 def check_precision(tab: CalibTable, errors: dict, f, q_min: float, q_max: float, source=None) -> None:
@@ -360,7 +357,7 @@ def check_precision(tab: CalibTable, errors: dict, f, q_min: float, q_max: float
     the derived tables to the same figure; this check adds what only the host can see, the
     sampling of the float model on the grids. errors: table_errors()'s dict. Errors:
     TableError naming the figure and what to do."""
-    ceiling = float(tab.cal.precision_ceiling_q16) / 65536
+    ceiling = float(tab.cal.precision_ceiling_q16) / native.Q16_ONE
     qq = np.linspace(q_min, q_max, 2001)
     slope = float(np.max(np.abs(np.diff(np.asarray(f(qq), float)) / np.diff(qq))))
     checks = [("|q*_fixed - q*_float|", errors["comp_q_max"], ceiling, ""),
@@ -384,12 +381,15 @@ def test_vector(tab: CalibTable, n: int = 200) -> list[int]:
             for k in range(n)]
 
 
-def builtin_table(n: int = 256, q0: float = -4.0, step_log2: int = 11, generation: int = 1) -> bytes:
-    """A valid table of n entries per grid (B bump, cubic f_remain), no transition: for tests,
-    benches and a first flash before any calibration. Laid out by table_write()."""
+def builtin_table(n: int | None = None, q0: float = -4.0, step_log2: int = 11, generation: int = 1) -> bytes:
+    """A valid table of n entries per grid (default PST_MAX_ENTRIES; B bump, cubic f_remain),
+    no transition: for tests, benches and a first flash before any calibration. Laid out by
+    table_write()."""
+    one = native.Q16_ONE
+    n = native.MAX_ENTRIES if n is None else n
     step = 2 ** step_log2
-    x0 = int(q0 * 65536)
-    qs = [(x0 + i * step) / 65536 for i in range(n)]
-    b = [int(round((0.4 + 0.3 * math.exp(-q * q / 2)) * 65536)) for q in qs]
-    f = [int(round((10 * q + 0.3 * q ** 3) * 65536)) for q in qs]
-    return write_blob(x0, step, b, f, q0, (x0 + (n - 1) * step) / 65536, "mm", "remain", generation)
+    x0 = int(q0 * one)
+    qs = [(x0 + i * step) / one for i in range(n)]
+    b = [int(round((0.4 + 0.3 * math.exp(-q * q / 2)) * one)) for q in qs]
+    f = [int(round((10 * q + 0.3 * q ** 3) * one)) for q in qs]
+    return write_blob(x0, step, b, f, q0, (x0 + (n - 1) * step) / one, "mm", "remain", generation)

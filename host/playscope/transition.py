@@ -27,7 +27,7 @@ Settings, all from the calibration data by rules fixed a priori (choose_model, d
               transition starts with a slow creep the measured B already includes part of it;
               the operators can only widen the play, so a narrower anchor lets them model the
               creep (1 for the paper's play);
-  thresholds  N_OPS = 16 operators, r_i = r_span (i / 16)^2, r_span = E, E the largest
+  thresholds  N_OPS = PST_MAX_OPS operators, r_i = r_span (i / N_OPS)^2, r_span = E, E the largest
               excursion of the play centre z between reversals in the calibration record: an
               operator of threshold r closes a loop only on a stroke longer than 2 r, so the
               ones above E/2 move only on the record's first loading (the virgin curve, which
@@ -58,8 +58,8 @@ from threadpoolctl import ThreadpoolController
 
 from . import estimate as E
 from . import model
+from . import native
 
-N_OPS = 16                             # operators of the PI candidates (PST_MAX_OPS = 16)
 B_SCALES = (1.0, 0.5)                  # play width candidates, x onset-measured B
 SPAN_EXCURSION = 1.0                   # r_span = the largest excursion of z between reversals
 F_CTRL = (4, 14)                       # f's control points: 4 = one cubic, 14 = f_remain's spline
@@ -87,6 +87,14 @@ def play_ops(x: np.ndarray, r: np.ndarray, p0: np.ndarray | float | None = None)
         np.minimum(hi[k], np.maximum(lo[k], p, out=p), out=p)
         P[k] = p
     return P
+
+
+def __getattr__(name: str) -> int:
+    # N_OPS: operators of the PI candidates, the most a table holds (PST_MAX_OPS), read from the
+    # C on first use so that importing this module does not compile the core.
+    if name == "N_OPS":
+        return native.MAX_OPS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def thresholds(n: int, r_span: float) -> np.ndarray:
@@ -590,7 +598,7 @@ def v_max_for_table(data: "FitData", b_scale: float, n: int, scaled: bool = Fals
 
     _, lib = core()
     q = np.linspace(float(data.q_enc.min()), float(data.q_enc.max()), 201)
-    b_max_q16 = int(round(b_scale * float(np.max(data.B(q))) * 65536))
+    b_max_q16 = int(round(b_scale * float(np.max(data.B(q))) * lib.PS_Q16_ONE))
     ceiling = float(lib.calib_precision_ceiling_q16(min(max(b_max_q16, 0), 2**31 - 1)))
     if scaled:
         tm = data.threshold_map()
@@ -623,7 +631,7 @@ def candidates(data: FitData, model_kind: str = "auto", n_ctrl: int = 14,
             for kb in B_SCALES:
                 span = SPAN_EXCURSION * largest_excursion(data.ops_input_reduced(kb, scaled))
                 if span > 0:
-                    out += [(kb, N_OPS, span, nc, scaled) for nc in F_CTRL]
+                    out += [(kb, native.MAX_OPS, span, nc, scaled) for nc in F_CTRL]
     return out
 
 

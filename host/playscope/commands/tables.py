@@ -17,12 +17,24 @@ the board's loader would.
 """
 
 
+def _entries(text: str) -> int:
+    """--entries: an integer within the loader's limits, read from the C when the option is
+    given (so `playscope tables --help` does not compile the core)."""
+    from .. import native
+
+    return T.int_range(native.MIN_ENTRIES, native.MAX_ENTRIES)(text)
+
+
+_entries.__name__ = "entries"
+
+
 def add_parser(sub) -> None:
     p = add_command(sub, "tables", "write the firmware's fixed-point lookup tables", DESCRIPTION,
                     examples=["playscope tables d21.cal.json -o d21.pstb"])
     p.add_argument("calibration", help="calibration JSON from `playscope calibrate`")
     p.add_argument("-o", "--out", required=True, type=T.file_path, help="table blob to write")
-    p.add_argument("--entries", type=T.int_range(2, 256), help="max entries per grid (default PST_MAX_ENTRIES = 256)")
+    p.add_argument("--entries", type=_entries, help="max entries per grid, PST_MIN_ENTRIES..PST_MAX_ENTRIES "
+                   "(default PST_MAX_ENTRIES, firmware common/ps_table.h)")
     p.add_argument("--generation", type=T.GENERATION, default=1, help="table generation number (default 1)")
     p.add_argument("--f-coarse", action="store_true", help="store f_coarse instead of f_remain (eq. 5 instead of 9)")
     add_json_arg(p, "table (path), bytes, crc32, entries, operators, errors {direct_c_deg_max, comp_q_max, f_inv_err, z_err}")

@@ -33,7 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-Q16 = 65536.0
+from .. import native
+
 
 
 # --------------------------------------------------------------------------- board clock
@@ -120,8 +121,8 @@ def _b_dict(b: dict) -> dict:
     from ..estimate import onset_reason_names
 
     return {"reason": onset_reason_names().get(b["reason"], str(b["reason"])), "reason_code": b["reason"],
-            "t1_s": b["t1_us"] / 1e6, "t2_s": b["t2_us"] / 1e6, "q1": b["q1_q16"] / Q16,
-            "q2": b["q2_q16"] / Q16, "q_mean": b["q_mean_q16"] / Q16, "b": b["b_q16"] / Q16}
+            "t1_s": b["t1_us"] / 1e6, "t2_s": b["t2_us"] / 1e6, "q1": b["q1_q16"] / native.Q16_ONE,
+            "q2": b["q2_q16"] / native.Q16_ONE, "q_mean": b["q_mean_q16"] / native.Q16_ONE, "b": b["b_q16"] / native.Q16_ONE}
 
 
 def run_loop(link, source, max_board_s: float = 600.0, progress=None, tracker=None) -> InsituRun:
@@ -155,7 +156,7 @@ def run_loop(link, source, max_board_s: float = 600.0, progress=None, tracker=No
                             t_hi += 1 << 32
                         t_prev = tu
                         t.append(t_hi + tu)
-                    q = np.array([qq for _, qq in ev], float) / Q16
+                    q = np.array([qq for _, qq in ev], float) / native.Q16_ONE
                     run.enc_t_s += [x / 1e6 for x in t]
                     run.enc_q += q.tolist()
                     t_board = t[-1]
@@ -193,7 +194,7 @@ def run_loop(link, source, max_board_s: float = 600.0, progress=None, tracker=No
             for t_f, img in frames:
                 d = tracker.track(img)
                 ok = not math.isnan(d.u)
-                b = link.marker(t_f, int(round(d.u * Q16)) if ok else 0, int(round(d.v * Q16)) if ok else 0,
+                b = link.marker(t_f, int(round(d.u * native.Q16_ONE)) if ok else 0, int(round(d.v * native.Q16_ONE)) if ok else 0,
                                 valid=ok)
                 run.mk_t_s.append(t_f / 1e6)
                 run.mk_u.append(d.u)

@@ -9,12 +9,10 @@ import subprocess
 import time
 from pathlib import Path
 
-# pid.codes test range VID:PID (https://pid.codes, 0x1209/0x0001..0x000F are for testing);
-# a released board must get its own PID from pid.codes.
-USB_VID = 0x1209
-USB_PID = 0x0001
-USB_EP_OUT = 0x01
-USB_EP_IN = 0x81
+from .. import native
+
+# The USB ids and endpoints are the board's (firmware/link/usb/psu_device.h: a pid.codes test
+# pair, see there), read through the native module when a USB transport opens.
 
 
 class TransportError(OSError):
@@ -189,11 +187,15 @@ class QemuTransport(TcpTransport):
 
 
 class UsbTransport(Transport):
-    """Vendor-class interface 0 with bulk endpoints 0x01 OUT / 0x81 IN, through pyusb/libusb."""
+    """Vendor-class interface 0 with the board's bulk OUT / IN endpoints, through pyusb/libusb.
+    vid, pid: the board's USB ids (None: the firmware's PSU_VID / PSU_PID)."""
 
     name = "usb"
 
-    def __init__(self, vid: int = USB_VID, pid: int = USB_PID, serial: str | None = None):
+    def __init__(self, vid: int | None = None, pid: int | None = None, serial: str | None = None):
+        vid = native.USB_VID if vid is None else vid
+        pid = native.USB_PID if pid is None else pid
+        self._ep_out, self._ep_in = native.USB_EP_OUT, native.USB_EP_IN
         try:
             import usb.core
             import usb.util
@@ -219,13 +221,13 @@ class UsbTransport(Transport):
 
     def write(self, data: bytes) -> None:
         try:
-            self.dev.write(USB_EP_OUT, data, timeout=2000)
+            self.dev.write(self._ep_out, data, timeout=2000)
         except self._usb.core.USBError as e:
             raise TransportError(f"usb write: {e}") from None
 
     def read(self, timeout_s: float) -> bytes:
         try:
-            return bytes(self.dev.read(USB_EP_IN, 512, timeout=max(1, int(timeout_s * 1000))))
+            return bytes(self.dev.read(self._ep_in, 512, timeout=max(1, int(timeout_s * 1000))))
         except self._usb.core.USBTimeoutError:
             return b""
         except self._usb.core.USBError as e:

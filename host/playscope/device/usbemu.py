@@ -1,7 +1,7 @@
 """The emulated USB board (ps_usbemu, umockdev): find or build it, and run commands against it.
 
-``ps_usbemu [--flash FILE] -- COMMAND...`` makes a umockdev testbed holding one USB device
-1209:0001 whose usbdevfs ioctls (URBs) are answered by the firmware's portable USB core
+``ps_usbemu [--flash FILE] -- COMMAND...`` makes a umockdev testbed holding one USB device with
+the board's ids (PSU_VID:PSU_PID, firmware/link/usb/psu_device.h) whose usbdevfs ioctls (URBs) are answered by the firmware's portable USB core
 (firmware/link/usb) in front of a ps_vboard process, and runs COMMAND with
 libumockdev-preload, so COMMAND's own libusb (``--device usb``, pyusb) talks to it:
 
