@@ -44,7 +44,6 @@ static void send_error(psl_t *l, uint16_t seq, uint8_t ref_type, uint16_t code, 
     psl_send(l, PSP_MSG_ERROR, seq, &e, sizeof(e));
 }
 
-
 void psl_info(const psl_t *l, psp_info_t *info)
 {
     memset(info, 0, sizeof(*info));
@@ -124,7 +123,6 @@ static int expected_len(uint8_t type)
     default: return -1;
     }
 }
-
 
 static void b_sample_from(const onset_event_t *ev, psp_b_sample_t *b)
 {
