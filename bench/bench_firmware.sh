@@ -50,7 +50,7 @@ mkdir -p $dr/bench
 # shellcheck disable=SC2086
 cmake --build --preset desktop-release --target ps_app >/dev/null
 "$cc_desktop" -std=c11 $release_flags -Ibench -Ifirmware/app -Ifirmware/core -Icommon bench/bench_desktop.c bench/bench_traj.c \
-  $dr/firmware/app/libps_app.a $dr/firmware/core/libps_core.a $dr/libps_common.a -o $dr/bench/bench-desktop
+  $dr/firmware/app/libps_app.a $dr/firmware/core/libps_core.a $dr/common/libps_common.a -o $dr/bench/bench-desktop
 desk=$($dr/bench/bench-desktop 20000000)
 desk_tps=$(sed -n 's/.*ticks_per_s=\([0-9]*\).*/\1/p' <<<"$desk")
 desk_ns=$(sed -n 's/.*ns_per_tick=\([0-9.]*\).*/\1/p' <<<"$desk")

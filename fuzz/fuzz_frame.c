@@ -3,8 +3,8 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "pss_flash_sim.h"
-#include "psl_link.h"
+#include "storage/pss_flash_sim.h"
+#include "link/psl_link.h"
 
 enum { SLOT = 4096 };
 

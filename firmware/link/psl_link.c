@@ -1,8 +1,7 @@
-/* Board-side protocol handler: every request is checked (version, type, length, seq) before it acts. */
-#include "psl_link.h"
+/* Board-side protocol handler, dispatch: every request is checked (version, type, length, seq) before its handler acts. */
+#include "link/psl_internal.h"
 
 #include <string.h>
-#include "lut.h"
 #include "ps_fixed.h"
 #include "ps_crc32.h"
 
@@ -32,7 +31,7 @@ psl_config_t psl_default_config(uint32_t tick_hz)
     return c;
 }
 
-static void send(psl_t *l, uint8_t type, uint16_t seq, const void *payload, uint16_t len)
+void psl_send(psl_t *l, uint8_t type, uint16_t seq, const void *payload, uint16_t len)
 {
     size_t n = psf_encode(l->tx, sizeof(l->tx), type, seq, payload, len);
     if (n > 0 && l->write)
@@ -42,19 +41,7 @@ static void send(psl_t *l, uint8_t type, uint16_t seq, const void *payload, uint
 static void send_error(psl_t *l, uint16_t seq, uint8_t ref_type, uint16_t code, uint8_t detail)
 {
     psp_error_t e = {.code = code, .ref_type = ref_type, .detail = detail};
-    send(l, PSP_MSG_ERROR, seq, &e, sizeof(e));
-}
-
-static const uint8_t *table_bytes(const psl_t *l, uint8_t buf)
-{
-    return (const uint8_t *)l->tables[buf];
-}
-
-static uint32_t table_size(const psl_t *l)
-{
-    if (l->active_buf == PSS_NO_SLOT)
-        return 0;
-    return l->store.slot[l->store.active].size;
+    psl_send(l, PSP_MSG_ERROR, seq, &e, sizeof(e));
 }
 
 void psl_info(const psl_t *l, psp_info_t *info)
@@ -85,7 +72,7 @@ static bool load_slot(psl_t *l, uint8_t slot, uint8_t buf)
         return false;
     if (pss_read_slot(&l->store, slot, 0, (uint8_t *)l->tables[buf], size) != PSS_OK)
         return false;
-    return calib_load(&l->cal[buf], table_bytes(l, buf), size) == CALIB_OK;
+    return calib_load(&l->cal[buf], psl_table_bytes(l, buf), size) == CALIB_OK;
 }
 
 void psl_init(psl_t *l, const psl_config_t *cfg, const pss_flash_t *flash, psl_write_fn write,
@@ -137,8 +124,6 @@ static int expected_len(uint8_t type)
     }
 }
 
-enum { CHUNK_HDR = 12 }; /* psp_table_chunk_t bytes before data[] */
-
 static void b_sample_from(const onset_event_t *ev, psp_b_sample_t *b)
 {
     memset(b, 0, sizeof(*b));
@@ -157,12 +142,7 @@ static void send_event(psl_t *l, const onset_event_t *ev)
     psp_b_sample_t b;
     b_sample_from(ev, &b);
     l->n_b_events++;
-    send(l, PSP_MSG_MARKER_OBS | PSP_RESPONSE, 0, &b, sizeof(b));
-}
-
-static bool have_table(const psl_t *l)
-{
-    return l->active_buf != PSS_NO_SLOT;
+    psl_send(l, PSP_MSG_MARKER_OBS | PSP_RESPONSE, 0, &b, sizeof(b));
 }
 
 /* Returns a psp_error_code; on PSP_OK the answer has been sent. */
@@ -176,192 +156,7 @@ static uint16_t do_set_mode(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *
     if (!psa_set_mode(&l->loop, (psa_mode_t)m.mode))
         return PSP_ERR_STATE;
     l->mode = m.mode;
-    send(l, PSP_MSG_SET_MODE | PSP_RESPONSE, seq, NULL, 0);
-    return PSP_OK;
-}
-
-static uint8_t upload_buf(const psl_t *l)
-{
-    return l->active_buf == 0 ? 1 : 0;
-}
-
-/* True while an upload session is open and its owner has not been silent for the timeout. */
-static bool session_live(const psl_t *l)
-{
-    return l->up_open && (uint32_t)(l->now_us - l->up_last_us) < l->cfg.upload_timeout_us;
-}
-
-/* Check a request's session token: PSP_OK for the live owner, else BUSY (someone else's
- * session is live, detail = whole seconds left) or STATE (no live session). */
-static uint16_t session_check(psl_t *l, uint16_t session, uint8_t *detail)
-{
-    if (!session_live(l)) {
-        l->up_open = false;
-        return PSP_ERR_STATE;
-    }
-    if (session != l->up_session) {
-        uint32_t left_s = (l->cfg.upload_timeout_us - (uint32_t)(l->now_us - l->up_last_us) + 999999u) / 1000000u;
-        *detail = (uint8_t)(left_s > 255u ? 255u : left_s);
-        return PSP_ERR_BUSY;
-    }
-    l->up_last_us = l->now_us;
-    return PSP_OK;
-}
-
-static uint16_t do_table_begin(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *detail)
-{
-    psp_table_begin_t b;
-    memcpy(&b, pl, sizeof(b));
-    if (b.total_size < sizeof(pst_header_t) || b.total_size > PST_MAX_TABLE_SIZE)
-        return PSP_ERR_RANGE;
-    if (session_live(l))
-        return session_check(l, 0, detail); /* 0 is never a token: BUSY */
-    /* Tokens differ from one session to the next and between boots that saw different
-     * timing, so a late request of a previous owner is not taken for the current one. */
-    l->up_sessions++;
-    uint16_t tok = (uint16_t)((l->up_sessions * 0x9E37u) ^ (l->now_us >> 4) ^ (l->last_seq << 3));
-    l->up_session = tok ? tok : 1;
-    l->up_open = true;
-    l->up_last_us = l->now_us;
-    l->up_size = b.total_size;
-    l->up_crc32 = b.crc32;
-    l->up_have = 0;
-    psp_table_session_t r = {.session = l->up_session, .timeout_ms = l->cfg.upload_timeout_us / 1000u};
-    send(l, PSP_MSG_TABLE_BEGIN | PSP_RESPONSE, seq, &r, sizeof(r));
-    return PSP_OK;
-}
-
-static uint16_t do_table_abort(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *detail)
-{
-    psp_table_abort_t a;
-    memcpy(&a, pl, sizeof(a));
-    uint16_t err = session_check(l, a.session, detail);
-    if (err != PSP_OK)
-        return err;
-    l->up_open = false;
-    send(l, PSP_MSG_TABLE_ABORT | PSP_RESPONSE, seq, NULL, 0);
-    return PSP_OK;
-}
-
-static uint16_t do_table_chunk(psl_t *l, uint16_t seq, const uint8_t *pl, uint16_t len, uint8_t *detail)
-{
-    if (len < CHUNK_HDR)
-        return PSP_ERR_LENGTH;
-    uint32_t off = psf_get_u32(&pl[0]);
-    uint16_t n = psf_get_u16(&pl[4]);
-    uint16_t session = psf_get_u16(&pl[6]);
-    uint32_t crc = psf_get_u32(&pl[8]);
-    if (n > PSP_CHUNK_MAX || len != CHUNK_HDR + n)
-        return PSP_ERR_LENGTH;
-    uint16_t err = session_check(l, session, detail);
-    if (err != PSP_OK)
-        return err;
-    /* Chunks may repeat or overlap what came before but must not leave a hole. */
-    if (off > l->up_have || off > l->up_size || n > l->up_size - off)
-        return PSP_ERR_RANGE;
-    if (ps_crc32_update(0, &pl[CHUNK_HDR], n) != crc)
-        return PSP_ERR_CRC;
-    memcpy((uint8_t *)l->tables[upload_buf(l)] + off, &pl[CHUNK_HDR], n);
-    if (off + n > l->up_have)
-        l->up_have = off + n;
-    send(l, PSP_MSG_TABLE_CHUNK | PSP_RESPONSE, seq, NULL, 0);
-    return PSP_OK;
-}
-
-/* Read the just-committed slot back over the upload buffer and check the table CRC on what
- * the board will boot (the store's own CRC covers the record; this one is the table's,
- * end to end from the host's file). calib_load already read this buffer, so on success
- * cal[nb] stays valid over identical bytes. */
-static bool slot_holds_upload(psl_t *l, uint8_t nb)
-{
-    uint8_t *buf = (uint8_t *)l->tables[nb];
-    if (pss_read_active(&l->store, 0, buf, l->up_size) != PSS_OK)
-        return false;
-    return calib_table_crc(buf, l->up_size) == l->up_crc32 && psf_get_u32(buf + offsetof(pst_header_t, crc32)) == l->up_crc32;
-}
-
-static uint16_t do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *detail)
-{
-    psp_table_commit_t c;
-    memcpy(&c, pl, sizeof(c));
-    uint16_t err = session_check(l, c.session, detail);
-    if (err != PSP_OK)
-        return err;
-    /* Not during an excitation (its trajectory spans the running table's range); during
-     * compensation the loop swaps tables without stopping (psa_set_table: a host refresh of
-     * f_remain, an offset or B during use). */
-    if (l->mode == PSP_MODE_EXCITATION || l->up_have != l->up_size)
-        return PSP_ERR_STATE;
-    /* From here the upload is consumed, taken or refused: the session closes, and a host
-     * that wants to try again uploads anew (a STATE refusal above keeps it, to commit later). */
-    l->up_open = false;
-    uint8_t nb = upload_buf(l);
-    const uint8_t *blob = table_bytes(l, nb);
-    if (c.crc32 != l->up_crc32 || calib_table_crc(blob, l->up_size) != l->up_crc32)
-        return PSP_ERR_CRC;
-    calib_status_t st = calib_load(&l->cal[nb], blob, l->up_size);
-    if (st != CALIB_OK) {
-        *detail = (uint8_t)st;
-        return PSP_ERR_TABLE;
-    }
-    uint32_t gen = l->cal[nb].generation;
-    if (have_table(l) && gen <= l->cal[l->active_buf].generation) {
-        *detail = PSL_DETAIL_GENERATION;
-        return PSP_ERR_TABLE;
-    }
-    uint8_t prev_slot = l->store.active;
-    pss_status_t ps = pss_commit(&l->store, gen, blob, l->up_size);
-    if (ps != PSS_OK) {
-        *detail = (uint8_t)ps;
-        return PSP_ERR_FLASH;
-    }
-    if (!slot_holds_upload(l, nb)) {
-        /* What flash holds is not the table that was checked: unmake the commit so neither
-         * this session nor the next boot runs it, and keep the previous table. */
-        uint8_t bad = l->store.active;
-        (void)l->store.flash->erase(l->store.flash->ctx, bad);
-        pss_scan_slot(&l->store, bad);
-        if (prev_slot == PSS_NO_SLOT || !pss_select(&l->store, prev_slot))
-            l->store.active = PSS_NO_SLOT;
-        *detail = PSL_DETAIL_READBACK;
-        return PSP_ERR_FLASH;
-    }
-    /* Learning carries over: the new table's B becomes the learner's prior (the host flashes
-     * what the board learnt, docs/online.md), or, on another grid, learning restarts on it. */
-    if (l->learn_on && b_online_rebind(&l->learn, &l->cal[nb].b) != B_ONLINE_OK) {
-        b_online_config_t lc = b_online_default_config();
-        if (b_online_init(&l->learn, &lc, &l->cal[nb].b) != B_ONLINE_OK) {
-            l->learn_on = false;
-            l->learn_count = 0;
-        }
-    }
-    l->active_buf = nb;
-    (void)psa_set_table(&l->loop, &l->cal[nb]); /* not in excitation (checked above): always taken */
-    psp_info_t info;
-    psl_info(l, &info);
-    send(l, PSP_MSG_TABLE_COMMIT | PSP_RESPONSE, seq, &info, sizeof(info));
-    return PSP_OK;
-}
-
-static uint16_t do_table_read(psl_t *l, uint16_t seq, const uint8_t *pl)
-{
-    psp_table_read_t r;
-    memcpy(&r, pl, sizeof(r));
-    if (!have_table(l))
-        return PSP_ERR_STATE;
-    uint32_t size = table_size(l);
-    if (r.len > PSP_CHUNK_MAX || r.offset > size)
-        return PSP_ERR_RANGE;
-    uint16_t n = (uint16_t)(size - r.offset < r.len ? size - r.offset : r.len);
-    psp_table_chunk_t ch;
-    ch.offset = r.offset;
-    ch.len = n;
-    ch.session = 0;
-    /* Read back from flash, not from RAM: the host checks what the board will boot. */
-    if (pss_read_active(&l->store, r.offset, ch.data, n) != PSS_OK)
-        return PSP_ERR_FLASH;
-    ch.chunk_crc32 = ps_crc32_update(0, ch.data, n);
-    send(l, PSP_MSG_TABLE_READ | PSP_RESPONSE, seq, &ch, (uint16_t)(CHUNK_HDR + n));
+    psl_send(l, PSP_MSG_SET_MODE | PSP_RESPONSE, seq, NULL, 0);
     return PSP_OK;
 }
 
@@ -375,7 +170,7 @@ static uint16_t do_stream(psl_t *l, uint16_t seq, const uint8_t *pl)
     l->stream_decim = s.decimation;
     l->stream_left = 1;
     l->batch.count = 0;
-    send(l, PSP_MSG_ENC_STREAM | PSP_RESPONSE, seq, NULL, 0);
+    psl_send(l, PSP_MSG_ENC_STREAM | PSP_RESPONSE, seq, NULL, 0);
     return PSP_OK;
 }
 
@@ -387,95 +182,10 @@ static uint16_t do_reversal(psl_t *l, uint16_t seq, const uint8_t *pl)
     if (psa_reversal(&l->loop, r.t1_us, r.q1_q16, &ev)) {
         psp_b_sample_t b;
         b_sample_from(&ev, &b);
-        send(l, PSP_MSG_REVERSAL | PSP_RESPONSE, seq, &b, sizeof(b));
+        psl_send(l, PSP_MSG_REVERSAL | PSP_RESPONSE, seq, &b, sizeof(b));
     } else {
-        send(l, PSP_MSG_REVERSAL | PSP_RESPONSE, seq, NULL, 0);
+        psl_send(l, PSP_MSG_REVERSAL | PSP_RESPONSE, seq, NULL, 0);
     }
-    return PSP_OK;
-}
-
-/* ------------------------------------------------------------------ on-line B update */
-/* A completed B sample waits for psl_background; the oldest is kept when the queue is full
- * (the learner sees the samples in the order the host was told them). */
-static void learn_enqueue(psl_t *l, const onset_event_t *ev)
-{
-    l->learn_queued++;
-    if (l->learn_count == PSL_LEARN_QUEUE) {
-        l->learn_dropped++;
-        return;
-    }
-    uint8_t i = (uint8_t)((l->learn_head + l->learn_count) % PSL_LEARN_QUEUE);
-    l->learn_q[i][0] = ev->q_mean_q16;
-    l->learn_q[i][1] = ev->b_q16;
-    l->learn_count++;
-}
-
-static void learn_stop(psl_t *l)
-{
-    if (l->learn_on) {
-        b_online_stop(&l->learn);
-        psa_b_changed(&l->loop);
-    }
-    l->learn_on = false;
-    l->learn_count = 0;
-}
-
-/* Start on the running table's B (already running it: the published copy equals the flashed
- * entries, so the compensator sees no change). */
-static bool learn_start(psl_t *l)
-{
-    learn_stop(l);
-    b_online_config_t c = b_online_default_config();
-    if (!have_table(l) || b_online_init(&l->learn, &c, &l->cal[l->active_buf].b) != B_ONLINE_OK)
-        return false;
-    psa_b_changed(&l->loop);
-    l->learn_on = true;
-    l->learn_head = 0;
-    l->learn_queued = 0;
-    l->learn_dropped = 0;
-    return true;
-}
-
-bool psl_background(psl_t *l)
-{
-    if (!l->learn_on || l->learn_count == 0)
-        return false;
-    const int32_t *s = l->learn_q[l->learn_head];
-    b_online_sample(&l->learn, s[0], s[1]);
-    psa_b_changed(&l->loop);
-    l->learn_head = (uint8_t)((l->learn_head + 1u) % PSL_LEARN_QUEUE);
-    l->learn_count--;
-    return true;
-}
-
-void psl_learn_state(const psl_t *l, psp_learn_state_t *st)
-{
-    memset(st, 0, sizeof(*st));
-    st->queued = l->learn_queued;
-    st->dropped = l->learn_dropped;
-    st->on = l->learn_on ? 1u : 0u;
-    if (l->learn_on) {
-        st->samples = l->learn.samples;
-        st->n_grid = l->learn.n_grid;
-        st->n_nodes = l->learn.n_nodes;
-        st->b_crc32 = ps_crc32_update(0, (const uint8_t *)b_online_entries(&l->learn),
-                                      (size_t)l->learn.n_grid * sizeof(int32_t));
-    }
-}
-
-static uint16_t do_learn(psl_t *l, uint16_t seq, const uint8_t *pl)
-{
-    psp_learn_ctl_t c;
-    memcpy(&c, pl, sizeof(c));
-    if (c.op > PSP_LEARN_STOP)
-        return PSP_ERR_RANGE;
-    if (c.op == PSP_LEARN_START && !learn_start(l))
-        return PSP_ERR_STATE; /* no table (or a grid the learner cannot take) */
-    if (c.op == PSP_LEARN_STOP)
-        learn_stop(l);
-    psp_learn_state_t st;
-    psl_learn_state(l, &st);
-    send(l, PSP_MSG_LEARN | PSP_RESPONSE, seq, &st, sizeof(st));
     return PSP_OK;
 }
 
@@ -493,12 +203,12 @@ static uint16_t do_marker(psl_t *l, uint16_t seq, const uint8_t *pl)
         done = psa_observe_deg(&l->loop, m.t_us, m.u_q16, m.valid != 0, &ev);
     if (done) {
         if (l->learn_on && (ev.reason == ONSET_OK || ev.reason == ONSET_OK_COARSE))
-            learn_enqueue(l, &ev);
+            psl_learn_enqueue(l, &ev);
         psp_b_sample_t b;
         b_sample_from(&ev, &b);
-        send(l, PSP_MSG_MARKER_OBS | PSP_RESPONSE, seq, &b, sizeof(b));
+        psl_send(l, PSP_MSG_MARKER_OBS | PSP_RESPONSE, seq, &b, sizeof(b));
     } else {
-        send(l, PSP_MSG_MARKER_OBS | PSP_RESPONSE, seq, NULL, 0);
+        psl_send(l, PSP_MSG_MARKER_OBS | PSP_RESPONSE, seq, NULL, 0);
     }
     return PSP_OK;
 }
@@ -508,14 +218,14 @@ static uint16_t do_comp(psl_t *l, uint16_t seq, const uint8_t *pl)
     psp_comp_req_t r;
     psp_comp_resp_t a;
     memcpy(&r, pl, sizeof(r));
-    if (!have_table(l))
+    if (!psl_have_table(l))
         return PSP_ERR_STATE;
     /* The step runs now, so the answer is what a host replaying comp_reset/comp_step
      * computes; the ticks after it hold this c*. */
     a.q_ref_q16 = psa_set_reference(&l->loop, r.c_ref_q16);
     if (a.q_ref_q16 == INT32_MIN)
         return PSP_ERR_STATE;
-    send(l, PSP_MSG_COMP_STEP | PSP_RESPONSE, seq, &a, sizeof(a));
+    psl_send(l, PSP_MSG_COMP_STEP | PSP_RESPONSE, seq, &a, sizeof(a));
     return PSP_OK;
 }
 
@@ -549,7 +259,7 @@ void psl_handle(psl_t *l, const psp_frame_header_t *hdr, const uint8_t *payload)
         /* Read-only, so exempt from the replay check: it is how a host learns last_seq. */
         psp_info_t info;
         psl_info(l, &info);
-        send(l, PSP_MSG_INFO | PSP_RESPONSE, seq, &info, sizeof(info));
+        psl_send(l, PSP_MSG_INFO | PSP_RESPONSE, seq, &info, sizeof(info));
         return;
     }
     if (seq == 0 || !seq_newer(seq, l->last_seq)) {
@@ -558,16 +268,16 @@ void psl_handle(psl_t *l, const psp_frame_header_t *hdr, const uint8_t *payload)
     }
     switch (type) {
     case PSP_MSG_SET_MODE: err = do_set_mode(l, seq, payload, &detail); break;
-    case PSP_MSG_TABLE_BEGIN: err = do_table_begin(l, seq, payload, &detail); break;
-    case PSP_MSG_TABLE_CHUNK: err = do_table_chunk(l, seq, payload, hdr->len, &detail); break;
-    case PSP_MSG_TABLE_COMMIT: err = do_table_commit(l, seq, payload, &detail); break;
-    case PSP_MSG_TABLE_READ: err = do_table_read(l, seq, payload); break;
-    case PSP_MSG_TABLE_ABORT: err = do_table_abort(l, seq, payload, &detail); break;
+    case PSP_MSG_TABLE_BEGIN: err = psl_do_table_begin(l, seq, payload, &detail); break;
+    case PSP_MSG_TABLE_CHUNK: err = psl_do_table_chunk(l, seq, payload, hdr->len, &detail); break;
+    case PSP_MSG_TABLE_COMMIT: err = psl_do_table_commit(l, seq, payload, &detail); break;
+    case PSP_MSG_TABLE_READ: err = psl_do_table_read(l, seq, payload); break;
+    case PSP_MSG_TABLE_ABORT: err = psl_do_table_abort(l, seq, payload, &detail); break;
     case PSP_MSG_ENC_STREAM: err = do_stream(l, seq, payload); break;
     case PSP_MSG_REVERSAL: err = do_reversal(l, seq, payload); break;
     case PSP_MSG_MARKER_OBS: err = do_marker(l, seq, payload); break;
     case PSP_MSG_COMP_STEP: err = do_comp(l, seq, payload); break;
-    case PSP_MSG_LEARN: err = do_learn(l, seq, payload); break;
+    case PSP_MSG_LEARN: err = psl_do_learn(l, seq, payload); break;
     default: err = PSP_ERR_TYPE; break;
     }
     if (err != PSP_OK) {
@@ -611,7 +321,7 @@ int32_t psl_tick(psl_t *l, uint32_t t_us, int32_t q_meas_q16)
         s->t_us = t_us;
         s->q_q16 = q_meas_q16;
         if (l->batch.count == PSP_ENC_SAMPLES_MAX) {
-            send(l, PSP_MSG_ENC_STREAM | PSP_RESPONSE, 0, &l->batch,
+            psl_send(l, PSP_MSG_ENC_STREAM | PSP_RESPONSE, 0, &l->batch,
                  (uint16_t)(4 + 8 * l->batch.count));
             l->batch.count = 0;
         }

@@ -1,4 +1,4 @@
-/* Board-side protocol handler: dispatch, replay check, modes, table upload/commit/read-back, streaming, onset, compensation. */
+/* Board-side protocol handler API: requests in (frames), answers and events out, the tick and the background learner. */
 #ifndef PSL_LINK_H
 #define PSL_LINK_H
 
@@ -10,7 +10,7 @@
 #include "ps_frame.h"
 #include "ps_proto.h"
 #include "ps_table.h"
-#include "pss_store.h"
+#include "storage/pss_store.h"
 
 /* psp_error_t.detail for PSP_ERR_TABLE when calib_load accepted the table but its
  * generation is not newer than the running one (calib_status_t values stay below it). */

@@ -1,7 +1,7 @@
 /* File-backed flash port: each erase/program is flushed so a killed process leaves a real partial write. */
 /* fdopen, flock: POSIX and BSD calls outside -std=c11 */
 #define _DEFAULT_SOURCE
-#include "pss_flash_file.h"
+#include "storage/pss_flash_file.h"
 
 #include <errno.h>
 #include <fcntl.h>

@@ -4,7 +4,7 @@
 
 #include <stdint.h>
 #include <stdio.h>
-#include "pss_store.h"
+#include "storage/pss_store.h"
 
 typedef struct {
     FILE *f;

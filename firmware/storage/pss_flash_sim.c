@@ -1,5 +1,5 @@
 /* Simulated NOR flash: erase to 0xFF, program ANDs bits, power can be cut after any byte. */
-#include "pss_flash_sim.h"
+#include "storage/pss_flash_sim.h"
 
 #include <string.h>
 

@@ -3,7 +3,7 @@
 #define PSS_FLASH_SIM_H
 
 #include <stdint.h>
-#include "pss_store.h"
+#include "storage/pss_store.h"
 
 /* mem holds 2 * slot_size bytes (slot A then B). budget_bytes counts bytes erased or
  * programmed; when it reaches zero the operation in progress stops after the bytes

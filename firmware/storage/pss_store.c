@@ -1,5 +1,5 @@
 /* A/B table store: commit writes the inactive slot, verifies it, then commits it with a final word. */
-#include "pss_store.h"
+#include "storage/pss_store.h"
 
 #include <string.h>
 #include "ps_crc32.h"

@@ -8,8 +8,8 @@
 #include <cmocka.h>
 
 #include "ps_crc32.h"
-#include "pss_flash_sim.h"
-#include "psl_link.h"
+#include "storage/pss_flash_sim.h"
+#include "link/psl_link.h"
 #include "table_fixture.h"
 
 enum { SLOT = 4096 };

@@ -6,8 +6,8 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "pss_flash_sim.h"
-#include "pss_store.h"
+#include "storage/pss_flash_sim.h"
+#include "storage/pss_store.h"
 
 enum { SLOT = 1024, REC_MAX = SLOT - PSS_DATA_OFFSET };
 

@@ -9,7 +9,7 @@
 #include <cmocka.h>
 
 #include "pss_flash_stm32f4.h"
-#include "pss_store.h"
+#include "storage/pss_store.h"
 #include "stm32f405_regs.h"
 #include "stm32f4_flash_model.h"
 

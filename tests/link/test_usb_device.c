@@ -6,10 +6,10 @@
 #include <string.h>
 #include <cmocka.h>
 
-#include "psl_link.h"
-#include "pss_flash_sim.h"
-#include "psu_dcd.h"
-#include "psu_device.h"
+#include "link/psl_link.h"
+#include "storage/pss_flash_sim.h"
+#include "link/usb/psu_dcd.h"
+#include "link/usb/psu_device.h"
 
 /* ---- mock chip port: records what the core asked of the controller ---- */
 

@@ -34,8 +34,8 @@
 
 #include <umockdev.h>
 
-#include "psu_dcd.h"
-#include "psu_device.h"
+#include "link/usb/psu_dcd.h"
+#include "link/usb/psu_device.h"
 
 /* The emulator links glib, whose caches live until exit; LeakSanitizer (desktop preset)
  * would turn them into a failing exit status that is not the command's. */

@@ -15,9 +15,9 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "pss_flash_file.h"
-#include "pss_flash_sim.h"
-#include "psl_link.h"
+#include "storage/pss_flash_file.h"
+#include "storage/pss_flash_sim.h"
+#include "link/psl_link.h"
 
 enum {
     VB_SLOT_SIZE = 128 * 1024, /* as one STM32F405 sector 10/11 */

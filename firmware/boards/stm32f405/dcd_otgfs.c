@@ -11,8 +11,8 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "psu_dcd.h"
-#include "psu_device.h"
+#include "link/usb/psu_dcd.h"
+#include "link/usb/psu_device.h"
 #include "stm32f405_regs.h"
 
 

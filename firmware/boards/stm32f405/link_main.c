@@ -3,11 +3,11 @@
 #include <stdint.h>
 
 #include "port_board.h"
-#include "psl_link.h"
+#include "link/psl_link.h"
 #if PSL_FLASH_HW
 #include "pss_flash_stm32f4.h"
 #else
-#include "pss_flash_sim.h"
+#include "storage/pss_flash_sim.h"
 #endif
 
 #ifndef PSL_TICK_HZ

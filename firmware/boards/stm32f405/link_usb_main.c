@@ -2,10 +2,10 @@
 #include <stdint.h>
 
 #include "port_board.h"
-#include "psl_link.h"
+#include "link/psl_link.h"
 #include "pss_flash_stm32f4.h"
-#include "psu_dcd.h"
-#include "psu_device.h"
+#include "link/usb/psu_dcd.h"
+#include "link/usb/psu_device.h"
 
 #ifndef PSL_TICK_HZ
 /* PSL_TICK_HZ: control tick of the link firmware's main loop. Default 1000. */

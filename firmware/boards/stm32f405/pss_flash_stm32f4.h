@@ -2,7 +2,7 @@
 #ifndef PSS_FLASH_STM32F4_H
 #define PSS_FLASH_STM32F4_H
 
-#include "pss_store.h"
+#include "storage/pss_store.h"
 
 /* The port for the slots the linker script reserves (__table_slot_a/_b, __table_slot_size).
  * Erase and program stall the CPU (single bank; code runs from the same flash): a sector

@@ -1,8 +1,8 @@
 /* Portable USB device core: descriptors, endpoint 0 state machine, standard requests, bulk framing. */
-#include "psu_device.h"
+#include "link/usb/psu_device.h"
 
 #include <string.h>
-#include "psu_dcd.h"
+#include "link/usb/psu_dcd.h"
 
 enum ep0_stage {
     EP0_IDLE = 0,

@@ -5,7 +5,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
-#include "psu_usb.h"
+#include "link/usb/psu_usb.h"
 
 /* pid.codes VID 0x1209 with PID 0x0001, the first of pid.codes' *test* PIDs
  * (https://pid.codes/1209/0001/): fine on a bench, not for a released board, which needs
