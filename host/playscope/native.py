@@ -139,7 +139,9 @@ def _build(target_dir: Path) -> None:
     extra = sorted({h.name for h in VALUE_ONLY.values()} - {h.name for h in CDEF_HEADERS})
     includes = "".join(f'#include "{h}"\n' for h in [h.name for h in CDEF_HEADERS] + extra) + '#include "ps_crc32.h"\n'
     ffi.set_source(MODULE, includes, sources=[str(p) for p in _sources()],
-                   include_dirs=[str(COMMON), str(CORE), str(USB)],
+                   # firmware/ too: the link headers include each other with their folder
+                   # ("link/usb/psu_usb.h")
+                   include_dirs=[str(COMMON), str(CORE), str(USB), str(REPO / "firmware")],
                    extra_compile_args=["-std=c11", "-O2", "-Wno-address-of-packed-member"])
     target_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target_dir) as tmp:
