@@ -64,3 +64,29 @@ def swing_speed(b_low: float, b_high: float, fps: float, tick_hz: int = TICK_HZ)
     """The pacing rule's swing speed, actuator units/s, exactly the board's (pace_v_q32 x tick_hz / 2^32).
     Errors as pace_v_q32."""
     return pace_v_q32(b_low, b_high, fps, tick_hz) * tick_hz / 2.0**32
+
+
+def paced_exc(exc4: str, b_low: float, b_high: float, fps: float, tick_hz: int = TICK_HZ) -> str:
+    """The board's excitation "Q0:Q1:AMP:ADV" (actuator units) with its paced speed appended:
+    "Q0:Q1:AMP:ADV:V", V units/s, as the board's exc_pace_config sets it (the same checks: the
+    down leg AMP - ADV must exceed b_high, the trajectory must pass exc_init). Errors: ValueError
+    naming what is refused."""
+    ffi, lib = _lib()
+    try:
+        q0, q1, amp, adv = (float(x) for x in exc4.split(":"))
+    except ValueError:
+        raise ValueError(f"excitation {exc4!r} is not Q0:Q1:AMP:ADV (4 numbers separated by ':')") from None
+    pace_v_q32(b_low, b_high, fps, tick_hz)  # frame rate and B range first, with their own message
+    cfg = ffi.new("exc_config_t *")
+    cfg.q_start_q16, cfg.q_end_q16 = int(q0 * 65536), int(q1 * 65536)
+    cfg.amplitude_q16, cfg.advance_q16 = int(amp * 65536), int(adv * 65536)
+    cfg.return_sweep = True
+    st = lib.exc_pace_config(cfg, int(round(b_low * 65536)), int(round(b_high * 65536)), frame_period_us(fps),
+                             int(tick_hz))
+    if st == lib.EXC_ERR_PACE:
+        raise ValueError(f"excitation {exc4!r}: its down leg AMP - ADV = {amp - adv:g} must exceed the widest "
+                         f"play expected ({b_high:g}), or the tip never moves on it")
+    if st != lib.EXC_OK:
+        raise ValueError(f"excitation {exc4!r} refused by the board (need Q1 > Q0, AMP > ADV > 0, and one tick "
+                         f"shorter than a leg at the paced speed)")
+    return f"{exc4}:{cfg.v_q32 * tick_hz / 2.0**32:.9g}"

@@ -121,11 +121,14 @@ def preset(name: str, **overrides) -> SimConfig:
 
 # --------------------------------------------------------------------------- trajectories
 def play_range(cfg: SimConfig) -> tuple[float, float]:
-    """(B_low, B_high) actuator units: the range of the simulated B(q) over the trajectory's
-    [q_lo, q_hi] (what a user expects of the instrument; the simulator knows it exactly)."""
+    """(B_low, B_high) actuator units: the play the camera sees taken up after a reversal, over
+    the trajectory's [q_lo, q_hi] (what a user expects of the instrument; the simulator knows it
+    exactly). That is B(q) itself, or with the smooth_transition effect the travel to the tip's
+    first motion, (1 - spread) B(q): the onset detector times that, not the full width."""
     tr = cfg.trajectory
     b = cfg.B_fn()(np.linspace(tr["q_lo"], tr["q_hi"], 1201))
-    return float(b.min()), float(b.max())
+    spread = float(((cfg.effects or {}).get("smooth_transition") or {}).get("spread", 0.0))
+    return float(b.min() * (1.0 - spread)), float(b.max())
 
 
 def paced_speed(cfg: SimConfig) -> float:
