@@ -47,6 +47,11 @@ bool psa_set_mode(psa_loop_t *l, psa_mode_t mode)
             c.q_start_q16 = l->cal->q_min_q16;
             c.q_end_q16 = l->cal->q_max_q16;
         }
+        /* Pace the swing to the camera: the divide happens here, once per run. */
+        if (l->cfg.pace.b_high_q16 != 0 &&
+            exc_pace_config(&c, l->cfg.pace.b_low_q16, l->cfg.pace.b_high_q16, l->cfg.onset.frame_period_us,
+                            l->cfg.pace.tick_hz) != EXC_OK)
+            return false;
         if (exc_init(&l->exc, &c) != EXC_OK)
             return false;
         /* A fresh detector per run; the noise estimate restarts with the run. */

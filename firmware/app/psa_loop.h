@@ -21,9 +21,18 @@ typedef enum {
     PSA_MODE_PASSTHROUGH = 3,    /* q* = f^-1(c*) clamped to the table's q range, no backlash model */
 } psa_mode_t;
 
+/* Expected play range and control rate for pacing the excitation to the camera. */
+typedef struct {
+    int32_t b_low_q16;           /* smallest play expected, actuator units Q16 */
+    int32_t b_high_q16;          /* widest play expected, >= b_low; 0: pacing off */
+    uint32_t tick_hz;            /* control tick rate, Hz */
+} exc_pace_t;
+
 typedef struct {
     onset_config_t onset;        /* on-board onset detector (eq. 1) */
     exc_config_t exc;            /* excitation without a table (with one: the table's q range) */
+    exc_pace_t pace;             /* b_high_q16 > 0: exc's speed set by the pacing rule from the
+                                  * onset detector's frame period (exc_pace_config); 0: exc.v_q32 */
     comp_smoothing_t lim;        /* transition smoothing of the compensator ... */
     bool smooth;                 /* ... used when true; false: eq. 4 as written (what a host replays) */
 } psa_config_t;
@@ -55,8 +64,9 @@ void psa_init(psa_loop_t *l, const psa_config_t *cfg);
 bool psa_set_table(psa_loop_t *l, const calib_t *cal);
 
 /* Change mode. Excitation restarts the trajectory and the onset detector (range: the
- * table's, else cfg.exc); compensation and passthrough need a table. False, nothing
- * changed, when the mode is unknown, has no table or the excitation config is invalid. */
+ * table's, else cfg.exc; speed: the pacing rule when cfg.pace is on, else cfg.exc's); compensation and passthrough need a table. False, nothing
+ * changed, when the mode is unknown, has no table or the excitation config (or its pacing:
+ * frame period, tick rate, B range) is invalid. */
 bool psa_set_mode(psa_loop_t *l, psa_mode_t mode);
 
 /* c_ref_q16 of a tick with no reference yet (a host that has not sent its first c*): the

@@ -24,7 +24,14 @@ typedef enum {
     EXC_ERR_RANGE,               /* q_end <= q_start */
     EXC_ERR_SHAPE,               /* not amplitude > advance > 0 */
     EXC_ERR_SPEED,               /* v <= 0, or one tick crosses a whole cycle */
+    EXC_ERR_PACE,                /* pacing: frame period, tick rate or B range invalid */
 } exc_status_t;
+
+/* Pacing rule: the swing is slow enough that the smallest play expected is taken up over
+ * this many camera frames, so each reversal's onset is timed by several frames rather than
+ * falling between two. The host reads it through the native module (its calibration's
+ * "a slower swing would measure B better" advice and the simulator's default speed). */
+enum { EXC_PACE_FRAMES = 4 };
 
 typedef struct {
     exc_config_t cfg;
@@ -34,6 +41,23 @@ typedef struct {
     int8_t dir;                  /* +1 up, -1 down, 0 done */
     int8_t sweep;                /* +1 forward sweep, -1 return sweep */
 } exc_t;
+
+/* Swing speed of the pacing rule, v = b_low / (EXC_PACE_FRAMES x frame period), in actuator
+ * units per control tick, Q32.32, rounded down (so the play takes at least that many frames).
+ * b_low_q16, b_high_q16: the expected play range, actuator units Q16, 0 < b_low <= b_high
+ * (b_high is checked only: the swing's shorter leg must exceed it, see exc_pace_check);
+ * frame_period_us: camera period, 1000..1000000 us (1 to 1000 fps); tick_hz: control rate,
+ * 1..1000000 Hz. Returns EXC_ERR_PACE for any of those out of range, EXC_ERR_SPEED when the
+ * speed is below one Q32.32 LSB per tick or absurdly large; *v_q32 untouched on error.
+ * Integer-only, with a 64-bit divide: configuration time, never the tick. */
+exc_status_t exc_pace_speed(int32_t b_low_q16, int32_t b_high_q16, uint32_t frame_period_us,
+                            uint32_t tick_hz, int64_t *v_q32);
+
+/* cfg with its speed set by exc_pace_speed, after checking that the swing's shorter leg
+ * (amplitude - advance) exceeds b_high (else the tip never moves on that leg: EXC_ERR_PACE)
+ * and that the result passes exc_init's checks. cfg untouched on error. */
+exc_status_t exc_pace_config(exc_config_t *cfg, int32_t b_low_q16, int32_t b_high_q16,
+                             uint32_t frame_period_us, uint32_t tick_hz);
 
 /* Validate cfg and start at q_start, moving up. */
 exc_status_t exc_init(exc_t *e, const exc_config_t *cfg);

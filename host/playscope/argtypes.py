@@ -113,16 +113,19 @@ def host_port(text: str) -> str:
     return text
 
 
-def colon_floats(n: int, what: str):
-    """n finite numbers separated by colons (e.g. Q0:Q1:AMP:ADV:V)."""
+def colon_floats(n: int, what: str, n_min: int | None = None):
+    """n finite numbers separated by colons (e.g. Q0:Q1:AMP:ADV:V); n_min..n of them when n_min is given."""
+    lo = n if n_min is None else n_min
+    count = f"{n}" if lo == n else f"{lo} to {n}"
+
     def parse(text: str) -> str:
         parts = text.split(":")
         try:
             vals = [float(p) for p in parts]
         except ValueError:
             vals = []
-        if len(vals) != n or not all(math.isfinite(v) for v in vals):
-            raise argparse.ArgumentTypeError(f"{text!r} is not {what} ({n} finite numbers separated by ':')")
+        if not lo <= len(vals) <= n or not all(math.isfinite(v) for v in vals):
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what} ({count} finite numbers separated by ':')")
         return text
     return _named(parse, what)
 

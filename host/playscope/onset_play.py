@@ -50,7 +50,6 @@ RING_HZ = np.arange(1.5, 7.01, 0.5)   # ringing searched (Hz) when the record ri
 RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
 DELAY_REVERSALS = 24
 JUMP_T = 4.0                          # signed-jump mean / standard error for a record's jump
-PACE_FRAMES = 4                       # frames over which the play should be taken up (pacing)
 
 
 @dataclass

@@ -654,10 +654,10 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                "none": int(rt.size - n_play - n_ref - n_board)}
     on = E.Onsets(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], a[:, 5], reasons, sigma_b=a[:, 6])
     pace = pacing(t_enc, q, on, fps, td)
-    if pace["frames_to_take_up"] < P.PACE_FRAMES:
+    if pace["frames_to_take_up"] < pace["frames_wanted"]:
         warnings.append(f"the play is taken up in {pace['frames_to_take_up']:.1f} frame(s) (median): B is timed to "
                         f"about {pace['sigma_frame_travel']:.3g} per sample by the frame period; a swing at "
-                        f"<= {pace['speed_to_use']:.3g} units/s would take it up over {P.PACE_FRAMES} frames")
+                        f"<= {pace['speed_to_use']:.3g} units/s would take it up over {pace['frames_wanted']} frames")
     guard = guard_rail(on, row_r, board, bidx, period, t_enc, q, td)
     if guard["warn"]:
         warnings.append(f"onsets: the actuator-shape B samples and the board's plain eq. 1 onsets disagree beyond "
@@ -687,20 +687,23 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
 
 def pacing(t_enc: np.ndarray, q: np.ndarray, on, fps: float, t_delay_s: float) -> dict:
     """How many frames the play takes to take up at the excitation's speed, and the swing speed
-    that would spread it over onset_play.PACE_FRAMES frames: speed = B_low fps / PACE_FRAMES,
+    that would spread it over EXC_PACE_FRAMES frames (the board's pacing rule, playscope.pacing):
+    speed = B_low fps / EXC_PACE_FRAMES,
     B_low the 10th percentile of the B samples. The actuator speed at each onset is |dq/dt| at
     t2 - t_delay, in actuator units/s. Returns a JSON-ready dict; frames_to_take_up inf without
     samples."""
-    from . import onset_play as P
+    from .pacing import pace_frames
 
+    frames = pace_frames()
     if on.b.size == 0:
-        return {"frames_to_take_up": float("inf"), "speed_to_use": float("nan"), "sigma_frame_travel": float("nan")}
+        return {"frames_to_take_up": float("inf"), "speed_to_use": float("nan"), "sigma_frame_travel": float("nan"),
+                "frames_wanted": frames}
     v = np.abs(np.interp(on.t2_s - t_delay_s, t_enc, np.gradient(q, t_enc)))
     travel = np.maximum(v / fps, 1e-12)  # actuator travel in one frame period at the onset
     b_low = float(np.percentile(on.b, 10))
     return {"frames_to_take_up": float(np.median(on.b / travel)), "speed_at_onset_median": float(np.median(v)),
             "sigma_frame_travel": float(np.median(travel) / np.sqrt(12)), "b_low": b_low,
-            "speed_to_use": b_low * fps / P.PACE_FRAMES, "frames_wanted": P.PACE_FRAMES}
+            "speed_to_use": b_low * fps / frames, "frames_wanted": frames}
 
 
 def guard_rail(on, row_r: np.ndarray, board, bidx: np.ndarray, period: float, t_enc: np.ndarray,

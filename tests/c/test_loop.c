@@ -166,6 +166,39 @@ static void test_excitation_feeds_the_detector(void **state)
 static calib_t cal2;
 static b_online_t bo2;
 
+/* With pacing on, the excitation's speed is the pacing rule's for the detector's frame period
+ * (not cfg.exc's), and an invalid frame period or B range refuses the mode, nothing changed. */
+static void test_excitation_paced_to_the_camera(void **state)
+{
+    (void)state;
+    psa_config_t c = config(false);
+    c.pace = (exc_pace_t){.b_low_q16 = PS_Q16_ONE / 8, .b_high_q16 = PS_Q16_ONE / 2, .tick_hz = 20000u};
+    psa_init(&loop, &c);
+    assert_true(psa_set_table(&loop, &cal));
+    assert_true(psa_set_mode(&loop, PSA_MODE_EXCITATION));
+    int64_t v = 0;
+    assert_int_equal(exc_pace_speed(c.pace.b_low_q16, c.pace.b_high_q16, c.onset.frame_period_us, 20000u, &v),
+                     EXC_OK);
+    assert_true(loop.exc.cfg.v_q32 == v);
+    assert_true(v != c.exc.v_q32);
+
+    c.onset.frame_period_us = 0; /* no camera rate: refused, still idle */
+    psa_init(&loop, &c);
+    assert_true(psa_set_table(&loop, &cal));
+    assert_false(psa_set_mode(&loop, PSA_MODE_EXCITATION));
+    assert_int_equal(loop.mode, PSA_MODE_IDLE);
+    c = config(false);
+    c.pace = (exc_pace_t){.b_low_q16 = PS_Q16_ONE / 2, .b_high_q16 = PS_Q16_ONE / 8, .tick_hz = 20000u};
+    psa_init(&loop, &c);
+    assert_true(psa_set_table(&loop, &cal));
+    assert_false(psa_set_mode(&loop, PSA_MODE_EXCITATION)); /* b_low > b_high */
+    c.pace = (exc_pace_t){.b_low_q16 = PS_Q16_ONE / 8, .b_high_q16 = PS_Q16_ONE, .tick_hz = 20000u};
+    psa_init(&loop, &c);
+    assert_true(psa_set_table(&loop, &cal));
+    assert_false(psa_set_mode(&loop, PSA_MODE_EXCITATION)); /* the 0.75 down leg cannot take up 1 */
+    assert_int_equal(loop.mode, PSA_MODE_IDLE);
+}
+
 static void test_hot_swap_keeps_the_compensator_state(void **state)
 {
     (void)state;
@@ -212,6 +245,7 @@ int main(void)
         cmocka_unit_test(test_set_reference_then_ticks_hold),
         cmocka_unit_test(test_modes_and_tables),
         cmocka_unit_test(test_excitation_feeds_the_detector),
+        cmocka_unit_test(test_excitation_paced_to_the_camera),
         cmocka_unit_test(test_hot_swap_keeps_the_compensator_state),
     };
     return cmocka_run_group_tests(tests, setup, NULL);

@@ -76,8 +76,11 @@ static void usage(void)
             "  --tick-hz HZ   control tick rate, default 1000\n"
             "  --upload-timeout-ms MS  a table upload session silent this long is free again, default 5000\n"
             "  --time-scale X board clock runs X times the wall clock (simulation only), default 1\n"
-            "  --exc Q0:Q1:AMP:ADV:V  excitation used without a table: range, amplitude, advance\n"
-            "                 (actuator units) and speed (units/s); default 0:10:1:0.25:10\n");
+            "  --exc Q0:Q1:AMP:ADV[:V]  excitation used without a table: range, amplitude, advance\n"
+            "                 (actuator units) and speed (units/s); default 0:10:1:0.25:10; without V, --pace\n"
+            "  --pace BLO:BHI:FRAME_US  pace the excitation to the camera: speed BLO / (4 frame periods),\n"
+            "                 BLO..BHI the expected play (units), FRAME_US the camera period (also the onset\n"
+            "                 detector's); overrides V\n");
 }
 
 /* Serve one connection until EOF: frames in, answers and unsolicited frames out, ticks
@@ -186,8 +189,8 @@ int main(int argc, char **argv)
     uint32_t tick_hz = 1000;
     double time_scale = 1.0;
     unsigned long upload_timeout_ms = PSL_UPLOAD_TIMEOUT_US / 1000u;
-    double exc[5];
-    int have_exc = 0;
+    double exc[5] = {0}, pace[3];
+    int have_exc = 0, have_pace = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--flash") && i + 1 < argc)
             flash_path = argv[++i];
@@ -204,12 +207,20 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--time-scale") && i + 1 < argc)
             time_scale = strtod(argv[++i], NULL);
         else if (!strcmp(argv[i], "--exc") && i + 1 < argc &&
-                 sscanf(argv[++i], "%lf:%lf:%lf:%lf:%lf", &exc[0], &exc[1], &exc[2], &exc[3], &exc[4]) == 5)
-            have_exc = 1;
+                 (have_exc = sscanf(argv[++i], "%lf:%lf:%lf:%lf:%lf", &exc[0], &exc[1], &exc[2], &exc[3], &exc[4])) >= 4)
+            ;
+        else if (!strcmp(argv[i], "--pace") && i + 1 < argc &&
+                 sscanf(argv[++i], "%lf:%lf:%lf", &pace[0], &pace[1], &pace[2]) == 3)
+            have_pace = 1;
         else {
             usage();
             return 2;
         }
+    }
+    if ((have_exc == 4 && !have_pace) || (have_pace && have_exc < 4)) {
+        fprintf(stderr, "ps_vboard: --exc without a speed needs --pace, and --pace needs --exc\n");
+        usage();
+        return 2;
     }
     if (tick_hz == 0 || tick_hz > 100000 || !(time_scale > 0.0 && time_scale <= 100.0) ||
         upload_timeout_ms == 0 || upload_timeout_ms > 3600000ul) {
@@ -249,12 +260,26 @@ int main(int argc, char **argv)
     cfg.board_id[0] = 0x56495254; /* "VIRT" */
     cfg.board_id[2] = (uint32_t)getpid();
     cfg.upload_timeout_us = (uint32_t)(upload_timeout_ms * 1000u);
-    if (have_exc) {
+    if (have_exc >= 4) {
         cfg.exc.q_start_q16 = (int32_t)(exc[0] * 65536.0);
         cfg.exc.q_end_q16 = (int32_t)(exc[1] * 65536.0);
         cfg.exc.amplitude_q16 = (int32_t)(exc[2] * 65536.0);
         cfg.exc.advance_q16 = (int32_t)(exc[3] * 65536.0);
         cfg.exc.v_q32 = (int64_t)(exc[4] / tick_hz * 4294967296.0); /* units per tick, Q32.32 */
+        if (have_pace) {
+            /* The board's own rule (exc_pace_config), integer-only, from the camera's period. */
+            double us = pace[2];
+            if (!(us >= 1.0 && us <= 4294967295.0) ||
+                exc_pace_config(&cfg.exc, (int32_t)(pace[0] * 65536.0 + 0.5), (int32_t)(pace[1] * 65536.0 + 0.5),
+                                (uint32_t)(us + 0.5), tick_hz) != EXC_OK) {
+                fprintf(stderr, "ps_vboard: --pace %g:%g:%g refused (need 0 < BLO <= BHI < AMP - ADV, "
+                        "FRAME_US 1000..1000000, a speed that fits the excitation)\n", pace[0], pace[1], pace[2]);
+                return 2;
+            }
+            cfg.onset.frame_period_us = (uint32_t)(us + 0.5);
+            fprintf(stderr, "ps_vboard: excitation paced to %.9g units/s (v_q32 %lld per tick)\n",
+                    (double)cfg.exc.v_q32 / 4294967296.0 * tick_hz, (long long)cfg.exc.v_q32);
+        }
         exc_t probe;
         if (exc_init(&probe, &cfg.exc) != EXC_OK) {
             fprintf(stderr, "ps_vboard: --exc %g:%g:%g:%g:%g refused (need Q1 > Q0, AMP > ADV > 0, V > 0)\n",

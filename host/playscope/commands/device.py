@@ -68,6 +68,49 @@ def cmd_flash(args) -> int:
     return 0
 
 
+def _pace_virtual_exc(args) -> list[str] | None:
+    """--exc without a speed: pace it (playscope.pacing, the board's rule) to the camera's frame
+    rate and the expected play range. Sets args.exc to the full Q0:Q1:AMP:ADV:V (duration, the
+    simulated plant) and returns the virtual board's --pace arguments; [] when V was given,
+    None (after printing why) when pacing is refused."""
+    from ..pacing import frame_period_us, paced_exc
+
+    if len(args.exc.split(":")) == 5:
+        return []
+    fps = args.fps
+    if args.b_range is not None:
+        b_low, b_high = (float(x) for x in args.b_range.split(":"))
+    elif args.sim_plant:
+        from ..sim.core import play_range
+        from ..sim.plant import SimPlant, SimPlantConfig
+
+        b_low, b_high = play_range(SimPlant(SimPlantConfig(seed=args.seed)).sim)
+    else:
+        print("playscope: run-insitu: --exc without a speed paces the swing to the camera and needs the "
+              "expected play, --b-range LO:HI (or give the speed as --exc Q0:Q1:AMP:ADV:V)", file=sys.stderr)
+        return None
+    if fps is None:
+        fps = 25.0
+        if args.sim_plant:
+            from ..sim.plant import SimPlantConfig
+
+            fps = SimPlantConfig().fps
+        elif args.video is not None and not args.video.isdigit():
+            import cv2
+
+            cap = cv2.VideoCapture(args.video)
+            fps = cap.get(cv2.CAP_PROP_FPS) or 25.0
+            cap.release()
+    try:
+        exc4 = args.exc
+        args.exc = paced_exc(exc4, b_low, b_high, fps)
+    except ValueError as e:
+        print(f"playscope: run-insitu: {e}", file=sys.stderr)
+        return None
+    print(f"excitation {args.exc} (speed paced to {fps:g} frames/s, play {b_low:g}..{b_high:g})", file=sys.stderr)
+    return ["--pace", f"{b_low!r}:{b_high!r}:{frame_period_us(fps)}"]
+
+
 def cmd_run_insitu(args) -> int:
     vb = []
     if args.sim_plant:
@@ -76,8 +119,12 @@ def cmd_run_insitu(args) -> int:
                   "the virtual board's clock)", file=sys.stderr)
             return 2
         vb = ["--time-scale", f"{args.time_scale:g}"]
-    if args.device == "virtual":
-        vb += ["--exc", args.exc]
+    if args.device == "virtual" and (args.sim_plant or args.video is not None):  # no source: said below
+        exc4 = args.exc
+        pace = _pace_virtual_exc(args)
+        if pace is None:
+            return 2
+        vb += ["--exc", exc4] + pace  # without V: the board computes it itself (--pace)
     with _closing(_open(args, vb)) as link:
         return _run_insitu(link, args)
 
@@ -218,9 +265,16 @@ def add_parser(subparsers) -> None:
                         "stream and is rendered to frames (simulator preset 'ideal')")
     p.add_argument("--time-scale", type=T.TIME_SCALE, default=4.0,
                    help="--sim-plant: virtual board clock speed-up over the wall clock (default 4)")
-    p.add_argument("--exc", default="-3:3:1.6:0.4:1.0", type=T.colon_floats(5, "Q0:Q1:AMP:ADV:V"),
-                   help="virtual board: its excitation Q0:Q1:AMP:ADV:V in mm, mm/s (default -3:3:1.6:0.4:1.0); "
-                        "a real board runs the excitation it was built with")
+    p.add_argument("--exc", default="-3:3:1.6:0.4", type=T.colon_floats(5, "Q0:Q1:AMP:ADV[:V]", n_min=4),
+                   help="virtual board: its excitation Q0:Q1:AMP:ADV[:V] in mm, mm/s (default -3:3:1.6:0.4); "
+                        "without V the board paces the swing to the camera: V = B_low x fps / 4, the smallest "
+                        "play taken up over 4 frames (see --b-range, --fps); a real board runs the excitation "
+                        "it was built with")
+    p.add_argument("--b-range", type=T.colon_floats(2, "LO:HI"),
+                   help="expected play range LO:HI in mm, for pacing the excitation (default with --sim-plant: "
+                        "the simulated instrument's)")
+    p.add_argument("--fps", type=T.FPS, help="camera frame rate for pacing the excitation (default: the simulated "
+                   "camera's, the video file's, else 25)")
     p.add_argument("--seed", type=T.SEED, default=0, help="--sim-plant: noise seed")
     p.add_argument("--seconds", type=T.DURATION_S, default=600.0, help="longest run in board seconds (default 600)")
     p.add_argument("-N", "--control-points", type=T.CONTROL_POINTS, default=14, help="most control points of the B(q) spline, and those of the paper's morphological f_remain (paper: 14); the least-squares f_remain takes its own by cross-validation (calibration file: f_fit)")

@@ -54,7 +54,7 @@ class SimConfig:
     angle_noise_deg: float = 0.05         # angle sessions (EM tracker)
     angle_rate_hz: float = 100.0
     trajectory: dict = field(default_factory=lambda: {"kind": "excitation", "q_lo": -3.0, "q_hi": 3.0,
-                                                      "amp": 1.4, "speed": 0.8, "duration_s": 120.0,
+                                                      "amp": 1.4, "speed": None, "duration_s": 120.0,
                                                       "cycles": 2})
     effects: dict = field(default_factory=dict)
 
@@ -120,13 +120,36 @@ def preset(name: str, **overrides) -> SimConfig:
 
 
 # --------------------------------------------------------------------------- trajectories
+def play_range(cfg: SimConfig) -> tuple[float, float]:
+    """(B_low, B_high) actuator units: the play the camera sees taken up after a reversal, over
+    the trajectory's [q_lo, q_hi] (what a user expects of the instrument; the simulator knows it
+    exactly). That is B(q) itself, or with the smooth_transition effect the travel to the tip's
+    first motion, (1 - spread) B(q): the onset detector times that, not the full width."""
+    tr = cfg.trajectory
+    b = cfg.B_fn()(np.linspace(tr["q_lo"], tr["q_hi"], 1201))
+    spread = float(((cfg.effects or {}).get("smooth_transition") or {}).get("spread", 0.0))
+    return float(b.min() * (1.0 - spread)), float(b.max())
+
+
+def paced_speed(cfg: SimConfig) -> float:
+    """The excitation's default swing speed, actuator units/s: the board's pacing rule
+    (playscope.pacing, firmware/core/exc.h) for cfg.fps and the play range of B(q), so the
+    smallest play is taken up over EXC_PACE_FRAMES frames. Errors: ValueError from the rule."""
+    from ..pacing import swing_speed
+
+    return swing_speed(*play_range(cfg), cfg.fps)
+
+
 def make_trajectory(cfg: SimConfig) -> dict[str, np.ndarray]:
     """q(t) at cfg.encoder_hz for cfg.trajectory; returns {"t_s", "q"[, "translation_mm"]}."""
     tr = dict(cfg.trajectory)
     kind = tr.pop("kind")
     r = cfg.encoder_hz
     if kind == "excitation":
-        t, q = T.excitation(tr["q_lo"], tr["q_hi"], tr["amp"], tr["speed"], tr["duration_s"], r,
+        speed = tr.get("speed")
+        if speed is None:
+            speed = paced_speed(cfg)
+        t, q = T.excitation(tr["q_lo"], tr["q_hi"], tr["amp"], speed, tr["duration_s"], r,
                             tr.get("hold_s", 0.3), tr.get("cycles", 1))
     elif kind == "test":
         t, q = T.test_motion(tr["q_lo"], tr["q_hi"], tr["amp"], tr["speed"], tr["duration_s"], r, tr.get("hold_s", 1.0))

@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 TRAJ_DEFAULTS = {
-    "excitation": {"kind": "excitation", "q_lo": -3.0, "q_hi": 3.0, "amp": 1.4, "speed": 0.8, "duration_s": 120.0, "cycles": 2},
+    # speed None: the pacing rule (sim.core.paced_speed), filled in by sim_config.
+    "excitation": {"kind": "excitation", "q_lo": -3.0, "q_hi": 3.0, "amp": 1.4, "speed": None, "duration_s": 120.0, "cycles": 2},
     "test": {"kind": "test", "q_lo": -3.0, "q_hi": 3.0, "amp": 1.6, "speed": 1.0, "duration_s": 200.0, "hold_s": 1.0},
     "ellipse": {"kind": "ellipse", "a_mm": 8.0, "b_mm": 3.0, "period_s": 20.0, "cycles": 3},
     "random_walk": {"kind": "random_walk", "q_lo": -3.0, "q_hi": 3.0, "speed": 0.8, "duration_s": 120.0},
@@ -50,6 +51,10 @@ def sim_config(preset_name: str = "stras", config_json: str | None = None, effec
         cfg.seed = seed
     if kind:
         cfg.distal_kind = kind
+    if cfg.trajectory.get("kind") == "excitation" and cfg.trajectory.get("speed") is None:
+        from .core import paced_speed
+
+        cfg.trajectory["speed"] = paced_speed(cfg)  # recorded in session.json as the number used
     return cfg
 
 

@@ -13,6 +13,7 @@ import pytest
 from playscope import estimate as E
 from playscope import onset_play as P
 from playscope import onset_refine as R
+from playscope.pacing import pace_frames
 
 ROOT = Path(__file__).resolve().parents[3]
 RENDER = ROOT / "bench" / "swing_render.py"
@@ -101,8 +102,9 @@ def test_fast_take_up_says_which_speed_to_use(swings):
     r, t, q, rt, rq, t_f, obs, hyst = swings
     rob = R.robust_samples(t, q, q, rt, rq, t_f, obs, r.fps, r.delay_s, "data", None, None, hyst)
     pace = rob.report["pacing"]
-    assert pace["frames_to_take_up"] < P.PACE_FRAMES
-    assert pace["speed_to_use"] == pytest.approx(pace["b_low"] * r.fps / P.PACE_FRAMES)
+    assert pace["frames_wanted"] == pace_frames() == 4
+    assert pace["frames_to_take_up"] < pace_frames()
+    assert pace["speed_to_use"] == pytest.approx(pace["b_low"] * r.fps / pace_frames())
     assert any("would take it up over" in w for w in rob.warnings)
 
 
