@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 
+from . import native
+
 TICK_HZ = 1000  # the board's control tick (encoder stream 1 kHz); the speed in units/s barely depends on it
 
 
@@ -46,11 +48,11 @@ def pace_v_q32(b_low: float, b_high: float, fps: float, tick_hz: int = TICK_HZ) 
     refuses (frame rate or B range invalid, speed below one LSB or too large)."""
     ffi, lib = _lib()
     for name, x in (("b_low", b_low), ("b_high", b_high)):
-        if not (isinstance(x, (int, float)) and math.isfinite(x)) or abs(x) * 65536 >= 2**31:
+        if not (isinstance(x, (int, float)) and math.isfinite(x)) or abs(x) * native.Q16_ONE >= 2**31:
             raise ValueError(f"{name} must be a finite number of actuator units below 32768, got {x!r}")
     period_us = frame_period_us(fps)
     v = ffi.new("int64_t *")
-    st = lib.exc_pace_speed(int(round(b_low * 65536)), int(round(b_high * 65536)), period_us, int(tick_hz), v)
+    st = lib.exc_pace_speed(int(round(b_low * native.Q16_ONE)), int(round(b_high * native.Q16_ONE)), period_us, int(tick_hz), v)
     if st == lib.EXC_ERR_PACE:
         raise ValueError(f"pacing refused: need 0 < b_low <= b_high (got {b_low:g}, {b_high:g}), a frame rate "
                          f"of 1..1000 frames/s (got {fps:g}) and a tick rate of 1..1000000 Hz (got {tick_hz})")
@@ -78,10 +80,10 @@ def paced_exc(exc4: str, b_low: float, b_high: float, fps: float, tick_hz: int =
         raise ValueError(f"excitation {exc4!r} is not Q0:Q1:AMP:ADV (4 numbers separated by ':')") from None
     pace_v_q32(b_low, b_high, fps, tick_hz)  # frame rate and B range first, with their own message
     cfg = ffi.new("exc_config_t *")
-    cfg.q_start_q16, cfg.q_end_q16 = int(q0 * 65536), int(q1 * 65536)
-    cfg.amplitude_q16, cfg.advance_q16 = int(amp * 65536), int(adv * 65536)
+    cfg.q_start_q16, cfg.q_end_q16 = int(q0 * native.Q16_ONE), int(q1 * native.Q16_ONE)
+    cfg.amplitude_q16, cfg.advance_q16 = int(amp * native.Q16_ONE), int(adv * native.Q16_ONE)
     cfg.return_sweep = True
-    st = lib.exc_pace_config(cfg, int(round(b_low * 65536)), int(round(b_high * 65536)), frame_period_us(fps),
+    st = lib.exc_pace_config(cfg, int(round(b_low * native.Q16_ONE)), int(round(b_high * native.Q16_ONE)), frame_period_us(fps),
                              int(tick_hz))
     if st == lib.EXC_ERR_PACE:
         raise ValueError(f"excitation {exc4!r}: its down leg AMP - ADV = {amp - adv:g} must exceed the widest "

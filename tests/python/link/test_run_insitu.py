@@ -21,8 +21,13 @@ from playscope.sim.plant import SimPlant
 
 def test_run_insitu_sim_plant_recovers_B(tmp_path, capsys):
     out = tmp_path / "run"
+    # An explicit swing speed of 1 mm/s (the play taken up over ~9-20 frames at 25 fps): the
+    # accuracy check of the closed loop. The paced default (4 frames of the smallest play,
+    # 2.19 mm/s here) measured 0.007-0.039 mm mean depending on the machine's load: the
+    # frame-period error v x T/2 of eq. 1 grows with the speed (tests/python/sim/test_pacing.py
+    # checks the pacing rule itself).
     rc = main(["run-insitu", "--device", "virtual", "--sim-plant", "--time-scale", "6", "--vectors", "100",
-               "-o", str(out), "--json", str(tmp_path / "r.json")])
+               "--exc=-3:3:1.6:0.4:1.0", "-o", str(out), "--json", str(tmp_path / "r.json")])
     text = capsys.readouterr()
     assert rc == 0, text.err
     assert "SIMULATION" in text.err and "SIMULATION truth" in text.out
