@@ -154,13 +154,20 @@ def _build(target_dir: Path) -> None:
 
 
 def _load(target: Path) -> tuple:
-    """(ffi, lib) of the extension in folder target, building it first when absent (the folder
-    name carries a hash of the sources, so a stale build is never loaded)."""
-    found = sorted(target.glob(f"{MODULE}*.so")) if target.is_dir() else []
+    """(ffi, lib) of the core's extension in folder target, building it first when absent."""
+    return load_extension(target, MODULE, _build)
+
+
+def load_extension(target: Path, module: str, build) -> tuple:
+    """(ffi, lib) of the cffi extension `module` in folder target, calling build(target) first
+    when no compiled file is there (the folder name carries a hash of the sources, so a stale
+    build is never loaded). Shared by the core and the diagnosis' kernels. Errors: whatever
+    build raises; ImportError for a compiled file that does not load."""
+    found = sorted(target.glob(f"{module}*.so")) if target.is_dir() else []
     if not found:
-        _build(target)
-        found = sorted(target.glob(f"{MODULE}*.so"))
-    spec = importlib.util.spec_from_file_location(MODULE, found[0])
+        build(target)
+        found = sorted(target.glob(f"{module}*.so"))
+    spec = importlib.util.spec_from_file_location(module, found[0])
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod.ffi, mod.lib

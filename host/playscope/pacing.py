@@ -47,12 +47,10 @@ def pace_v_q32(b_low: float, b_high: float, fps: float, tick_hz: int = TICK_HZ) 
     rate (1..1000 frames/s); tick_hz: control rate. Errors: ValueError naming what the board
     refuses (frame rate or B range invalid, speed below one LSB or too large)."""
     ffi, lib = _lib()
-    for name, x in (("b_low", b_low), ("b_high", b_high)):
-        if not (isinstance(x, (int, float)) and math.isfinite(x)) or abs(x) * native.Q16_ONE >= 2**31:
-            raise ValueError(f"{name} must be a finite number of actuator units below 32768, got {x!r}")
+    b_low_q16, b_high_q16 = _play_q16("b_low", b_low), _play_q16("b_high", b_high)
     period_us = frame_period_us(fps)
     v = ffi.new("int64_t *")
-    st = lib.exc_pace_speed(int(round(b_low * native.Q16_ONE)), int(round(b_high * native.Q16_ONE)), period_us, int(tick_hz), v)
+    st = lib.exc_pace_speed(b_low_q16, b_high_q16, period_us, int(tick_hz), v)
     if st == lib.EXC_ERR_PACE:
         raise ValueError(f"pacing refused: need 0 < b_low <= b_high (got {b_low:g}, {b_high:g}), a frame rate "
                          f"of 1..1000 frames/s (got {fps:g}) and a tick rate of 1..1000000 Hz (got {tick_hz})")
@@ -60,6 +58,17 @@ def pace_v_q32(b_low: float, b_high: float, fps: float, tick_hz: int = TICK_HZ) 
         raise ValueError(f"pacing refused: the speed for b_low {b_low:g} at {fps:g} frames/s is below one "
                          f"Q32.32 step per tick or beyond any trajectory")
     return int(v[0])
+
+
+def _play_q16(name: str, x) -> int:
+    """A play width (actuator units) as the board's Q16.16 raw value (native.to_q16's rounding).
+    Errors: ValueError naming the argument when it is not a finite number the Q format holds."""
+    if not isinstance(x, (int, float)) or not math.isfinite(x):
+        raise ValueError(f"{name} must be a finite number of actuator units, got {x!r}")
+    try:
+        return int(native.to_q16(x))
+    except OverflowError:
+        raise ValueError(f"{name} = {x:g} actuator units is beyond the board's Q16.16 range (+-32768)") from None
 
 
 def swing_speed(b_low: float, b_high: float, fps: float, tick_hz: int = TICK_HZ) -> float:
@@ -83,7 +92,7 @@ def paced_exc(exc4: str, b_low: float, b_high: float, fps: float, tick_hz: int =
     cfg.q_start_q16, cfg.q_end_q16 = int(q0 * native.Q16_ONE), int(q1 * native.Q16_ONE)
     cfg.amplitude_q16, cfg.advance_q16 = int(amp * native.Q16_ONE), int(adv * native.Q16_ONE)
     cfg.return_sweep = True
-    st = lib.exc_pace_config(cfg, int(round(b_low * native.Q16_ONE)), int(round(b_high * native.Q16_ONE)), frame_period_us(fps),
+    st = lib.exc_pace_config(cfg, _play_q16("b_low", b_low), _play_q16("b_high", b_high), frame_period_us(fps),
                              int(tick_hz))
     if st == lib.EXC_ERR_PACE:
         raise ValueError(f"excitation {exc4!r}: its down leg AMP - ADV = {amp - adv:g} must exceed the widest "

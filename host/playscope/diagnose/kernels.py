@@ -15,7 +15,6 @@ Functions take and return float64 numpy arrays of one length N (mm); shapes (N,)
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import os
 import sys
 import tempfile
@@ -69,17 +68,9 @@ def _load():
     with _lock:
         if _lib is not None or _failed:
             return _lib
-        from ..native import cache_root
-        target = cache_root() / f"diagkernels-{_fingerprint()}"
+        from ..native import cache_root, load_extension
         try:
-            found = sorted(target.glob(f"{MODULE}*.so")) if target.is_dir() else []
-            if not found:
-                _build(target)
-                found = sorted(target.glob(f"{MODULE}*.so"))
-            spec = importlib.util.spec_from_file_location(MODULE, found[0])
-            mod = importlib.util.module_from_spec(spec)
-            spec.loader.exec_module(mod)
-            _lib = (mod.ffi, mod.lib)
+            _lib = load_extension(cache_root() / f"diagkernels-{_fingerprint()}", MODULE, _build)
         except Exception as e:  # no compiler, no cffi, unwritable cache: the Python references run
             _failed = True
             warnings.warn(f"diagnosis kernels not compiled ({e}); using the slower Python references",
