@@ -94,6 +94,35 @@ def _rows_to_samples(t_rows: np.ndarray, mask: np.ndarray, t_samples: np.ndarray
     return mask[j]
 
 
+def _diagnose_blind(s, case: dict, candidates):
+    """Diagnose session s blind (the record's own fit / validation / test split) and score it
+    against the generator's truth: the case's labels, the verdict and kept effects, the screen,
+    and the test part's RMSE before and after the kept effects beside the noise-only RMSE (the
+    same reduction applied to the generator's noise-free reading, s.meta["clean_reading_deg"]).
+    Returns (data, split, attribute's result, the scored dict); deg throughout."""
+    data = from_session(s)
+    sp = choose_split(data)
+    res = attribute(data, sp.fit, sp.val, candidates=candidates, test_mask=sp.test)
+    clean = from_session(type(s)(**{**s.__dict__, "distal": {"t_s": s.distal["t_s"], "c_deg": s.meta["clean_reading_deg"]}}))
+    e = (data.y_m - clean.y_m)[sp.test & np.isfinite(data.y_m)]
+    r_noise = float(np.sqrt(np.mean(e * e)))
+    r0 = res["test"]["rmse_base_deg"]
+    sig = res["stick_slip_signature"]
+    out = {"id": case["id"], "truth": case["truth"], "effect": case["effect"], "variant": case["variant"],
+           "strength": case["strength"], "unit": case["unit"], "verdict": res["verdict"],
+           "kept": [k["effect"] for k in res["kept"]], "hint": (res.get("hint") or {}).get("effect"),
+           "indistinguishable": {k["effect"]: k["indistinguishable_from"] for k in res["kept"]},
+           "stick_skew": sig["skewness"], "stick_skew_interior": sig.get("skewness_interior"),
+           "screen": {row["effect"]: {"rmse_val_deg": row["rmse_heldout_deg"], "promising": row["promising"],
+                                      "margin_deg": row.get("margin_deg"), "delta_bic": row["delta_bic"]}
+                      for row in res["screen"]},
+           "split": sp.method, "noise_floor_deg": res["noise_floor_deg"],
+           "rmse_val_base_deg": res["base"]["rmse_heldout_deg"], "rmse_val_after_deg": res["final"]["rmse_heldout_deg"],
+           "rmse_base_deg": r0, "rmse_after_deg": res["test"]["rmse_final_deg"], "rmse_noise_only_deg": r_noise,
+           "shrink_true_deg": r0 - r_noise, "shrink_recovered_deg": r0 - res["test"]["rmse_final_deg"]}
+    return data, sp, res, out
+
+
 def run_case(case: dict, duration_s: float = 120.0, candidates=C_LIBRARY, oracle: bool = True,
              recover: bool = True) -> dict:
     """Simulate blind, diagnose (fit / validation / test split of the record), score one case
@@ -102,26 +131,7 @@ def run_case(case: dict, duration_s: float = 120.0, candidates=C_LIBRARY, oracle
     diagnosis' fit part and is judged on its test part, like the identifiability oracle."""
     t0 = time.time()
     s = make_session(case, duration_s)
-    data = from_session(s)
-    sp = choose_split(data)
-    res = attribute(data, sp.fit, sp.val, candidates=candidates, test_mask=sp.test)
-    # Truth: the same reduction applied to the generator's noise-free reading.
-    clean = from_session(type(s)(**{**s.__dict__, "distal": {"t_s": s.distal["t_s"], "c_deg": s.meta["clean_reading_deg"]}}))
-    e = (data.y_m - clean.y_m)[sp.test & np.isfinite(data.y_m)]
-    r_noise = float(np.sqrt(np.mean(e * e)))
-    r0 = res["test"]["rmse_base_deg"]
-    out = {"id": case["id"], "truth": case["truth"], "effect": case["effect"], "variant": case["variant"],
-           "strength": case["strength"], "unit": case["unit"], "verdict": res["verdict"],
-           "kept": [k["effect"] for k in res["kept"]],
-           "indistinguishable": {k["effect"]: k["indistinguishable_from"] for k in res["kept"]},
-           "stick_skew": res["stick_slip_signature"]["skewness"],
-           "screen": {row["effect"]: {"rmse_val_deg": row["rmse_heldout_deg"], "promising": row["promising"],
-                                      "margin_deg": row.get("margin_deg"), "delta_bic": row["delta_bic"]}
-                      for row in res["screen"]},
-           "split": sp.method, "noise_floor_deg": res["noise_floor_deg"],
-           "rmse_val_base_deg": res["base"]["rmse_heldout_deg"], "rmse_val_after_deg": res["final"]["rmse_heldout_deg"],
-           "rmse_base_deg": r0, "rmse_after_deg": res["test"]["rmse_final_deg"], "rmse_noise_only_deg": r_noise,
-           "shrink_true_deg": r0 - r_noise, "shrink_recovered_deg": r0 - res["test"]["rmse_final_deg"]}
+    data, sp, res, out = _diagnose_blind(s, case, candidates)
     if "null_batch" in case:
         out["null_batch"] = case["null_batch"]
     if oracle and case["effect"] is not None:
@@ -174,27 +184,9 @@ def run_case_second(case: dict, duration_s: float = 120.0, candidates=C_LIBRARY)
     split as run_case, score against its truth (no oracles: that generator has none)."""
     from ..sim.withheld_b.generator import session
     t0 = time.time()
-    s = session(case, duration_s)
-    data = from_session(s)
-    sp = choose_split(data)
-    res = attribute(data, sp.fit, sp.val, candidates=candidates, test_mask=sp.test)
-    clean = from_session(type(s)(**{**s.__dict__, "distal": {"t_s": s.distal["t_s"], "c_deg": s.meta["clean_reading_deg"]}}))
-    e = (data.y_m - clean.y_m)[sp.test & np.isfinite(data.y_m)]
-    r_noise = float(np.sqrt(np.mean(e * e)))
-    r0 = res["test"]["rmse_base_deg"]
-    sig = res["stick_slip_signature"]
-    return {"id": case["id"], "truth": case["truth"], "effect": case["effect"], "variant": case["variant"],
-            "strength": case["strength"], "unit": case["unit"], "verdict": res["verdict"],
-            "kept": [k["effect"] for k in res["kept"]], "hint": (res.get("hint") or {}).get("effect"),
-            "indistinguishable": {k["effect"]: k["indistinguishable_from"] for k in res["kept"]},
-            "stick_skew": sig["skewness"], "stick_skew_interior": sig["skewness_interior"],
-            "screen": {row["effect"]: {"rmse_val_deg": row["rmse_heldout_deg"], "promising": row["promising"]}
-                       for row in res["screen"]},
-            "split": sp.method, "noise_floor_deg": res["noise_floor_deg"],
-            "rmse_val_base_deg": res["base"]["rmse_heldout_deg"], "rmse_val_after_deg": res["final"]["rmse_heldout_deg"],
-            "rmse_base_deg": r0, "rmse_after_deg": res["test"]["rmse_final_deg"], "rmse_noise_only_deg": r_noise,
-            "shrink_true_deg": r0 - r_noise, "shrink_recovered_deg": r0 - res["test"]["rmse_final_deg"],
-            "seconds": time.time() - t0}
+    _, _, _, out = _diagnose_blind(session(case, duration_s), case, candidates)
+    out["seconds"] = time.time() - t0
+    return out
 
 
 def run_second(seed: int = 0, nulls: int = 10, ool: bool = True, duration_s: float = 120.0, workers: int = 2,
