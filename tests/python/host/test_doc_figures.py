@@ -3,9 +3,9 @@ their prose is either inside a block bench/run_all.py generates (results, main-j
 figures blocks) or appears in docs/results.md, the page one run wrote. A figure copied by hand
 drifts from the next run; this fails as soon as it does.
 
-Not scanned: generated blocks, fenced code and `code spans` (commands, options and source
-constants a user types or reads in the code, e.g. `--split 0.5`, `EXC_PACE_FRAMES`), link
-targets. Settings of the method or of a recording (not measurements) are allowed by ALLOWED
+Not scanned: generated blocks, fenced and indented code (commands, example sessions), code
+spans (options and source constants a user types or reads in the code, e.g. `--split 0.5`,
+`EXC_PACE_FRAMES`), link targets. Settings of the method or of a recording (not measurements) are allowed by ALLOWED
 below, each with its reason.
 """
 
@@ -26,7 +26,8 @@ FIGURE = re.compile(r"(?<![\w.\-/])\d+(?:\.\d+)?(?:\s?(?:-|–|/|to)\s?\d+(?:\.\
 # Settings, not measurements: (pattern of the figure, why it is not a measured figure).
 ALLOWED = (
     (r"(25|30|60) (fps|Hz)", "camera frame rates of the recordings and of the simulator's presets (settings)"),
-    (r"(1|500) (kHz|Hz)", "the control loop's tick rate and the encoder log rate (settings of the board)"),
+    (r"(20|1|5) kHz|(500|100) Hz", "the control loop's tick rate and the encoder and sensor log rates (settings)"),
+    (r"(168|48) MHz", "the STM32F405's core and USB clocks (hardware constants)"),
     (r"(24|64|128|192) KiB", "flash and RAM budgets and the board's memory sizes (targets, not measurements)"),
     (r"(0\.3|3|20|30) s", "time targets of the project (start-up < 0.3 s, calibrate < 3 s, diagnose <= 20 s, "
                           "main job < 30 s): targets, stated beside the measured row they judge"),
@@ -42,6 +43,12 @@ def _prose(text: str) -> str:
     """What a person wrote: generated blocks, fenced code, code spans and link targets removed."""
     text = rd.strip_generated(text)
     text = re.sub(r"```.*?```", "", text, flags=re.S)
+    # indented code blocks (example sessions): 4 spaces after a blank line, and what follows them
+    kept, in_code = [], False
+    for line in text.split("\n"):
+        in_code = line.startswith("    ") and (in_code or not kept or not kept[-1].strip())
+        kept.append("" if in_code else line)
+    text = "\n".join(kept)
     text = re.sub(r"`[^`\n]*`", "", text)
     return re.sub(r"\]\([^)]*\)", "]", text)
 
@@ -85,7 +92,7 @@ def test_generated_blocks_code_and_settings_are_not_typed_figures():
     page = ("Recorded at 25 fps with a 80 ms delay; run `playscope evaluate-insitu S --split 0.5 --tol 0.7 deg`.\n"
             "```\nTable I ... 4.1 px\n```\n"
             "<!-- figures:begin rows: calibrate -->\n| calibrate | 9.9 s |\n<!-- figures:end -->\n"
-            "See [the row](results.md#0.7-deg).\n")
+            "See [the row](results.md#0.7-deg).\n\n    $ playscope calibrate S\n    CV RMSE 0.0227 deg\n")
     assert typed_figures(page, RESULTS_FAKE) == []
     # the same figure outside the block is caught
     assert typed_figures(page + "It takes 9.9 s.\n", RESULTS_FAKE) == ["9.9 s"]
