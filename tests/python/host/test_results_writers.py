@@ -171,3 +171,14 @@ def test_run_all_help_says_how_long_each_part_takes():
     for part in ("firmware", "in-situ real data", "diagnosis self-test", "--docs-only"):
         assert part in out, part
     assert "min" in out and "whole run" in out
+
+
+def test_readme_stays_short_with_every_summary_row():
+    """The README with the summary block of a run that made every SUMMARY row (one row each) is
+    still at most 120 lines: the generated table cannot push it over."""
+    readme = (ROOT / "README.md").read_text()
+    i, j = readme.find(rd.BEGIN), readme.find(rd.END)
+    assert 0 <= i < j
+    full = rd.summary_block([(key, "1", "", "", "") for key, _ in rd.SUMMARY], "2026-01-01, commit abc1234")
+    n = len((readme[:i] + full + readme[j + len(rd.END):]).splitlines())
+    assert n <= 120, f"README would have {n} lines with a full summary"
