@@ -193,12 +193,17 @@ def write_results(table, wall_s: float, times: list[tuple[str, float]], skipped:
     for title, cmd, out in RAW:
         parts += [f"### `{cmd}`", "", out.strip(), ""]
     RESULTS.write_text("\n".join(parts) + "\n")
-    write_doc_blocks(RESULTS.read_text())
     text = replace_block(README.read_text(), BEGIN, END, block, README)
     if EXCERPT:
         text = replace_block(text, EXCERPT_BEGIN, EXCERPT_END,
                              EXCERPT_BEGIN + "\n```\n" + "\n".join(EXCERPT) + "\n```\n" + EXCERPT_END, README)
     README.write_text(text)
+    # last: a malformed block in a page is the page's fault, and results.md and the README
+    # already hold this run
+    try:
+        write_doc_blocks(RESULTS.read_text())
+    except ValueError as e:
+        raise SystemExit(f"run_all: {e}; docs/results.md and the README written, fix the page and run --docs-only")
 
 
 def md_rows(text: str) -> dict[str, list[str]]:
@@ -235,7 +240,10 @@ def main(argv=None) -> int:
                     help="run no bench: re-fill the figures blocks of docs/*.md from docs/results.md (seconds)")
     a = ap.parse_args(argv)
     if a.docs_only:
-        changed = write_doc_blocks(RESULTS.read_text())
+        try:
+            changed = write_doc_blocks(RESULTS.read_text())
+        except ValueError as e:
+            raise SystemExit(f"run_all: {e}")
         print(f"[bench] figures blocks re-filled from {RESULTS.relative_to(ROOT)}: "
               f"{', '.join(changed) or 'none changed'}", file=sys.stderr)
         return 0
