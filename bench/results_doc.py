@@ -151,6 +151,7 @@ def render_doc_block(kind: str, spec: str, results: str, link: str = "results.md
     for prefix in (p.strip() for p in spec.split(";") if p.strip()):
         hit = [r for r in figures if r[0].startswith(prefix)]
         rows += [r[:4] for r in hit] or [(prefix, MISSING_ROW, "", "")]
+    rows = [tuple(c.replace("|", "\\|") for c in r) for r in rows]  # a bar inside a cell is text
     return f"{source}\n\n" + md_table(rows, ("figure", "measured", "target", "paper / baseline"))
 
 

@@ -151,6 +151,8 @@ def test_fill_doc_blocks_rows_and_printed_tables():
     assert "| USART image flash, everything | 16.27 KiB | <= 24 KiB |  |" in out
     assert f"| no such figure | {rd.MISSING_ROW} |" in out
     assert "(2026-01-01, commit abc1234)" in out
+    page2 = rd.fill_doc_blocks("<!-- figures:begin rows: main job: Table I -->\n<!-- figures:end -->\n", FAKE_RESULTS)
+    assert "| main job: Table I, mean\\|Qx\\| | 4.1 px |" in page2  # the bar escaped, the table intact
     assert "| ours | 0.192 |" in out and "geometric mean ours / best peer 0.914" in out
     assert "0.284" not in out  # the next printed table is not part of the block
     # filling twice changes nothing
