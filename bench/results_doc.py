@@ -44,6 +44,7 @@ SUMMARY = (
     ("USART image flash, everything", "firmware"),
     ("USART image RAM, everything", "firmware"),
     ("diagnosis blind self-test: top-1", "diagnosis self-test"),
+    ("diagnosis blind self-test, second generator: top-1", "diagnosis self-test"),
     ("diagnose a 275-s record", "diagnosis speed"),
     ("start-up `playscope --version`", "start-up"),
 )
@@ -94,6 +95,28 @@ def insitu_rows(doc: dict, printed: str, command: str = "bench/insitu_real.py"):
                      f"geometric mean (worst file)",
                      f"{gm:.2f} ({worst:.2f}) on {dev['files']} files{errors}", target,
                      "1 = as good as the best textbook peer on that file", command))
+    return rows
+
+
+def selftest_rows(doc: dict, command: str) -> list[tuple[str, str, str, str, str]]:
+    """Figure rows of bench/diagnose_selftest.py's JSON: for each generator it ran (`selftest`,
+    the first, `sim/withheld`; `selftest_second`, the independent `sim/withheld_b`) top-1 over
+    every planted case beside the false discoveries on nulls, and the recovered shrink."""
+    rows = []
+    for key, name in (("selftest", "diagnosis blind self-test"),
+                      ("selftest_second", "diagnosis blind self-test, second generator")):
+        sc = doc.get(key)
+        if not sc:
+            continue
+        ci = sc["false_discovery_ci95"]
+        rows.append((f"{name}: top-1 over every planted case / false discoveries on nulls",
+                     f"{100 * sc['top1']:.0f} % of {sc['n_planted']} / {sc['n_false_discoveries']} of "
+                     f"{sc['n_nulls']} (95 % CI {100 * ci[0]:.0f}-{100 * ci[1]:.0f} %)",
+                     ">= 90 % / <= 10 %",
+                     f"top-1 among identifiable {100 * sc['top1_identifiable']:.0f} % of {sc['n_identifiable']}; "
+                     f"out-of-library unexplained {100 * sc['ool_unexplained']:.0f} %", command))
+        rows.append((f"{name}: recovered shrink within 25 % of the generator's truth",
+                     f"{100 * sc['shrink_within_25pct_identifiable']:.0f} % of identifiable cases", "", "", command))
     return rows
 
 

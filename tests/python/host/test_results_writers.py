@@ -184,3 +184,25 @@ def test_readme_stays_short_with_every_summary_row():
     full = rd.summary_block([(key, "1", "", "", "") for key, _ in rd.SUMMARY], "2026-01-01, commit abc1234")
     n = len((readme[:i] + full + readme[j + len(rd.END):]).splitlines())
     assert n <= 120, f"README would have {n} lines with a full summary"
+
+
+def _score(top1, n, fd, nulls):
+    return {"top1": top1, "n_planted": n, "n_false_discoveries": fd, "n_nulls": nulls,
+            "false_discovery_ci95": [0.0, 0.139], "top1_identifiable": 1.0, "n_identifiable": n - 1,
+            "ool_unexplained": 0.5, "shrink_within_25pct_identifiable": 0.79}
+
+
+def test_selftest_rows_for_each_generator_that_ran():
+    rows = rd.selftest_rows({"selftest": _score(17 / 18, 18, 0, 20), "selftest_second": _score(0.5, 18, 3, 20)},
+                            "bench/diagnose_selftest.py --quick --second")
+    assert len(rows) == 4
+    assert rows[0][0].startswith("diagnosis blind self-test: top-1")
+    assert rows[0][1] == "94 % of 18 / 0 of 20 (95 % CI 0-14 %)"
+    assert rows[2][0].startswith("diagnosis blind self-test, second generator: top-1")
+    assert rows[2][1] == "50 % of 18 / 3 of 20 (95 % CI 0-14 %)"
+    block = rd.summary_block(rows, "d")
+    got = _rows(block)
+    assert got[rows[0][0]][0] == rows[0][1] and got[rows[2][0]][0] == rows[2][1]
+    # only the first generator ran: the second's summary line says it was not measured
+    only_first = rd.summary_block(rd.selftest_rows({"selftest": _score(1.0, 18, 0, 2)}, "c"), "d")
+    assert _rows(only_first)["diagnosis blind self-test, second generator: top-1"][0] == rd.NOT_MEASURED
