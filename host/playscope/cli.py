@@ -5,7 +5,7 @@ Each command module exposes ``add_parser(subparsers)``, which adds its subparser
 those of optional subpackages (sim, diagnose, device) are skipped when the package is absent. Bad input prints one line
 ``playscope: error: <file>:<row>: <message>`` and exits with status 2: an InputError, an
 OSError, a UnicodeDecodeError, a JSON or any other ValueError escaping a command, and a bad
-command-line value (argparse types in playscope.argtypes). PLAYSCOPE_DEBUG=1 re-raises them
+command-line value (argparse types in playscope.commands.argtypes). PLAYSCOPE_DEBUG=1 re-raises them
 with the traceback, for bug reports.
 """
 
@@ -21,8 +21,8 @@ import os
 import sys
 
 from . import __version__
-from .atomic import check_flash_file, check_output, output_guard
-from .errors import InputError
+from .base.atomic import check_flash_file, check_output, output_guard
+from .base.errors import InputError
 
 # Argument dests that name what a command writes; every other path-valued argument that
 # exists is an input the output guard protects (atomic.output_guard). Not inputs either:
@@ -48,7 +48,7 @@ COMMAND_MODULES = [
     ("playscope.commands.evaluate_transfer", None),
     ("playscope.commands.simulate", "playscope.sim"),
     ("playscope.commands.diagnose", "playscope.diagnose"),
-    ("playscope.commands.device", "playscope.device"),
+    ("playscope.commands.device", "playscope.board"),
     ("playscope.commands.demo", None),
 ]
 
@@ -201,7 +201,7 @@ def _run_command(args) -> int:
     """args.func(args), its stdout silenced under --quiet or --json - (the JSON itself still
     reaches stdout: jsonio.STDOUT), under a busy line (commands.common.busy) unless the command
     shows progress of its own (own_progress)."""
-    from . import jsonio
+    from .base import jsonio
     from .commands.common import busy
 
     bar = contextlib.nullcontext() if getattr(args, "own_progress", False) else busy(f"playscope {args.command}")

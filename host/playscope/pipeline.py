@@ -4,7 +4,7 @@ and returning a typed result.
 
 The commands in playscope/commands/ parse arguments, call these and print ``result.line()``
 (one line, what the command prints) and write ``result.to_json()`` (its ``--json`` document);
-the main job (mainjob.py), realeval.py and the benches call them directly. Nothing here reads
+the main job (mainjob.py) and the benches call them directly. Nothing here reads
 argv or prints: warnings are in the results, progress goes to a callback.
 
 Errors: InputError naming the file (bad or missing input), FileExistsError for an output that
@@ -20,57 +20,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .calibration import Calibration
-from .errors import InputError
-from .transition import picked_candidate
+from .fit.calibration import Calibration
+from .base.errors import InputError
+from .fit.transition import picked_candidate
 
 
 # --------------------------------------------------------------------------- track
-@dataclass
-class Tracked:
-    """track_session's result: the marker CSV written, the video read, track.TrackResult's
-    summary (frames_listed, frames_decoded, frames_tracked, lost, lost_fraction, truncated,
-    reasons, seconds, fps, warning)."""
-
-    marker_csv: Path
-    video: Path
-    summary: dict
-
-    @property
-    def warning(self) -> str | None:
-        return self.summary.get("warning")
-
-    def line(self) -> str:
-        sm = self.summary
-        return (f"{self.marker_csv}: {sm['frames_tracked']} frames, {sm['lost']} lost "
-                f"({100 * (sm['lost_fraction'] or 0):.1f} %), {sm['fps']:.0f} frames/s")
-
-    def to_json(self) -> dict:
-        return {"marker_csv": str(self.marker_csv), "video": str(self.video), **self.summary}
-
-
-def track_session(session_dir, out=None, cfg=None, overwrite: bool = False, progress=None) -> Tracked:
-    """Find the marker in session_dir's video.* (frames.csv gives the times) and write
-    marker.csv (default session_dir/marker.csv). cfg: track.TrackConfig (default: green).
-    progress: callable(**tqdm kwargs) -> bar, as track.track_video takes. One OpenCV thread."""
-    from .track import TrackConfig, find_video, single_thread, track_video, write_marker_csv
-
-    folder = Path(session_dir)
-    if not folder.is_dir():
-        raise InputError(folder, "session folder not found")
-    video = find_video(folder)
-    out = Path(out) if out else folder / "marker.csv"
-    if out.exists() and not overwrite:
-        raise FileExistsError(f"{out}: exists (use --force)")
-    cfg = cfg or TrackConfig()
-    try:
-        cfg.check()
-    except ValueError as e:
-        raise InputError(None, f"track options: {e}") from None
-    single_thread()
-    res = track_video(video, folder / "frames.csv", cfg, progress=progress)
-    write_marker_csv(out, res)
-    return Tracked(out, video, res.summary())
+# The track step is the io layer's (evaluate/real_eval.py runs it too, below the pipeline).
+from .io.marker_track import Tracked, track_session  # noqa: E402,F401
 
 
 # --------------------------------------------------------------------------- calibrate
@@ -129,8 +86,8 @@ def calibrate_session(session_dir, out, n_ctrl: int = 14, f_method: str = "lsq",
                       model_kind: str = "auto") -> Calibrated:
     """calibration.calibrate on the session folder, saved to out (docs/calibration-format.md).
     threshold: the onset threshold T per frame (px or deg), default automatic."""
-    from .calibration import calibrate
-    from .session import load_session
+    from .fit.calibration import calibrate
+    from .io.session import load_session
 
     s = load_session(session_dir)
     notes = list(s.notes)  # what the loader repaired (repeated or backward stamps, a held sensor)
@@ -176,10 +133,10 @@ def write_tables(cal_path, out, entries: int | None = None, generation: int = 1,
     TableWritten.adapted. Errors: InputError naming cal_path when the model cannot be tabulated;
     for a precision refusal at the densest grid, the quantity (f^-1's error when it is the one)
     and by how much it misses the ceiling."""
-    from .atomic import write_bytes_atomic
-    from .calibration_check import load_calibration
-    from .native import core
-    from .tables import TableError, build_table, check_physical, check_precision, f_inverse_error, table_errors
+    from .base.atomic import write_bytes_atomic
+    from .fit.calibration_check import load_calibration
+    from .base.native import core
+    from .fit.table_build import TableError, build_table, check_physical, check_precision, f_inverse_error, table_errors
 
     cal = load_calibration(cal_path)
     q_min, q_max = cal.q_range
@@ -251,7 +208,7 @@ class Flashed:
     round_trip_us: float
 
     def line(self) -> str:
-        from .device.flash import flash_line
+        from .board.flash import flash_line
 
         return flash_line(self.__dict__)
 
@@ -267,22 +224,22 @@ def flash_tables(table_path, device: str = "virtual", flash_file=None, n_vectors
     usb runs in a child process under the emulated USB device (device.usbemu: libusb's preload
     must be in a process from its start; flash_file is the emulated board's flash). Errors:
     InputError for a bad table file (nothing is sent), RuntimeError for a failed check."""
-    from .table_check import read_table_file
+    from .board.table_check import read_table_file
 
     if device == "usb":
         import json
 
-        from .device import usbemu
+        from .board import usbemu
 
         read_table_file(table_path)  # refused here, before a child is started
-        r = usbemu.run([sys.executable, "-m", "playscope.device.flash", os.fspath(table_path),
+        r = usbemu.run([sys.executable, "-m", "playscope.board.flash", os.fspath(table_path),
                         "--vectors", str(n_vectors)], flash_file=os.fspath(flash_file) if flash_file else None)
         if r.returncode != 0:
             raise RuntimeError(f"flash over usb failed (exit {r.returncode}):\n{r.stdout}\n{r.stderr}")
         return Flashed(**json.loads(r.stdout.strip().splitlines()[-1]))
-    from .device.flash import flash
-    from .device.link import Link
-    from .device.transport import open_transport
+    from .board.flash import flash
+    from .board.link import Link
+    from .board.transport import open_transport
 
     blob = read_table_file(table_path)  # checked before the board is even opened
     link = Link(open_transport(device, flash_file=flash_file, elf=elf, address=address))
@@ -307,7 +264,7 @@ class Evaluated:
 
     def line(self) -> str:
         """Table I and the compensation table as Markdown (evaluate.format_table)."""
-        from .evaluate import format_table
+        from .evaluate.prediction import format_table
 
         return format_table(self.summary)
 
@@ -326,16 +283,16 @@ def evaluate_session(session_dir, cal_path, table_path=None, comp_duration_s: fl
     """Table I and the compensation test (evaluate.evaluate) of the calibration at cal_path on
     the test session folder; table_path: a blob from write_tables for the fixed-point rows
     (default: built from the calibration)."""
-    from .calibration_check import load_calibration
-    from .evaluate import evaluate
-    from .session import load_session
+    from .fit.calibration_check import load_calibration
+    from .evaluate.prediction import evaluate
+    from .io.session import load_session
 
     cal = load_calibration(cal_path)
     s = load_session(session_dir)
     _warn_repairs(s)
     tab = None
     if table_path:
-        from .tables import CalibTable
+        from .fit.table_build import CalibTable
 
         path = Path(table_path)
         if not path.is_file():
@@ -373,8 +330,8 @@ def write_report_file(cal_path, session_dir, out, eval_json=None) -> Reported:
     The figures are always computed from the inputs."""
     import json
 
-    from .evaluate import format_table
-    from .report import write_report
+    from .evaluate.prediction import format_table
+    from .evaluate.html_report import write_report
 
     done = evaluate_session(session_dir, cal_path)
     ev, summary = done.evaluation, done.summary

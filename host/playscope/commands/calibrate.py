@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from .. import argtypes as T
+from . import argtypes as T
 from ..pipeline import calibrate_session
 from .common import add_command, add_json_arg, emit
 

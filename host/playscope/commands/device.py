@@ -10,7 +10,7 @@ from .common import add_command, add_json_arg, dump_json, progress
 
 
 def _add_device_args(p) -> None:
-    from .. import argtypes as T
+    from . import argtypes as T
 
     p.add_argument("--device", choices=["virtual", "qemu", "usb"], default="virtual",
                    help="board to talk to (default: virtual, the desktop build as a process)")
@@ -20,8 +20,8 @@ def _add_device_args(p) -> None:
 
 
 def _open(args, vboard_args=()):
-    from ..device.link import Link
-    from ..device.transport import open_transport
+    from ..board.link import Link
+    from ..board.transport import open_transport
 
     return Link(open_transport(args.device, flash_file=args.flash_file, elf=args.elf, address=args.address,
                                vboard_args=vboard_args))
@@ -48,14 +48,14 @@ class _closing:
 
 
 def cmd_flash(args) -> int:
-    from ..device.flash import flash
-    from ..device.link import DeviceError
-    from ..tables import builtin_table
+    from ..board.flash import flash
+    from ..board.link import DeviceError
+    from ..fit.table_build import builtin_table
 
     if args.table == "builtin":
         blob = builtin_table()
     else:
-        from ..table_check import read_table_file
+        from ..board.table_check import read_table_file
 
         blob = read_table_file(args.table)  # checked before the board is even opened
     with _closing(_open(args)) as link:
@@ -69,11 +69,11 @@ def cmd_flash(args) -> int:
 
 
 def _pace_virtual_exc(args) -> list[str] | None:
-    """--exc without a speed: pace it (playscope.pacing, the board's rule) to the camera's frame
+    """--exc without a speed: pace it (playscope.fit.pacing, the board's rule) to the camera's frame
     rate and the expected play range. Sets args.exc to the full Q0:Q1:AMP:ADV:V (duration, the
     simulated plant) and returns the virtual board's --pace arguments; [] when V was given,
     None (after printing why) when pacing is refused."""
-    from ..pacing import frame_period_us, paced_exc
+    from ..fit.pacing import frame_period_us, paced_exc
 
     if len(args.exc.split(":")) == 5:
         return []
@@ -133,13 +133,13 @@ def _run_insitu(link, args) -> int:
     """`playscope run-insitu` on an open link (the work: device/insitu.py). Returns the exit status."""
     import numpy as np
 
-    from ..atomic import write_bytes_atomic, write_text_atomic
-    from ..device.flash import flash
-    from ..device.insitu import (VideoSource, calibrate_run, exc_duration_s, read_geometry, run_loop,
+    from ..base.atomic import write_bytes_atomic, write_text_atomic
+    from ..board.flash import flash
+    from ..board.insitu_run import (VideoSource, calibrate_run, exc_duration_s, read_geometry, run_loop,
                                  session_of, write_samples_csv)
-    from ..errors import InputError
-    from ..session import write_session
-    from ..tables import build_table
+    from ..base.errors import InputError
+    from ..io.session import write_session
+    from ..fit.table_build import build_table
 
     out = Path(args.out) if args.out else None
     if out:
@@ -224,7 +224,7 @@ def _bar(bar, board_s: float, n: int) -> None:
 
 
 def add_parser(subparsers) -> None:
-    from .. import argtypes as T
+    from . import argtypes as T
 
     p = add_command(subparsers, "flash", "upload a table, commit, read back and check bit for bit",
                     "Upload a table blob to a board with generation = active + 1, commit it, read it back, "

@@ -26,7 +26,7 @@ library (docs/diagnosis.md).
 
 
 def add_parser(sub) -> None:
-    from .. import argtypes  # range-checked values
+    from . import argtypes  # range-checked values
 
     p = add_command(sub, "diagnose", "sim-to-real gap: held-out gap, localisation, attribution to library effects", DESCRIPTION,
                     examples=["playscope diagnose sessions/d21 --html diag.html --json diag.json",
@@ -34,7 +34,7 @@ def add_parser(sub) -> None:
                               "playscope diagnose --selftest --workers 2"])
     p.add_argument("sessions", nargs="*", help="session folders (playscope-session/1)")
     p.add_argument("--catheter", metavar="FILE", nargs="+", default=[],
-                   help="catheter CSV recordings (data_2_*.txt) read in place through playscope.importer")
+                   help="catheter CSV recordings (data_2_*.txt) read in place through playscope.io.importer")
     p.add_argument("--test", metavar="SESSION", help="separate test record (the paper's test motion): the calibration "
                    "record is split fit / validation, this record only judges (one calibration session)")
     p.add_argument("--test-catheter", metavar="FILE", help="as --test, a catheter CSV")
@@ -51,7 +51,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from ..diagnose.run import clean, diagnose_data
     from .common import dump_json
-    from ..session import load_session
+    from ..io.session import load_session
     from ..diagnose.fitmodel import from_session
 
     if args.selftest:
@@ -66,7 +66,7 @@ def run(args) -> int:
 
     items = [(str(s), lambda s=s: load_session_noted(s)) for s in args.sessions]
     if args.catheter:
-        from ..importer import import_catheter
+        from ..io.importer import import_catheter
         items += [(Path(f).stem, lambda f=f: import_catheter(f)) for f in args.catheter]
     if not items:
         print("playscope diagnose: give session folders, --catheter files, or --selftest", file=sys.stderr)
@@ -82,7 +82,7 @@ def run(args) -> int:
         if args.test:
             test_data = from_session(load_session(args.test))
         else:
-            from ..importer import import_catheter
+            from ..io.importer import import_catheter
             test_data = from_session(import_catheter(args.test_catheter))
     out, figs_all = {}, []
     for name, load in items:
@@ -110,13 +110,13 @@ def run(args) -> int:
                 print(f"  + {g['effect']} ({g['param']}={g['value']:.3g}): path residual "
                       f"{res['geometry']['base_px']['heldout']:.3f} -> {g['heldout_px']:.3f} px (held out)")
         if args.html:
-            from ..diagnose.report import figures
+            from ..diagnose.diagnosis_report import figures
             figs_all += [(f"{name}: {t}", img) for t, img in figures(data, res, res["atlas_before"], res["atlas_after"])]
         res.pop("_models", None)
         out[name] = clean(res)
     dump_json(args.json, {"sessions": out})
     if args.html:
-        from ..atomic import write_text_atomic
-        from ..diagnose.report import html_page
+        from ..base.atomic import write_text_atomic
+        from ..diagnose.diagnosis_report import html_page
         write_text_atomic(args.html, html_page("playscope diagnose", out, figs_all))
     return 0

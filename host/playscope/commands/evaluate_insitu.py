@@ -1,9 +1,9 @@
 """`playscope evaluate-insitu`: one session split in time, every model fitted on the part before
-and scored on the part after, state carried from the record's start (playscope.insitu)."""
+and scored on the part after, state carried from the record's start (playscope.evaluate.insitu_split)."""
 
 from __future__ import annotations
 
-from ..insitu import JSON_KEYS, evaluate_insitu, format_insitu
+from ..evaluate.insitu_split import JSON_KEYS, evaluate_insitu, format_insitu
 from .common import add_command, add_json_arg, dump_json, load_session_noted, progress
 
 
@@ -18,7 +18,7 @@ been running all along) and is scored on the part after the split: bending-angle
 
 
 def add_parser(sub) -> None:
-    from .. import argtypes
+    from . import argtypes
 
     p = add_command(sub, "evaluate-insitu", "in-situ RMSE of every model on one session split in time", DESCRIPTION,
                     examples=["playscope evaluate-insitu sessions/d21 --split 0.5 --json insitu.json",
@@ -37,7 +37,7 @@ def run(a) -> int:
     from pathlib import Path
 
     if Path(a.session).is_file():  # a foreign recording, read without an import step
-        from ..transfer import read_record
+        from ..evaluate.transfer import read_record
 
         s = read_record(a.session)
         for note in s.notes:

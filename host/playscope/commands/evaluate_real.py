@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..realeval import evaluate_real, evaluate_real_reimaged, format_tables
+from ..evaluate.real_eval import evaluate_real, evaluate_real_reimaged, format_tables
 from .common import add_command, add_json_arg, dump_json, progress
 
 
@@ -37,7 +37,7 @@ def add_parser(sub) -> None:
 
 def run(a) -> int:
     if a.online:
-        from ..online import evaluate_real_online, format_online
+        from ..board.online import evaluate_real_online, format_online
 
         res = evaluate_real_online(a.folder, progress=lambda it, **kw: progress(it, **kw))
         print(format_online(res))

@@ -1,10 +1,10 @@
 """`playscope evaluate-transfer`: a calibration made on one record run on others (another session
-or sheath configuration), with and without each on-line update (playscope.transfer)."""
+or sheath configuration), with and without each on-line update (playscope.evaluate.transfer)."""
 
 from __future__ import annotations
 
-from ..argtypes import file_path, float_range
-from ..transfer import JSON_KEYS, WARMUP, evaluate_transfer, format_transfer, plot_transfer
+from .argtypes import file_path, float_range
+from ..evaluate.transfer import JSON_KEYS, WARMUP, evaluate_transfer, format_transfer, plot_transfer
 from .common import add_command, add_json_arg, dump_json, progress
 
 DESCRIPTION = f"""\

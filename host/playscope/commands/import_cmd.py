@@ -6,10 +6,10 @@ import argparse
 import math
 import sys
 
-from .. import argtypes as T
-from ..errors import InputError
-from ..importer import CATHETER, import_csv
-from ..session import write_session
+from . import argtypes as T
+from ..base.errors import InputError
+from ..io.importer import CATHETER, import_csv
+from ..io.session import write_session
 from .common import warn, add_json_arg, dump_json
 
 EPILOG = """\
@@ -83,7 +83,7 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    from ..rosbag import import_bag, is_bag, write_bag_session
+    from ..io.rosbag import import_bag, is_bag, write_bag_session
 
     notes = []
     if is_bag(a.source):

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import correlate, welch
 
-from ..model import held_direction
+from ..fit.model import held_direction
 from .fitmodel import Data
 
 

@@ -11,7 +11,7 @@ import shlex
 import pytest
 
 from playscope import cli
-from playscope.argtypes import existing_file
+from playscope.commands.argtypes import existing_file
 
 
 
