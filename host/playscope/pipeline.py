@@ -84,12 +84,12 @@ def calibrate_session(session_dir, out, n_ctrl: int = 14, f_method: str = "lsq",
                       t_delay_s: float | None = None, t_delay_from: str = "data",
                       hysteresis: float | None = None, threshold: float | None = None,
                       model_kind: str = "auto") -> Calibrated:
-    """calibration.calibrate on the session folder, saved to out (docs/calibration-format.md).
+    """calibration.calibrate on the session folder or recording file (importer.load_recording), saved to out (docs/calibration-format.md).
     threshold: the onset threshold T per frame (px or deg), default automatic."""
     from .fit.calibration import calibrate
-    from .io.session import load_session
+    from .io.importer import load_recording
 
-    s = load_session(session_dir)
+    s = load_recording(session_dir)
     notes = list(s.notes)  # what the loader repaired (repeated or backward stamps, a held sensor)
     ov = {"threshold": threshold} if threshold is not None else None
     cal = calibrate(s, n_ctrl, f_method, fps, t_delay_s, hysteresis, ov, t_delay_from=t_delay_from,
@@ -285,10 +285,10 @@ def evaluate_session(session_dir, cal_path, table_path=None, comp_duration_s: fl
     (default: built from the calibration)."""
     from .fit.calibration_check import load_calibration
     from .evaluate.prediction import evaluate
-    from .io.session import load_session
+    from .io.importer import load_recording
 
     cal = load_calibration(cal_path)
-    s = load_session(session_dir)
+    s = load_recording(session_dir)
     _warn_repairs(s)
     tab = None
     if table_path:
@@ -349,3 +349,130 @@ def write_report_file(cal_path, session_dir, out, eval_json=None) -> Reported:
     write_report(out, done.cal, ev, md)
     return Reported(os.fspath(out), Path(out).stat().st_size)
 
+
+
+# --------------------------------------------------------------------------- run-insitu
+@dataclass
+class InsituSource:
+    """Where run_insitu's frames come from: a simulated instrument rendered from the board's
+    encoder stream (sim_plant, with its seed, board time_scale and excitation exc) or a video
+    file / camera index with the geometry file (session.json: robot, camera, hand-eye)."""
+
+    video: str | int | None = None
+    geometry: str | None = None
+    sim_plant: bool = False
+    seed: int = 1
+    time_scale: float = 1.0
+    exc: str | None = None
+
+
+@dataclass
+class InsituRan:
+    """run_insitu's result: board and wall time (s), frames, B samples (all and valid), the
+    calibrated q range, the flash result (board.flash.flash's dict, None without flashing) and,
+    for a simulated instrument, |B_fit - B_true| (mm: mean, max, and over the samples)."""
+
+    ended: str
+    board_s: float
+    wall_s: float
+    frames: int
+    b_samples: int
+    b_valid: int
+    q_range: list
+    flash: dict | None = None
+    sim_B_err_mm: dict | None = None
+    sim_grid: tuple = ()
+
+    def line(self) -> str:
+        return (f"{self.ended}: {self.board_s:.1f} s board time in {self.wall_s:.1f} s, {self.frames} frames, "
+                f"{self.b_samples} B samples from the board ({self.b_valid} valid)")
+
+    def sim_line(self) -> str | None:
+        e = self.sim_B_err_mm
+        if not e:
+            return None
+        return (f"SIMULATION truth: |B_fit - B_true| mean {e['mean']:.3f} mm, max {e['max']:.3f} mm over "
+                f"q in [{self.sim_grid[0]:.2f}, {self.sim_grid[1]:.2f}]; board samples mean {e['samples_mean']:.3f} mm")
+
+    def to_json(self) -> dict:
+        d = {"board_s": self.board_s, "wall_s": self.wall_s, "frames": self.frames, "b_samples": self.b_samples,
+             "b_valid": self.b_valid, "q_range": list(self.q_range)}
+        if self.sim_B_err_mm is not None:
+            d["sim_B_err_mm"] = self.sim_B_err_mm
+        if self.flash is not None:
+            d["flash"] = self.flash
+        return d
+
+
+def run_insitu(link, src: InsituSource, seconds=None, n_ctrl: int = 14, out=None, flash_after: bool = True,
+               n_vectors: int = 200, progress=None, ran=None) -> InsituRan:
+    """The paper's in-situ procedure (section III) on the board behind link (board.insitu_run):
+    the board's excitation and onset detector run while frames come from src; the host fits
+    B(q), f_remain and the transition to the board's samples, builds the Q16.16 table and
+    flashes it (flash_after). out: folder for b_samples.csv, session/, calibration.json,
+    table.bin and result.json (None: nothing written). progress(board_s, n_samples, total_s or
+    None) follows the run; ran(line) is called once the run ends, with InsituRan.line().
+    Errors: OSError for a video that cannot be opened, InputError when the fit refuses the
+    run, RuntimeError for a failed flash (nothing of out is lost)."""
+    import json
+
+    from .base.atomic import write_bytes_atomic, write_text_atomic
+    from .board.flash import flash
+    from .board.insitu_run import (VideoSource, calibrate_run, exc_duration_s, read_geometry, run_loop,
+                                   session_of, write_samples_csv)
+    from .fit.table_build import build_table
+    from .io.session import write_session
+
+    out = Path(out) if out else None
+    if out:
+        out.mkdir(parents=True, exist_ok=True)
+    plant = None
+    if src.sim_plant:
+        from .sim.plant import SimPlant, SimPlantConfig
+
+        plant = SimPlant(SimPlantConfig(seed=src.seed, time_scale=src.time_scale, exc=src.exc))
+        source = plant
+        sim = plant.sim
+        robot, camera, hand_eye, t_delay = sim.robot(), sim.camera(), sim.hand_eye(), sim.t_delay_s
+        total = exc_duration_s(src.exc)
+    else:
+        robot, camera, hand_eye, t_delay = read_geometry(src.geometry)
+        source = VideoSource(src.video)
+        total = None
+    try:
+        run = run_loop(link, source, seconds,
+                       progress=(lambda s, n: progress(s, n, total)) if progress else None)
+    finally:
+        if not plant:
+            source.close()
+    valid = run.valid()
+    res = InsituRan(run.ended, run.board_s, run.wall_s, len(run.mk_t_s), len(run.samples), len(valid), [])
+    if ran:
+        ran(res.line())
+    s = session_of(run, robot, camera, hand_eye, t_delay)
+    if out:
+        write_samples_csv(out / "b_samples.csv", run.samples)
+        write_session(s, out / "session", overwrite=True)  # guarded: an existing one needs --force
+    cal = calibrate_run(run, s, n_ctrl)
+    q_min, q_max = cal.q_range
+    res.q_range = [q_min, q_max]
+    tab = build_table(cal.B_model, cal.f, q_min, q_max, "mm", "remain", 1, transition=cal.transition)
+    if plant:
+        g = np.linspace(q_min + 0.3, q_max - 0.3, 101)
+        e = np.abs(cal.B(g) - plant.truth_B(g))
+        qm = np.array([x["q_mean"] for x in valid])
+        eb = np.abs(np.array([x["b"] for x in valid]) - plant.truth_B(qm)) if valid else np.zeros(1)
+        res.sim_B_err_mm = {"mean": float(e.mean()), "max": float(e.max()),
+                            "samples_mean": float(eb.mean()), "samples_max": float(eb.max())}
+        res.sim_grid = (float(g[0]), float(g[-1]))
+    if out:
+        cal.save(out / "calibration.json")
+        write_bytes_atomic(out / "table.bin", tab.blob)
+    if flash_after:
+        try:
+            res.flash = flash(link, tab.blob, n_vectors)
+        except (RuntimeError, ValueError) as e:
+            raise RuntimeError(f"flash failed: {e}") from None
+    if out:
+        write_text_atomic(out / "result.json", json.dumps(res.to_json(), indent=1) + "\n")
+    return res

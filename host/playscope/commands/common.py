@@ -32,11 +32,12 @@ def add_json_arg(p, keys_doc: str) -> None:
 
 
 def load_session_noted(folder):
-    """load_session, printing what it repaired in the files (session.notes: repeated or backward
-    time stamps, a held sensor) as one `playscope: warning:` line each on stderr."""
-    from ..io.session import load_session
+    """A session folder or a recording file read in place (importer.load_recording), printing
+    what loading repaired (session.notes: repeated or backward time stamps, a held sensor) as one
+    `playscope: warning:` line each on stderr."""
+    from ..io.importer import load_recording
 
-    s = load_session(folder)
+    s = load_recording(folder)
     warn(s.notes)
     return s
 

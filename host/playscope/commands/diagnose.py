@@ -51,7 +51,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from ..diagnose.run import clean, diagnose_data
     from .common import dump_json
-    from ..io.session import load_session
+    from ..io.importer import load_recording
     from ..diagnose.fitmodel import from_session
 
     if args.selftest:
@@ -80,7 +80,7 @@ def run(args) -> int:
             print("playscope diagnose: --test takes exactly one calibration record", file=sys.stderr)
             return 2
         if args.test:
-            test_data = from_session(load_session(args.test))
+            test_data = from_session(load_recording(args.test))
         else:
             from ..io.importer import import_catheter
             test_data = from_session(import_catheter(args.test_catheter))

@@ -34,16 +34,7 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    from pathlib import Path
-
-    if Path(a.session).is_file():  # a foreign recording, read without an import step
-        from ..evaluate.transfer import read_record
-
-        s = read_record(a.session)
-        for note in s.notes:
-            print(f"note: {note}")
-    else:
-        s = load_session_noted(a.session)
+    s = load_session_noted(a.session)
     doc = evaluate_insitu(s, a.split, progress=progress, source=a.session)
     print(format_insitu(doc))
     dump_json(a.json, doc)

@@ -29,7 +29,7 @@ Drift measurement (`drift`): each record calibrated in situ on its whole length;
 parameters compared with the calibration record's over the travel both saw.
 
 Readers: the catheter files (importer.import_catheter) and the endoscope files of
-../shared/data/real/endoscope (read_endoscope: headerless CSV, q = commanded angle, deg).
+../shared/data/real/endoscope (importer.import_endoscope: headerless CSV, q = commanded angle, deg).
 """
 
 from __future__ import annotations
@@ -44,9 +44,8 @@ from ..board import online as O
 from ..fit import transition as T
 from ..fit.calibration import calibrate
 from ..base.errors import InputError
-from ..io.importer import import_catheter, import_endoscope
+from ..io.importer import read_record
 from .insitu_split import calibration_frames
-from ..io.session import Session
 
 FORMAT = "playscope-transfer/1"
 ROWS = ["in_situ", "in_situ_affine", "in_situ_const_play", "static", "static_transition", "online_b_only", "online_offset_only",
@@ -85,26 +84,9 @@ def config_angle(path) -> float | None:
     return float(m.group(1)) if m else None
 
 
-def read_endoscope(path) -> Session:
-    """One endoscope record as an angle session in deg: the project's one reader of that layout,
-    importer.import_endoscope (errors: InputError naming the file and row)."""
-    return import_endoscope(path)
-
-
-def read_record(path) -> Session:
-    """A catheter (CSV with a header: import_catheter) or an endoscope record (read_endoscope)."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "file not found")
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        first = fh.readline()
-    return read_endoscope(path) if re.match(r"\s*[-0-9.]", first) else import_catheter(path)
-
-
 def _offset_refreshed(s, c_hat: np.ndarray, fps: float, refresh_s: float) -> np.ndarray:
     """c_hat plus the host's offset refresh of online.py (mean residual over the frames complete
     before each refresh, every refresh_s)."""
-    from ..fit.baselines import fit_constant_play
     from ..fit.reversals import frames_from_angle
 
     t = s.encoder["t_s"]
@@ -120,7 +102,6 @@ def _affine_refreshed(s, c_hat: np.ndarray, fps: float, refresh_s: float, prior_
     which barely move, leave the gain at 1; g clamped to GAIN_BOUNDS; a = c_hat's offset alone
     (g = 1, a = 0) before the first frame. The offset-only refresh is the case prior_var -> inf.
     Causal as online._offset_timeline: (a, g) at t use frames ending before the last refresh."""
-    from ..fit.baselines import fit_constant_play
     from ..fit.reversals import frames_from_angle
 
     t = s.encoder["t_s"]
@@ -146,7 +127,6 @@ def _in_situ(s, t_split: float, src: str) -> tuple[np.ndarray, np.ndarray]:
     insitu.calibration_frames), run over the whole record from q[0] in double precision:
     their predictions (N,) deg at the encoder samples."""
     from ..fit.baselines import fit_constant_play
-    from ..fit.reversals import frames_from_angle
 
     cal_s = s.slice_time(-np.inf, t_split)
     cal = calibrate(cal_s, f_method="lsq", model_kind="auto", source=src)

@@ -524,7 +524,6 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     t_enc, q, q_rev (N,); rt, rq (M,) reversals; t_f (F,), obs (F, 2) px. Returns RobustOnsets.
     Errors: ValueError for an unknown t_delay_from.
     """
-    from .backlash import fit_backlash_samples
     from .onset_settings import image_onset_settings
     from .onsets import OnsetConfig, Onsets, run_onsets
 
@@ -717,8 +716,6 @@ def guard_rail(on, row_r: np.ndarray, board, bidx: np.ndarray, period: float, t_
     compared reversals disagree. Both B curves (fit_backlash_samples of each set, at 9 q) are
     reported. Returns a JSON-ready dict."""
     from .backlash import fit_backlash_samples
-    from .onset_settings import image_onset_settings
-    from .onsets import OnsetConfig, Onsets, run_onsets
 
     v = np.gradient(q, t_enc)
     k = bidx[row_r] if row_r.size else np.zeros(0, int)

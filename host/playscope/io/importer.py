@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -177,3 +178,24 @@ def import_endoscope(path, c_col: int | None = None) -> Session:
                    encoder={"t_s": t, "q": tab["q"]}, distal={"t_s": t.copy(), "c_deg": tab["c_deg"]},
                    t_delay_s=None, q_source="command",
                    meta={"source": {"file": str(path), "columns": [ENDOSCOPE_T_COL, ENDOSCOPE_Q_COL, c_col]}})
+
+
+# --------------------------------------------------------------------------- a recording in place
+def read_record(path) -> Session:
+    """A recording file read in place, without an import step: the catheter's CSV with a header
+    (import_catheter) or the endoscope's headerless CSV (import_endoscope), told apart by the
+    first line. Errors: InputError naming the file (and row)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        first = fh.readline()
+    return import_endoscope(path) if re.match(r"\s*[-0-9.]", first) else import_catheter(path)
+
+
+def load_recording(path) -> Session:
+    """What every command taking a session reads: a session folder (session.load_session) or a
+    recording file read in place (read_record). Repairs made while reading are in Session.notes."""
+    from .session import load_session
+
+    return read_record(path) if Path(path).is_file() else load_session(path)

@@ -12,7 +12,8 @@ import pytest
 
 from playscope.board import online as O
 from playscope.base.errors import InputError
-from playscope.evaluate.transfer import (ROWS, config_angle, drift, evaluate_transfer, read_endoscope, read_record)
+from playscope.evaluate.transfer import ROWS, config_angle, drift, evaluate_transfer
+from playscope.io.importer import import_endoscope as read_endoscope, read_record
 
 _REAL = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "real"  # as conftest.REAL_CATHETER
 REAL_CATHETER = Path(os.environ.get("PLAYSCOPE_REAL_DATA", _REAL)) / "catheter"
