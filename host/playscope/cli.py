@@ -2,7 +2,7 @@
 
 Each command module exposes ``add_parser(subparsers)``, which adds its subparser and sets
 ``func=<callable(args) -> int>`` on it. All command modules live in playscope.commands;
-those of optional subpackages (sim, diagnose, device) are skipped when the package is absent. Bad input prints one line
+those of optional subpackages (sim, diagnose, board) are skipped when the package is absent. Bad input prints one line
 ``playscope: error: <file>:<row>: <message>`` and exits with status 2: an InputError, an
 OSError, a UnicodeDecodeError, a JSON or any other ValueError escaping a command, and a bad
 command-line value (argparse types in playscope.commands.argtypes). PLAYSCOPE_DEBUG=1 re-raises them

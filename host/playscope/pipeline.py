@@ -17,12 +17,14 @@ import os
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .fit.calibration import Calibration
 from .base.errors import InputError
-from .fit.transition import picked_candidate
+
+if TYPE_CHECKING:  # annotations only: a command's --help imports this module, not numpy's fits
+    from .fit.calibration import Calibration
 
 
 # --------------------------------------------------------------------------- track
@@ -71,6 +73,8 @@ def model_text(cal: Calibration) -> str:
     txt = "play" if tr.is_play else (f"play ({tr.b_scale:g} B) + PI, {tr.n} operators (r <= {tr.r[-1]:.3g}"
                                      + (", thresholds proportional to B(q))" if tr.tmap is not None else ")"))
     if ch:
+        from .fit.transition import picked_candidate
+
         pick = picked_candidate(ch)
         play = next((c for c in ch["candidates"] if c["n"] == 1), None)
         if pick:
@@ -476,3 +480,184 @@ def run_insitu(link, src: InsituSource, seconds=None, n_ctrl: int = 14, out=None
     if out:
         write_text_atomic(out / "result.json", json.dumps(res.to_json(), indent=1) + "\n")
     return res
+
+
+# --------------------------------------------------------------------------- import
+@dataclass
+class Imported:
+    """import_recording's result: the session folder written, its encoder rows and time span
+    (s), what the reader reported (notes: CSV repairs, or a bag's per-stream lines) and whether
+    the source was a ROS bag."""
+
+    session: str
+    rows: int
+    t_span_s: float
+    notes: list
+    bag: bool
+
+    def line(self) -> str:
+        return f"{self.session}: {self.rows} rows, {self.t_span_s:.1f} s"
+
+    def to_json(self) -> dict:
+        return {"session": self.session, "rows": self.rows, "t_span_s": self.t_span_s, "streams": list(self.notes)}
+
+
+def import_recording(source, out, csv: dict | None = None, bag: dict | None = None, q_source: str | None = None,
+                     overwrite: bool = False) -> Imported:
+    """A foreign recording -> a session folder at out. csv: importer.import_csv's keyword
+    arguments (t_col, q_col, c_col, time_scale, q_scale, unit, q_per_rad, c_scale, t_delay_s,
+    q_source) for a CSV; bag: rosbag.import_bag's (q, c, image: the topics; geometry, unit,
+    q_scale, c_scale, q_per_rad, t_delay_s) for a ROS bag (q_source set on the session after).
+    Errors: InputError naming the file and row; ValueError for a bag the reader refuses."""
+    if bag is not None:
+        from .io.rosbag import import_bag, write_bag_session
+
+        s, report, frames = import_bag(source, **bag)
+        s.q_source = q_source
+        notes = report.lines()
+        write_bag_session(s, frames, out, overwrite=overwrite)
+    else:
+        from .io.importer import import_csv
+        from .io.session import write_session
+
+        s = import_csv(source, **(csv or {}))
+        notes = list(s.notes)
+        write_session(s, out, overwrite=overwrite)
+    t = s.encoder["t_s"]
+    return Imported(str(out), int(t.size), float(t[-1] - t[0]), notes, bag is not None)
+
+
+# --------------------------------------------------------------------------- evaluate-insitu
+@dataclass
+class InsituEvaluated:
+    """evaluate_insitu_record's result: the document of evaluate.insitu_split.evaluate_insitu
+    (its JSON_KEYS) and what loading repaired in the record (warnings)."""
+
+    doc: dict
+    warnings: list = field(default_factory=list)
+
+    def text(self) -> str:
+        from .evaluate.insitu_split import format_insitu
+
+        return format_insitu(self.doc)
+
+    def to_json(self) -> dict:
+        return self.doc
+
+
+def evaluate_insitu_record(path, split: float | str = 0.5, progress=None, loaded=None) -> InsituEvaluated:
+    """Every model fitted before the split of one record and scored after it
+    (evaluate.insitu_split). path: a session folder or a recording file (importer.load_recording);
+    loaded: the Session already read from path (its notes are the warnings)."""
+    from .evaluate.insitu_split import evaluate_insitu
+    from .io.importer import load_recording
+
+    s = loaded if loaded is not None else load_recording(path)
+    kw = {"progress": progress} if progress else {}
+    return InsituEvaluated(evaluate_insitu(s, split, source=path, **kw), list(s.notes))
+
+
+# --------------------------------------------------------------------------- evaluate-real
+@dataclass
+class RealEvaluated:
+    """evaluate_real_data's result: the document (evaluate.real_eval's tables, or board.online's
+    on-line update tables) and its Markdown text."""
+
+    doc: dict
+    text: str
+
+    def to_json(self) -> dict:
+        return self.doc
+
+
+def evaluate_real_data(folder, reimage=None, online: bool = False, progress=None) -> RealEvaluated:
+    """The acceptance tables on the catheter recordings in folder: in situ and across sessions
+    (evaluate.real_eval), through a re-imaging work folder (reimage), or the on-line update
+    protocol (online; board.online)."""
+    kw = {"progress": progress} if progress else {}
+    if online:
+        from .board.online import evaluate_real_online, format_online
+
+        res = evaluate_real_online(folder, **kw)
+        return RealEvaluated(res, format_online(res))
+    from .evaluate.real_eval import evaluate_real, evaluate_real_reimaged, format_tables
+
+    res = evaluate_real_reimaged(folder, reimage, **kw) if reimage else evaluate_real(folder, **kw)
+    return RealEvaluated(res, format_tables(res))
+
+
+# --------------------------------------------------------------------------- evaluate-transfer
+@dataclass
+class Transferred:
+    """transfer_records' result: evaluate.transfer's document, its Markdown table, and the plot
+    written (or None)."""
+
+    doc: dict
+    text: str
+    plot: str | None = None
+
+    def to_json(self) -> dict:
+        return self.doc
+
+
+def transfer_records(cal, records, warmup: float, refresh_s: float, plot=None, progress=None) -> Transferred:
+    """A calibration made on the record cal run on each of records (evaluate.transfer), with and
+    without each on-line update; plot: PNG of RMSE against the configuration angle."""
+    from .evaluate.transfer import evaluate_transfer, format_transfer, plot_transfer
+
+    kw = {"progress": progress} if progress else {}
+    doc = evaluate_transfer(cal, records, warmup, refresh_s, **kw)
+    if plot:
+        plot_transfer(doc, plot)
+    return Transferred(doc, format_transfer(doc), os.fspath(plot) if plot else None)
+
+
+# --------------------------------------------------------------------------- diagnose
+@dataclass
+class Diagnosed:
+    """diagnose_records' result: per record name, the diagnosis document (diagnose.run.clean)
+    and its summary lines (diagnose.run.summary_lines); warnings: what loading repaired; html:
+    the page written, or None."""
+
+    records: dict
+    lines: dict
+    warnings: list = field(default_factory=list)
+    html: str | None = None
+
+    def to_json(self) -> dict:
+        return {"sessions": self.records}
+
+
+def diagnose_records(records, split: float, test=None, html=None) -> Diagnosed:
+    """The sim-to-real gap diagnosis (diagnose.run.diagnose_data) of each record: records is a
+    list of (name, path, kind) with kind "session" (a session folder or recording file,
+    importer.load_recording) or "catheter" (importer.import_catheter); test: one (path, kind)
+    scored as a separate test record; html: write the diagnosis page there."""
+    from .diagnose.fitmodel import from_session
+    from .diagnose.run import clean, diagnose_data, summary_lines
+    from .io.importer import import_catheter, load_recording
+
+    def load(path, kind):
+        return import_catheter(path) if kind == "catheter" else load_recording(path)
+
+    test_data = from_session(load(*test)) if test else None
+    out, lines, warnings, figs_all = {}, {}, [], []
+    for name, path, kind in records:
+        session = load(path, kind)
+        warnings += list(session.notes) if kind == "session" else []
+        data = from_session(session)
+        res = diagnose_data(data, split, session=session, test_data=test_data)
+        data = res.pop("_data")
+        lines[name] = summary_lines(name, res)
+        if html:
+            from .diagnose.diagnosis_report import figures
+
+            figs_all += [(f"{name}: {t}", img) for t, img in figures(data, res, res["atlas_before"], res["atlas_after"])]
+        res.pop("_models", None)
+        out[name] = clean(res)
+    if html:
+        from .base.atomic import write_text_atomic
+        from .diagnose.diagnosis_report import html_page
+
+        write_text_atomic(html, html_page("playscope diagnose", out, figs_all))
+    return Diagnosed(out, lines, warnings, os.fspath(html) if html else None)

@@ -1,1 +1,3 @@
-"""Device link on the host: frame codec (the C one, through cffi), transports, board commands."""
+"""Tables to the board: table-file checks, the link (frame codec through cffi, transports, the
+emulated USB board), flashing with its bit-for-bit check, the on-line update, and the board side
+of run-insitu."""

@@ -188,7 +188,7 @@ def add_parser(subparsers) -> None:
     p = add_command(subparsers, "flash", "upload a table, commit, read back and check bit for bit",
                     "Upload a table blob to a board with generation = active + 1, commit it, read it back, "
                     "then run test steps through the board's compensator and compare them bit for bit with "
-                    "the host's run of the same C (device/flash.py).",
+                    "the host's run of the same C (board/flash.py).",
                     examples=["playscope flash builtin --device virtual --flash-file board.flash",
                               "playscope flash d21.pstb --device virtual --flash-file board.flash --vectors 500"])
     p.add_argument("table", help="table blob (from `playscope tables`), or 'builtin' for the built-in test table "
@@ -214,7 +214,7 @@ def add_parser(subparsers) -> None:
                     "The paper's in-situ procedure (section III) on a board: the board runs its excitation and "
                     "streams its encoder, frames come from a camera or a video (or a SIMULATED instrument with "
                     "--sim-plant), the board's onset detector answers B samples, the host fits B(q) and f_remain, "
-                    "writes the tables and flashes them (device/insitu.py).",
+                    "writes the tables and flashes them (pipeline.run_insitu, board/insitu_run.py).",
                     examples=["playscope run-insitu --device virtual --sim-plant -o run --json run/result.json",
                               "playscope run-insitu --device qemu --video 0 --geometry sessions/s1/session.json -o run"])
     p.add_argument("--video", help="video file or camera index for OpenCV VideoCapture")

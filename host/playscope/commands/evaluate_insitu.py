@@ -3,7 +3,7 @@ and scored on the part after, state carried from the record's start (playscope.e
 
 from __future__ import annotations
 
-from ..evaluate.insitu_split import JSON_KEYS, evaluate_insitu, format_insitu
+from ..evaluate.insitu_split import JSON_KEYS
 from .common import add_command, add_json_arg, dump_json, load_session_noted, progress
 
 
@@ -34,8 +34,10 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    s = load_session_noted(a.session)
-    doc = evaluate_insitu(s, a.split, progress=progress, source=a.session)
-    print(format_insitu(doc))
-    dump_json(a.json, doc)
+    from ..pipeline import evaluate_insitu_record
+
+    s = load_session_noted(a.session)  # its repairs as warnings, before the long run
+    res = evaluate_insitu_record(a.session, a.split, progress=progress, loaded=s)
+    print(res.text())
+    dump_json(a.json, res.to_json())
     return 0

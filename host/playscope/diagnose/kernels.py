@@ -5,7 +5,7 @@ header and this file>, so an edit rebuilds it and a stale build is never loaded.
 Why: the play operator, the viscous play, the registration switch and the Karnopp carrier are
 recursions over time that numpy cannot vectorise; in Python they took about half of a diagnosis'
 time (cProfile of a 275-s record, docs/diagnosis.md section 5). The C is a line-for-line
-translation of the Python references in fitmodel.py and model.py and agrees with them bit for
+translation of the Python references in fitmodel.py and fit/model.py and agrees with them bit for
 bit (tests/python/sim/test_diagnose_kernels.py). When no C compiler is available the callers
 fall back to the Python references (``available()`` is False; the same results, slower).
 

@@ -3,7 +3,7 @@ the last reversal and by direction, by q and c, by speed, over wall-clock time, 
 (image sessions), plus the spectrum and the cross-correlation with the distal (image) velocity.
 
 Every breakdown is binned RMS of the residual (deg) with the bin centres, so the JSON carries the
-residual atlas and report.py draws it.
+residual atlas and diagnosis_report.py draws it.
 """
 
 from __future__ import annotations

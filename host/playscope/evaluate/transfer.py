@@ -9,7 +9,7 @@ its angle sensor, on the samples after the warm-up (a fraction of the record's d
 Rows, all scored on exactly the same samples:
 
   in_situ            ours with the transition fitted on the record's own warm-up part only
-                     (the protocol of insitu.py with the split at the warm-up): the reference
+                     (the protocol of insitu_split.py with the split at the warm-up): the reference
   in_situ_affine     the same with the offset and gain refresh below: where nothing drifts
                      the refresh must not make it worse
   in_situ_const_play constant play + poly5 fitted on the same frames of that part
