@@ -96,7 +96,9 @@ def test_b_stiffness_by_the_model_cv(transition_angle_session, monkeypatch):
     # not worse than the B-sample CV's stiffness alone (measured 0.442 against 0.461 deg).
     plant, note = session_plant(test)
     ours = evaluate(cal, test, plant=plant, plant_note=note, comp_duration_s=30.0)
-    monkeypatch.setattr(E, "backlash_alternatives", lambda q, b, bfit, *a, **k: [(bfit.smooth, bfit)])
+    from playscope.fit import calibration as CAL  # the name calibrate calls
+
+    monkeypatch.setattr(CAL, "backlash_alternatives", lambda q, b, bfit, *a, **k: [(bfit.smooth, bfit)])
     alone = evaluate(calibrate(s), test, plant=plant, plant_note=note, comp_duration_s=30.0)
     e_ours = ours.summary["compensation"]["methods"]["f_remain+B+PI"]["c_rmse_deg"]
     e_alone = alone.summary["compensation"]["methods"]["f_remain+B+PI"]["c_rmse_deg"]
