@@ -66,6 +66,8 @@ COMMANDS = {
     "evaluate-real": ("playscope.commands.evaluate_real",
                       "in situ and across-session RMSE tables on the catheter recordings"),
     "evaluate-insitu": ("playscope.commands.evaluate_insitu", "in-situ RMSE of every model on one session split in time"),
+    "evaluate-transfer": ("playscope.commands.evaluate_transfer",
+                          "calibration of one record run on other sessions or configurations"),
     "simulate": ("playscope.commands.simulate",
                  "simulated session (robot with B(q) + f_remain, effects, endoscope camera)"),
     "diagnose": ("playscope.commands.diagnose",
