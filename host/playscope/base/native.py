@@ -256,7 +256,9 @@ def executable(target: str) -> Path:
         if not shutil.which("cmake"):
             raise NativeBuildError(f"{target}: no build of the firmware and no cmake to make one "
                                    "(run tools/setup.sh)")
-        build = cache_root() / "cmake-desktop"
+        # One private build per checkout: a CMake build folder is tied to its source folder,
+        # so two checkouts (or a moved one) sharing it would fail to configure.
+        build = cache_root() / f"cmake-desktop-{hashlib.sha256(str(REPO.resolve()).encode()).hexdigest()[:12]}"
         build.mkdir(parents=True, exist_ok=True)
         if not (build / "CMakeCache.txt").is_file():
             gen = ["-G", "Ninja"] if shutil.which("ninja") else []
