@@ -86,3 +86,28 @@ def test_diary_check_fires_on_a_planted_line(tmp_path):
     page.write_text("Since " + "issue" + " 27 this release reads B faster (on this branch).\n")  # split: no number in the source
     hits = [pat for pat, _ in DIARY if re.search(pat, _prose(page), re.I)]
     assert len(hits) == 3
+
+
+def test_every_file_a_page_names_exists():
+    """A path a page names (`host/playscope/fit/onset_refine.py`, `firmware/core/relax.c`,
+    `bench/insitu_real.py`, or a package folder-relative `fit/backlash.py`) is a file of the tree:
+    a moved module cannot leave a page pointing at nothing."""
+    roots = ("host/", "firmware/", "common/", "bench/", "tests/", "tools/", "fuzz/")
+    pkg = ("base/", "io/", "fit/", "board/", "evaluate/", "diagnose/", "sim/", "commands/")
+    missing = set()
+    for page in PAGES:
+        if page.name == "results.md":
+            continue
+        for m in re.finditer(r"(?<![\w/.-])((?:[\w.-]+/)+[\w.-]+\.(?:py|c|h|sh|txt))\b", _prose(page)):
+            path = m[1]
+            if path.startswith(roots):
+                ok = (ROOT / path).exists()
+            elif path.startswith(pkg):
+                ok = (ROOT / "host" / "playscope" / path).exists()
+            elif path.startswith("playscope/"):
+                ok = (ROOT / "host" / path).exists()
+            else:
+                continue
+            if not ok:
+                missing.add(f"{page.name}: {path}")
+    assert not missing, sorted(missing)
