@@ -120,6 +120,26 @@ def selftest_rows(doc: dict, command: str) -> list[tuple[str, str, str, str, str
     return rows
 
 
+def swing_rows(printed: str, group: str, command: str) -> list[tuple[str, str, str, str, str]]:
+    """Figure rows of bench/swing_bench.py's printed output for one group of renderings: per
+    category the B error (% of mean B) and the |t_delay error| (frames), mean beside worst, and
+    the count of renderings that fail their limits. Raises ValueError when it printed neither."""
+    rows = []
+    cat_re = re.compile(r"^\| ([^|]+?) \| (\d+) \| ([\d.]+) \(([\d.]+)\) \| ([\d.]+) \(([\d.]+)\) \|$")
+    for line in printed.splitlines():
+        m = cat_re.match(line)
+        if m:
+            rows.append((f"fast-swing onsets, {group} renderings, {m[1]} ({m[2]}): B error mean (worst); "
+                         f"|t_delay error| mean (worst)", f"{m[3]} % ({m[4]} %); {m[5]} ({m[6]}) frames",
+                         "", "", command))
+    m = re.search(r"^renderings failing \(([^)]*)\): (\d+) of (\d+)$", printed, re.M)
+    if not m:
+        raise ValueError(f"{command}: printed no 'renderings failing' line")
+    rows.append((f"fast-swing onsets, {group} renderings: failing ({m[1]})", f"{m[2]} of {m[3]}", "0", "",
+                 command))
+    return [tuple(c.replace("|", "/") if k == 0 else c for k, c in enumerate(r)) for r in rows]
+
+
 def _cells(line: str) -> list[str]:
     return [c.strip() for c in line.strip().strip("|").split("|")]
 

@@ -206,3 +206,27 @@ def test_selftest_rows_for_each_generator_that_ran():
     # only the first generator ran: the second's summary line says it was not measured
     only_first = rd.summary_block(rd.selftest_rows({"selftest": _score(1.0, 18, 0, 2)}, "c"), "d")
     assert _rows(only_first)["diagnosis blind self-test, second generator: top-1"][0] == rd.NOT_MEASURED
+
+
+SWING_PRINTED = """group development: 9 renderings (bench/swing_render.py)
+| category | rendering | shape, fps, noise px | true / cfg delay (s) | B error % | limit | x |
+|---|---|---|---|---|---|---|
+| swings | dev-swings25 | square, 25, 0.1 | 0.08 / 0.08 | 2.29 | <= 5 | a |
+
+| category | renderings | B error % mean (worst) | |t_delay error| frames mean (worst) |
+|---|---|---|---|
+| swings | 2 | 1.50 (2.29) | 0.000 (0.000) |
+| registration | 2 | 15.58 (15.87) | 0.010 (0.020) |
+renderings failing (B over limit, |t_delay error| > 1/8 frame, or refused): 3 of 9
+"""
+
+
+def test_swing_rows_per_category_and_failures():
+    rows = rd.swing_rows(SWING_PRINTED, "development", "bench/swing_bench.py --group development")
+    assert len(rows) == 3
+    assert rows[0][0].startswith("fast-swing onsets, development renderings, swings (2)")
+    assert rows[0][1] == "1.50 % (2.29 %); 0.000 (0.000) frames"
+    assert rows[1][1] == "15.58 % (15.87 %); 0.010 (0.020) frames"
+    assert rows[2][1] == "3 of 9" and "/t_delay error/" in rows[2][0]  # no bar left in a name
+    with pytest.raises(ValueError, match="renderings failing"):
+        rd.swing_rows("| swings | 2 | 1.50 (2.29) | 0.000 (0.000) |\n", "development", "x")
