@@ -256,6 +256,45 @@ def test_thin_record_falls_back_to_constant_play_and_is_never_worse(seed):
     assert abs(r["ours"]["rmse_deg"] - r["const_play"]["rmse_deg"]) < 1e-3
 
 
+def thin_swings_record(kind, seed=0):
+    """3 cycles (2 reversals and a third swing before the half): "pi" the thin record's play +
+    creep, "play" a constant play (width 1 mm) and the same f."""
+    q = strokes([4.0, 4.0, 4.0], [-3.0, -3.0, 0.0], per_stroke=2500)
+    z = play_loop(q, 0.5)
+    y = 0.5 * z + 0.5 * play_loop(z, 0.6) if kind == "pi" else z
+    return session_of(q, 8.0 * y + 2.0 * np.tanh(0.5 * y), seed=seed)
+
+
+def test_swing_folds_forecast_each_half_swing_from_the_third_on(monkeypatch):
+    seen = spy_context(monkeypatch)
+    calibrate(thin_swings_record("pi").slice_time(-np.inf, 15.0), model_kind="auto")
+    ctx = seen["ctx"]
+    folds = FAM.swing_splits(ctx)
+    t = ctx.data.t_frame
+    assert len(folds) == 2  # strokes of 5 s: reversals at 5 and 10 s, the third swing 10..15 s in two halves
+    for train, test in folds:
+        assert train.sum() > 0 and test.sum() > 0 and not np.any(train & test)
+        assert t[train].max() < t[test].min()  # a forecast: trained on what came before only
+        assert t[test].min() >= 10.0 - 0.05 and np.ptp(t[test]) < 2.6  # within one half of the third swing
+    assert np.all(t[folds[0][1]] < t[folds[1][1]].min())
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_thin_record_takes_a_pi_form_when_its_swing_cv_supports_it(seed):
+    r = insitu.evaluate_insitu(thin_swings_record("pi", seed), 0.5)["rows"]
+    p = r["ours"]["params"]
+    assert p["family"] == "pi_const"
+    # measured 0.073 deg against 0.485 for the constant play + poly5 and 0.070 for the modified PI peer
+    assert r["ours"]["rmse_deg"] < 0.25 * r["const_play"]["rmse_deg"]
+    assert r["ours"]["rmse_deg"] < 1.15 * r["mpi"]["rmse_deg"]
+
+
+def test_thin_record_of_a_constant_play_keeps_the_model_fitted_by_hand():
+    r = insitu.evaluate_insitu(thin_swings_record("play"), 0.5)["rows"]
+    assert r["ours"]["params"]["family"] in ("const_play", "onset_play")
+    assert r["ours"]["rmse_deg"] <= r["const_play"]["rmse_deg"] + 1e-3
+
+
 @pytest.mark.skipif(not ENDOSCOPE.is_dir(), reason="real endoscope recordings not present")
 @pytest.mark.parametrize("stem", ["30", "60", "120"])
 def test_thin_endoscope_development_records(stem):
