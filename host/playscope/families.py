@@ -252,9 +252,10 @@ def _fast_f(n_ctrl: int, sign: int):
 
 def search_path(y: np.ndarray, n_max: int = RELAX_FIT_SAMPLES) -> np.ndarray:
     """Indices of y (N,) the relaxation's search runs on: every k-th sample (k = ceil(N /
-    n_max)) and every turning point of y (transition.turning_points), sorted. The per-sample
-    step then travels up to k ticks' worth; the member's f is fitted on the full path and its
-    CV runs the board's table over every tick."""
+    n_max)), the last, and every turning point of y (transition.turning_points), sorted. Given
+    q, the path holds every turning point of q, hence of the play and operators after it. The
+    per-sample step then travels up to k ticks' worth; the member's f is fitted on the full
+    path and its CV runs the board's table over every tick."""
     k = int(np.ceil(y.size / n_max))
     if k <= 1:
         return np.arange(y.size)
@@ -271,14 +272,36 @@ def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: 
     sign, transition.fit_f) is then fitted on the full path's relaxed output. When the
     relaxation does not lower the training residual (kappa 0) the member is base's, without it."""
 
-    def fit(ctx: Context, train=None) -> Member:
+    def search(ctx: Context, train=None):
+        """(base's member, relax.RelaxFit of the search, n encoder samples up to the last
+        training frame): the (kappa, lambda) search alone, on the search path's samples."""
+        from . import model as M
         from . import relax as R
 
         m = base(ctx, train)
         d, sel = ctx.data, _all(ctx, train)
         t_f, c = d.t_frame[sel], d.c[sel]
         n = min(int(np.searchsorted(d.t_enc, t_f.max(), side="right")) + 1, d.t_enc.size)
-        t_enc = d.t_enc[:n]
+        q = d.q_enc[:n]
+        k = search_path(q)
+        # The play (and the operators after it) on the search path alone: it holds every turning
+        # point of q, and rate-independent operators depend on nothing else between them, so this
+        # is the full run read at those samples, without the full run's bisections on B.
+        y_k = m.transition.direct(M.play_operator(q[k], m.transition.play_width(m.B), float(q[0])))
+        nc = m.f_ctrl or ctx.f_n
+        rf = R.fit(y_k, d.t_enc[k], t_f, c, lambda v, cc: T.fit_f(v, cc, nc, sign=m.sign), max_nfev=40,
+                   fit_f_search=_fast_f(nc, m.sign))
+        return m, rf, n
+
+    def fit(ctx: Context, train=None) -> Member:
+        from . import relax as R
+
+        m, rf, n = search(ctx, train)
+        nc = m.f_ctrl or ctx.f_n
+        if rf.relax.is_identity:
+            return Member(name, m.B, m.transition, m.f, m.sign, m.refit_f, nc)
+        d, sel = ctx.data, _all(ctx, train)
+        t_f, c, t_enc = d.t_frame[sel], d.c[sel], d.t_enc[:n]
         if m.B is d.B:
             # The onset play's centre at the encoder rate is cached on the data (FitData.z_enc) and
             # causal, so every fold and both relaxed families read the one run from the record's
@@ -286,12 +309,6 @@ def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: 
             y = m.transition.direct(d.z_enc(m.transition.b_scale)[:n])
         else:
             y = R.transition_output(d.q_enc[:n], m.B, m.transition)
-        nc = m.f_ctrl or ctx.f_n
-        k = search_path(y)
-        rf = R.fit(y[k], t_enc[k], t_f, c, lambda v, cc: T.fit_f(v, cc, nc, sign=m.sign), max_nfev=40,
-                   fit_f_search=_fast_f(nc, m.sign))
-        if rf.relax.is_identity:
-            return Member(name, m.B, m.transition, m.f, m.sign, m.refit_f, nc)
         v = R.at_frames(y, t_enc, t_f, rf.relax)
         f, sign = T.fit_f(v, c, nc, sign=m.sign)
         rmse = float(np.sqrt(np.mean((f(v) - c) ** 2)))
@@ -301,6 +318,7 @@ def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: 
                       lambda ms: T.fit_f(v, c, nc, sign=sign, min_slope=ms), nc, rf.relax,
                       rf.rmse_without_deg - rmse)
 
+    fit.search = search
     fit.__doc__ = f"{base.__name__} + travel-domain relaxation (with_relaxation)."
     return fit
 
@@ -469,29 +487,34 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
                     full[f.name] = full[TWIN[f.name]]
                 continue
             if f.name in RELAXED:
-                # Fitted on every calibration frame first: when the relaxation does not lower that
-                # residual the member is its base's, whatever the folds say, so its CV is not run.
+                # Searched on every calibration frame first: when the relaxation does not lower that
+                # residual, or lowers it by no more than its base's CV SE (in sample, so an optimistic
+                # bound of the gain on held-out frames: the one-SE rule could not keep it), its CV
+                # is not run, nor its fit on the full path.
+                row = {"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None, "folds": 0,
+                       "refused": None}
                 try:
-                    full[f.name] = f.fit(ctx, None)
+                    _, rf, _ = f.fit.search(ctx, None)
+                    base = next((r for r in rows if r["family"] == RELAXED[f.name]), None)
+                    gain = rf.rmse_without_deg - rf.rmse_deg
+                    if rf.relax.is_identity:
+                        skip = f"the relaxation does not lower the calibration residual (kappa 0): the member is " \
+                               f"{RELAXED[f.name]}'s"
+                    elif base is not None and base["cv_rmse_deg"] is not None and gain <= base["cv_se_deg"]:
+                        skip = (f"the relaxation lowers the calibration residual by {gain:.3g} deg, not more than "
+                                f"{RELAXED[f.name]}'s CV standard error {base['cv_se_deg']:.3g} deg: it cannot win "
+                                "by the one-SE margin")
+                    else:
+                        skip = None
+                        full[f.name] = f.fit(ctx, None)
+                        if full[f.name].relax is None:
+                            skip = (f"the relaxation does not lower the calibration residual on the full path: the "
+                                    f"member is {RELAXED[f.name]}'s")
                 except (InputError, OverflowError, ValueError, np.linalg.LinAlgError) as e:
-                    rows.append({"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None,
-                                 "folds": 0, "refused": str(getattr(e, "message", e))})
+                    rows.append({**row, "refused": str(getattr(e, "message", e))})
                     continue
-                if full[f.name].relax is None:
-                    rows.append({"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None,
-                                 "folds": 0, "refused": None, "skipped": "the relaxation does not lower the "
-                                 f"calibration residual (kappa 0): the member is {RELAXED[f.name]}'s"})
-                    continue
-                base = next((r for r in rows if r["family"] == RELAXED[f.name]), None)
-                gain = full[f.name].relax_gain_deg
-                if base is not None and base["cv_rmse_deg"] is not None and gain <= base["cv_se_deg"]:
-                    # The one-SE rule keeps the relaxed member only when its CV beats its base's by
-                    # more than one SE; its gain on the frames it is fitted to (in sample, so an
-                    # optimistic bound of the gain on held-out frames) is already below that.
-                    rows.append({"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None,
-                                 "folds": 0, "refused": None, "skipped": f"the relaxation lowers the calibration "
-                                 f"residual by {gain:.3g} deg, not more than {RELAXED[f.name]}'s CV standard error "
-                                 f"{base['cv_se_deg']:.3g} deg: it cannot win by the one-SE margin"})
+                if skip:
+                    rows.append({**row, "skipped": skip})
                     continue
             rows.append(score(ctx, f, splits, source))
     scored = [r for r in rows if r["cv_rmse_deg"] is not None]
