@@ -31,16 +31,17 @@ model run from the record's start), each fold's member written to a table by
 tables.build_table and run by the firmware's playop_step (CalibTable.predict) on the record's
 reduced path (its turning points and the frames: exact for rate-independent operators). The
 family kept is the first in FAMILIES' order (fewest parameters fitted to c first) whose CV RMSE
-is within one standard error of the best (the one-standard-error rule, as transition.choose_model). Thin records (fewer than MIN_REVERSALS_CHOICE
-direction reversals in the calibration part: the rolling origins would give one stroke or less
-per fold) are scored instead on swing folds (swing_splits: each half of every swing from the third
-on, forecast from the frames before it), and the one-SE rule starts from const_play, the model a
-user would fit by hand: another family is kept only when its CV beats const_play's by more than
-one SE; with fewer than MIN_SWING_FOLDS folds (no third swing yet) const_play is kept outright. On the development
-endoscope records (2-3 reversals per calibration part, ~50 frames) the leave-one-swing-out
-folds (train before and after the held-out swing) picked worse than this: with one branch
-direction missing from the training part, the PI forms extrapolate (30.txt at split 0.5: 3.8 deg
-on the held-out middle swing against 0.7 on the judged part).
+is within one standard error of the best (the one-standard-error rule, as
+transition.choose_model). Thin records (fewer than MIN_REVERSALS_CHOICE direction reversals in
+the calibration part: the rolling origins would give one stroke or less per fold) are scored
+instead on swing folds (swing_splits: each half of every swing from the third on, forecast from
+the frames before it), and the one-SE rule starts from const_play, the model a user would fit
+by hand: another family is kept only when const_play's CV is more than one SE above the best;
+with fewer than MIN_SWING_FOLDS folds (no third swing yet) const_play is kept outright. On the
+development endoscope records (2-3 reversals per calibration part, ~50 frames)
+leave-one-swing-out folds (train before and after the held-out swing) picked worse than this:
+with one branch direction missing from the training part, the PI forms extrapolate (30.txt at
+split 0.5: 3.8 deg on the held-out middle swing against 0.7 on the judged part).
 A family whose table the loader refuses on a fold is recorded as refused (the loader's reason)
 and is not chosen.
 Units: q, B, z in actuator units (mm or deg of command), c in deg, t in s.
@@ -61,7 +62,7 @@ POLY_SPLINE_CTRL, POLY_GRID = 32, 400  # const_play's poly5 carried as a spline 
 MIN_REVERSALS_CHOICE = T.KFOLD  # below (2-3 reversals): const_play (thin record, module docstring)
 MIN_TRAIN_FRAMES, MIN_TEST_FRAMES = 10, 3  # a fold with fewer is skipped (as transition's CV)
 SWING_HYSTERESIS = 0.01  # thin records' swings: reversals of q with this fraction of its span (as largest_excursion)
-MIN_SWING_FOLDS = 2  # a thin record with fewer swings to leave out keeps const_play outright
+MIN_SWING_FOLDS = 2  # a thin record with fewer swing folds (swing_splits) keeps const_play outright
 
 
 @dataclass
@@ -78,7 +79,6 @@ class Member:
     refit_f: Callable[[float], tuple] | None = None  # min_slope -> (f, sign): f again with |f'| floored
     f_ctrl: int = 0  # f's control points (transition.fit_f), for f refitted on a relaxed output
     relax: object = None  # relax.Relaxation on the transition's output before f (layout 4), or None
-    relax_gain_deg: float = 0.0  # the relaxation's lowering of the fitted frames' RMSE (deg, in sample)
 
 
 @dataclass
@@ -266,11 +266,13 @@ def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: 
     """fit(ctx, train) of base's family followed by the travel-domain relaxation (playscope.relax)
     on its transition's output, before f: c = f(R[PI[play(q)]]). Base's B and operators are kept;
     (kappa, lambda) are searched by relax.fit on the training frames (f refitted at each point
-    by one least-squares pass, _fast_f; starts at lambda = 0.1 and 0.02 of y's range; the path
-    thinned to RELAX_FIT_SAMPLES, search_path), over the encoder record from its start up to
-    the last training frame (nothing after it is read); f (base's f_ctrl control points and
-    sign, transition.fit_f) is then fitted on the full path's relaxed output. When the
-    relaxation does not lower the training residual (kappa 0) the member is base's, without it."""
+    by one least-squares pass, _fast_f; starts at lambda = 0.1 and 0.02 of y's range; the play
+    and operators run on q's search path, search_path, at most ~RELAX_FIT_SAMPLES samples), over
+    the encoder record from its start up to the last training frame (nothing after it is read);
+    f (base's f_ctrl control points and sign, transition.fit_f) is then fitted on the full
+    path's relaxed output. When the relaxation does not lower the training residual (kappa 0)
+    the member is base's, without it. The returned fit carries fit.search(ctx, train) -> (base's
+    member, relax.RelaxFit, encoder samples used): the search alone, which choose reads first."""
 
     def search(ctx: Context, train=None):
         """(base's member, relax.RelaxFit of the search, n encoder samples up to the last
@@ -311,12 +313,10 @@ def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: 
             y = R.transition_output(d.q_enc[:n], m.B, m.transition)
         v = R.at_frames(y, t_enc, t_f, rf.relax)
         f, sign = T.fit_f(v, c, nc, sign=m.sign)
-        rmse = float(np.sqrt(np.mean((f(v) - c) ** 2)))
-        if rmse >= rf.rmse_without_deg:  # on the full path it does not help
+        if np.sqrt(np.mean((f(v) - c) ** 2)) >= rf.rmse_without_deg:  # on the full path it does not help
             return Member(name, m.B, m.transition, m.f, m.sign, m.refit_f, nc)
         return Member(name, m.B, m.transition, f, sign,
-                      lambda ms: T.fit_f(v, c, nc, sign=sign, min_slope=ms), nc, rf.relax,
-                      rf.rmse_without_deg - rmse)
+                      lambda ms: T.fit_f(v, c, nc, sign=sign, min_slope=ms), nc, rf.relax)
 
     fit.search = search
     fit.__doc__ = f"{base.__name__} + travel-domain relaxation (with_relaxation)."
@@ -460,9 +460,10 @@ def swing_splits(ctx: Context) -> list[tuple[np.ndarray, np.ndarray]]:
 def choose(ctx: Context, reversals: int, families: list[Family] | None = None, source=None) -> tuple[Member, dict]:
     """Score every family (score) and fit the chosen one on every calibration frame.
 
-    A relaxed member is fitted on every calibration frame first; its CV is not run (the row says
-    "skipped" and why) when the relaxation does not lower that residual, or lowers it by no more
-    than its base's CV standard error (the one-SE rule could not keep it).
+    A relaxed member's (kappa, lambda) are searched on every calibration frame first; its CV and
+    its full-path fit are not run (the row says "skipped" and why) when the relaxation does not
+    lower that residual, or lowers it by no more than its base's CV standard error (the one-SE
+    rule could not keep it).
 
     reversals: direction reversals in the calibration part (thin-record rule). Returns (Member,
     choice dict {"family", "rule", "reversals", "candidates": [score rows]}). A chosen family
