@@ -50,6 +50,11 @@ KAPPA_MAX = 0.9            # 1/(1 - kappa) <= 10: the inverse's gain on the outp
                            # to PST_RELAX_KAPPA_MAX_Q16, the loader's bound
 LAMBDA_MIN_FRAC = 1e-3     # lambda >= 1e-3 x the travel range: below, a step (the plain play) is as good
 LAMBDA_MAX_FRAC = 2.0      # lambda <= 2 x the travel range: beyond, r barely moves over the record
+LAMBDA_MIN_STEPS = 10.0    # lambda >= 10 x the path's 99th-percentile travel per sample (fit): the explicit
+                           # step's O(|dx| / lambda) error would otherwise make the output depend on the
+                           # sampling, i.e. on speed, which a rate-independent model must not (on the
+                           # catheter the search on the onset transition sat on the range bound, lambda
+                           # 0.0035-0.007 mm, about a sample's travel: a one-sample lag, not a creep)
 
 
 @dataclass
@@ -246,7 +251,8 @@ def fit(y_enc: np.ndarray, t_enc: np.ndarray, t_frame: np.ndarray, c: np.ndarray
     -> (f, sign): the product's own f_remain fit on the relaxed output (refitted at each
     evaluation: kappa moves the output's scale, which f absorbs). x0: (kappa, lambda as a
     fraction of y's range). Parameters: kappa in [0, KAPPA_MAX], log lambda within
-    [LAMBDA_MIN_FRAC, LAMBDA_MAX_FRAC] x y's range. Returns RelaxFit (rmse_without_deg: the
+    [LAMBDA_MIN_FRAC, LAMBDA_MAX_FRAC] x y's range and at least LAMBDA_MIN_STEPS x the 99th
+    percentile of |y_enc[k] - y_enc[k-1]| (the travel of one sample of the path given). Returns RelaxFit (rmse_without_deg: the
     same f fit with kappa = 0, whose f is f_without). fit_f_search: a cheaper f fit of the same
     signature used while (kappa, lambda) are searched (f is then fitted once more by fit_f at
     the best point); starts: the lambda starts as fractions of y's range (None: x0's).
@@ -256,7 +262,9 @@ def fit(y_enc: np.ndarray, t_enc: np.ndarray, t_frame: np.ndarray, c: np.ndarray
     span = float(np.ptp(y_enc))
     if not span > 0:
         raise ValueError("the transition's output does not move: no relaxation to fit")
-    lo = np.array([0.0, np.log(LAMBDA_MIN_FRAC * span)])
+    step = float(np.percentile(np.abs(np.diff(y_enc)), 99)) if y_enc.size > 1 else 0.0
+    lam_lo = min(max(LAMBDA_MIN_FRAC * span, LAMBDA_MIN_STEPS * step), 0.5 * LAMBDA_MAX_FRAC * span)
+    lo = np.array([0.0, np.log(lam_lo)])
     hi = np.array([KAPPA_MAX, np.log(LAMBDA_MAX_FRAC * span)])
     y_f = np.interp(t_frame, t_enc, y_enc)
     f0, s0 = fit_f(y_f, c)

@@ -91,6 +91,22 @@ def test_fit_recovers_a_planted_relaxation():
     assert fit.rmse_deg < 0.3 * fit.rmse_without_deg
 
 
+def test_fit_keeps_lambda_above_a_few_samples_of_travel():
+    """A one-sample lag dressed as a relaxation (planted lambda = 2 samples' travel) is not what
+    the rate-independent model may fit: the search holds lambda >= LAMBDA_MIN_STEPS x the
+    path's 99th-percentile travel per sample, and the same record sampled 4 times finer would
+    otherwise give another model."""
+    t, q = triangle(8.0, 200.0, cycles=4)
+    y = model.play_operator(q, B)
+    step = float(np.percentile(np.abs(np.diff(y)), 99))
+    c_true = f(R.Relaxation(0.5, 2.0 * step).direct(y))
+    tf = np.arange(0.0, t[-1], 1 / 30)
+    c_f = np.interp(tf, t, c_true) + np.random.default_rng(2).normal(0, 0.02, tf.size)
+    fit = R.fit(y, t, tf, c_f, lambda v, c: T.fit_f(v, c, 14))
+    print(fit.to_json(), "step", step)
+    assert fit.relax.is_identity or fit.relax.lam >= R.LAMBDA_MIN_STEPS * step * (1 - 1e-6)
+
+
 @pytest.fixture(scope="module")
 def relaxed():
     tr = T.Transition(T.thresholds(4, 0.8), np.array([0.5, 0.2, 0.2, 0.1]))
