@@ -1,4 +1,4 @@
-"""The travel-domain relaxation (playscope.relax): the double model against its own inverse and
+"""The travel-domain relaxation (playscope.fit.relax): the double model against its own inverse and
 against a time-domain lag at two speeds, the fit of (kappa, lambda) on a simulated record, and the
 layout-4 table through the firmware's loader, playop_step and comp_step (cffi) against the double
 chain f(R[PI[play(q)]])."""
@@ -6,12 +6,12 @@ chain f(R[PI[play(q)]])."""
 import numpy as np
 import pytest
 
-from playscope import model
-from playscope import relax as R
-from playscope import tables as TB
-from playscope import transition as T
+from playscope.fit import model
+from playscope.fit import relax as R
+from playscope.fit import table_build as TB
+from playscope.fit import transition as T
 from playscope.diagnose.fitmodel import lowpass
-from playscope.native import core
+from playscope.base.native import core
 
 Q_MIN, Q_MAX = -5.0, 5.0
 
@@ -50,7 +50,7 @@ def test_compiled_recursion_agrees_with_the_python_loop_bit_for_bit():
         pytest.skip("no C compiler: the Python loop runs")
     rng = np.random.default_rng(3)
     x = np.cumsum(rng.normal(0, 0.05, 4000)) + 3.0 * np.sin(np.linspace(0, 20, 4000))
-    for kappa, lam in ((0.0, 1.0), (0.2, 1e-3), (0.45, 0.3), (R.KAPPA_MAX, 5.0)):
+    for kappa, lam in ((0.0, 1.0), (0.2, 1e-3), (0.45, 0.3), (R.kappa_max(), 5.0)):
         v = R._run(x, kappa, lam, None, False)
         assert np.array_equal(v, R._run_py(x, kappa, lam, None, False))
         assert np.array_equal(R._run(v, kappa, lam, 0.5, True), R._run_py(v, kappa, lam, 0.5, True))
