@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import held_direction
+from ..fit.model import held_direction
 
 # Camera delay: the delays fitted on the slow and on the fast half of the moving validation rows
 # differ by at most DELAY_SPREAD of the delay. Second generator's development seeds 0 and 1: planted

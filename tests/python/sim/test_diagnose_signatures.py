@@ -8,7 +8,7 @@ import pytest
 
 from playscope.diagnose.fitmodel import INTERNAL_HZ, Data, Model, _play
 from playscope.diagnose.signatures import signature
-from playscope.model import held_direction
+from playscope.fit.model import held_direction
 
 B_MM = 0.4      # play width
 G_DEG = 12.0    # deg per mm of play output
