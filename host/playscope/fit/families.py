@@ -31,9 +31,17 @@ model run from the record's start), each fold's member written to a table by
 tables.build_table and run by the firmware's playop_step (CalibTable.predict) on the record's
 reduced path (its turning points and the frames: exact for rate-independent operators). The
 family kept is the first in FAMILIES' order (fewest parameters fitted to c first) whose CV RMSE
-is within one standard error of the best (the one-standard-error rule, as transition.choose_model). Thin records (fewer than MIN_REVERSALS_CHOICE direction
-reversals in the calibration part: one stroke or less per fold) keep const_play, the model a
-user would fit by hand: a CV over one or two strokes per fold cannot tell the families apart.
+is within one standard error of the best (the one-standard-error rule, as
+transition.choose_model). Thin records (fewer than MIN_REVERSALS_CHOICE direction reversals in
+the calibration part: the rolling origins would give one stroke or less per fold) are scored
+instead on swing folds (swing_splits: each half of every swing from the third on, forecast from
+the frames before it), and the one-SE rule starts from const_play, the model a user would fit
+by hand: another family is kept only when const_play's CV is more than one SE above the best;
+with fewer than MIN_SWING_FOLDS folds (no third swing yet) const_play is kept outright. On the
+development endoscope records (2-3 reversals per calibration part, ~50 frames)
+leave-one-swing-out folds (train before and after the held-out swing) picked worse than this:
+with one branch direction missing from the training part, the PI forms extrapolate (30.txt at
+split 0.5: 3.8 deg on the held-out middle swing against 0.7 on the judged part).
 A family whose table the loader refuses on a fold is recorded as refused (the loader's reason)
 and is not chosen.
 Units: q, B, z in actuator units (mm or deg of command), c in deg, t in s.
@@ -47,12 +55,15 @@ from typing import Callable
 import numpy as np
 
 from .bspline import SplineFn, clamped_knots, robust_spline
+from .reversals import detect_reversals
 from . import transition as T
 
 RELAX_FIT_SAMPLES = 20000  # the relaxation's (kappa, lambda) search runs on at most this many path samples
 POLY_SPLINE_CTRL, POLY_GRID = 32, 400  # const_play's poly5 carried as a spline of 32 control points
 MIN_REVERSALS_CHOICE = T.KFOLD  # below (2-3 reversals): const_play (thin record, module docstring)
 MIN_TRAIN_FRAMES, MIN_TEST_FRAMES = 10, 3  # a fold with fewer is skipped (as transition's CV)
+SWING_HYSTERESIS = 0.01  # thin records' swings: reversals of q with this fraction of its span (as largest_excursion)
+MIN_SWING_FOLDS = 2  # a thin record with fewer swing folds (swing_splits) keeps const_play outright
 
 
 @dataclass
@@ -242,9 +253,10 @@ def _fast_f(n_ctrl: int, sign: int):
 
 def search_path(y: np.ndarray, n_max: int = RELAX_FIT_SAMPLES) -> np.ndarray:
     """Indices of y (N,) the relaxation's search runs on: every k-th sample (k = ceil(N /
-    n_max)) and every turning point of y (transition.turning_points), sorted. The per-sample
-    step then travels up to k ticks' worth; the member's f is fitted on the full path and its
-    CV runs the board's table over every tick."""
+    n_max)), the last, and every turning point of y (transition.turning_points), sorted. Given
+    q, the path holds every turning point of q, hence of the play and operators after it. The
+    per-sample step then travels up to k ticks' worth; the member's f is fitted on the full
+    path and its CV runs the board's table over every tick."""
     k = int(np.ceil(y.size / n_max))
     if k <= 1:
         return np.arange(y.size)
@@ -255,27 +267,51 @@ def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: 
     """fit(ctx, train) of base's family followed by the travel-domain relaxation (playscope.fit.relax)
     on its transition's output, before f: c = f(R[PI[play(q)]]). Base's B and operators are kept;
     (kappa, lambda) are searched by relax.fit on the training frames (f refitted at each point
-    by one least-squares pass, _fast_f; starts at lambda = 0.1 and 0.02 of y's range; the path
-    thinned to RELAX_FIT_SAMPLES, search_path), over the encoder record from its start up to
-    the last training frame (nothing after it is read); f (base's f_ctrl control points and
-    sign, transition.fit_f) is then fitted on the full path's relaxed output. When the
-    relaxation does not lower the training residual (kappa 0) the member is base's, without it."""
+    by one least-squares pass, _fast_f; starts at lambda = 0.1 and 0.02 of y's range; the play
+    and operators run on q's search path, search_path, at most ~RELAX_FIT_SAMPLES samples), over
+    the encoder record from its start up to the last training frame (nothing after it is read);
+    f (base's f_ctrl control points and sign, transition.fit_f) is then fitted on the full
+    path's relaxed output. When the relaxation does not lower the training residual (kappa 0)
+    the member is base's, without it. The returned fit carries fit.search(ctx, train) -> (base's
+    member, relax.RelaxFit, encoder samples used): the search alone, which choose reads first."""
 
-    def fit(ctx: Context, train=None) -> Member:
+    def search(ctx: Context, train=None):
+        """(base's member, relax.RelaxFit of the search, n encoder samples up to the last
+        training frame): the (kappa, lambda) search alone, on the search path's samples."""
+        from . import model as M
         from . import relax as R
 
         m = base(ctx, train)
         d, sel = ctx.data, _all(ctx, train)
         t_f, c = d.t_frame[sel], d.c[sel]
         n = min(int(np.searchsorted(d.t_enc, t_f.max(), side="right")) + 1, d.t_enc.size)
-        t_enc = d.t_enc[:n]
-        y = R.transition_output(d.q_enc[:n], m.B, m.transition)
+        q = d.q_enc[:n]
+        k = search_path(q)
+        # The play (and the operators after it) on the search path alone: it holds every turning
+        # point of q, and rate-independent operators depend on nothing else between them, so this
+        # is the full run read at those samples, without the full run's bisections on B.
+        y_k = m.transition.direct(M.play_operator(q[k], m.transition.play_width(m.B), float(q[0])))
         nc = m.f_ctrl or ctx.f_n
-        k = search_path(y)
-        rf = R.fit(y[k], t_enc[k], t_f, c, lambda v, cc: T.fit_f(v, cc, nc, sign=m.sign), max_nfev=40,
+        rf = R.fit(y_k, d.t_enc[k], t_f, c, lambda v, cc: T.fit_f(v, cc, nc, sign=m.sign), max_nfev=40,
                    fit_f_search=_fast_f(nc, m.sign))
+        return m, rf, n
+
+    def fit(ctx: Context, train=None) -> Member:
+        from . import relax as R
+
+        m, rf, n = search(ctx, train)
+        nc = m.f_ctrl or ctx.f_n
         if rf.relax.is_identity:
             return Member(name, m.B, m.transition, m.f, m.sign, m.refit_f, nc)
+        d, sel = ctx.data, _all(ctx, train)
+        t_f, c, t_enc = d.t_frame[sel], d.c[sel], d.t_enc[:n]
+        if m.B is d.B:
+            # The onset play's centre at the encoder rate is cached on the data (FitData.z_enc) and
+            # causal, so every fold and both relaxed families read the one run from the record's
+            # start (the play's bisections on B were 0.5 s a run on the 3-minute bench session).
+            y = m.transition.direct(d.z_enc(m.transition.b_scale)[:n])
+        else:
+            y = R.transition_output(d.q_enc[:n], m.B, m.transition)
         v = R.at_frames(y, t_enc, t_f, rf.relax)
         f, sign = T.fit_f(v, c, nc, sign=m.sign)
         if np.sqrt(np.mean((f(v) - c) ** 2)) >= rf.rmse_without_deg:  # on the full path it does not help
@@ -283,6 +319,7 @@ def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: 
         return Member(name, m.B, m.transition, f, sign,
                       lambda ms: T.fit_f(v, c, nc, sign=sign, min_slope=ms), nc, rf.relax)
 
+    fit.search = search
     fit.__doc__ = f"{base.__name__} + travel-domain relaxation (with_relaxation)."
     return fit
 
@@ -395,8 +432,39 @@ def score(ctx: Context, fam: Family, splits, source=None) -> dict:
             "folds": int(e.size), "refused": None}
 
 
+def swing_splits(ctx: Context) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Rolling-origin folds at the swings of a thin record: the swings are the encoder record's
+    monotone strokes between direction reversals (reversals.detect_reversals, hysteresis
+    SWING_HYSTERESIS of q's span); each swing from the third on (the first two give the fit one
+    branch in each direction, the least a PI form can be fitted on) is cut into its first and
+    second half by frames, and each half is one fold: test = its frames, train = every frame
+    before it. Each fold's member is run from the record's start, as in score: fitted on what came
+    before, forecasting what comes next, as the record after the calibration part is used.
+    Returns [(train (F,) bool, test (F,) bool)] in time order, [] before a third swing."""
+    d = ctx.data
+    span = float(np.ptp(d.q_enc))
+    rt, _, _ = detect_reversals(d.t_enc, d.q_enc, SWING_HYSTERESIS * span + 1e-12)
+    edges = np.r_[-np.inf, rt, np.inf]
+    out = []
+    for j in range(2, edges.size - 1):
+        sw = np.nonzero((d.t_frame >= edges[j]) & (d.t_frame < edges[j + 1]))[0]
+        sw = sw[np.argsort(d.t_frame[sw], kind="stable")]
+        for part in (sw[: sw.size // 2], sw[sw.size // 2:]):
+            if part.size == 0:
+                continue
+            te = np.zeros(d.t_frame.size, bool)
+            te[part] = True
+            out.append((d.t_frame < d.t_frame[part[0]], te))
+    return out
+
+
 def choose(ctx: Context, reversals: int, families: list[Family] | None = None, source=None) -> tuple[Member, dict]:
     """Score every family (score) and fit the chosen one on every calibration frame.
+
+    A relaxed member's (kappa, lambda) are searched on every calibration frame first; its CV and
+    its full-path fit are not run (the row says "skipped" and why) when the relaxation does not
+    lower that residual, or lowers it by no more than its base's CV standard error (the one-SE
+    rule could not keep it).
 
     reversals: direction reversals in the calibration part (thin-record rule). Returns (Member,
     choice dict {"family", "rule", "reversals", "candidates": [score rows]}). A chosen family
@@ -405,7 +473,8 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
     from ..base.errors import InputError
 
     fams = FAMILIES if families is None else families
-    splits = T.rolling_origins(ctx.data, T.KFOLD)
+    thin = reversals < MIN_REVERSALS_CHOICE
+    splits = swing_splits(ctx) if thin else T.rolling_origins(ctx.data, T.KFOLD)
     # One BLAS thread: the fits are small (frames x 6..16), and threads spinning for a core the
     # other processes hold cost more than they give (as transition.fit_weights).
     with T._blas_controller().limit(limits=1, user_api="blas"):
@@ -420,22 +489,41 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
                     full[f.name] = full[TWIN[f.name]]
                 continue
             if f.name in RELAXED:
-                # Fitted on every calibration frame first: when the relaxation does not lower that
-                # residual the member is its base's, whatever the folds say, so its CV is not run.
+                # Searched on every calibration frame first: when the relaxation does not lower that
+                # residual, or lowers it by no more than its base's CV SE (in sample, so an optimistic
+                # bound of the gain on held-out frames: the one-SE rule could not keep it), its CV
+                # is not run, nor its fit on the full path.
+                row = {"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None, "folds": 0,
+                       "refused": None}
                 try:
-                    full[f.name] = f.fit(ctx, None)
+                    _, rf, _ = f.fit.search(ctx, None)
+                    base = next((r for r in rows if r["family"] == RELAXED[f.name]), None)
+                    gain = rf.rmse_without_deg - rf.rmse_deg
+                    if rf.relax.is_identity:
+                        skip = f"the relaxation does not lower the calibration residual (kappa 0): the member is " \
+                               f"{RELAXED[f.name]}'s"
+                    elif base is not None and base["cv_rmse_deg"] is not None and gain <= base["cv_se_deg"]:
+                        skip = (f"the relaxation lowers the calibration residual by {gain:.3g} deg, not more than "
+                                f"{RELAXED[f.name]}'s CV standard error {base['cv_se_deg']:.3g} deg: it cannot win "
+                                "by the one-SE margin")
+                    else:
+                        skip = None
+                        full[f.name] = f.fit(ctx, None)
+                        if full[f.name].relax is None:
+                            skip = (f"the relaxation does not lower the calibration residual on the full path: the "
+                                    f"member is {RELAXED[f.name]}'s")
                 except (InputError, OverflowError, ValueError, np.linalg.LinAlgError) as e:
-                    rows.append({"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None,
-                                 "folds": 0, "refused": str(getattr(e, "message", e))})
+                    rows.append({**row, "refused": str(getattr(e, "message", e))})
                     continue
-                if full[f.name].relax is None:
-                    rows.append({"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None,
-                                 "folds": 0, "refused": None, "skipped": "the relaxation does not lower the "
-                                 f"calibration residual (kappa 0): the member is {RELAXED[f.name]}'s"})
+                if skip:
+                    rows.append({**row, "skipped": skip})
                     continue
             rows.append(score(ctx, f, splits, source))
-    thin = reversals < MIN_REVERSALS_CHOICE
     scored = [r for r in rows if r["cv_rmse_deg"] is not None]
+    if thin:
+        # The model fitted by hand goes first: another family is kept only when its swing-fold
+        # CV beats it by more than one SE.
+        scored = sorted(scored, key=lambda r: r["family"] != FALLBACK)
     order = []
     if scored:
         # One-standard-error rule (as the transition's own choice): the first family in FAMILIES'
@@ -444,7 +532,7 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
         limit = best["cv_rmse_deg"] + best["cv_se_deg"]
         first = next(r for r in scored if r["cv_rmse_deg"] <= limit)
         order = [first["family"]] + [r["family"] for r in sorted(scored, key=lambda r: r["cv_rmse_deg"]) if r is not first]
-    if thin or not order:
+    if not order or (thin and len(splits) < MIN_SWING_FOLDS):
         order = [FALLBACK] + [n for n in order if n != FALLBACK]
     by_name = {f.name: f for f in fams}
     last = None
@@ -455,10 +543,14 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
         except (InputError, OverflowError, ValueError) as e:
             last = e
             continue
-        rule = (f"thin record ({reversals} reversals < {MIN_REVERSALS_CHOICE}): the model fitted by hand"
-                if thin else "rolling-origin CV RMSE through the fixed-point tables, one-standard-error rule "
-                "(fewest parameters fitted to c first)")
-        return m, {"family": name, "rule": rule, "reversals": int(reversals), "folds": T.KFOLD, "candidates": rows,
+        if thin:
+            rule = (f"thin record ({reversals} reversals < {MIN_REVERSALS_CHOICE}): the model fitted by hand, unless "
+                    f"another family's CV on {len(splits)} swing folds through the fixed-point tables beats it by "
+                    "more than one SE")
+        else:
+            rule = ("rolling-origin CV RMSE through the fixed-point tables, one-standard-error rule "
+                    "(fewest parameters fitted to c first)")
+        return m, {"family": name, "rule": rule, "reversals": int(reversals), "folds": len(splits), "candidates": rows,
                    "relax": None if m.relax is None else m.relax.to_json()}
     raise InputError(source, f"no model family gives a table the board loads (the last refusal: "
                      f"{getattr(last, 'message', last)}); check that the distal end follows the actuator")

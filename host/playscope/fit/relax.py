@@ -48,6 +48,11 @@ from scipy.optimize import least_squares
 
 LAMBDA_MIN_FRAC = 1e-3     # lambda >= 1e-3 x the travel range: below, a step (the plain play) is as good
 LAMBDA_MAX_FRAC = 2.0      # lambda <= 2 x the travel range: beyond, r barely moves over the record
+LAMBDA_MIN_STEPS = 10.0    # lambda >= 10 x the path's 99th-percentile travel per sample (fit): the explicit
+                           # step's O(|dx| / lambda) error would otherwise make the output depend on the
+                           # sampling, i.e. on speed, which a rate-independent model must not (on the
+                           # catheter the search on the onset transition sat on the range bound, lambda
+                           # 0.0035-0.007 mm, about a sample's travel: a one-sample lag, not a creep)
 
 
 def kappa_max_q16() -> int:
@@ -109,8 +114,101 @@ class Relaxation:
         return cls(float(d["kappa"]), float(d["lambda"]))
 
 
+# The recursion in C (cffi, compiled on first use into $PLAYSCOPE_CACHE/relaxkernel-<hash of this
+# file>, as the diagnosis' kernels): the relaxation's (kappa, lambda) search runs it ~100 times per
+# fit over up to RELAX_FIT_SAMPLES samples, ~6 ms each in Python (cProfile of `calibrate` on the
+# 3-minute bench session: 3.1 of its 18 s). Line for line the Python loop of _run_py, compiled
+# without fused multiply-adds, so it rounds as Python does and agrees bit for bit
+# (tests/python/host/test_relax.py); without a C compiler _run_py runs.
+_C_DECL = "void relax_run(const double *s, long n, double kappa, double lam, double r0, int inverse, " \
+          "int clip, double clip_lo, double clip_hi, double *out);"
+_C_SOURCE = r"""
+#include <math.h>
+void relax_run(const double *s, long n, double kappa, double lam, double r0, int inverse,
+               int clip, double clip_lo, double clip_hi, double *out)
+{
+    const double inv_lam = 1.0 / lam, m = kappa / (1.0 - kappa), cap = 1.0 - kappa;
+    double r = r0, vp = 0.0;
+    for (long k = 0; k < n; k++) {
+        double x, v;
+        if (inverse) {
+            v = s[k];
+            x = v + m * (v - r);
+            if (clip) {
+                x = x > clip_lo ? x : clip_lo;  /* min(max(x, lo), hi) as Python's */
+                x = x < clip_hi ? x : clip_hi;
+            }
+            out[k] = x;
+        } else {
+            x = s[k];
+            v = x + kappa * (r - x);
+            out[k] = v;
+        }
+        if (k == 0)
+            vp = v;
+        double g = fabs(v - vp) * inv_lam;
+        r += (g > cap ? cap : g) * (x - r);
+        vp = v;
+    }
+}
+"""
+_kernel = None  # (ffi, lib); False after a failed build
+
+
+def _kernel_lib():
+    global _kernel
+    if _kernel is None:
+        import hashlib
+        import os
+        import sys
+        import tempfile
+        import warnings
+        from pathlib import Path
+
+        from ..base.native import cache_root, load_extension
+
+        module = "_playscope_relaxkernel"
+
+        def build(target: Path) -> None:
+            import cffi
+
+            ffi = cffi.FFI()
+            ffi.cdef(_C_DECL)
+            ffi.set_source(module, _C_SOURCE, extra_compile_args=["-std=c11", "-O2", "-ffp-contract=off",
+                                                                   "-fno-fast-math"], libraries=["m"])
+            target.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryDirectory(dir=target) as tmp:
+                so = ffi.compile(tmpdir=tmp, verbose=False)
+                os.replace(so, target / Path(so).name)
+
+        h = hashlib.sha256((sys.version + _C_DECL + _C_SOURCE).encode()).hexdigest()[:16]
+        try:
+            _kernel = load_extension(cache_root() / f"relaxkernel-{h}", module, build)
+        except Exception as e:  # no compiler, no cffi, unwritable cache: the Python loop runs
+            _kernel = False
+            warnings.warn(f"relaxation kernel not compiled ({e}); using the slower Python loop", RuntimeWarning,
+                          stacklevel=3)
+    return _kernel or None
+
+
 def _run(s: np.ndarray, kappa: float, lam: float, r0, inverse: bool, clip=None) -> np.ndarray:
-    """The recursion of the module doc over s (the input x, or with inverse=True the output v)."""
+    """The recursion of the module doc over s (the input x, or with inverse=True the output v):
+    in C when the kernel compiles, else _run_py."""
+    k = _kernel_lib()
+    if k is None or s.size == 0:
+        return _run_py(s, kappa, lam, r0, inverse, clip)
+    ffi, lib = k
+    s = np.ascontiguousarray(s, dtype=np.float64)
+    out = np.empty(s.size)
+    lo, hi = (0.0, 0.0) if clip is None else (float(clip[0]), float(clip[1]))
+    lib.relax_run(ffi.from_buffer("double[]", s), s.size, float(kappa), float(lam),
+                  float(s[0]) if r0 is None else float(r0), int(inverse), int(clip is not None), lo, hi,
+                  ffi.from_buffer("double[]", out))
+    return out
+
+
+def _run_py(s: np.ndarray, kappa: float, lam: float, r0, inverse: bool, clip=None) -> np.ndarray:
+    """The recursion of the module doc over s in Python (the reference of the C kernel)."""
     out = np.empty(s.size)
     if s.size == 0:
         return out
@@ -173,17 +271,20 @@ def fit(y_enc: np.ndarray, t_enc: np.ndarray, t_frame: np.ndarray, c: np.ndarray
     -> (f, sign): the product's own f_remain fit on the relaxed output (refitted at each
     evaluation: kappa moves the output's scale, which f absorbs). x0: (kappa, lambda as a
     fraction of y's range). Parameters: kappa in [0, kappa_max()], log lambda within
-    [LAMBDA_MIN_FRAC, LAMBDA_MAX_FRAC] x y's range. Returns RelaxFit (rmse_without_deg: the
-    same f fit with kappa = 0, whose f is f_without). fit_f_search: a cheaper f fit of the same
-    signature used while (kappa, lambda) are searched (f is then fitted once more by fit_f at
-    the best point); starts: the lambda starts as fractions of y's range (None: x0's).
+    [LAMBDA_MIN_FRAC, LAMBDA_MAX_FRAC] x y's range and at least LAMBDA_MIN_STEPS x the 99th
+    percentile of |y_enc[k] - y_enc[k-1]| (the travel of one sample of the path given). Returns
+    RelaxFit (rmse_without_deg: the same f fit with kappa = 0, whose f is f_without).
+    fit_f_search: a cheaper f fit of the same signature used while (kappa, lambda) are searched
+    (f is then fitted once more by fit_f at the best point); starts: the lambda starts as fractions of y's range (None: x0's).
     Errors: ValueError when y has no range."""
     y_enc, t_enc = np.asarray(y_enc, float), np.asarray(t_enc, float)
     t_frame, c = np.asarray(t_frame, float), np.asarray(c, float)
     span = float(np.ptp(y_enc))
     if not span > 0:
         raise ValueError("the transition's output does not move: no relaxation to fit")
-    lo = np.array([0.0, np.log(LAMBDA_MIN_FRAC * span)])
+    step = float(np.percentile(np.abs(np.diff(y_enc)), 99)) if y_enc.size > 1 else 0.0
+    lam_lo = min(max(LAMBDA_MIN_FRAC * span, LAMBDA_MIN_STEPS * step), 0.5 * LAMBDA_MAX_FRAC * span)
+    lo = np.array([0.0, np.log(lam_lo)])
     hi = np.array([kappa_max(), np.log(LAMBDA_MAX_FRAC * span)])
     y_f = np.interp(t_frame, t_enc, y_enc)
     f0, s0 = fit_f(y_f, c)

@@ -175,6 +175,43 @@ def test_choice_leaves_the_relaxation_out_on_records_without_one(record):
     assert cal.family_choice["relax"] is None
 
 
+def image_record():
+    """45 s of the host bench's image session (tests/python/host/synth: variable B, non-linear f,
+    an 80 ms delay, marker pixels with 0.05 px noise): its relaxation search finds a kappa > 0
+    that lowers the residual by ~1e-5 deg, so choose's SE shortcut is the one that acts."""
+    from playscope.fit import model
+
+    from .synth import ROBOT, excitation, image_model_parts, true_B, true_f
+
+    t, q, _ = excitation(v=0.4, rate_hz=1000.0)
+    t, q = t[t < 45.0], q[t < 45.0]
+    cam, he = image_model_parts()
+    c = model.direct_model(q, true_B, true_f)
+    tf = np.arange(0.0, t[-1], 1 / 25.0)
+    uv = model.ImageModel(ROBOT, cam, he)(np.interp(tf - 0.08, t, c)) + np.random.default_rng(0).normal(0, 0.05, (tf.size, 2))
+    return Session("mm", "image", ROBOT, {"t_s": t, "q": q}, cam, he, 0.08,
+                   marker={"t_s": tf, "u_px": uv[:, 0], "v_px": uv[:, 1]})
+
+
+@pytest.mark.parametrize("record,why", [(play_record, "kappa 0"), (pi_record, "kappa 0"),
+                                        (image_record, "cannot win by the one-SE margin")])
+def test_a_skipped_relaxed_member_would_not_have_won_its_cv(record, why, monkeypatch):
+    """The shortcuts of choose (a relaxed member whose search finds kappa 0, or whose in-sample
+    gain is at most its base's CV SE, is not cross-validated) against the CV they skip, run here
+    anyway on the same folds."""
+    seen = spy_context(monkeypatch)
+    cal = calibrate(record(), model_kind="auto")
+    ctx, rows = seen["ctx"], {d["family"]: d for d in cal.family_choice["candidates"]}
+    skipped = [n for n in FAM.RELAXED if rows[n].get("skipped")]
+    assert skipped and all(why in rows[n]["skipped"] for n in skipped), rows
+    splits = T.rolling_origins(ctx.data, T.KFOLD)
+    for name in skipped:
+        base = rows[FAM.RELAXED[name]]
+        ran = FAM.score(ctx, next(f for f in FAM.FAMILIES if f.name == name), splits)
+        print(name, rows[name]["skipped"], ran["cv_rmse_deg"], base["cv_rmse_deg"], base["cv_se_deg"])
+        assert ran["cv_rmse_deg"] is None or ran["cv_rmse_deg"] + base["cv_se_deg"] >= base["cv_rmse_deg"]
+
+
 def test_chosen_relaxed_table_is_layout_4_bit_exact_and_follows_the_double_chain(relaxed_cal, tmp_path):
     from playscope.fit.table_build import header
 
@@ -254,6 +291,45 @@ def test_thin_record_falls_back_to_constant_play_and_is_never_worse(seed):
     # The same model as the constant play + poly5 row, carried by Q16.16 tables.
     assert r["ours"]["rmse_deg"] <= r["const_play"]["rmse_deg"] + 1e-3
     assert abs(r["ours"]["rmse_deg"] - r["const_play"]["rmse_deg"]) < 1e-3
+
+
+def thin_swings_record(kind, seed=0):
+    """3 cycles (2 reversals and a third swing before the half): "pi" the thin record's play +
+    creep, "play" a constant play (width 1 mm) and the same f."""
+    q = strokes([4.0, 4.0, 4.0], [-3.0, -3.0, 0.0], per_stroke=2500)
+    z = play_loop(q, 0.5)
+    y = 0.5 * z + 0.5 * play_loop(z, 0.6) if kind == "pi" else z
+    return session_of(q, 8.0 * y + 2.0 * np.tanh(0.5 * y), seed=seed)
+
+
+def test_swing_folds_forecast_each_half_swing_from_the_third_on(monkeypatch):
+    seen = spy_context(monkeypatch)
+    calibrate(thin_swings_record("pi").slice_time(-np.inf, 15.0), model_kind="auto")
+    ctx = seen["ctx"]
+    folds = FAM.swing_splits(ctx)
+    t = ctx.data.t_frame
+    assert len(folds) == 2  # strokes of 5 s: reversals at 5 and 10 s, the third swing 10..15 s in two halves
+    for train, test in folds:
+        assert train.sum() > 0 and test.sum() > 0 and not np.any(train & test)
+        assert t[train].max() < t[test].min()  # a forecast: trained on what came before only
+        assert t[test].min() >= 10.0 - 0.05 and np.ptp(t[test]) < 2.6  # within one half of the third swing
+    assert np.all(t[folds[0][1]] < t[folds[1][1]].min())
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_thin_record_takes_a_pi_form_when_its_swing_cv_supports_it(seed):
+    r = insitu.evaluate_insitu(thin_swings_record("pi", seed), 0.5)["rows"]
+    p = r["ours"]["params"]
+    assert p["family"] == "pi_const"
+    # measured 0.073 deg against 0.485 for the constant play + poly5 and 0.070 for the modified PI peer
+    assert r["ours"]["rmse_deg"] < 0.25 * r["const_play"]["rmse_deg"]
+    assert r["ours"]["rmse_deg"] < 1.15 * r["mpi"]["rmse_deg"]
+
+
+def test_thin_record_of_a_constant_play_keeps_the_model_fitted_by_hand():
+    r = insitu.evaluate_insitu(thin_swings_record("play"), 0.5)["rows"]
+    assert r["ours"]["params"]["family"] in ("const_play", "onset_play")
+    assert r["ours"]["rmse_deg"] <= r["const_play"]["rmse_deg"] + 1e-3
 
 
 @pytest.mark.skipif(not ENDOSCOPE.is_dir(), reason="real endoscope recordings not present")

@@ -42,6 +42,24 @@ def test_inverse_undoes_direct():
         assert np.max(np.abs(v - x)) > 0.1 * kappa * min(lam, 0.5)
 
 
+def test_compiled_recursion_agrees_with_the_python_loop_bit_for_bit():
+    """The C kernel (relax._run) against the Python loop it translates (relax._run_py): direct,
+    inverse, and inverse held to an input range, at kappa from 0 to its cap and lambda from far
+    below to far above a sample's travel (the cap 1 - kappa then acts on most samples)."""
+    if R._kernel_lib() is None:
+        pytest.skip("no C compiler: the Python loop runs")
+    rng = np.random.default_rng(3)
+    x = np.cumsum(rng.normal(0, 0.05, 4000)) + 3.0 * np.sin(np.linspace(0, 20, 4000))
+    for kappa, lam in ((0.0, 1.0), (0.2, 1e-3), (0.45, 0.3), (R.kappa_max(), 5.0)):
+        v = R._run(x, kappa, lam, None, False)
+        assert np.array_equal(v, R._run_py(x, kappa, lam, None, False))
+        assert np.array_equal(R._run(v, kappa, lam, 0.5, True), R._run_py(v, kappa, lam, 0.5, True))
+        clip = (-2.0, 2.5)
+        held = R._run(v, kappa, lam, None, True, clip)
+        assert np.array_equal(held, R._run_py(v, kappa, lam, None, True, clip))
+        assert held.min() >= clip[0] and held.max() <= clip[1] and (kappa == 0 or np.ptp(v - x) > 0)
+
+
 def test_rate_independent_unlike_a_time_lag():
     """One path at two speeds (periods 4 s and 16 s, same samples per cycle ratio of 4 in time):
     the relaxation's output against q is the same loop; a first-order lag of fixed tau is not."""
@@ -71,6 +89,22 @@ def test_fit_recovers_a_planted_relaxation():
     assert abs(fit.relax.kappa - 0.35) < 0.05
     assert abs(fit.relax.lam - 0.6) / 0.6 < 0.15
     assert fit.rmse_deg < 0.3 * fit.rmse_without_deg
+
+
+def test_fit_keeps_lambda_above_a_few_samples_of_travel():
+    """A one-sample lag dressed as a relaxation (planted lambda = 2 samples' travel) is not what
+    the rate-independent model may fit: the search holds lambda >= LAMBDA_MIN_STEPS x the
+    path's 99th-percentile travel per sample, and the same record sampled 4 times finer would
+    otherwise give another model."""
+    t, q = triangle(8.0, 200.0, cycles=4)
+    y = model.play_operator(q, B)
+    step = float(np.percentile(np.abs(np.diff(y)), 99))
+    c_true = f(R.Relaxation(0.5, 2.0 * step).direct(y))
+    tf = np.arange(0.0, t[-1], 1 / 30)
+    c_f = np.interp(tf, t, c_true) + np.random.default_rng(2).normal(0, 0.02, tf.size)
+    fit = R.fit(y, t, tf, c_f, lambda v, c: T.fit_f(v, c, 14))
+    print(fit.to_json(), "step", step)
+    assert fit.relax.is_identity or fit.relax.lam >= R.LAMBDA_MIN_STEPS * step * (1 - 1e-6)
 
 
 @pytest.fixture(scope="module")
