@@ -4,12 +4,15 @@
 
 Runs, in order: bench/bench_firmware.sh (M4 instructions per tick, desktop ticks/s, image
 size), bench/bench_host.py (calibrate time, tracking frames/s), bench/bench_link.py (flash
-time and round trip per transport), bench/fig7_replica.py and fig7_sim_pose.py (B error on independently rendered records and
-the pose-based baseline, paper Fig. 7),
-`playscope demo` (main job: B error, Table I and compensation ratios, time),
-`playscope evaluate-real` (real-data RMSE) and bench/diagnose_selftest.py --quick
-(diagnosis self-test accuracy). Only figures measured in this run are printed; a part that
-fails or is skipped says so in its row.
+time and round trip per transport), bench/fig7_replica.py and fig7_sim_pose.py (B error on
+independently rendered records and the pose-based baseline, paper Fig. 7), `playscope demo`
+(main job: B error, Table I and compensation ratios, time), `playscope evaluate-real`
+(real-data RMSE), bench/insitu_real.py (every model on both instruments, ours / best peer),
+bench/online_real.py and transfer_real.py (on-line update, a calibration used elsewhere),
+bench/bench_startup.py, bench/diagnose_speed.py, then with --swings bench/swing_bench.py
+(development renderings) and, unless --skip-selftest, bench/diagnose_selftest.py --quick
+--second (both generators). Only figures measured in this run are printed; a part that fails or
+is skipped says so in its row, and the README's summary keeps a line for it.
 
 It writes docs/results.md (machine, date, commit, time per part, the figure table, then every
 bench's own tables as it printed them), the README's summary table (between the
