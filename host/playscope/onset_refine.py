@@ -490,6 +490,15 @@ def ring_summary(ref: Refined) -> dict:
     return out
 
 
+def _shape_fit_needed(ref_frames: float) -> bool:
+    """Whether the actuator-shape model (onset_play.fit) must be fitted, given the refined
+    onsets' frames to take up the play (lower quartile, NaN without refined onsets). Not when
+    they take it up over FAST_FRAMES frames or more: the larger of the two models' figures
+    decides, so the actuator-shape model could not be chosen whatever it gave, and the B
+    samples are the same without it (it is most of the onset path's cost on a slow excitation)."""
+    return not ref_frames >= FAST_FRAMES
+
+
 @dataclass
 class RobustOnsets:
     """What `robust_samples` gives calibrate: the B samples (estimate.Onsets with sigma_b), the
@@ -569,9 +578,6 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # and a B sample per reversal that needs no "still" frame.
     from . import onset_play as P
 
-    amp = np.abs(np.diff(rq))
-    b_max = 0.6 * float(np.median(amp)) if amp.size else float(np.ptp(q))
-    pf, pdoc = P.fit(t_enc, q, rt, rq, t_f, obs, period, b_max)
     warnings = []
     # Which model: the actuator-shape one where the play is taken up in fewer than FAST_FRAMES
     # frames on a quarter of the reversals (a still frame between stop and onset is then rare, and the change-point model
@@ -583,15 +589,28 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # lower quartile over the reversals: a swing that is fast on one side only (the paper's
     # square-ish swings: fast out, slow back) still leaves a quarter or more within a frame.
     # Both models' figures, the larger deciding: a model fooled into small b cannot claim it.
+    ref_frames = float("nan")
+    if ref.ok.any():
+        t2r = ref.t2_s[ref.ok] - (d_stops if n_d >= 4 else d1)
+        br = np.abs(np.interp(t2r, t_enc, q) - rq[ref.ok])
+        ref_frames = float(np.percentile(br / np.maximum(np.abs(np.interp(t2r, t_enc, v)) / fps, 1e-12), 25))
+    amp = np.abs(np.diff(rq))
+    b_max = 0.6 * float(np.median(amp)) if amp.size else float(np.ptp(q))
+    M = rt.size
+    if not _shape_fit_needed(ref_frames):
+        pf = P.PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool),
+                       float("nan"), (float("nan"), float("nan")), float("nan"), False, (0.0, 0.0), b_max)
+        pdoc = {"fitted": False, "why": f"refined onsets take the play up over {ref_frames:.1f} frames "
+                                        f"(lower quartile) >= {FAST_FRAMES:g}"}
+    else:
+        pf, pdoc = P.fit(t_enc, q, rt, rq, t_f, obs, period, b_max)
+        pdoc["fitted"] = True
     fast_frames = float("nan")
     if pf.ok.any():
         va = np.abs(np.interp(pf.t2_s[pf.ok] - pf.t_delay_s, t_enc, v)) / fps
         fast_frames = float(np.percentile(pf.b[pf.ok] / np.maximum(va, 1e-12), 25))
-    if ref.ok.any() and np.isfinite(fast_frames):
-        t2r = ref.t2_s[ref.ok] - (d_stops if n_d >= 4 else d1)
-        br = np.abs(np.interp(t2r, t_enc, q) - rq[ref.ok])
-        fast_frames = max(fast_frames, float(np.percentile(
-            br / np.maximum(np.abs(np.interp(t2r, t_enc, v)) / fps, 1e-12), 25)))
+    if np.isfinite(ref_frames) and (np.isfinite(fast_frames) or not pdoc["fitted"]):
+        fast_frames = ref_frames if not pdoc["fitted"] else max(fast_frames, ref_frames)
     use_shape = bool(np.isfinite(pf.t_delay_s) and fast_frames < FAST_FRAMES)
     if use_shape:
         d_data, (ci_lo, ci_hi), d_se = pf.t_delay_s, pf.t_delay_ci_s, pf.t_delay_sd_s
