@@ -474,6 +474,65 @@ def delay_from_stops(tau0_s: np.ndarray, t_stop: np.ndarray) -> tuple[float, flo
     return med, 1.2533 * sd / np.sqrt(d.size), int(d.size)
 
 
+def delay_from_shape(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: np.ndarray,
+                     obs: np.ndarray, t2_img: np.ndarray, d_guess: float, period_s: float,
+                     span_frames: float = 3.0) -> tuple[float, float, int]:
+    """t_delay from the approach to each reversal, with the actuator's own shape.
+
+    Until the play is taken up the tip's drive is z = q(min(t, t1)) - q1 + const (eq. 3: on the
+    old branch z follows q, after the reversal it holds), so the frames between the old motion
+    and the refined onset are p_k = A + K h_k + K2 h_k^2, h_k = q(min(t_k - d, t1)) - q1 (the
+    image of z, locally quadratic; A, K, K2 2-vectors). The delay d enters through h only. A
+    constant-speed approach makes h a kink (what the change-point stop sees); a sine or a
+    raised-cosine swing slows down gradually, and a kink fitted there comes early by a
+    good part of the deceleration (measured -2.6 frames on a 3 s sine at 30 fps), the shape
+    does not. Per reversal: d on a 1/16-frame grid d_guess +- span_frames frames, the least
+    RSS over the frames from 0.5 s (or the previous onset plus a frame) before the stop to half
+    a frame before the refined onset t2_img (image clock), refined by a parabola through the
+    best three; then the median over reversals, its standard error as in `delay_from_stops`.
+    t_enc, q (N,); rt, rq (M,) reversals; t_f (F,), obs (F, 2) px (NaN = lost); t2_img (M,)
+    refined onsets (NaN: none; those reversals are left out). Returns (t_delay_s, se_s, n)."""
+    ok_f = np.all(np.isfinite(obs), axis=1)
+    tf, o = t_f[ok_f], obs[ok_f]
+    step = period_s / 16.0
+    grid = d_guess + np.arange(-16 * span_frames, 16 * span_frames + 1) * step
+    grid = grid[grid >= 0.0]
+    if grid.size < 3:
+        return float("nan"), float("nan"), 0
+    best = []
+    for r in range(1, rt.size):
+        if not np.isfinite(t2_img[r]):
+            continue
+        start = rt[r] + d_guess - 0.5
+        if np.isfinite(t2_img[r - 1]):
+            start = max(start, t2_img[r - 1] + period_s)
+        sel = (tf >= start) & (tf <= t2_img[r] - 0.5 * period_s)
+        if sel.sum() < 8 or np.sum(tf[sel] < rt[r] + d_guess) < 3:
+            continue
+        tk, Y = tf[sel], o[sel] - o[sel].mean(axis=0)
+        h = np.interp(np.minimum(tk[None, :] - grid[:, None], rt[r]), t_enc, q) - rq[r]  # (G, n)
+        sc = max(float(np.max(np.abs(h))), 1e-12)
+        h = h / sc
+        X = np.stack([np.ones_like(h), h, h * h], axis=-1)  # (G, n, 3)
+        A = np.einsum("gnp,gnq->gpq", X, X) + 1e-9 * np.eye(3)[None]
+        rhs = np.einsum("gnp,nc->gpc", X, Y)
+        coef = np.linalg.solve(A, rhs)
+        rss = float(np.sum(Y * Y)) - np.einsum("gpc,gpc->g", coef, rhs)
+        i = int(np.argmin(rss))
+        if i == 0 or i == grid.size - 1:
+            continue  # the best delay at the grid's edge: not bracketed
+        y0, y1, y2 = rss[i - 1], rss[i], rss[i + 1]
+        den = y0 - 2 * y1 + y2
+        off = 0.5 * (y0 - y2) / den if den > 0 else 0.0
+        best.append(grid[i] + float(np.clip(off, -1.0, 1.0)) * step)
+    if not best:
+        return float("nan"), float("nan"), 0
+    d = np.array(best)
+    med = float(np.median(d))
+    sd = max(1.4826 * float(np.median(np.abs(d - med))), step / np.sqrt(12))
+    return med, 1.2533 * sd / np.sqrt(d.size), int(d.size)
+
+
 def ring_summary(ref: Refined) -> dict:
     """The record's post-reversal ringing for the diagnosis: share of reversals where a ringing
     was kept (BIC), and over those the median frequency (Hz), decay rate alpha (1/s), damping
@@ -524,7 +583,9 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
        delay, as the board would have run it (the coarse one when none is configured), and
        its threshold from the record (estimate.image_onset_settings) unless onset_cfg gives
        one; the rule and its figures are in report["board_threshold"].
-    3. ``refine`` every reversal; t_delay from the stop times (``delay_from_stops``).
+    3. ``refine`` every reversal; t_delay from the approach to each stop with the actuator's
+       shape (``delay_from_shape``; the stop times, ``delay_from_stops``, without 4 reversals
+       to fit), or the actuator-shape model's when its B samples are used.
     4. t_delay_from "data" (default): use the record's delay; "config": the configured one.
        They are compared either way; a gap over one frame period is a warning. A configured
        delay is never needed: without one the record's delay is used.
@@ -579,6 +640,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     from . import onset_play as P
 
     warnings = []
+    d_shape, d_shape_se, n_shape = float("nan"), float("nan"), 0
     # Which model: the actuator-shape one where the play is taken up in fewer than FAST_FRAMES
     # frames on a quarter of the reversals (a still frame between stop and onset is then rare, and the change-point model
     # invents steps); from there on the change-point refinement, which the Fig. 7 replica's
@@ -616,10 +678,23 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         d_data, (ci_lo, ci_hi), d_se = pf.t_delay_s, pf.t_delay_ci_s, pf.t_delay_sd_s
         how = "actuator-shape model, posterior mean"
     else:
-        d_data = d_stops if n_d >= 4 else d1
-        d_se = d_stops_se if n_d >= 4 else period
+        # The delay from the approach to each stop with the actuator's shape (the kink of the
+        # stop fit comes early on a gradual deceleration); it needs the refined onsets, so only
+        # here, where they are used; recentred while it lands near its grid's edge.
+        t2_img = np.where(ref.ok, ref.t2_s, np.nan)
+        guess_d = d_stops if n_d >= 4 else d1
+        for _ in range(3):
+            d_shape, d_shape_se, n_shape = delay_from_shape(t_enc, q, rt, rq, t_f, obs, t2_img, guess_d, period)
+            if not (n_shape >= 4 and abs(d_shape - guess_d) > 2.0 * period):
+                break
+            guess_d = d_shape
+        if n_shape >= 4:
+            d_data, d_se, how = d_shape, d_shape_se, "approach to the stop with the actuator's shape, median"
+        else:
+            d_data = d_stops if n_d >= 4 else d1
+            d_se = d_stops_se if n_d >= 4 else period
+            how = "image stop - motor stop, median"
         ci_lo, ci_hi = d_data - 1.96 * d_se, d_data + 1.96 * d_se
-        how = "image stop - motor stop, median"
     if np.isfinite(d_data) and d_data < 0:  # a delay cannot be negative (the stops can say so on a sine)
         d_data, ci_lo, ci_hi = 0.0, max(ci_lo, 0.0), max(ci_hi, 0.0)
     have = bool(np.isfinite(d_data))
@@ -690,7 +765,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         "t_delay": {"configured_s": t_delay_cfg, "record_s": d_data, "record_se_s": d_se,
                     "record_ci95_s": [ci_lo, ci_hi], "agrees_with_configured": agree,
                     "frame_allowance_s": allow, "used_s": td, "used": "configured" if td == t_delay_cfg else "record",
-                    "from": t_delay_from, "source": src, "stops_s": d_stops, "stops_fitted": n_d,
+                    "from": t_delay_from, "source": src, "stops_s": d_stops, "stops_fitted": n_d, "shape_s": d_shape, "shape_se_s": d_shape_se,
+                    "shape_reversals": n_shape,
                     "coarse_s": d0, "first_pass_s": d1},
         "actuator_shape": {**pdoc, "samples": int(pf.ok.sum()), "used": use_shape,
                            "frames_to_take_up": fast_frames, "fast_frames": FAST_FRAMES},
