@@ -476,7 +476,7 @@ def delay_from_stops(tau0_s: np.ndarray, t_stop: np.ndarray) -> tuple[float, flo
 
 def delay_from_shape(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: np.ndarray,
                      obs: np.ndarray, t2_img: np.ndarray, d_guess: float, period_s: float,
-                     span_frames: float = 3.0) -> tuple[float, float, int]:
+                     span_frames: float = 3.0, ring: tuple = (0.0, 0.0)) -> tuple[float, float, int]:
     """t_delay from the approach to each reversal, with the actuator's own shape.
 
     Until the play is taken up the tip's drive is z = q(min(t, t1)) - q1 + const (eq. 3: on the
@@ -486,12 +486,15 @@ def delay_from_shape(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.nd
     constant-speed approach makes h a kink (what the change-point stop sees); a sine or a
     raised-cosine swing slows down gradually, and a kink fitted there comes early by a
     good part of the deceleration (measured -2.6 frames on a 3 s sine at 30 fps), the shape
-    does not. Per reversal: d on a 1/16-frame grid d_guess +- span_frames frames, the least
-    RSS over the frames from 0.5 s (or the previous onset plus a frame) before the stop to half
+    does not. A registration that flips with the motor's reversal is a step at the stop: a
+    step from the stop's first or second frame is a candidate too (kept by BIC, Schwarz 1978).
+    Per reversal: d on a 1/16-frame grid d_guess +- span_frames frames, the least
+    criterion (N log RSS + the step's penalty) over the frames from 0.5 s (or the previous onset plus a frame) before the stop to half
     a frame before the refined onset t2_img (image clock), refined by a parabola through the
     best three; then the median over reversals, its standard error as in `delay_from_stops`.
     t_enc, q (N,); rt, rq (M,) reversals; t_f (F,), obs (F, 2) px (NaN = lost); t2_img (M,)
-    refined onsets (NaN: none; those reversals are left out). Returns (t_delay_s, se_s, n)."""
+    refined onsets (NaN: none; those reversals are left out); ring (Hz, 1/s) the record's
+    ringing after the stop (Hz 0: none), one more column. Returns (t_delay_s, se_s, n)."""
     ok_f = np.all(np.isfinite(obs), axis=1)
     tf, o = t_f[ok_f], obs[ok_f]
     step = period_s / 16.0
@@ -513,11 +516,23 @@ def delay_from_shape(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.nd
         h = np.interp(np.minimum(tk[None, :] - grid[:, None], rt[r]), t_enc, q) - rq[r]  # (G, n)
         sc = max(float(np.max(np.abs(h))), 1e-12)
         h = h / sc
-        X = np.stack([np.ones_like(h), h, h * h], axis=-1)  # (G, n, 3)
-        A = np.einsum("gnp,gnq->gpq", X, X) + 1e-9 * np.eye(3)[None]
-        rhs = np.einsum("gnp,nc->gpc", X, Y)
-        coef = np.linalg.solve(A, rhs)
-        rss = float(np.sum(Y * Y)) - np.einsum("gpc,gpc->g", coef, rhs)
+        n_obs = 2 * tk.size
+        crit = np.full(grid.size, np.inf)
+        first = np.cumsum(tk[None, :] > rt[r] + grid[:, None], axis=1)  # 1 at the stop's first frame
+        ring_cols = []
+        if ring[0] > 0:  # the record's ringing, started at the stop (as in the change-point model)
+            tau = np.maximum(tk[None, :] - rt[r] - grid[:, None], 0.0)
+            ring_cols = [np.exp(-ring[1] * tau) * np.sin(2 * np.pi * ring[0] * tau)]
+        for m in (0, 1, 2):  # no step, or one from the stop's first or second frame
+            cols = [np.ones_like(h), h, h * h] + ring_cols + ([(first >= m).astype(float)] if m else [])
+            X = np.stack(cols, axis=-1)  # (G, n, p)
+            p = X.shape[2]
+            A = np.einsum("gnp,gnq->gpq", X, X) + 1e-9 * np.eye(p)[None]
+            rhs = np.einsum("gnp,nc->gpc", X, Y)
+            coef = np.linalg.solve(A, rhs)
+            rss = np.maximum(float(np.sum(Y * Y)) - np.einsum("gpc,gpc->g", coef, rhs), 1e-12)
+            crit = np.minimum(crit, n_obs * np.log(rss) + (2 * np.log(n_obs) if m else 0.0))
+        rss = crit
         i = int(np.argmin(rss))
         if i == 0 or i == grid.size - 1:
             continue  # the best delay at the grid's edge: not bracketed
@@ -684,7 +699,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         t2_img = np.where(ref.ok, ref.t2_s, np.nan)
         guess_d = d_stops if n_d >= 4 else d1
         for _ in range(3):
-            d_shape, d_shape_se, n_shape = delay_from_shape(t_enc, q, rt, rq, t_f, obs, t2_img, guess_d, period)
+            d_shape, d_shape_se, n_shape = delay_from_shape(t_enc, q, rt, rq, t_f, obs, t2_img, guess_d, period,
+                                                            ring=ring)
             if not (n_shape >= 4 and abs(d_shape - guess_d) > 2.0 * period):
                 break
             guess_d = d_shape
