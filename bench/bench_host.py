@@ -15,10 +15,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 from host.synth import ROBOT, excitation, image_model_parts, true_B, true_f  # noqa: E402
 
-from playscope import model  # noqa: E402
-from playscope.calibration import calibrate  # noqa: E402
-from playscope.native import core  # noqa: E402
-from playscope.session import Session, load_session, write_session  # noqa: E402
+from playscope.fit import model  # noqa: E402
+from playscope.fit.calibration import calibrate  # noqa: E402
+from playscope.base.native import core  # noqa: E402
+from playscope.io.session import Session, load_session, write_session  # noqa: E402
 
 
 def image_session(duration_s=180.0):
@@ -57,7 +57,7 @@ for name, sec in rows:
 # ----------------------------------------------------------------------------- tracking
 import cv2  # noqa: E402
 
-from playscope.track import MarkerTracker, single_thread, track_video  # noqa: E402
+from playscope.io.marker_track import MarkerTracker, single_thread, track_video  # noqa: E402
 
 single_thread()
 H, W, N = 576, 720, 1000

@@ -16,10 +16,10 @@ import sys
 import time
 from pathlib import Path
 
-from playscope.device.flash import flash
-from playscope.device.link import Link
-from playscope.tables import builtin_table
-from playscope.device.transport import QemuTransport, TransportError, find_qemu_image, virtual_transport
+from playscope.board.flash import flash
+from playscope.board.link import Link
+from playscope.fit.table_build import builtin_table
+from playscope.board.transport import QemuTransport, TransportError, find_qemu_image, virtual_transport
 
 
 def report(name, up, rb, rt):
@@ -53,8 +53,8 @@ def measure(name, make, repeat):
 
 
 def measure_usb_emulated(repeat):
-    from playscope.device import usbemu
-    from playscope.native import NativeBuildError
+    from playscope.board import usbemu
+    from playscope.base.native import NativeBuildError
 
     client = Path(__file__).resolve().parents[1] / "tests" / "python" / "link" / "usb_emu_client.py"
     try:

@@ -25,12 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
-from playscope import model as M
-from playscope import transition as T
-from playscope.calibration import Calibration, pose_with_offset
-from playscope.estimate import fit_backlash_samples
-from playscope.evaluate import inverse_of, reference_trajectory, rmse
-from playscope.session import load_session
+from playscope.fit import model as M
+from playscope.fit import transition as T
+from playscope.fit.calibration import Calibration, pose_with_offset
+from playscope.fit.backlash import fit_backlash_samples
+from playscope.evaluate.prediction import inverse_of, reference_trajectory, rmse
+from playscope.io.session import load_session
 from playscope.sim.core import SimConfig
 from playscope.sim.plant import session_plant
 

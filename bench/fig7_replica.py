@@ -17,7 +17,7 @@ Figure: B mean absolute error over the sampled q range, in deg of bending and in
 mean true B, beside the paper's 0.7 deg (4.7 %). Every case is counted; a refused calibration
 is a failure. "board detector alone" is the figure before this work: the firmware's detector
 with the configured delay, same B fit. "B min" is the fitted spline's minimum before any floor, "table min" the
-smallest width in the fixed-point table built from it (playscope.tables.build_table).
+smallest width in the fixed-point table built from it (playscope.fit.table_build.build_table).
 Acceptance: <= 5 % on every registration case, <= 10 % and no refusal with the delay off and
 with ringing, B never negative.
 
@@ -36,12 +36,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import marker_render as MR  # noqa: E402
 
-from playscope import estimate as E  # noqa: E402
-from playscope.calibration import calibrate  # noqa: E402
-from playscope.errors import InputError  # noqa: E402
-from playscope.native import core  # noqa: E402
-from playscope.session import load_session  # noqa: E402
-from playscope.tables import build_table  # noqa: E402
+from playscope.fit.backlash import fit_backlash_samples  # noqa: E402
+from playscope.fit.onsets import OnsetConfig, run_onsets
+from playscope.fit.reversals import detect_reversals
+from playscope.fit.calibration import calibrate  # noqa: E402
+from playscope.base.errors import InputError  # noqa: E402
+from playscope.base.native import core  # noqa: E402
+from playscope.io.session import load_session  # noqa: E402
+from playscope.fit.table_build import build_table  # noqa: E402
 
 PAPER = "0.7 deg (4.7 %)"
 STRAS = {"B_kind": "stras", "speed": 0.5}
@@ -62,14 +64,14 @@ def cases(quick: bool) -> list[tuple[str, str, float, dict]]:
 
 
 def board_only(s, sc, g) -> float | None:
-    """Before the host refinement, for comparison: the board's C detector alone (estimate.run_onsets with the
+    """Before the host refinement, for comparison: the board's C detector alone (onsets.run_onsets with the
     configured delay, as calibrate ran it), same B fit. % of mean true B; None when it refuses."""
     t, q = s.encoder["t_s"], s.encoder["q"]
-    rt, rq, _ = E.detect_reversals(t, q, 0.01 * np.ptp(q))
+    rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
     t_f, obs = s.observations()
-    on = E.run_onsets(t, q, rt, rq, t_f, obs, "image", E.OnsetConfig(t_delay_s=s.t_delay_s, fps=sc.fps))
+    on = run_onsets(t, q, rt, rq, t_f, obs, "image", OnsetConfig(t_delay_s=s.t_delay_s, fps=sc.fps))
     try:
-        B = E.fit_backlash_samples(on.q_mean, on.b).B
+        B = fit_backlash_samples(on.q_mean, on.b).B
     except InputError:
         return None
     return 100 * float(np.mean(np.abs(B(g) - sc.B(g)))) / float(np.mean(sc.B(g)))

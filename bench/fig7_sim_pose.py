@@ -5,7 +5,7 @@ hand-eye error, 15 deg/s bending speed, 25 Hz camera with 80 ms delay. The simul
 estimator come from the same project, so this is the baseline comparison only; the B error
 figure judged comes from bench/fig7_replica.py (an independent renderer).
 
-Compares the backlash estimated in two steps (onsets in the image, playscope.calibration: the
+Compares the backlash estimated in two steps (onsets in the image, playscope.fit.calibration: the
 board's detector refined on the host) with the single-step estimate from pose reconstruction (c per frame by eq. 8 with the nominal hand-eye, then the horizontal width of the
 reconstructed hysteresis). Paper: 0.7 deg (4.7 %) vs 6.6 deg (44 %) mean error. Target for the
 two-step estimate: < 0.35 deg.
@@ -20,8 +20,8 @@ import sys
 
 import numpy as np
 
-from playscope.calibration import calibrate
-from playscope.model import ImageModel
+from playscope.fit.calibration import calibrate
+from playscope.fit.model import ImageModel
 from playscope.sim.core import preset, simulate
 
 TRUE_B_DEG = 15.0
@@ -107,7 +107,7 @@ def main(argv=None) -> int:
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
-        from playscope.model import ImageModel
+        from playscope.fit.model import ImageModel
         s = last["session"]
         fig, axs = plt.subplots(2, 1, figsize=(8, 8))
         qf = np.interp(s.truth["t_s"], s.encoder["t_s"], s.encoder["q"])

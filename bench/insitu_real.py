@@ -3,9 +3,9 @@
 (data_2_1..5, q = tendon displacement in mm) and the endoscopic instrument (q = commanded angle
 in deg, short records of 2 cycles; README in ../shared/data/real/endoscope/).
 
-Each file alone, at each split fraction: every model of playscope.insitu.ROWS (the peers, the
+Each file alone, at each split fraction: every model of playscope.evaluate.insitu_split.ROWS (the peers, the
 modified PI among them, and ours) fitted on the part before the split only
-(`playscope.insitu.evaluate_insitu`, which calibrates on `Session.slice_time(-inf, t_split)`),
+(`playscope.evaluate.insitu_split.evaluate_insitu`, which calibrates on `Session.slice_time(-inf, t_split)`),
 run from the file's first sample with its state carried (what a board running all along holds),
 judged on the part after against the angle sensor; the rows the board runs go through the
 firmware's playop_step on Q16.16 tables. Per instrument and split one table: every row per
@@ -37,9 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
-from playscope.errors import InputError
-from playscope.importer import import_catheter, import_endoscope
-from playscope.insitu import LABELS, ROWS, evaluate_insitu
+from playscope.base.errors import InputError
+from playscope.io.importer import import_catheter, import_endoscope
+from playscope.evaluate.insitu_split import LABELS, ROWS, evaluate_insitu
 
 ROOT = Path(__file__).resolve().parent.parent
 # Same default as tests/python/conftest.py: $PLAYSCOPE_REAL_DATA, else ../shared/data/real.

@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from playscope.online import evaluate_real_online, format_online
+from playscope.board.online import evaluate_real_online, format_online
 
 DEFAULT = Path(__file__).resolve().parents[1] / ".." / ".." / "shared" / "data" / "real" / "catheter"
 
@@ -36,8 +36,8 @@ def main(argv=None) -> int:
     print(format_online(res))
     print(f"({time.perf_counter() - t0:.1f} s)")
     if a.sensitivity:
-        from playscope.native import core
-        from playscope.online import OnlineSettings
+        from playscope.base.native import core
+        from playscope.board.online import OnlineSettings
 
         _, lib = core()
         print("**Sensitivity of the on-line row (mean / worst RMSE, deg; files <= in-situ constant play)**\n")

@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
 """The product's `ours` with and without the travel-domain relaxation on the catheter files,
-through the fixed-point tables, in situ (playscope.insitu: fit on t < t_split only, every model
+through the fixed-point tables, in situ (playscope.evaluate.insitu_split: fit on t < t_split only, every model
 run from the record's first sample, scored on t >= t_split against the angle sensor).
 
-Per file and split: the rows of `evaluate-insitu` (playscope.insitu.fit_rows / score_rows), plus
+Per file and split: the rows of `evaluate-insitu` (playscope.evaluate.insitu_split.fit_rows / score_rows), plus
 `ours+relax`: ours's onset B, transition and threshold map as calibrated, (kappa, lambda) and f
-refitted on the relaxed output by playscope.relax.fit_on_calibration on the calibration part's
+refitted on the relaxed output by playscope.fit.relax.fit_on_calibration on the calibration part's
 frames only, written as a layout-4 table and run by the firmware's playop_step (cffi); and its
 control `ours_refit`: the same f fit on the unrelaxed output (kappa = 0), so the difference
 between the two is the relaxation's alone.
@@ -25,17 +25,17 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "host"))
 
-from playscope import estimate as E  # noqa: E402
-from playscope import relax as R  # noqa: E402
+from playscope.fit.reversals import frames_from_angle  # noqa: E402
+from playscope.fit import relax as R  # noqa: E402
 from playscope.diagnose.realdata import catheter_dir  # noqa: E402
-from playscope.importer import import_catheter  # noqa: E402
-from playscope.insitu import fit_rows, score_rows, split_time, Row  # noqa: E402
-from playscope.tables import build_table  # noqa: E402
+from playscope.io.importer import import_catheter  # noqa: E402
+from playscope.evaluate.insitu_split import fit_rows, score_rows, split_time, Row  # noqa: E402
+from playscope.fit.table_build import build_table  # noqa: E402
 
 
 def relaxed_row(s, t_split, cal) -> Row:
     cal_s = s.slice_time(-np.inf, t_split)
-    t_f, c_f = E.frames_from_angle(cal_s.distal["t_s"], cal_s.distal["c_deg"], cal.fps_frames)
+    t_f, c_f = frames_from_angle(cal_s.distal["t_s"], cal_s.distal["c_deg"], cal.fps_frames)
     tr = cal.transition
     nc = int((cal.model_choice or {}).get("n_ctrl") or 14)
     sign = int(np.sign(cal.f(np.array([cal.q_range[1]]))[0] - cal.f(np.array([cal.q_range[0]]))[0])) or None
@@ -68,7 +68,7 @@ def main() -> int:
             ts = split_time(s.encoder["t_s"], sp)
             rows = fit_rows(s, ts, source=str(fn))
             # the chain's calibration (fit_rows keeps it on no row): recompute as fit_rows did
-            from playscope.calibration import calibrate
+            from playscope.fit.calibration import calibrate
             cal = calibrate(s.slice_time(-np.inf, ts), f_method="lsq", source=str(fn), model_kind="auto")
             rows["ours+relax"], rows["ours_refit"] = relaxed_row(s, ts, cal)
             td = float(s.t_delay_s) if s.t_delay_s is not None else float(rows["onset_lsq"].params["t_delay_s"])

@@ -25,9 +25,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import swing_cases  # noqa: E402
 import swing_render as SR  # noqa: E402
 
-from playscope.calibration import calibrate  # noqa: E402
-from playscope.errors import InputError  # noqa: E402
-from playscope.session import load_session  # noqa: E402
+from playscope.fit.calibration import calibrate  # noqa: E402
+from playscope.base.errors import InputError  # noqa: E402
+from playscope.io.session import load_session  # noqa: E402
 
 
 def run(r: SR.Rendering) -> dict:

@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-from playscope.transfer import WARMUP, drift, evaluate_transfer, format_drift, format_transfer, plot_transfer
+from playscope.evaluate.transfer import WARMUP, drift, evaluate_transfer, format_drift, format_transfer, plot_transfer
 
 DEFAULT = Path(__file__).resolve().parents[1] / ".." / ".." / "shared" / "data" / "real"
 ENDOSCOPE_DEV = ["30", "60", "120", "conf0_60"]  # development files; the others are set aside

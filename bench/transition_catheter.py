@@ -23,11 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from playscope.calibration import calibrate
-from playscope.importer import import_catheter
-from playscope.insitu import calibration_frames
-from playscope.peers import GeneralizedPI
-from playscope.tables import build_table
+from playscope.fit.calibration import calibrate
+from playscope.io.importer import import_catheter
+from playscope.evaluate.insitu_split import calibration_frames
+from playscope.fit.peers import GeneralizedPI
+from playscope.fit.table_build import build_table
 
 # As tests/python/conftest.py: $PLAYSCOPE_REAL_DATA, else ../shared/data/real beside the checkout.
 DEFAULT = Path(os.environ.get("PLAYSCOPE_REAL_DATA", Path(__file__).resolve().parents[2] / "shared" / "data" / "real")) / "catheter"

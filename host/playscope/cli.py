@@ -2,10 +2,10 @@
 
 Each command module exposes ``add_parser(subparsers)``, which adds its subparser and sets
 ``func=<callable(args) -> int>`` on it. All command modules live in playscope.commands;
-those of optional subpackages (sim, diagnose, device) are skipped when the package is absent. Bad input prints one line
+those of optional subpackages (sim, diagnose, board) are skipped when the package is absent. Bad input prints one line
 ``playscope: error: <file>:<row>: <message>`` and exits with status 2: an InputError, an
 OSError, a UnicodeDecodeError, a JSON or any other ValueError escaping a command, and a bad
-command-line value (argparse types in playscope.argtypes). PLAYSCOPE_DEBUG=1 re-raises them
+command-line value (argparse types in playscope.commands.argtypes). PLAYSCOPE_DEBUG=1 re-raises them
 with the traceback, for bug reports.
 """
 
@@ -21,8 +21,8 @@ import os
 import sys
 
 from . import __version__
-from .atomic import check_flash_file, check_output, output_guard
-from .errors import InputError
+from .base.atomic import check_flash_file, check_output, output_guard
+from .base.errors import InputError
 
 # Argument dests that name what a command writes; every other path-valued argument that
 # exists is an input the output guard protects (atomic.output_guard). Not inputs either:
@@ -48,7 +48,7 @@ COMMAND_MODULES = [
     ("playscope.commands.evaluate_transfer", None),
     ("playscope.commands.simulate", "playscope.sim"),
     ("playscope.commands.diagnose", "playscope.diagnose"),
-    ("playscope.commands.device", "playscope.device"),
+    ("playscope.commands.device", "playscope.board"),
     ("playscope.commands.demo", None),
 ]
 
@@ -66,6 +66,8 @@ COMMANDS = {
     "evaluate-real": ("playscope.commands.evaluate_real",
                       "in situ and across-session RMSE tables on the catheter recordings"),
     "evaluate-insitu": ("playscope.commands.evaluate_insitu", "in-situ RMSE of every model on one session split in time"),
+    "evaluate-transfer": ("playscope.commands.evaluate_transfer",
+                          "calibration of one record run on other sessions or configurations"),
     "simulate": ("playscope.commands.simulate",
                  "simulated session (robot with B(q) + f_remain, effects, endoscope camera)"),
     "diagnose": ("playscope.commands.diagnose",
@@ -201,7 +203,7 @@ def _run_command(args) -> int:
     """args.func(args), its stdout silenced under --quiet or --json - (the JSON itself still
     reaches stdout: jsonio.STDOUT), under a busy line (commands.common.busy) unless the command
     shows progress of its own (own_progress)."""
-    from . import jsonio
+    from .base import jsonio
     from .commands.common import busy
 
     bar = contextlib.nullcontext() if getattr(args, "own_progress", False) else busy(f"playscope {args.command}")

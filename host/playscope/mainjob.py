@@ -27,12 +27,12 @@ from pathlib import Path
 import numpy as np
 
 from . import pipeline as P
-from .atomic import output_guard
-from .calibration import Calibration
-from .errors import InputError
-from .jsonio import plain_json
+from .base.atomic import output_guard
+from .fit.calibration import Calibration
+from .base.errors import InputError
+from .base.jsonio import plain_json
 from .sim.record import sim_config, write_simulated
-from .transition import picked_candidate
+from .fit.transition import picked_candidate
 
 DEFAULT_OUT = "out/main"
 REGISTRATION_QY_DEG = 2.0  # Table I conditions: registration error about the camera x axis (acts on Qy)

@@ -4,7 +4,7 @@ and returning a typed result.
 
 The commands in playscope/commands/ parse arguments, call these and print ``result.line()``
 (one line, what the command prints) and write ``result.to_json()`` (its ``--json`` document);
-the main job (mainjob.py), realeval.py and the benches call them directly. Nothing here reads
+the main job (mainjob.py) and the benches call them directly. Nothing here reads
 argv or prints: warnings are in the results, progress goes to a callback.
 
 Errors: InputError naming the file (bad or missing input), FileExistsError for an output that
@@ -17,60 +17,19 @@ import os
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .calibration import Calibration
-from .errors import InputError
-from .transition import picked_candidate
+from .base.errors import InputError
+
+if TYPE_CHECKING:  # annotations only: a command's --help imports this module, not numpy's fits
+    from .fit.calibration import Calibration
 
 
 # --------------------------------------------------------------------------- track
-@dataclass
-class Tracked:
-    """track_session's result: the marker CSV written, the video read, track.TrackResult's
-    summary (frames_listed, frames_decoded, frames_tracked, lost, lost_fraction, truncated,
-    reasons, seconds, fps, warning)."""
-
-    marker_csv: Path
-    video: Path
-    summary: dict
-
-    @property
-    def warning(self) -> str | None:
-        return self.summary.get("warning")
-
-    def line(self) -> str:
-        sm = self.summary
-        return (f"{self.marker_csv}: {sm['frames_tracked']} frames, {sm['lost']} lost "
-                f"({100 * (sm['lost_fraction'] or 0):.1f} %), {sm['fps']:.0f} frames/s")
-
-    def to_json(self) -> dict:
-        return {"marker_csv": str(self.marker_csv), "video": str(self.video), **self.summary}
-
-
-def track_session(session_dir, out=None, cfg=None, overwrite: bool = False, progress=None) -> Tracked:
-    """Find the marker in session_dir's video.* (frames.csv gives the times) and write
-    marker.csv (default session_dir/marker.csv). cfg: track.TrackConfig (default: green).
-    progress: callable(**tqdm kwargs) -> bar, as track.track_video takes. One OpenCV thread."""
-    from .track import TrackConfig, find_video, single_thread, track_video, write_marker_csv
-
-    folder = Path(session_dir)
-    if not folder.is_dir():
-        raise InputError(folder, "session folder not found")
-    video = find_video(folder)
-    out = Path(out) if out else folder / "marker.csv"
-    if out.exists() and not overwrite:
-        raise FileExistsError(f"{out}: exists (use --force)")
-    cfg = cfg or TrackConfig()
-    try:
-        cfg.check()
-    except ValueError as e:
-        raise InputError(None, f"track options: {e}") from None
-    single_thread()
-    res = track_video(video, folder / "frames.csv", cfg, progress=progress)
-    write_marker_csv(out, res)
-    return Tracked(out, video, res.summary())
+# The track step is the io layer's (evaluate/real_eval.py runs it too, below the pipeline).
+from .io.marker_track import Tracked, track_session  # noqa: E402,F401
 
 
 # --------------------------------------------------------------------------- calibrate
@@ -114,6 +73,8 @@ def model_text(cal: Calibration) -> str:
     txt = "play" if tr.is_play else (f"play ({tr.b_scale:g} B) + PI, {tr.n} operators (r <= {tr.r[-1]:.3g}"
                                      + (", thresholds proportional to B(q))" if tr.tmap is not None else ")"))
     if ch:
+        from .fit.transition import picked_candidate
+
         pick = picked_candidate(ch)
         play = next((c for c in ch["candidates"] if c["n"] == 1), None)
         if pick:
@@ -127,12 +88,12 @@ def calibrate_session(session_dir, out, n_ctrl: int = 14, f_method: str = "lsq",
                       t_delay_s: float | None = None, t_delay_from: str = "data",
                       hysteresis: float | None = None, threshold: float | None = None,
                       model_kind: str = "auto") -> Calibrated:
-    """calibration.calibrate on the session folder, saved to out (docs/calibration-format.md).
+    """calibration.calibrate on the session folder or recording file (importer.load_recording), saved to out (docs/calibration-format.md).
     threshold: the onset threshold T per frame (px or deg), default automatic."""
-    from .calibration import calibrate
-    from .session import load_session
+    from .fit.calibration import calibrate
+    from .io.importer import load_recording
 
-    s = load_session(session_dir)
+    s = load_recording(session_dir)
     notes = list(s.notes)  # what the loader repaired (repeated or backward stamps, a held sensor)
     ov = {"threshold": threshold} if threshold is not None else None
     cal = calibrate(s, n_ctrl, f_method, fps, t_delay_s, hysteresis, ov, t_delay_from=t_delay_from,
@@ -176,10 +137,10 @@ def write_tables(cal_path, out, entries: int | None = None, generation: int = 1,
     TableWritten.adapted. Errors: InputError naming cal_path when the model cannot be tabulated;
     for a precision refusal at the densest grid, the quantity (f^-1's error when it is the one)
     and by how much it misses the ceiling."""
-    from .atomic import write_bytes_atomic
-    from .calibration_check import load_calibration
-    from .native import core
-    from .tables import TableError, build_table, check_physical, check_precision, f_inverse_error, table_errors
+    from .base.atomic import write_bytes_atomic
+    from .fit.calibration_check import load_calibration
+    from .base.native import core
+    from .fit.table_build import TableError, build_table, check_physical, check_precision, f_inverse_error, table_errors
 
     cal = load_calibration(cal_path)
     q_min, q_max = cal.q_range
@@ -251,7 +212,7 @@ class Flashed:
     round_trip_us: float
 
     def line(self) -> str:
-        from .device.flash import flash_line
+        from .board.flash import flash_line
 
         return flash_line(self.__dict__)
 
@@ -267,22 +228,22 @@ def flash_tables(table_path, device: str = "virtual", flash_file=None, n_vectors
     usb runs in a child process under the emulated USB device (device.usbemu: libusb's preload
     must be in a process from its start; flash_file is the emulated board's flash). Errors:
     InputError for a bad table file (nothing is sent), RuntimeError for a failed check."""
-    from .table_check import read_table_file
+    from .board.table_check import read_table_file
 
     if device == "usb":
         import json
 
-        from .device import usbemu
+        from .board import usbemu
 
         read_table_file(table_path)  # refused here, before a child is started
-        r = usbemu.run([sys.executable, "-m", "playscope.device.flash", os.fspath(table_path),
+        r = usbemu.run([sys.executable, "-m", "playscope.board.flash", os.fspath(table_path),
                         "--vectors", str(n_vectors)], flash_file=os.fspath(flash_file) if flash_file else None)
         if r.returncode != 0:
             raise RuntimeError(f"flash over usb failed (exit {r.returncode}):\n{r.stdout}\n{r.stderr}")
         return Flashed(**json.loads(r.stdout.strip().splitlines()[-1]))
-    from .device.flash import flash
-    from .device.link import Link
-    from .device.transport import open_transport
+    from .board.flash import flash
+    from .board.link import Link
+    from .board.transport import open_transport
 
     blob = read_table_file(table_path)  # checked before the board is even opened
     link = Link(open_transport(device, flash_file=flash_file, elf=elf, address=address))
@@ -307,7 +268,7 @@ class Evaluated:
 
     def line(self) -> str:
         """Table I and the compensation table as Markdown (evaluate.format_table)."""
-        from .evaluate import format_table
+        from .evaluate.prediction import format_table
 
         return format_table(self.summary)
 
@@ -326,16 +287,16 @@ def evaluate_session(session_dir, cal_path, table_path=None, comp_duration_s: fl
     """Table I and the compensation test (evaluate.evaluate) of the calibration at cal_path on
     the test session folder; table_path: a blob from write_tables for the fixed-point rows
     (default: built from the calibration)."""
-    from .calibration_check import load_calibration
-    from .evaluate import evaluate
-    from .session import load_session
+    from .fit.calibration_check import load_calibration
+    from .evaluate.prediction import evaluate
+    from .io.importer import load_recording
 
     cal = load_calibration(cal_path)
-    s = load_session(session_dir)
+    s = load_recording(session_dir)
     _warn_repairs(s)
     tab = None
     if table_path:
-        from .tables import CalibTable
+        from .fit.table_build import CalibTable
 
         path = Path(table_path)
         if not path.is_file():
@@ -373,8 +334,8 @@ def write_report_file(cal_path, session_dir, out, eval_json=None) -> Reported:
     The figures are always computed from the inputs."""
     import json
 
-    from .evaluate import format_table
-    from .report import write_report
+    from .evaluate.prediction import format_table
+    from .evaluate.html_report import write_report
 
     done = evaluate_session(session_dir, cal_path)
     ev, summary = done.evaluation, done.summary
@@ -392,3 +353,311 @@ def write_report_file(cal_path, session_dir, out, eval_json=None) -> Reported:
     write_report(out, done.cal, ev, md)
     return Reported(os.fspath(out), Path(out).stat().st_size)
 
+
+
+# --------------------------------------------------------------------------- run-insitu
+@dataclass
+class InsituSource:
+    """Where run_insitu's frames come from: a simulated instrument rendered from the board's
+    encoder stream (sim_plant, with its seed, board time_scale and excitation exc) or a video
+    file / camera index with the geometry file (session.json: robot, camera, hand-eye)."""
+
+    video: str | int | None = None
+    geometry: str | None = None
+    sim_plant: bool = False
+    seed: int = 1
+    time_scale: float = 1.0
+    exc: str | None = None
+
+
+@dataclass
+class InsituRan:
+    """run_insitu's result: board and wall time (s), frames, B samples (all and valid), the
+    calibrated q range, the flash result (board.flash.flash's dict, None without flashing) and,
+    for a simulated instrument, |B_fit - B_true| (mm: mean, max, and over the samples)."""
+
+    ended: str
+    board_s: float
+    wall_s: float
+    frames: int
+    b_samples: int
+    b_valid: int
+    q_range: list
+    flash: dict | None = None
+    sim_B_err_mm: dict | None = None
+    sim_grid: tuple = ()
+
+    def line(self) -> str:
+        return (f"{self.ended}: {self.board_s:.1f} s board time in {self.wall_s:.1f} s, {self.frames} frames, "
+                f"{self.b_samples} B samples from the board ({self.b_valid} valid)")
+
+    def sim_line(self) -> str | None:
+        e = self.sim_B_err_mm
+        if not e:
+            return None
+        return (f"SIMULATION truth: |B_fit - B_true| mean {e['mean']:.3f} mm, max {e['max']:.3f} mm over "
+                f"q in [{self.sim_grid[0]:.2f}, {self.sim_grid[1]:.2f}]; board samples mean {e['samples_mean']:.3f} mm")
+
+    def to_json(self) -> dict:
+        d = {"board_s": self.board_s, "wall_s": self.wall_s, "frames": self.frames, "b_samples": self.b_samples,
+             "b_valid": self.b_valid, "q_range": list(self.q_range)}
+        if self.sim_B_err_mm is not None:
+            d["sim_B_err_mm"] = self.sim_B_err_mm
+        if self.flash is not None:
+            d["flash"] = self.flash
+        return d
+
+
+def run_insitu(link, src: InsituSource, seconds=None, n_ctrl: int = 14, out=None, flash_after: bool = True,
+               n_vectors: int = 200, progress=None, ran=None) -> InsituRan:
+    """The paper's in-situ procedure (section III) on the board behind link (board.insitu_run):
+    the board's excitation and onset detector run while frames come from src; the host fits
+    B(q), f_remain and the transition to the board's samples, builds the Q16.16 table and
+    flashes it (flash_after). out: folder for b_samples.csv, session/, calibration.json,
+    table.bin and result.json (None: nothing written). progress(board_s, n_samples, total_s or
+    None) follows the run; ran(line) is called once the run ends, with InsituRan.line().
+    Errors: OSError for a video that cannot be opened, InputError when the fit refuses the
+    run, RuntimeError for a failed flash (nothing of out is lost)."""
+    import json
+
+    from .base.atomic import write_bytes_atomic, write_text_atomic
+    from .board.flash import flash
+    from .board.insitu_run import (VideoSource, calibrate_run, exc_duration_s, read_geometry, run_loop,
+                                   session_of, write_samples_csv)
+    from .fit.table_build import build_table
+    from .io.session import write_session
+
+    out = Path(out) if out else None
+    if out:
+        out.mkdir(parents=True, exist_ok=True)
+    plant = None
+    if src.sim_plant:
+        from .sim.plant import SimPlant, SimPlantConfig
+
+        plant = SimPlant(SimPlantConfig(seed=src.seed, time_scale=src.time_scale, exc=src.exc))
+        source = plant
+        sim = plant.sim
+        robot, camera, hand_eye, t_delay = sim.robot(), sim.camera(), sim.hand_eye(), sim.t_delay_s
+        total = exc_duration_s(src.exc)
+    else:
+        robot, camera, hand_eye, t_delay = read_geometry(src.geometry)
+        source = VideoSource(src.video)
+        total = None
+    try:
+        run = run_loop(link, source, seconds,
+                       progress=(lambda s, n: progress(s, n, total)) if progress else None)
+    finally:
+        if not plant:
+            source.close()
+    valid = run.valid()
+    res = InsituRan(run.ended, run.board_s, run.wall_s, len(run.mk_t_s), len(run.samples), len(valid), [])
+    if ran:
+        ran(res.line())
+    s = session_of(run, robot, camera, hand_eye, t_delay)
+    if out:
+        write_samples_csv(out / "b_samples.csv", run.samples)
+        write_session(s, out / "session", overwrite=True)  # guarded: an existing one needs --force
+    cal = calibrate_run(run, s, n_ctrl)
+    q_min, q_max = cal.q_range
+    res.q_range = [q_min, q_max]
+    tab = build_table(cal.B_model, cal.f, q_min, q_max, "mm", "remain", 1, transition=cal.transition)
+    if plant:
+        g = np.linspace(q_min + 0.3, q_max - 0.3, 101)
+        e = np.abs(cal.B(g) - plant.truth_B(g))
+        qm = np.array([x["q_mean"] for x in valid])
+        eb = np.abs(np.array([x["b"] for x in valid]) - plant.truth_B(qm)) if valid else np.zeros(1)
+        res.sim_B_err_mm = {"mean": float(e.mean()), "max": float(e.max()),
+                            "samples_mean": float(eb.mean()), "samples_max": float(eb.max())}
+        res.sim_grid = (float(g[0]), float(g[-1]))
+    if out:
+        cal.save(out / "calibration.json")
+        write_bytes_atomic(out / "table.bin", tab.blob)
+    if flash_after:
+        try:
+            res.flash = flash(link, tab.blob, n_vectors)
+        except (RuntimeError, ValueError) as e:
+            raise RuntimeError(f"flash failed: {e}") from None
+    if out:
+        write_text_atomic(out / "result.json", json.dumps(res.to_json(), indent=1) + "\n")
+    return res
+
+
+# --------------------------------------------------------------------------- import
+@dataclass
+class Imported:
+    """import_recording's result: the session folder written, its encoder rows and time span
+    (s), what the reader reported (notes: CSV repairs, or a bag's per-stream lines) and whether
+    the source was a ROS bag."""
+
+    session: str
+    rows: int
+    t_span_s: float
+    notes: list
+    bag: bool
+
+    def line(self) -> str:
+        return f"{self.session}: {self.rows} rows, {self.t_span_s:.1f} s"
+
+    def to_json(self) -> dict:
+        return {"session": self.session, "rows": self.rows, "t_span_s": self.t_span_s, "streams": list(self.notes)}
+
+
+def import_recording(source, out, csv: dict | None = None, bag: dict | None = None, q_source: str | None = None,
+                     overwrite: bool = False) -> Imported:
+    """A foreign recording -> a session folder at out. csv: importer.import_csv's keyword
+    arguments (t_col, q_col, c_col, time_scale, q_scale, unit, q_per_rad, c_scale, t_delay_s,
+    q_source) for a CSV; bag: rosbag.import_bag's (q, c, image: the topics; geometry, unit,
+    q_scale, c_scale, q_per_rad, t_delay_s) for a ROS bag (q_source set on the session after).
+    Errors: InputError naming the file and row; ValueError for a bag the reader refuses."""
+    if bag is not None:
+        from .io.rosbag import import_bag, write_bag_session
+
+        s, report, frames = import_bag(source, **bag)
+        s.q_source = q_source
+        notes = report.lines()
+        write_bag_session(s, frames, out, overwrite=overwrite)
+    else:
+        from .io.importer import import_csv
+        from .io.session import write_session
+
+        s = import_csv(source, **(csv or {}))
+        notes = list(s.notes)
+        write_session(s, out, overwrite=overwrite)
+    t = s.encoder["t_s"]
+    return Imported(str(out), int(t.size), float(t[-1] - t[0]), notes, bag is not None)
+
+
+# --------------------------------------------------------------------------- evaluate-insitu
+@dataclass
+class InsituEvaluated:
+    """evaluate_insitu_record's result: the document of evaluate.insitu_split.evaluate_insitu
+    (its JSON_KEYS) and what loading repaired in the record (warnings)."""
+
+    doc: dict
+    warnings: list = field(default_factory=list)
+
+    def text(self) -> str:
+        from .evaluate.insitu_split import format_insitu
+
+        return format_insitu(self.doc)
+
+    def to_json(self) -> dict:
+        return self.doc
+
+
+def evaluate_insitu_record(path, split: float | str = 0.5, progress=None, loaded=None) -> InsituEvaluated:
+    """Every model fitted before the split of one record and scored after it
+    (evaluate.insitu_split). path: a session folder or a recording file (importer.load_recording);
+    loaded: the Session already read from path (its notes are the warnings)."""
+    from .evaluate.insitu_split import evaluate_insitu
+    from .io.importer import load_recording
+
+    s = loaded if loaded is not None else load_recording(path)
+    kw = {"progress": progress} if progress else {}
+    return InsituEvaluated(evaluate_insitu(s, split, source=path, **kw), list(s.notes))
+
+
+# --------------------------------------------------------------------------- evaluate-real
+@dataclass
+class RealEvaluated:
+    """evaluate_real_data's result: the document (evaluate.real_eval's tables, or board.online's
+    on-line update tables) and its Markdown text."""
+
+    doc: dict
+    text: str
+
+    def to_json(self) -> dict:
+        return self.doc
+
+
+def evaluate_real_data(folder, reimage=None, online: bool = False, progress=None) -> RealEvaluated:
+    """The acceptance tables on the catheter recordings in folder: in situ and across sessions
+    (evaluate.real_eval), through a re-imaging work folder (reimage), or the on-line update
+    protocol (online; board.online)."""
+    kw = {"progress": progress} if progress else {}
+    if online:
+        from .board.online import evaluate_real_online, format_online
+
+        res = evaluate_real_online(folder, **kw)
+        return RealEvaluated(res, format_online(res))
+    from .evaluate.real_eval import evaluate_real, evaluate_real_reimaged, format_tables
+
+    res = evaluate_real_reimaged(folder, reimage, **kw) if reimage else evaluate_real(folder, **kw)
+    return RealEvaluated(res, format_tables(res))
+
+
+# --------------------------------------------------------------------------- evaluate-transfer
+@dataclass
+class Transferred:
+    """transfer_records' result: evaluate.transfer's document, its Markdown table, and the plot
+    written (or None)."""
+
+    doc: dict
+    text: str
+    plot: str | None = None
+
+    def to_json(self) -> dict:
+        return self.doc
+
+
+def transfer_records(cal, records, warmup: float, refresh_s: float, plot=None, progress=None) -> Transferred:
+    """A calibration made on the record cal run on each of records (evaluate.transfer), with and
+    without each on-line update; plot: PNG of RMSE against the configuration angle."""
+    from .evaluate.transfer import evaluate_transfer, format_transfer, plot_transfer
+
+    kw = {"progress": progress} if progress else {}
+    doc = evaluate_transfer(cal, records, warmup, refresh_s, **kw)
+    if plot:
+        plot_transfer(doc, plot)
+    return Transferred(doc, format_transfer(doc), os.fspath(plot) if plot else None)
+
+
+# --------------------------------------------------------------------------- diagnose
+@dataclass
+class Diagnosed:
+    """diagnose_records' result: per record name, the diagnosis document (diagnose.run.clean)
+    and its summary lines (diagnose.run.summary_lines); warnings: what loading repaired; html:
+    the page written, or None."""
+
+    records: dict
+    lines: dict
+    warnings: list = field(default_factory=list)
+    html: str | None = None
+
+    def to_json(self) -> dict:
+        return {"sessions": self.records}
+
+
+def diagnose_records(records, split: float, test=None, html=None) -> Diagnosed:
+    """The sim-to-real gap diagnosis (diagnose.run.diagnose_data) of each record: records is a
+    list of (name, path, kind) with kind "session" (a session folder or recording file,
+    importer.load_recording) or "catheter" (importer.import_catheter); test: one (path, kind)
+    scored as a separate test record; html: write the diagnosis page there."""
+    from .diagnose.fitmodel import from_session
+    from .diagnose.run import clean, diagnose_data, summary_lines
+    from .io.importer import import_catheter, load_recording
+
+    def load(path, kind):
+        return import_catheter(path) if kind == "catheter" else load_recording(path)
+
+    test_data = from_session(load(*test)) if test else None
+    out, lines, warnings, figs_all = {}, {}, [], []
+    for name, path, kind in records:
+        session = load(path, kind)
+        warnings += list(session.notes) if kind == "session" else []
+        data = from_session(session)
+        res = diagnose_data(data, split, session=session, test_data=test_data)
+        data = res.pop("_data")
+        lines[name] = summary_lines(name, res)
+        if html:
+            from .diagnose.diagnosis_report import figures
+
+            figs_all += [(f"{name}: {t}", img) for t, img in figures(data, res, res["atlas_before"], res["atlas_after"])]
+        res.pop("_models", None)
+        out[name] = clean(res)
+    if html:
+        from .base.atomic import write_text_atomic
+        from .diagnose.diagnosis_report import html_page
+
+        write_text_atomic(html, html_page("playscope diagnose", out, figs_all))
+    return Diagnosed(out, lines, warnings, os.fspath(html) if html else None)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from .. import argtypes as T
+from . import argtypes as T
 from ..pipeline import calibrate_session
 from .common import add_command, add_json_arg, emit
 
@@ -20,7 +20,8 @@ morphological median line) -> calibration JSON (docs/calibration-format.md).
 def add_parser(sub) -> None:
     p = add_command(sub, "calibrate", "estimate B(q) and f_remain from a session", DESCRIPTION,
                     examples=["playscope calibrate sessions/d21 -o d21.cal.json"])
-    p.add_argument("session", help="session folder (playscope-session/1)")
+    p.add_argument("session", help="session folder (playscope-session/1), or a recording file read in place "
+                   "(the catheter's CSV with a header, the endoscope's headerless CSV)")
     p.add_argument("-o", "--out", required=True, type=T.file_path, help="calibration JSON to write")
     p.add_argument("-N", "--control-points", type=T.CONTROL_POINTS, default=14, help="most control points of the B(q) spline, and those of the paper's morphological f_remain (paper: 14); the least-squares f_remain takes its own by cross-validation (calibration file: f_fit)")
     p.add_argument("--f-method", choices=["lsq", "morph"], default="lsq",

@@ -7,8 +7,8 @@ from __future__ import annotations
 import contextlib
 import sys
 
-from ..calibration_check import load_calibration  # noqa: F401 (the commands' name for it)
-from ..jsonio import write_json
+from ..fit.calibration_check import load_calibration  # noqa: F401 (the commands' name for it)
+from ..base.jsonio import write_json
 
 
 def add_command(sub, name: str, help: str, description: str, examples=(), epilog: str = ""):
@@ -25,18 +25,19 @@ def add_command(sub, name: str, help: str, description: str, examples=(), epilog
 
 def add_json_arg(p, keys_doc: str) -> None:
     """Add --json PATH; keys_doc lists the keys written, shown in --help."""
-    from ..argtypes import file_path
+    from .argtypes import file_path
 
     p.add_argument("--json", metavar="PATH", type=file_path,
                    help=f"also write machine-readable results to PATH ('-': stdout). Keys: {keys_doc}")
 
 
 def load_session_noted(folder):
-    """load_session, printing what it repaired in the files (session.notes: repeated or backward
-    time stamps, a held sensor) as one `playscope: warning:` line each on stderr."""
-    from ..session import load_session
+    """A session folder or a recording file read in place (importer.load_recording), printing
+    what loading repaired (session.notes: repeated or backward time stamps, a held sensor) as one
+    `playscope: warning:` line each on stderr."""
+    from ..io.importer import load_recording
 
-    s = load_session(folder)
+    s = load_recording(folder)
     warn(s.notes)
     return s
 

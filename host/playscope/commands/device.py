@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import sys
-from pathlib import Path
 
 from .common import add_command, add_json_arg, dump_json, progress
 
 
 def _add_device_args(p) -> None:
-    from .. import argtypes as T
+    from . import argtypes as T
 
     p.add_argument("--device", choices=["virtual", "qemu", "usb"], default="virtual",
                    help="board to talk to (default: virtual, the desktop build as a process)")
@@ -20,8 +18,8 @@ def _add_device_args(p) -> None:
 
 
 def _open(args, vboard_args=()):
-    from ..device.link import Link
-    from ..device.transport import open_transport
+    from ..board.link import Link
+    from ..board.transport import open_transport
 
     return Link(open_transport(args.device, flash_file=args.flash_file, elf=args.elf, address=args.address,
                                vboard_args=vboard_args))
@@ -48,14 +46,14 @@ class _closing:
 
 
 def cmd_flash(args) -> int:
-    from ..device.flash import flash
-    from ..device.link import DeviceError
-    from ..tables import builtin_table
+    from ..board.flash import flash
+    from ..board.link import DeviceError
+    from ..fit.table_build import builtin_table
 
     if args.table == "builtin":
         blob = builtin_table()
     else:
-        from ..table_check import read_table_file
+        from ..board.table_check import read_table_file
 
         blob = read_table_file(args.table)  # checked before the board is even opened
     with _closing(_open(args)) as link:
@@ -69,11 +67,11 @@ def cmd_flash(args) -> int:
 
 
 def _pace_virtual_exc(args) -> list[str] | None:
-    """--exc without a speed: pace it (playscope.pacing, the board's rule) to the camera's frame
+    """--exc without a speed: pace it (playscope.fit.pacing, the board's rule) to the camera's frame
     rate and the expected play range. Sets args.exc to the full Q0:Q1:AMP:ADV:V (duration, the
     simulated plant) and returns the virtual board's --pace arguments; [] when V was given,
     None (after printing why) when pacing is refused."""
-    from ..pacing import frame_period_us, paced_exc
+    from ..fit.pacing import frame_period_us, paced_exc
 
     if len(args.exc.split(":")) == 5:
         return []
@@ -130,32 +128,11 @@ def cmd_run_insitu(args) -> int:
 
 
 def _run_insitu(link, args) -> int:
-    """`playscope run-insitu` on an open link (the work: device/insitu.py). Returns the exit status."""
-    import numpy as np
+    """`playscope run-insitu` on an open link (the work: pipeline.run_insitu). Returns the exit status."""
+    from ..base.errors import InputError
+    from ..pipeline import InsituSource, run_insitu
 
-    from ..atomic import write_bytes_atomic, write_text_atomic
-    from ..device.flash import flash
-    from ..device.insitu import (VideoSource, calibrate_run, exc_duration_s, read_geometry, run_loop,
-                                 session_of, write_samples_csv)
-    from ..errors import InputError
-    from ..session import write_session
-    from ..tables import build_table
-
-    out = Path(args.out) if args.out else None
-    if out:
-        out.mkdir(parents=True, exist_ok=True)
-    plant = None
-    if args.sim_plant:
-        from ..sim.plant import SimPlant, SimPlantConfig
-
-        plant = SimPlant(SimPlantConfig(seed=args.seed, time_scale=args.time_scale, exc=args.exc))
-        source = plant
-        sim = plant.sim
-        robot, camera, hand_eye, t_delay = sim.robot(), sim.camera(), sim.hand_eye(), sim.t_delay_s
-        total = exc_duration_s(args.exc)
-        print(f"SIMULATION: --sim-plant renders a simulated instrument (simulator preset 'ideal') "
-              f"from the board's encoder stream; board clock x{args.time_scale:g}", file=sys.stderr)
-    else:
+    if not args.sim_plant:
         if args.video is None:
             print("playscope: run-insitu needs --video FILE, a camera index, or --sim-plant", file=sys.stderr)
             return 2
@@ -163,57 +140,39 @@ def _run_insitu(link, args) -> int:
             print("playscope: run-insitu needs --geometry session.json (robot, camera, hand-eye) to fit f",
                   file=sys.stderr)
             return 2
-        robot, camera, hand_eye, t_delay = read_geometry(args.geometry)
-        try:
-            source = VideoSource(args.video)
-        except OSError as e:
-            print(f"playscope: {e}", file=sys.stderr)
-            return 2
-        total = None
-    bar = progress(total=total, unit="s", desc="board time", bar_format=None if total else "{desc}: {n:.1f} s {postfix}")
+    src = InsituSource(video=args.video, geometry=args.geometry, sim_plant=args.sim_plant, seed=args.seed,
+                       time_scale=args.time_scale, exc=args.exc)
+    if args.sim_plant:
+        print(f"SIMULATION: --sim-plant renders a simulated instrument (simulator preset 'ideal') "
+              f"from the board's encoder stream; board clock x{args.time_scale:g}", file=sys.stderr)
+    bars = []
+
+    def bar_at(board_s: float, n: int, total: float | None) -> None:
+        if not bars:
+            bars.append(progress(total=total, unit="s", desc="board time",
+                                 bar_format=None if total else "{desc}: {n:.1f} s {postfix}"))
+        _bar(bars[0], board_s, n)
+
+    def ran(line: str) -> None:  # the run ended: close the bar, then its summary line
+        if bars:
+            bars[0].close()
+        print(line)
+
     try:
-        run = run_loop(link, source, args.seconds, progress=lambda s, n: _bar(bar, s, n))
-    finally:
-        bar.close()
-        if not plant:
-            source.close()
-    valid = run.valid()
-    print(f"{run.ended}: {run.board_s:.1f} s board time in {run.wall_s:.1f} s, {len(run.mk_t_s)} frames, "
-          f"{len(run.samples)} B samples from the board ({len(valid)} valid)")
-    s = session_of(run, robot, camera, hand_eye, t_delay)
-    if out:
-        write_samples_csv(out / "b_samples.csv", run.samples)
-        write_session(s, out / "session", overwrite=True)  # guarded: an existing one needs --force
-    try:
-        cal = calibrate_run(run, s, args.control_points)
-    except InputError as e:
+        res = run_insitu(link, src, args.seconds, args.control_points, args.out, flash_after=not args.no_flash,
+                         n_vectors=args.vectors, progress=bar_at, ran=ran)
+    except OSError as e:
+        print(f"playscope: {e}", file=sys.stderr)
+        return 2
+    except (InputError, RuntimeError) as e:  # the fit refused the run, or the flash failed
         print(f"playscope: run-insitu: {e}", file=sys.stderr)
         return 1
-    q_min, q_max = cal.q_range
-    tab = build_table(cal.B_model, cal.f, q_min, q_max, "mm", "remain", 1, transition=cal.transition)
-    result = {"board_s": run.board_s, "wall_s": run.wall_s, "frames": len(run.mk_t_s),
-              "b_samples": len(run.samples), "b_valid": len(valid), "q_range": [q_min, q_max]}
-    if plant:
-        g = np.linspace(q_min + 0.3, q_max - 0.3, 101)
-        e = np.abs(cal.B(g) - plant.truth_B(g))
-        qm = np.array([x["q_mean"] for x in valid])
-        eb = np.abs(np.array([x["b"] for x in valid]) - plant.truth_B(qm)) if valid else np.zeros(1)
-        result["sim_B_err_mm"] = {"mean": float(e.mean()), "max": float(e.max()),
-                                  "samples_mean": float(eb.mean()), "samples_max": float(eb.max())}
-        print(f"SIMULATION truth: |B_fit - B_true| mean {e.mean():.3f} mm, max {e.max():.3f} mm over "
-              f"q in [{g[0]:.2f}, {g[-1]:.2f}]; board samples mean {eb.mean():.3f} mm")
-    if out:
-        cal.save(out / "calibration.json")
-        write_bytes_atomic(out / "table.bin", tab.blob)
-    if not args.no_flash:
-        try:
-            result["flash"] = flash(link, tab.blob, args.vectors)
-        except (RuntimeError, ValueError) as e:
-            print(f"playscope: run-insitu: flash failed: {e}", file=sys.stderr)
-            return 1
-    if out:
-        write_text_atomic(out / "result.json", json.dumps(result, indent=1) + "\n")
-    dump_json(args.json, result)
+    finally:
+        if bars:
+            bars[0].close()
+    if res.sim_line():
+        print(res.sim_line())
+    dump_json(args.json, res.to_json())
     return 0
 
 
@@ -224,12 +183,12 @@ def _bar(bar, board_s: float, n: int) -> None:
 
 
 def add_parser(subparsers) -> None:
-    from .. import argtypes as T
+    from . import argtypes as T
 
     p = add_command(subparsers, "flash", "upload a table, commit, read back and check bit for bit",
                     "Upload a table blob to a board with generation = active + 1, commit it, read it back, "
                     "then run test steps through the board's compensator and compare them bit for bit with "
-                    "the host's run of the same C (device/flash.py).",
+                    "the host's run of the same C (board/flash.py).",
                     examples=["playscope flash builtin --device virtual --flash-file board.flash",
                               "playscope flash d21.pstb --device virtual --flash-file board.flash --vectors 500"])
     p.add_argument("table", help="table blob (from `playscope tables`), or 'builtin' for the built-in test table "
@@ -255,7 +214,7 @@ def add_parser(subparsers) -> None:
                     "The paper's in-situ procedure (section III) on a board: the board runs its excitation and "
                     "streams its encoder, frames come from a camera or a video (or a SIMULATED instrument with "
                     "--sim-plant), the board's onset detector answers B samples, the host fits B(q) and f_remain, "
-                    "writes the tables and flashes them (device/insitu.py).",
+                    "writes the tables and flashes them (pipeline.run_insitu, board/insitu_run.py).",
                     examples=["playscope run-insitu --device virtual --sim-plant -o run --json run/result.json",
                               "playscope run-insitu --device qemu --video 0 --geometry sessions/s1/session.json -o run"])
     p.add_argument("--video", help="video file or camera index for OpenCV VideoCapture")

@@ -26,7 +26,7 @@ library (docs/diagnosis.md).
 
 
 def add_parser(sub) -> None:
-    from .. import argtypes  # range-checked values
+    from . import argtypes  # range-checked values
 
     p = add_command(sub, "diagnose", "sim-to-real gap: held-out gap, localisation, attribution to library effects", DESCRIPTION,
                     examples=["playscope diagnose sessions/d21 --html diag.html --json diag.json",
@@ -34,7 +34,7 @@ def add_parser(sub) -> None:
                               "playscope diagnose --selftest --workers 2"])
     p.add_argument("sessions", nargs="*", help="session folders (playscope-session/1)")
     p.add_argument("--catheter", metavar="FILE", nargs="+", default=[],
-                   help="catheter CSV recordings (data_2_*.txt) read in place through playscope.importer")
+                   help="catheter CSV recordings (data_2_*.txt) read in place through playscope.io.importer")
     p.add_argument("--test", metavar="SESSION", help="separate test record (the paper's test motion): the calibration "
                    "record is split fit / validation, this record only judges (one calibration session)")
     p.add_argument("--test-catheter", metavar="FILE", help="as --test, a catheter CSV")
@@ -49,10 +49,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from ..diagnose.run import clean, diagnose_data
-    from .common import dump_json
-    from ..session import load_session
-    from ..diagnose.fitmodel import from_session
+    from .common import dump_json, warn
 
     if args.selftest:
         from ..diagnose import selftest
@@ -62,61 +59,26 @@ def run(args) -> int:
         print(selftest.format_report(sc))
         dump_json(args.json, {"selftest": sc})
         return 0
-    from .common import load_session_noted  # prints what loading repaired
+    from ..pipeline import diagnose_records
 
-    items = [(str(s), lambda s=s: load_session_noted(s)) for s in args.sessions]
-    if args.catheter:
-        from ..importer import import_catheter
-        items += [(Path(f).stem, lambda f=f: import_catheter(f)) for f in args.catheter]
-    if not items:
+    records = [(str(s), s, "session") for s in args.sessions]
+    records += [(Path(f).stem, f, "catheter") for f in args.catheter or ()]
+    if not records:
         print("playscope diagnose: give session folders, --catheter files, or --selftest", file=sys.stderr)
         return 2
     if not 0.2 <= args.split <= 0.9:
         print(f"playscope diagnose: --split {args.split} outside [0.2, 0.9]", file=sys.stderr)
         return 2
-    test_data = None
+    test = None
     if args.test or args.test_catheter:
-        if len(items) != 1:
+        if len(records) != 1:
             print("playscope diagnose: --test takes exactly one calibration record", file=sys.stderr)
             return 2
-        if args.test:
-            test_data = from_session(load_session(args.test))
-        else:
-            from ..importer import import_catheter
-            test_data = from_session(import_catheter(args.test_catheter))
-    out, figs_all = {}, []
-    for name, load in items:
-        session = load()
-        data = from_session(session)
-        res = diagnose_data(data, args.split, session=session, test_data=test_data)
-        data = res.pop("_data")
-        r, t = res["final"], res["test"]
-        where = "separate test record" if t["separate_record"] else "test part"
-        print(f"{name}: noise floor {res['noise_floor_deg']:.3f} deg ({res['noise_method']}); split {res['split']['method']}; "
-              f"validation RMSE {res['base']['rmse_heldout_deg']:.3f} -> {r['rmse_heldout_deg']:.3f} deg; "
-              f"{where} {t['rmse_base_deg']:.3f} -> {t['rmse_final_deg']:.3f} deg; verdict {res['verdict']}")
-        if res.get("hint"):
-            print(f"  closest library effect (a hint, not a verdict): {res['hint']['effect']} -- {res['hint']['why']}")
-        for n in res["record_notes"]:
-            print(f"  warning: {n}")
-        for k in res["kept"]:
-            ps = ", ".join(f"{n.split('.', 1)[1]}={v[0]:.3g}±{v[1]:.2g}" for n, v in k["params"].items())
-            ind = f"; cannot tell apart from {', '.join(k['indistinguishable_from'])}" if k["indistinguishable_from"] else ""
-            ab = "".join(f"; {n} at its {b} bound" for n, b in k.get("at_bounds", {}).items())
-            print(f"  + {k['effect']} ({ps}): {k['rmse_before_deg']:.3f} -> {k['rmse_after_deg']:.3f} deg, "
-                  f"{100 * k['share_of_excess_removed']:.0f} % of the excess over the noise floor{ind}{ab}")
-        for g in res.get("geometry", {}).get("screen", []):
-            if g["kept"]:
-                print(f"  + {g['effect']} ({g['param']}={g['value']:.3g}): path residual "
-                      f"{res['geometry']['base_px']['heldout']:.3f} -> {g['heldout_px']:.3f} px (held out)")
-        if args.html:
-            from ..diagnose.report import figures
-            figs_all += [(f"{name}: {t}", img) for t, img in figures(data, res, res["atlas_before"], res["atlas_after"])]
-        res.pop("_models", None)
-        out[name] = clean(res)
-    dump_json(args.json, {"sessions": out})
-    if args.html:
-        from ..atomic import write_text_atomic
-        from ..diagnose.report import html_page
-        write_text_atomic(args.html, html_page("playscope diagnose", out, figs_all))
+        test = (args.test, "session") if args.test else (args.test_catheter, "catheter")
+    res = diagnose_records(records, args.split, test, args.html)
+    warn(res.warnings)
+    for name in res.records:
+        for line in res.lines[name]:
+            print(line)
+    dump_json(args.json, res.to_json())
     return 0

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .. import argtypes as T
+from . import argtypes as T
 from ..pipeline import evaluate_session
 from .common import add_command, add_json_arg, emit
 
@@ -19,7 +19,8 @@ model when the session records it.
 def add_parser(sub) -> None:
     p = add_command(sub, "evaluate", "prediction (Table I) and compensation errors on a test session", DESCRIPTION,
                     examples=["playscope evaluate sim_test cal.json --json eval.json"])
-    p.add_argument("session", help="test session folder (not the one calibrated on, for a fair test)")
+    p.add_argument("session", help="test session folder, or a recording file read in place (not the one "
+                   "calibrated on, for a fair test)")
     p.add_argument("calibration", help="calibration JSON from `playscope calibrate`")
     p.add_argument("--table", type=T.existing_file, help="table blob from `playscope tables` for the fixed-point rows "
                    "(default: built from the calibration)")

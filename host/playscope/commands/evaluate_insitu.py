@@ -1,9 +1,9 @@
 """`playscope evaluate-insitu`: one session split in time, every model fitted on the part before
-and scored on the part after, state carried from the record's start (playscope.insitu)."""
+and scored on the part after, state carried from the record's start (playscope.evaluate.insitu_split)."""
 
 from __future__ import annotations
 
-from ..insitu import JSON_KEYS, evaluate_insitu, format_insitu
+from ..evaluate.insitu_split import JSON_KEYS
 from .common import add_command, add_json_arg, dump_json, load_session_noted, progress
 
 
@@ -18,7 +18,7 @@ been running all along) and is scored on the part after the split: bending-angle
 
 
 def add_parser(sub) -> None:
-    from .. import argtypes
+    from . import argtypes
 
     p = add_command(sub, "evaluate-insitu", "in-situ RMSE of every model on one session split in time", DESCRIPTION,
                     examples=["playscope evaluate-insitu sessions/d21 --split 0.5 --json insitu.json",
@@ -34,17 +34,10 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    from pathlib import Path
+    from ..pipeline import evaluate_insitu_record
 
-    if Path(a.session).is_file():  # a foreign recording, read without an import step
-        from ..transfer import read_record
-
-        s = read_record(a.session)
-        for note in s.notes:
-            print(f"note: {note}")
-    else:
-        s = load_session_noted(a.session)
-    doc = evaluate_insitu(s, a.split, progress=progress, source=a.session)
-    print(format_insitu(doc))
-    dump_json(a.json, doc)
+    s = load_session_noted(a.session)  # its repairs as warnings, before the long run
+    res = evaluate_insitu_record(a.session, a.split, progress=progress, loaded=s)
+    print(res.text())
+    dump_json(a.json, res.to_json())
     return 0

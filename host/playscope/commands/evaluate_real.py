@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from ..realeval import evaluate_real, evaluate_real_reimaged, format_tables
 from .common import add_command, add_json_arg, dump_json, progress
 
 
@@ -36,17 +35,9 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    if a.online:
-        from ..online import evaluate_real_online, format_online
+    from ..pipeline import evaluate_real_data
 
-        res = evaluate_real_online(a.folder, progress=lambda it, **kw: progress(it, **kw))
-        print(format_online(res))
-        dump_json(a.json, res)
-        return 0
-    if a.reimage:
-        res = evaluate_real_reimaged(a.folder, a.reimage, progress=lambda it, **kw: progress(it, **kw))
-    else:
-        res = evaluate_real(a.folder, progress=lambda it, **kw: progress(it, **kw))
-    print(format_tables(res))
-    dump_json(a.json, res)
+    res = evaluate_real_data(a.folder, a.reimage, a.online, progress=lambda it, **kw: progress(it, **kw))
+    print(res.text)
+    dump_json(a.json, res.to_json())
     return 0

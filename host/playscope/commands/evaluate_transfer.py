@@ -1,10 +1,10 @@
 """`playscope evaluate-transfer`: a calibration made on one record run on others (another session
-or sheath configuration), with and without each on-line update (playscope.transfer)."""
+or sheath configuration), with and without each on-line update (playscope.evaluate.transfer)."""
 
 from __future__ import annotations
 
-from ..argtypes import file_path, float_range
-from ..transfer import JSON_KEYS, WARMUP, evaluate_transfer, format_transfer, plot_transfer
+from .argtypes import file_path, float_range
+from ..evaluate.transfer import JSON_KEYS, WARMUP
 from .common import add_command, add_json_arg, dump_json, progress
 
 DESCRIPTION = f"""\
@@ -35,9 +35,9 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    doc = evaluate_transfer(a.cal, a.sessions, a.warmup, a.refresh, progress=progress)
-    print(format_transfer(doc))
-    if a.plot:
-        plot_transfer(doc, a.plot)
-    dump_json(a.json, doc)
+    from ..pipeline import transfer_records
+
+    res = transfer_records(a.cal, a.sessions, a.warmup, a.refresh, a.plot, progress=progress)
+    print(res.text)
+    dump_json(a.json, res.to_json())
     return 0

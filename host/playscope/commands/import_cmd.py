@@ -6,10 +6,9 @@ import argparse
 import math
 import sys
 
-from .. import argtypes as T
-from ..errors import InputError
-from ..importer import CATHETER, import_csv
-from ..session import write_session
+from . import argtypes as T
+from ..base.errors import InputError
+from ..io.importer import CATHETER
 from .common import warn, add_json_arg, dump_json
 
 EPILOG = """\
@@ -83,9 +82,9 @@ def add_parser(sub) -> None:
 
 
 def run(a) -> int:
-    from ..rosbag import import_bag, is_bag, write_bag_session
+    from ..io.rosbag import is_bag
+    from ..pipeline import import_recording
 
-    notes = []
     if is_bag(a.source):
         if not a.q_topic:
             print("playscope: error: a bag needs --q-topic (and --c-topic or --image-topic)", file=sys.stderr)
@@ -96,32 +95,27 @@ def run(a) -> int:
         if csv_only:
             raise InputError(a.source, f"{', '.join(csv_only)}: CSV options, and this is a ROS bag (give topics: "
                              "--q-topic, --c-topic, --image-topic)")
+        bag = dict(q=a.q_topic, c=a.c_topic, image=a.image_topic, geometry=a.geometry,
+                   unit=a.unit, q_scale=a.q_scale, c_scale=a.c_scale, q_per_rad=q_per_rad, t_delay_s=a.t_delay)
         try:
-            s, report, frames = import_bag(a.source, a.q_topic, a.c_topic, a.image_topic, a.geometry, a.unit,
-                                           a.q_scale, a.c_scale, q_per_rad, a.t_delay)
+            res = import_recording(a.source, a.out, bag=bag, q_source=a.q_source, overwrite=a.force)
         except ValueError as e:
             if isinstance(e, InputError):
                 raise
             print(f"playscope: error: {e}", file=sys.stderr)
             return 2
-        s.q_source = a.q_source
-        notes = report.lines()
-        for line in notes:
+        for line in res.notes:
             print(f"{a.source}: {line}", file=sys.stderr)
-        write_bag_session(s, frames, a.out, overwrite=a.force)
     else:
         bag_only = [o for o, v in (("--q-topic", a.q_topic), ("--c-topic", a.c_topic),
                                    ("--image-topic", a.image_topic), ("--geometry", a.geometry)) if v]
         if bag_only:
             raise InputError(a.source, f"{', '.join(bag_only)}: ROS bag options, and this is a CSV (use --t-col, "
                              "--q-col, --c-col)")
-        s = import_csv(a.source, a.t_col, a.q_col, a.c_col, a.time_scale, a.q_scale, a.unit, a.q_per_rad,
-                       c_scale=a.c_scale, t_delay_s=a.t_delay, q_source=a.q_source)
-        notes = list(s.notes)
-        warn(notes)
-        write_session(s, a.out, overwrite=a.force)
-    t = s.encoder["t_s"]
-    print(f"{a.out}: {t.size} rows, {t[-1] - t[0]:.1f} s")
-    dump_json(a.json, {"session": str(a.out), "rows": int(t.size), "t_span_s": float(t[-1] - t[0]),
-                       "streams": notes})
+        csv = dict(t_col=a.t_col, q_col=a.q_col, c_col=a.c_col, time_scale=a.time_scale, q_scale=a.q_scale,
+                   unit=a.unit, q_per_rad=a.q_per_rad, c_scale=a.c_scale, t_delay_s=a.t_delay, q_source=a.q_source)
+        res = import_recording(a.source, a.out, csv=csv, overwrite=a.force)
+        warn(res.notes)
+    print(res.line())
+    dump_json(a.json, res.to_json())
     return 0

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .. import argtypes as T
+from . import argtypes as T
 from ..pipeline import write_report_file
 from .common import add_command, add_json_arg, emit
 

@@ -18,7 +18,7 @@ camera, and write a session folder (docs/simulator.md).
 
 
 def add_parser(sub) -> None:
-    from .. import argtypes  # range-checked values
+    from . import argtypes  # range-checked values
 
     from ..sim.core import PRESETS
     from ..sim.effects import EFFECTS

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .. import argtypes as T
+from . import argtypes as T
 from ..pipeline import write_tables
 from .common import add_command, add_json_arg, emit
 
@@ -20,7 +20,7 @@ the board's loader would.
 def _entries(text: str) -> int:
     """--entries: an integer within the loader's limits, read from the C when the option is
     given (so `playscope tables --help` does not compile the core)."""
-    from .. import native
+    from ..base import native
 
     return T.int_range(native.MIN_ENTRIES, native.MAX_ENTRIES)(text)
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import sys
 
-from .. import argtypes as T
-from ..errors import InputError
+from . import argtypes as T
+from ..base.errors import InputError
 from ..pipeline import track_session
-from ..track import HUE_PRESETS, TrackConfig
+from ..io.marker_track import HUE_PRESETS, TrackConfig
 from .common import add_command, add_json_arg, emit, progress
 
 

@@ -408,7 +408,7 @@ def stick_slip_signature(data: Data, fit: Fit, mask: np.ndarray, skew_min: float
     g = float(skew(dr[ok]))
     thr = max(skew_min, 3.0 * np.sqrt(6.0 / n))
     # time since the fitted c last changed direction (held_direction of the prediction)
-    from ..model import held_direction
+    from ..fit.model import held_direction
     sd = held_direction(fit.pred, 1e-9 * max(float(np.ptp(fit.pred)), 1e-12))
     change = np.r_[True, np.diff(sd) != 0]
     last = np.maximum.accumulate(np.where(change, np.arange(sd.size), 0))

@@ -22,7 +22,7 @@ from scipy.interpolate import BSpline, CubicSpline
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
-from ..model import play_on_edges
+from ..fit.model import play_on_edges
 from . import kernels
 
 N_KNOTS = 9
@@ -49,7 +49,7 @@ NONLIN = {
                    ("log_fn", np.log(20.0), np.log(8.0), np.log(60.0)), ("zeta", 0.5, 0.05, 1.0)],
     "cable_elongation": [("kappa", 0.3, 0.0, 0.95), ("log_tau", 0.0, np.log(0.05), np.log(10.0))],
     # The same creep over the travel instead of time (rate-independent, Dahl / Duhem type;
-    # playscope.relax): the carrier relaxes towards the play output over a travel lambda (q
+    # playscope.fit.relax): the carrier relaxes towards the play output over a travel lambda (q
     # units; log, bounds from the q span in Model), kappa of it creeping. A lag whose fitted tau
     # scales with each record's period is this effect; kept apart from cable_elongation so
     # records at several speeds tell them apart (tau moves with speed, lambda does not).
@@ -305,7 +305,7 @@ def _bspline_dense(x: np.ndarray, t: np.ndarray, k: int) -> np.ndarray:
 
 
 def _direction(z: np.ndarray) -> np.ndarray:
-    from ..model import held_direction
+    from ..fit.model import held_direction
 
     return held_direction(z, 1e-12)
 
@@ -445,7 +445,7 @@ class Model:
         Bg = np.maximum(CubicSpline(self.kn, Bk, bc_type="natural")(np.clip(self.zg, self.kn[0], self.kn[-1])), 0.0)
         zs = []
         for r in widths:
-            # Band edges as in playscope.model (z + B(z)/2 = q going up, z - B(z)/2 = q going
+            # Band edges as in playscope.fit.model (z + B(z)/2 = q going up, z - B(z)/2 = q going
             # down), inverted on the z grid by np.interp (z + B(z)/2 is increasing for |B'| < 2).
             zu = np.interp(q - vh, *self._edge(self.zg, (1 + alpha) * r * Bg / 2))
             zd = np.interp(q + vh, *self._edge(self.zg, -(1 - alpha) * r * Bg / 2))
@@ -464,8 +464,8 @@ class Model:
                                  self._get(theta, "stick_slip", "zeta"))
         if "travel_relaxation" in self.effects:
             # After the play and the carrier, before the distal band and f_remain: where the
-            # product's board runs it (c = f(R[y]), playscope.relax).
-            from ..relax import Relaxation
+            # product's board runs it (c = f(R[y]), playscope.fit.relax).
+            from ..fit.relax import Relaxation
             z = Relaxation(self._get(theta, "travel_relaxation", "kappa"),
                            float(np.exp(self._get(theta, "travel_relaxation", "log_lambda_q")))).direct(z)
         return z, sdir
@@ -692,7 +692,7 @@ def from_session(session, max_rate_hz: float = 50.0) -> Data:
     """Reduce a playscope Session to Data: c measured (angle) or estimated per frame (eq. 8 with
     the nominal camera and hand-eye, started from f_coarse(q)). Angle records faster than
     max_rate_hz are block-averaged down (the fit needs shape, not rate)."""
-    from ..model import ImageModel, f_coarse
+    from ..fit.model import ImageModel, f_coarse
 
     enc = session.encoder
     t, q = enc["t_s"], enc["q"]

@@ -14,7 +14,7 @@ from scipy.optimize import minimize_scalar
 
 from scipy.integrate import cumulative_trapezoid
 
-from .. import model as M
+from ..fit import model as M
 
 GEOM = {"lens_distortion": ("dk1", (-0.5, 0.5)), "nonconstant_curvature": ("gamma", (-0.9, 0.9))}
 

@@ -1,11 +1,11 @@
 """The diagnosis' sequential kernels in C (kernels.c), loaded through cffi like the firmware core
-(playscope.native): compiled on first use into $PLAYSCOPE_CACHE/diagkernels-<hash of the C, the
+(playscope.base.native): compiled on first use into $PLAYSCOPE_CACHE/diagkernels-<hash of the C, the
 header and this file>, so an edit rebuilds it and a stale build is never loaded.
 
 Why: the play operator, the viscous play, the registration switch and the Karnopp carrier are
 recursions over time that numpy cannot vectorise; in Python they took about half of a diagnosis'
 time (cProfile of a 275-s record, docs/diagnosis.md section 5). The C is a line-for-line
-translation of the Python references in fitmodel.py and model.py and agrees with them bit for
+translation of the Python references in fitmodel.py and fit/model.py and agrees with them bit for
 bit (tests/python/sim/test_diagnose_kernels.py). When no C compiler is available the callers
 fall back to the Python references (``available()`` is False; the same results, slower).
 
@@ -68,7 +68,7 @@ def _load():
     with _lock:
         if _lib is not None or _failed:
             return _lib
-        from ..native import cache_root, load_extension
+        from ..base.native import cache_root, load_extension
         try:
             _lib = load_extension(cache_root() / f"diagkernels-{_fingerprint()}", MODULE, _build)
         except Exception as e:  # no compiler, no cffi, unwritable cache: the Python references run

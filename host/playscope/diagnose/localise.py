@@ -3,7 +3,7 @@ the last reversal and by direction, by q and c, by speed, over wall-clock time, 
 (image sessions), plus the spectrum and the cross-correlation with the distal (image) velocity.
 
 Every breakdown is binned RMS of the residual (deg) with the bin centres, so the JSON carries the
-residual atlas and report.py draws it.
+residual atlas and diagnosis_report.py draws it.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import correlate, welch
 
-from ..model import held_direction
+from ..fit.model import held_direction
 from .fitmodel import Data
 
 

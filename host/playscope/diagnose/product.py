@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..calibration import calibrate
-from ..session import Session
-from ..tables import TableError, build_table
+from ..fit.calibration import calibrate
+from ..io.session import Session
+from ..fit.table_build import TableError, build_table
 
 
 def _until(s: Session, t_end: float) -> Session:

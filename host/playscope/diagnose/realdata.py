@@ -50,7 +50,7 @@ PRODUCT_RMSE = _product
 
 
 def _session(path):
-    from ..importer import import_catheter
+    from ..io.importer import import_catheter
     return import_catheter(path)
 
 

@@ -47,3 +47,29 @@ def diagnose_data(data, split: float = 0.5, progress=None, session=None, test_da
     res["_eval_mask"] = sp.val
     res["_data"] = data
     return res
+
+
+def summary_lines(name: str, res: dict) -> list[str]:
+    """What `playscope diagnose` prints for one record's diagnosis (res: diagnose_data's dict):
+    the noise floor, validation and test RMSE and verdict, the closest library effect, the
+    record's warnings, each kept effect with its share of the excess, kept geometry effects."""
+    r, t = res["final"], res["test"]
+    where = "separate test record" if t["separate_record"] else "test part"
+    out = [f"{name}: noise floor {res['noise_floor_deg']:.3f} deg ({res['noise_method']}); split {res['split']['method']}; "
+           f"validation RMSE {res['base']['rmse_heldout_deg']:.3f} -> {r['rmse_heldout_deg']:.3f} deg; "
+           f"{where} {t['rmse_base_deg']:.3f} -> {t['rmse_final_deg']:.3f} deg; verdict {res['verdict']}"]
+    if res.get("hint"):
+        out.append(f"  closest library effect (a hint, not a verdict): {res['hint']['effect']} -- {res['hint']['why']}")
+    for n in res["record_notes"]:
+        out.append(f"  warning: {n}")
+    for k in res["kept"]:
+        ps = ", ".join(f"{n.split('.', 1)[1]}={v[0]:.3g}±{v[1]:.2g}" for n, v in k["params"].items())
+        ind = f"; cannot tell apart from {', '.join(k['indistinguishable_from'])}" if k["indistinguishable_from"] else ""
+        ab = "".join(f"; {n} at its {b} bound" for n, b in k.get("at_bounds", {}).items())
+        out.append(f"  + {k['effect']} ({ps}): {k['rmse_before_deg']:.3f} -> {k['rmse_after_deg']:.3f} deg, "
+                   f"{100 * k['share_of_excess_removed']:.0f} % of the excess over the noise floor{ind}{ab}")
+    for g in res.get("geometry", {}).get("screen", []):
+        if g["kept"]:
+            out.append(f"  + {g['effect']} ({g['param']}={g['value']:.3g}): path residual "
+                       f"{res['geometry']['base_px']['heldout']:.3f} -> {g['heldout_px']:.3f} px (held out)")
+    return out

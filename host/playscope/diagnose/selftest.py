@@ -28,7 +28,7 @@ from scipy.stats import binomtest
 
 from ..sim.withheld.oracle import effect_free_fit, identifiable
 from ..sim.withheld.recover import recoverable
-from ..sim.withheld.plant import perturbed, record
+from ..sim.withheld.hidden_plant import perturbed, record
 from ..sim.withheld.variants import OUT_OF_LIBRARY, VARIANTS
 from .attribute import attribute
 from .fitmodel import C_LIBRARY, from_session

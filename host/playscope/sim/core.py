@@ -1,6 +1,6 @@
 """Simulator core: robot (play of width B(q) then f_remain, eqs. 2-3, constant curvature g),
 effects of playscope.sim.effects, camera (pinhole + distortion, hand-eye, delay, noise), and the
-session it writes (playscope.session format, with truth.csv).
+session it writes (playscope.io.session format, with truth.csv).
 
 Units: q in mm of cable, c in deg, t in s, lengths in mm, image in px.
 """
@@ -15,8 +15,8 @@ import numpy as np
 from scipy.integrate import simpson
 from scipy.signal import lfilter
 
-from .. import model as M
-from ..session import Camera, HandEye, Robot, Session
+from ..fit import model as M
+from ..io.session import Camera, HandEye, Robot, Session
 from . import trajectories as T
 from .effects import EFFECTS, EffectSet
 
@@ -65,7 +65,7 @@ class SimConfig:
     def from_json(cls, d: dict) -> "SimConfig":
         return cls(**copy.deepcopy(d))
 
-    # Model pieces as callables (playscope.model convention: arrays in, arrays out).
+    # Model pieces as callables (playscope.fit.model convention: arrays in, arrays out).
     def B_fn(self):
         b = self.B
         return lambda q: b["base"] + b["peak"] * np.exp(-((np.asarray(q, float) - b["centre"]) / b["sigma"]) ** 2)
@@ -133,9 +133,9 @@ def play_range(cfg: SimConfig) -> tuple[float, float]:
 
 def paced_speed(cfg: SimConfig) -> float:
     """The excitation's default swing speed, actuator units/s: the board's pacing rule
-    (playscope.pacing, firmware/core/exc.h) for cfg.fps and the play range of B(q), so the
+    (playscope.fit.pacing, firmware/core/exc.h) for cfg.fps and the play range of B(q), so the
     smallest play is taken up over EXC_PACE_FRAMES frames. Errors: ValueError from the rule."""
-    from ..pacing import swing_speed
+    from ..fit.pacing import swing_speed
 
     return swing_speed(*play_range(cfg), cfg.fps)
 
@@ -167,7 +167,7 @@ def make_trajectory(cfg: SimConfig) -> dict[str, np.ndarray]:
 
 # --------------------------------------------------------------------------- transmission
 def play_asym(q: np.ndarray, B, alpha: float = 0.0, z0: float | None = None) -> np.ndarray:
-    """Play operator centre z (eq. 3, playscope.model convention) with direction-dependent lag:
+    """Play operator centre z (eq. 3, playscope.fit.model convention) with direction-dependent lag:
     going up z + (1+alpha) B(z)/2 = q, going down z - (1-alpha) B(z)/2 = q. alpha = 0 is
     model.play_operator exactly. q: (N,) mm; returns z (N,) mm."""
     if alpha == 0.0:
@@ -217,7 +217,7 @@ def transmission(cfg: SimConfig, t: np.ndarray, q: np.ndarray, eff: EffectSet,
         z = play_asym(q, B, alpha)
     kr = eff.get("travel_relaxation", "kappa")
     if kr > 0:
-        from ..relax import Relaxation
+        from ..fit.relax import Relaxation
         z = Relaxation(kr, eff.get("travel_relaxation", "lambda_q")).direct(z)
     c = cfg.f_fn()(z)
     w = eff.get("dead_zone", "width_deg")

@@ -102,7 +102,7 @@ _reg(Effect(
     "travel_relaxation", "creep over the travel (rate-independent relaxation)", "play",
     (Param("kappa", "1", 0.0, 0.0, 0.9, (0.3, 0.6)), Param("lambda_q", "mm", 0.5, 0.01, 20.0)),
     "The play output relaxes towards q over a travel lambda_q, kappa of it creeping (Dahl / Duhem "
-    "type, playscope.relax): z' = R[z] before f_remain. Residual: a rounded extra lag of about "
+    "type, playscope.fit.relax): z' = R[z] before f_remain. Residual: a rounded extra lag of about "
     "kappa*lambda against the direction of motion, taken up over a few lambda of travel after each "
     "reversal, the same at every speed (a time-domain lag grows with speed); nothing while q holds.",
 ))

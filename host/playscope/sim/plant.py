@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import model as M
+from ..fit import model as M
 
 
 @dataclass
@@ -42,7 +42,7 @@ class SimPlant:
     def __init__(self, cfg: SimPlantConfig | None = None):
         import cv2
 
-        from .. import model
+        from ..fit import model
         from .core import preset
 
         self.cfg = cfg or SimPlantConfig()
@@ -115,7 +115,7 @@ def excitation_q(exc: str, rate_hz: float = 1000.0) -> tuple[np.ndarray, np.ndar
     """The board's excitation "Q0:Q1:AMP:ADV:V" (mm, mm/s) from its start, computed by the
     firmware's own exc_step (firmware/core/exc.h, through cffi) at rate_hz:
     (t_us (N,) int64 from 0, q (N,) mm). Ends when the trajectory is done."""
-    from ..native import core, from_q16, to_q16
+    from ..base.native import core, from_q16, to_q16
 
     ffi, lib = core()
     q0, q1, amp, adv, v = (float(x) for x in exc.split(":"))
@@ -169,11 +169,14 @@ def render_excitation_video(path, exc: str, cfg: SimPlantConfig | None = None, l
     return {"frames": n_lead + n, "duration_s": (n_lead + n) / fps, "plant": plant}
 
 
+NO_PLANT = ("no plant: the session records no simulator parameters (a real recording); "
+            "run the commands on the robot and track the result instead")
+
+
 def session_plant(s):
     """A plant q(t) -> c(t) deg from the simulator parameters a simulated session records in
     session.json, or (None, reason) for a real recording: what `evaluate` runs its open-loop
     compensation test through. Lives with the simulator so that the product never imports it."""
-    from ..evaluate import NO_PLANT
     from .core import SimConfig, transmission
     from .effects import EffectSet
 

@@ -66,8 +66,8 @@ def _config_overrides(cfg, config_json):
     """cfg with the keys of the JSON object in the file config_json replaced. Errors:
     InputError naming the file for anything but an object of known keys whose values have
     the type of the preset's (a number for a number, an object for an object, ...)."""
-    from ..errors import InputError
-    from ..session import read_json
+    from ..base.errors import InputError
+    from ..io.session import read_json
     from .core import SimConfig
 
     new = read_json(Path(config_json), "SimConfig JSON")
@@ -97,14 +97,14 @@ def _config_overrides(cfg, config_json):
 def reimage(src: str, cfg, seed: int = 0):
     """Session whose marker is the measured tip angle of ``src`` seen by cfg's camera (nominal
     hand-eye, distortion, delay t_delay_s, marker noise). Returns (session, c_frames, t_frames)."""
-    from ..session import Session, load_session
+    from ..io.session import Session, load_session
     from .core import observe_image
 
     p = Path(src)
     if p.is_dir():
         rec = load_session(p)
     else:
-        from ..importer import import_catheter
+        from ..io.importer import import_catheter
         rec = import_catheter(p)
     if rec.distal is None:
         raise ValueError(f"{src}: no measured angle (distal.csv) to re-image")
@@ -150,7 +150,7 @@ def write_simulated(cfg, out, video: bool = False, blind: bool = False, reimage_
     """Simulate cfg (or re-image reimage_src through cfg's camera) into the session folder out,
     with video.avi + frames.csv when video. blind leaves the effect list out of session.json.
     Errors: FileExistsError for an existing folder without overwrite; see reimage()."""
-    from ..session import write_session
+    from ..io.session import write_session
     from .core import observe_image, simulate
     from .effects import EffectSet
 

@@ -1,7 +1,7 @@
 """Rendering of endoscope frames (tracking path) and re-imaging of measured tip angles.
 
 Frames: a reddish mucosa-like texture (low-pass noise), vignetting, a few specular highlights,
-the grey instrument (the projected bending section) and a green tip marker (playscope.track's
+the grey instrument (the projected bending section) and a green tip marker (playscope.io.marker_track's
 default hue). Written with OpenCV's VideoWriter (MJPG .avi) plus frames.csv (frame, t_s).
 """
 
@@ -12,8 +12,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .. import model as M
-from ..session import write_csv
+from ..fit import model as M
+from ..io.session import write_csv
 from .core import SimConfig, rot_y, tip_position
 
 

@@ -94,7 +94,7 @@ def ellipse_task(a_mm: float, b_mm: float, period_s: float, cycles: float, L: fl
     [-120, 120] deg), and the translation DOF is scripted so the tip z follows the ellipse.
     q(t) = f_coarse^-1(c*) (open loop, no compensation). Returns (t, q, c_ref_deg, translation_mm).
     """
-    from ..model import constant_curvature
+    from ..fit.model import constant_curvature
 
     n = int(round(cycles * period_s * rate_hz)) + 1
     t = np.arange(n) / rate_hz

@@ -6,9 +6,9 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from playscope.calibration import calibrate
-from playscope.session import write_session
-from playscope.tables import build_table
+from playscope.fit.calibration import calibrate
+from playscope.io.session import write_session
+from playscope.fit.table_build import build_table
 
 from .synth import angle_session
 
@@ -46,7 +46,7 @@ def copy_good(good: dict[str, Path], dest: Path) -> dict[str, Path]:
 
 def table_damages() -> list:
     """(name, damage(g)) for the table file: one field or byte each (offsets from the C header)."""
-    from playscope.native import core
+    from playscope.base.native import core
 
     ffi, _ = core()
 
@@ -76,7 +76,7 @@ def reseal(blob: bytes, q_range=None, b=None, f=None) -> bytes:
     valid again: a table whose structure is intact and whose physics is whatever was put in."""
     import numpy as np
 
-    from playscope.native import core
+    from playscope.base.native import core
 
     ffi, lib = core()
     out = bytearray(blob)
@@ -102,7 +102,7 @@ def table_nonsense() -> list:
     table (travel [-4, 4] mm, 33 entries of B ~0.3-0.7 mm and f ~+-65 deg, step 0.25 mm)."""
     import numpy as np
 
-    from playscope.native import core
+    from playscope.base.native import core
 
     ffi, _ = core()
     Q = 65536

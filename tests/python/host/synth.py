@@ -1,11 +1,11 @@
-"""Synthetic sessions with a known B(q) and f, built from playscope.model (test helper)."""
+"""Synthetic sessions with a known B(q) and f, built from playscope.fit.model (test helper)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from playscope import model
-from playscope.session import Camera, HandEye, Robot, Session
+from playscope.fit import model
+from playscope.io.session import Camera, HandEye, Robot, Session
 
 ROBOT = Robot("constant_curvature", bend_length_mm=20.0, tip_length_mm=5.0, q_per_rad=3.0)
 

@@ -5,12 +5,14 @@ import json
 import numpy as np
 import pytest
 
-from playscope import estimate as E
-from playscope import model
-from playscope.calibration import Calibration, calibrate
+from playscope.fit.backlash import fit_backlash
+from playscope.fit.baselines import fit_constant_play
+from playscope.fit.reversals import detect_reversals
+from playscope.fit import model
+from playscope.fit.calibration import Calibration, calibrate
 from playscope.cli import main
-from playscope.session import write_session
-from playscope.tables import build_table, table_errors
+from playscope.io.session import write_session
+from playscope.fit.table_build import build_table, table_errors
 
 from .synth import angle_session, true_B, true_f
 
@@ -23,7 +25,7 @@ def synth_cal():
 
 def test_reversals_found_at_extrema():
     t, q, turns = __import__("host.synth", fromlist=["x"]).excitation(rate_hz=200.0)
-    rt, rq, d = E.detect_reversals(t, q, 0.05)
+    rt, rq, d = detect_reversals(t, q, 0.05)
     # Every knot of the ramp is a reversal but the one where the return sweep begins,
     # which continues downwards.
     assert rt.size == turns.size - 1
@@ -50,21 +52,21 @@ def test_spline_is_robust_to_an_outlier():
     x = np.linspace(0, 5, 40)
     y = 0.4 + 0.05 * x + rng.normal(0, 0.005, x.size)
     y[10] = 3.0
-    B, w = E.fit_backlash(x, y)
+    B, w = fit_backlash(x, y)
     assert abs(B(np.array([x[10]]))[0] - (0.4 + 0.05 * x[10])) < 0.03
     assert w[10] < 0.1
 
 
 def test_too_few_samples_is_a_one_line_error():
     with pytest.raises(Exception, match="only 3 valid backlash samples"):
-        E.fit_backlash(np.array([0, 1, 2.0]), np.array([0.1, 0.2, 0.3]), source="x.csv")
+        fit_backlash(np.array([0, 1, 2.0]), np.array([0.1, 0.2, 0.3]), source="x.csv")
 
 
 def test_constant_play_baseline_recovers_width():
     t, q, _ = __import__("host.synth", fromlist=["x"]).excitation(rate_hz=100.0)
     f = lambda z: 3 * z + 0.1 * z**2
     c = model.direct_model(q, model.constant(0.7), f)
-    w, fp, _ = E.fit_constant_play(q, c)
+    w, fp, _ = fit_constant_play(q, c)
     assert w == pytest.approx(0.7, abs=0.01)
 
 
@@ -76,7 +78,7 @@ def test_table_round_trip_and_error_bound(synth_cal):
     assert err["direct_c_deg_max"] < 0.2 and err["comp_q_max"] < 0.02
     bad = bytearray(tab.blob)
     bad[-1] ^= 1
-    from playscope.tables import CalibTable
+    from playscope.fit.table_build import CalibTable
 
     with pytest.raises(Exception, match="CRC"):
         CalibTable(bytes(bad))
@@ -107,8 +109,8 @@ def test_cli_errors_name_file_and_write_nothing(tmp_path, capsys):
 
 
 def test_real_catheter_in_situ_beats_constant_play(real_catheter_dir):
-    from playscope.importer import import_catheter
-    from playscope.realeval import fit_models, rmse
+    from playscope.io.importer import import_catheter
+    from playscope.evaluate.real_eval import fit_models, rmse
 
     s = import_catheter(real_catheter_dir / "data_2_3.txt")
     t = s.encoder["t_s"]

@@ -4,11 +4,11 @@ estimation and B(q)'s stiffness chosen by the model's own cross-validation on c.
 import numpy as np
 import pytest
 
-from playscope import estimate as E
-from playscope import model
-from playscope.calibration import calibrate, pose_with_offset
-from playscope.evaluate import evaluate
-from playscope.session import HandEye
+from playscope.fit.backlash import backlash_alternatives, fit_backlash_auto
+from playscope.fit import model
+from playscope.fit.calibration import calibrate, pose_with_offset
+from playscope.evaluate.prediction import evaluate
+from playscope.io.session import HandEye
 from playscope.sim.core import preset, simulate
 from playscope.sim.plant import session_plant
 
@@ -54,8 +54,8 @@ def test_backlash_alternatives_distinct_stiffest_first():
     qm = np.sort(rng.uniform(-3, 3, 40))
     sig = np.full(qm.size, 0.01)
     b = true_B(qm) + rng.normal(0, 0.02, qm.size)
-    bfit = E.fit_backlash_auto(qm, b, 14, sigma=sig)
-    alts = E.backlash_alternatives(qm, b, bfit, sigma=sig)
+    bfit = fit_backlash_auto(qm, b, 14, sigma=sig)
+    alts = backlash_alternatives(qm, b, bfit, sigma=sig)
     pens = [p for p, _ in alts]
     assert pens == sorted(pens, reverse=True) and len(pens) >= 2
     assert any(f is bfit for _, f in alts)  # the B-sample CV's own pick is kept as it is
@@ -64,8 +64,8 @@ def test_backlash_alternatives_distinct_stiffest_first():
         for j in range(i):
             assert np.max(np.abs(alts[i][1].B(g) - alts[j][1].B(g))) > 0.01
     # A constant B has nothing to choose.
-    c = E.fit_backlash_auto(qm[:3], b[:3], 14)
-    assert E.backlash_alternatives(qm[:3], b[:3], c) == [(c.smooth, c)]
+    c = fit_backlash_auto(qm[:3], b[:3], 14)
+    assert backlash_alternatives(qm[:3], b[:3], c) == [(c.smooth, c)]
 
 
 @pytest.fixture(scope="module")
@@ -96,7 +96,9 @@ def test_b_stiffness_by_the_model_cv(transition_angle_session, monkeypatch):
     # not worse than the B-sample CV's stiffness alone (measured 0.442 against 0.461 deg).
     plant, note = session_plant(test)
     ours = evaluate(cal, test, plant=plant, plant_note=note, comp_duration_s=30.0)
-    monkeypatch.setattr(E, "backlash_alternatives", lambda q, b, bfit, *a, **k: [(bfit.smooth, bfit)])
+    from playscope.fit import calibration as CAL  # the name calibrate calls
+
+    monkeypatch.setattr(CAL, "backlash_alternatives", lambda q, b, bfit, *a, **k: [(bfit.smooth, bfit)])
     alone = evaluate(calibrate(s), test, plant=plant, plant_note=note, comp_duration_s=30.0)
     e_ours = ours.summary["compensation"]["methods"]["f_remain+B+PI"]["c_rmse_deg"]
     e_alone = alone.summary["compensation"]["methods"]["f_remain+B+PI"]["c_rmse_deg"]

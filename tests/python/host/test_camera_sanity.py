@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from playscope.cli import main
-from playscope.errors import InputError
-from playscope.session import Camera, check_camera, load_session, write_session
+from playscope.base.errors import InputError
+from playscope.io.session import Camera, check_camera, load_session, write_session
 
 from .synth import angle_session
 
@@ -81,7 +81,7 @@ def test_bad_K_refused_through_the_cli(K, what, tmp_path, capsys):
 
 
 def test_nan_K_refused():
-    from playscope.session import parse_meta
+    from playscope.io.session import parse_meta
 
     d = {"format": "playscope-session/1", "actuator": {"unit": "mm"}, "distal": {"kind": "angle"},
          "robot": {"model": "constant_curvature", "bend_length_mm": 20, "tip_length_mm": 5, "q_per_rad": 3},

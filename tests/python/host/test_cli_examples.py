@@ -11,7 +11,7 @@ import shlex
 import pytest
 
 from playscope import cli
-from playscope.argtypes import existing_file
+from playscope.commands.argtypes import existing_file
 
 
 
@@ -106,6 +106,10 @@ def test_lazy_parser_names_every_command_with_its_modules_help():
         if isinstance(a, argparse._SubParsersAction):
             full = {c.dest: c.help for c in a._choices_actions}
     assert full == {k: v[1] for k, v in cli.COMMANDS.items()}
+    # ...and every command module is reachable: the parser is built from COMMANDS alone, so a
+    # module listed only in COMMAND_MODULES would be refused as an unknown command.
+    reachable = {m for m, _ in cli.COMMANDS.values()}
+    assert {m for m, _ in cli.COMMAND_MODULES} <= reachable
 
 
 @pytest.mark.parametrize("argv", [["--version"], ["--help"], ["frobnicate"]])

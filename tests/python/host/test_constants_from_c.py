@@ -1,5 +1,5 @@
 """The firmware's constants are written once, in C: the Q16.16 scale, the operator count, the
-loader's limits, the table magic and the USB ids. The host reads them through playscope.native
+loader's limits, the table magic and the USB ids. The host reads them through playscope.base.native
 (``native.Q16_ONE``, ``lib.PST_MAX_ENTRIES``, ...), so a change in the C cannot leave a stale
 Python copy behind. This test scans host/playscope's source text (code, comments and
 docstrings) for literal copies of those values and fails on one outside native.py. The
@@ -13,11 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from playscope import native
+from playscope.base import native
 
 PKG = Path(__file__).resolve().parents[3] / "host" / "playscope"
 # The one module allowed to spell the constants: it declares their names for the C.
-EXEMPT = {"native.py"}
+EXEMPT = {"base/native.py"}
 # Copies still present in modules another branch is editing, as (path under host/playscope,
 # the stripped line). An entry that no longer matches fails test_allowances_are_current, so
 # this list can only shrink.
@@ -71,7 +71,7 @@ def find_copies(root: Path, exempt: set[str] = EXEMPT) -> list[tuple[str, int, s
 
 def test_no_literal_copies_in_the_host_package():
     found = [f for f in find_copies(PKG) if (f[0], f[3]) not in ALLOWED]
-    assert not found, "constants retyped from the C (read them through playscope.native):\n" + "\n".join(
+    assert not found, "constants retyped from the C (read them through playscope.base.native):\n" + "\n".join(
         f"  host/playscope/{p}:{n}: {what}: {line}" for p, n, what, line in found)
 
 
@@ -108,9 +108,10 @@ def test_a_planted_copy_is_found(tmp_path, what):
 
 
 def test_native_is_the_exemption_and_clean_code_passes(tmp_path):
-    (tmp_path / "native.py").write_text("Q16 = 65536\n")
+    (tmp_path / "base").mkdir()
+    (tmp_path / "base" / "native.py").write_text("Q16 = 65536\n")
     (tmp_path / "sub").mkdir()
-    (tmp_path / "sub" / "native.py").write_text("Q16 = 65536\n")  # only the top-level native.py
+    (tmp_path / "sub" / "native.py").write_text("Q16 = 65536\n")  # only base/native.py
     (tmp_path / "ok.py").write_text("from . import native\nx = raw / native.Q16_ONE\n"
                                     "n = 16 << 20  # bytes\nsize = 512\nbuf = sock.recv(4096)\n"
                                     "fw = f'{v >> 16}.{(v >> 8) & 0xFF}'\nm = major << 16\n")
@@ -129,3 +130,22 @@ def test_the_values_come_from_the_c():
     assert re.search(rf"PSU_PID = {native.USB_PID:#06x}\b", usb)
     assert re.search(rf"#define CALIB_DERIVED_MAX {native.CALIB_DERIVED_MAX}\b",
                      (native.CORE / "calib.h").read_text())
+
+
+def test_relaxation_bound_is_the_loaders():
+    # The fit's and the model's kappa bound is the loader's PST_RELAX_KAPPA_MAX_Q16, read from
+    # the header text here (not through the cdef), and judged in the table's Q16.16 steps.
+    import pytest as _pytest
+
+    from playscope.fit import relax
+
+    m = re.search(r"PST_RELAX_KAPPA_MAX_Q16 = (\d+)", (native.COMMON / "ps_table.h").read_text())
+    bound = int(m.group(1))
+    assert relax.kappa_max_q16() == bound
+    assert relax.kappa_max() == bound / native.Q16_ONE
+    relax.Relaxation(relax.kappa_max(), 1.0)  # the bound itself passes
+    relax.Relaxation(0.9, 1.0)                # 0.9 rounds onto it in Q16.16
+    with _pytest.raises(ValueError, match="kappa"):
+        relax.Relaxation((bound + 1) / native.Q16_ONE, 1.0)
+    assert relax.table_fields(relax.Relaxation(relax.kappa_max(), 1.0))[0] == bound
+    assert not re.search(r"^\s*KAPPA_MAX\s*=", (PKG / "fit" / "relax.py").read_text(), re.M)

@@ -1,4 +1,4 @@
-"""`playscope evaluate` and `playscope report` on synthetic sessions with a known truth (playscope.model)."""
+"""`playscope evaluate` and `playscope report` on synthetic sessions with a known truth (playscope.fit.model)."""
 
 import base64
 import json
@@ -8,11 +8,11 @@ from html.parser import HTMLParser
 import numpy as np
 import pytest
 
-from playscope import model
-from playscope.calibration import calibrate
+from playscope.fit import model
+from playscope.fit.calibration import calibrate
 from playscope.cli import main
-from playscope.evaluate import evaluate
-from playscope.session import Session, write_session
+from playscope.evaluate.prediction import evaluate
+from playscope.io.session import Session, write_session
 
 from .synth import ROBOT, excitation, image_model_parts, true_B, true_f
 

@@ -1,4 +1,4 @@
-"""f_remain's stiffness from the calibration frames (estimate.choose_f_ctrl):
+"""f_remain's stiffness from the calibration frames (f_remain.choose_f_ctrl):
 rolling-origin cross-validation over F_CTRL_GRID, fewest control points within one standard
 error. Synthetic frames with a known f; the fold scores are checked against an independent
 spline fit (scipy's make_lsq_spline, no penalty, no monotone constraint: on monotone data the
@@ -7,9 +7,10 @@ constraint is inactive and the 1e-3 penalty moves the fit far less than the nois
 import numpy as np
 from scipy.interpolate import make_lsq_spline
 
-from playscope import estimate as E
-from playscope import model
-from playscope.calibration import calibrate
+from playscope.fit.bspline import clamped_knots
+from playscope.fit.f_remain import F_CTRL_GRID, choose_f_ctrl
+from playscope.fit import model
+from playscope.fit.calibration import calibrate
 
 from .synth import true_B, true_f
 from .test_thin_records import _session
@@ -35,15 +36,15 @@ def _splits(n, k=4):
 
 def test_a_straight_f_gets_the_stiffest_candidate():
     z, c = _frames(lambda z: 4.0 * z - 3.0)
-    cv = E.choose_f_ctrl(z, c, _splits(z.size))
+    cv = choose_f_ctrl(z, c, _splits(z.size))
     assert cv["n_ctrl"] == 4
-    assert [r["n_ctrl"] for r in cv["candidates"]] == list(E.F_CTRL_GRID)
+    assert [r["n_ctrl"] for r in cv["candidates"]] == list(F_CTRL_GRID)
 
 
 def test_a_wavy_f_gets_more_control_points():
     # Monotone (slope 6 +- 3.1) but with three bumps in its slope over the range: a single cubic cannot follow it.
     z, c = _frames(lambda z: 6.0 * z + 0.8 * np.sin(2.0 * np.pi * z / 1.6))
-    cv = E.choose_f_ctrl(z, c, _splits(z.size))
+    cv = choose_f_ctrl(z, c, _splits(z.size))
     rows = {r["n_ctrl"]: r for r in cv["candidates"]}
     assert cv["n_ctrl"] >= 10
     assert rows[4]["cv_rmse_deg"] > 10 * rows[cv["n_ctrl"]]["cv_rmse_deg"]
@@ -58,12 +59,12 @@ def test_fold_scores_match_an_independent_spline_fit():
     f = lambda z: 6.0 * z + 0.8 * np.sin(2.0 * np.pi * z / 1.6)
     z, c = _frames(f, noise=0.05)
     splits = _splits(z.size)
-    cv = E.choose_f_ctrl(z, c, splits, grid=(14,))
+    cv = choose_f_ctrl(z, c, splits, grid=(14,))
     errs = []
     for tr, te in splits:
         lo, hi = z[tr].min(), z[tr].max()
         o = np.argsort(z[tr], kind="stable")
-        spl = make_lsq_spline(z[tr][o], c[tr][o], E.clamped_knots(lo, hi, 14), 3)
+        spl = make_lsq_spline(z[tr][o], c[tr][o], clamped_knots(lo, hi, 14), 3)
         errs.append(np.sqrt(np.mean((spl(np.clip(z[te], lo, hi)) - c[te]) ** 2)))
     ref = float(np.sqrt(np.mean(np.square(errs))))
     # Measured: 0.0500 against 0.0500 (both at the noise); 5 % leaves room for the penalty.
@@ -74,7 +75,7 @@ def test_calibrate_fits_f_remain_with_the_chosen_control_points():
     s = _session()
     cal = calibrate(s, model_kind="play")
     ff = cal.doc["f_fit"]
-    assert ff["n_ctrl"] in E.F_CTRL_GRID and len(ff["candidates"]) >= 3
+    assert ff["n_ctrl"] in F_CTRL_GRID and len(ff["candidates"]) >= 3
     # The written f_remain is a clamped cubic with that many coefficients.
     assert len(cal.doc["f_remain"]["coef"]) == ff["n_ctrl"]
     given = calibrate(s, model_kind="play", f_ctrl=8)

@@ -1,4 +1,4 @@
-"""The image path's onset threshold from the record (estimate.image_onset_settings):
+"""The image path's onset threshold from the record (onset_settings.image_onset_settings):
 k from the false-alarm rate in 2-D (sqrt(ln(n / alpha))), the noise floor measured on still
 segments, at two marker noise levels. Not wired into `calibrate` (docs/robustness.md: on the
 demo's creeping STRAS-like preset it made B worse), so it is tested on its own here."""
@@ -6,9 +6,11 @@ demo's creeping STRAS-like preset it made B worse), so it is tested on its own h
 import numpy as np
 import pytest
 
-from playscope import estimate as E
-from playscope import model
-from playscope.session import Session
+from playscope.fit.onset_settings import _axis_noise, image_onset_settings, onset_noise_k
+from playscope.fit.onsets import OnsetConfig, run_onsets
+from playscope.fit.reversals import detect_reversals
+from playscope.fit import model
+from playscope.io.session import Session
 
 from .synth import ROBOT, excitation, image_model_parts, true_B, true_f
 
@@ -29,10 +31,10 @@ def _image_session(noise_px: float, duration_s: float = 60.0, seed: int = 0) -> 
 
 def _settings(s: Session):
     t, q = s.encoder["t_s"], s.encoder["q"]
-    rt, rq, _ = E.detect_reversals(t, q, 0.01 * np.ptp(q))
+    rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
     t_f, obs = s.observations()
-    over, doc = E.image_onset_settings(t, q, rt, rq, t_f, obs, 0.08, 25.0)
-    on = E.run_onsets(t, q, rt, rq, t_f, obs, "image", E.OnsetConfig(t_delay_s=0.08, fps=25.0, **over))
+    over, doc = image_onset_settings(t, q, rt, rq, t_f, obs, 0.08, 25.0)
+    on = run_onsets(t, q, rt, rq, t_f, obs, "image", OnsetConfig(t_delay_s=0.08, fps=25.0, **over))
     return over, doc, on, rt
 
 
@@ -44,7 +46,7 @@ def test_image_threshold_follows_the_marker_noise(noise_px):
     # figures find it. Measured 0.1026 and 0.100 at 0.05 px.
     assert d["still_noise_px"] / (2 * noise_px) == pytest.approx(1.0, abs=0.1)
     assert d["diff2_noise_px"] / (2 * noise_px) == pytest.approx(1.0, abs=0.1)
-    assert d["noise_k"] == pytest.approx(E.onset_noise_k(d["fps"] * d["stroke_s"], dims=2))
+    assert d["noise_k"] == pytest.approx(onset_noise_k(d["fps"] * d["stroke_s"], dims=2))
     assert over["threshold"] == pytest.approx(d["noise_k"] * min(d["still_noise_px"], d["diff2_noise_px"]))
     assert on.b.size >= 0.8 * rt.size  # the detector with that threshold finds the onsets
 
@@ -63,5 +65,5 @@ def test_a_tracker_that_repeats_its_position_gets_the_rms():
     """Still differences mostly exactly 0 (MAD 0) with rare jitter: the rms counts the jitter."""
     d = np.zeros(200)
     d[::10] = 0.5
-    assert E._axis_noise(d) == pytest.approx(np.sqrt(0.1 * 0.25), rel=1e-12)  # median 0: rms about it
-    assert E._axis_noise(np.random.default_rng(1).normal(0, 0.1, 4000)) == pytest.approx(0.1, rel=0.05)
+    assert _axis_noise(d) == pytest.approx(np.sqrt(0.1 * 0.25), rel=1e-12)  # median 0: rms about it
+    assert _axis_noise(np.random.default_rng(1).normal(0, 0.1, 4000)) == pytest.approx(0.1, rel=0.05)

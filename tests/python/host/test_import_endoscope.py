@@ -4,8 +4,8 @@ CSV, repeated stamps, a leading block of zeros and a logger whose clock stops.""
 import numpy as np
 import pytest
 
-from playscope.errors import InputError
-from playscope.importer import import_endoscope
+from playscope.base.errors import InputError
+from playscope.io.importer import import_endoscope
 
 
 def write(path, t, q, c, c_col=3, ncol=8):

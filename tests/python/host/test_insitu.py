@@ -1,4 +1,4 @@
-"""In-situ evaluation (playscope.insitu) and the textbook peers (playscope.peers).
+"""In-situ evaluation (playscope.evaluate.insitu_split) and the textbook peers (playscope.fit.peers).
 
 The peers are checked on data from generators written here, which share no code with the
 fitters: a per-threshold play loop in plain Python for the generalized PI, and the Bouc-Wen
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from playscope import insitu
-from playscope.peers import BoucWen, GeneralizedPI
+from playscope.evaluate import insitu_split as insitu
+from playscope.fit.peers import BoucWen, GeneralizedPI
 
 from .synth import angle_session
 
@@ -154,8 +154,8 @@ def test_state_carried_equals_full_run_restricted_to_test_part(session, split, r
 
 
 def test_table_rows_run_the_firmware_from_the_record_start(session, split, rows):
-    from playscope.calibration import calibrate
-    from playscope.tables import build_table
+    from playscope.fit.calibration import calibrate
+    from playscope.fit.table_build import build_table
 
     # The row is the auto calibration's B (its stiffness chosen with the model) with the pure
     # play's f_remain, as evaluate_insitu builds it.
@@ -172,7 +172,7 @@ def test_table_rows_run_the_firmware_from_the_record_start(session, split, rows)
 
 @pytest.mark.parametrize("split,msg", [("1.5", "outside (0, 1)"), ("abc", "neither"), ("0.001", "shorter than")])
 def test_bad_split_is_one_line_error(session, split, msg):
-    from playscope.errors import InputError
+    from playscope.base.errors import InputError
 
     with pytest.raises(InputError, match=msg.replace("(", r"\(").replace(")", r"\)")):
         insitu.evaluate_insitu(session, split)
@@ -182,7 +182,7 @@ def test_cli_prints_table_and_writes_documented_json(tmp_path, session):
     import json
 
     from playscope.cli import main
-    from playscope.session import write_session
+    from playscope.io.session import write_session
 
     write_session(session, tmp_path / "s")
     assert main(["evaluate-insitu", str(tmp_path / "s"), "--split", "30s", "--json", str(tmp_path / "o.json")]) == 0

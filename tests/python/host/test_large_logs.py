@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from playscope.session import ENCODER_MAX_HZ, load_session, thin_encoder, write_session
+from playscope.io.session import ENCODER_MAX_HZ, load_session, thin_encoder, write_session
 
 from .synth import angle_session
 

@@ -6,10 +6,10 @@ table loads is returned untouched. The refusal and the acceptance are the firmwa
 import numpy as np
 import pytest
 
-from playscope import estimate as E
-from playscope.calibration import F_SLOPE_FLOORS, loadable_f
-from playscope.native import core
-from playscope.tables import TableError, build_table
+from playscope.fit.f_remain import f_remain_lsq
+from playscope.fit.calibration import F_SLOPE_FLOORS, loadable_f
+from playscope.base.native import core
+from playscope.fit.table_build import TableError, build_table
 
 Q_RANGE = (0.0, 5.0)
 B_MM = 0.36  # data_2_2's onset width: ceiling 0.36/16 = 0.0225 mm
@@ -29,7 +29,7 @@ def frames(flat: bool, n=600, seed=0):
 
 
 def refit_for(z, c):
-    return lambda ms: E.f_remain_lsq(z, c, B, 14, z=z, min_slope=ms)[:2]
+    return lambda ms: f_remain_lsq(z, c, B, 14, z=z, min_slope=ms)[:2]
 
 
 def test_flat_f_is_refused_then_refitted_with_the_smallest_floor_that_loads():
@@ -80,8 +80,8 @@ def test_calibrate_whole_data_2_2_writes_tables_the_board_loads(real_catheter_di
     """The case that found it: the whole of data_2_2 gives a pure-play f nearly flat at one point
     (|f'| 2e-4 deg/mm, table refused). Through calibrate, every f it returns (the product's, and
     the pure play's kept beside a PI) loads, and the floor is recorded and warned about."""
-    from playscope.calibration import calibrate
-    from playscope.importer import import_catheter
+    from playscope.fit.calibration import calibrate
+    from playscope.io.importer import import_catheter
 
     cal = calibrate(import_catheter(real_catheter_dir / "data_2_2.txt"), model_kind=model_kind)
     q0, q1 = cal.q_range

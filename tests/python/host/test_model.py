@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from playscope import model
+from playscope.fit import model
 
 from .synth import ROBOT, image_model_parts, true_B, true_f
 
@@ -140,7 +140,7 @@ def test_jacobian_is_derivative_eq7():
 def test_held_direction_holds_the_last_move():
     """model.held_direction, the direction hold of eq. 4 (third case) shared by the compensator,
     the simulator and the diagnosis: worked by hand."""
-    from playscope.model import held_direction
+    from playscope.fit.model import held_direction
 
     x = np.array([0.0, 0.0, 1.0, 1.0, 0.5, 0.5, 0.5, 0.52, 2.0])
     assert held_direction(x).tolist() == [1, 1, 1, 1, -1, -1, -1, 1, 1]

@@ -4,7 +4,7 @@ import zlib
 
 import numpy as np
 
-from playscope.native import core, from_q16, to_q16
+from playscope.base.native import core, from_q16, to_q16
 
 
 def test_layout_sizes_pinned_by_headers():

@@ -1,4 +1,4 @@
-"""On-line update during use (playscope.online, firmware/core/b_online.c through cffi).
+"""On-line update during use (playscope.board.online, firmware/core/b_online.c through cffi).
 
 A session generated here from a known drift (the play widened by 0.15 mm, the angle shifted
 by 3 deg: what a re-tensioned tendon and a re-registered sensor do between sessions) is run
@@ -12,9 +12,10 @@ import copy
 import numpy as np
 import pytest
 
-from playscope import model, online
-from playscope.calibration import calibrate
-from playscope.session import Session
+from playscope.fit import model
+from playscope.board import online
+from playscope.fit.calibration import calibrate
+from playscope.io.session import Session
 
 from .synth import ROBOT, angle_session, excitation, true_B, true_f
 

@@ -1,4 +1,4 @@
-"""Eq. 1 from the actuator's own trajectory (playscope.onset_play) and the delay rule of
+"""Eq. 1 from the actuator's own trajectory (playscope.fit.onset_play) and the delay rule of
 robust_samples, against bench/swing_render.py: fast swings at camera rate, rendered by code
 that shares nothing with the estimator, playscope.sim or bench/marker_render.py."""
 
@@ -10,10 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from playscope import estimate as E
-from playscope import onset_play as P
-from playscope import onset_refine as R
-from playscope.pacing import pace_frames
+from playscope.fit.onsets import Onsets
+from playscope.fit.reversals import detect_reversals
+from playscope.fit import onset_play as P
+from playscope.fit import onset_refine as R
+from playscope.fit.pacing import pace_frames
 
 ROOT = Path(__file__).resolve().parents[3]
 RENDER = ROOT / "bench" / "swing_render.py"
@@ -49,7 +50,7 @@ def record(**kw):
     d = SR.render(r)
     t, q = d["t_enc"], d["q"]
     hyst = 0.01 * np.ptp(q)
-    rt, rq, _ = E.detect_reversals(t, q, hyst)
+    rt, rq, _ = detect_reversals(t, q, hyst)
     return r, t, q, rt, rq, d["t_f"], np.column_stack([d["u"], d["v"]]), hyst
 
 
@@ -112,10 +113,10 @@ def test_guard_rail_warns_when_most_reversals_disagree():
     n = 12
     t = np.linspace(0, 10, 10001)
     q = np.sin(t)
-    on = E.Onsets(np.arange(n) * 0.5, np.arange(n) * 0.5 + 0.2, np.zeros(n), np.zeros(n), np.linspace(-0.5, 0.5, n),
+    on = Onsets(np.arange(n) * 0.5, np.arange(n) * 0.5 + 0.2, np.zeros(n), np.zeros(n), np.linspace(-0.5, 0.5, n),
                   np.full(n, 0.2), {}, sigma_b=np.full(n, 0.005))
     for board_b, warn in ((0.05, True), (0.2, False)):
-        board = E.Onsets(on.t1_s, on.t2_s, on.q1, on.q2, on.q_mean, np.full(n, board_b), {})
+        board = Onsets(on.t1_s, on.t2_s, on.q1, on.q2, on.q_mean, np.full(n, board_b), {})
         g = R.guard_rail(on, np.arange(n), board, np.arange(n), 0.04, t, q, 0.0)
         assert g["warn"] is warn and g["compared"] == n
         assert set(g["B_curves"]) == {"q", "samples", "board"}

@@ -10,11 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from playscope import estimate as E
-from playscope import onset_refine as R
-from playscope.calibration import calibrate
+from playscope.fit.backlash import fit_backlash_samples
+from playscope.fit.onsets import OnsetConfig, run_onsets
+from playscope.fit.reversals import detect_reversals
+from playscope.fit import onset_refine as R
+from playscope.fit.calibration import calibrate
 from playscope.cli import main
-from playscope.session import load_session
+from playscope.io.session import load_session
 
 ROOT = Path(__file__).resolve().parents[3]
 RENDER = ROOT / "bench" / "marker_render.py"
@@ -48,7 +50,7 @@ def refined(**kw):
     r = MR.render(sc)
     t, q = r["t_enc"], r["q"]
     hyst = 0.01 * np.ptp(q)
-    rt, rq, _ = E.detect_reversals(t, q, hyst)
+    rt, rq, _ = detect_reversals(t, q, hyst)
     rob = R.robust_samples(t, q, q, rt, rq, r["t_f"], np.column_stack([r["u"], r["v"]]), FPS,
                            sc.t_delay_config, "data", None, None, hyst)
     # True image-clock onsets; the exposure (8 ms, averaged) moves the apparent time by half of it.
@@ -114,7 +116,7 @@ def test_backlash_fit_is_nonnegative_slope_bounded_and_weighted():
     s = np.full(x.size, 0.01)
     y = truth + rng.normal(0, 0.01, x.size)
     y[5] = -0.2  # a nonsense sample, carried with a small sigma
-    fit = E.fit_backlash_samples(x, y, sigma=s)
+    fit = fit_backlash_samples(x, y, sigma=s)
     g = np.linspace(-2, 2, 4001)
     raw = fit.B.spl(np.clip(g, fit.B.lo, np.nextafter(fit.B.hi, -np.inf)))
     assert raw.min() >= -1e-9  # B >= 0 without the floor
@@ -125,7 +127,7 @@ def test_backlash_fit_is_nonnegative_slope_bounded_and_weighted():
     s2[30] = 0.2
     y2 = y.copy()
     y2[30] += 0.15
-    f2 = E.fit_backlash_samples(x, y2, sigma=s2)
+    f2 = fit_backlash_samples(x, y2, sigma=s2)
     assert f2.weight[30] < 0.1 * np.median(f2.weight)
     assert abs(f2.B(np.array([x[30]]))[0] - fit.B(np.array([x[30]]))[0]) < 0.01
 
@@ -144,7 +146,7 @@ def test_cli_calibrate_t_delay_from(tmp_path, capsys):
     assert d["t_delay_s"] == pytest.approx(0.084, abs=0.004)
     assert d["onset"]["refine"]["t_delay"]["configured_s"] == 0.18
     g = np.linspace(*np.percentile(d["b_samples"]["q_mean"], [0, 100]), 100)
-    from playscope.calibration import Calibration
+    from playscope.fit.calibration import Calibration
 
     cal = Calibration.load(out)
     # Measured 0.9 % on 160 s records; a 40 s record has fewer samples per q.
@@ -163,9 +165,9 @@ def test_board_samples_stay_valid_input():
         MR.write(sc, Path(d))
         s = load_session(d)
     t, q = s.encoder["t_s"], s.encoder["q"]
-    rt, rq, _ = E.detect_reversals(t, q, 0.01 * np.ptp(q))
+    rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
     t_f, obs = s.observations()
-    board = E.run_onsets(t, q, rt, rq, t_f, obs, "image", E.OnsetConfig(t_delay_s=0.08, fps=FPS))
+    board = run_onsets(t, q, rt, rq, t_f, obs, "image", OnsetConfig(t_delay_s=0.08, fps=FPS))
     cal = calibrate(s, onsets=board)
     ref = cal.onset_refine
     assert cal.onset_reasons["refined"] >= board.b.size - 1

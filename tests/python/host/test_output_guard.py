@@ -9,9 +9,9 @@ import os
 
 import pytest
 
-from playscope.atomic import check_output, output_guard, write_text_atomic
+from playscope.base.atomic import check_output, output_guard, write_text_atomic
 from playscope.cli import main
-from playscope.errors import InputError
+from playscope.base.errors import InputError
 
 from .goodfiles import copy_good, make_good
 
@@ -52,7 +52,7 @@ def test_guard_rules(tmp_path, good):
 def test_atomic_write_failure_leaves_dest(tmp_path):
     dest = tmp_path / "out.json"
     dest.write_text("old\n")
-    from playscope.atomic import atomic_path
+    from playscope.base.atomic import atomic_path
 
     with pytest.raises(RuntimeError):
         with atomic_path(dest) as tmp:

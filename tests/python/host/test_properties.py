@@ -14,11 +14,11 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from playscope.calibration_check import load_calibration
-from playscope.tables import builtin_table
-from playscope.errors import PlayscopeError
-from playscope.session import load_session, parse_meta, read_csv
-from playscope.table_check import check_blob
+from playscope.fit.calibration_check import load_calibration
+from playscope.fit.table_build import builtin_table
+from playscope.base.errors import PlayscopeError
+from playscope.io.session import load_session, parse_meta, read_csv
+from playscope.board.table_check import check_blob
 
 # A warning would print a second stderr line in the CLI: it fails the property too.
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning", "error::UserWarning")
@@ -170,7 +170,7 @@ def test_check_blob_mutated_table_is_refused(flips):
 def test_argtypes_any_text(text):
     import argparse
 
-    from playscope import argtypes as T
+    from playscope.commands import argtypes as T
 
     for parse, lo, hi in ((T.float_range(0.5, 1e4), 0.5, 1e4), (T.THRESHOLD, 0.0, 1e4), (T.CONTROL_POINTS, 4, 64),
                           (T.GENERATION, 1, 2**32 - 1)):

@@ -1,4 +1,4 @@
-"""The travel-domain relaxation (playscope.relax): the double model against its own inverse and
+"""The travel-domain relaxation (playscope.fit.relax): the double model against its own inverse and
 against a time-domain lag at two speeds, the fit of (kappa, lambda) on a simulated record, and the
 layout-4 table through the firmware's loader, playop_step and comp_step (cffi) against the double
 chain f(R[PI[play(q)]])."""
@@ -6,12 +6,12 @@ chain f(R[PI[play(q)]])."""
 import numpy as np
 import pytest
 
-from playscope import model
-from playscope import relax as R
-from playscope import tables as TB
-from playscope import transition as T
+from playscope.fit import model
+from playscope.fit import relax as R
+from playscope.fit import table_build as TB
+from playscope.fit import transition as T
 from playscope.diagnose.fitmodel import lowpass
-from playscope.native import core
+from playscope.base.native import core
 
 Q_MIN, Q_MAX = -5.0, 5.0
 

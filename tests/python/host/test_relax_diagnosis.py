@@ -6,9 +6,9 @@ Synthetic records of the diagnosis' own Data (play of constant width, a cubic f,
 import numpy as np
 import pytest
 
-from playscope import model
+from playscope.fit import model
 from playscope.diagnose.fitmodel import INTERNAL_HZ, Data, Model, lowpass
-from playscope.relax import Relaxation
+from playscope.fit.relax import Relaxation
 
 B_MM = 0.4
 SPAN = 4.0

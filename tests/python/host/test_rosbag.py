@@ -13,7 +13,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer as Writer2  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 from playscope.cli import main  # noqa: E402
-from playscope.session import load_session  # noqa: E402
+from playscope.io.session import load_session  # noqa: E402
 
 TS2 = get_typestore(Stores.ROS2_HUMBLE)
 TS1 = get_typestore(Stores.ROS1_NOETIC)

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from playscope.errors import InputError
-from playscope.session import load_session, write_session
+from playscope.base.errors import InputError
+from playscope.io.session import load_session, write_session
 
 from .synth import angle_session, image_model_parts
 

@@ -11,8 +11,8 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from playscope.native import core
-from playscope.table_check import TableFileError, check_blob
+from playscope.base.native import core
+from playscope.board.table_check import TableFileError, check_blob
 
 from .goodfiles import make_good, reseal, table_nonsense
 
@@ -36,8 +36,8 @@ def _load(blob: bytes) -> int:
 def test_nonsense_refused_by_host_and_board(name, code, damage, good, tmp_path):
     import shutil
 
-    from playscope.device.link import DeviceError, Link
-    from playscope.device.transport import open_transport
+    from playscope.board.link import DeviceError, Link
+    from playscope.board.transport import open_transport
 
     ffi, lib = core()
     g = {"table": tmp_path / "t.pstb"}

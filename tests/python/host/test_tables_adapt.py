@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from scipy.interpolate import make_interp_spline
 
-from playscope import estimate as E
-from playscope.calibration import calibrate
+from playscope.fit.bspline import SplineFn
+from playscope.fit.calibration import calibrate
 from playscope.pipeline import write_tables
-from playscope.tables import TableError, f_inverse_error
+from playscope.fit.table_build import TableError, f_inverse_error
 
 from .test_families import play_record
 
@@ -23,7 +23,7 @@ def with_f(cal, fn, tmp_path):
     over the travel, linear ends), saved; returns its path."""
     lo, hi = cal.q_range
     x = np.linspace(lo - 1, hi + 1, 200)
-    f = E.SplineFn(make_interp_spline(x, fn(x), k=3), float(x[0]), float(x[-1]), linear_ends=True)
+    f = SplineFn(make_interp_spline(x, fn(x), k=3), float(x[0]), float(x[-1]), linear_ends=True)
     cal.doc["f_remain"] = {**f.to_json(), "sign": 1, "method": "lsq", "slope_floor": None}
     path = tmp_path / "cal.json"
     cal.save(path)

@@ -4,8 +4,8 @@ whose fixed-point error would approach the play it corrects (docs/firmware.md)."
 import numpy as np
 import pytest
 
-from playscope import tables as T
-from playscope.native import core
+from playscope.fit import table_build as T
+from playscope.base.native import core
 
 
 def B(q):

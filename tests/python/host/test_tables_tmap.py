@@ -1,14 +1,14 @@
 """Layout-3 tables with a threshold map (B-proportional thresholds, transition.ThresholdMap):
 the fixed-point direct model and compensator (the firmware's C through cffi) against the float
-chain of playscope.transition, and refusals of damaged v3 blobs."""
+chain of playscope.fit.transition, and refusals of damaged v3 blobs."""
 
 import numpy as np
 import pytest
 
-from playscope import tables as TB
-from playscope import transition as T
-from playscope.native import core
-from playscope.transition import ThresholdMap, Transition
+from playscope.fit import table_build as TB
+from playscope.fit import transition as T
+from playscope.base.native import core
+from playscope.fit.transition import ThresholdMap, Transition
 
 Q_MIN, Q_MAX = -5.0, 5.0
 

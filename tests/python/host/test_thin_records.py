@@ -9,12 +9,14 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from playscope import estimate as E
-from playscope import model
-from playscope.calibration import calibrate
+from playscope.fit.backlash import constant_backlash, fit_backlash_auto
+from playscope.fit.onset_settings import FALSE_ONSETS_PER_REVERSAL, onset_noise_k, still_noise
+from playscope.fit.reversals import q_looks_commanded
+from playscope.fit import model
+from playscope.fit.calibration import calibrate
 from playscope.cli import main
-from playscope.errors import InputError
-from playscope.session import Session, drop_held, load_session, regularize_time, write_session
+from playscope.base.errors import InputError
+from playscope.io.session import Session, drop_held, load_session, regularize_time, write_session
 
 from .synth import ROBOT, angle_session, excitation, true_B, true_f
 
@@ -57,7 +59,7 @@ def test_few_reversals_give_a_constant_B_with_its_interval(t_end, reversals):
 def test_constant_interval_is_the_student_t_interval():
     """Against the textbook interval (scipy.stats.t.interval on the same samples)."""
     b = np.array([0.41, 0.37, 0.45])
-    b0, (lo, hi) = E.constant_backlash(b)
+    b0, (lo, hi) = constant_backlash(b)
     ref = stats.t.interval(0.95, b.size - 1, loc=b.mean(), scale=stats.sem(b))
     assert b0 == pytest.approx(b.mean()) and (lo, hi) == pytest.approx(ref, rel=1e-12)
 
@@ -75,15 +77,15 @@ def test_cli_calibrates_a_13_s_record_on_its_first_half(tmp_path, capsys):
 def test_knots_follow_the_samples_and_stiffness_is_cross_validated():
     rng = np.random.default_rng(1)
     q = np.linspace(-3, 3, 9) + rng.uniform(-0.2, 0.2, 9)
-    shaped = E.fit_backlash_auto(q, true_B(q) + rng.normal(0, 0.005, q.size))
+    shaped = fit_backlash_auto(q, true_B(q) + rng.normal(0, 0.005, q.size))
     assert shaped.kind == "spline" and shaped.n_ctrl == 9  # N = min(14, M)
     g = np.linspace(q.min(), q.max(), 40)
     # measured 0.0053 mm worst over the sampled range (9 samples of a 0.4 mm bump, noise 0.005)
     assert np.max(np.abs(shaped.B(g) - true_B(g))) < 0.02
-    flat = E.fit_backlash_auto(q, 0.4 + rng.normal(0, 0.01, q.size))
+    flat = fit_backlash_auto(q, 0.4 + rng.normal(0, 0.01, q.size))
     assert flat.kind == "constant"  # no shape in the data: the CV keeps the stiffest model
     many = np.linspace(-3, 3, 30)
-    assert E.fit_backlash_auto(many, true_B(many)).n_ctrl == 14
+    assert fit_backlash_auto(many, true_B(many)).n_ctrl == 14
 
 
 def test_no_reversal_is_a_one_line_error_naming_encoder_csv(tmp_path, capsys):
@@ -169,7 +171,7 @@ def test_commanded_q_flag_measures_the_servo_lag():
     v x lag = 0.06 mm; with actuator.q_source = "command" the lag is measured from the record."""
     g = np.linspace(-2.5, 2.5, 30)
     s = _session(lag_s=0.12, q_start=-3, q_end=3)
-    assert E.q_looks_commanded(s.encoder["q"])[0]
+    assert q_looks_commanded(s.encoder["q"])[0]
     plain = calibrate(s, model_kind="play")
     assert any("looks like a command" in w for w in plain.warnings)
     s.q_source = "command"
@@ -196,21 +198,21 @@ def test_measured_encoder_does_not_look_commanded():
     rng = np.random.default_rng(2)
     t, q, _ = excitation(rate_hz=200.0)
     q_meas = np.round((q + rng.normal(0, 0.002, q.size)) / 0.001) * 0.001  # 1 um counts
-    assert not E.q_looks_commanded(q_meas)[0]
+    assert not q_looks_commanded(q_meas)[0]
 
 
 # ------------------------------------------------------------------ item 3: settings from the data
 def test_noise_k_meets_its_false_alarm_rate():
     """n frames x P(|d| > k sigma) = alpha, from the Gaussian tail (scipy.stats.norm.sf)."""
     for n in (10, 125, 1000):
-        k = E.onset_noise_k(n)
-        assert n * 2 * stats.norm.sf(k) == pytest.approx(E.FALSE_ONSETS_PER_REVERSAL, rel=1e-9)
-        k2 = E.onset_noise_k(n, dims=2)
-        assert n * stats.chi2.sf(2 * k2 * k2, 2) == pytest.approx(E.FALSE_ONSETS_PER_REVERSAL, rel=1e-9)
+        k = onset_noise_k(n)
+        assert n * 2 * stats.norm.sf(k) == pytest.approx(FALSE_ONSETS_PER_REVERSAL, rel=1e-9)
+        k2 = onset_noise_k(n, dims=2)
+        assert n * stats.chi2.sf(2 * k2 * k2, 2) == pytest.approx(FALSE_ONSETS_PER_REVERSAL, rel=1e-9)
     # Monte Carlo of the 1-D rule: false crossings in 125 still frames, 20000 trials.
     rng = np.random.default_rng(0)
     d = rng.normal(size=(20000, 125))
-    rate = np.mean(np.any(np.abs(d) > E.onset_noise_k(125), axis=1))
+    rate = np.mean(np.any(np.abs(d) > onset_noise_k(125), axis=1))
     assert rate == pytest.approx(0.01, abs=0.003)  # binomial sd 0.0007
 
 
@@ -218,7 +220,7 @@ def test_still_noise_ignores_motion_outside_the_segments():
     rng = np.random.default_rng(5)
     t = np.arange(0, 20, 0.04)
     c = np.where((t % 4) < 2, 0.0, 5 * (t % 4 - 2)) + rng.normal(0, 0.02, t.size)  # still half the time
-    sig, n = E.still_noise(t, c, np.arange(0, 20, 4.0), np.arange(0, 20, 4.0) + 2)
+    sig, n = still_noise(t, c, np.arange(0, 20, 4.0), np.arange(0, 20, 4.0) + 2)
     assert n > 200 and sig == pytest.approx(0.02 * np.sqrt(2), rel=0.15)  # sd of a difference
 
 
@@ -231,7 +233,7 @@ def test_threshold_follows_the_sensor_noise():
         assert d["rule"] == "T = k x still noise" and d["still_pairs"] > 300
         assert d["still_noise_deg"] / noise == pytest.approx(0.96, abs=0.1)
         assert d["threshold_deg"] == pytest.approx(d["noise_k"] * d["still_noise_deg"])
-        assert d["noise_k"] == pytest.approx(E.onset_noise_k(d["fps"] * d["stroke_s"]))
+        assert d["noise_k"] == pytest.approx(onset_noise_k(d["fps"] * d["stroke_s"]))
 
 
 def test_import_repairs_repeated_stamps_with_a_message(tmp_path, capsys):

@@ -6,7 +6,7 @@ run on z itself), and the model choice's offer rule."""
 import numpy as np
 import pytest
 
-from playscope import transition as T
+from playscope.fit import transition as T
 
 RATE_HZ = 50.0
 
@@ -144,7 +144,7 @@ def test_a_fitted_map_table_loads_when_B_varies_tenfold():
     the precision ceiling by the map's Lipschitz constant, so the fitted table loads. B here
     runs from 0.06 to 0.66 mm (11x) over the session; the fixed-point chain then stays within
     its measured 0.023 deg (direct) and 4e-6 mm (compensator) of the float chain."""
-    from playscope import tables as TB
+    from playscope.fit import table_build as TB
 
     B_steep = lambda z: 0.06 + 0.15 * np.clip(np.asarray(z, float), 0.0, 4.0)
     data = session(True, B=B_steep)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from playscope.cli import main
-from playscope.session import load_session, write_session
+from playscope.io.session import load_session, write_session
 
 from .goodfiles import make_good
 

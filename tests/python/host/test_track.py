@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from playscope.cli import main
-from playscope.errors import InputError
-from playscope.track import MarkerTracker, TrackConfig, track_video
+from playscope.base.errors import InputError
+from playscope.io.marker_track import MarkerTracker, TrackConfig, track_video
 
 GREEN = (40, 200, 40)  # BGR
 

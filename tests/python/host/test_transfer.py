@@ -1,4 +1,4 @@
-"""Calibrated on one record, run on another (playscope.transfer): the endoscope reader, the
+"""Calibrated on one record, run on another (playscope.evaluate.transfer): the endoscope reader, the
 transfer rows against the on-line protocol they reuse, and the drift measurement on the real
 catheter recordings (read in place; skipped when absent)."""
 
@@ -10,9 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from playscope import online as O
-from playscope.errors import InputError
-from playscope.transfer import (ROWS, config_angle, drift, evaluate_transfer, read_endoscope, read_record)
+from playscope.board import online as O
+from playscope.base.errors import InputError
+from playscope.evaluate.transfer import ROWS, config_angle, drift, evaluate_transfer
+from playscope.io.importer import import_endoscope as read_endoscope, read_record
 
 _REAL = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "real"  # as conftest.REAL_CATHETER
 REAL_CATHETER = Path(os.environ.get("PLAYSCOPE_REAL_DATA", _REAL)) / "catheter"
@@ -91,7 +92,7 @@ def test_drift_on_catheter_self_is_zero_and_data_2_5_play_is_wider(real_catheter
 def test_affine_refresh_learns_gain_and_offset_causally():
     from types import SimpleNamespace
 
-    from playscope.transfer import _affine_refreshed
+    from playscope.evaluate.transfer import _affine_refreshed
 
     t = np.arange(0.0, 20.0, 0.002)
     c_hat = 30.0 * np.sin(2 * np.pi * t / 4)

@@ -1,14 +1,14 @@
 """The transition model (docs/method.md, "Transition model"): fit, model choice, inverse, v2 tables against the C loader.
 
 Data come from an independent double-precision generator written here (scalar loops of the
-play and the PI operator, no code shared with playscope.transition or playscope.model)."""
+play and the PI operator, no code shared with playscope.fit.transition or playscope.fit.model)."""
 
 import numpy as np
 import pytest
 
-from playscope import tables as TB
-from playscope import transition as T
-from playscope.native import core, from_q16, to_q16
+from playscope.fit import table_build as TB
+from playscope.fit import transition as T
+from playscope.base.native import core, from_q16, to_q16
 
 RATE_HZ = 50.0
 B_MM = 0.4

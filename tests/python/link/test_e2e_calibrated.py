@@ -19,11 +19,11 @@ import numpy as np
 import pytest
 
 from playscope.cli import main
-from playscope.device.flash import flash
-from playscope.device.link import Link
-from playscope import tables as T
-from playscope.device.transport import QemuTransport, find_qemu_image
-from playscope.session import write_session
+from playscope.board.flash import flash
+from playscope.board.link import Link
+from playscope.fit import table_build as T
+from playscope.board.transport import QemuTransport, find_qemu_image
+from playscope.io.session import write_session
 
 from .test_usb_umockdev import CLIENT, _emu_or_skip
 
@@ -47,7 +47,7 @@ def calibrated(tmp_path_factory):
 def test_calibration_is_sane(calibrated):
     """The table under test encodes a calibration close to the simulated truth (else a
     bit-exact flash of a wrong table would prove little)."""
-    from playscope.calibration import Calibration
+    from playscope.fit.calibration import Calibration
 
     path, cfg, _ = calibrated
     cal = Calibration.load(path.with_name("cal.json"))
@@ -116,7 +116,7 @@ def test_qemu_runs_a_layout_3_table_bit_for_bit(tmp_path):
     """A table with the threshold map (layout 3: B-proportional thresholds, g and g^-1 on the
     board) flashed to the STM32F405 link firmware under QEMU: read back identical, and the
     board's compensator (f^-1, PI^-1, g^-1, B/2) equals the host's run of the same C."""
-    from playscope.transition import ThresholdMap, Transition, thresholds
+    from playscope.fit.transition import ThresholdMap, Transition, thresholds
 
     B = lambda q: 0.3 + 0.03 * (np.asarray(q, float) + 5.0)  # 0.3 .. 0.6 mm over the travel
     f = lambda q: 3.0 * np.asarray(q, float) + 0.04 * np.asarray(q, float) ** 2
@@ -132,8 +132,8 @@ def test_qemu_runs_a_layout_4_table_bit_for_bit(tmp_path):
     """A table with the travel-domain relaxation (layout 4: R^-1 on the board before PI^-1, with
     the threshold map) flashed to the STM32F405 link firmware under QEMU: read back identical,
     and the board's compensator equals the host's run of the same C, bit for bit."""
-    from playscope.relax import Relaxation
-    from playscope.transition import ThresholdMap, Transition, thresholds
+    from playscope.fit.relax import Relaxation
+    from playscope.fit.transition import ThresholdMap, Transition, thresholds
 
     B = lambda q: 0.3 + 0.03 * (np.asarray(q, float) + 5.0)
     f = lambda q: 3.0 * np.asarray(q, float) + 0.04 * np.asarray(q, float) ** 2

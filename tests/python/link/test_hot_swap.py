@@ -9,10 +9,10 @@ import math
 
 import pytest
 
-from playscope.device.link import Link
-from playscope.device.transport import virtual_transport
-from playscope.native import core
-from playscope.tables import CalibTable, write_blob
+from playscope.board.link import Link
+from playscope.board.transport import virtual_transport
+from playscope.base.native import core
+from playscope.fit.table_build import CalibTable, write_blob
 
 
 def table(generation: int, offset_deg: float) -> bytes:

@@ -11,12 +11,12 @@ from pathlib import Path
 
 import pytest
 
-from playscope.device.flash import flash
-from playscope.device.link import Link
-from playscope.tables import builtin_table
-from playscope.device.transport import virtual_transport
-from playscope.native import core
-from playscope.table_check import TableFileError, check_blob
+from playscope.board.flash import flash
+from playscope.board.link import Link
+from playscope.fit.table_build import builtin_table
+from playscope.board.transport import virtual_transport
+from playscope.base.native import core
+from playscope.board.table_check import TableFileError, check_blob
 
 GUARD_CLIENT = Path(__file__).with_name("usb_guard_client.py")
 
@@ -134,7 +134,7 @@ def test_usb_emulated_nothing_sent(tmp_path):
 
 
 def test_generation_counter_at_maximum(tmp_path):
-    from playscope.device.link import Link as L
+    from playscope.board.link import Link as L
 
     link = L(virtual_transport(tmp_path / "flash.bin"))
     try:

@@ -8,11 +8,11 @@ from pathlib import Path
 
 import pytest
 
-from playscope.device.flash import flash
-from playscope.device.link import DeviceError, Link
-from playscope.native import frame_codec
-from playscope.tables import builtin_table
-from playscope.device.transport import QemuTransport, find_qemu_image, virtual_transport
+from playscope.board.flash import flash
+from playscope.board.link import DeviceError, Link
+from playscope.base.native import frame_codec
+from playscope.fit.table_build import builtin_table
+from playscope.board.transport import QemuTransport, find_qemu_image, virtual_transport
 
 VECTORS = Path(__file__).resolve().parents[2] / "link" / "vectors" / "frames.txt"
 
@@ -108,8 +108,8 @@ def check_learn_start_stop(link, blob: bytes) -> None:
     table's B grid with the CRC of its flashed entries (computed here from the blob through the
     loader), nothing learnt without onsets, stop turns it off. The samples themselves are learnt
     in tests/link/test_link.c::test_learn_during_compensation."""
-    from playscope.native import core
-    from playscope.tables import CalibTable
+    from playscope.base.native import core
+    from playscope.fit.table_build import CalibTable
 
     ffi, lib = core()
     t = CalibTable(blob)

@@ -15,7 +15,7 @@ import json
 import numpy as np
 
 from playscope.cli import main
-from playscope.device.insitu import BoardClock, exc_duration_s
+from playscope.board.insitu_run import BoardClock, exc_duration_s
 from playscope.sim.plant import SimPlant
 
 
@@ -91,14 +91,14 @@ def test_run_insitu_camera_path_on_a_rendered_video(tmp_path, capsys):
     import json as _json
 
     from playscope.sim.plant import SimPlantConfig, render_excitation_video
-    from playscope.session import write_session
+    from playscope.io.session import write_session
 
     exc = "-1.5:1.5:1.6:0.4:1.0"
     video = tmp_path / "camera.avi"
     r = render_excitation_video(video, exc, SimPlantConfig(seed=3))
     plant = r["plant"]
     sim = plant.sim
-    from playscope.session import Session
+    from playscope.io.session import Session
 
     geo = Session(actuator_unit="mm", distal_kind="image", robot=sim.robot(), encoder={"t_s": np.zeros(2), "q": np.zeros(2)},
                   camera=sim.camera(), hand_eye=sim.hand_eye(), t_delay_s=sim.t_delay_s,

@@ -13,11 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from playscope.device.flash import flash
-from playscope.device.link import DeviceError, Link
-from playscope.tables import builtin_table
-from playscope.device.transport import TcpTransport
-from playscope.native import executable
+from playscope.board.flash import flash
+from playscope.board.link import DeviceError, Link
+from playscope.fit.table_build import builtin_table
+from playscope.board.transport import TcpTransport
+from playscope.base.native import executable
 
 GUARD_CLIENT = Path(__file__).with_name("usb_guard_client.py")
 TIMEOUT_MS = 1500  # the board's upload session timeout for these tests (default 5000)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from playscope.native import NativeBuildError
+from playscope.base.native import NativeBuildError
 
 CLIENT = Path(__file__).with_name("usb_emu_client.py")
 
@@ -25,7 +25,7 @@ def _emu_or_skip():
     if not Path("/usr/lib/x86_64-linux-gnu/libumockdev-preload.so.0").exists() and \
             shutil.which("umockdev-wrapper") is None:
         pytest.skip("libumockdev-preload not installed")
-    from playscope.device import usbemu
+    from playscope.board import usbemu
     try:
         usbemu.usbemu_path()
     except NativeBuildError as e:

@@ -8,10 +8,10 @@ import json
 import sys
 import time
 
-from playscope.device.flash import flash
-from playscope.device.link import DeviceError, Link
-from playscope.tables import CalibTable, builtin_table, set_generation, test_vector
-from playscope.device.transport import UsbTransport
+from playscope.board.flash import flash
+from playscope.board.link import DeviceError, Link
+from playscope.fit.table_build import CalibTable, builtin_table, set_generation, test_vector
+from playscope.board.transport import UsbTransport
 
 
 def check(link: Link, n_vectors: int, blob: bytes | None = None) -> dict:

@@ -11,11 +11,11 @@ import json
 import sys
 import time
 
-from playscope.device.flash import flash
-from playscope.device.link import DeviceError, Link
-from playscope.tables import builtin_table
-from playscope.device.transport import UsbTransport
-from playscope.table_check import TableFileError
+from playscope.board.flash import flash
+from playscope.board.link import DeviceError, Link
+from playscope.fit.table_build import builtin_table
+from playscope.board.transport import UsbTransport
+from playscope.board.table_check import TableFileError
 
 
 def corrupt(link: Link, files: list[str]) -> dict:

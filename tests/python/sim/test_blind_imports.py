@@ -90,17 +90,16 @@ def test_diagnosis_forms_import_nothing_from_the_simulators():
 def test_generator_imports_no_diagnosis_or_effect_forms():
     assert len(GENERATOR) >= 3
     mods = _closure(GENERATOR)
-    forbidden = ("playscope.diagnose", "playscope.model", "playscope.sim.core", "playscope.sim.effects",
-                 "playscope.estimate", "playscope.calibration")
+    forbidden = ("playscope.diagnose", "playscope.fit", "playscope.sim.core", "playscope.sim.effects")
     bad = sorted(m for m in mods if m.startswith(forbidden))
     assert not bad, f"the withheld-effect generator imports fitted forms: {bad}"
     # What it may use: the session container and the excitation trajectory (no model form).
-    # playscope.native and playscope.inputfile come in through the session container's loader
+    # playscope.base.native and playscope.io.inputfile come in through the session container's loader
     # (the Q format's |q| limit, regular-file checks): never called while a record is generated,
     # which test_generators_never_run_the_native_core checks at run time.
-    assert mods <= {"playscope", "playscope.session", "playscope.atomic", "playscope.errors", "playscope.sim",
-                    "playscope.native", "playscope.inputfile",
-                    "playscope.sim.withheld", "playscope.sim.withheld.plant",
+    assert mods <= {"playscope", "playscope.base", "playscope.io", "playscope.io.session", "playscope.base.atomic", "playscope.base.errors", "playscope.sim",
+                    "playscope.base.native", "playscope.io.inputfile",
+                    "playscope.sim.withheld", "playscope.sim.withheld.hidden_plant",
                     "playscope.sim.withheld.variants", "playscope.sim.withheld.oracle",
                     "playscope.sim.withheld.recover"}, mods
 
@@ -132,8 +131,8 @@ SECOND = sorted(str(p.relative_to(PKG)) for p in (PKG / "sim" / "withheld_b").gl
 def test_second_generator_shares_no_code_with_the_first_or_the_fitter():
     assert "sim/withheld_b/generator.py" in SECOND
     mods = _closure(SECOND)
-    assert mods <= {"playscope", "playscope.session", "playscope.atomic", "playscope.errors", "playscope.sim",
-                    "playscope.native", "playscope.inputfile",  # the session loader's, see above
+    assert mods <= {"playscope", "playscope.base", "playscope.io", "playscope.io.session", "playscope.base.atomic", "playscope.base.errors", "playscope.sim",
+                    "playscope.base.native", "playscope.io.inputfile",  # the session loader's, see above
                     "playscope.sim.withheld_b", "playscope.sim.withheld_b.generator"}, mods
     common = (_defined(SECOND) & (_defined(FORMS) | _defined(GENERATOR))) - {"__all__"}
     assert not common, f"defined in the second generator and elsewhere: {sorted(common)}"
@@ -142,7 +141,7 @@ def test_second_generator_shares_no_code_with_the_first_or_the_fitter():
 def test_generators_never_run_the_native_core(monkeypatch):
     """The firmware's C (play operator, tables) reaches the generators' import closure only
     through the session loader: generating a record of either generator never runs it."""
-    import playscope.native as native
+    import playscope.base.native as native
 
     def refuse(*a, **k):
         raise AssertionError("a generator ran the native core (the fitted forms' code)")

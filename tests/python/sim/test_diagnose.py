@@ -128,7 +128,7 @@ def test_separate_test_record_is_judged_in_the_calibration_frame():
 
 
 def test_catheter_gap_explained_in_situ(real_catheter_dir):
-    from playscope.importer import import_catheter
+    from playscope.io.importer import import_catheter
     d = from_session(import_catheter(real_catheter_dir / "data_2_5.txt"))
     sp = choose_split(d)
     res = attribute(d, sp.fit, sp.val, candidates=("smooth_transition", "camera_delay", "viscous_hysteresis", "drift"),

@@ -8,7 +8,7 @@ import pytest
 from scipy.interpolate import BSpline
 
 from playscope.diagnose import fitmodel, kernels
-from playscope.model import play_on_edges
+from playscope.fit.model import play_on_edges
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="no C compiler for the diagnosis kernels")
 

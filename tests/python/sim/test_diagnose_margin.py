@@ -7,7 +7,7 @@ import numpy as np
 
 from playscope.diagnose.attribute import rmse_gain_se, t_threshold
 from playscope.diagnose.fitmodel import _viscous_play
-from playscope.model import play_on_edges
+from playscope.fit.model import play_on_edges
 
 
 def _ar1(rng, n, rho, sd):
@@ -67,7 +67,7 @@ def test_a_null_gain_passes_the_threshold_at_about_the_nominal_rate():
 
 
 def test_viscous_play_is_the_play_at_a_1_and_lags_then_holds_below_it():
-    # Against the play operator of eq. 3 (playscope.model.play_on_edges) and a hand-derived case.
+    # Against the play operator of eq. 3 (playscope.fit.model.play_on_edges) and a hand-derived case.
     t = np.arange(0, 8, 0.02)
     q = 2 * np.abs((t / 4.0) % 1 - 0.5) * 4 - 1          # triangle 1 -> -1 (t = 2 s) -> 1 mm, 1 mm/s
     lo, hi = q - 0.2, q + 0.2

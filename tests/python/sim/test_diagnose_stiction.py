@@ -127,7 +127,7 @@ def test_signature_needs_slips_along_the_legs_not_at_the_reversals():
     from playscope.diagnose.attribute import stick_slip_signature
     from playscope.diagnose.fitmodel import Data
 
-    from playscope.model import held_direction, play_on_edges
+    from playscope.fit.model import held_direction, play_on_edges
 
     t, q, _ = _legs()
     # the bend follows a play of 0.3 mm: the distal motion reverses after the dead travel, while q moves

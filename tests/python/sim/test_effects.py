@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from playscope import model as M
+from playscope.fit import model as M
 from playscope.sim.core import observe_image, preset, simulate, tip_position
 from playscope.sim.effects import EFFECTS, EffectSet, parse_effect
 

@@ -9,14 +9,14 @@ import subprocess
 import numpy as np
 import pytest
 
-from playscope import pacing
+from playscope.fit import pacing
 from playscope.cli import main
 from playscope.sim.core import make_trajectory, play_range
 from playscope.sim.record import sim_config
 
 
 def test_rule_constant_comes_from_the_board():
-    from playscope.native import core
+    from playscope.base.native import core
 
     assert pacing.pace_frames() == core()[1].EXC_PACE_FRAMES == 4
 
@@ -60,7 +60,7 @@ def test_explicit_speed_is_kept():
 @pytest.mark.parametrize("b_low,b_high,fps", [(0.35, 0.8, 25.0), (0.12, 0.3, 30.0), (0.05, 0.2, 60.0),
                                               (0.2, 0.5, 29.97)])
 def test_host_and_board_pick_the_same_speed(b_low, b_high, fps):
-    from playscope.native import executable
+    from playscope.base.native import executable
 
     v_host = pacing.pace_v_q32(b_low, b_high, fps)
     period_us = pacing.frame_period_us(fps)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from playscope.sim.withheld.plant import Plant, clearance, _clearance_loop, record
+from playscope.sim.withheld.hidden_plant import Plant, clearance, _clearance_loop, record
 from playscope.sim.withheld.recover import RULE_SHARE, recoverable
 from playscope.sim.withheld.variants import VARIANTS
 

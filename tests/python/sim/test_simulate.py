@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from playscope.cli import main
-from playscope.session import load_session, write_session
+from playscope.io.session import load_session, write_session
 from playscope.sim.core import preset, simulate
 
 REPO = Path(__file__).resolve().parents[3]
@@ -43,7 +43,7 @@ def test_reimage_renders_a_measured_angle(tmp_path):
     out = tmp_path / "img"
     assert main(["simulate", str(out), "--reimage", str(tmp_path / "rec"), "--no-preset-effects"]) == 0
     s = load_session(out)
-    from playscope.model import ImageModel
+    from playscope.fit.model import ImageModel
     c, _ = ImageModel(s.robot, s.camera, s.hand_eye).estimate_c(
         np.column_stack([s.marker["u_px"], s.marker["v_px"]]), np.zeros(s.marker["t_s"].size))
     c_true = np.interp(s.marker["t_s"] - s.t_delay_s, s.truth["t_s"], s.truth["c_deg"])

@@ -1,7 +1,7 @@
 """Generator of withheld effects for the blind self-test of `playscope diagnose`.
 
 Written apart from the diagnosis on purpose: nothing here imports `playscope.diagnose`,
-`playscope.model` or the simulator's effect code (`sim.core`, `sim.effects`), and the
+`playscope.fit.model` or the simulator's effect code (`sim.core`, `sim.effects`), and the
 diagnosis' fitted forms import nothing from here (tests/python/sim/test_blind_imports.py walks
 the imports). The plant uses its own forms (clearance evaluated at q with a Lorentzian width, a
 tanh-softened bending map, its own angle sensor), and every library effect has at least two

@@ -72,7 +72,7 @@ from scipy.optimize import minimize_scalar
 
 from .oracle import (N_HALF_KNOTS, effect_free_fit, fit_half_widths, half_width_knots, linear_map, map_columns,
                      noise_only_rmse)
-from .plant import STATE_HZ, clearance
+from .hidden_plant import STATE_HZ, clearance
 from .variants import Bound, Variant
 
 RULE_SHARE = 0.25       # recoverable: r_eff - n <= RULE_SHARE (r_free - n) (the 25 %)

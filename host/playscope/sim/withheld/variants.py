@@ -17,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from .plant import STATE_HZ, clearance, first_order, motion_sign
+from .hidden_plant import STATE_HZ, clearance, first_order, motion_sign
 
 
 @dataclass(frozen=True)

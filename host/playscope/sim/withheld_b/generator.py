@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...session import Robot, Session
+from ...io.session import Robot, Session
 
 RATE_HZ = 200.0
 SENSOR_HZ = 80.0

@@ -1,1 +1,0 @@
-"""Device link on the host: frame codec (the C one, through cffi), transports, board commands."""

@@ -1,0 +1,600 @@
+"""Calibration: session -> B(q) spline + f_remain (Fig. 4 blocks 1-6), and its JSON file.
+
+The calibration file (docs/calibration-format.md), "format": "playscope-calibration/1":
+  actuator_unit, q_range [min, max] (actuator travel seen), t_delay_s (+ t_delay_source),
+  fps_frames (frame rate the onset detector saw), onset: {config, reasons},
+  b_samples: {t1_s, t2_s, q1, q2, q_mean, b, weight}, B: spline (SplineFn.to_json),
+  f_remain: spline + "sign" + "method" ("lsq" or "morph"), f_coarse: {q_per_rad},
+  f_remain_alt: the other estimator, for comparison; transition: the smooth transition after
+  the play (PI operators r, w on the play centre, playscope.fit.transition) and the model choice.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .backlash import BacklashFit, MIN_SPLINE_SAMPLES, Z_INCONSISTENT, backlash_alternatives, fit_backlash_auto
+from .bspline import SplineFn
+from .f_remain import characteristic, choose_f_ctrl, f_remain_lsq, f_remain_morph
+from .onset_settings import angle_onset_settings, bootstrap_fps
+from .onsets import OnsetConfig, Onsets, run_onsets
+from .reversals import detect_reversals, frames_from_angle, q_looks_commanded
+from . import model
+from . import transition as T
+from ..base.atomic import write_text_atomic
+from ..base.errors import InputError
+from ..io.session import Session
+from .table_build import F_SLOPE_FLOORS
+
+FORMAT = "playscope-calibration/1"
+
+
+@dataclass
+class Calibration:
+    """Estimated model: B and f are callables on arrays (actuator units -> units, deg).
+
+    transition: the PI operators after the play (n = 1: the paper's pure play, f on z);
+    model_choice: how it was chosen ({"model", "n", "r_span", "candidates": [...]}, see
+    transition.choose_model), None when the model was given."""
+
+    B: SplineFn
+    f: SplineFn
+    f_sign: int
+    q_per_rad: float
+    doc: dict
+    transition: T.Transition = field(default_factory=T.Transition.play)
+    model_choice: dict | None = None
+    f_play_fit: SplineFn | None = None
+    f_play_sign: int | None = None
+    B_product: SplineFn | None = None  # the chosen family's play width when it is not the onset B
+    family_choice: dict | None = None    # families.choose's dict (model_family in the JSON)
+
+    # Typed views of the file's fields (docs/calibration-format.md): the rest of the host reads
+    # these, never doc[...] (doc is the file as written, kept for save()).
+    @property
+    def q_range(self) -> tuple[float, float]:
+        """(q_min, q_max): the actuator travel seen while calibrating, actuator units."""
+        lo, hi = self.doc["q_range"]
+        return float(lo), float(hi)
+
+    @property
+    def actuator_unit(self) -> str:
+        """"mm" (tendon displacement) or "deg" (motor angle)."""
+        return self.doc.get("actuator_unit", "mm")
+
+    @property
+    def t_delay_s(self) -> float:
+        """Image acquisition delay t_delay used by the calibration, s (eq. 1)."""
+        return float(self.doc.get("t_delay_s", 0.0))
+
+    @property
+    def fps_frames(self) -> float:
+        """Frame rate the onset detector saw, Hz (angle sessions: the block-averaging rate)."""
+        return float(self.doc["fps_frames"])
+
+    @property
+    def reversals(self) -> int:
+        """Direction reversals found in the calibration session."""
+        return int(self.doc["reversals"])
+
+    @property
+    def b_samples(self) -> dict:
+        """The B samples (eq. 1), arrays of equal length: t1_s, t2_s, q1, q2, q_mean, b, weight,
+        and sigma_b, z when the file has them (actuator units, s)."""
+        return {k: np.asarray(v, float) for k, v in self.doc["b_samples"].items() if v is not None}
+
+    @property
+    def n_b_samples(self) -> int:
+        """Number of B samples (motion onsets, eq. 1) the B(q) fit used."""
+        return len(self.doc["b_samples"]["b"])
+
+    @property
+    def onset_reasons(self) -> dict:
+        """{reason name: count} of the onset detector (names from the C enum)."""
+        return dict(self.doc["onset"]["reasons"])
+
+    @property
+    def onset_config(self) -> dict:
+        """The onset detector's settings used (onset_config_t fields: threshold, timeouts, ...)."""
+        return dict(self.doc["onset"]["config"])
+
+    @property
+    def reversal_hysteresis(self) -> float:
+        """Hysteresis (actuator units) with which direction reversals were taken from q."""
+        return float(self.doc["reversal_hysteresis"])
+
+    @property
+    def onset_refine(self) -> dict | None:
+        """Image sessions: the onset refinement's report (t_delay, ringing, ...), else None."""
+        return self.doc.get("onset", {}).get("refine")
+
+    @property
+    def warnings(self) -> list:
+        """The calibration's warnings (one line each), as printed by `calibrate`."""
+        return list(self.doc.get("warnings", []))
+
+    @property
+    def b_inconsistent(self) -> list:
+        """B samples inconsistent with their neighbours: [{index, q_mean, b, z}]."""
+        return list(self.doc.get("b_inconsistent", []))
+
+    @property
+    def f_alt(self) -> SplineFn:
+        """The other f_remain estimator's fit (f_remain_alt: morph when f is lsq, and back)."""
+        return SplineFn.from_json(self.doc["f_remain_alt"])
+
+    @property
+    def source(self) -> str | None:
+        """The session the calibration was made from, as recorded."""
+        return self.doc.get("source")
+
+    @property
+    def B_model(self):
+        """Play width of the model the table carries: b_scale x B (the onset B, transition.py),
+        or the chosen family's own B (a constant play: families.py) when it is not the onset B."""
+        return self.transition.play_width(self.B if self.B_product is None else self.B_product)
+
+    @property
+    def family(self) -> str:
+        """The model family the table carries (families.FAMILIES names); files written before
+        the choice across families: onset_transition, or onset_play for a pure play."""
+        if self.family_choice:
+            return str(self.family_choice["family"])
+        return "onset_play" if self.transition.is_play else "onset_transition"
+
+    @property
+    def relax(self):
+        """The travel-domain relaxation the chosen family carries on the transition's output
+        before f (playscope.fit.relax.Relaxation, layout-4 table), or None."""
+        d = (self.family_choice or {}).get("relax")
+        if not d:
+            return None
+        from .relax import Relaxation
+
+        return Relaxation.from_json(d)
+
+    @property
+    def f_play(self) -> SplineFn:
+        """f_remain of the pure-play model (eqs. 2, 3, 9: f on z), kept beside the transition's."""
+        return self.f if self.f_play_fit is None else self.f_play_fit
+
+    def predict(self, q: np.ndarray, z0: float | None = None) -> np.ndarray:
+        """Direct model c = f_remain(PI(play(q; B))) (eqs. 2, 3 and the transition model, docs/method.md), state run from
+        q[0]; q (N,) actuator units -> c (N,) deg."""
+        rl = self.relax
+        if rl is not None:  # c = f(R[PI(play(q))]) (playscope.fit.relax)
+            return self.f(rl.direct(self.transition.direct(model.play_operator(np.asarray(q, float), self.B_model, z0))))
+        if self.transition.is_play:
+            return model.direct_model(q, self.B_model, self.f, z0)
+        return T.direct_chain(q, self.B_model, self.transition, self.f, z0)
+
+    def f_coarse(self, q):
+        """f_coarse(q) (eq. 5, deg) at q (any shape, actuator units)."""
+        return model.f_coarse(q, self.q_per_rad)
+
+    def save(self, path) -> None:
+        """Write the calibration JSON (docs/calibration-format.md) atomically. Errors: OSError."""
+        write_text_atomic(path, json.dumps(self.doc, indent=1) + "\n")
+
+    @classmethod
+    def load(cls, path) -> "Calibration":
+        """Errors: InputError naming the file for a missing file or a wrong format."""
+        path = Path(path)
+        if not path.is_file():
+            raise InputError(path, "file not found")
+        try:
+            d = json.loads(path.read_text())
+        except json.JSONDecodeError as e:
+            raise InputError(path, f"invalid JSON: {e.msg}", e.lineno) from None
+        if d.get("format") != FORMAT:
+            raise InputError(path, f"format is {d.get('format')!r}, expected {FORMAT!r}")
+        try:
+            tr = d.get("transition") or {}
+            fp = tr.get("f_remain_play")
+            fam = d.get("model_family") or {}
+            bp = fam.get("B")
+            return cls(SplineFn.from_json(d["B"]), SplineFn.from_json(d["f_remain"]),
+                       int(d["f_remain"]["sign"]), float(d["f_coarse"]["q_per_rad"]), d,
+                       T.Transition.from_json(tr) if "r" in tr else T.Transition.play(), tr.get("choice"),
+                       SplineFn.from_json(fp) if fp else None, int(fp["sign"]) if fp else None,
+                       SplineFn.from_json(bp) if bp else None, fam.get("choice"))
+        except (KeyError, TypeError, ValueError) as e:
+            raise InputError(path, f"malformed calibration: {e}") from None
+
+
+def auto_fps(t1: np.ndarray, fps_max: float = 50.0, fps_min: float = 10.0) -> float:
+    """The bootstrap frame rate (onset_settings.bootstrap_fps); `calibrate` then sets the rate from
+    the record's dead bands (onset_settings.angle_onset_settings)."""
+    return bootstrap_fps(t1, fps_max, fps_min)
+
+
+# The transition's model choice deals the strokes to transition.KFOLD folds: with fewer
+# reversals than folds a fold gets no stroke, and the choice falls back to the paper's play.
+MIN_REVERSALS_TRANSITION = T.KFOLD
+
+
+# Without any motion onset the play is fitted on c alone (families.FAMILIES_FROM_C), but only when
+# the tip moves: its span over the calibration frames must exceed this many times the median
+# |second difference| of c (1.65 sigma for white noise, so a still tip's span of ~6 sigma stays
+# below; a cosine stroke of m frames has it ~5/m^2 of its span, far below at any frame rate).
+STILL_SPAN_NOISE = 20
+
+
+def loadable_f(refit, f, sign, B, q_range, unit: str, transition=None, source=None):
+    """f as fitted when the board loads its table; else f refitted with the smallest slope floor
+    of F_SLOPE_FLOORS at which it does.
+
+    Why: eq. 9 inverts f, and the loader holds f^-1's fixed-point error to the precision ceiling
+    (calib_load, CALIB_ERR_PRECISION: 1/16 of the largest play). A monotone fit may leave f
+    nearly flat over a stretch where the record's c barely moves (the whole of data_2_2 gave
+    |f'| = 2e-4 deg/mm at one point against 9.8 median): f^-1 then jumps there and the table is
+    refused, so a valid calibration could not be flashed. The floor |f'| >= k x mean slope
+    (bspline.robust_spline's min_slope) is raised only until the loader, the one judge of
+    the table, accepts it (tables.build_table: the same table `playscope tables` writes).
+    refit(min_slope) -> (f, sign): the same estimator with the floor (deg per actuator unit).
+    B: the table's play width; q_range: (q_min, q_max); transition: the table's operators.
+    Returns (f, sign, floor or None). Errors: TableError for any other refusal (not f's)."""
+    from ..base.native import core
+    from .table_build import TableError, build_table
+
+    _, lib = core()
+
+    def loads(fn) -> bool:
+        try:
+            build_table(B, fn, q_range[0], q_range[1], unit, "remain", transition=transition, source=source)
+            return True
+        except TableError as e:
+            if e.status != lib.CALIB_ERR_PRECISION:
+                raise
+            return False
+
+    if loads(f):
+        return f, sign, None
+    mean_slope = abs(f.y_hi - f.y_lo) / max(f.hi - f.lo, 1e-12)
+    for k in F_SLOPE_FLOORS:
+        g, sg = refit(k * mean_slope)
+        if loads(g):
+            return g, sg, {"min_slope": k * mean_slope, "fraction_of_mean": k,
+                           "why": "table of the unconstrained f refused (CALIB_ERR_PRECISION: f nearly flat)"}
+    raise TableError(source, "f^-1 stays above the precision ceiling even for a straight f")
+
+
+def _command_lag(s: Session, t_enc, q, rt, rq, hyst) -> float:
+    """Delay from a commanded q to the angle sensor (servo lag + sensor delay), s: the lag at
+    which the tip's velocity best follows the command's sign around the reversals
+    (onset_refine.coarse_delay on frames at the bootstrap rate; the tip stops as the motor
+    turns, eq. 1's dead band)."""
+    from .onset_refine import coarse_delay, motor_stop_times
+
+    fr = bootstrap_fps(rt)
+    t_f, c_f = frames_from_angle(s.distal["t_s"], s.distal["c_deg"], fr)
+    t_stop = motor_stop_times(t_enc, q, rt, rq, 0.1 * hyst)
+    return coarse_delay(t_f, np.column_stack([c_f, np.zeros_like(c_f)]), t_stop, t_enc, q, 1.0 / fr)
+
+
+def pose_with_offset(im: model.ImageModel, obs: np.ndarray, c0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """c per frame by LM pose estimation (eqs. 6-8) with one constant image offset for the
+    session: a registration error of the hand-eye (section V-F: it acts mainly across the
+    motion, Table I's Qy) moves the marker's image by a nearly constant amount over the small
+    workspace, and left in the residual it pulls each frame's c towards reducing it (LM fits
+    one c to both image coordinates). First pass: c with the given registration; offset = the
+    median image residual over the valid frames (its component along the motion is ~0, as c
+    absorbs it, so only the part across the motion is taken out); second pass: c on Q - offset.
+    obs: (F, 2) px, NaN rows lost; c0: (F,) deg seeds. Returns (c (F,) deg, residual (F,) px
+    after the offset, offset (2,) px)."""
+    c1, _ = im.estimate_c(obs, c0)
+    r = obs - im(c1)
+    ok = np.all(np.isfinite(r), axis=1)
+    offset = np.median(r[ok], axis=0) if ok.any() else np.zeros(2)
+    c2, res = im.estimate_c(obs - offset, c1)
+    return c2, res, offset
+
+
+def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src):
+    """B(q)'s stiffness and the model chosen together by the model choice's own cross-
+    validation on c (transition.choose_model: rolling origin, state from the record's start).
+
+    The B-sample CV (backlash.choose_stiffness) judges a B by how well it predicts held-out
+    onset widths; but an onset fires once the tip has moved by the detector's threshold, and
+    with a smooth transition that width is not the play the model anchors on (the tip creeps
+    from the narrowest operator). What the product needs from B is the c it predicts, so each
+    stiffness the B-sample CV tried (backlash.backlash_alternatives: distinct B's only) gets
+    its own model choice. The B-sample CV's own pick is kept when its model's CV RMSE is within
+    one standard error of the best (no evidence against the measured B); otherwise the pick is
+    the stiffest B whose chosen model's CV RMSE is within one standard error of the best (the
+    one-standard-error rule of both CVs).
+    Each alternative's model choice is transition.ModelChoice: pick() fits only the folds that
+    can decide its pick (the rows here need its pick and refit alone), and only the alternative
+    kept completes every candidate for the choice dict: the same results as a full
+    transition.choose_model per alternative, in fewer fits. The alternatives themselves cannot
+    be cut short: the B rule's limit is the best alternative's CV + SE, and every alternative's
+    row is part of the calibration file (B_fit.model_cv).
+    on: the onset samples (onsets.Onsets); bfit: their fit_backlash_auto result; t_enc, q: (N,)
+    s, actuator units; t_f, c_f: (F,) s, deg; td: acquisition delay, s; model_kind "auto"|"pi";
+    n_ctrl: f's control points for the pure-play candidate (14 from calibrate: the
+    cross-validated f_remain N needs B first); src: file named in errors.
+    Returns (BacklashFit, Transition, f, sign, choice dict, [{"smooth", "cv_rmse_deg",
+    "cv_se_deg", "model", "b_scale", "n", "b_sample_pick"}] stiffest first)."""
+    alts = backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)
+    base = T.FitData.from_session(t_enc, q, alts[0][1].B, t_f, c_f, td)
+    rows, choices = [], []
+    for sm, bf in alts:
+        # B-proportional thresholds (transition.ThresholdMap, built from this alternative's B)
+        # are offered when B's shape is measured (transition.threshold_kinds).
+        mc = T.ModelChoice(base.with_B(bf.B), model_kind, n_ctrl, kinds=T.threshold_kinds(bf.kind, on.b.size, bf.n_ctrl))
+        pick, (tr, _, _, _) = mc.pick(), mc.refit()
+        rows.append({"smooth": sm, "cv_rmse_deg": pick["cv_rmse_deg"], "cv_se_deg": pick["cv_se_deg"],
+                     "model": "play" if tr.is_play else "pi", "b_scale": pick["b_scale"], "n": tr.n})
+        choices.append(mc)
+    best = min(rows, key=lambda d: d["cv_rmse_deg"])
+    limit = best["cv_rmse_deg"] + best["cv_se_deg"]
+    own = next(i for i, (sm, _) in enumerate(alts) if sm == bfit.smooth)
+    for j, d in enumerate(rows):
+        d["b_sample_pick"] = j == own  # the B-sample CV's own choice (backlash.choose_stiffness)
+    # The onset samples' own choice stays unless the model's CV on c puts it beyond one standard
+    # error of the best: B is the anchor measured by eq. 1, and a CV on c that cannot tell the
+    # stiffnesses apart has no evidence to move it. Beyond, the stiffest B within one SE of the
+    # best (rows are stiffest first).
+    i = own if rows[own]["cv_rmse_deg"] <= limit else next(i for i, d in enumerate(rows) if d["cv_rmse_deg"] <= limit)
+    tr, f, sign, ch = choices[i].result()
+    return alts[i][1], tr, f, sign, ch, rows
+
+
+def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
+              t_delay_s: float | None = None, hysteresis: float | None = None,
+              onset_cfg: dict | None = None, source: str | None = None,
+              onsets: Onsets | None = None, t_delay_from: str = "data",
+              model_kind: str = "auto", f_ctrl: int | None = None) -> Calibration:
+    """Run the chain on a session (image or angle).
+
+    1 reversals (q_cmd if logged, else the encoder with hysteresis, default 1 % of the
+      travel); 2 onsets by the C detector; 3 B spline (N = n_ctrl); 4 c per frame (angle
+      sensor, or LM pose estimation eqs. 6-8 seeded with f_coarse); 5 f_remain by
+      f_method "lsq" (play-consistent) or "morph" (paper); the other one is kept as
+      f_remain_alt. t_delay: argument, else session.json, else estimated (image
+      sessions; 0 for angle sessions, whose sensor shares the encoder clock).
+    Image sessions: the onsets are refined on the host and t_delay is measured from the record
+      (playscope.fit.onset_refine.robust_samples); t_delay_from "data" (default) uses the record's
+      delay, "config" the configured one; a gap over a frame is a warning (doc["warnings"]).
+    onsets: B samples measured elsewhere (e.g. by the board's own detector during
+      `playscope run-insitu`); they replace the detector run of step 2 (image sessions: as the
+      refinement's candidates; angle sessions: fitted as they are).
+    model_kind: "play" (the paper's pure play), "pi" (play + transition operators) or "auto"
+      (default: play or PI and the operator count by cross-validation on the session itself,
+      transition.choose_model); with a transition, f_remain is f of y (the transition model, docs/method.md).
+    Thin records degrade: 1-3 B samples give a constant B with its 95 % interval, more
+      a B(q) spline of min(n_ctrl, samples) control points with its stiffness by cross-validation
+      (backlash.fit_backlash_auto); angle sessions take their frame rate and onset threshold from
+      the record (onset_settings.angle_onset_settings); each fallback is a line in doc["warnings"].
+    f_ctrl: f_remain's control points; None (default): chosen by rolling-origin cross-validation on
+      the calibration frames (f_remain.choose_f_ctrl, the fewest within one standard error of the
+      best); the choice and its scores are in doc["f_fit"]. The pure play's f in the transition's
+      model choice uses the same N.
+    q_source "command" (session.json actuator.q_source): angle sessions measure the command-to-tip
+      delay from the record (servo lag) instead of taking 0.
+    Errors: InputError (naming the file) when q never reverses, when no reversal gives an onset,
+      or for lost markers.
+    """
+    src = source or (str(s.path) if s.path else None)
+    across_families = model_kind == "auto"
+    t_enc, q = s.encoder["t_s"], s.encoder["q"]
+    q_rev = s.encoder.get("q_cmd", q)
+    span = float(np.ptp(q))
+    if span <= 0:
+        raise InputError(src, "the actuator never moves (encoder.csv q constant)")
+    hyst = 0.01 * span if hysteresis is None else hysteresis
+    rt, rq, _ = detect_reversals(t_enc, q_rev, hyst)
+    if "q_cmd" in s.encoder:
+        rq = np.interp(rt, t_enc, q)  # q1 is the measured position at the commanded reversal
+    enc_file = Path(s.path or ".") / "encoder.csv" if s.path else src
+    if rt.size == 0:
+        raise InputError(enc_file, f"no direction reversal (q moves one way only, hysteresis {hyst:.3g} "
+                         f"{s.actuator_unit}): B needs at least one; record a back-and-forth motion")
+    warnings = []
+    if rt.size < 4:
+        warnings.append(f"only {rt.size} direction reversal(s): B(q) needs >= 4 onsets, B is held constant "
+                        "if fewer are detected (confidence interval in B_fit.ci95)")
+    if s.q_source == "measured" and "q_cmd" not in s.encoder:
+        cmd, ratio = q_looks_commanded(q)
+        if cmd:
+            warnings.append(f"encoder.csv q looks like a command, not a measurement (smooth to {ratio:.1e} of a "
+                            "step): if it is, set actuator.q_source = \"command\" in session.json so the "
+                            "servo lag is measured from the record (docs/session-format.md)")
+
+    onset_rule = None
+    if s.distal_kind == "angle":
+        if t_delay_s is not None:
+            td, td_src = t_delay_s, "argument"
+        elif s.t_delay_s is not None and s.q_source != "command":
+            td, td_src = s.t_delay_s, "session"
+        elif s.q_source == "command":
+            td, td_src = _command_lag(s, t_enc, q, rt, rq, hyst), "record (q is the command: servo lag + sensor delay)"
+        else:
+            td, td_src = 0.0, "angle sensor on the encoder clock"
+        # No image registration here, so no jump at the onset: a fast start is real motion.
+        # Frame rate and threshold from the record (onset_settings.angle_onset_settings).
+        fr, defaults, onset_rule = angle_onset_settings(t_enc, q, rt, rq, s.distal["t_s"], s.distal["c_deg"], td, fps)
+        t_f, c_f = frames_from_angle(s.distal["t_s"], s.distal["c_deg"], fr)
+        obs = np.column_stack([c_f, np.zeros_like(c_f)])
+    else:
+        t_f, obs = s.observations()
+        fr = s.camera.fps
+        lost = ~np.all(np.isfinite(obs), axis=1)
+        if lost.mean() > 0.5:
+            raise InputError(Path(s.path or ".") / "marker.csv", f"marker lost in {lost.mean():.0%} of the frames")
+        td = td_src = None  # set below from the record (onset_refine), checked against these
+        defaults = {}
+    refine_doc = None
+    if s.distal_kind == "image":
+        from .onset_refine import robust_samples
+
+        cfg_td = t_delay_s if t_delay_s is not None else s.t_delay_s
+        rob = robust_samples(t_enc, q, q_rev, rt, rq, t_f, obs, fr, cfg_td, t_delay_from, onsets, onset_cfg, hyst)
+        td, refine_doc = rob.t_delay_s, rob.report
+        warnings += rob.warnings
+        td_src = "argument" if t_delay_s is not None and t_delay_from == "config" else rob.t_delay_source
+    cfg = OnsetConfig(t_delay_s=td, fps=fr, **{**defaults, **(onset_cfg or {})})
+    if s.distal_kind == "image":
+        on = rob.onsets
+    else:
+        on = onsets if onsets is not None else run_onsets(t_enc, q, rt, rq, t_f, obs, s.distal_kind, cfg)
+    no_onset = on.b.size == 0
+    if no_onset:
+        why = ", ".join(f"{k} {v}" for k, v in on.reasons.items() if v) or "none reached"
+        if not across_families:
+            raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset "
+                             f"({why}); check that the distal end moves after each reversal and the back-and-forth "
+                             "exceeds the play")
+        # The families that fit their play from c alone still hold (families.FAMILIES_FROM_C); B
+        # (set below from the frames) is then the constant play's width, not a measurement.
+        warnings.append(f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset ({why}): "
+                        "the play's width is fitted on c alone (constant play), the onset families are not offered")
+        bfit = BacklashFit(None, np.zeros(0), np.zeros(0), np.zeros(0, bool), 0.0, kind="fitted on c", n_ctrl=4)
+    else:
+        bfit = fit_backlash_auto(on.q_mean, on.b, n_ctrl, source=src, sigma=on.sigma_b)
+    B, w = bfit.B, bfit.weight
+    if bfit.kind == "constant" and not no_onset:
+        ci = "unknown (one sample without an uncertainty)" if bfit.ci95 is None else \
+            f"95 % CI {bfit.ci95[0]:.3g}..{bfit.ci95[1]:.3g}"
+        why = (f"only {on.b.size} B sample(s) (B(q) needs >= {MIN_SPLINE_SAMPLES})" if on.b.size < MIN_SPLINE_SAMPLES
+               else f"cross-validation on the {on.b.size} B samples prefers it to a B(q) spline")
+        warnings.append(f"B held constant at {float(B(np.array([0.0]))[0]):.3g} {s.actuator_unit}, {ci}: {why}")
+    if bfit.inconsistent.any():
+        warnings.append(f"{int(bfit.inconsistent.sum())} B sample(s) inconsistent with their neighbours "
+                        f"(|z| > {Z_INCONSISTENT}): listed in b_inconsistent, down-weighted, not averaged in")
+
+    # c per frame: the sensor, or LM pose estimation through h(g(c)) (eqs. 6-8).
+    if s.distal_kind == "angle":
+        c_f = obs[:, 0]
+        lm = None
+    else:
+        im = model.ImageModel(s.robot, s.camera, s.hand_eye)
+        q_f = np.interp(t_f - td, t_enc, q)
+        c_f, res, offset = pose_with_offset(im, obs, model.f_coarse(q_f, s.robot.q_per_rad))
+        lm = {"residual_px_median": float(np.nanmedian(res)), "residual_px_max": float(np.nanmax(res)),
+              "image_offset_px": [float(v) for v in offset]}
+    if no_onset:
+        from .families import constant_play_lsq, constant_spline
+
+        q_c0, c_c0 = characteristic(t_enc, q, t_f, c_f, td)
+        c_ok = c_c0[np.isfinite(c_c0)]
+        noise = float(np.median(np.abs(np.diff(c_ok, 2)))) if c_ok.size > 2 else 0.0
+        if c_ok.size < 3 or np.ptp(c_ok) <= STILL_SPAN_NOISE * noise:
+            # A tip whose span is within its own noise has not followed q at all: nothing to fit
+            # a play on.
+            raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset "
+                             f"({why}), and the distal end spans only {np.ptp(c_ok) if c_ok.size else 0:.3g} deg; "
+                             "check that it moves after each reversal and the back-and-forth exceeds the play")
+        B = bfit.B = constant_spline(constant_play_lsq(q_c0, c_c0)[0], float(q.min()), float(q.max()))
+        model_kind = "play"  # no onset B to anchor the transition on
+    model_cv = None
+    if model_kind != "play" and rt.size >= MIN_REVERSALS_TRANSITION:
+        # B(q)'s stiffness by the model's own cross-validation on c (see choose_b_and_model).
+        joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src)
+        bfit, model_cv = joint[0], joint[5]
+        B, w = bfit.B, bfit.weight
+    q_c, c_c = characteristic(t_enc, q, t_f, c_f, td)
+    # f_remain's stiffness from the calibration frames: rolling-origin CV on the transition's folds.
+    z_c = model.play_operator(q_c, B)
+    if f_ctrl is None:
+        f_cv = choose_f_ctrl(z_c, c_c, T.rolling_origins(T.FitData.from_session(t_enc, q, B, t_f, c_f, td), T.KFOLD))
+        f_n = f_cv["n_ctrl"] or n_ctrl
+    else:
+        f_cv, f_n = {"n_ctrl": int(f_ctrl), "rule": "given", "candidates": []}, int(f_ctrl)
+    fits = {}
+    fits["lsq"] = f_remain_lsq(q_c, c_c, B, f_n, z=z_c)[:2]
+    fits["morph"] = f_remain_morph(q_c, c_c, n_ctrl)[:2]
+    if f_method not in fits:
+        raise ValueError(f"f_method must be 'lsq' or 'morph', not {f_method!r}")
+    f, sign = fits[f_method]
+    # The product's f must load on the board (loadable_f), for the pure play as for the PI below.
+    refit_play = {"lsq": lambda ms: f_remain_lsq(q_c, c_c, B, f_n, z=z_c, min_slope=ms)[:2],
+                  "morph": lambda ms: f_remain_morph(q_c, c_c, n_ctrl, min_slope=ms)[:2]}[f_method]
+    q_rng = (float(q.min()), float(q.max()))
+    f, sign, floor_play = loadable_f(refit_play, f, sign, B, q_rng, s.actuator_unit, source=src)
+    floor = floor_play
+    alt = "morph" if f_method == "lsq" else "lsq"
+    tr, choice, f_play, play_doc = T.Transition.play(), None, None, None
+    if model_kind == "auto" and rt.size < MIN_REVERSALS_TRANSITION:
+        model_kind = "play"
+        warnings.append(f"model play: {rt.size} reversals are too few to cross-validate a transition "
+                        f"(needs >= {MIN_REVERSALS_TRANSITION}, one stroke per fold)")
+    if model_kind != "play":
+        if model_cv is not None:  # chosen with B above (its pure-play candidate uses n_ctrl: f_n needs B first)
+            tr, f_pi, sign_pi, choice = joint[1:5]
+        else:
+            data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
+            tr, f_pi, sign_pi, choice = T.choose_model(data, model_kind, f_n,
+                                                       kinds=T.threshold_kinds(bfit.kind, on.b.size, bfit.n_ctrl))
+        if not tr.is_play:
+            f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method, "slope_floor": floor_play}
+            nc = int(choice["n_ctrl"]) if choice and choice.get("n_ctrl") else f_n
+
+            @functools.cache
+            def pi_frames():
+                # The PI's output at the frames: only when f must be refitted (the operators run
+                # over the whole encoder record, so not on every calibration).
+                data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
+                return data.ops_at_frames(tr.r, tr.b_scale, tr.tmap is not None) @ tr.w, data.c
+
+            f_pi, sign_pi, floor = loadable_f(lambda ms: T.fit_f(*pi_frames(), nc, sign=sign_pi, min_slope=ms),
+                                              f_pi, sign_pi, tr.play_width(B), q_rng, s.actuator_unit, tr, src)
+            f, sign, f_method = f_pi, sign_pi, "lsq+pi"
+    B_product, fam_choice = None, None
+    if across_families:
+        # The family the table carries, by the rolling-origin CV through the tables (families.py).
+        from . import families as FAM
+
+        play_f, play_sign = (f, sign) if tr.is_play else (f_play, int(play_doc["sign"]))
+        ctx = FAM.Context(T.FitData.from_session(t_enc, q, B, t_f, c_f, td), choice, tr, f, sign, play_f, play_sign,
+                          int(f_n), q_rng, s.actuator_unit)
+        member, fam_choice = FAM.choose(ctx, int(rt.size), FAM.FAMILIES_FROM_C if no_onset else None, source=src)
+        if fam_choice["rule"].startswith("thin"):
+            warnings.append(f"model {member.family}: {fam_choice['rule']}")
+        if member.family != ("onset_play" if tr.is_play else "onset_transition") or member.relax is not None:
+            if tr.is_play:  # the pure play's f stays beside the product's (f_remain_play: the onset_lsq row)
+                f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method, "slope_floor": floor_play}
+            tr, f, sign, floor = member.transition, member.f, member.sign, None
+            f_method = {"onset_play": "lsq", "const_play": "lsq+const_play", "pi_const": "lsq+pi_const"}.get(
+                member.family, "lsq+" + member.family)
+            if member.family not in FAM.ONSET_FAMILIES:
+                B_product = member.B
+    for name, fl in (("f_remain" if tr.is_play else "the pure play's f_remain", floor_play),
+                     ("f of the transition model", None if tr.is_play else floor)):
+        if fl:
+            warnings.append(f"{name} held to |f'| >= {fl['min_slope']:.3g} deg per {s.actuator_unit} "
+                            f"({fl['fraction_of_mean']:g} of its mean slope): fitted freely it was nearly flat "
+                            f"somewhere and the board refused to invert it (slope_floor in the JSON)")
+    doc = {
+        "format": FORMAT, "actuator_unit": s.actuator_unit, "source": src,
+        "q_range": [float(q.min()), float(q.max())],
+        "t_delay_s": float(td), "t_delay_source": td_src, "fps_frames": float(fr),
+        "reversal_hysteresis": float(hyst), "reversals": int(rt.size),
+        "onset": {"config": cfg.effective(), "reasons": on.reasons, "refine": refine_doc, "rule": onset_rule},
+        "B_fit": {"kind": bfit.kind, "n_ctrl": bfit.n_ctrl, "smooth": bfit.smooth, "ci95": bfit.ci95,
+                  "samples": int(on.b.size), "cv": bfit.cv, "model_cv": model_cv},
+        "b_samples": {"t1_s": on.t1_s, "t2_s": on.t2_s, "q1": on.q1, "q2": on.q2, "q_mean": on.q_mean,
+                      "b": on.b, "weight": w, "sigma_b": on.sigma_b, "z": bfit.z},
+        "b_inconsistent": [{"index": int(i), "q_mean": float(on.q_mean[i]), "b": float(on.b[i]), "z": float(bfit.z[i])}
+                           for i in np.nonzero(bfit.inconsistent)[0]],
+        "warnings": warnings,
+        "B": B.to_json(),
+        "f_remain": {**f.to_json(), "sign": sign, "method": f_method, "slope_floor": floor},
+        "f_fit": {"n_ctrl": f_n, **{k: v for k, v in f_cv.items() if k != "n_ctrl"}},
+        "f_remain_alt": {**fits[alt][0].to_json(), "sign": fits[alt][1], "method": alt},
+        "f_coarse": {"q_per_rad": s.robot.q_per_rad},
+        "pose_estimation": lm,
+        "transition": {**tr.to_json(), "model": "play" if tr.is_play else "pi", "choice": choice,
+                       "f_remain_play": play_doc},
+        "model_family": None if fam_choice is None else
+        {"family": fam_choice["family"], "B": None if B_product is None else B_product.to_json(), "choice": fam_choice},
+    }
+    from ..base.jsonio import plain_json
+
+    return Calibration(B, f, sign, s.robot.q_per_rad, plain_json(doc), tr, plain_json(choice), f_play,
+                       None if f_play is None else int(play_doc["sign"]), B_product, plain_json(fam_choice))

@@ -1,0 +1,851 @@
+"""Host refinement of the motion onsets (section III-A, eq. 1) by maximum likelihood.
+
+The board keeps its simple detector (firmware/core/onset.c); the host refines each of its
+onsets with a joint model of the marker around a reversal, fitted to the frames:
+
+    Q(t) = a + v0 min(t - tau0, 0)                       old motion, stops at tau0
+             + r e^(-alpha (t - tau0)) sin(w (t - tau0))  ringing after the stop (optional)
+             + s [t >= t_j]                               a step: registration / channel jump (optional)
+             + v1 max(t - tau, 0)                         new motion from the onset tau
+
+Q is the 2-D marker (px); a, v0, r, s, v1 are 2-vectors, linear given the change points
+(tau0, tau, frame j) and the ringing (w, alpha), so each candidate is one linear least-squares
+solve and the change points are found on grids (coordinate ascent: stop and ringing, then onset
+and step, then stop again). Gaussian noise of unknown variance gives the profile likelihood
+RSS^(-N/2); optional parts are kept by BIC (Schwarz 1978). The onset t2 is the posterior mean
+of tau under a flat prior on the grid, its uncertainty the posterior standard deviation: a
+step in the frame interval of the onset makes tau unidentifiable inside that interval, and the
+estimate is then its middle with sigma = T/sqrt(12), instead of the early crossing that a line
+through the jump gives.
+
+The stop tau0 is seen where the motor stopped plus the image delay, whatever the backlash, so
+the stop times give t_delay from the record (median of tau0 - motor stop), independent of the
+configured value.
+
+Units: t in s, image points in px. Arrays per reversal are (M,).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Ringing grid: 1.5-7 Hz (below Nyquist at 25 fps with margin; the issue's 2-5 Hz inside) and
+# decay rates 0.5-12 /s (damping ratio ~0.01-0.8 at 3 Hz).
+RING_HZ = np.arange(1.5, 7.01, 0.5)
+RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
+SUB = 8          # onset / stop grid points per frame period
+PRE_FRAMES = 3   # frames of old motion kept before the earliest stop searched
+FAST_FRAMES = 4.0  # below: the actuator-shape model (onset_play) gives the B samples and t_delay
+POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line holds over ~0.25 s)
+
+
+@dataclass
+class Refined:
+    """Per reversal (M,): refined onset t2_s and its sigma_t2_s (s), stop time tau0_s (image
+    clock), step_px (|s|, 0 without a step), ring_hz / ring_alpha (0 without ringing) and
+    ring_px (|r|), ok (fit done)."""
+
+    t2_s: np.ndarray
+    sigma_t2_s: np.ndarray
+    tau0_s: np.ndarray
+    step_px: np.ndarray
+    ring_hz: np.ndarray
+    ring_alpha: np.ndarray
+    ring_px: np.ndarray
+    ok: np.ndarray
+
+
+def motor_stop_times(t: np.ndarray, q: np.ndarray, t1: np.ndarray, q1: np.ndarray, tol: float) -> np.ndarray:
+    """When the actuator reached each reversal's extremum: the first sample of the run within
+    ``tol`` of q1 that ends at t1 (t1 itself without a hold at the turn). t, q: (N,);
+    t1, q1: (M,). Returns (M,) s. The tip stops there (the play opens at once)."""
+    i1 = np.clip(np.searchsorted(t, t1), 0, t.size - 1)
+    out = np.empty(t1.size)
+    for r, (i, qq) in enumerate(zip(i1, q1)):  # one short backward walk per reversal
+        k = i
+        while k > 0 and abs(q[k - 1] - qq) <= tol:
+            k -= 1
+        out[r] = t[k]
+    return out
+
+
+def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np.ndarray, q: np.ndarray,
+                 period: float, max_delay: float = 0.5) -> float:
+    """First guess of t_delay (s): cross-correlation of commanded and observed motion around
+    the motor stops. For each reversal the image velocity along the old motion's image
+    direction (from the half second before the motor stop) is multiplied by the sign of the
+    motor's velocity at t - lag (+1 on, -1 back, 0 held), over 8 frame periods before
+    t_stop + lag and 4 after; the sum over reversals peaks at the delay (earlier lags meet
+    the tip still going while the motor is back; later ones meet the dead band). A ringing tip
+    keeps going for up to a quarter period after the stop, so the guess may be late by that;
+    velocities are clipped at 3 median so a jump does not count. ``refine`` fits each stop
+    from 5 frames before the guess to 3 after."""
+    ok = np.all(np.isfinite(obs), axis=1)
+    tf, o = t_f[ok], obs[ok]
+    P = lambda tt: np.stack([np.interp(tt, tf, o[:, 0]), np.interp(tt, tf, o[:, 1])], axis=-1)  # noqa: E731
+    e = P(t_stop) - P(t_stop - 0.5)
+    e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-12)
+    sgn = np.sign(np.interp(t_stop, t_enc, q) - np.interp(t_stop - 0.1, t_enc, q))
+    dq = np.diff(q)
+    tm = 0.5 * (t_enc[1:] + t_enc[:-1])
+    ks = np.arange(-8, 4) + 0.5
+    lags = np.arange(0.0, max_delay + 1e-9, period / SUB)
+    score = np.empty(lags.size)
+    for i, lag in enumerate(lags):
+        tc = t_stop[:, None] + lag + ks[None, :] * period  # (M, 12) velocity sample times
+        vi = np.einsum("mkc,mc->mk", P(tc + period / 2) - P(tc - period / 2), e)
+        vm = np.sign(np.interp(tc - lag, tm, dq)) * sgn[:, None]
+        lim = 3.0 * np.median(np.abs(vi)) + 1e-12  # a jump is one huge velocity sample: clip it
+        score[i] = np.sum(np.clip(vi, -lim, lim) * vm)
+    return float(lags[int(np.argmax(score))])
+
+
+def _project(F: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The shared part of `_solve` for F (n, f) and Y (n, 2): an orthonormal basis Qf (n, r) of
+    F's span (rank-aware: absent parts are zero columns), Y with F projected out (n, 2) and its
+    sum of squares. Depends on F and Y only, so an episode computes it once for all the
+    candidates (and Nelder-Mead steps) that share F."""
+    U, sv, _ = np.linalg.svd(F, full_matrices=False)
+    Qf = U[:, sv > 1e-9 * sv.max()]
+    Yr = Y - Qf @ (Qf.T @ Y)
+    return Qf, Yr, float(np.sum(Yr * Yr))
+
+
+def _solve(F: np.ndarray, V: np.ndarray, Y: np.ndarray, proj=None) -> tuple[np.ndarray, np.ndarray]:
+    """Batched least squares Y ~ [F, V_g]: F (n, f) columns shared by every candidate, V
+    (G, n, p) the candidate's own columns, Y (n, 2). F is projected out first (Frisch-Waugh-
+    Lovell), so each candidate is a p x p solve. proj: `_project(F, Y)` when already computed
+    (same numbers, computed once). Returns (RSS (G,), coef of V (G, p, 2)).
+    Columns that are identically zero (a part absent from a candidate) get a tiny ridge so the
+    solve stays regular without changing the fit."""
+    return _solve_t(np.ascontiguousarray(V.transpose(0, 2, 1)), _project(F, Y) if proj is None else proj)
+
+
+_EYE = {p: np.eye(p) for p in (1, 2, 3)}
+
+
+def _solve_t(Vt: np.ndarray, proj) -> tuple[np.ndarray, np.ndarray]:
+    """`_solve` with the candidates' columns as rows, Vt (G, p, n) C-contiguous, and F given by
+    proj = `_project(F, Y)`."""
+    Qf, Yr, yy = proj
+    G, p, n = Vt.shape
+    Vt = Vt.reshape(G * p, n)  # 2-D products: BLAS, not stacks
+    Vt = (Vt - (Vt @ Qf) @ Qf.T).reshape(G, p, n)
+    A = Vt @ Vt.transpose(0, 2, 1)
+    scale = np.maximum(np.diagonal(A, axis1=1, axis2=2).max(axis=1), 1.0)
+    A += (1e-10 * scale)[:, None, None] * (_EYE[p] if p in _EYE else np.eye(p))[None]
+    rhs = (Vt.reshape(G * p, n) @ Yr).reshape(G, p, 2)
+    coef = np.linalg.solve(A, rhs)
+    rss = yy - (coef * rhs).sum(axis=(1, 2))
+    return np.maximum(rss, 1e-12 * max(yy, 1e-300)), coef
+
+
+def _col_old(tk, tau0):
+    """Old motion, stopping at tau0: min(t - tau0, 0). tau0 (G,) -> (G, n)."""
+    return np.minimum(tk[None, :] - np.asarray(tau0, float)[:, None], 0.0)
+
+
+def _col_ring(tk, tau0, om, al):
+    """Ringing from the stop: e^(-al d) sin(om d), d = t - tau0 > 0 (0 before). (G, n).
+    The grids repeat few distinct tau0, om and al, so exp and sin are taken once per distinct
+    (tau0, al) and (tau0, om) pair and multiplied per candidate (the same numbers as per
+    candidate); no ringing (om 0 everywhere) is a zero column."""
+    tau0, om, al = (np.asarray(x, float).ravel() for x in (tau0, om, al))
+    if not np.any(om):
+        return np.zeros((tau0.size, tk.size))
+    if np.all(om == om[0]) and np.all(al == al[0]):  # one ringing (the record's, a polishing step)
+        d = np.maximum(tk[None, :] - tau0[:, None], 0.0)
+        return np.exp(-al[0] * d) * np.sin(om[0] * d)
+    ut, ti = np.unique(tau0, return_inverse=True)
+    uo, oi = np.unique(om, return_inverse=True)
+    ua, ai = np.unique(al, return_inverse=True)
+    d = np.maximum(tk[None, :] - ut[:, None], 0.0)  # (T, n)
+    S = np.sin(uo[:, None, None] * d[None])  # (O, T, n)
+    E = np.exp(-ua[:, None, None] * d[None])  # (A, T, n)
+    return E[ai, ti] * S[oi, ti]
+
+
+def _col_step(k_idx, j):
+    """Step at frame j (applies from frame j on); j < 0: none. (G, n)."""
+    j = np.asarray(j, float)[:, None]
+    return ((k_idx[None, :] >= j) & (j >= 0)).astype(float)
+
+
+def _logw(rss: np.ndarray, n_obs: int, n_extra: np.ndarray) -> np.ndarray:
+    """Profile log-likelihood of a Gaussian fit with unknown variance, less the BIC penalty of
+    the optional parameters: -N/2 log RSS - k/2 log N."""
+    return -0.5 * n_obs * np.log(np.maximum(rss, 1e-300)) - 0.5 * n_extra * np.log(n_obs)
+
+
+def _posterior(x: np.ndarray, lw: np.ndarray, step: float) -> tuple[float, float]:
+    """Mean and standard deviation of x under weights exp(lw) (flat prior on a grid of
+    spacing ``step``); the sd is at least step/sqrt(12), the grid's own resolution."""
+    w = np.exp(lw - lw.max())
+    w /= w.sum()
+    m = float(np.sum(w * x))
+    sd = float(np.sqrt(max(np.sum(w * (x - m) ** 2), 0.0) + step * step / 12.0))
+    return m, sd
+
+
+class _Episode:
+    """The frames of one reversal in frame-period units and the current estimate."""
+
+    def __init__(self, tk, Y, k_idx, tau0, tau):
+        self.tk, self.Y, self.k = tk, Y, k_idx
+        self.tau0, self.tau, self.j, self.om, self.al = tau0, tau, -1, 0.0, 0.0
+        self.n_obs = 2 * tk.size
+        self.stop_back = 5.0  # frames searched before the stop guess (ringing makes it late)
+        self.fixed_ring = None  # (om, al) per frame period: the record's ringing, not searched
+
+    def _proj(self, key, cols):
+        """`_project` of the shared columns F = [ones, *cols()] and Y, once per key (the held
+        parameters) for this episode's frames: the grids and polishing steps that hold the
+        same parameters share it."""
+        cache = self.__dict__.setdefault("_proj_cache", {})
+        if key not in cache:
+            cache[key] = _project(np.column_stack([np.ones(self.tk.size), *cols()]), self.Y)
+        return cache[key]
+
+    def _solve_stop(self, tau0, om, al, j):
+        """Candidates (tau0, ringing, step frame j) with the onset held: (RSS, coef of [old,
+        ring, step])."""
+        return _solve_t(self._stop_columns(tau0, om, al, j), self._stop_proj())
+
+    def _stop_proj(self):
+        """`_project` of the stop fits' shared columns [ones, new motion from the held onset]."""
+        return self._proj(("stop", self.tau), lambda: [np.maximum(self.tk - float(self.tau), 0.0)])
+
+    def _stop_columns(self, tau0, om, al, j):
+        """The stop candidates' own columns [old, ring, step] as rows: (G, 3, n)."""
+        tau0 = np.asarray(tau0, float)
+        Vt = np.empty((tau0.size, 3, self.tk.size))
+        np.minimum(self.tk[None, :] - tau0[:, None], 0.0, out=Vt[:, 0])  # old motion: _col_old
+        Vt[:, 1] = _col_ring(self.tk, tau0, om, al)
+        Vt[:, 2] = _col_step(self.k, j)
+        return Vt
+
+    def _solve_onset(self, tau, j):
+        """Candidates (onset, step frame) with the stop and ringing held: (RSS, coef of
+        [new, step])."""
+        proj = self._proj(("onset", self.tau0, self.om, self.al),
+                          lambda: [_col_old(self.tk, [self.tau0])[0],
+                                   _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
+        tau = np.asarray(tau, float)
+        Vt = np.empty((tau.size, 2, self.tk.size))
+        np.maximum(self.tk[None, :] - tau[:, None], 0.0, out=Vt[:, 0])  # new motion: max(t - tau, 0)
+        Vt[:, 1] = _col_step(self.k, j)
+        return _solve_t(Vt, proj)
+
+    def fit_stop(self):
+        """Stop tau0, ringing (w, alpha) and a step near the stop (a registration flipping at
+        the motor reversal), onset held. Half-frame grid of tau0 with every ringing (step
+        held), then with every step near the stop (ringing held); the ringing is then polished
+        by Nelder-Mead on the profile RSS (the grid is too coarse for a 10 px ring), and an
+        eighth-frame grid around the best gives tau0's posterior, marginalised over the step."""
+        from scipy.optimize import minimize
+
+        lo = max(-self.stop_back, self.tk[0] + 0.5)  # around the first guess (t = 0): no drift
+        hi = min(3.0, self.tau - 1.0)
+        if hi <= lo:
+            hi = lo + 0.5
+        g0 = np.arange(lo, hi + 1e-9, 0.5)
+        om = np.r_[0.0, np.repeat(2 * np.pi * RING_HZ, RING_ALPHA.size)] * self.period_s  # rad / frame
+        al = np.r_[0.0, np.tile(RING_ALPHA, RING_HZ.size)] * self.period_s
+        if self.fixed_ring is not None:  # the record's ringing (second pass): nothing to choose
+            self.om, self.al = float(self.fixed_ring[0]), float(self.fixed_ring[1])
+        else:
+            T0, R_ = np.repeat(g0, om.size), np.tile(np.arange(om.size), g0.size)
+            J = np.full(T0.size, float(self.j))
+            rss, _ = self._solve_stop(T0, om[R_], al[R_], J)
+            lw = _logw(rss, self.n_obs, 4.0 * (om[R_] > 0) + 3.0 * (J >= 0))
+            b = int(np.argmax(lw))
+            self.om, self.al = float(om[R_[b]]), float(al[R_[b]])
+        js = np.unique(np.concatenate(([-1, self.j], self.k[(self.tk >= lo - 1) & (self.tk <= hi + 1)]))).astype(float)
+        T0, J = np.repeat(g0, js.size), np.tile(js, g0.size)
+        rss, _ = self._solve_stop(T0, np.full(T0.size, self.om), np.full(T0.size, self.al), J)
+        lw = _logw(rss, self.n_obs, 3.0 * (J >= 0))
+        b = int(np.argmax(lw))
+        self.j, t0b = int(J[b]), float(T0[b])
+        if self.om > 0 and self.fixed_ring is None:
+            Vt, proj = self._stop_columns([t0b], [self.om], [self.al], [self.j]), self._stop_proj()
+
+            def f(p):  # the profile RSS of one ringing: only the ring column changes
+                Vt[:, 1] = _col_ring(self.tk, [t0b], [abs(p[0])], [abs(p[1])])
+                return _solve_t(Vt, proj)[0][0]
+            p = minimize(f, [self.om, self.al], method="Nelder-Mead",
+                         options={"xatol": 1e-4, "fatol": 1e-9, "maxiter": 200}).x
+            self.om, self.al = float(abs(p[0])), float(abs(p[1]))
+        gf = np.arange(max(t0b - 1.0, lo), min(t0b + 1.0, hi) + 1e-9, 0.5 / SUB)
+        js = np.unique([-1, self.j]).astype(float)
+        TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
+        rss, coef = self._solve_stop(TT, np.full(TT.size, self.om), np.full(TT.size, self.al), JJ)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0))
+        b = int(np.argmax(lw))
+        self.j = int(JJ[b])
+        self.ring_px = float(np.linalg.norm(coef[b, 1])) if self.om > 0 else 0.0
+        self.v0 = coef[b, 0]  # old velocity, px per frame period
+        lw2 = lw.reshape(gf.size, js.size)
+        m = lw2.max()
+        self.tau0, self.sd0 = _posterior(gf, m + np.log(np.exp(lw2 - m).sum(axis=1)), 0.5 / SUB)
+
+    def _back(self, coef: np.ndarray) -> np.ndarray:
+        """0 for onset candidates whose new motion goes back along the old one (after a reversal
+        the tip retraces its path at the actuator's speed: velocity 3 frames after the onset
+        within 45 deg of -v0 and between 0.3 and 3 |v0|; a ringing tip's swing back is faster),
+        -inf for the others. No constraint when the old motion is not
+        seen (|v0| below 0.05 px per frame)."""
+        v0 = getattr(self, "v0", np.zeros(2))
+        n0 = float(np.linalg.norm(v0))
+        if n0 < 0.05:
+            return np.zeros(coef.shape[0])
+        vel = coef[:, 0, :]
+        along = -(vel @ v0) / n0
+        ok = (along > 0.3 * n0) & (along < 3.0 * n0) & (along > 0.7071 * np.linalg.norm(vel, axis=1))
+        return np.where(ok, 0.0, -np.inf)
+
+    def _order(self, tau: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """0, or -inf for a step seen from a frame less than 1.5 periods before the onset. A
+        registration or channel jump comes with the reversal (at the stop, many frames
+        earlier) or with the onset (in its frame interval or after); a jump just before the
+        onset would leave that frame free of the line, and the fit would take it for any
+        curvature of the first moving frames, putting the onset late."""
+        tj = np.where(j >= 0, self.tk[np.clip(np.searchsorted(self.k, j), 0, self.k.size - 1)], -np.inf)
+        return np.where((tau - tj > 0) & (tau - tj < 1.5), -np.inf, 0.0)
+
+    def fit_onset(self, final: bool):
+        """Onset tau and step frame j, stop and ringing held: a half-frame grid of tau, a step
+        at any frame after the stop (or none), then an eighth-frame grid around the best with
+        the steps near it. final: t2 and its sd are the posterior of tau, marginalised
+        over the step's frame; otherwise the best tau."""
+        lo = self.tau0 + 0.25
+        hi = self.tk[-1] - 2.0
+        if hi <= lo:
+            self.ok = False
+            return
+        pen_ring = 4.0 * (self.om > 0)
+        # Coarse: tau on a half-frame grid; the step none, the current one (a step at the stop
+        # comes from fit_stop) or at a frame within 2 periods of tau (the onset's jump).
+        gt = np.arange(lo, hi + 1e-9, 0.5)
+        ks = self.k[self.tk > self.tau0 - 1.0]
+        tks = self.tk[self.tk > self.tau0 - 1.0]
+        band = np.abs(tks[None, :] - gt[:, None]) <= 2.0
+        ti, ki = np.nonzero(band)
+        TT = np.concatenate((gt, gt, gt[ti]))
+        JJ = np.concatenate((np.full(gt.size, -1.0), np.full(gt.size, float(self.j)), ks[ki].astype(float)))
+        rss, coef = self._solve_onset(TT, JJ)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
+        b = int(np.argmax(lw))
+        tb, self.j = float(TT[b]), int(JJ[b])
+        # No onset in the window unless new motion beats the best still model (level, old
+        # motion, ringing, and a step anywhere or none) by BIC: its 3 parameters (v1, tau).
+        jn = np.concatenate(([-1], ks)).astype(float)
+        rn, _ = self._solve_onset(np.full(jn.size, 1e9), jn)
+        null = float(np.max(_logw(rn, self.n_obs, 3.0 * (jn >= 0) + pen_ring)))
+        self.found = lw[b] - 1.5 * np.log(self.n_obs) > null
+        gf = np.arange(max(tb - 1.5, lo), min(tb + 1.5, hi) + 1e-9, 1.0 / SUB)
+        near = self.k[np.abs(self.tk - tb) <= 2.5]
+        js = np.unique(np.concatenate(([-1, self.j], near))).astype(float)
+        TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
+        rss, coef = self._solve_onset(TT, JJ)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
+        b = int(np.argmax(lw))
+        self.j = int(JJ[b])
+        self.step_px = float(np.linalg.norm(coef[b, 1])) if self.j >= 0 else 0.0
+        if not np.isfinite(lw[b]):  # no candidate moves back along the old motion
+            self.found = False
+        if final and self.found:
+            lw2 = lw.reshape(gf.size, js.size)
+            m = lw2.max()
+            with np.errstate(divide="ignore"):  # onsets the direction rule excludes have weight 0
+                marg = m + np.log(np.exp(lw2 - m).sum(axis=1))
+            self.tau, self.sd = _posterior(gf, marg, 1.0 / SUB)
+        else:
+            self.tau = float(TT[b])
+        self.ok = True
+
+
+def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, ring=None, stop_back=5.0):
+    """Fit the frames in [t0 - (PRE_FRAMES + 5) periods, end] starting from ``state`` (tau0,
+    om, al, j, tau; in periods from t0, tau = inf when no onset is known): stop, onset, stop,
+    onset (the last one final when asked; stop=False: the stop held from ``state``, onset only,
+    while the window grows). Returns the _Episode or None (too few frames)."""
+    sel = (tf >= t0 - (PRE_FRAMES + 5) * period_s) & (tf <= end)
+    if sel.sum() < 8:
+        return None
+    tk = (tf[sel] - t0) / period_s
+    ep = _Episode(tk, o[sel] - o[sel].mean(axis=0), kf[sel], state[0], 1e9)
+    ep.period_s = period_s
+    ep.om, ep.al, ep.j = state[1], state[2], state[3]
+    ep.stop_back = stop_back
+    if ring is not None:
+        ep.fixed_ring = (2 * np.pi * ring[0] * period_s, ring[1] * period_s)
+    if np.isfinite(state[4]):
+        ep.tau = min(max(state[4], state[0] + 1.0), tk[-1] - 2.0)
+    if stop or len(state) < 6:
+        ep.fit_stop()
+    else:
+        ep.v0, ep.ring_px = state[5], state[6]
+    ep.fit_onset(final=False)
+    if not ep.ok:
+        return None
+    if ep.found and stop:
+        ep.fit_stop()
+        ep.fit_onset(final=final)
+        if not ep.ok:
+            return None
+    return ep
+
+
+def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np.ndarray,
+           t2_guess: np.ndarray, t_delay_s: float, period_s: float, ring: tuple | None = None,
+           stop_back: float = 5.0) -> Refined:
+    """Refine every reversal's onset with the joint model (module doc).
+
+    t_f (F,), obs (F, 2) px (NaN = lost) on the image clock; t_stop (M,) motor stops (s,
+    encoder clock); t_next_stop (M,) the next reversal's motor stop (bounds the episode);
+    t2_guess (M,) the board's onset candidates (NaN: none, e.g. ONSET_ERR_NO_STILL when the tip
+    rings); t_delay_s the current delay (its error may be a few frames: the stop is searched
+    from stop_back frames before t_stop + t_delay_s to 3 after); period_s the frame period;
+    ring (hz, alpha 1/s) fixes the ringing (hz 0: none) instead of searching it. The window is grown
+    until the onset lies POST_FRAMES before its end, so a candidate fired by ringing or by a
+    jump is only a start. Returns Refined; ok False where no onset fits before the next stop.
+    """
+    ok_f = np.all(np.isfinite(obs), axis=1)
+    tf, o = t_f[ok_f], obs[ok_f]
+    kf = np.nonzero(ok_f)[0]
+    M = t_stop.size
+    res = {k: np.full(M, np.nan) for k in ("t2", "sd", "tau0", "step", "hz", "al", "ring")}
+    okm = np.zeros(M, bool)
+    for r in range(M):  # episodes are independent; each is a handful of batched solves
+        t0 = t_stop[r] + t_delay_s
+        t_lim = t_next_stop[r] + t_delay_s - 2 * period_s  # the next episode's old motion stays out
+        guess = t2_guess[r] if np.isfinite(t2_guess[r]) else -np.inf
+        # The first window ends 4 frames after the stop (the stop and ringing are fitted
+        # there, before any onset); the next one reaches past the board's candidate.
+        end = min(t0 + 4 * period_s, t_lim)
+        state = (0.0, 0.0, 0.0, -1, np.inf)  # tau0, om, al, j, tau (inf: no onset known yet)
+        ep = None
+        for _ in range(40):  # grow the window until an onset sits well inside it, then trim to it
+            ep = _fit_window(tf, o, kf, t0, end, period_s, state, stop=len(state) < 6, ring=ring, stop_back=stop_back)
+            if ep is None:
+                break
+            state = (ep.tau0, ep.om, ep.al, ep.j, ep.tau if ep.found else np.inf, ep.v0, ep.ring_px)
+            if ep.found and ep.tau * period_s + t0 < end - (POST_FRAMES - 1.5) * period_s:
+                trim = min(ep.tau * period_s + t0 + POST_FRAMES * period_s, t_lim)
+                e2 = _fit_window(tf, o, kf, t0, trim, period_s, state, final=True, ring=ring, stop_back=stop_back)
+                if e2 is not None and e2.found and abs(e2.tau - ep.tau) < 2.0:
+                    ep = e2
+                    break
+            if end >= t_lim:
+                ep = None
+                break
+            # Never shrink: an onset the longer window no longer supports was a jump or a swing.
+            if ep.found:
+                end = min(max(end + period_s, ep.tau * period_s + t0 + POST_FRAMES * period_s), t_lim)
+            else:
+                end = min(max(end, guess) + POST_FRAMES * period_s, t_lim)
+            guess = -np.inf
+        if ep is None or not ep.found or not hasattr(ep, "sd"):
+            continue
+        okm[r] = True
+        res["t2"][r] = t0 + ep.tau * period_s
+        res["sd"][r] = ep.sd * period_s
+        res["tau0"][r] = t0 + ep.tau0 * period_s
+        res["step"][r] = ep.step_px
+        res["hz"][r] = ep.om / period_s / (2 * np.pi)
+        res["al"][r] = ep.al / period_s
+        res["ring"][r] = ep.ring_px
+    return Refined(res["t2"], res["sd"], res["tau0"], res["step"], res["hz"], res["al"], res["ring"], okm)
+
+
+def delay_from_stops(tau0_s: np.ndarray, t_stop: np.ndarray) -> tuple[float, float, int]:
+    """t_delay from the record: median over reversals of (image stop - motor stop), its
+    standard error (1.2533 MAD-sd / sqrt(n), for the median of a normal sample) and the count.
+    NaN entries (no fit) are left out. Returns (t_delay_s, se_s, n)."""
+    d = tau0_s - t_stop
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return float("nan"), float("nan"), 0
+    med = float(np.median(d))
+    sd = 1.4826 * float(np.median(np.abs(d - med)))
+    sd = max(sd, 0.0025 / np.sqrt(12))  # the stops are on a grid of 1/16 frame
+    return med, 1.2533 * sd / np.sqrt(d.size), int(d.size)
+
+
+def delay_from_shape(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: np.ndarray,
+                     obs: np.ndarray, t2_img: np.ndarray, d_guess: float, period_s: float,
+                     span_frames: float = 3.0, ring: tuple = (0.0, 0.0)) -> tuple[float, float, int]:
+    """t_delay from the approach to each reversal, with the actuator's own shape.
+
+    Until the play is taken up the tip's drive is z = q(min(t, t1)) - q1 + const (eq. 3: on the
+    old branch z follows q, after the reversal it holds), so the frames between the old motion
+    and the refined onset are p_k = A + K h_k + K2 h_k^2, h_k = q(min(t_k - d, t1)) - q1 (the
+    image of z, locally quadratic; A, K, K2 2-vectors). The delay d enters through h only. A
+    constant-speed approach makes h a kink (what the change-point stop sees); a sine or a
+    raised-cosine swing slows down gradually, and a kink fitted there comes early by a
+    good part of the deceleration (measured -2.6 frames on a 3 s sine at 30 fps), the shape
+    does not. A registration that flips with the motor's reversal is a step at the stop: a
+    step from the stop's first or second frame is a candidate too (kept by BIC, Schwarz 1978).
+    Per reversal: d on a 1/16-frame grid d_guess +- span_frames frames, the least
+    criterion (N log RSS + the step's penalty) over the frames from 0.5 s (or the previous onset plus a frame) before the stop to half
+    a frame before the refined onset t2_img (image clock), refined by a parabola through the
+    best three; then the median over reversals, its standard error as in `delay_from_stops`.
+    t_enc, q (N,); rt, rq (M,) reversals; t_f (F,), obs (F, 2) px (NaN = lost); t2_img (M,)
+    refined onsets (NaN: none; those reversals are left out); ring (Hz, 1/s) the record's
+    ringing after the stop (Hz 0: none), one more column. Returns (t_delay_s, se_s, n)."""
+    ok_f = np.all(np.isfinite(obs), axis=1)
+    tf, o = t_f[ok_f], obs[ok_f]
+    step = period_s / 16.0
+    grid = d_guess + np.arange(-16 * span_frames, 16 * span_frames + 1) * step
+    grid = grid[grid >= 0.0]
+    if grid.size < 3:
+        return float("nan"), float("nan"), 0
+    best = []
+    for r in range(1, rt.size):
+        if not np.isfinite(t2_img[r]):
+            continue
+        start = rt[r] + d_guess - 0.5
+        if np.isfinite(t2_img[r - 1]):
+            start = max(start, t2_img[r - 1] + period_s)
+        sel = (tf >= start) & (tf <= t2_img[r] - 0.5 * period_s)
+        if sel.sum() < 8 or np.sum(tf[sel] < rt[r] + d_guess) < 3:
+            continue
+        tk, Y = tf[sel], o[sel] - o[sel].mean(axis=0)
+        h = np.interp(np.minimum(tk[None, :] - grid[:, None], rt[r]), t_enc, q) - rq[r]  # (G, n)
+        sc = max(float(np.max(np.abs(h))), 1e-12)
+        h = h / sc
+        n_obs = 2 * tk.size
+        crit = np.full(grid.size, np.inf)
+        first = np.cumsum(tk[None, :] > rt[r] + grid[:, None], axis=1)  # 1 at the stop's first frame
+        ring_cols = []
+        if ring[0] > 0:  # the record's ringing, started at the stop (as in the change-point model)
+            tau = np.maximum(tk[None, :] - rt[r] - grid[:, None], 0.0)
+            ring_cols = [np.exp(-ring[1] * tau) * np.sin(2 * np.pi * ring[0] * tau)]
+        for m in (0, 1, 2):  # no step, or one from the stop's first or second frame
+            cols = [np.ones_like(h), h, h * h] + ring_cols + ([(first >= m).astype(float)] if m else [])
+            X = np.stack(cols, axis=-1)  # (G, n, p)
+            p = X.shape[2]
+            A = np.einsum("gnp,gnq->gpq", X, X) + 1e-9 * np.eye(p)[None]
+            rhs = np.einsum("gnp,nc->gpc", X, Y)
+            coef = np.linalg.solve(A, rhs)
+            rss = np.maximum(float(np.sum(Y * Y)) - np.einsum("gpc,gpc->g", coef, rhs), 1e-12)
+            crit = np.minimum(crit, n_obs * np.log(rss) + (2 * np.log(n_obs) if m else 0.0))
+        rss = crit
+        i = int(np.argmin(rss))
+        if i == 0 or i == grid.size - 1:
+            continue  # the best delay at the grid's edge: not bracketed
+        y0, y1, y2 = rss[i - 1], rss[i], rss[i + 1]
+        den = y0 - 2 * y1 + y2
+        off = 0.5 * (y0 - y2) / den if den > 0 else 0.0
+        best.append(grid[i] + float(np.clip(off, -1.0, 1.0)) * step)
+    if not best:
+        return float("nan"), float("nan"), 0
+    d = np.array(best)
+    med = float(np.median(d))
+    sd = max(1.4826 * float(np.median(np.abs(d - med))), step / np.sqrt(12))
+    return med, 1.2533 * sd / np.sqrt(d.size), int(d.size)
+
+
+def ring_summary(ref: Refined) -> dict:
+    """The record's post-reversal ringing for the diagnosis: share of reversals where a ringing
+    was kept (BIC), and over those the median frequency (Hz), decay rate alpha (1/s), damping
+    ratio zeta = alpha / sqrt(alpha^2 + w^2) and amplitude (px)."""
+    ok = ref.ok & np.isfinite(ref.ring_hz)
+    has = ok & (ref.ring_hz > 0)
+    out = {"reversals_fitted": int(ok.sum()), "reversals_ringing": int(has.sum()),
+           "share": float(has.sum() / max(ok.sum(), 1))}
+    if has.any():
+        hz, al = np.median(ref.ring_hz[has]), np.median(ref.ring_alpha[has])
+        w = 2 * np.pi * hz
+        out.update({"freq_hz": float(hz), "decay_per_s": float(al), "damping_ratio": float(al / np.hypot(al, w)),
+                    "amplitude_px": float(np.median(ref.ring_px[has]))})
+    return out
+
+
+def _shape_fit_needed(ref_frames: float) -> bool:
+    """Whether the actuator-shape model (onset_play.fit) must be fitted, given the refined
+    onsets' frames to take up the play (lower quartile, NaN without refined onsets). Not when
+    they take it up over FAST_FRAMES frames or more: the larger of the two models' figures
+    decides, so the actuator-shape model could not be chosen whatever it gave, and the B
+    samples are the same without it (it is most of the onset path's cost on a slow excitation)."""
+    return not ref_frames >= FAST_FRAMES
+
+
+@dataclass
+class RobustOnsets:
+    """What `robust_samples` gives calibrate: the B samples (onsets.Onsets with sigma_b), the
+    delay used and where it came from, and the record's diagnosis (JSON-ready dict)."""
+
+    onsets: "object"
+    t_delay_s: float
+    t_delay_source: str
+    report: dict
+    warnings: list
+
+
+def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.ndarray, rq: np.ndarray,
+                   t_f: np.ndarray, obs: np.ndarray, fps: float, t_delay_cfg: float | None,
+                   t_delay_from: str = "data", board=None, onset_cfg: dict | None = None,
+                   hysteresis: float = 0.0) -> RobustOnsets:
+    """B samples of eq. 1 for an image session: the board's detector, then the host refinement.
+
+    1. Motor stops (``motor_stop_times`` on q_rev, the signal the reversals came from) and a
+       coarse delay (``coarse_delay``).
+    2. Candidates: ``board`` (onsets.Onsets the board measured, e.g. run-insitu) or the
+       firmware's detector run here through cffi (onsets.run_onsets) with the configured
+       delay, as the board would have run it (the coarse one when none is configured), and
+       its threshold from the record (onset_settings.image_onset_settings) unless onset_cfg gives
+       one; the rule and its figures are in report["board_threshold"].
+    3. ``refine`` every reversal; t_delay from the approach to each stop with the actuator's
+       shape (``delay_from_shape``; the stop times, ``delay_from_stops``, without 4 reversals
+       to fit), or the actuator-shape model's when its B samples are used.
+    4. t_delay_from "data" (default): use the record's delay; "config": the configured one.
+       They are compared either way; a gap over one frame period is a warning. A configured
+       delay is never needed: without one the record's delay is used.
+    5. b = |q(t2 - t_delay) - q1| with sigma_b = |dq/dt| sigma_t2. A reversal the refinement
+       could not fit keeps the board's sample, with sigma_b one frame period of travel.
+    t_enc, q, q_rev (N,); rt, rq (M,) reversals; t_f (F,), obs (F, 2) px. Returns RobustOnsets.
+    Errors: ValueError for an unknown t_delay_from.
+    """
+    from .onset_settings import image_onset_settings
+    from .onsets import OnsetConfig, Onsets, run_onsets
+
+    if t_delay_from not in ("data", "config"):
+        raise ValueError(f"t_delay_from must be 'data' or 'config', not {t_delay_from!r}")
+    period = 1.0 / fps
+    tol = max(0.02 * hysteresis, 1e-9 * max(float(np.ptp(q_rev)), 1.0))
+    t_stop = motor_stop_times(t_enc, q_rev, rt, rq, tol)
+    d0 = coarse_delay(t_f, obs, t_stop, t_enc, q_rev, period)
+    threshold_rule = None
+    if board is None:
+        td_board = d0 if t_delay_cfg is None else t_delay_cfg
+        over = dict(onset_cfg or {})
+        if "threshold" not in over:
+            # The detector's threshold from this record's still noise and false-alarm rate
+            # (onset_settings.image_onset_settings), not the C detector's automatic k = 3 with its
+            # constant 0.05 / 1 px floor and ceiling; at the delay the detector itself runs with.
+            auto, threshold_rule = image_onset_settings(t_enc, q, rt, rq, t_f, obs, td_board, fps)
+            over.update(auto)
+        else:
+            threshold_rule = {"rule": "given", "threshold_px": float(over["threshold"])}
+        cfg = OnsetConfig(t_delay_s=td_board, fps=fps, **over)
+        board = run_onsets(t_enc, q, rt, rq, t_f, obs, "image", cfg)
+    # The board's candidates by reversal (its t1 is the commanded reversal, up to rounding).
+    guess = np.full(rt.size, np.nan)
+    bidx = np.full(rt.size, -1)
+    if board.t1_s.size:
+        i = np.argmin(np.abs(rt[:, None] - board.t1_s[None, :]), axis=0)
+        near = np.abs(rt[i] - board.t1_s) < 0.5 * period
+        guess[i[near]] = board.t2_s[near]
+        bidx[i[near]] = np.nonzero(near)[0]
+    t_next = np.r_[t_stop[1:], t_enc[-1] + 1.0]
+    # Pass 1 on up to 24 reversals spread over the record: the record's delay and ringing
+    # (searched per reversal); pass 2 on all with those, the stop searched +-1.5 frames.
+    sub = np.unique(np.linspace(0, rt.size - 1, min(rt.size, 24)).round().astype(int))
+    ref1 = refine(t_f, obs, t_stop[sub], t_next[sub], guess[sub], d0, period)
+    d1, _, n1 = delay_from_stops(ref1.tau0_s, t_stop[sub])
+    d1 = d1 if n1 >= 4 else d0
+    rs = ring_summary(ref1)
+    ring = (rs["freq_hz"], rs["decay_per_s"]) if rs["share"] > 0.5 else (0.0, 0.0)
+    ref = refine(t_f, obs, t_stop, t_next, guess, d1, period, ring=ring, stop_back=1.5)
+    d_stops, d_stops_se, n_d = delay_from_stops(ref.tau0_s, t_stop)
+    # The actuator-shape model (playscope.fit.onset_play): the delay's likelihood over the record
+    # and a B sample per reversal that needs no "still" frame.
+    from . import onset_play as P
+
+    warnings = []
+    d_shape, d_shape_se, n_shape = float("nan"), float("nan"), 0
+    # Which model: the actuator-shape one where the play is taken up in fewer than FAST_FRAMES
+    # frames on a quarter of the reversals (a still frame between stop and onset is then rare, and the change-point model
+    # invents steps); from there on the change-point refinement, which the Fig. 7 replica's
+    # records (10-25 frames, ringing included) were checked on, and where the actuator-shape
+    # model did worse on development (2 Hz ringing, sine excitation, docs/host.md).
+    v = np.gradient(q, t_enc)
+    # Frames to take up the play (b over the travel of one frame period at the onset), the
+    # lower quartile over the reversals: a swing that is fast on one side only (the paper's
+    # square-ish swings: fast out, slow back) still leaves a quarter or more within a frame.
+    # Both models' figures, the larger deciding: a model fooled into small b cannot claim it.
+    ref_frames = float("nan")
+    if ref.ok.any():
+        t2r = ref.t2_s[ref.ok] - (d_stops if n_d >= 4 else d1)
+        br = np.abs(np.interp(t2r, t_enc, q) - rq[ref.ok])
+        ref_frames = float(np.percentile(br / np.maximum(np.abs(np.interp(t2r, t_enc, v)) / fps, 1e-12), 25))
+    amp = np.abs(np.diff(rq))
+    b_max = 0.6 * float(np.median(amp)) if amp.size else float(np.ptp(q))
+    M = rt.size
+    if not _shape_fit_needed(ref_frames):
+        pf = P.PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool),
+                       float("nan"), (float("nan"), float("nan")), float("nan"), False, (0.0, 0.0), b_max)
+        pdoc = {"fitted": False, "why": f"refined onsets take the play up over {ref_frames:.1f} frames "
+                                        f"(lower quartile) >= {FAST_FRAMES:g}"}
+    else:
+        pf, pdoc = P.fit(t_enc, q, rt, rq, t_f, obs, period, b_max)
+        pdoc["fitted"] = True
+    fast_frames = float("nan")
+    if pf.ok.any():
+        va = np.abs(np.interp(pf.t2_s[pf.ok] - pf.t_delay_s, t_enc, v)) / fps
+        fast_frames = float(np.percentile(pf.b[pf.ok] / np.maximum(va, 1e-12), 25))
+    if np.isfinite(ref_frames) and (np.isfinite(fast_frames) or not pdoc["fitted"]):
+        fast_frames = ref_frames if not pdoc["fitted"] else max(fast_frames, ref_frames)
+    use_shape = bool(np.isfinite(pf.t_delay_s) and fast_frames < FAST_FRAMES)
+    if use_shape:
+        d_data, (ci_lo, ci_hi), d_se = pf.t_delay_s, pf.t_delay_ci_s, pf.t_delay_sd_s
+        how = "actuator-shape model, posterior mean"
+    else:
+        # The delay from the approach to each stop with the actuator's shape (the kink of the
+        # stop fit comes early on a gradual deceleration); it needs the refined onsets, so only
+        # here, where they are used; recentred while it lands near its grid's edge.
+        t2_img = np.where(ref.ok, ref.t2_s, np.nan)
+        guess_d = d_stops if n_d >= 4 else d1
+        for _ in range(3):
+            d_shape, d_shape_se, n_shape = delay_from_shape(t_enc, q, rt, rq, t_f, obs, t2_img, guess_d, period,
+                                                            ring=ring)
+            if not (n_shape >= 4 and abs(d_shape - guess_d) > 2.0 * period):
+                break
+            guess_d = d_shape
+        if n_shape >= 4:
+            d_data, d_se, how = d_shape, d_shape_se, "approach to the stop with the actuator's shape, median"
+        else:
+            d_data = d_stops if n_d >= 4 else d1
+            d_se = d_stops_se if n_d >= 4 else period
+            how = "image stop - motor stop, median"
+        ci_lo, ci_hi = d_data - 1.96 * d_se, d_data + 1.96 * d_se
+    if np.isfinite(d_data) and d_data < 0:  # a delay cannot be negative (the stops can say so on a sine)
+        d_data, ci_lo, ci_hi = 0.0, max(ci_lo, 0.0), max(ci_hi, 0.0)
+    have = bool(np.isfinite(d_data))
+    if not use_shape:
+        pf.ok[:] = False
+    allow = period / 8.0
+    agree = None
+    if t_delay_cfg is not None and have:
+        agree = bool(ci_lo - allow <= t_delay_cfg <= ci_hi + allow)
+    if t_delay_cfg is None:
+        td, src = d_data, f"estimated from the record ({how})"
+    elif t_delay_from == "config":
+        td, src = t_delay_cfg, "configured (--t-delay-from config)"
+    elif agree is False:
+        td, src = d_data, "estimated from the record: the configured value lies outside its 95 % interval"
+    else:
+        td, src = t_delay_cfg, "configured (the record agrees within its 95 % interval)"
+    if t_delay_cfg is not None and agree is False:
+        warnings.append(f"t_delay: the record says {d_data:.4f} s (95 % {ci_lo:.4f}..{ci_hi:.4f}), the configuration "
+                        f"{t_delay_cfg:.4f} s; using {'the configured' if t_delay_from == 'config' else 'the record'}'s "
+                        f"({'--t-delay-from data' if t_delay_from == 'config' else '--t-delay-from config'} to change)")
+    if use_shape and abs(td - pf.t_delay_s) > 0.5 * period / P.SUB:
+        pf = P.refit_at(pf, t_enc, q, rt, rq, t_f, obs, period, td)
+    # B samples (eq. 1): the actuator-shape model's; the refined onset's, then the board's, where it has none.
+    rows, row_r = [], []
+    n_play = n_ref = n_board = 0
+    for r in range(rt.size):
+        row_r.append(r)
+        if pf.ok[r]:
+            b, sb = pf.b[r], pf.sigma_b[r]
+            t2 = pf.t2_s[r]
+            q2 = rq[r] - np.sign(rq[r] - (rq[r - 1] if r else q[0])) * b
+            rows.append((rt[r], t2, rq[r], q2, 0.5 * (rq[r] + q2), b, sb))
+            n_play += 1
+            continue
+        if ref.ok[r]:
+            t2, sd = ref.t2_s[r], ref.sigma_t2_s[r]
+            n_ref += 1
+        elif bidx[r] >= 0:
+            t2, sd = board.t2_s[bidx[r]], period
+            n_board += 1
+        else:
+            row_r.pop()
+            continue
+        q2 = float(np.interp(t2 - td, t_enc, q))
+        sb = abs(float(np.interp(t2 - td, t_enc, v))) * sd
+        rows.append((rt[r], t2, rq[r], q2, 0.5 * (rq[r] + q2), abs(q2 - rq[r]), sb))
+    a = np.array(rows, float).reshape(-1, 7)
+    row_r = np.array(row_r, int)
+    reasons = {"actuator_shape": n_play, "refined": n_ref, "board_only": n_board,
+               "none": int(rt.size - n_play - n_ref - n_board)}
+    on = Onsets(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], a[:, 5], reasons, sigma_b=a[:, 6])
+    pace = pacing(t_enc, q, on, fps, td)
+    if pace["frames_to_take_up"] < pace["frames_wanted"]:
+        warnings.append(f"the play is taken up in {pace['frames_to_take_up']:.1f} frame(s) (median): B is timed to "
+                        f"about {pace['sigma_frame_travel']:.3g} per sample by the frame period; a swing at "
+                        f"<= {pace['speed_to_use']:.3g} units/s would take it up over {pace['frames_wanted']} frames")
+    guard = guard_rail(on, row_r, board, bidx, period, t_enc, q, td)
+    if guard["warn"]:
+        warnings.append(f"onsets: the actuator-shape B samples and the board's plain eq. 1 onsets disagree beyond "
+                        f"their combined uncertainty on {guard['disagree']} of {guard['compared']} reversals; "
+                        f"both B curves are in onset.refine.guard")
+    steps = ref.ok & (ref.step_px > 0)
+    report = {
+        "method": "joint ML change-point model per reversal (playscope.fit.onset_refine)",
+        "board_reasons": board.reasons,
+        "board_threshold": threshold_rule,
+        "t_delay": {"configured_s": t_delay_cfg, "record_s": d_data, "record_se_s": d_se,
+                    "record_ci95_s": [ci_lo, ci_hi], "agrees_with_configured": agree,
+                    "frame_allowance_s": allow, "used_s": td, "used": "configured" if td == t_delay_cfg else "record",
+                    "from": t_delay_from, "source": src, "stops_s": d_stops, "stops_fitted": n_d, "shape_s": d_shape, "shape_se_s": d_shape_se,
+                    "shape_reversals": n_shape,
+                    "coarse_s": d0, "first_pass_s": d1},
+        "actuator_shape": {**pdoc, "samples": int(pf.ok.sum()), "used": use_shape,
+                           "frames_to_take_up": fast_frames, "fast_frames": FAST_FRAMES},
+        "pacing": pace,
+        "guard": guard,
+        "ringing": ring_summary(ref),
+        "steps": {"reversals_with_step": int(steps.sum()),
+                  "median_step_px": float(np.median(ref.step_px[steps])) if steps.any() else 0.0},
+        "sigma_t2_s_median": float(np.nanmedian(ref.sigma_t2_s)) if ref.ok.any() else None,
+    }
+    return RobustOnsets(on, float(td), src, report, warnings)
+
+
+def pacing(t_enc: np.ndarray, q: np.ndarray, on, fps: float, t_delay_s: float) -> dict:
+    """How many frames the play takes to take up at the excitation's speed, and the swing speed
+    that would spread it over EXC_PACE_FRAMES frames (the board's pacing rule, playscope.fit.pacing):
+    speed = B_low fps / EXC_PACE_FRAMES,
+    B_low the 10th percentile of the B samples. The actuator speed at each onset is |dq/dt| at
+    t2 - t_delay, in actuator units/s. Returns a JSON-ready dict; frames_to_take_up inf without
+    samples."""
+    from .pacing import pace_frames
+
+    frames = pace_frames()
+    if on.b.size == 0:
+        return {"frames_to_take_up": float("inf"), "speed_to_use": float("nan"), "sigma_frame_travel": float("nan"),
+                "frames_wanted": frames}
+    v = np.abs(np.interp(on.t2_s - t_delay_s, t_enc, np.gradient(q, t_enc)))
+    travel = np.maximum(v / fps, 1e-12)  # actuator travel in one frame period at the onset
+    b_low = float(np.percentile(on.b, 10))
+    return {"frames_to_take_up": float(np.median(on.b / travel)), "speed_at_onset_median": float(np.median(v)),
+            "sigma_frame_travel": float(np.median(travel) / np.sqrt(12)), "b_low": b_low,
+            "speed_to_use": b_low * fps / frames, "frames_wanted": frames}
+
+
+def guard_rail(on, row_r: np.ndarray, board, bidx: np.ndarray, period: float, t_enc: np.ndarray,
+               q: np.ndarray, t_delay_s: float) -> dict:
+    """Compare each B sample with the board's plain eq. 1 sample of the same reversal: they
+    disagree when |b - b_board| > 2 sqrt(sigma_b^2 + sigma_board^2), sigma_board the travel of
+    one frame period at the board's onset / sqrt(3) (its onset lies anywhere in the frame
+    interval, and its threshold adds up to about as much). warn: more than half of at least 4
+    compared reversals disagree. Both B curves (fit_backlash_samples of each set, at 9 q) are
+    reported. Returns a JSON-ready dict."""
+    from .backlash import fit_backlash_samples
+
+    v = np.gradient(q, t_enc)
+    k = bidx[row_r] if row_r.size else np.zeros(0, int)
+    has = k >= 0
+    out = {"compared": int(has.sum()), "disagree": 0, "warn": False}
+    if not has.any():
+        return out
+    bb = board.b[k[has]]
+    sb = np.abs(np.interp(board.t2_s[k[has]] - t_delay_s, t_enc, v)) * period / np.sqrt(3)
+    sa = on.sigma_b[has]
+    dis = np.abs(on.b[has] - bb) > 2 * np.sqrt(sa ** 2 + sb ** 2)
+    out["disagree"] = int(dis.sum())
+    out["warn"] = bool(has.sum() >= 4 and dis.sum() > 0.5 * has.sum())
+    qg = np.linspace(float(np.min(on.q_mean)), float(np.max(on.q_mean)), 9)
+    curves = {"q": qg}
+    for name, (qm, b) in {"samples": (on.q_mean, on.b), "board": (board.q_mean, board.b)}.items():
+        try:
+            curves[name] = fit_backlash_samples(qm, b).B(qg)
+        except Exception as e:  # a curve that cannot be fitted is reported, not fatal
+            curves[name] = f"not fitted: {e}"
+    out["B_curves"] = curves
+    return out

@@ -1,0 +1,717 @@
+"""Session folders (format playscope-session/1): load, validate and write atomically.
+
+A session is a folder (docs/session-format.md):
+  session.json   metadata: "format", actuator.unit, distal.kind, camera, hand_eye, robot, t_delay_s
+  encoder.csv    t_s,q[,q_cmd]       high-rate actuator log (s, actuator units)
+  marker.csv     t_s,u_px,v_px       one row per frame, empty u/v for a lost marker (image sessions)
+  frames.csv     frame,t_s           with video.* when the marker is still to be tracked
+  distal.csv     t_s,c_deg           angle sessions (external sensor, e.g. EM tracker)
+  truth.csv      t_s,c_deg[,...]     simulated sessions only: ground truth, any extra columns
+Every error is an InputError naming the file and, for CSV content, the row (header = row 1).
+"""
+
+from __future__ import annotations
+
+import copy
+import csv
+import json
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..base.atomic import atomic_path
+from ..base.errors import InputError
+
+FORMAT = "playscope-session/1"
+ACTUATOR_UNITS = ("mm", "deg")
+DISTAL_KINDS = ("image", "angle")
+Q_SOURCES = ("measured", "command")  # actuator.q_source: encoder reading, or the position commanded
+VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov", ".m4v")
+
+
+# --------------------------------------------------------------------------- metadata
+@dataclass
+class Camera:
+    """Pinhole camera with OpenCV distortion (eq. 6, h).
+
+    K: (3, 3) intrinsics in px; dist: (5,) k1 k2 p1 p2 k3 (OpenCV order); fps in Hz;
+    width, height in px.
+    """
+
+    width: int
+    height: int
+    fps: float
+    K: np.ndarray
+    dist: np.ndarray = field(default_factory=lambda: np.zeros(5))
+
+    def to_json(self) -> dict:
+        return {"width": int(self.width), "height": int(self.height), "fps": float(self.fps),
+                "K": np.asarray(self.K, float).tolist(), "dist": np.asarray(self.dist, float).tolist()}
+
+
+@dataclass
+class HandEye:
+    """cam_T_base: P_cam = R @ P_base + t_mm. R: (3, 3) rotation; t_mm: (3,) mm."""
+
+    R: np.ndarray
+    t_mm: np.ndarray
+
+    def to_json(self) -> dict:
+        return {"R": np.asarray(self.R, float).tolist(), "t_mm": np.asarray(self.t_mm, float).tolist()}
+
+
+@dataclass
+class Robot:
+    """Geometric model g (constant curvature) and f_coarse: c [rad] = q / q_per_rad.
+
+    bend_length_mm: arc length of the bending section; tip_length_mm: rigid tip beyond it
+    (the marker sits at its end); q_per_rad: actuator units per radian of bending (signed:
+    negative when pulling the cable decreases c).
+    """
+
+    model: str
+    bend_length_mm: float
+    tip_length_mm: float
+    q_per_rad: float
+
+    def to_json(self) -> dict:
+        return {"model": self.model, "bend_length_mm": float(self.bend_length_mm),
+                "tip_length_mm": float(self.tip_length_mm), "q_per_rad": float(self.q_per_rad)}
+
+
+@dataclass
+class Session:
+    """An in-memory session. Arrays are float64, 1-D, one entry per CSV row.
+
+    encoder: {"t_s", "q"[, "q_cmd"]}; marker: {"t_s", "u_px", "v_px"} (NaN = lost) or None;
+    distal: {"t_s", "c_deg"} or None; truth: {"t_s", "c_deg", ...} or None;
+    frames: {"frame", "t_s"} with ``video`` (a path) when the marker is not tracked yet.
+    ``meta`` keeps any extra keys of session.json (e.g. "source") for round trips.
+    """
+
+    actuator_unit: str
+    distal_kind: str
+    robot: Robot
+    encoder: dict[str, np.ndarray]
+    camera: Camera | None = None
+    hand_eye: HandEye | None = None
+    t_delay_s: float | None = None
+    marker: dict[str, np.ndarray] | None = None
+    distal: dict[str, np.ndarray] | None = None
+    truth: dict[str, np.ndarray] | None = None
+    frames: dict[str, np.ndarray] | None = None
+    video: Path | None = None
+    path: Path | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+    q_source: str = "measured"
+    notes: list[str] = field(default_factory=list)
+    # The files' time of the session's first stamp, integer us: load_session makes every t_s
+    # relative to it (time_origin), write_session adds it back, so the files keep their clock.
+    t_origin_us: int = 0
+
+    # Observations used by the estimator, whichever the distal kind.
+    def observations(self) -> tuple[np.ndarray, np.ndarray]:
+        """Distal observations: (t_s (N,), obs (N, 2)) with obs = (u_px, v_px) for image
+        sessions, (c_deg, 0) for angle sessions; NaN rows are lost frames."""
+        if self.distal_kind == "angle":
+            t = self.distal["t_s"]
+            return t, np.column_stack([self.distal["c_deg"], np.zeros_like(t)])
+        if self.marker is None:
+            raise InputError(self.path, "no marker.csv: run `playscope track` on the video first")
+        return self.marker["t_s"], np.column_stack([self.marker["u_px"], self.marker["v_px"]])
+
+    def to_json(self) -> dict:
+        act = {"unit": self.actuator_unit} | ({"q_source": self.q_source} if self.q_source != "measured" else {})
+        d: dict[str, Any] = {"format": FORMAT, "actuator": act,
+                             "distal": {"kind": self.distal_kind}, "robot": self.robot.to_json()}
+        if self.camera is not None:
+            d["camera"] = self.camera.to_json()
+        if self.hand_eye is not None:
+            d["hand_eye"] = self.hand_eye.to_json()
+        if self.t_delay_s is not None:
+            d["t_delay_s"] = float(self.t_delay_s)
+        for k, v in self.meta.items():
+            d.setdefault(k, v)
+        return d
+
+    def slice_time(self, t0: float, t1: float) -> "Session":
+        """A copy keeping rows with t0 <= t_s < t1 in every table (for in situ halves)."""
+        s = copy.copy(self)
+        for name in ("encoder", "marker", "distal", "truth", "frames"):
+            tab = getattr(self, name)
+            if tab is not None:
+                m = (tab["t_s"] >= t0) & (tab["t_s"] < t1)
+                setattr(s, name, {k: v[m] for k, v in tab.items()})
+        s.path = None
+        return s
+
+
+# --------------------------------------------------------------------------- CSV
+def read_csv(path: Path, required: list[str], optional: list[str] = (), nullable: set[str] = frozenset(),
+             time_col: str | None = "t_s", notes: list[str] | None = None,
+             header: list[str] | None = None) -> dict[str, np.ndarray]:
+    """Read a numeric CSV with a header row into float64 arrays.
+
+    required/optional: column names (others are kept too). nullable: columns whose empty
+    fields mean "lost" (NaN); anywhere else an empty, non-numeric, NaN or infinite field is
+    an error. header: the column names of a file without a header row (its first line is
+    data, row 1); None reads them from the first line. time_col must be strictly increasing, unless ``notes`` (a list) is given: then
+    repeated and backward time stamps are repaired by ``regularize_time`` and what it did is
+    appended to notes as one line.
+    Errors: InputError(file, message, row) with the 1-based line number.
+    """
+    from .inputfile import MAX_CSV_BYTES, check_input_file
+
+    path = Path(path)
+    check_input_file(path, "CSV file", MAX_CSV_BYTES)
+    fast = _read_csv_fast(path, required, nullable, header)
+    if fast is not None:
+        out = fast
+    else:
+        out = _read_csv_checked(path, required, nullable, header)
+    if time_col is not None and notes is not None:
+        out, note = regularize_time(out, path, time_col)
+        if note:
+            notes.append(note)
+    elif time_col is not None:
+        t = out[time_col]
+        bad = np.nonzero(np.diff(t) <= 0)[0]
+        if bad.size:
+            k = int(bad[0]) + 1
+            raise InputError(path, f"time {t_col_fmt(t[k])} s not after the previous row's "
+                             f"{t_col_fmt(t[k - 1])} s (time must increase)", k + 2)
+    return out
+
+
+# Irregular logs (docs/session-format.md, "Irregular logs"). A row whose time stamp is
+# behind an earlier row's cannot be placed without guessing which clock is right; a few
+# such rows are dropped (a late packet, a corrupt stamp), but more than this fraction of the
+# file means a clock reset or two joined logs, which only the user can untangle.
+MAX_BACKWARD_FRACTION = 0.01
+# A logger faster than its sensor repeats the last reading: when most rows equal the
+# previous one, the repeats are not measurements (a measured signal with noise almost never
+# repeats exactly, a still one at most half the time between quantisation steps).
+HELD_FRACTION = 0.5
+
+
+def regularize_time(tab: dict[str, np.ndarray], path, time_col: str = "t_s") -> tuple[dict[str, np.ndarray], str | None]:
+    """Make ``tab[time_col]`` strictly increasing by the documented choice, and say so.
+
+    - a row earlier than some row before it is dropped (its stamp cannot be placed);
+    - rows sharing a time stamp keep the last of them (a sensor re-publishing keeps its
+      newest reading; the same choice as ``playscope import`` of ROS bags).
+    Returns (table, note) with note None when nothing changed, else one line naming the
+    file and the number of rows affected. Errors: InputError(path, ..., row of the largest step back) when more than
+    MAX_BACKWARD_FRACTION of the rows (and more than one) go back in time.
+    """
+    t = np.asarray(tab[time_col], float)
+    n = t.size
+    if n < 2:
+        return tab, None
+    prev_max = np.maximum.accumulate(np.r_[-np.inf, t[:-1]])
+    back = t < prev_max
+    nb = int(back.sum())
+    first = int(np.argmax(back)) if nb else -1
+    if nb > max(1.0, MAX_BACKWARD_FRACTION * n):
+        k = int(np.argmin(t - prev_max))  # the largest step back: where the clock was reset
+        raise InputError(path, f"time goes back in {nb} of {n} rows, the most here ({t_col_fmt(t[k])} s after "
+                         f"{t_col_fmt(prev_max[k])} s): a clock reset or joined logs? split the file there "
+                         f"(at most {MAX_BACKWARD_FRACTION:.0%} of the rows may be out of order)", k + 2)
+    kept = np.nonzero(~back)[0]
+    tk = t[kept]
+    last = np.r_[tk[1:] != tk[:-1], True]
+    nd = int((~last).sum())
+    if nb == 0 and nd == 0:
+        return tab, None
+    idx = kept[last]
+    parts = []
+    if nd:
+        parts.append(f"{nd} row(s) repeat an earlier time stamp (kept the last row of each)")
+    if nb:
+        parts.append(f"{nb} row(s) go back in time, the first at row {first + 2} (dropped)")
+    note = f"{path}: " + "; ".join(parts) + f": {n - idx.size} of {n} rows dropped"
+    return {k: v[idx] for k, v in tab.items()}, note
+
+
+def drop_held(tab: dict[str, np.ndarray], cols: list[str], path) -> tuple[dict[str, np.ndarray], str | None]:
+    """Read a sensor logged faster than it measures (sample-and-hold) at its own rate.
+
+    When more than HELD_FRACTION of the rows repeat the previous row's ``cols`` exactly, each
+    run of equal values is one reading, timed at the run's first row (when it arrived); the
+    repeats are dropped. Lost rows (NaN) never count as repeats. Returns (table, note), note
+    None when the file is not held, else one line with the count and the sensor's own rate.
+    """
+    X = np.column_stack([np.asarray(tab[c], float) for c in cols])
+    n = X.shape[0]
+    if n < 3:
+        return tab, None
+    same = np.r_[False, np.all(X[1:] == X[:-1], axis=1)]
+    if same.mean() <= HELD_FRACTION:
+        return tab, None
+    t = tab["t_s"]
+    keep = ~same
+    rate = (int(keep.sum()) - 1) / max(float(t[-1] - t[0]), 1e-12)
+    note = (f"{path}: {int(same.sum())} of {n} rows ({same.mean():.0%}) repeat the previous value: read as a "
+            f"sensor slower than its log ({rate:.3g} new readings/s), each reading timed at its first row")
+    return {k: v[keep] for k, v in tab.items()}, note
+
+
+def _read_csv_fast(path: Path, required, nullable, given_header=None) -> dict[str, np.ndarray] | None:
+    """np.loadtxt (C parser) for the common clean file; None when anything looks off, so
+    the row-by-row reader runs and names the offending row."""
+    try:
+        if given_header is None:
+            with open(path, newline="") as fh:
+                header = [h.strip() for h in fh.readline().split(",")]
+        else:
+            header = list(given_header)
+        if any(n not in header for n in required) or len(set(header)) != len(header):
+            return None
+        with warnings.catch_warnings():  # "no data": the checked reader reports it as one line
+            warnings.simplefilter("ignore")
+            data = np.loadtxt(path, delimiter=",", skiprows=0 if given_header is not None else 1, ndmin=2,
+                              dtype=float)
+    except (ValueError, OSError, IndexError):
+        return None
+    if data.shape[0] == 0 or data.shape[1] != len(header) or not np.all(np.isfinite(data)):
+        return None
+    return {h: data[:, j].copy() for j, h in enumerate(header)}
+
+
+def _read_csv_checked(path: Path, required, nullable, given_header=None) -> dict[str, np.ndarray]:
+    first_row = 2 if given_header is None else 1  # file row of the first data row
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            reader = csv.reader(fh)
+            try:
+                header = [h.strip() for h in next(reader)] if given_header is None else list(given_header)
+            except StopIteration:
+                raise InputError(path, "empty file (no header row)", 1) from None
+            for name in required:
+                if name not in header:
+                    raise InputError(path, f"missing column {name!r} (header: {','.join(header)})", 1)
+            dup = sorted({h for h in header if header.count(h) > 1})
+            if dup:
+                raise InputError(path, f"column {dup[0]!r} appears {header.count(dup[0])} times in the header "
+                                 f"({','.join(header)}): which one is meant? rename or drop the others", 1)
+            rows = list(reader)
+    except UnicodeDecodeError as e:
+        raise InputError(path, f"not UTF-8 text (byte {e.start}): a CSV of numbers was expected") from None
+    except csv.Error as e:
+        raise InputError(path, f"not a CSV file ({e})", getattr(reader, "line_num", None) or None) from None
+    except OSError as e:
+        raise InputError(path, f"cannot read: {e.strerror or e}; check the permissions") from None
+    ncol = len(header)
+    data = np.full((len(rows), ncol), np.nan)
+    null_idx = {header.index(n) for n in nullable if n in header}
+    for i, row in enumerate(rows):
+        lineno = i + first_row
+        if len(row) != ncol:
+            raise InputError(path, f"expected {ncol} fields, found {len(row)} (truncated or malformed row)", lineno)
+        for j, cell in enumerate(row):
+            cell = cell.strip()
+            if cell == "":
+                if j in null_idx:
+                    continue
+                raise InputError(path, f"empty value in column {header[j]!r}", lineno)
+            try:
+                x = float(cell)
+            except ValueError:
+                raise InputError(path, f"not a number in column {header[j]!r}: {cell!r}", lineno) from None
+            if not math.isfinite(x):
+                raise InputError(path, f"non-finite value in column {header[j]!r}: {cell!r}", lineno)
+            data[i, j] = x
+    if len(rows) == 0:
+        raise InputError(path, "no data rows", first_row)
+    return {h: data[:, j].copy() for j, h in enumerate(header)}
+
+
+def t_col_fmt(x: float) -> str:
+    return f"{x:.9g}"
+
+
+def _fmt_us(u: int) -> str:
+    """Integer microseconds as exact decimal seconds, trailing zeros dropped."""
+    sign, u = ("-", -u) if u < 0 else ("", u)
+    q, r = divmod(u, 1_000_000)
+    return f"{sign}{q}" if r == 0 else f"{sign}{q}.{r:06d}".rstrip("0")
+
+
+def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str] | None = None,
+              t_origin_us: int = 0) -> None:
+    """Write equal-length 1-D arrays as a CSV with a header; NaN becomes an empty field.
+    The time column t_s is written to the microsecond, exactly (t_origin_us added back:
+    Session.t_origin_us), whatever its magnitude: %.9g would keep whole seconds of an epoch
+    stamp."""
+    names = list(columns)
+    arrays = [np.asarray(columns[n], float) for n in names]
+    n = len(arrays[0]) if arrays else 0
+    formats = formats or {}
+    fmts = [formats.get(nm, "{:.9g}") for nm in names]
+    cols = []
+    for nm, a, f in zip(names, arrays, fmts):
+        if nm == "t_s" and nm not in formats and np.all(np.isfinite(a)):
+            cols.append([_fmt_us(int(u)) for u in time_us(a) + int(t_origin_us)])
+        else:
+            cols.append(["" if not math.isfinite(x) else f.format(x) for x in a.tolist()])
+    with open(path, "w", newline="") as fh:
+        fh.write(",".join(names) + "\n")
+        for i in range(n):
+            fh.write(",".join(c[i] for c in cols) + "\n")
+
+
+# --------------------------------------------------------------------------- JSON
+MAX_JSON_BYTES = 16 << 20  # a session.json or calibration is a few kB; refuse junk early
+
+
+def read_json(path: Path, what: str = "JSON file"):
+    """Read and parse a small JSON file a user gave. Errors: InputError naming the file (and
+    line) for a missing, unreadable, oversized, non-UTF-8, malformed or too deeply nested file."""
+    from .inputfile import check_input_file
+
+    path = Path(path)
+    check_input_file(path, what)  # a pipe or a device is refused before it is opened
+    try:
+        raw = path.read_bytes() if path.stat().st_size <= MAX_JSON_BYTES else None
+    except FileNotFoundError:
+        raise InputError(path, "file not found") from None
+    except IsADirectoryError:
+        raise InputError(path, f"is a folder, not a {what}") from None
+    except OSError as e:
+        raise InputError(path, f"cannot read: {e.strerror or e}; check the permissions") from None
+    if raw is None:
+        raise InputError(path, f"larger than {MAX_JSON_BYTES >> 20} MiB: not a {what}")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = raw[:e.start].count(b"\n") + 1
+        raise InputError(path, f"not UTF-8 text (byte {e.start}): not a {what}", line) from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise InputError(path, f"invalid JSON: {e.msg}", e.lineno) from None
+    except RecursionError:
+        raise InputError(path, f"JSON nested too deeply: not a {what}") from None
+
+def _get(d: dict, key: str, path: Path, where: str, kind=None):
+    if not isinstance(d, dict) or key not in d:
+        raise InputError(path, f"missing key {where}{key}")
+    v = d[key]
+    if kind is float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise InputError(path, f"{where}{key} must be a finite number, got {v!r}")
+        return float(v)
+    if kind is not None and not isinstance(v, kind):
+        raise InputError(path, f"{where}{key} has the wrong type ({type(v).__name__})")
+    return v
+
+
+def _matrix(v, shape, path: Path, name: str) -> np.ndarray:
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(path, f"{name} must be numeric of shape {shape}") from None
+    if a.shape != shape or not np.all(np.isfinite(a)):
+        raise InputError(path, f"{name} must be finite of shape {shape}, got {a.shape}")
+    return a
+
+
+def parse_meta(d: dict, path: Path) -> dict[str, Any]:
+    """Validate a session.json dict; returns the typed pieces for Session(**...)."""
+    if not isinstance(d, dict):
+        raise InputError(path, "session.json must hold a JSON object")
+    fmt = d.get("format")
+    if fmt != FORMAT:
+        raise InputError(path, f"format is {fmt!r}, expected {FORMAT!r}")
+    unit = _get(_get(d, "actuator", path, "", dict), "unit", path, "actuator.")
+    if unit not in ACTUATOR_UNITS:
+        raise InputError(path, f"actuator.unit must be one of {ACTUATOR_UNITS}, got {unit!r}")
+    kind = _get(_get(d, "distal", path, "", dict), "kind", path, "distal.")
+    if kind not in DISTAL_KINDS:
+        raise InputError(path, f"distal.kind must be one of {DISTAL_KINDS}, got {kind!r}")
+    r = _get(d, "robot", path, "", dict)
+    model = _get(r, "model", path, "robot.")
+    if model != "constant_curvature":
+        raise InputError(path, f"robot.model {model!r} not supported (only 'constant_curvature')")
+    robot = Robot(model, _get(r, "bend_length_mm", path, "robot.", float),
+                  _get(r, "tip_length_mm", path, "robot.", float), _get(r, "q_per_rad", path, "robot.", float))
+    if robot.q_per_rad == 0 or robot.bend_length_mm <= 0:
+        raise InputError(path, "robot.q_per_rad must be non-zero and robot.bend_length_mm positive")
+    out: dict[str, Any] = {"actuator_unit": unit, "distal_kind": kind, "robot": robot}
+    q_source = d["actuator"].get("q_source", "measured")
+    if q_source not in Q_SOURCES:
+        raise InputError(path, f"actuator.q_source must be one of {Q_SOURCES}, got {q_source!r}")
+    out["q_source"] = q_source
+    if "camera" in d or kind == "image":
+        c = _get(d, "camera", path, "", dict)
+        K = _matrix(_get(c, "K", path, "camera."), (3, 3), path, "camera.K")
+        dist = _matrix(c.get("dist", [0, 0, 0, 0, 0]), (5,), path, "camera.dist")
+        w, h_px = _get(c, "width", path, "camera.", float), _get(c, "height", path, "camera.", float)
+        if not (1 <= w <= MAX_IMAGE_PX and 1 <= h_px <= MAX_IMAGE_PX) or w != int(w) or h_px != int(h_px):
+            raise InputError(path, f"camera.width and camera.height must be whole pixels in 1..{MAX_IMAGE_PX}, "
+                             f"got {w!r} x {h_px!r}")
+        out["camera"] = Camera(int(w), int(h_px), _get(c, "fps", path, "camera.", float), K, dist)
+        if not 0 < out["camera"].fps <= MAX_FPS:
+            raise InputError(path, f"camera.fps must be in (0, {MAX_FPS:g}] Hz, got {out['camera'].fps!r}")
+        check_camera(out["camera"], path)
+    if "hand_eye" in d or kind == "image":
+        h = _get(d, "hand_eye", path, "", dict)
+        R = _matrix(_get(h, "R", path, "hand_eye."), (3, 3), path, "hand_eye.R")
+        with np.errstate(all="ignore"):  # huge entries overflow: then not a rotation either
+            rotation = bool(np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0)
+        if not rotation:
+            raise InputError(path, "hand_eye.R is not a rotation matrix")
+        out["hand_eye"] = HandEye(R, _matrix(_get(h, "t_mm", path, "hand_eye."), (3,), path, "hand_eye.t_mm"))
+    if d.get("t_delay_s") is not None:
+        out["t_delay_s"] = _get(d, "t_delay_s", path, "", float)
+        if not 0 <= out["t_delay_s"] <= MAX_T_DELAY_S:
+            raise InputError(path, f"t_delay_s {out['t_delay_s']!r} s outside [0, {MAX_T_DELAY_S:g}] s (the delay "
+                             "from capture to time stamp of the camera or angle sensor)")
+    known = {"format", "actuator", "distal", "robot", "camera", "hand_eye", "t_delay_s"}
+    out["meta"] = {k: v for k, v in d.items() if k not in known}
+    return out
+
+
+# --------------------------------------------------------------------------- camera sanity
+MAX_IMAGE_PX = 100_000   # px per side: beyond any sensor, and keeps the corner radius finite
+MAX_FPS = 100_000.0      # Hz
+MAX_FOV_DEG = 179.0      # deg across the image's larger side: a fisheye's is up to ~200 only with
+                         # its own model, which the pinhole + radial model here is not
+MAX_T_DELAY_S = 10.0     # s: the acquisition delay range calibrate --t-delay takes
+
+
+def check_camera(cam: Camera, path) -> None:
+    """Refuse a camera that cannot be an OpenCV pinhole + distortion model of this image.
+
+    K must be an intrinsic matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0 (so
+    invertible; finiteness is checked by the reader). The radial part of the distortion,
+    r_d = r (1 + k1 r^2 + k2 r^4 + k3 r^6) in normalised coordinates (OpenCV's model,
+    the one the simulator renders and the estimator inverts), must be strictly increasing
+    from r = 0 until it reaches the image's farthest corner: where dr_d/dr <= 0 two scene
+    points land on one pixel (the image folds) and no inverse exists. The tangential p1, p2
+    do not fold an image of usual size and are not checked. Errors: InputError(path, one line).
+    """
+    K = np.asarray(cam.K, float)
+    fx, fy = K[0, 0], K[1, 1]
+    if not (fx > 0 and fy > 0) or np.any(np.abs(K[1, :1]) > 1e-9) or np.any(np.abs(K[2] - [0, 0, 1]) > 1e-9):
+        raise InputError(path, f"camera.K is singular or not an intrinsic matrix (need fx > 0, fy > 0 and rows "
+                         f"[0, fy, cy], [0, 0, 1]; got fx {fx:g}, fy {fy:g}, last row {K[2].tolist()})")
+    # A focal length that gives a field of view of MAX_FOV_DEG or more across the image is not
+    # a lens (fx = 1e-9 px would put the whole half-space into one pixel).
+    f_min = max(cam.width, cam.height) / 2 / math.tan(math.radians(MAX_FOV_DEG / 2))
+    if fx < f_min or fy < f_min:
+        raise InputError(path, f"camera.K focal lengths fx {fx:g} px, fy {fy:g} px give a field of view of "
+                         f"{MAX_FOV_DEG:g} deg or more over a {cam.width}x{cam.height} image (need >= {f_min:.3g} px); "
+                         "check the calibration's units (px)")
+    cx, cy = K[0, 2], K[1, 2]
+    k1, k2, _, _, k3 = (float(x) for x in np.asarray(cam.dist, float))
+    # Normalised radius of the farthest image corner (skew ignored: it only shears).
+    r_corner = max(math.hypot((u - cx) / fx, (v - cy) / fy) for u in (0, cam.width) for v in (0, cam.height))
+    if not math.isfinite(r_corner) or r_corner <= 0:
+        raise InputError(path, "camera.K puts the principal point at an infinite distance from the image")
+    r = np.linspace(0.0, 4.0 * r_corner, 4001)
+    r2 = r * r
+    with np.errstate(all="ignore"):  # absurd coefficients overflow: NaN/inf below count as a fold
+        rd = r * (1 + k1 * r2 + k2 * r2 ** 2 + k3 * r2 ** 3)
+        drd = 1 + 3 * k1 * r2 + 5 * k2 * r2 ** 2 + 7 * k3 * r2 ** 3
+    reach = np.nonzero(np.isfinite(rd) & (rd >= r_corner))[0]
+    end = int(reach[0]) if reach.size else r.size - 1  # samples up to the corner (or all of them)
+    bad = np.nonzero(~(np.isfinite(drd[: end + 1]) & (drd[: end + 1] > 0)))[0]
+    if bad.size or not reach.size:
+        r_fold = float(r[bad[0]]) if bad.size else float(r[int(np.nanargmax(np.where(np.isfinite(rd), rd, -np.inf)))])
+        raise InputError(path, f"camera.dist (k1 {k1:g}, k2 {k2:g}, k3 {k3:g}) folds the image: the radial model "
+                         f"stops increasing at normalised radius {r_fold:.3g}, before the image corner "
+                         f"({r_corner:.3g}); recalibrate the camera or check the coefficients' order "
+                         "(OpenCV: k1 k2 p1 p2 k3)")
+
+
+# --------------------------------------------------------------------------- load / write
+def load_session(folder: str | os.PathLike) -> Session:
+    """Load and validate a session folder.
+
+    Errors: InputError naming the file (and row for CSV content): missing folder or file,
+    bad JSON, unknown format, NaN/empty/non-numeric fields, non-increasing time, missing
+    distal data for the declared kind.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(folder, "is not a folder (a session is a folder holding session.json)" if folder.exists()
+                         else "session folder not found")
+    jpath = folder / "session.json"
+    d = read_json(jpath, "session.json")
+    kw = parse_meta(d, jpath)
+    notes: list[str] = []
+    enc = read_csv(folder / "encoder.csv", ["t_s", "q"], ["q_cmd"], notes=notes)
+    if len(enc["t_s"]) < 2:
+        raise InputError(folder / "encoder.csv", "fewer than two samples")
+    check_range(enc, "q", folder / "encoder.csv", notes, q_limit(), kw["actuator_unit"])
+    s = Session(encoder=enc, path=folder, notes=notes, **kw)
+    if kw["distal_kind"] == "angle":
+        s.distal = read_csv(folder / "distal.csv", ["t_s", "c_deg"], nullable={"c_deg"}, notes=notes)
+        check_range(s.distal, "c_deg", folder / "distal.csv", notes, MAX_ABS_C_DEG, "deg")
+        s.distal = _noted(drop_held(s.distal, ["c_deg"], folder / "distal.csv"), notes)
+    else:
+        if (folder / "marker.csv").is_file():
+            s.marker = read_csv(folder / "marker.csv", ["t_s", "u_px", "v_px"], nullable={"u_px", "v_px"}, notes=notes)
+            s.marker = _noted(drop_held(s.marker, ["u_px", "v_px"], folder / "marker.csv"), notes)
+            if np.any(np.isnan(s.marker["u_px"]) != np.isnan(s.marker["v_px"])):
+                k = int(np.nonzero(np.isnan(s.marker["u_px"]) != np.isnan(s.marker["v_px"]))[0][0])
+                raise InputError(folder / "marker.csv", "u_px and v_px must be both present or both empty", k + 2)
+        videos = sorted(p for p in folder.glob("video.*") if p.suffix.lower() in VIDEO_SUFFIXES)
+        if videos:
+            s.video = videos[0]
+            s.frames = read_csv(folder / "frames.csv", ["frame", "t_s"])
+        if s.marker is None and s.video is None:
+            raise InputError(folder / "marker.csv", "file not found (and no video.* with frames.csv)")
+    if (folder / "truth.csv").is_file():
+        s.truth = read_csv(folder / "truth.csv", ["t_s", "c_deg"])
+    time_origin(s)
+    for name, tab in (("encoder.csv", s.encoder), ("distal.csv", s.distal), ("marker.csv", s.marker),
+                      ("frames.csv", s.frames)):
+        if tab is not None:
+            check_span(tab, folder / name, notes)
+    s.encoder, note = thin_encoder(s.encoder, folder / "encoder.csv")
+    if note:
+        notes.append(note)
+    return s
+
+
+# Encoder logs denser than this are thinned at load (thin_encoder). 500 Hz is the rate the
+# method is validated at (the simulator's default; the catheter logs are ~300 Hz): 2 ms is
+# 1/20 of a frame of a 25 fps camera and 1/5 of a 100 Hz angle sensor, the rates the onsets
+# are seen at, and q moves about 2 um in 2 ms at the excitation's speed. A denser log only
+# costs memory: the calibration holds about 2.3 kB per encoder sample (a 27-minute log with
+# encoder noise: 3.7 GB at 1 kHz; bench/bench_large_log.py).
+ENCODER_MAX_HZ = 500.0
+
+
+def thin_encoder(enc: dict, path, max_hz: float = ENCODER_MAX_HZ) -> tuple[dict, str | None]:
+    """Keep the first sample of each 1/max_hz bin of time (from the session's first stamp)
+    when the log's median rate is above max_hz; else enc unchanged. Returns (table, note)."""
+    t = enc["t_s"]
+    if t.size < 3:
+        return enc, None
+    dt = float(np.median(np.diff(t)))
+    if dt <= 0 or 1.0 / dt <= max_hz * 1.01:
+        return enc, None
+    bins = np.floor(t * max_hz).astype(np.int64)
+    keep = np.r_[True, bins[1:] != bins[:-1]]
+    note = (f"{path}: a {1 / dt:.0f} Hz log, thinned to {max_hz:.0f} Hz at load (the first sample of each "
+            f"{1000 / max_hz:g} ms: {int(keep.sum())} of {t.size} rows kept)")
+    return {k: v[keep] for k, v in enc.items()}, note
+
+
+# A bending angle beyond ten turns is a corrupt reading, not a pose (an unwrapped multi-turn
+# sensor stays far below it on a continuum section).
+MAX_ABS_C_DEG = 3600.0
+# The board counts time in uint32 microseconds from the session's first stamp.
+MAX_SPAN_US = 2**32 - 1
+
+
+def q_limit() -> float:
+    """|q| (actuator units) the board's int32 Q format holds: (2^(31 - PS_FRAC_BITS) - 1),
+    PS_FRAC_BITS taken from common/ps_fixed.h through the native loader, never retyped."""
+    from ..base.native import core
+
+    _, lib = core()
+    return float((1 << (31 - lib.PS_FRAC_BITS)) - 1)
+
+
+def _row(k: int, path, notes: list[str]) -> int | None:
+    """The file row of table index k, when the loader dropped no row of that file."""
+    return None if any(n.startswith(f"{path}:") for n in notes) else k + 2
+
+
+def check_range(tab: dict, col: str, path, notes: list[str], limit: float, unit: str) -> None:
+    """Refuse (InputError naming file and row) a value of tab[col] beyond +-limit (NaN = lost
+    is left to the caller's rules)."""
+    v = tab[col]
+    with np.errstate(invalid="ignore"):
+        bad = np.nonzero(np.abs(v) > limit)[0]
+    if bad.size:
+        k = int(bad[0])
+        raise InputError(path, f"{col} = {v[k]:.6g} {unit} at t_s = {tab['t_s'][k]:.9g} s is beyond +-{limit:g} "
+                         f"{unit} ({bad.size} such row(s)): a corrupt value or the wrong unit/column", _row(k, path, notes))
+
+
+def check_span(tab: dict, path, notes: list[str]) -> None:
+    """Refuse a stream spanning more than the board's uint32 us clock (71.6 min) from the
+    session's first stamp, naming the row after the largest gap: one corrupt stamp (1e9 s)
+    looks exactly like that."""
+    t = tab["t_s"]
+    if t.size == 0 or t[-1] * 1e6 <= MAX_SPAN_US:
+        return
+    gaps = np.diff(t) if t.size > 1 else np.array([t[0]])
+    k = int(np.argmax(gaps)) + 1 if t.size > 1 else 0
+    raise InputError(path, f"spans {t[-1]:.6g} s from the session's first stamp, beyond the 71.6 min the board's "
+                     f"clock holds; the largest gap is {gaps.max():.6g} s before t_s = {t[k]:.9g} s (a corrupt time "
+                     "stamp there?); otherwise split the recording", _row(k, path, notes))
+
+
+def time_us(t) -> np.ndarray:
+    """Time stamps in s (float64) -> int64 microseconds, rounded to the nearest. Exact for
+    decimal stamps with at most 6 decimals below 2^31 s (an epoch stamp of 1.7e9 s is held
+    to 1.2e-7 s by float64; x 1e6 adds <= 0.125, so the rounding recovers the decimal's us)."""
+    return np.round(np.asarray(t, dtype=np.float64) * 1e6).astype(np.int64)
+
+
+def time_origin(s: "Session") -> "Session":
+    """Make every t_s of s relative to the session's first stamp (the earliest first row of
+    its streams), through integer microseconds, in place; s.t_origin_us keeps the files'
+    time of that stamp. The same motion then gives bit-identical times, hence the same
+    calibration, whatever the clock's origin (0, a device uptime, an epoch stamp of 1.7e9 s
+    as ROS bags carry): float64 seconds at 1.7e9 s would hold only 0.24 us steps, and every
+    difference taken from them would carry that rounding. Stamps are quantised to 1 us.
+    A repeated stamp after the quantisation keeps the last row (as regularize_time)."""
+    tabs = [t for t in (s.encoder, s.distal, s.marker, s.frames, s.truth) if t is not None and len(t["t_s"])]
+    if not tabs:
+        return s
+    us = [time_us(t["t_s"]) for t in tabs]
+    origin = min(int(u[0]) for u in us)
+    for tab, u in zip(tabs, us):
+        rel = u - origin
+        keep = np.r_[rel[1:] != rel[:-1], True] if rel.size > 1 else np.ones(rel.size, bool)
+        if not keep.all():  # sub-microsecond rows: keep the last of each
+            for k in list(tab):
+                tab[k] = tab[k][keep]
+            rel = rel[keep]
+        tab["t_s"] = rel / 1e6
+    s.t_origin_us += origin
+    return s
+
+
+def _noted(result, notes: list[str]):
+    tab, note = result
+    if note:
+        notes.append(note)
+    return tab
+
+
+def write_session(s: Session, folder: str | os.PathLike, overwrite: bool = False) -> Path:
+    """Write ``s`` as a session folder, atomically (temporary folder, then rename).
+
+    Errors: FileExistsError when the folder exists and overwrite is False.
+    Returns the folder path. A video is not copied: write_session keeps marker.csv only.
+    """
+    folder = Path(folder)
+    if folder.exists() and not overwrite:
+        raise FileExistsError(f"{folder}: exists (use overwrite)")
+    with atomic_path(folder) as tmp:
+        tmp.mkdir()
+        (tmp / "session.json").write_text(json.dumps(s.to_json(), indent=2) + "\n")
+        o = s.t_origin_us
+        write_csv(tmp / "encoder.csv", s.encoder, t_origin_us=o)
+        if s.marker is not None:
+            write_csv(tmp / "marker.csv", {k: s.marker[k] for k in ("t_s", "u_px", "v_px")}, t_origin_us=o)
+        if s.distal is not None:
+            write_csv(tmp / "distal.csv", {k: s.distal[k] for k in ("t_s", "c_deg")}, t_origin_us=o)
+        if s.truth is not None:
+            write_csv(tmp / "truth.csv", s.truth, t_origin_us=o)
+        if s.frames is not None and s.video is not None:
+            write_csv(tmp / "frames.csv", s.frames, {"frame": "{:.0f}"}, t_origin_us=o)
+    return folder
