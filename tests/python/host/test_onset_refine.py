@@ -230,7 +230,7 @@ def test_slow_record_skips_the_actuator_shape_fit_with_the_same_samples(plain, m
     assert rob.report["actuator_shape"]["fitted"] is False
     assert rob.report["actuator_shape"]["frames_to_take_up"] >= R.FAST_FRAMES
     calls = []
-    from playscope import onset_play as P
+    from playscope.fit import onset_play as P
     fit = P.fit
     monkeypatch.setattr(R, "_shape_fit_needed", lambda f: True)
     monkeypatch.setattr(P, "fit", lambda *a, **k: calls.append(1) or fit(*a, **k))
@@ -238,7 +238,7 @@ def test_slow_record_skips_the_actuator_shape_fit_with_the_same_samples(plain, m
     r = MR.render(sc)
     t, q = r["t_enc"], r["q"]
     hyst = 0.01 * np.ptp(q)
-    rt, rq, _ = E.detect_reversals(t, q, hyst)
+    rt, rq, _ = detect_reversals(t, q, hyst)
     full = R.robust_samples(t, q, q, rt, rq, r["t_f"], np.column_stack([r["u"], r["v"]]), FPS,
                             sc.t_delay_config, "data", None, None, hyst)
     assert calls and full.report["actuator_shape"]["fitted"] is True and not full.report["actuator_shape"]["used"]
