@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# Ringing grid: 1.5-7 Hz (below Nyquist at 25 fps with margin; the 2-5 Hz inside) and
+# Ringing grid: 1.5-7 Hz (below Nyquist at 25 fps with margin; the 2-5 Hz of the bench renderings inside) and
 # decay rates 0.5-12 /s (damping ratio ~0.01-0.8 at 3 Hz).
 RING_HZ = np.arange(1.5, 7.01, 0.5)
 RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
