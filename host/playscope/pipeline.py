@@ -220,37 +220,120 @@ class Flashed:
         return dict(self.__dict__)
 
 
-def flash_tables(table_path, device: str = "virtual", flash_file=None, n_vectors: int = 200,
-                 elf=None, address=None) -> Flashed:
-    """Upload the table at table_path to a board, commit, read back, and check the board's
-    compensator bit for bit against the host's run of the same C (device.flash.flash).
-    device "virtual" (the desktop build as a process, flash_file its A/B flash), "qemu" or "usb".
-    usb runs in a child process under the emulated USB device (device.usbemu: libusb's preload
-    must be in a process from its start; flash_file is the emulated board's flash). Errors:
-    InputError for a bad table file (nothing is sent), RuntimeError for a failed check."""
-    from .board.table_check import read_table_file
+def open_board(device: str = "virtual", flash_file=None, elf=None, address=None, vboard_args=()):
+    """An open board.link.Link on device "virtual" (the desktop build as a process, flash_file its
+    A/B flash, vboard_args its extra options), "qemu" (the link image under QEMU, elf) or "usb"
+    (the board over libusb, in this process; address bus:device when several). The caller
+    closes it. Errors: board.transport.TransportError when the board cannot be reached."""
+    from .board.link import Link
+    from .board.transport import open_transport
 
-    if device == "usb":
+    return Link(open_transport(device, flash_file=flash_file, elf=elf, address=address, vboard_args=vboard_args))
+
+
+def device_info(device: str = "virtual", flash_file=None, elf=None, address=None) -> dict:
+    """The board's identification and table state (board.link.Link.info: firmware and protocol
+    versions, active generation and slot, table CRC...), as the board reports it."""
+    link = open_board(device, flash_file, elf, address)
+    try:
+        return link.info()
+    finally:
+        link.close()
+
+
+def flash_tables(table, device: str = "virtual", flash_file=None, n_vectors: int = 200,
+                 elf=None, address=None, usb_child: bool = True) -> Flashed:
+    """Upload a table (a table file's path, or "builtin" for the firmware's built-in table) to a
+    board, commit, read back, and check the board's compensator bit for bit against the host's
+    run of the same C (board.flash.flash). device "virtual" (the desktop build as a process,
+    flash_file its A/B flash), "qemu" or "usb". With usb_child (the main job, the tests) usb runs
+    in a child process under the emulated USB device (board.usbemu: libusb's preload must be in
+    a process from its start; flash_file is the emulated board's flash); without it, on the real
+    board in this process. Errors: InputError for a bad table file (nothing is sent; checked
+    before the board is opened), RuntimeError or board.link.DeviceError for a failed check or
+    link."""
+    from .board.table_check import read_table_file
+    from .fit.table_build import builtin_table
+
+    blob = builtin_table() if str(table) == "builtin" else read_table_file(table)
+    if device == "usb" and usb_child:
         import json
 
         from .board import usbemu
 
-        read_table_file(table_path)  # refused here, before a child is started
-        r = usbemu.run([sys.executable, "-m", "playscope.board.flash", os.fspath(table_path),
+        if str(table) == "builtin":
+            raise InputError("builtin", "flash over the emulated USB device takes a table file, not the built-in table")
+        r = usbemu.run([sys.executable, "-m", "playscope.board.flash", os.fspath(table),
                         "--vectors", str(n_vectors)], flash_file=os.fspath(flash_file) if flash_file else None)
         if r.returncode != 0:
             raise RuntimeError(f"flash over usb failed (exit {r.returncode}):\n{r.stdout}\n{r.stderr}")
         return Flashed(**json.loads(r.stdout.strip().splitlines()[-1]))
     from .board.flash import flash
-    from .board.link import Link
-    from .board.transport import open_transport
 
-    blob = read_table_file(table_path)  # checked before the board is even opened
-    link = Link(open_transport(device, flash_file=flash_file, elf=elf, address=address))
+    link = open_board(device, flash_file, elf, address)
     try:
         return Flashed(**flash(link, blob, n_vectors, log=lambda s: None))
     finally:
         link.close()
+
+
+@dataclass
+class PacedExcitation:
+    """pace_excitation's result: exc the full Q0:Q1:AMP:ADV:V excitation (mm, mm/s), the frame
+    rate and play range it was paced to (None when the speed was given), and vboard_args, the
+    virtual board's --pace options (the board computes the same speed itself: fit.pacing)."""
+
+    exc: str
+    fps: float | None = None
+    b_low_mm: float | None = None
+    b_high_mm: float | None = None
+    vboard_args: list = field(default_factory=list)
+
+    def line(self) -> str:
+        if self.fps is None:
+            return f"excitation {self.exc}"
+        return f"excitation {self.exc} (speed paced to {self.fps:g} frames/s, play {self.b_low_mm:g}..{self.b_high_mm:g})"
+
+
+def pace_excitation(exc: str, fps: float | None = None, b_range: str | None = None, sim_plant: bool = False,
+                    seed: int = 0, video: str | None = None) -> PacedExcitation:
+    """The run-insitu excitation Q0:Q1:AMP:ADV[:V]: with V given, as is; without, its swing speed
+    paced to the camera (fit.pacing, the board's rule: the smallest play taken up over
+    EXC_PACE_FRAMES frames). The play range b_range "LO:HI" (mm) defaults, with sim_plant, to the
+    simulated instrument's; fps defaults to the simulated camera's, a video file's, else 25.
+    Errors: InputError when the speed is missing and no play range is known, or pacing refuses
+    (fit.pacing.paced_exc's reason)."""
+    from .fit.pacing import frame_period_us, paced_exc
+
+    if len(exc.split(":")) == 5:
+        return PacedExcitation(exc)
+    if b_range is not None:
+        b_low, b_high = (float(x) for x in b_range.split(":"))
+    elif sim_plant:
+        from .sim.core import play_range
+        from .sim.plant import SimPlant, SimPlantConfig
+
+        b_low, b_high = play_range(SimPlant(SimPlantConfig(seed=seed)).sim)
+    else:
+        raise InputError("--exc", "without a speed, the swing is paced the swing to the camera and needs the expected play, "
+                         "--b-range LO:HI (or give the speed as --exc Q0:Q1:AMP:ADV:V)")
+    if fps is None:
+        fps = 25.0
+        if sim_plant:
+            from .sim.plant import SimPlantConfig
+
+            fps = SimPlantConfig().fps
+        elif video is not None and not video.isdigit():
+            import cv2
+
+            cap = cv2.VideoCapture(video)
+            fps = cap.get(cv2.CAP_PROP_FPS) or 25.0
+            cap.release()
+    try:
+        full = paced_exc(exc, b_low, b_high, fps)
+    except ValueError as e:
+        raise InputError("--exc", str(e)) from None
+    return PacedExcitation(full, fps, b_low, b_high, ["--pace", f"{b_low!r}:{b_high!r}:{frame_period_us(fps)}"])
 
 
 # --------------------------------------------------------------------------- evaluate, report

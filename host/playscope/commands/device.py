@@ -18,16 +18,15 @@ def _add_device_args(p) -> None:
 
 
 def _open(args, vboard_args=()):
-    from ..board.link import Link
-    from ..board.transport import open_transport
+    from ..pipeline import open_board
 
-    return Link(open_transport(args.device, flash_file=args.flash_file, elf=args.elf, address=args.address,
-                               vboard_args=vboard_args))
+    return open_board(args.device, args.flash_file, args.elf, args.address, vboard_args)
 
 
 def cmd_info(args) -> int:
-    with _closing(_open(args)) as link:
-        info = link.info()
+    from ..pipeline import device_info
+
+    info = device_info(args.device, args.flash_file, args.elf, args.address)
     for k, v in info.items():
         print(f"{k:22s} {v}")
     dump_json(args.json, info)
@@ -46,70 +45,27 @@ class _closing:
 
 
 def cmd_flash(args) -> int:
-    from ..board.flash import flash
+    from ..base.errors import InputError
     from ..board.link import DeviceError
-    from ..fit.table_build import builtin_table
+    from ..pipeline import flash_tables
 
-    if args.table == "builtin":
-        blob = builtin_table()
-    else:
-        from ..board.table_check import read_table_file
-
-        blob = read_table_file(args.table)  # checked before the board is even opened
-    with _closing(_open(args)) as link:
-        try:
-            r = flash(link, blob, args.vectors)
-        except (DeviceError, RuntimeError, ValueError) as e:
-            print(f"playscope: flash failed: {e}", file=sys.stderr)
-            return 1
-    dump_json(args.json, r)
+    try:
+        r = flash_tables(args.table, args.device, args.flash_file, args.vectors, args.elf, args.address,
+                         usb_child=False)
+    except (DeviceError, RuntimeError, ValueError) as e:
+        if isinstance(e, InputError):  # a bad table file: the CLI's one-line error naming it
+            raise
+        print(f"playscope: flash failed: {e}", file=sys.stderr)
+        return 1
+    print(r.line())
+    dump_json(args.json, r.to_json())
     return 0
 
 
-def _pace_virtual_exc(args) -> list[str] | None:
-    """--exc without a speed: pace it (playscope.fit.pacing, the board's rule) to the camera's frame
-    rate and the expected play range. Sets args.exc to the full Q0:Q1:AMP:ADV:V (duration, the
-    simulated plant) and returns the virtual board's --pace arguments; [] when V was given,
-    None (after printing why) when pacing is refused."""
-    from ..fit.pacing import frame_period_us, paced_exc
-
-    if len(args.exc.split(":")) == 5:
-        return []
-    fps = args.fps
-    if args.b_range is not None:
-        b_low, b_high = (float(x) for x in args.b_range.split(":"))
-    elif args.sim_plant:
-        from ..sim.core import play_range
-        from ..sim.plant import SimPlant, SimPlantConfig
-
-        b_low, b_high = play_range(SimPlant(SimPlantConfig(seed=args.seed)).sim)
-    else:
-        print("playscope: run-insitu: --exc without a speed paces the swing to the camera and needs the "
-              "expected play, --b-range LO:HI (or give the speed as --exc Q0:Q1:AMP:ADV:V)", file=sys.stderr)
-        return None
-    if fps is None:
-        fps = 25.0
-        if args.sim_plant:
-            from ..sim.plant import SimPlantConfig
-
-            fps = SimPlantConfig().fps
-        elif args.video is not None and not args.video.isdigit():
-            import cv2
-
-            cap = cv2.VideoCapture(args.video)
-            fps = cap.get(cv2.CAP_PROP_FPS) or 25.0
-            cap.release()
-    try:
-        exc4 = args.exc
-        args.exc = paced_exc(exc4, b_low, b_high, fps)
-    except ValueError as e:
-        print(f"playscope: run-insitu: {e}", file=sys.stderr)
-        return None
-    print(f"excitation {args.exc} (speed paced to {fps:g} frames/s, play {b_low:g}..{b_high:g})", file=sys.stderr)
-    return ["--pace", f"{b_low!r}:{b_high!r}:{frame_period_us(fps)}"]
-
-
 def cmd_run_insitu(args) -> int:
+    from ..base.errors import InputError
+    from ..pipeline import pace_excitation
+
     vb = []
     if args.sim_plant:
         if args.device != "virtual":
@@ -119,10 +75,15 @@ def cmd_run_insitu(args) -> int:
         vb = ["--time-scale", f"{args.time_scale:g}"]
     if args.device == "virtual" and (args.sim_plant or args.video is not None):  # no source: said below
         exc4 = args.exc
-        pace = _pace_virtual_exc(args)
-        if pace is None:
+        try:
+            paced = pace_excitation(args.exc, args.fps, args.b_range, args.sim_plant, args.seed, args.video)
+        except InputError as e:
+            print(f"playscope: run-insitu: {e}", file=sys.stderr)
             return 2
-        vb += ["--exc", exc4] + pace  # without V: the board computes it itself (--pace)
+        if paced.fps is not None:
+            print(paced.line(), file=sys.stderr)
+        args.exc = paced.exc
+        vb += ["--exc", exc4] + paced.vboard_args  # without V: the board computes it itself (--pace)
     with _closing(_open(args, vb)) as link:
         return _run_insitu(link, args)
 
