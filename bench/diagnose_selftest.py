@@ -19,12 +19,14 @@ else ../shared/data/real/catheter next to the repository.
 Usage: .venv/bin/python bench/diagnose_selftest.py [--quick] [--workers 2] [--json out.json]
        [--real-only] [--catheter DIR] [--effects a,b] [--nulls N] [--no-ool] [--seed S]
        [--selftest-only] [--no-recover] [--second | --second-only] [--second-nulls N]
+       [--second-seed S]
        (a subset while developing, e.g. --effects viscous_hysteresis,cable_elongation --nulls 0
-       --no-ool --seed 1000 --selftest-only; the reported figures are seed 0 with every case)
-       (full: 58 cases, ~20 min on 2 quieter cores with the recoverability oracle, which takes about
-       45 % of an in-library case's time (--no-recover skips it); --quick: strong strength
-       only, 2 nulls, 22 cases, 4 min 10 s with the catheter part on 2 idle cores (before the oracle);
-       --real-only ~2 min)
+       --no-ool --seed 1000 --selftest-only; the reported figures are the REPORTED_SEED_* seeds with every case)
+       (full, reported seeds, on 2 cores shared with other jobs (load 5-6): second generator 41 cases
+       in 527 s, first generator 58 cases in 723 s with --no-recover; the recoverability oracle adds
+       about 45 % of an in-library case's time (--no-recover skips it); over the 10-min CI budget
+       together, so this is a nightly-style bench that prints its wall time, not a CI job;
+       --quick: strong strength only, 2 nulls; --real-only ~2 min)
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 from pathlib import Path
 
 # One BLAS thread per process (set before numpy loads): the fits are small and 2 workers on
@@ -43,6 +46,13 @@ from playscope.diagnose import selftest
 from playscope.diagnose.realdata import catheter_dir, catheter_table, format_catheter
 
 ROOT = Path(__file__).resolve().parent.parent
+
+# The reported seeds, one per generator. Fixed (and committed) before any rule they judge was
+# changed: seed 0 of both generators, and 1000-4000 of the first, had been looked at while rules
+# were developed, so they are development seeds now. Each reported seed is run once, at full size,
+# at the end of a round of changes; rules are never settled on it.
+REPORTED_SEED_FIRST = 7919
+REPORTED_SEED_SECOND = 6151
 
 
 def main(argv=None) -> int:
@@ -57,26 +67,31 @@ def main(argv=None) -> int:
                     "the reported figure is the full list)")
     ap.add_argument("--nulls", type=int, help=f"number of null cases (default {selftest.REPORTED_NULLS}, --quick 2)")
     ap.add_argument("--no-ool", action="store_true", help="leave out the out-of-library cases")
-    ap.add_argument("--seed", type=int, default=0, help="case seed (0 is the reported one; develop on others)")
+    ap.add_argument("--seed", type=int, default=REPORTED_SEED_FIRST,
+                    help=f"case seed of the first generator (default: the reported {REPORTED_SEED_FIRST}; develop on others)")
+    ap.add_argument("--second-seed", type=int, default=REPORTED_SEED_SECOND,
+                    help=f"case seed of the second generator (default: the reported {REPORTED_SEED_SECOND}; develop on others)")
     ap.add_argument("--second", action="store_true",
                     help="also run the self-test on the second, independent generator (sim/withheld_b), reported apart")
     ap.add_argument("--second-only", action="store_true", help="only the second generator's self-test")
-    ap.add_argument("--second-nulls", type=int, default=10, help="nulls of the second generator (default 10)")
+    ap.add_argument("--second-nulls", type=int, default=selftest.REPORTED_NULLS,
+                    help=f"nulls of the second generator (default {selftest.REPORTED_NULLS})")
     ap.add_argument("--no-recover", action="store_true",
                     help="skip the recoverability oracle (no 'recoverable' column; about a third faster)")
     a = ap.parse_args(argv)
     out = {}
+    t_start = time.monotonic()
     if a.second or a.second_only:
-        sc2 = selftest.run_second(a.seed, a.second_nulls, not a.no_ool, workers=a.workers,
+        sc2 = selftest.run_second(a.second_seed, a.second_nulls, not a.no_ool, workers=a.workers,
                                   strengths="strong" if a.quick else "both", log=lambda s: print(s, flush=True))
-        print("second generator (sim/withheld_b):")
+        print(f"second generator (sim/withheld_b), seed {a.second_seed}, wall time {time.monotonic() - t_start:.0f} s:")
         print(selftest.format_report(sc2))
         out["selftest_second"] = sc2
         if a.second_only:
             a.real_only = True
             a.selftest_only = True
+    t_second = time.monotonic() - t_start
     if not a.real_only:
-        print("first generator (sim/withheld):")
         effects = selftest.LIB_EFFECTS
         if a.effects:
             effects = tuple(e.strip() for e in a.effects.split(",") if e.strip())
@@ -86,6 +101,7 @@ def main(argv=None) -> int:
         nulls = a.nulls if a.nulls is not None else (2 if a.quick else selftest.REPORTED_NULLS)
         sc = selftest.run("strong" if a.quick else "both", nulls, not a.no_ool, seed=a.seed, workers=a.workers,
                           effects=effects, log=lambda s: print(s, flush=True), recover=not a.no_recover)
+        print(f"first generator (sim/withheld), seed {a.seed}, wall time {time.monotonic() - t_start - t_second:.0f} s:")
         print(selftest.format_report(sc))
         out["selftest"] = sc
     folder = catheter_dir(a.catheter, default=ROOT.parent / "shared" / "data" / "real" / "catheter")
@@ -96,6 +112,7 @@ def main(argv=None) -> int:
         out["catheter"] = tab
     elif not a.selftest_only:
         print(f"catheter recordings not found ({folder}): part 2 skipped")
+    print(f"total wall time {time.monotonic() - t_start:.0f} s")
     if a.json:
         from playscope.commands.common import dump_json
         dump_json(a.json, out)

@@ -4,20 +4,25 @@
 
 Runs, in order: bench/bench_firmware.sh (M4 instructions per tick, desktop ticks/s, image
 size), bench/bench_host.py (calibrate time, tracking frames/s), bench/bench_link.py (flash
-time and round trip per transport), bench/fig7_replica.py and fig7_sim_pose.py (B error on independently rendered records and
-the pose-based baseline, paper Fig. 7),
-`playscope demo` (main job: B error, Table I and compensation ratios, time),
-`playscope evaluate-real` (real-data RMSE) and bench/diagnose_selftest.py --quick
-(diagnosis self-test accuracy). Only figures measured in this run are printed; a part that
-fails or is skipped says so in its row.
+time and round trip per transport), bench/fig7_replica.py and fig7_sim_pose.py (B error on
+independently rendered records and the pose-based baseline, paper Fig. 7), `playscope demo`
+(main job: B error, Table I and compensation ratios, time), `playscope evaluate-real`
+(real-data RMSE), bench/insitu_real.py (every model on both instruments, ours / best peer),
+bench/online_real.py and transfer_real.py (on-line update, a calibration used elsewhere),
+bench/bench_startup.py, bench/diagnose_speed.py, then with --swings bench/swing_bench.py
+(development renderings) and, unless --skip-selftest, bench/diagnose_selftest.py --quick
+--second (both generators). Only figures measured in this run are printed; a part that fails or
+is skipped says so in its row, and the README's summary keeps a line for it.
 
-It writes docs/results.md (machine, date, commit, the figure table, then every bench's own
-tables as it printed them) and the README's summary table (between the `results:begin` and
-`results:end` markers): no figure in README.md or docs/ is typed by hand; docs link to
-docs/results.md. tests/python/host/test_results_doc.py checks that the README's table is the
-one in docs/results.md.
+It writes docs/results.md (machine, date, commit, time per part, the figure table, then every
+bench's own tables as it printed them), the README's summary table (between the
+`results:begin` and `results:end` markers) and every figures block of docs/*.md (see
+bench/results_doc.py): no figure in README.md or docs/ is typed by hand.
+tests/python/host/test_results_doc.py checks the README and docs blocks against
+docs/results.md; test_doc_figures.py fails on a measured figure typed outside them.
 
-Usage: .venv/bin/python bench/run_all.py [--skip-selftest] [--catheter DIR] [--no-write]   (~5 min)
+Usage: .venv/bin/python bench/run_all.py [--skip-selftest] [--swings] [--catheter DIR] [--no-write]
+       .venv/bin/python bench/run_all.py --docs-only   (re-fill the docs blocks from docs/results.md)
 """
 
 from __future__ import annotations
@@ -36,27 +41,15 @@ PY = sys.executable
 PLAYSCOPE = [PY, "-m", "playscope.cli"]
 
 
+sys.path.insert(0, str(ROOT / "bench"))
+from results_doc import (BEGIN, END, NOT_RUN, fill_doc_blocks, insitu_rows,  # noqa: E402
+                         md_table, selftest_rows, summary_block, swing_rows)
+
 RESULTS = ROOT / "docs" / "results.md"
 README = ROOT / "README.md"
-BEGIN, END = "<!-- results:begin -->", "<!-- results:end -->"
 # The README's excerpt of the main job's output: from its Table I to its compensation line.
 EXCERPT_BEGIN, EXCERPT_END = "<!-- mainjob:begin -->", "<!-- mainjob:end -->"
 EXCERPT: list[str] = []
-# Figures that go to the README's summary, by the first words of their row (the rest stay in
-# docs/results.md). A row missing from a run is left out, not carried over from an older run.
-SUMMARY = (
-    "main job: open-loop compensation RMSE with the transition",
-    "main job: B(q) error",
-    "B error, independent Fig. 7 replica, 3 registration forms",
-    "catheter in situ, state carried, ours mean / worst",
-    "calibrate a 3-min 25 Hz session",
-    "M4 instructions per call: `psa_tick`, compensation, realistic",
-    "USART image flash, everything",
-    "USART image RAM, everything",
-    "diagnosis blind self-test: top-1",
-    "diagnose a 275-s record",
-    "start-up `playscope --version`",
-)
 # Every bench's own output, kept whole for docs/results.md: (title, command, stdout).
 RAW: list[tuple[str, str, str]] = []
 
@@ -133,26 +126,50 @@ def commit() -> str:
         return "unknown (not a git checkout)"
 
 
-def md_table(rows, header=("figure", "measured", "target", "paper / baseline", "command")) -> str:
-    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    out += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(out)
+# Rough time of each part on a quiet 2-core machine, for --help (the time each part took in the
+# last run is in docs/results.md, "time per part").
+PART_TIME = (
+    ("firmware", "~1 min (builds, then M4 instruction counts under QEMU)"),
+    ("host", "~1 min (calibrate x3, tracking)"),
+    ("link", "~0.5 min (three transports)"),
+    ("Fig. 7 replica", "~2 min (renders, then calibrates every record)"),
+    ("main job", "~0.5 min"),
+    ("real data", "~0.5 min"),
+    ("in-situ real data", "~1.5-4 min (two instruments, four splits)"),
+    ("on-line update", "~1.5 min (includes a second bench_firmware.sh)"),
+    ("transfer", "~1 min"),
+    ("start-up", "~5 s"),
+    ("diagnosis speed", "~1 min"),
+    ("fast-swing onsets", "~10-20 min; only with --swings (development renderings)"),
+    ("diagnosis self-test", "~15-40 min (both generators, quick form), the slowest part; --skip-selftest leaves it out"),
+)
 
 
-def summary_block(table, stamp: str) -> str:
-    """The README's summary: the SUMMARY rows of this run (figure, measured, target)."""
-    rows = [(r[0], r[1], r[2]) for key in SUMMARY for r in table if r[0].startswith(key)]
-    return (f"{BEGIN}\n_Generated by `bench/run_all.py` on {stamp}; every figure, with its worst case "
-            f"and command, in [docs/results.md](docs/results.md)._\n\n"
-            + md_table(rows, ("figure", "measured", "target")) + f"\n{END}")
+def docs_pages() -> list[Path]:
+    """The pages whose figures blocks run_all fills: docs/*.md except results.md itself."""
+    return [p for p in sorted((ROOT / "docs").glob("*.md")) if p.name != RESULTS.name]
 
 
-def write_results(table, wall_s: float) -> None:
-    """docs/results.md from this run, and the README's summary block (which must already
-    hold the two markers: the README's prose around it is not generated)."""
+def write_doc_blocks(results: str) -> list[str]:
+    """Re-fill every figures block of docs/*.md from the text of docs/results.md; returns the
+    pages rewritten."""
+    changed = []
+    for page in docs_pages():
+        text = page.read_text()
+        new = fill_doc_blocks(text, results, where=str(page.relative_to(ROOT)))
+        if new != text:
+            page.write_text(new)
+            changed.append(str(page.relative_to(ROOT)))
+    return changed
+
+
+def write_results(table, wall_s: float, times: list[tuple[str, float]], skipped: list[str]) -> None:
+    """docs/results.md from this run, the README's summary block (which must already hold
+    the two markers: the README's prose around it is not generated) and the docs' figures
+    blocks."""
     import datetime
     stamp = f"{datetime.date.today().isoformat()}, commit {commit()}"
-    block = summary_block(table, stamp)
+    block = summary_block(table, stamp, skipped)
     parts = [
         "# Results",
         "",
@@ -162,6 +179,8 @@ def write_results(table, wall_s: float) -> None:
         f"- date and commit: {stamp}",
         f"- machine: {machine()}",
         f"- wall time of the run: {wall_s:.0f} s",
+        "- time per part: " + ", ".join(f"{n} {s:.0f} s" for n, s in times)
+        + "".join(f"; {n}: {NOT_RUN}" for n in skipped),
         "",
         "## Summary (the README's table)",
         "",
@@ -182,6 +201,12 @@ def write_results(table, wall_s: float) -> None:
         text = replace_block(text, EXCERPT_BEGIN, EXCERPT_END,
                              EXCERPT_BEGIN + "\n```\n" + "\n".join(EXCERPT) + "\n```\n" + EXCERPT_END, README)
     README.write_text(text)
+    # last: a malformed block in a page is the page's fault, and results.md and the README
+    # already hold this run
+    try:
+        write_doc_blocks(RESULTS.read_text())
+    except ValueError as e:
+        raise SystemExit(f"run_all: {e}; docs/results.md and the README written, fix the page and run --docs-only")
 
 
 def md_rows(text: str) -> dict[str, list[str]]:
@@ -202,16 +227,33 @@ def find(rows: dict, prefix: str) -> list[str]:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="time of each part, quiet 2-core machine (the last run's own times are in docs/results.md):\n"
+        + "\n".join(f"  {n:<20} {s}" for n, s in PART_TIME)
+        + "\nwhole run ~25-50 min with the self-test, ~10 min with --skip-selftest")
     ap.add_argument("--skip-selftest", action="store_true", help="leave out the diagnosis self-test (the slowest part)")
     ap.add_argument("--catheter", default=str(ROOT.parent / "shared/data/real/catheter"),
                     help="folder of the real catheter recordings (read in place)")
     ap.add_argument("--swings", action="store_true",
-                    help="also run bench/swing_bench.py on both groups of fast-swing renderings (slow)")
+                    help="also run bench/swing_bench.py on the development fast-swing renderings (slow; the "
+                         "set-aside group is run once by hand)")
     ap.add_argument("--no-write", action="store_true",
                     help="print the table only; leave docs/results.md and the README as they are")
+    ap.add_argument("--docs-only", action="store_true",
+                    help="run no bench: re-fill the figures blocks of docs/*.md from docs/results.md (seconds)")
     a = ap.parse_args(argv)
+    if a.docs_only:
+        try:
+            changed = write_doc_blocks(RESULTS.read_text())
+        except ValueError as e:
+            raise SystemExit(f"run_all: {e}")
+        print(f"[bench] figures blocks re-filled from {RESULTS.relative_to(ROOT)}: "
+              f"{', '.join(changed) or 'none changed'}", file=sys.stderr)
+        return 0
     t_run = time.perf_counter()
+    times: list[tuple[str, float]] = []
+    skipped: list[str] = []
     table: list[tuple[str, str, str, str, str]] = []
 
     def part(name, fn):
@@ -221,7 +263,8 @@ def main(argv=None) -> int:
             fn()
         except (RuntimeError, KeyError, ValueError, subprocess.TimeoutExpired, OSError) as e:
             table.append((name, f"not measured: {e}".replace("|", "/")[:160], "", "", ""))
-        print(f"[bench] {name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+        times.append((name, time.perf_counter() - t0))
+        print(f"[bench] {name}: {times[-1][1]:.0f} s", file=sys.stderr, flush=True)
 
     def firmware():
         r = md_rows(sh(["bench/bench_firmware.sh"]))
@@ -303,7 +346,7 @@ def main(argv=None) -> int:
                       f"{p['f_remain+B']['c_rmse_truth_deg']:.2f} / {p['f_coarse']['c_rmse_truth_deg']:.2f} deg ({ratio:.2f})",
                       "", "paper, image distance: 40 / 89 px (0.45)", c))
         qx = p["f_remain+B"]["Qx_px"]["mean"] / p["f_coarse"]["Qx_px"]["mean"]
-        table.append(("main job: Table I, f_remain+B / f_coarse, mean |Qx|",
+        table.append(("main job: Table I, f_remain+B / f_coarse, mean abs(Qx)",
                       f"{p['f_remain+B']['Qx_px']['mean']:.1f} / {p['f_coarse']['Qx_px']['mean']:.1f} px ({qx:.2f})",
                       "", "paper 17 / 78 px (0.22)", c))
         comp = s["compensation"]
@@ -333,22 +376,13 @@ def main(argv=None) -> int:
 
     def selftest():
         with tempfile.TemporaryDirectory() as tmp:
-            sh([PY, "bench/diagnose_selftest.py", "--quick", "--catheter", a.catheter, "--json", f"{tmp}/d.json"],
-               timeout=3600)
+            sh([PY, "bench/diagnose_selftest.py", "--quick", "--second", "--catheter", a.catheter,
+                "--json", f"{tmp}/d.json"], timeout=7200)
             d = json.loads(Path(f"{tmp}/d.json").read_text())
-        sc = d["selftest"]
-        c = "bench/diagnose_selftest.py --quick"
-        # The per-effect confusion (every planted case counts, identifiable in situ? from the
-        # generator's own oracle) goes to stdout as printed by the self-test.
-        from playscope.diagnose.selftest import format_report
-        print(format_report(sc))
-        table.append(("diagnosis blind self-test: top-1 over every planted case / false discoveries on nulls",
-                      f"{100 * sc['top1']:.0f} % of {sc['n_planted']} / {sc['n_false_discoveries']} of {sc['n_nulls']} "
-                      f"(95 % CI {100 * sc['false_discovery_ci95'][0]:.0f}-{100 * sc['false_discovery_ci95'][1]:.0f} %)",
-                      ">= 90 % / <= 10 %", f"top-1 among identifiable {100 * sc['top1_identifiable']:.0f} % of "
-                      f"{sc['n_identifiable']}; out-of-library unexplained {100 * sc['ool_unexplained']:.0f} %", c))
-        table.append(("diagnosis blind self-test: recovered shrink within 25 % of the generator's truth",
-                      f"{100 * sc['shrink_within_25pct_identifiable']:.0f} % of identifiable cases", "", "", c))
+        c = "bench/diagnose_selftest.py --quick --second"
+        # Both generators' per-effect confusion (every planted case counts, identifiable in situ?
+        # from each generator's own oracle) go to docs/results.md as the bench printed them.
+        table.extend(selftest_rows(d, c))
         cat = d.get("catheter", {}).get("in_situ", {})
         if cat:
             worst = max(v["kept_model"]["test"] for v in cat.values())
@@ -375,8 +409,10 @@ def main(argv=None) -> int:
     # -- in situ with state carried, every model on the same split (bench/insitu_real.py)
     def insitu_real():
         with tempfile.TemporaryDirectory() as tmp:
-            sh([PY, "bench/insitu_real.py", "--catheter", a.catheter, "--json", f"{tmp}/i.json"])
+            printed = sh([PY, "bench/insitu_real.py", "--catheter", a.catheter, "--json", f"{tmp}/i.json"])
             r = json.loads(Path(f"{tmp}/i.json").read_text())
+        # ours / best peer per instrument and split, geometric mean beside the worst file
+        table.extend(insitu_rows(r, printed))
         c, acc = "bench/insitu_real.py", r["acceptance"]
         files = list(r["in_situ"])
         per_file = lambda m: " / ".join(f"{r['in_situ'][f][m]:.2f}" for f in files)
@@ -442,18 +478,26 @@ def main(argv=None) -> int:
     part("diagnosis speed", diagnose_speed)
 
     def swings():
-        for group in ("development", "set-aside"):
-            sh([PY, "bench/swing_bench.py", "--group", group], timeout=3600)
-        # the per-rendering and per-category tables go to docs/results.md as printed
+        # The development renderings only: the set-aside group is run once, by hand, after the
+        # rules are settled (bench/swing_cases.py). The bench exits 1 when a rendering misses its
+        # limit; its output is read either way.
+        cmd = [PY, "bench/swing_bench.py", "--group", "development"]
+        out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=7200).stdout
+        RAW.append(("swing", "python bench/swing_bench.py --group development", out))
+        table.extend(swing_rows(out, "development", "bench/swing_bench.py --group development"))
 
     if a.swings:
         part("fast-swing onsets", swings)
+    else:
+        skipped.append("fast-swing onsets")
     if not a.skip_selftest:
         part("diagnosis self-test", selftest)
+    else:
+        skipped.append("diagnosis self-test")
 
     print(md_table(table))
     if not a.no_write:
-        write_results(table, time.perf_counter() - t_run)
+        write_results(table, time.perf_counter() - t_run, times, skipped)
         print(f"[bench] wrote {RESULTS.relative_to(ROOT)} and the README's summary", file=sys.stderr)
     return 0
 

@@ -111,6 +111,7 @@ def _diagnose_blind(s, case: dict, candidates):
     out = {"id": case["id"], "truth": case["truth"], "effect": case["effect"], "variant": case["variant"],
            "strength": case["strength"], "unit": case["unit"], "verdict": res["verdict"],
            "kept": [k["effect"] for k in res["kept"]], "hint": (res.get("hint") or {}).get("effect"),
+           "refused": [z["effect"] for z in res.get("refused", [])],
            "indistinguishable": {k["effect"]: k["indistinguishable_from"] for k in res["kept"]},
            "stick_skew": sig["skewness"], "stick_skew_interior": sig.get("skewness_interior"),
            "screen": {row["effect"]: {"rmse_val_deg": row["rmse_heldout_deg"], "promising": row["promising"],
@@ -220,7 +221,8 @@ def _recover_text(r: dict) -> str:
 def _line(r: dict) -> str:
     what = f"{r['effect'] or 'null'}/{r['variant'] or '-'}@{r['strength']:g}"
     rec = f" recoverable {_yes(r.get('recoverable'))} [{_recover_text(r)}]" if r.get("recover") else ""
-    return (f"case {r['id']:3d} {what:<46s} -> {r['verdict']:<20s} kept {','.join(r['kept']) or '-':<36s} "
+    refused = f" refused {','.join(r['refused'])}" if r.get("refused") else ""
+    return (f"case {r['id']:3d} {what:<46s} -> {r['verdict']:<20s} kept {','.join(r['kept']) or '-':<36s}{refused} "
             f"test {r['rmse_base_deg']:.3f}->{r['rmse_after_deg']:.3f} (noise-only {r['rmse_noise_only_deg']:.3f}) "
             f"shrink {r['shrink_recovered_deg']:.3f}/{r['shrink_true_deg']:.3f} identifiable {_yes(r.get('identifiable'))}"
             f"{rec} skew {r.get('stick_skew', float('nan')):.2f} "

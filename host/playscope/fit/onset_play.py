@@ -15,7 +15,8 @@ and the marker of frame k (stamped t_k, captured at t_k - t_delay) is, near the 
           + S [k >= j]                          optional: a registration / channel jump at the
                                                 onset's first or second frame (j)
           + ringing (optional, the record's frequency and decay): a free-phase ring carried
-            over from the previous reversal and rings started at the stop t1 and at the onset
+            over from the previous reversal, and the tip mode's response to the drive w itself
+            (the drive through the mode's low-pass: one column, _Rev._ring_drive)
 
 p (2,) px; A, K, K2, S and the ring amplitudes are 2-vectors, linear given (b, j, t_delay), so
 each candidate is one least-squares solve. With Gaussian noise of unknown variance the profile
@@ -48,6 +49,7 @@ PRE_S, POST_S = 1.0, 3.5              # window around t1 (s, scene clock)
 NB = 160                              # b grid points
 RING_HZ = np.arange(1.5, 7.01, 0.5)   # ringing searched (Hz) when the record rings
 RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
+RING_GAIN = np.arange(-1.0, 4.0001, 0.1)  # the tip mode's gain g searched (drive z + g (y - z))
 DELAY_REVERSALS = 24
 JUMP_T = 4.0                          # signed-jump mean / standard error for a record's jump
 
@@ -100,6 +102,34 @@ class _Rev:
     def logw(self, d: float, b: np.ndarray, steps: bool, ring) -> tuple[np.ndarray, np.ndarray]:
         """Log weight (profile likelihood less BIC penalties) of each candidate (b, jump frame);
         returns (lw (nb, J), b) with J = 1 (no jump) or 3 (none, onset frame, the next)."""
+        X, w, ts, t_on = self._design(d, b, ring)
+        N = 2 * self.n
+        # A record with jumps (chosen over the record) has one at every reversal: the no-jump
+        # candidate would otherwise win where b and the jump cannot be told apart (no frame in
+        # the dead band), and b would take the jump in; with the jump, b spreads over the frame
+        # interval instead, and sigma_b says so.
+        outs = [] if steps else [self._rss(X)]
+        pen = [] if steps else [0.0]
+        if steps:
+            first = np.cumsum(ts[None, :] > t_on[:, None], axis=1)        # 1 at the onset's first frame
+            for m in (1, 2):
+                # The jump from frame m on: the record's jump vector (s J, known) when given,
+                # else a free level; a rotation being a change of view, it also scales the
+                # image curve a little (a slope from frame m on, 0 at the onset).
+                st = (first >= m).astype(float)
+                if self.jump is not None:
+                    Yg = self.Y[None] - st[..., None] * (self.s * self.jump)[None, None, :]
+                    outs.append(self._rss(np.concatenate([X, (st * w)[..., None]], axis=-1), Yg))
+                else:
+                    outs.append(self._rss(np.concatenate([X, st[..., None], (st * w)[..., None]], axis=-1)))
+                pen.append(0.0)
+        rss = np.stack(outs, axis=1)                                      # (nb, J)
+        pen_steps = 2 * np.log(N) if steps else 0.0                       # 4 parameters: (4/2) log N
+        return -0.5 * N * np.log(np.maximum(rss, 1e-300)) - np.array(pen)[None, :] - pen_steps, b
+
+    def _design(self, d: float, b: np.ndarray, ring):
+        """The shared columns of each candidate b at delay d: (X (nb, n, p), w (nb, n) the
+        scaled drive, ts (n,) scene times, t_on (nb,) onsets on the scene clock)."""
         ts = self.tf - d
         qk = np.interp(ts, self.te, self.qe)
         Dk = np.interp(ts, self.te, self.D)
@@ -117,63 +147,64 @@ class _Rev:
                              -0.5 * self.s * (bq - float(self.b_of_q(np.array([self.q1]))[0]))[None, :])
         w = (w - self.q1) / scale                                         # (nb, n)
         t_on = self.onset_scene(b)                                        # (nb,)
-        cols = [np.ones_like(w), w, w * w, w * w * w]
+        ring_cols = []
         if ring is not None and ring[0] > 0:
             om, al = 2 * np.pi * ring[0], ring[1]
             tau = ts - ts[0]
             e = np.exp(-al * tau)
-            cols += [np.broadcast_to(e * np.sin(om * tau), w.shape), np.broadcast_to(e * np.cos(om * tau), w.shape)]
-            t0 = np.maximum(ts - self.t1, 0.0)
-            cols.append(np.broadcast_to(np.exp(-al * t0) * np.sin(om * t0), w.shape))
-            t2 = np.maximum(ts[None, :] - t_on[:, None], 0.0)
-            cols.append(np.exp(-al * t2) * np.sin(om * t2))
-        X = np.stack(cols, axis=-1)                                       # (nb, n, p)
-        N = 2 * self.n
-        # A record with jumps (chosen over the record) has one at every reversal: the no-jump
-        # candidate would otherwise win where b and the jump cannot be told apart (no frame in
-        # the dead band), and b would take the jump in; with the jump, b spreads over the frame
-        # interval instead, and sigma_b says so.
-        outs = [] if steps else [self._rss(X)]
-        pen = [] if steps else [0.0]
-        if steps:
-            after = ts[None, :] > t_on[:, None]                           # frames after the onset
-            first = np.cumsum(after, axis=1)                              # 1 at the onset's first frame
-            for m in (1, 2):
-                # The jump from frame m on: the record's jump vector (s J, known) when given,
-                # else a free level; a rotation being a change of view, it also scales the
-                # image curve a little (a slope from frame m on, 0 at the onset).
-                st = (first >= m).astype(float)
-                if self.jump is not None:
-                    Yg = self.Y[None] - st[..., None] * (self.s * self.jump)[None, None, :]
-                    outs.append(self._rss(np.concatenate([X, (st * w)[..., None]], axis=-1), Yg))
-                else:
-                    outs.append(self._rss(np.concatenate([X, st[..., None], (st * w)[..., None]], axis=-1)))
-                pen.append(0.0)
-        rss = np.stack(outs, axis=1)                                      # (nb, J)
-        pen_steps = 2 * np.log(N) if steps else 0.0                       # 4 parameters: (4/2) log N
-        return -0.5 * N * np.log(np.maximum(rss, 1e-300)) - np.array(pen)[None, :] - pen_steps, b
+            ring_cols = [np.broadcast_to(e * np.sin(om * tau), w.shape), np.broadcast_to(e * np.cos(om * tau), w.shape)]
+            y = (self._ring_drive(b, ring[:2], ts) - self.q1) / scale
+            if len(ring) > 2:  # the record's gain g: the tip's drive is z + g (y - z)
+                w = w + ring[2] * (y - w)
+            else:  # g free (choosing the ringing): y is a column of its own
+                ring_cols.append(y)
+        cols = [np.ones_like(w), w, w * w, w * w * w] + ring_cols
+        return np.stack(cols, axis=-1), w, ts, t_on
 
-    def jump_px(self, d: float, b: np.ndarray) -> np.ndarray:
-        """The jump's image vector (px, (2,)) of the best jump candidate at delay d over b."""
-        lw, _ = self.logw(d, b, True, None)
+    def _ring_drive(self, b: np.ndarray, ring: tuple, ts: np.ndarray) -> np.ndarray:
+        """The tip mode's response to the drive for each b, at scene times ts: (nb, n).
+
+        A tip mode x'' + 2 alpha x' + w0^2 x = -g z'' (base excitation by the drive z, w0^2 =
+        w^2 + alpha^2) adds g x to the drive; x = y - z with y the drive through the low-pass
+        (2 alpha s + w0^2) / (s^2 + 2 alpha s + w0^2), so the image of z + g x is a combination
+        of z and y: one more column, y, whose coefficient carries g. The ringing after the stop
+        and after the onset both come from z's own shape (b sets where the new branch starts),
+        so the onset is where the motion starts, not where the ring swings. Bilinear
+        discretisation at the encoder rate (from rest at the window's start; a ring carried
+        over from before has its own free-phase columns). Cached per (b grid, ring)."""
+        from scipy.signal import bilinear, lfilter
+
+        key = (tuple(ring), b.size, float(b[0]), float(b[-1]))
+        cache = self.__dict__.setdefault("_ring_cache", {})
+        if key not in cache:
+            if len(cache) >= 2:  # a ring grid passes once; the delay profile reuses one ring
+                cache.clear()
+            om, al = 2 * np.pi * ring[0], ring[1]
+            w0 = om * om + al * al
+            fs = 1.0 / float(np.median(np.diff(self.te))) if self.te.size > 1 else 1000.0
+            bz, az = bilinear([2 * al, w0], [1.0, 2 * al, w0], fs=fs)
+            after = self.te > self.t1
+            z = np.where(after[None, :], self.q1 - self.s * np.maximum(self.D[None, :] - b[:, None], 0.0),
+                         self.qe[None, :])
+            y = lfilter(bz, az, z - z[:, :1], axis=1) + z[:, :1]
+            cache[key] = y
+        y = cache[key]
+        i = np.clip(np.searchsorted(self.te, ts), 1, self.te.size - 1)
+        f = np.clip((ts - self.te[i - 1]) / np.maximum(self.te[i] - self.te[i - 1], 1e-12), 0.0, 1.0)
+        return y[:, i - 1] * (1 - f)[None, :] + y[:, i] * f[None, :]
+
+    def jump_px(self, d: float, b: np.ndarray, ring=None) -> np.ndarray:
+        """The free jump's image vector (px, (2,)) of the best jump candidate at delay d over b
+        (with the ringing ``ring`` in the model, or none)."""
+        keep, self.jump = self.jump, None
+        lw, _ = self.logw(d, b, True, ring)
+        self.jump = keep
         i, m = np.unravel_index(int(np.argmax(lw)), lw.shape)
-        self._keep = (i, m + 1)
-        ts = self.tf - d
-        qk = np.interp(ts, self.te, self.qe)
-        Dk = np.interp(ts, self.te, self.D)
-        post = ts > self.t1
-        bb = b[i]
-        w = np.where(post, self.q1 - self.s * np.maximum(Dk - bb, 0.0), qk)
-        if self.b_of_q is not None:
-            bq = self.b_of_q(qk)
-            w = w + np.where(post, np.where(Dk > bb, 0.5 * self.s * (bq - self.b_of_q(np.array([self.q1 - self.s * bb]))[0]), 0.0),
-                             -0.5 * self.s * (bq - float(self.b_of_q(np.array([self.q1]))[0])))
-        w = (w - self.q1) / max(float(np.max(self.D)), 1e-9)
-        t_on = float(self.onset_scene(np.array([bb]))[0])
-        st = (np.cumsum(ts > t_on) >= m + 1).astype(float)
-        X = np.column_stack([np.ones_like(w), w, w * w, w * w * w, st, st * w])
-        coef, *_ = np.linalg.lstsq(X, self.Y, rcond=None)
-        return coef[4]
+        X, w, ts, t_on = self._design(d, b[i:i + 1], ring)
+        st = (np.cumsum(ts > t_on[0]) >= m + 1).astype(float)
+        Xj = np.column_stack([X[0], st, st * w[0]])
+        coef, *_ = np.linalg.lstsq(Xj, self.Y, rcond=None)
+        return coef[X.shape[2]]
 
     def _rss(self, X: np.ndarray, Yg: np.ndarray | None = None) -> np.ndarray:
         """Residual sum of squares of Y (n, 2), or of each candidate's own Yg (G, n, 2), on each
@@ -238,42 +269,153 @@ def _choose(revs, d, ring_grid=True) -> tuple[np.ndarray | None, tuple | None, d
     Jump: each reversal's best free jump, signed by its direction (a registration or channel
     error follows the direction of motion); the record has one when their mean is over
     JUMP_T standard errors from 0 (a jump that comes and goes, or fits noise, averages out).
-    It is then the mean vector J, the same at every reversal up to the sign (s J), so b and the
-    jump are no longer confounded when no frame falls in the dead band. Ringing: a (Hz, 1/s)
-    from the grid when it beats none by BIC, summed over the reversals.
+    It is then one vector J (`_jump_profile`: the record's likelihood along the mean), the
+    same at every reversal up to the sign (s J), so b and the jump are no longer confounded
+    when no frame falls in the dead band. Ringing: a (Hz, 1/s) from the grid when it beats
+    none by BIC, summed over the reversals. A ringing tip makes free jumps look consistent
+    and an unmodelled jump looks like ringing, so both orders are tried (jump then ringing;
+    ringing then jump) and the one with the higher penalised likelihood kept.
     Returns (J (2,) px or None, ring or None, doc)."""
-    J = np.array([rv.s * rv.jump_px(d, rv.b_grid[::4]) for rv in revs])
-    m = J.mean(axis=0)
-    se = J.std(axis=0, ddof=1) / np.sqrt(len(J))
-    ratio = float(np.linalg.norm(m) / max(np.linalg.norm(se), 1e-12))
-    jump = m if ratio > JUMP_T else None
-    for rv in revs:
-        rv.jump = jump
-    steps = jump is not None
+    n_p = 3 * 2 * len(revs)  # 3 ring columns x 2 image axes per reversal
+    pen = 0.5 * n_p * np.log(np.mean([2 * rv.n for rv in revs]))
 
-    def score(ring):
-        return float(sum(np.max(rv.logw(d, rv.b_grid[::4], steps, ring)[0]) for rv in revs))
-    best, ring = score(None), None
-    doc = {"jump_px": None if jump is None else [float(x) for x in jump], "jump_mean_px": [float(x) for x in m],
-           "jump_se_px": [float(x) for x in se], "jump_ratio": ratio, "loglik_no_ring": best}
-    if ring_grid:
-        n_p = 4 * 2 * len(revs)  # 4 ring columns x 2 image axes per reversal
-        pen = 0.5 * n_p * np.log(np.mean([2 * rv.n for rv in revs]))
-        for hz in RING_HZ:
-            for al in RING_ALPHA:
-                sc = score((hz, al)) - pen
+    def set_jump(jump):
+        for rv in revs:
+            rv.jump = jump
+
+    def find_jump(ring):
+        set_jump(None)
+        J = np.array([rv.s * rv.jump_px(d, rv.b_grid[::4], ring) for rv in revs])
+        m = J.mean(axis=0)
+        se = J.std(axis=0, ddof=1) / np.sqrt(len(J))
+        ratio = float(np.linalg.norm(m) / max(np.linalg.norm(se), 1e-12))
+        jump, doc_j = (None, {})
+        if ratio > JUMP_T:
+            jump, doc_j = _jump_profile(revs, d, m, ring)
+        set_jump(jump)
+        return jump, {"jump_px": None if jump is None else [float(x) for x in jump],
+                      "jump_mean_px": [float(x) for x in m], "jump_se_px": [float(x) for x in se],
+                      "jump_ratio": ratio, **doc_j}
+
+    def score(ring, steps):
+        return float(sum(np.max(rv.logw(d, rv.b_grid[::4], steps, ring)[0]) for rv in revs)) - (pen if ring else 0.0)
+
+    def light(hz, al):
+        """A ringing is lightly damped (decay rate <= half the angular frequency, damping
+        ratio <= 0.45); a heavier one is a transient that fits the window's first frames."""
+        return al <= 0.5 * 2 * np.pi * hz
+
+    def best_ring(steps):
+        best, ring = score(None, steps), None
+        if ring_grid:
+            for hz in RING_HZ:
+                for al in RING_ALPHA[light(hz, RING_ALPHA)]:
+                    sc = score((float(hz), float(al)), steps)
+                    if sc > best:
+                        best, ring = sc, (float(hz), float(al))
+        if ring is not None:
+            # The grid is coarse for a ring that lasts several periods: the frequency on a
+            # 0.1 Hz grid +- 0.4 Hz, then the decay on a geometric grid between its neighbours.
+            for hz in ring[0] + np.arange(-0.4, 0.41, 0.1):
+                if not light(hz, ring[1]):
+                    continue
+                sc = score((float(hz), ring[1]), steps)
                 if sc > best:
-                    best, ring = sc, (float(hz), float(al))
-        doc["ring_penalty"] = float(pen)
-    return jump, ring, doc
+                    best, ring = sc, (float(hz), ring[1])
+            for al in ring[1] * np.geomspace(1 / 3, 3, 11):
+                if not light(ring[0], al):
+                    continue
+                sc = score((ring[0], float(al)), steps)
+                if sc > best:
+                    best, ring = sc, (ring[0], float(al))
+        return best, ring
+
+    def with_gain(ring, steps):
+        """ring (hz, alpha) -> (hz, alpha, g): g one figure for the record (a property of the
+        tip), by its profile likelihood summed over the reversals on RING_GAIN, the best
+        refined by a parabola (each reversal's own g scatters too much: its y column trades
+        with where the new branch starts)."""
+        if ring is None:
+            return None
+        L = np.array([sum(float(np.max(rv.logw(d, rv.b_grid[::4], steps, (ring[0], ring[1], g))[0])) for rv in revs)
+                      for g in RING_GAIN])
+        i = int(np.argmax(L))
+        g = float(RING_GAIN[i])
+        if 0 < i < RING_GAIN.size - 1:
+            den = L[i - 1] - 2 * L[i] + L[i + 1]
+            if den < 0:
+                g += float(np.clip(0.5 * (L[i - 1] - L[i + 1]) / den, -1.0, 1.0)) * float(RING_GAIN[1] - RING_GAIN[0])
+        return (ring[0], ring[1], g)
+
+    def kept(ring, steps):
+        """The ringing with its gain fixed against none, by BIC (its columns: the free-phase
+        pair per reversal, and 3 for the record): (score, ring or None)."""
+        none = score(None, steps)
+        if ring is None:
+            return none, None
+        sc = score(ring, steps) + pen - pen_fixed
+        return (sc, ring) if sc > none else (none, None)
+
+    n_fixed = 2 * 2 * len(revs) + 3  # 2 free-phase columns x 2 axes per reversal; hz, alpha, g
+    pen_fixed = 0.5 * n_fixed * np.log(np.mean([2 * rv.n for rv in revs]))
+    jump_a, doc_a = find_jump(None)
+    score_a, ring_a = best_ring(jump_a is not None)
+    score_a, ring_a = kept(with_gain(ring_a, jump_a is not None), jump_a is not None)
+    doc = {**doc_a, "ring_penalty": float(pen), "score_jump_first": score_a}
+    if ring_grid:
+        set_jump(None)
+        _, ring_b = best_ring(False)
+        if ring_b is not None:
+            jump_b, doc_b = find_jump(ring_b)
+            score_b, ring_b = kept(with_gain(ring_b, jump_b is not None), jump_b is not None)
+            doc["score_ring_first"] = score_b
+            if score_b > score_a:
+                doc.update(doc_b)
+                doc["order"] = "ringing first"
+                return jump_b, ring_b, doc
+    set_jump(jump_a)
+    doc["order"] = "jump first"
+    return jump_a, ring_a, doc
 
 
-def _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick) -> tuple[np.ndarray, np.ndarray]:
-    """Coarse delay scan 0..d_max on a quarter-frame grid: per delay its own frame windows
-    (a window common to the whole scan would leave the short strokes no frames), the score
-    the per-observation mean of -0.5 log(RSS / N) over the reversals (jumps free, best b),
-    since the frame sets differ between delays. Returns (grid, score)."""
-    grid = np.arange(0.0, d_max + 1e-9, T / 4)
+def _jump_profile(revs, d, m, ring=None) -> tuple[np.ndarray, dict]:
+    """The record's jump vector J (px) by its profile likelihood along the mean's direction.
+
+    Along the motion's image direction a jump and b are confounded but for the timing (the
+    jump is a step, b's motion follows q), so each reversal's own best jump scatters by several
+    px (28 px sd measured on a 31 px registration jump at 25 fps), and an error of J moves
+    every b by |J error| / (image px per actuator unit). J = m + x m/|m|, x on a 0.5 px grid
+    over +- max(|m| / 2, 4) px: the sum over reversals of each one's likelihood marginal over
+    b and the jump's frame, the best x refined by a parabola. Returns (J (2,), doc)."""
+    norm = float(np.linalg.norm(m))
+    u = m / max(norm, 1e-12)
+    half = max(0.5 * norm, 4.0)
+    xs = np.arange(-half, half + 1e-9, 0.5)
+    L = np.zeros(xs.size)
+    for i, x in enumerate(xs):
+        J = m + x * u
+        for rv in revs:
+            rv.jump = J
+            L[i] += float(_lse(rv.logw(d, rv.b_grid[::4], True, ring)[0]))
+    i = int(np.argmax(L))
+    x = float(xs[i])
+    if 0 < i < xs.size - 1:
+        den = L[i - 1] - 2 * L[i] + L[i + 1]
+        if den < 0:
+            x += float(np.clip(0.5 * (L[i - 1] - L[i + 1]) / den, -1.0, 1.0)) * 0.5
+    J = m + x * u
+    return J, {"jump_profile_shift_px": x, "jump_profile_edge": bool(i in (0, xs.size - 1))}
+
+
+def _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick, ring=None,
+                grid=None) -> tuple[np.ndarray, np.ndarray]:
+    """Coarse delay scan 0..d_max on a quarter-frame grid (or the given grid): per delay its
+    own frame windows (a window common to the whole scan would leave the short strokes no
+    frames), the score the per-observation mean of -0.5 log(RSS / N) over the reversals (jumps
+    free, best b; ringing ``ring`` (hz, alpha) with its gain free, or none), since the frame
+    sets differ between delays. Returns (grid, score)."""
+    if grid is None:
+        grid = np.arange(0.0, d_max + 1e-9, T / 4)
     score = np.full(grid.size, -np.inf)
     for i, d in enumerate(grid):
         revs = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, b_max, T)
@@ -282,7 +424,7 @@ def _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick) -> tuple[np.n
             continue
         tot = 0.0
         for rv in revs:
-            lw, _ = rv.logw(d, rv.b_grid[::4], True, None)
+            lw, _ = rv.logw(d, rv.b_grid[::4], True, ring)
             tot += float(np.max(lw)) / (2 * rv.n) - 0.5 * np.log(2 * rv.n)
         score[i] = tot / len(revs)
     return grid, score
@@ -296,8 +438,9 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
 
     1. Delay scan 0..d_max (quarter frame) on up to 24 reversals spread over the record.
     2. B samples there without jumps or ringing; a first B(q) (cubic) and b_max from them.
-    3. With that B(q): the record's jumps and ringing (BIC, summed over the 24), then the
-       delay's likelihood on a 1/16-frame grid +-1.5 frames around the scan's best.
+    3. With that B(q): the record's jumps and ringing (BIC, summed over the 24; `_choose`);
+       when a ringing is found, the scan (+-3 frames) and the first B samples are redone with
+       it; then the delay's likelihood on a 1/16-frame grid +-1.5 frames around the scan's best.
     4. Every reversal's B sample at the delay's posterior mean.
     Returns (PlayFit, doc with the choices and the delay figures)."""
     T = period_s
@@ -321,13 +464,32 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
     b2 = min(b_max, 2.0 * float(np.percentile(first.b[first.ok], 90)))
     bq = _b_of_q(rq, first)
     dc = d0
-    for it in range(3):  # the jump and ringing are chosen at the current delay: again if it moved
+    for it in range(4):  # the jump and ringing are chosen at the current delay: again if it moved
         grid = dc + np.arange(-1.5 * SUB, 1.5 * SUB + 1) * T / SUB
         grid = grid[grid >= 0.0]
         d_lo, d_hi = float(grid[0]), float(grid[-1])
         revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq)
         sub = [revs[k] for k in pick if revs[k] is not None]
         jump, ring, choice = _choose(sub, dc)
+        if ring is not None and it == 0:
+            # The scan and the first B samples ran without ringing, which a ringing tip fools
+            # (the b grid's top and the first B(q) come from them): scan again near the delay
+            # with the ringing found, take the first samples again there with it, and choose
+            # again.
+            rg, rs = _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick, ring[:2],
+                                 dc + np.arange(-12, 13) * T / 4)
+            rg, rs = rg[rg >= 0.0], rs[rg >= 0.0]
+            dc = float(rg[int(np.argmax(rs))])
+            revs = _reversals(t_enc, q, rt, rq, t_f, obs, dc, dc, b_max, T)
+            for rv in revs:
+                if rv is not None:
+                    rv.jump = jump
+            again = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), dc, (dc, dc), T, jump is not None,
+                                    ring, b_max), revs, dc)
+            if again.ok.sum() >= 4:
+                b2 = min(b_max, 2.0 * float(np.percentile(again.b[again.ok], 90)))
+                bq = _b_of_q(rq, again)
+            continue
         steps = jump is not None
         for rv in revs:
             if rv is not None:
@@ -349,7 +511,7 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
     out.jump = jump
     doc = {"usable_reversals": len(usable), "delay_reversals": len(sub), "delay_grid_step_s": T / SUB,
            "scan_s": d0, "iterations": it + 1, "choice": choice, "b_max": b2, "steps": steps,
-           "ring": None if ring is None else {"hz": ring[0], "decay_per_s": ring[1]}}
+           "ring": None if ring is None else {"hz": ring[0], "decay_per_s": ring[1], "gain": ring[2]}}
     return out, doc
 
 

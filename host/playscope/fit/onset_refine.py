@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# Ringing grid: 1.5-7 Hz (below Nyquist at 25 fps with margin; the issue's 2-5 Hz inside) and
+# Ringing grid: 1.5-7 Hz (below Nyquist at 25 fps with margin; the 2-5 Hz of the bench renderings inside) and
 # decay rates 0.5-12 /s (damping ratio ~0.01-0.8 at 3 Hz).
 RING_HZ = np.arange(1.5, 7.01, 0.5)
 RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
@@ -474,6 +474,80 @@ def delay_from_stops(tau0_s: np.ndarray, t_stop: np.ndarray) -> tuple[float, flo
     return med, 1.2533 * sd / np.sqrt(d.size), int(d.size)
 
 
+def delay_from_shape(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: np.ndarray,
+                     obs: np.ndarray, t2_img: np.ndarray, d_guess: float, period_s: float,
+                     span_frames: float = 3.0, ring: tuple = (0.0, 0.0)) -> tuple[float, float, int]:
+    """t_delay from the approach to each reversal, with the actuator's own shape.
+
+    Until the play is taken up the tip's drive is z = q(min(t, t1)) - q1 + const (eq. 3: on the
+    old branch z follows q, after the reversal it holds), so the frames between the old motion
+    and the refined onset are p_k = A + K h_k + K2 h_k^2, h_k = q(min(t_k - d, t1)) - q1 (the
+    image of z, locally quadratic; A, K, K2 2-vectors). The delay d enters through h only. A
+    constant-speed approach makes h a kink (what the change-point stop sees); a sine or a
+    raised-cosine swing slows down gradually, and a kink fitted there comes early by a
+    good part of the deceleration (measured -2.6 frames on a 3 s sine at 30 fps), the shape
+    does not. A registration that flips with the motor's reversal is a step at the stop: a
+    step from the stop's first or second frame is a candidate too (kept by BIC, Schwarz 1978).
+    Per reversal: d on a 1/16-frame grid d_guess +- span_frames frames, the least
+    criterion (N log RSS + the step's penalty) over the frames from 0.5 s (or the previous onset plus a frame) before the stop to half
+    a frame before the refined onset t2_img (image clock), refined by a parabola through the
+    best three; then the median over reversals, its standard error as in `delay_from_stops`.
+    t_enc, q (N,); rt, rq (M,) reversals; t_f (F,), obs (F, 2) px (NaN = lost); t2_img (M,)
+    refined onsets (NaN: none; those reversals are left out); ring (Hz, 1/s) the record's
+    ringing after the stop (Hz 0: none), one more column. Returns (t_delay_s, se_s, n)."""
+    ok_f = np.all(np.isfinite(obs), axis=1)
+    tf, o = t_f[ok_f], obs[ok_f]
+    step = period_s / 16.0
+    grid = d_guess + np.arange(-16 * span_frames, 16 * span_frames + 1) * step
+    grid = grid[grid >= 0.0]
+    if grid.size < 3:
+        return float("nan"), float("nan"), 0
+    best = []
+    for r in range(1, rt.size):
+        if not np.isfinite(t2_img[r]):
+            continue
+        start = rt[r] + d_guess - 0.5
+        if np.isfinite(t2_img[r - 1]):
+            start = max(start, t2_img[r - 1] + period_s)
+        sel = (tf >= start) & (tf <= t2_img[r] - 0.5 * period_s)
+        if sel.sum() < 8 or np.sum(tf[sel] < rt[r] + d_guess) < 3:
+            continue
+        tk, Y = tf[sel], o[sel] - o[sel].mean(axis=0)
+        h = np.interp(np.minimum(tk[None, :] - grid[:, None], rt[r]), t_enc, q) - rq[r]  # (G, n)
+        sc = max(float(np.max(np.abs(h))), 1e-12)
+        h = h / sc
+        n_obs = 2 * tk.size
+        crit = np.full(grid.size, np.inf)
+        first = np.cumsum(tk[None, :] > rt[r] + grid[:, None], axis=1)  # 1 at the stop's first frame
+        ring_cols = []
+        if ring[0] > 0:  # the record's ringing, started at the stop (as in the change-point model)
+            tau = np.maximum(tk[None, :] - rt[r] - grid[:, None], 0.0)
+            ring_cols = [np.exp(-ring[1] * tau) * np.sin(2 * np.pi * ring[0] * tau)]
+        for m in (0, 1, 2):  # no step, or one from the stop's first or second frame
+            cols = [np.ones_like(h), h, h * h] + ring_cols + ([(first >= m).astype(float)] if m else [])
+            X = np.stack(cols, axis=-1)  # (G, n, p)
+            p = X.shape[2]
+            A = np.einsum("gnp,gnq->gpq", X, X) + 1e-9 * np.eye(p)[None]
+            rhs = np.einsum("gnp,nc->gpc", X, Y)
+            coef = np.linalg.solve(A, rhs)
+            rss = np.maximum(float(np.sum(Y * Y)) - np.einsum("gpc,gpc->g", coef, rhs), 1e-12)
+            crit = np.minimum(crit, n_obs * np.log(rss) + (2 * np.log(n_obs) if m else 0.0))
+        rss = crit
+        i = int(np.argmin(rss))
+        if i == 0 or i == grid.size - 1:
+            continue  # the best delay at the grid's edge: not bracketed
+        y0, y1, y2 = rss[i - 1], rss[i], rss[i + 1]
+        den = y0 - 2 * y1 + y2
+        off = 0.5 * (y0 - y2) / den if den > 0 else 0.0
+        best.append(grid[i] + float(np.clip(off, -1.0, 1.0)) * step)
+    if not best:
+        return float("nan"), float("nan"), 0
+    d = np.array(best)
+    med = float(np.median(d))
+    sd = max(1.4826 * float(np.median(np.abs(d - med))), step / np.sqrt(12))
+    return med, 1.2533 * sd / np.sqrt(d.size), int(d.size)
+
+
 def ring_summary(ref: Refined) -> dict:
     """The record's post-reversal ringing for the diagnosis: share of reversals where a ringing
     was kept (BIC), and over those the median frequency (Hz), decay rate alpha (1/s), damping
@@ -488,6 +562,15 @@ def ring_summary(ref: Refined) -> dict:
         out.update({"freq_hz": float(hz), "decay_per_s": float(al), "damping_ratio": float(al / np.hypot(al, w)),
                     "amplitude_px": float(np.median(ref.ring_px[has]))})
     return out
+
+
+def _shape_fit_needed(ref_frames: float) -> bool:
+    """Whether the actuator-shape model (onset_play.fit) must be fitted, given the refined
+    onsets' frames to take up the play (lower quartile, NaN without refined onsets). Not when
+    they take it up over FAST_FRAMES frames or more: the larger of the two models' figures
+    decides, so the actuator-shape model could not be chosen whatever it gave, and the B
+    samples are the same without it (it is most of the onset path's cost on a slow excitation)."""
+    return not ref_frames >= FAST_FRAMES
 
 
 @dataclass
@@ -515,7 +598,9 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
        delay, as the board would have run it (the coarse one when none is configured), and
        its threshold from the record (onset_settings.image_onset_settings) unless onset_cfg gives
        one; the rule and its figures are in report["board_threshold"].
-    3. ``refine`` every reversal; t_delay from the stop times (``delay_from_stops``).
+    3. ``refine`` every reversal; t_delay from the approach to each stop with the actuator's
+       shape (``delay_from_shape``; the stop times, ``delay_from_stops``, without 4 reversals
+       to fit), or the actuator-shape model's when its B samples are used.
     4. t_delay_from "data" (default): use the record's delay; "config": the configured one.
        They are compared either way; a gap over one frame period is a warning. A configured
        delay is never needed: without one the record's delay is used.
@@ -570,10 +655,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # and a B sample per reversal that needs no "still" frame.
     from . import onset_play as P
 
-    amp = np.abs(np.diff(rq))
-    b_max = 0.6 * float(np.median(amp)) if amp.size else float(np.ptp(q))
-    pf, pdoc = P.fit(t_enc, q, rt, rq, t_f, obs, period, b_max)
     warnings = []
+    d_shape, d_shape_se, n_shape = float("nan"), float("nan"), 0
     # Which model: the actuator-shape one where the play is taken up in fewer than FAST_FRAMES
     # frames on a quarter of the reversals (a still frame between stop and onset is then rare, and the change-point model
     # invents steps); from there on the change-point refinement, which the Fig. 7 replica's
@@ -584,24 +667,51 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # lower quartile over the reversals: a swing that is fast on one side only (the paper's
     # square-ish swings: fast out, slow back) still leaves a quarter or more within a frame.
     # Both models' figures, the larger deciding: a model fooled into small b cannot claim it.
+    ref_frames = float("nan")
+    if ref.ok.any():
+        t2r = ref.t2_s[ref.ok] - (d_stops if n_d >= 4 else d1)
+        br = np.abs(np.interp(t2r, t_enc, q) - rq[ref.ok])
+        ref_frames = float(np.percentile(br / np.maximum(np.abs(np.interp(t2r, t_enc, v)) / fps, 1e-12), 25))
+    amp = np.abs(np.diff(rq))
+    b_max = 0.6 * float(np.median(amp)) if amp.size else float(np.ptp(q))
+    M = rt.size
+    if not _shape_fit_needed(ref_frames):
+        pf = P.PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool),
+                       float("nan"), (float("nan"), float("nan")), float("nan"), False, (0.0, 0.0), b_max)
+        pdoc = {"fitted": False, "why": f"refined onsets take the play up over {ref_frames:.1f} frames "
+                                        f"(lower quartile) >= {FAST_FRAMES:g}"}
+    else:
+        pf, pdoc = P.fit(t_enc, q, rt, rq, t_f, obs, period, b_max)
+        pdoc["fitted"] = True
     fast_frames = float("nan")
     if pf.ok.any():
         va = np.abs(np.interp(pf.t2_s[pf.ok] - pf.t_delay_s, t_enc, v)) / fps
         fast_frames = float(np.percentile(pf.b[pf.ok] / np.maximum(va, 1e-12), 25))
-    if ref.ok.any() and np.isfinite(fast_frames):
-        t2r = ref.t2_s[ref.ok] - (d_stops if n_d >= 4 else d1)
-        br = np.abs(np.interp(t2r, t_enc, q) - rq[ref.ok])
-        fast_frames = max(fast_frames, float(np.percentile(
-            br / np.maximum(np.abs(np.interp(t2r, t_enc, v)) / fps, 1e-12), 25)))
+    if np.isfinite(ref_frames) and (np.isfinite(fast_frames) or not pdoc["fitted"]):
+        fast_frames = ref_frames if not pdoc["fitted"] else max(fast_frames, ref_frames)
     use_shape = bool(np.isfinite(pf.t_delay_s) and fast_frames < FAST_FRAMES)
     if use_shape:
         d_data, (ci_lo, ci_hi), d_se = pf.t_delay_s, pf.t_delay_ci_s, pf.t_delay_sd_s
         how = "actuator-shape model, posterior mean"
     else:
-        d_data = d_stops if n_d >= 4 else d1
-        d_se = d_stops_se if n_d >= 4 else period
+        # The delay from the approach to each stop with the actuator's shape (the kink of the
+        # stop fit comes early on a gradual deceleration); it needs the refined onsets, so only
+        # here, where they are used; recentred while it lands near its grid's edge.
+        t2_img = np.where(ref.ok, ref.t2_s, np.nan)
+        guess_d = d_stops if n_d >= 4 else d1
+        for _ in range(3):
+            d_shape, d_shape_se, n_shape = delay_from_shape(t_enc, q, rt, rq, t_f, obs, t2_img, guess_d, period,
+                                                            ring=ring)
+            if not (n_shape >= 4 and abs(d_shape - guess_d) > 2.0 * period):
+                break
+            guess_d = d_shape
+        if n_shape >= 4:
+            d_data, d_se, how = d_shape, d_shape_se, "approach to the stop with the actuator's shape, median"
+        else:
+            d_data = d_stops if n_d >= 4 else d1
+            d_se = d_stops_se if n_d >= 4 else period
+            how = "image stop - motor stop, median"
         ci_lo, ci_hi = d_data - 1.96 * d_se, d_data + 1.96 * d_se
-        how = "image stop - motor stop, median"
     if np.isfinite(d_data) and d_data < 0:  # a delay cannot be negative (the stops can say so on a sine)
         d_data, ci_lo, ci_hi = 0.0, max(ci_lo, 0.0), max(ci_hi, 0.0)
     have = bool(np.isfinite(d_data))
@@ -672,7 +782,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         "t_delay": {"configured_s": t_delay_cfg, "record_s": d_data, "record_se_s": d_se,
                     "record_ci95_s": [ci_lo, ci_hi], "agrees_with_configured": agree,
                     "frame_allowance_s": allow, "used_s": td, "used": "configured" if td == t_delay_cfg else "record",
-                    "from": t_delay_from, "source": src, "stops_s": d_stops, "stops_fitted": n_d,
+                    "from": t_delay_from, "source": src, "stops_s": d_stops, "stops_fitted": n_d, "shape_s": d_shape, "shape_se_s": d_shape_se,
+                    "shape_reversals": n_shape,
                     "coarse_s": d0, "first_pass_s": d1},
         "actuator_shape": {**pdoc, "samples": int(pf.ok.sum()), "used": use_shape,
                            "frames_to_take_up": fast_frames, "fast_frames": FAST_FRAMES},

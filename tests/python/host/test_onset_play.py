@@ -120,3 +120,51 @@ def test_guard_rail_warns_when_most_reversals_disagree():
         g = R.guard_rail(on, np.arange(n), board, np.arange(n), 0.04, t, q, 0.0)
         assert g["warn"] is warn and g["compared"] == n
         assert set(g["B_curves"]) == {"q", "samples", "board"}
+
+
+def test_delay_from_the_approach_shape_on_a_sine():
+    # A sine slows down gradually into each reversal: the change-point stop (a kink) comes early
+    # by a good part of the deceleration; the approach fitted with the actuator's own shape
+    # does not. No configured delay: the record's is used.
+    r, t, q, rt, rq, t_f, obs, hyst = record(seed=102, shape="sine", fps=30.0, noise_px=0.2, delay_s=0.12,
+                                             delay_cfg_s=None, duration_s=45.0)
+    T = 1 / r.fps
+    rob = R.robust_samples(t, q, q, rt, rq, t_f, obs, r.fps, None, "data", None, None, hyst)
+    td = rob.report["t_delay"]
+    # Measured (150 s, dev-sine30): shape 0.1200 s, stops 0.0314 s (-2.65 frames).
+    assert abs(td["stops_s"] - r.delay_s) > T
+    assert td["shape_reversals"] >= 20
+    assert abs(rob.t_delay_s - r.delay_s) < T / 8
+    assert td["record_ci95_s"][0] - T / 8 <= r.delay_s <= td["record_ci95_s"][1] + T / 8
+    rel = rob.onsets.b / r.B(rob.onsets.q_mean) - 1
+    # Measured (150 s): B samples median +0.7 % of B; with the stops' delay +33 %.
+    assert abs(np.median(rel)) < 0.05
+
+
+def test_delay_from_shape_unbiased_on_a_constant_speed_triangle():
+    r, t, q, rt, rq, t_f, obs, hyst = record(seed=103, shape="triangle", swing_s=0.5, fps=60.0, noise_px=0.05,
+                                             delay_s=0.05, delay_cfg_s=0.05, duration_s=30.0)
+    T = 1 / r.fps
+    # Onsets on the image clock from the truth (plus the delay), so only the delay is judged.
+    d = SR.render(r)
+    i = np.searchsorted(d["t_onset"], rt)
+    t2 = np.where(i < d["t_onset"].size, d["t_onset"][np.minimum(i, d["t_onset"].size - 1)] + r.delay_s, np.nan)
+    for guess in (0.02, 0.05, 0.08):  # within 2 of the grid's +- 3 frames
+        dd, se, n = R.delay_from_shape(t, q, rt, rq, t_f, obs, t2, guess, T)
+        # Measured (150 s): -0.004 frame.
+        assert n >= 0.8 * (rt.size - 1) and abs(dd - r.delay_s) < T / 16 and se < T / 16, (guess, dd, se, n)
+
+
+def test_ringing_is_the_tip_modes_response_to_the_drive():
+    # Fast swings with a lightly damped 3 Hz tip mode: the ring after each take-up comes from
+    # the drive itself, so the model carries it with one gain and the onset is the first motion.
+    r, t, q, rt, rq, t_f, obs, _ = record(seed=108, ring_hz=3.0, ring_zeta=0.05, duration_s=60.0)
+    T = 1 / r.fps
+    pf, doc = P.fit(t, q, rt, rq, t_f, obs, T, 0.6 * np.median(np.abs(np.diff(rq))))
+    # Measured (150 s, dev-ring3-swings25): 3.0 Hz, decay 0.97 /s (true 0.94), delay 0.0800 s,
+    # B samples median -1.6 %, mean abs 4 %; without the drive's response -75 %.
+    assert doc["ring"] is not None and doc["ring"]["hz"] == pytest.approx(3.0, abs=0.2)
+    assert abs(pf.t_delay_s - r.delay_s) < T / 8
+    s = np.sign(np.r_[0.0, np.diff(rq)])
+    rel = pf.b[pf.ok] / r.B(rq[pf.ok] - s[pf.ok] * pf.b[pf.ok] / 2) - 1
+    assert pf.ok.sum() >= 0.8 * (rt.size - 1) and abs(np.median(rel)) < 0.06

@@ -44,3 +44,16 @@ def test_readme_main_job_excerpt_is_from_the_generated_run():
     results = set((ROOT / "docs" / "results.md").read_text().splitlines())
     missing = [ln for ln in excerpt if ln not in results]
     assert not missing, f"README excerpt lines not in docs/results.md: {missing[:3]}"
+
+
+def test_docs_figures_blocks_are_the_generated_ones():
+    """Every figures block in docs/*.md is what bench/run_all.py --docs-only writes from
+    docs/results.md: a block edited by hand, or left stale after a new run, fails here."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("results_doc", ROOT / "bench" / "results_doc.py")
+    rd = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rd)
+    results = (ROOT / "docs" / "results.md").read_text()
+    stale = [p.name for p in sorted((ROOT / "docs").glob("*.md")) if p.name != "results.md"
+             and rd.fill_doc_blocks(p.read_text(), results, where=p.name) != p.read_text()]
+    assert not stale, f"figures blocks differ from docs/results.md (run bench/run_all.py --docs-only): {stale}"
