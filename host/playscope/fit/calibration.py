@@ -319,7 +319,9 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     n_ctrl: f's control points for the pure-play candidate (14 from calibrate: the
     cross-validated f_remain N needs B first); src: file named in errors.
     Returns (BacklashFit, Transition, f, sign, choice dict, [{"smooth", "cv_rmse_deg",
-    "cv_se_deg", "model", "b_scale", "n", "b_sample_pick"}] stiffest first)."""
+    "cv_se_deg", "model", "b_scale", "n", "b_sample_pick"}] stiffest first, the kept
+    alternative's transition.FitData: its cached play centres and operator outputs are what
+    the rest of the calibration reads again)."""
     alts = backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)
     base = T.FitData.from_session(t_enc, q, alts[0][1].B, t_f, c_f, td)
     rows, choices = [], []
@@ -342,7 +344,7 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     # best (rows are stiffest first).
     i = own if rows[own]["cv_rmse_deg"] <= limit else next(i for i, d in enumerate(rows) if d["cv_rmse_deg"] <= limit)
     tr, f, sign, ch = choices[i].result()
-    return alts[i][1], tr, f, sign, ch, rows
+    return alts[i][1], tr, f, sign, ch, rows, choices[i].data
 
 
 def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
@@ -492,17 +494,21 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
                              "check that it moves after each reversal and the back-and-forth exceeds the play")
         B = bfit.B = constant_spline(constant_play_lsq(q_c0, c_c0)[0], float(q.min()), float(q.max()))
         model_kind = "play"  # no onset B to anchor the transition on
-    model_cv = None
+    model_cv, fit_data = None, None
     if model_kind != "play" and rt.size >= MIN_REVERSALS_TRANSITION:
         # B(q)'s stiffness by the model's own cross-validation on c (see choose_b_and_model).
         joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src)
-        bfit, model_cv = joint[0], joint[5]
+        bfit, model_cv, fit_data = joint[0], joint[5], joint[6]
         B, w = bfit.B, bfit.weight
+    if fit_data is None or fit_data.B is not B:
+        fit_data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
+    # One FitData for B from here on: the model choice, the PI's f refit and the family choice
+    # read the same play centres and operator outputs (cached on it), computed once.
     q_c, c_c = characteristic(t_enc, q, t_f, c_f, td)
     # f_remain's stiffness from the calibration frames: rolling-origin CV on the transition's folds.
     z_c = model.play_operator(q_c, B)
     if f_ctrl is None:
-        f_cv = choose_f_ctrl(z_c, c_c, T.rolling_origins(T.FitData.from_session(t_enc, q, B, t_f, c_f, td), T.KFOLD))
+        f_cv = choose_f_ctrl(z_c, c_c, T.rolling_origins(fit_data, T.KFOLD))
         f_n = f_cv["n_ctrl"] or n_ctrl
     else:
         f_cv, f_n = {"n_ctrl": int(f_ctrl), "rule": "given", "candidates": []}, int(f_ctrl)
@@ -528,8 +534,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         if model_cv is not None:  # chosen with B above (its pure-play candidate uses n_ctrl: f_n needs B first)
             tr, f_pi, sign_pi, choice = joint[1:5]
         else:
-            data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
-            tr, f_pi, sign_pi, choice = T.choose_model(data, model_kind, f_n,
+            tr, f_pi, sign_pi, choice = T.choose_model(fit_data, model_kind, f_n,
                                                        kinds=T.threshold_kinds(bfit.kind, on.b.size, bfit.n_ctrl))
         if not tr.is_play:
             f_play, play_doc = f, {**f.to_json(), "sign": sign, "method": f_method, "slope_floor": floor_play}
@@ -539,8 +544,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
             def pi_frames():
                 # The PI's output at the frames: only when f must be refitted (the operators run
                 # over the whole encoder record, so not on every calibration).
-                data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
-                return data.ops_at_frames(tr.r, tr.b_scale, tr.tmap is not None) @ tr.w, data.c
+                return fit_data.ops_at_frames(tr.r, tr.b_scale, tr.tmap is not None) @ tr.w, fit_data.c
 
             f_pi, sign_pi, floor = loadable_f(lambda ms: T.fit_f(*pi_frames(), nc, sign=sign_pi, min_slope=ms),
                                               f_pi, sign_pi, tr.play_width(B), q_rng, s.actuator_unit, tr, src)
@@ -551,7 +555,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         from . import families as FAM
 
         play_f, play_sign = (f, sign) if tr.is_play else (f_play, int(play_doc["sign"]))
-        ctx = FAM.Context(T.FitData.from_session(t_enc, q, B, t_f, c_f, td), choice, tr, f, sign, play_f, play_sign,
+        ctx = FAM.Context(fit_data, choice, tr, f, sign, play_f, play_sign,
                           int(f_n), q_rng, s.actuator_unit)
         member, fam_choice = FAM.choose(ctx, int(rt.size), FAM.FAMILIES_FROM_C if no_onset else None, source=src)
         if fam_choice["rule"].startswith("thin"):
