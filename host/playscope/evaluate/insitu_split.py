@@ -143,7 +143,7 @@ def fit_ours(cal_s: Session, cal, q_c: np.ndarray, c_c: np.ndarray, source: str 
               "cv": [{k: d.get(k) for k in ("b_scale", "n", "r_span", "cv_rmse_deg")}
                      for d in choice.get("candidates", [])],
               "family": cal.family,
-              "family_cv": [{k: d.get(k) for k in ("family", "cv_rmse_deg", "refused")}
+              "family_cv": [{k: d.get(k) for k in ("family", "cv_rmse_deg", "refused", "skipped")}
                             for d in (cal.family_choice or {}).get("candidates", [])]}
     rl = cal.relax
     params["relax"] = None if rl is None else rl.to_json()

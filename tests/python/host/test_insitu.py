@@ -191,4 +191,9 @@ def test_cli_prints_table_and_writes_documented_json(tmp_path, session):
     for k in ("format", "session", "distal_kind", "judged_against", "state", "split", "notes"):
         assert k in d and k in insitu.JSON_KEYS
     assert d["split"]["t_split_s"] == pytest.approx(30.0)
+    # Every candidate of the model choice is listed with why it has no CV error when it has none
+    # (refused by the loader, or skipped by the one-SE shortcut), as in the calibration JSON.
+    fam = d["rows"]["ours"]["params"]["family_cv"]
+    assert fam and all(set(r) == {"family", "cv_rmse_deg", "refused", "skipped"} for r in fam)
+    assert all(r["cv_rmse_deg"] is not None or r["refused"] or r["skipped"] for r in fam)
     assert main(["evaluate-insitu", str(tmp_path / "s"), "--split", "2"]) == 2
