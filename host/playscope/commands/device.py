@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
 
 from .common import add_command, add_json_arg, dump_json, progress
@@ -31,17 +32,6 @@ def cmd_info(args) -> int:
         print(f"{k:22s} {v}")
     dump_json(args.json, info)
     return 0
-
-
-class _closing:
-    def __init__(self, link):
-        self.link = link
-
-    def __enter__(self):
-        return self.link
-
-    def __exit__(self, *exc):
-        self.link.close()
 
 
 def cmd_flash(args) -> int:
@@ -84,7 +74,7 @@ def cmd_run_insitu(args) -> int:
             print(paced.line(), file=sys.stderr)
         args.exc = paced.exc
         vb += ["--exc", exc4] + paced.vboard_args  # without V: the board computes it itself (--pace)
-    with _closing(_open(args, vb)) as link:
+    with contextlib.closing(_open(args, vb)) as link:
         return _run_insitu(link, args)
 
 
