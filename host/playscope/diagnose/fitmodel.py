@@ -92,6 +92,28 @@ def _dead_band(u: np.ndarray, w: float, r: float) -> np.ndarray:
     return np.sign(u) * g
 
 
+# Largest stretch of a side of the distal band (_distal_stretch): a band that takes nearly all of
+# one side leaves a short output there, stretched at most this much.
+STRETCH_MAX = 4.0
+
+
+def _distal_stretch(v: np.ndarray, zc: float, w: float, ends: tuple[float, float]) -> np.ndarray:
+    """The distal band's output v = _dead_band(z - zc, ...) (mm, (N,)) stretched on each side so it
+    spans the range of z again: v (zc - lo) / (zc - lo - w) below the centre, v (hi - zc) /
+    (hi - zc - w) above (each capped at STRETCH_MAX); ends = (lo, hi), the range of z (_z_ends).
+    Why: f_remain is a spline on fixed knots over the range of z; the band shortens its input by w
+    at each end, so without the stretch the outer basis splines see only the tails of their
+    support and take wild coefficients (213 on a 0.4-mm band of the second generator's spent
+    seed 6151), and validation rows 2 % past the fitted range then missed by up to 0.7 deg
+    (validation RMSE 0.22 deg against 0.07 without the band). f_remain of a stretched output is
+    the same model class (a linear map on each side of the flat band), with the knots covering
+    the data as in the model without the band. Returns (N,) mm, measured from zc."""
+    lo, hi = ends
+    s_lo = (zc - lo) / max(zc - lo - w, (zc - lo) / STRETCH_MAX, 1e-12)
+    s_hi = (hi - zc) / max(hi - zc - w, (hi - zc) / STRETCH_MAX, 1e-12)
+    return v * np.where(v < 0.0, s_lo, s_hi)
+
+
 def lowpass(x: np.ndarray, tau_s: float, rate_hz: float) -> np.ndarray:
     """First-order low-pass tau dy/dt = x - y of a uniformly sampled (N,) signal, y[0] = x[0]
     (the diagnosis' own filter; the simulators keep theirs). x may also be (N, M): each column
@@ -482,8 +504,9 @@ class Model:
             # Dead band on the distal side: the bend does not follow the play output while z
             # crosses [z0 - w, z0 + w] (a joint that is slack near one configuration). It is a static
             # map of z, but with kinks f_remain's 12 knots cannot follow; same parameters (q units).
-            zc, w = self._band(theta, self._z_ends(theta, z))
-            z = zc + _dead_band(z - zc, w, self._corner(theta) * w)
+            ends = self._z_ends(theta, z)
+            zc, w = self._band(theta, ends)
+            z = zc + _distal_stretch(_dead_band(z - zc, w, self._corner(theta) * w), zc, w, ends)
         delay = d.t_delay_s + (self._get(theta, "camera_delay", "delay_s") if "camera_delay" in self.effects else 0.0)
         tq = d.t_m - delay
         t_m = d.t_m

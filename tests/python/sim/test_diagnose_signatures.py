@@ -102,3 +102,42 @@ def test_a_refused_effect_leaves_the_verdict_unexplained_and_is_the_hint():
     res = attribute(jumps, *halves(jumps), candidates=cands)
     assert [z["effect"] for z in res["refused"]] == ["drift"] and res["kept"] == []
     assert res["verdict"] == "unexplained" and res["hint"]["effect"] == "drift"
+
+
+def _pi_record(t, q, spread=0.8, seed=1):
+    """A smooth transition: the mean of 9 plays of widths B_MM (1 - spread ... 1 + spread)
+    (Prandtl-Ishlinskii), c = G_DEG times it, read at 40 Hz with NOISE."""
+    z = np.mean([_play(q - r * B_MM / 2, q + r * B_MM / 2, q[0]) for r in np.linspace(1 - spread, 1 + spread, 9)], axis=0)
+    tm = np.arange(t[0] + 0.5, t[-1] - 0.5, 1 / 40.0)
+    rng = np.random.default_rng(seed)
+    return Data(t, q, tm, G_DEG * np.interp(tm, t, z) + rng.normal(0, NOISE, tm.size))
+
+
+def test_handeye_signature_refuses_a_smooth_transition():
+    # the soft switch of the hand-eye term, against the motion and over about a play's width,
+    # takes up a transition's slow engagement; that is a lag, not a registration error
+    t, q = _drive()
+    g = _kept(_pi_record(t, q), "handeye_direction")
+    assert g["lags_motion"] and g["switch_travel_mm"] > 0.3 * g["play_width_mm"], g
+    assert g["gradual_lag"] and not g["present"], g
+
+
+@pytest.mark.parametrize("form", ["against_motion", "drag"])
+def test_handeye_signature_keeps_registration_offsets_of_either_sign_and_a_dragged_one(form):
+    # an offset against the motion that switches at once (a registration tilted the other way),
+    # and one dragged along with the motion over 2 deg of c (the instrument in its channel)
+    t, q = _drive()
+
+    def offset(tm, zm, qm, t_i, z_i, q_i):
+        if form == "against_motion":
+            return -1.2 * np.interp(tm, t_i, held_direction(z_i, 1e-9))
+        c = G_DEG * z_i
+        o = np.empty(c.size)
+        acc = 0.0
+        for k, dc in enumerate(np.diff(c, prepend=c[:1]).tolist()):
+            acc = min(max(acc + 0.5 * dc, -1.0), 1.0)
+            o[k] = acc
+        return np.interp(tm, t_i, o)
+    g = _kept(_record(t, q, add=offset), "handeye_direction")
+    assert g["present"], g
+    assert g["lags_motion"] is (form == "against_motion"), g
