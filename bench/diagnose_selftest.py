@@ -22,11 +22,11 @@ Usage: .venv/bin/python bench/diagnose_selftest.py [--quick] [--workers 2] [--js
        [--second-seed S]
        (a subset while developing, e.g. --effects viscous_hysteresis,cable_elongation --nulls 0
        --no-ool --seed 1000 --selftest-only; the reported figures are the REPORTED_SEED_* seeds with every case)
-       (full, reported seeds, on 2 cores shared with other jobs (load 5-6): second generator 41 cases
-       in 527 s, first generator 58 cases in 723 s with --no-recover; the recoverability oracle adds
-       about 45 % of an in-library case's time (--no-recover skips it); over the 10-min CI budget
-       together, so this is a nightly-style bench that prints its wall time, not a CI job;
-       --quick: strong strength only, 2 nulls; --real-only ~2 min)
+       (full, reported seeds, on 2 cores shared with other jobs (load 4-7): second generator 41 cases
+       in 450 s; first generator 58 cases in 1987 s with the recoverability oracle (723 s without
+       it, --no-recover, the round before); over the 10-min CI budget together, so this is a
+       nightly-style bench that prints its wall time, not a CI job; --quick: strong strength only,
+       2 nulls; --real-only ~2 min)
 """
 
 from __future__ import annotations
