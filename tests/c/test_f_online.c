@@ -261,6 +261,62 @@ static void test_rebind(void **state)
     assert_ptr_equal(cal3.f_inv.y_q16, cal3.f_inv_buf);
 }
 
+/* The loop's hook, closed loop: the board compensates a reference c* while its plant reads
+ * c = a_t + g_t f(y*) (an offset and a gain the flashed f does not have). Each reading is
+ * learnt on the observation call against f(f^-1(c*)); publishes run in psa_background only;
+ * once learnt, the tip the compensator aims at is c* again. */
+static void test_loop_hook_closes_the_loop(void **state)
+{
+    (void)state;
+    load(f_curved);
+    static psa_loop_t lp;
+    static f_online_t fo;
+    psa_config_t pc;
+    memset(&pc, 0, sizeof pc);
+    pc.onset = onset_default_config();
+    psa_init(&lp, &pc);
+    assert_true(psa_set_table(&lp, &cal));
+    assert_true(psa_set_mode(&lp, PSA_MODE_COMPENSATION));
+    f_online_config_t c = f_online_default_config();
+    c.publish_every = 8;
+    assert_int_equal(f_online_init(&fo, &c, &cal.f, &cal.f_inv), F_ONLINE_OK);
+    psa_set_f_learning(&lp, &fo);
+    const double a_t = 2.0, g_t = 1.07;
+    onset_event_t ev;
+    int32_t x;
+    assert_false(psa_f_regressor(&lp, true, &x)); /* no reference yet */
+    double worst_first = 0, worst_last = 0;
+    for (int k = 0; k < 400; k++) {
+        int32_t c_ref = (int32_t)lround((30.0 * sin(0.03 * k) + 5.0) * 65536.0);
+        (void)psa_set_reference(&lp, c_ref);
+        double y = lut_eval(&cal.f_inv, c_ref) / 65536.0; /* the centre the compensator aims at */
+        double tip = a_t + g_t * lut_eval(&cal.f, (int32_t)lround(y * 65536.0)) / 65536.0;
+        double err = fabs(tip - c_ref / 65536.0);
+        if (k < 8)
+            worst_first = fmax(worst_first, err);
+        if (k >= 300)
+            worst_last = fmax(worst_last, err);
+        const int32_t *before = cal.f_inv.y_q16;
+        (void)psa_observe_deg(&lp, (uint32_t)k * 40000u, (int32_t)lround(tip * 65536.0), true, &ev);
+        assert_ptr_equal(cal.f_inv.y_q16, before); /* nothing published on the observation */
+        bool due = (k + 1) % 8 == 0;
+        assert_int_equal(lp.f_publish_due, due);
+        assert_int_equal(psa_background(&lp), due);
+        if (due)
+            assert_int_equal(lp.comp.f_inv_cell.width, 0);
+    }
+    printf("tip - c*: first readings %.3f deg, after learning %.4f deg\n", worst_first, worst_last);
+    assert_true(worst_first > 1.0);
+    assert_true(worst_last < 0.01);
+    assert_true(fabs(fo.g_q16 / 65536.0 - g_t) < 1e-3);
+    /* An invalid reading, or one outside compensation, is not learnt. */
+    uint32_t n = fo.samples;
+    (void)psa_observe_deg(&lp, 1u << 30, 0, false, &ev);
+    assert_int_equal(fo.samples, n);
+    psa_set_f_learning(&lp, NULL);
+    assert_false(psa_background(&lp));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -270,6 +326,7 @@ int main(void)
         cmocka_unit_test(test_published_table_inverts_the_corrected_f),
         cmocka_unit_test(test_publish_writes_the_other_copy),
         cmocka_unit_test(test_rebind),
+        cmocka_unit_test(test_loop_hook_closes_the_loop),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
