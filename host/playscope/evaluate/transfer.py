@@ -24,6 +24,12 @@ ceiling for the morphological f_remain, so the transfer protocol does not go thr
   transition_offset  ours with the transition + the same offset refresh
   const_play_ref     constant play + poly5 of the calibration record, as is
   const_play_ref_offset  the same + the same offset refresh (the peer given our update)
+  static_affine, transition_affine, const_play_ref_affine, in_situ_affine
+                     the host's offset and gain refresh (least squares on every frame so far)
+  static_board, transition_board, const_play_ref_board, in_situ_board
+                     the board's offset and gain learner instead (firmware/core/f_online.c
+                     through cffi, online.board_f_refreshed: fixed point, forgetting, a publish
+                     every refresh period's worth of frames), settings by online.f_config_from
 
 Drift measurement (`drift`): each record calibrated in situ on its whole length; its
 parameters compared with the calibration record's over the travel both saw.
@@ -50,7 +56,7 @@ from .insitu_split import calibration_frames
 FORMAT = "playscope-transfer/1"
 ROWS = ["in_situ", "in_situ_affine", "in_situ_const_play", "static", "static_transition", "online_b_only", "online_offset_only",
         "online", "transition_offset", "const_play_ref", "const_play_ref_offset", "static_affine", "transition_affine",
-        "const_play_ref_affine"]
+        "const_play_ref_affine", "in_situ_board", "static_board", "transition_board", "const_play_ref_board"]
 LABELS = {
     "in_situ": "in situ: ours (transition) fitted on the record's own warm-up (reference)",
     "in_situ_affine": "in situ: the same + offset and gain refresh (no drift to learn)",
@@ -66,12 +72,18 @@ LABELS = {
     "static_affine": "transferred + offset and gain refresh",
     "transition_affine": "transferred with transition + offset and gain refresh",
     "const_play_ref_affine": "constant play + poly5 of the calibration record + offset and gain refresh",
+    "in_situ_board": "in situ: the same + the board's offset and gain learner (no drift to learn)",
+    "static_board": "transferred + the board's offset and gain learner",
+    "transition_board": "transferred with transition + the board's offset and gain learner",
+    "const_play_ref_board": "constant play + poly5 of the calibration record + the board's offset and gain learner",
 }
 GAIN_BOUNDS = (0.5, 2.0)  # the gain refresh's clamp: a factor 2 either way, far outside any record's fitted gain
 WARMUP = 0.5  # fraction of the duration; the only split giving every endoscope record >= 2 reversals before it
-JSON_KEYS = ("format, calibration {file, reversals, b_samples}, settings {warmup, refresh_s}, order [row], labels "
-             "{row: str}, files {name: {config_deg (sheath angle from the file name, null for the catheter), "
-             "t_split_s, rmse_deg {row: float}, b_samples (learnt on line)}}, mean {row: float}, worst {row: float}")
+JSON_KEYS = ("format, calibration {file, reversals, b_samples}, settings {warmup, refresh_s, board_f {mem_log2, "
+             "publish_every, prior_var_q16}}, order [row], labels {row: str}, files {name: {config_deg (sheath angle "
+             "from the file name, null for the catheter), t_split_s, rmse_deg {row: float}, b_samples (learnt on "
+             "line), board_f {publishes, a_deg, g} (the transition row's learner at the end)}}, mean {row: float}, "
+             "worst {row: float}")
 
 # Endoscope files: column of the distal angle by file name (README of the data set).
 
@@ -121,18 +133,18 @@ def _affine_refreshed(s, c_hat: np.ndarray, fps: float, refresh_s: float, prior_
     return a + g * c_hat
 
 
-def _in_situ(s, t_split: float, src: str) -> tuple[np.ndarray, np.ndarray]:
+def _in_situ(s, t_split: float, src: str):
     """Ours with the transition (calibrate, model_kind "auto") and the constant play + poly5,
     both fitted on the samples of s with t < t_split only (on the frames the chain sees,
     insitu.calibration_frames), run over the whole record from q[0] in double precision:
-    their predictions (N,) deg at the encoder samples."""
+    (their predictions (N,) deg at the encoder samples, ours' Calibration, the part it saw)."""
     from ..fit.baselines import fit_constant_play
 
     cal_s = s.slice_time(-np.inf, t_split)
     cal = calibrate(cal_s, f_method="lsq", model_kind="auto", source=src)
     _, fp, Bc = fit_constant_play(*calibration_frames(cal_s, cal))
     q = s.encoder["q"]
-    return cal.predict(q), model.direct_model(q, Bc, fp)
+    return cal.predict(q), model.direct_model(q, Bc, fp), cal, cal_s
 
 
 def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float = 1.0,
@@ -148,6 +160,8 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
     ref_const = O.const_play_ref(s_ref, cal.fps_frames)
     prior_var = float(np.var(s_ref.distal["c_deg"]))
     fps = 1.0 / cal.onset_config["frame_period_s"]  # the board's detector frame rate, as online.evaluate_online
+    f_cfg = O.f_config_from(s_ref, cal, refresh_s)
+    f_range = (float(np.nanmin(s_ref.distal["c_deg"])), float(np.nanmax(s_ref.distal["c_deg"])))
     st = O.OnlineSettings(refresh_s=refresh_s, score_after=warmup)
     files = {}
     for p in progress(list(paths), desc="transfer"):
@@ -166,13 +180,26 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
         for k, c_hat in (("in_situ_affine", ins[0]), ("static_affine", cal.predict(q)), ("transition_affine", c_tr),
                          ("const_play_ref_affine", c_cp)):
             r[k] = err(_affine_refreshed(s, c_hat, fps, refresh_s, prior_var))
+        board_f = {}
+        # In situ, the learner's settings come from the record's own calibration (its warm-up part),
+        # as a board calibrated there would be flashed with them.
+        cal_in, s_in = ins[2], ins[3]
+        in_cfg = (O.f_config_from(s_in, cal_in, refresh_s), 1.0 / cal_in.onset_config["frame_period_s"],
+                  (float(np.nanmin(s_in.distal["c_deg"])), float(np.nanmax(s_in.distal["c_deg"]))))
+        for k, c_hat in (("in_situ_board", ins[0]), ("static_board", cal.predict(q)), ("transition_board", c_tr),
+                         ("const_play_ref_board", c_cp)):
+            cfg_k, fps_k, range_k = in_cfg if k == "in_situ_board" else (f_cfg, fps, f_range)
+            c_fix, end = O.board_f_refreshed(s, c_hat, fps_k, cfg_k, range_k)
+            r[k] = err(c_fix)
+            if k == "transition_board":
+                board_f = end
         for k in ("static", "online_b_only", "online_offset_only", "online", "const_play_ref_offset"):
             r[k] = on["rmse_deg"][k]
         files[Path(p).stem] = {"config_deg": config_angle(p), "t_split_s": t_split,
-                               "rmse_deg": {k: r[k] for k in ROWS}, "b_samples": on["b_samples"]}
+                               "rmse_deg": {k: r[k] for k in ROWS}, "b_samples": on["b_samples"], "board_f": board_f}
     return {"format": FORMAT, "calibration": {"file": str(cal_path), "reversals": int(cal.doc["reversals"]),
                                               "b_samples": cal.n_b_samples},
-            "settings": {"warmup": warmup, "refresh_s": refresh_s}, "order": ROWS, "labels": LABELS, "files": files,
+            "settings": {"warmup": warmup, "refresh_s": refresh_s, "board_f": f_cfg}, "order": ROWS, "labels": LABELS, "files": files,
             "mean": {k: float(np.mean([f["rmse_deg"][k] for f in files.values()])) for k in ROWS},
             "worst": {k: float(np.max([f["rmse_deg"][k] for f in files.values()])) for k in ROWS}}
 
