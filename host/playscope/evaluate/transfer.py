@@ -254,6 +254,65 @@ def plot_transfer(doc: dict, path, rows=("in_situ", "static", "online", "online_
     plt.close(fig)
 
 
+# ---------------------------------------------------------------- what learning the drift could reach
+
+CEILING_LEVELS = np.round(np.arange(0.5, 2.0001, 0.05), 2)  # B scale factors tried: a factor 2 either way, as GAIN_BOUNDS
+
+
+def _best_affine(c_hat: np.ndarray, c_true: np.ndarray) -> float:
+    """RMSE of c_true against the least-squares a + g c_hat (fitted on the same samples)."""
+    A = np.column_stack([np.ones_like(c_hat), c_hat])
+    coef, *_ = np.linalg.lstsq(A, c_true, rcond=None)
+    return float(np.sqrt(np.mean((A @ coef - c_true) ** 2)))
+
+
+def learnable_ceiling(cal_path, paths, warmup: float = WARMUP, in_situ_cache: dict | None = None) -> dict:
+    """What learning the drifting terms could reach at best: CAL's model with the transition run
+    on each record of paths from its first sample, with the offset and gain (and the B level)
+    chosen afterwards on the scored samples themselves (an oracle, not a causal update: a lower
+    bound for any on-line learner of those terms), beside the in-situ reference on the same
+    samples. B level: B scaled by each of CEILING_LEVELS, the best kept. in_situ_cache: a dict
+    the in-situ predictions are kept in by record path (a caller running several calibrations).
+    Returns {"calibration", "warmup", "files": {name: {"in_situ", "affine", "affine_b_level",
+    "b_scale"}}} (RMSE, deg)."""
+    s_ref = read_record(cal_path)
+    cal_tr = calibrate(s_ref, f_method="lsq", model_kind="auto", source=str(cal_path))
+    B = cal_tr.B_model
+    files = {}
+    for p in paths:
+        s = read_record(p)
+        t, q = s.encoder["t_s"], s.encoder["q"]
+        t_split = float(t[0] + warmup * (t[-1] - t[0]))
+        mask = t >= t_split
+        c_true = np.interp(t, s.distal["t_s"], s.distal["c_deg"])[mask]
+        cache = in_situ_cache if in_situ_cache is not None else {}
+        if str(p) not in cache:
+            cache[str(p)] = _in_situ(s, t_split, str(p))[0]
+        ins = cache[str(p)]
+        per_level = [_best_affine(T.direct_chain(q, lambda x, k=k: k * B(x), cal_tr.transition, cal_tr.f)[mask], c_true)
+                     for k in CEILING_LEVELS]
+        i = int(np.argmin(per_level))
+        one = int(np.argmin(np.abs(CEILING_LEVELS - 1.0)))
+        files[Path(p).stem] = {"config_deg": config_angle(p), "in_situ": O.rmse(ins[mask] - c_true),
+                               "affine": per_level[one], "affine_b_level": per_level[i],
+                               "b_scale": float(CEILING_LEVELS[i])}
+    return {"calibration": str(cal_path), "warmup": warmup, "files": files}
+
+
+def format_ceiling(docs: list[dict]) -> str:
+    """Markdown table of learnable_ceiling() results (one per calibration record)."""
+    lines = ["**What learning the drift could reach at best (oracle offset, gain and B level chosen on the scored "
+             "samples; RMSE after the warm-up, deg)**", "",
+             "| calibrated on | run on | in situ (reference) | + best offset and gain | ratio to in situ | "
+             "+ best offset, gain and B level (B scale) | ratio to in situ |", "|---|---|---|---|---|---|---|"]
+    for d in docs:
+        for n, f in d["files"].items():
+            lines.append(f"| {Path(d['calibration']).stem} | {n} | {f['in_situ']:.2f} | {f['affine']:.2f} | "
+                         f"{f['affine'] / f['in_situ']:.1f} | {f['affine_b_level']:.2f} ({f['b_scale']:.2f}) | "
+                         f"{f['affine_b_level'] / f['in_situ']:.1f} |")
+    return "\n".join(lines + [""])
+
+
 # ---------------------------------------------------------------- what drifts between records
 
 DRIFT_KEYS = ["offset_deg", "gain", "f_shape_deg", "b_level", "b_level_rel", "b_shape", "transition"]

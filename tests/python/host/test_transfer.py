@@ -208,3 +208,16 @@ def test_closed_loop_learner_removes_a_drift_and_costs_nothing_without_one():
             # Nothing drifts: the learner stays at the identity up to the table's own error
             # (measured 3.3e-4 deg as flashed, 1.2e-4 deg learning).
             assert e_learn <= 1.02 * e_static + 1e-3 and abs(end["g"] - 1.0) < 0.002
+
+
+def test_oracle_ceiling_bounds_the_causal_learners(catheter_transfer):
+    """The oracle (offset and gain chosen on the scored samples) is a lower bound of every causal
+    update of those terms on the same model and samples: the board learner's and the host's."""
+    from playscope.evaluate.transfer import learnable_ceiling
+
+    folder, doc = catheter_transfer
+    r = doc["files"]["data_2_5"]["rmse_deg"]
+    c = learnable_ceiling(folder / "data_2_1.txt", [folder / "data_2_5.txt"], 0.2)["files"]["data_2_5"]
+    assert c["in_situ"] == pytest.approx(r["in_situ"], rel=1e-9)  # the same reference, same samples
+    assert c["affine"] <= r["transition_board"] and c["affine"] <= r["transition_affine"]
+    assert c["affine_b_level"] <= c["affine"]
