@@ -39,6 +39,7 @@ static double f_falling(double q, const void *ctx)
 
 static fixture_blob_t blob;
 static calib_t cal;
+static f_online_t fo; /* one learner for every test: the M4 build's RAM holds one */
 
 static void load(fixture_fn f)
 {
@@ -74,7 +75,6 @@ static void test_config_errors(void **state)
 {
     (void)state;
     load(f_curved);
-    static f_online_t fo;
     f_online_config_t c = f_online_default_config();
     f_online_config_t bad = c;
     bad.mem_log2 = 0;
@@ -104,7 +104,6 @@ static void test_config_errors(void **state)
 static void test_identity_is_the_loaders_inverse(void **state)
 {
     (void)state;
-    static f_online_t fo;
     static int32_t loader[CALIB_DERIVED_MAX];
     fixture_fn fns[2] = {f_curved, f_falling};
     for (int k = 0; k < 2; k++) {
@@ -126,7 +125,6 @@ static void test_matches_double_reference(void **state)
 {
     (void)state;
     load(f_curved);
-    static f_online_t fo;
     f_online_config_t c = f_online_default_config();
     c.mem_log2 = 6;
     c.publish_every = 5;
@@ -169,7 +167,6 @@ static void test_published_table_inverts_the_corrected_f(void **state)
 {
     (void)state;
     fixture_fn fns[2] = {f_curved, f_falling};
-    static f_online_t fo;
     for (int k = 0; k < 2; k++) {
         load(fns[k]);
         f_online_config_t c = f_online_default_config();
@@ -206,7 +203,6 @@ static void test_publish_writes_the_other_copy(void **state)
 {
     (void)state;
     load(f_curved);
-    static f_online_t fo;
     static int32_t before[CALIB_DERIVED_MAX];
     f_online_config_t c = f_online_default_config();
     c.publish_every = 3;
@@ -235,7 +231,6 @@ static void test_rebind(void **state)
     load(f_curved);
     static calib_t cal2, cal3;
     static fixture_blob_t blob2, blob3;
-    static f_online_t fo;
     f_online_config_t c = f_online_default_config();
     c.publish_every = 4;
     assert_int_equal(f_online_init(&fo, &c, &cal.f, &cal.f_inv), F_ONLINE_OK);
@@ -270,7 +265,6 @@ static void test_loop_hook_closes_the_loop(void **state)
     (void)state;
     load(f_curved);
     static psa_loop_t lp;
-    static f_online_t fo;
     psa_config_t pc;
     memset(&pc, 0, sizeof pc);
     pc.onset = onset_default_config();
