@@ -78,12 +78,10 @@ void psl_learn_rebind(psl_t *l, uint8_t buf)
         }
     }
     /* The offset and gain carry over when the new table keeps f (a commit of B), else
-     * restart on its f; the loop's pointer to the learner is unchanged. */
-    if (l->learn_f_on && f_online_rebind(&l->learn_f, &l->cal[buf].f, &l->cal[buf].f_inv) != F_ONLINE_OK) {
-        psa_set_f_learning(&l->loop, NULL);
-        l->learn_f_on = false;
-    }
-    if (!l->learn_on && l->learn_f_on) {
+     * restart on its f; they stop with the B update (the new table then runs its loader's
+     * f^-1: nothing is published into it). */
+    if (l->learn_f_on &&
+        (!l->learn_on || f_online_rebind(&l->learn_f, &l->cal[buf].f, &l->cal[buf].f_inv) != F_ONLINE_OK)) {
         psa_set_f_learning(&l->loop, NULL);
         l->learn_f_on = false;
     }
