@@ -69,6 +69,8 @@ typedef struct {
     uint8_t stream_decim, stream_left;
     psp_enc_samples_t batch;
     uint32_t n_b_events;         /* B samples (or failures) sent unsolicited */
+    uint32_t last_obs_us;        /* board time stamp of the last MARKER_OBS (0 before any): a
+                                    desktop board in lock-step waits for the host (vboard --lockstep-ms) */
     /* On-line B update (PSP_MSG_LEARN): B samples the observations complete are queued by the
      * request handler and learnt by psl_background, outside the tick. */
     bool learn_on;
