@@ -246,6 +246,15 @@ def candidates(ctx: FAM.Context, q_c, c_c, chosen: FAM.Member | None = None) -> 
 
     if chosen is not None:
         out["chosen+m"] = member_plus_m(ctx, chosen)
+    if FAMILY_ROWS:
+        # Every family the product already offers, fitted on the whole calibration part and run through
+        # its own table (what the choice would ship had it picked that family).
+        for fam in FAM.FAMILIES:
+            try:
+                mem = fam.fit(ctx, None)
+                out["fam:" + fam.name] = FAM.table_of(ctx, mem).predict
+            except Exception as e:  # noqa: BLE001  (a refused table is that row's absence)
+                print(f"  {fam.name}: {e}", file=sys.stderr)
     # onset B inside the gpi form: plays on the onset play's centre z
     rz = gpi_thresholds(z_f, GPI_OPERATORS)
     rz = rz - rz[0]
@@ -262,6 +271,7 @@ def candidates(ctx: FAM.Context, q_c, c_c, chosen: FAM.Member | None = None) -> 
     return out
 
 
+FAMILY_ROWS = False  # --families: also every existing family's own table (slower: the relaxed fits)
 INVERTIBLE = ("ours", "gpi_mono", "gpi_mono_grid", "ours+m", "play+m", "chosen+m", "onset_gpi_mono")
 
 
@@ -297,15 +307,17 @@ def run(inst, reader, stem, split) -> dict:
 
 
 def main(argv=None) -> int:
-    global M_CTRL
+    global M_CTRL, FAMILY_ROWS, INVERTIBLE
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--splits", default="0.5,0.75")
     ap.add_argument("--json")
+    ap.add_argument("--families", action="store_true", help="also score every family of families.FAMILIES "
+                    "through its table (the oracle over the families the product has)")
     ap.add_argument("--m-ctrl", type=int, default=8, help="control points of m(q) (default %(default)s)")
     ap.add_argument("--files", default="", help="comma-separated stems (default: every development file)")
     a = ap.parse_args(argv)
     splits = [float(v) for v in a.splits.split(",")]
-    M_CTRL = a.m_ctrl
+    M_CTRL, FAMILY_ROWS = a.m_ctrl, a.families
     want = set(a.files.split(",")) if a.files else None
     out = {}
     t0 = time.perf_counter()
@@ -318,7 +330,8 @@ def main(argv=None) -> int:
             except InputError as e:
                 out[f"{stem}@{fr:g}"] = {"instrument": inst, "error": str(e)}
             print(f"{stem}@{fr:g} done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
-    cands = ["gpi", "gpi_refit", "mpi", "const_play", "ours", "gpi_mono", "gpi_mono_grid", "ours+m", "play+m", "chosen+m", "onset_gpi",
+    fam_cols = ["fam:" + f.name for f in FAM.FAMILIES] if FAMILY_ROWS else []
+    cands = fam_cols + ["gpi", "gpi_refit", "mpi", "const_play", "ours", "gpi_mono", "gpi_mono_grid", "ours+m", "play+m", "chosen+m", "onset_gpi",
              "onset_gpi_mono"]
     for inst in ("catheter", "endoscope"):
         for fr in splits:
@@ -328,7 +341,7 @@ def main(argv=None) -> int:
             print(f"\n**{inst}, split {fr:g}: test RMSE (deg)**\n")
             print("| file | " + " | ".join(cands) + " | best peer | ours/peer | oracle/peer (which) | family | gpi min m' |")
             print("|---" * (len(cands) + 6) + "|")
-            r_ours, r_or, r_cm = [], [], []
+            r_ours, r_or, r_cm, r_fam = [], [], [], []
             for k in keys:
                 v = out[k]
                 if "error" in v:
@@ -342,6 +355,9 @@ def main(argv=None) -> int:
                 r_ours.append(te["ours"] / peers[bp])
                 r_or.append(inv[orc] / peers[bp])
                 r_cm.append(te["ours+m"] / peers[bp])
+                fams = [te[c] for c in fam_cols if te.get(c) is not None]
+                if fams:
+                    r_fam.append(min(fams) / peers[bp])
                 cells = ["-" if te.get(c) is None else f"{te[c]:.3f}" for c in cands]
                 print(f"| {k.split('@')[0]} | " + " | ".join(cells) + f" | {bp} {peers[bp]:.3f} | "
                       f"{r_ours[-1]:.3f} | {r_or[-1]:.3f} ({orc}) | {v['family']} | {v['gpi_min_slope']:.2f} |")
@@ -350,6 +366,9 @@ def main(argv=None) -> int:
                 print(f"\ngeomean ours / best peer {g(r_ours):.3f} (worst {max(r_ours):.3f}); ours+m / best peer "
                       f"{g(r_cm):.3f} (worst {max(r_cm):.3f}); oracle of {', '.join(INVERTIBLE)} / best peer "
                       f"{g(r_or):.3f} (worst {max(r_or):.3f})")
+                if r_fam:
+                    print(f"oracle of the product's existing families (each through its table) / best peer "
+                          f"{g(r_fam):.3f} (worst {max(r_fam):.3f})")
     print(f"\n({time.perf_counter() - t0:.0f} s wall)")
     if a.json:
         Path(a.json).write_text(json.dumps(out, indent=1) + "\n")
