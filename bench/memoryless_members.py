@@ -7,7 +7,8 @@ conf0_60), the protocol of playscope.evaluate.insitu_split (fit on t < t_split o
 run from the record's first sample with its state carried, scored on t >= t_split against the
 angle sensor), these candidates are fitted on the calibration frames the chain sees:
 
-  gpi        the generalized PI peer as it is (16 plays w >= 0 + cubic in q, lsq_linear)
+  gpi        the generalized PI peer as it is (16 plays w >= 0 + cubic in q, lsq_linear);
+             gpi_refit: the same refitted here by fit_gpi_like (a check: it equals gpi)
   gpi_mono   the same with its memoryless cubic m constrained increasing: m'(x) is a quadratic
              in Bernstein form with coefficients >= eps (a sufficient condition for m' > 0 on the
              calibration range), so with w >= 0 the whole is strictly increasing in q for every
@@ -17,7 +18,8 @@ angle sensor), these candidates are fitted on the calibration frames the chain s
   ours+m     ours' onset transition (onset B, operators and weights as the calibration chose
              them) with f refitted beside an additive memoryless spline m(q):
              c = f(T[play_B(q)]) + m(q), f and m monotone cubic B-splines in the same direction
-             (non-negative coefficient increments), one bounded linear least squares
+             (non-negative coefficient increments), one bounded linear least squares; play+m:
+             the same on the onset play alone (no operator)
   chosen+m   the same additive m(q) beside the member the family choice picked (its B, operators;
              f refitted): on records where the onset B is poor (the endoscope) that is not the onset one
   onset_gpi  onset B anchoring inside the gpi form: the 16 plays run on the onset play's centre
@@ -32,7 +34,12 @@ calibration range (fraction of c's mean slope in q: below 0 the peer itself is n
 
 Development files only (the endoscope lockbox is never read here).
 
-Usage: PYTHONPATH=host .venv/bin/python bench/memoryless_members.py [--splits 0.5,0.75] [--json PATH]
+--families adds every family of playscope.fit.families.FAMILIES, fitted on the whole calibration
+part and run through its own fixed-point table (fam:<name>), and the oracle over them: whether the
+product's own family set or its choice is what loses.
+
+Usage: PYTHONPATH=host .venv/bin/python bench/memoryless_members.py [--splits 0.5,0.75] [--families]
+       [--m-ctrl N] [--files STEM,...] [--json PATH]      (~2 min; ~2.5 min with --families)
 """
 
 from __future__ import annotations
@@ -87,14 +94,6 @@ def spline_design(x: np.ndarray, lo: float, hi: float, n: int) -> tuple[np.ndarr
     t = clamped_knots(lo, hi, n)
     xc = np.clip(np.asarray(x, float), lo, np.nextafter(hi, -np.inf))
     return BSpline.design_matrix(xc, t, 3).toarray(), t
-
-
-def monotone_block(D: np.ndarray, with_const: bool) -> np.ndarray:
-    """Coefficients a = L d (a_j = sum_{k<=j} d_k): D @ L, so d_k >= 0 (k >= 1) is an increasing
-    spline. with_const False drops d_0 (the spline is 0 at its first control point)."""
-    L = np.tril(np.ones((D.shape[1], D.shape[1])))
-    A = D @ L
-    return A if with_const else A[:, 1:]
 
 
 def d2_rows(n: int, L: np.ndarray) -> np.ndarray:
