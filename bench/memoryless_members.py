@@ -22,6 +22,8 @@ angle sensor), these candidates are fitted on the calibration frames the chain s
              the same on the onset play alone (no operator)
   chosen+m   the same additive m(q) beside the member the family choice picked (its B, operators;
              f refitted): on records where the onset B is poor (the endoscope) that is not the onset one
+  cv+m       the honest rule: m's control points among CV_M_CTRL (0 = ours as shipped) chosen by
+             the family choice's folds on the calibration part (cv_m_choice), one-SE rule
   onset_gpi  onset B anchoring inside the gpi form: the 16 plays run on the onset play's centre
              z = play_B(q) at thresholds from 0 (the gpi rule minus its narrowest), w >= 0, + a
              cubic in q; onset_gpi_mono: that cubic constrained as in gpi_mono
@@ -171,25 +173,35 @@ def gpi_min_slope(q_c, c_c) -> float:
     return float(d.min() / mean)
 
 
-def fit_f_plus_m(y, q, c, n_f: int, sign: int):
-    """c = f(y) + m(q): f a cubic B-spline of n_f control points on y's range, m one of M_CTRL on
+def fit_f_plus_m(y, q, c, n_f: int, sign: int, m_ctrl: int | None = None):
+    """c = f(y) + m(q): f a cubic B-spline of n_f control points on y's range, m one of m_ctrl
+    (default M_CTRL; 0: no m, m = 0) on
     q's range with m = 0 at q's lower end, both monotone in direction sign (coefficient increments
     >= 0 after multiplying by sign), a small second-difference penalty on each; one bounded linear
     least squares. Returns (f SplineFn, m SplineFn), linear ends."""
+    M = M_CTRL if m_ctrl is None else m_ctrl
     ylo, yhi = float(y.min()), float(y.max())
     qlo, qhi = float(q.min()), float(q.max())
     Df, tf = spline_design(y, ylo, yhi, n_f)
-    Dm, tm = spline_design(q, qlo, qhi, M_CTRL)
-    Lf, Lm = np.tril(np.ones((n_f, n_f))), np.tril(np.ones((M_CTRL, M_CTRL)))
+    if M == 0:
+        Lf = np.tril(np.ones((n_f, n_f)))
+        scale = np.sqrt(c.size) * SMOOTH * 10
+        Apen = np.vstack([Df @ Lf, d2_rows(n_f, Lf) * scale])
+        d = lsq_linear(Apen, np.r_[sign * c, np.zeros(n_f - 2)], bounds=(np.r_[-np.inf, np.zeros(n_f - 1)], np.inf),
+                       method="bvls").x
+        f = SplineFn(BSpline(tf, sign * (Lf @ d), 3, extrapolate=False), ylo, yhi, linear_ends=True)
+        return f, (lambda x: np.zeros(np.shape(x)))
+    Dm, tm = spline_design(q, qlo, qhi, M)
+    Lf, Lm = np.tril(np.ones((n_f, n_f))), np.tril(np.ones((M, M)))
     Af, Am = Df @ Lf, (Dm @ Lm)[:, 1:]
     A = np.column_stack([Af, Am])
     scale = np.sqrt(c.size) * SMOOTH * 10
     Pf = d2_rows(n_f, Lf) * scale
-    Pm = d2_rows(M_CTRL, Lm)[:, 1:] * scale
+    Pm = d2_rows(M, Lm)[:, 1:] * scale
     Apen = np.vstack([A, np.column_stack([Pf, np.zeros((Pf.shape[0], Am.shape[1]))]),
                       np.column_stack([np.zeros((Pm.shape[0], n_f)), Pm])])
     b = np.r_[sign * c, np.zeros(Pf.shape[0] + Pm.shape[0])]
-    lb = np.r_[-np.inf, np.zeros(n_f - 1), np.zeros(M_CTRL - 1)]
+    lb = np.r_[-np.inf, np.zeros(n_f - 1), np.zeros(M - 1)]
     d = lsq_linear(Apen, b, bounds=(lb, np.inf), method="bvls").x
     af = sign * (Lf @ d[:n_f])
     am = sign * (Lm @ np.r_[0.0, d[n_f:]])
@@ -198,15 +210,48 @@ def fit_f_plus_m(y, q, c, n_f: int, sign: int):
     return f, m
 
 
-def member_plus_m(ctx: FAM.Context, mem: FAM.Member):
+def _member_frames(ctx: FAM.Context, mem: FAM.Member):
+    """(y at the frames (F,): the member's transition output from the record's start, f's control
+    points)."""
+    tr = mem.transition
+    d = ctx.data if mem.B is ctx.data.B else ctx.data.with_B(mem.B)
+    return d.ops_at_frames(tr.r, tr.b_scale, tr.tmap is not None) @ tr.w, max(mem.f_ctrl or ctx.f_n, 4)
+
+
+def member_plus_m(ctx: FAM.Context, mem: FAM.Member, m_ctrl: int | None = None):
     """c = f(T[play_B(q)]) + m(q) on the member's own B and transition (the chosen family's), f and m
     refitted (fit_f_plus_m). Returns predict(q_full) -> c_full."""
     tr, Bm = mem.transition, mem.transition.play_width(mem.B)
-    d = ctx.data if mem.B is ctx.data.B else ctx.data.with_B(mem.B)
-    y_f = d.ops_at_frames(tr.r, tr.b_scale, tr.tmap is not None) @ tr.w
-    nf = mem.f_ctrl or ctx.f_n
-    f, m = fit_f_plus_m(y_f, ctx.q_frames(), d.c, max(nf, 4), mem.sign)
+    y_f, nf = _member_frames(ctx, mem)
+    f, m = fit_f_plus_m(y_f, ctx.q_frames(), ctx.data.c, nf, mem.sign, m_ctrl)
     return lambda q: f(tr.direct(model.play_operator(np.asarray(q, float), Bm))) + m(np.asarray(q, float))
+
+
+CV_M_CTRL = (0, 4, 8)  # m's control points the honest rule chooses among (0: no m), fewest first
+
+
+def cv_m_choice(ctx: FAM.Context, mem: FAM.Member, reversals: int) -> tuple[int, list]:
+    """The number of m's control points by the family choice's own folds on the calibration frames
+    (rolling origins, or swing folds on a thin record: families.choose's), in double precision,
+    the member's B and transition fixed, f and m refitted per fold; one-SE rule, fewest first.
+    Returns (m_ctrl, [(m_ctrl, cv_rmse, se)])."""
+    thin = reversals < FAM.MIN_REVERSALS_CHOICE
+    splits = FAM.swing_splits(ctx) if thin else T.rolling_origins(ctx.data, T.KFOLD)
+    y_f, nf = _member_frames(ctx, mem)
+    qf, c = ctx.q_frames(), ctx.data.c
+    rows = []
+    for mc in CV_M_CTRL:
+        errs = []
+        for tr_m, te_m in splits:
+            if te_m.sum() < FAM.MIN_TEST_FRAMES or tr_m.sum() < FAM.MIN_TRAIN_FRAMES:
+                continue
+            f, m = fit_f_plus_m(y_f[tr_m], qf[tr_m], c[tr_m], nf, mem.sign, mc)
+            errs.append(float(np.sqrt(np.mean((f(y_f[te_m]) + m(qf[te_m]) - c[te_m]) ** 2))))
+        e = np.array(errs)
+        rows.append((mc, float(np.sqrt(np.mean(e ** 2))) if e.size else np.inf,
+                     float(np.std(e, ddof=1) / np.sqrt(e.size)) if e.size > 1 else 0.0))
+    best = min(rows, key=lambda r: r[1])
+    return next(r[0] for r in rows if r[1] <= best[1] + best[2]), rows
 
 
 def candidates(ctx: FAM.Context, q_c, c_c, chosen: FAM.Member | None = None) -> dict:
@@ -282,7 +327,7 @@ def run(inst, reader, stem, split) -> dict:
     orig, orig_frames = FAM.choose, IS.calibration_frames
 
     def choose(ctx, *a, **k):  # the family choice's context: onset B, onset transition, frames
-        grab["ctx"] = ctx
+        grab["ctx"], grab["reversals"] = ctx, int(a[0])
         grab["member"] = orig(ctx, *a, **k)
         return grab["member"]
 
@@ -299,9 +344,12 @@ def run(inst, reader, stem, split) -> dict:
     q_c, c_c = grab["qc"]
     for name, pr in candidates(ctx, q_c, c_c, grab["member"][0]).items():
         rows[name] = IS.Row(name, False, pr)
+    # The honest rule: m's control points (0 = the product as it is) by CV on the calibration part.
+    mc, cv = cv_m_choice(ctx, grab["member"][0], grab["reversals"])
+    rows["cv+m"] = rows["ours"] if mc == 0 else IS.Row("cv+m", False, member_plus_m(ctx, grab["member"][0], mc))
     td = float(s.t_delay_s) if s.t_delay_s is not None else float(rows["onset_lsq"].params["t_delay_s"])
     rm, _, rc, _, _ = IS.score_rows(rows, s, ts, td)
-    return {"test": rm, "cal": rc, "family": rows["ours"].params.get("family"),
+    return {"test": rm, "cal": rc, "family": rows["ours"].params.get("family"), "cv_m_ctrl": mc, "cv_m": cv,
             "gpi_min_slope": gpi_min_slope(q_c, c_c)}
 
 
@@ -330,7 +378,7 @@ def main(argv=None) -> int:
                 out[f"{stem}@{fr:g}"] = {"instrument": inst, "error": str(e)}
             print(f"{stem}@{fr:g} done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     fam_cols = ["fam:" + f.name for f in FAM.FAMILIES] if FAMILY_ROWS else []
-    cands = fam_cols + ["gpi", "gpi_refit", "mpi", "const_play", "ours", "gpi_mono", "gpi_mono_grid", "ours+m", "play+m", "chosen+m", "onset_gpi",
+    cands = fam_cols + ["gpi", "gpi_refit", "mpi", "const_play", "ours", "gpi_mono", "gpi_mono_grid", "ours+m", "play+m", "chosen+m", "cv+m", "onset_gpi",
              "onset_gpi_mono"]
     for inst in ("catheter", "endoscope"):
         for fr in splits:
@@ -338,9 +386,9 @@ def main(argv=None) -> int:
             if not keys:
                 continue
             print(f"\n**{inst}, split {fr:g}: test RMSE (deg)**\n")
-            print("| file | " + " | ".join(cands) + " | best peer | ours/peer | oracle/peer (which) | family | gpi min m' |")
-            print("|---" * (len(cands) + 6) + "|")
-            r_ours, r_or, r_cm, r_fam = [], [], [], []
+            print("| file | " + " | ".join(cands) + " | best peer | ours/peer | oracle/peer (which) | family | gpi min m' | cv m_ctrl |")
+            print("|---" * (len(cands) + 7) + "|")
+            r_ours, r_or, r_cm, r_fam, r_cv = [], [], [], [], []
             for k in keys:
                 v = out[k]
                 if "error" in v:
@@ -354,17 +402,19 @@ def main(argv=None) -> int:
                 r_ours.append(te["ours"] / peers[bp])
                 r_or.append(inv[orc] / peers[bp])
                 r_cm.append(te["ours+m"] / peers[bp])
+                r_cv.append(te["cv+m"] / peers[bp])
                 fams = [te[c] for c in fam_cols if te.get(c) is not None]
                 if fams:
                     r_fam.append(min(fams) / peers[bp])
                 cells = ["-" if te.get(c) is None else f"{te[c]:.3f}" for c in cands]
                 print(f"| {k.split('@')[0]} | " + " | ".join(cells) + f" | {bp} {peers[bp]:.3f} | "
-                      f"{r_ours[-1]:.3f} | {r_or[-1]:.3f} ({orc}) | {v['family']} | {v['gpi_min_slope']:.2f} |")
+                      f"{r_ours[-1]:.3f} | {r_or[-1]:.3f} ({orc}) | {v['family']} | {v['gpi_min_slope']:.2f} | {v['cv_m_ctrl']} |")
             if r_ours:
                 g = lambda v: float(np.exp(np.mean(np.log(v))))  # noqa: E731
                 print(f"\ngeomean ours / best peer {g(r_ours):.3f} (worst {max(r_ours):.3f}); ours+m / best peer "
                       f"{g(r_cm):.3f} (worst {max(r_cm):.3f}); oracle of {', '.join(INVERTIBLE)} / best peer "
-                      f"{g(r_or):.3f} (worst {max(r_or):.3f})")
+                      f"{g(r_or):.3f} (worst {max(r_or):.3f}); cv+m (m's control points {CV_M_CTRL} by CV on the "
+                      f"calibration part, 0 = ours) / best peer {g(r_cv):.3f} (worst {max(r_cv):.3f})")
                 if r_fam:
                     print(f"oracle of the product's existing families (each through its table) / best peer "
                           f"{g(r_fam):.3f} (worst {max(r_fam):.3f})")
