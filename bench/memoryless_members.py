@@ -24,6 +24,8 @@ angle sensor), these candidates are fitted on the calibration frames the chain s
              f refitted): on records where the onset B is poor (the endoscope) that is not the onset one
   cv+m       the honest rule: m's control points among CV_M_CTRL (0 = ours as shipped) chosen by
              the family choice's folds on the calibration part (cv_m_choice), one-SE rule
+  cv+gpi_mono  the honest rule for gpi_mono_grid as one more family: its CV on the same folds
+             (cv_gpi_mono), kept only when the chosen family's CV is more than one SE above it
   onset_gpi  onset B anchoring inside the gpi form: the 16 plays run on the onset play's centre
              z = play_B(q) at thresholds from 0 (the gpi rule minus its narrowest), w >= 0, + a
              cubic in q; onset_gpi_mono: that cubic constrained as in gpi_mono
@@ -254,6 +256,28 @@ def cv_m_choice(ctx: FAM.Context, mem: FAM.Member, reversals: int) -> tuple[int,
     return next(r[0] for r in rows if r[1] <= best[1] + best[2]), rows
 
 
+def cv_gpi_mono(ctx: FAM.Context, reversals: int) -> tuple[float, float]:
+    """gpi_mono_grid's CV on the family choice's folds (as cv_m_choice), fitted on the frames' (q, c)
+    of each fold's training part with gpi_thresholds of those frames, the plays run over the frames'
+    path from the first frame (as the pi_const family). Returns (cv_rmse, se), deg."""
+    thin = reversals < FAM.MIN_REVERSALS_CHOICE
+    splits = FAM.swing_splits(ctx) if thin else T.rolling_origins(ctx.data, T.KFOLD)
+    qf, c = ctx.q_frames(), ctx.data.c
+    errs = []
+    for tr_m, te_m in splits:
+        if te_m.sum() < FAM.MIN_TEST_FRAMES or tr_m.sum() < FAM.MIN_TRAIN_FRAMES:
+            continue
+        q_t, c_t = qf[tr_m], c[tr_m]
+        sg = 1.0 if np.corrcoef(q_t, c_t)[0, 1] >= 0 else -1.0
+        lo, hi = float(q_t.min()), float(q_t.max())
+        r = gpi_thresholds(q_t, GPI_OPERATORS)
+        P = T.play_ops(qf, r)
+        _, pr = fit_gpi_like(P[tr_m], q_t, sg * c_t, 0.5 * (lo + hi), max(0.5 * (hi - lo), 1e-12), "grid")
+        errs.append(float(np.sqrt(np.mean((sg * pr(P[te_m], qf[te_m]) - c[te_m]) ** 2))))
+    e = np.array(errs)
+    return float(np.sqrt(np.mean(e ** 2))), float(np.std(e, ddof=1) / np.sqrt(e.size)) if e.size > 1 else 0.0
+
+
 def candidates(ctx: FAM.Context, q_c, c_c, chosen: FAM.Member | None = None) -> dict:
     """{name: predict(q_full) -> c_full} of the candidates above, fitted on the calibration part."""
     out = {}
@@ -347,9 +371,19 @@ def run(inst, reader, stem, split) -> dict:
     # The honest rule: m's control points (0 = the product as it is) by CV on the calibration part.
     mc, cv = cv_m_choice(ctx, grab["member"][0], grab["reversals"])
     rows["cv+m"] = rows["ours"] if mc == 0 else IS.Row("cv+m", False, member_plus_m(ctx, grab["member"][0], mc))
+    # The honest rule for the increasing generalized PI as one more family: after the others in the
+    # one-SE order (most parameters), kept only when the chosen family's CV is more than one SE of
+    # gpi_mono's above it.
+    g_cv, g_se = cv_gpi_mono(ctx, grab["reversals"])
+    ch = grab["member"][1]
+    own = next((r for r in ch["candidates"] if r["family"] == ch["family"]), None)
+    own_cv = None if own is None else own.get("cv_rmse_deg")
+    take = own_cv is not None and own_cv > g_cv + g_se
+    rows["cv+gpi_mono"] = rows["gpi_mono_grid"] if take else rows["ours"]
     td = float(s.t_delay_s) if s.t_delay_s is not None else float(rows["onset_lsq"].params["t_delay_s"])
     rm, _, rc, _, _ = IS.score_rows(rows, s, ts, td)
     return {"test": rm, "cal": rc, "family": rows["ours"].params.get("family"), "cv_m_ctrl": mc, "cv_m": cv,
+            "cv_gpi_mono": [g_cv, g_se], "cv_chosen": own_cv, "cv_takes_gpi_mono": bool(take),
             "gpi_min_slope": gpi_min_slope(q_c, c_c)}
 
 
@@ -378,7 +412,7 @@ def main(argv=None) -> int:
                 out[f"{stem}@{fr:g}"] = {"instrument": inst, "error": str(e)}
             print(f"{stem}@{fr:g} done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     fam_cols = ["fam:" + f.name for f in FAM.FAMILIES] if FAMILY_ROWS else []
-    cands = fam_cols + ["gpi", "gpi_refit", "mpi", "const_play", "ours", "gpi_mono", "gpi_mono_grid", "ours+m", "play+m", "chosen+m", "cv+m", "onset_gpi",
+    cands = fam_cols + ["gpi", "gpi_refit", "mpi", "const_play", "ours", "gpi_mono", "gpi_mono_grid", "ours+m", "play+m", "chosen+m", "cv+m", "cv+gpi_mono", "onset_gpi",
              "onset_gpi_mono"]
     for inst in ("catheter", "endoscope"):
         for fr in splits:
@@ -386,9 +420,9 @@ def main(argv=None) -> int:
             if not keys:
                 continue
             print(f"\n**{inst}, split {fr:g}: test RMSE (deg)**\n")
-            print("| file | " + " | ".join(cands) + " | best peer | ours/peer | oracle/peer (which) | family | gpi min m' | cv m_ctrl |")
-            print("|---" * (len(cands) + 7) + "|")
-            r_ours, r_or, r_cm, r_fam, r_cv = [], [], [], [], []
+            print("| file | " + " | ".join(cands) + " | best peer | ours/peer | oracle/peer (which) | family | gpi min m' | cv m_ctrl | CV chosen / gpi_mono (deg) |")
+            print("|---" * (len(cands) + 8) + "|")
+            r_ours, r_or, r_cm, r_fam, r_cv, r_cg = [], [], [], [], [], []
             for k in keys:
                 v = out[k]
                 if "error" in v:
@@ -403,18 +437,22 @@ def main(argv=None) -> int:
                 r_or.append(inv[orc] / peers[bp])
                 r_cm.append(te["ours+m"] / peers[bp])
                 r_cv.append(te["cv+m"] / peers[bp])
+                r_cg.append(te["cv+gpi_mono"] / peers[bp])
                 fams = [te[c] for c in fam_cols if te.get(c) is not None]
                 if fams:
                     r_fam.append(min(fams) / peers[bp])
                 cells = ["-" if te.get(c) is None else f"{te[c]:.3f}" for c in cands]
                 print(f"| {k.split('@')[0]} | " + " | ".join(cells) + f" | {bp} {peers[bp]:.3f} | "
-                      f"{r_ours[-1]:.3f} | {r_or[-1]:.3f} ({orc}) | {v['family']} | {v['gpi_min_slope']:.2f} | {v['cv_m_ctrl']} |")
+                      f"{r_ours[-1]:.3f} | {r_or[-1]:.3f} ({orc}) | {v['family']} | {v['gpi_min_slope']:.2f} | {v['cv_m_ctrl']} | "
+                      f"{'-' if v['cv_chosen'] is None else format(v['cv_chosen'], '.3f')} / {v['cv_gpi_mono'][0]:.3f} "
+                      f"+- {v['cv_gpi_mono'][1]:.3f} |")
             if r_ours:
                 g = lambda v: float(np.exp(np.mean(np.log(v))))  # noqa: E731
                 print(f"\ngeomean ours / best peer {g(r_ours):.3f} (worst {max(r_ours):.3f}); ours+m / best peer "
                       f"{g(r_cm):.3f} (worst {max(r_cm):.3f}); oracle of {', '.join(INVERTIBLE)} / best peer "
                       f"{g(r_or):.3f} (worst {max(r_or):.3f}); cv+m (m's control points {CV_M_CTRL} by CV on the "
-                      f"calibration part, 0 = ours) / best peer {g(r_cv):.3f} (worst {max(r_cv):.3f})")
+                      f"calibration part, 0 = ours) / best peer {g(r_cv):.3f} (worst {max(r_cv):.3f}); cv+gpi_mono (gpi_mono_grid "
+                      f"as one more family by the one-SE rule) / best peer {g(r_cg):.3f} (worst {max(r_cg):.3f})")
                 if r_fam:
                     print(f"oracle of the product's existing families (each through its table) / best peer "
                           f"{g(r_fam):.3f} (worst {max(r_fam):.3f})")
