@@ -419,7 +419,7 @@ def main(argv=None) -> int:
             keys = [k for k, v in out.items() if v["instrument"] == inst and k.endswith(f"@{fr:g}")]
             if not keys:
                 continue
-            print(f"\n**{inst}, split {fr:g}: test RMSE (deg)**\n")
+            print(f"\n**Memoryless term in q, {inst}, split {fr:g}: test RMSE (deg)**\n")
             print("| file | " + " | ".join(cands) + " | best peer | ours/peer | oracle/peer (which) | family | gpi min m' | cv m_ctrl | CV chosen / gpi_mono (deg) |")
             print("|---" * (len(cands) + 8) + "|")
             r_ours, r_or, r_cm, r_fam, r_cv, r_cg = [], [], [], [], [], []
