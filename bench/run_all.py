@@ -136,6 +136,7 @@ PART_TIME = (
     ("main job", "~0.5 min"),
     ("real data", "~0.5 min"),
     ("in-situ real data", "~1.5-4 min (two instruments, four splits)"),
+    ("memoryless term", "~2.5 min (development files, two splits)"),
     ("on-line update", "~1.5 min (includes a second bench_firmware.sh)"),
     ("transfer", "~2.5 min"),
     ("no regression with the learner on", "~1 min (reuses the main job's folder)"),
@@ -429,6 +430,20 @@ def main(argv=None) -> int:
                       f"mean <= {acc['target_mean_deg']} deg", f"generalized PI mean {acc['gpi_mean_deg']:.2f} deg", c))
 
     part("in-situ real data", insitu_real)
+
+    # -- why the board carries no memoryless term (bench/memoryless_members.py; docs/method.md)
+    def memoryless():
+        out = sh([PY, "bench/memoryless_members.py", "--splits", "0.5,0.75", "--families"])
+        for inst, fr, m in re.findall(r"\*\*Memoryless term in q, (\w+), split ([\d.]+).*?\n(geomean ours.*?)\n", out, re.S):
+            orc = re.search(r"oracle of [^/]+/ best peer ([\d.]+) \(worst ([\d.]+)\)", m)
+            ours = re.search(r"geomean ours / best peer ([\d.]+) \(worst ([\d.]+)\)", m)
+            if orc and ours:
+                table.append((f"{inst} split {fr}: oracle of the invertible members with a memoryless term (best per file "
+                              "by test error) / best peer, geomean (worst)", f"{orc.group(1)} ({orc.group(2)})",
+                              "what any rule over these members could reach", f"ours {ours.group(1)} ({ours.group(2)})",
+                              "bench/memoryless_members.py --families"))
+
+    part("memoryless term", memoryless)
 
     # -- on-line update during use (bench/online_real.py; docs/online.md)
     def online_real():
