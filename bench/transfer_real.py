@@ -12,7 +12,8 @@ used elsewhere").
   chosen on the scored samples themselves (an oracle), against the in-situ figure.
 - Endoscope, what learning f's shape (hat functions on the model's pre-f output), a correction
   per branch of the loop, or the transition's weights could reach: oracle (on the scored
-  samples), fitted once on the warm-up, and causal RLS from the record's start, per pair.
+  samples), fitted once on the warm-up, and causal RLS from the record's start, per pair; and
+  the weights beside the per-branch correction.
 - What drifts: every record calibrated in situ on its whole length, compared with the
   calibration record.
 
@@ -82,7 +83,7 @@ def main(argv=None) -> int:
     print(format_ceiling(out["ceiling_endoscope"]))
     out["shape_endoscope"] = [shape_ceiling(c, [f for f in ef if f != c], a.warmup, in_situ_cache=cache) for c in ef]
     print(format_shape(out["shape_endoscope"]))
-    for k in ("shape_8", "branch_8", "weights"):
+    for k in ("shape_8", "branch_8", "weights", "wbranch_4", "wbranch_8"):
         r = [f[f"{k}_rls"] / f["in_situ"] for d in out["shape_endoscope"] for f in d["files"].values()]
         print(f"Endoscope, {k} learnt by causal RLS / in situ: {min(r):.1f} .. {max(r):.1f} x over {len(r)} pairs; "
               f"within 1.5 x on {sum(v <= 1.5 for v in r)}")

@@ -488,8 +488,9 @@ def shape_ceiling(cal_path, paths, warmup: float = WARMUP, refresh_s: float = 1.
     (branch_split: a correction of the loop's width as well as of f's shape), the weights_* rows
     with weights_regressor's columns (a refit of the transition's weights, N_EXTRA_OPS wider plays
     up to half the calibration record's q span added, linearised, plus an offset), and "board" (the
-    transition + the board's offset and gain learner, for comparison). Row names: <kind>_oracle,
-    <kind>_warmup, <kind>_rls with kind shape_<n>, branch_<n> or weights.
+    transition + the board's offset and gain learner, for comparison), the wbranch_<n>_* rows both
+    (the weights' columns beside the per-branch hats). Row names: <kind>_oracle, <kind>_warmup,
+    <kind>_rls with kind shape_<n>, branch_<n>, weights or wbranch_<n>.
     Returns {"calibration", "warmup", "settings", "files": {name: {"in_situ", row: rmse}}} (deg)."""
     from ..fit.reversals import frames_from_angle
 
@@ -543,12 +544,14 @@ def shape_ceiling(cal_path, paths, warmup: float = WARMUP, refresh_s: float = 1.
 
         d = motion_direction(q)
         j_f = np.clip(np.searchsorted(t, t_f, side="right") - 1, 0, t.size - 1)  # the sample a frame ends on
+        X = weights_regressor(cal_tr, q, r_extra)
+        fit_rows("weights", X, X[j_f])
         for n in nodes:
             H, Hf = hat_basis(y, y_lo, y_hi, n), hat_basis(y_f, y_lo, y_hi, n)
             fit_rows(f"shape_{n}", H, Hf)
-            fit_rows(f"branch_{n}", branch_split(H, d), branch_split(Hf, d[j_f]))
-        X = weights_regressor(cal_tr, q, r_extra)
-        fit_rows("weights", X, X[j_f])
+            Hb, Hbf = branch_split(H, d), branch_split(Hf, d[j_f])
+            fit_rows(f"branch_{n}", Hb, Hbf)
+            fit_rows(f"wbranch_{n}", np.hstack([X, Hb]), np.hstack([X[j_f], Hbf]))
         files[Path(p).stem] = row
     return {"calibration": str(cal_path), "warmup": warmup,
             "settings": {"lambda": lam, "publish_every": every, "y_range": [y_lo, y_hi], "nodes": list(nodes),
@@ -560,7 +563,7 @@ def format_shape(docs: list[dict]) -> str:
     """Markdown table of shape_ceiling() results: RMSE after the warm-up and ratio to in situ."""
     nodes = docs[0]["settings"]["nodes"]
     kinds = [(f"shape_{n}", f"f shape {n}") for n in nodes] + [(f"branch_{n}", f"per branch {n}") for n in nodes] + \
-        [("weights", "weights")]
+        [("weights", "weights")] + [(f"wbranch_{n}", f"weights + per branch {n}") for n in nodes]
     ways = (("oracle", "oracle"), ("warmup", "warm-up fit"), ("rls", "RLS"))
     cols = ["board"] + [f"{k}_{w}" for k, _ in kinds for w, _ in ways]
     heads = [f"{h} {wh}" for _, h in kinds for _, wh in ways]

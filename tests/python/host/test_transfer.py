@@ -266,16 +266,18 @@ REAL_ENDOSCOPE = REAL_CATHETER.parent / "endoscope"
 def test_shape_ceiling_rows_keep_their_bounds_on_an_endoscope_pair():
     """On 30 -> 60 deg (development files): the oracle of each correction is at most its warm-up
     fit (both a constant theta on the same basis; the oracle is the least squares on the scored
-    samples), the per-branch span holds the f-shape span (oracle lower), the reference is the
+    samples), the per-branch span holds the f-shape span and the weights-plus-branch span holds
+    both (oracle lower), the reference is the
     ceiling's in-situ figure, and the board row equals the transfer table's."""
     from playscope.evaluate.transfer import learnable_ceiling, shape_ceiling
 
     cal, run = REAL_ENDOSCOPE / "30.txt", REAL_ENDOSCOPE / "60.txt"
     cache: dict = {}
     f = shape_ceiling(cal, [run], in_situ_cache=cache, nodes=(4,))["files"]["60"]
-    for k in ("shape_4", "branch_4", "weights"):
+    for k in ("shape_4", "branch_4", "weights", "wbranch_4"):
         assert f[f"{k}_oracle"] <= f[f"{k}_warmup"] + 1e-12
     assert f["branch_4_oracle"] <= f["shape_4_oracle"] + 1e-12
+    assert f["wbranch_4_oracle"] <= min(f["branch_4_oracle"], f["weights_oracle"]) + 1e-12
     assert f["in_situ"] == pytest.approx(learnable_ceiling(cal, [run], in_situ_cache=cache)["files"]["60"]["in_situ"], rel=1e-12)
     tr = evaluate_transfer(cal, [run])["files"]["60"]["rmse_deg"]
     assert f["board"] == pytest.approx(tr["transition_board"], rel=1e-9)
