@@ -13,12 +13,13 @@ used elsewhere").
 - Endoscope, what learning f's shape (hat functions on the model's pre-f output), a correction
   per branch of the loop, or the transition's weights could reach: oracle (on the scored
   samples), fitted once on the warm-up, and causal RLS from the record's start, per pair; and
-  the weights beside the per-branch correction.
+  the weights beside the per-branch correction; and the same learners on each record's in-situ
+  model (endoscope development files and catheter files), where nothing drifts.
 - What drifts: every record calibrated in situ on its whole length, compared with the
   calibration record.
 
 Usage: .venv/bin/python bench/transfer_real.py [DATA_REAL] [--warmup F] [--json OUT] [--plot-dir DIR]
-(about 2 min)
+(about 4 min)
 """
 
 from __future__ import annotations
@@ -29,8 +30,9 @@ import sys
 import time
 from pathlib import Path
 
-from playscope.evaluate.transfer import (WARMUP, drift, evaluate_transfer, format_ceiling, format_drift, format_shape,
-                                        format_transfer, learnable_ceiling, plot_transfer, shape_ceiling)
+from playscope.evaluate.transfer import (WARMUP, drift, evaluate_transfer, format_ceiling, format_drift, format_noregress,
+                                        format_shape, format_transfer, learnable_ceiling, plot_transfer, shape_ceiling,
+                                        shape_noregress)
 
 DEFAULT = Path(__file__).resolve().parents[1] / ".." / ".." / "shared" / "data" / "real"
 ENDOSCOPE_DEV = ["30", "60", "120", "conf0_60"]  # development files; the others are set aside
@@ -88,6 +90,10 @@ def main(argv=None) -> int:
         print(f"Endoscope, {k} learnt by causal RLS / in situ: {min(r):.1f} .. {max(r):.1f} x over {len(r)} pairs; "
               f"within 1.5 x on {sum(v <= 1.5 for v in r)}")
     print()
+    # The same learners where nothing drifts (each record's in-situ model): they must not make it worse.
+    out["shape_noregress"] = {"endoscope": shape_noregress(ef, a.warmup), "catheter": shape_noregress(cf, a.warmup)}
+    for k in ("endoscope", "catheter"):
+        print(format_noregress(out["shape_noregress"][k]))
     out["drift_catheter"] = drift(cf, cf[0])
     out["drift_endoscope"] = drift(ef, ecal)
     print(format_drift(out["drift_catheter"]))

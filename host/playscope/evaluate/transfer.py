@@ -492,36 +492,86 @@ def shape_ceiling(cal_path, paths, warmup: float = WARMUP, refresh_s: float = 1.
     (the weights' columns beside the per-branch hats). Row names: <kind>_oracle, <kind>_warmup,
     <kind>_rls with kind shape_<n>, branch_<n>, weights or wbranch_<n>.
     Returns {"calibration", "warmup", "settings", "files": {name: {"in_situ", row: rmse}}} (deg)."""
-    from ..fit.reversals import frames_from_angle
-
     s_ref = read_record(cal_path)
     cal = calibrate(s_ref, f_method="lsq", model_kind="play", source=str(cal_path))
     cal_tr = calibrate(s_ref, f_method="lsq", model_kind="auto", source=str(cal_path))
-    fps = 1.0 / cal.onset_config["frame_period_s"]
-    f_cfg = O.f_config_from(s_ref, cal, refresh_s)
-    lam = 1.0 - 2.0 ** -f_cfg["mem_log2"]
-    every = int(f_cfg["publish_every"])
-    y_ref = cal_tr.transition.direct(model.play_operator(s_ref.encoder["q"], cal_tr.B_model))
-    y_lo, y_hi = float(np.min(y_ref)), float(np.max(y_ref))
-    r_last = float(cal_tr.transition.r[-1])
-    half_span = 0.5 * float(np.ptp(s_ref.encoder["q"]))
-    r_extra = np.linspace(r_last, max(half_span, r_last), N_EXTRA_OPS + 1)[1:] if half_span > r_last else np.zeros(0)
-    f_range = (float(np.nanmin(s_ref.distal["c_deg"])), float(np.nanmax(s_ref.distal["c_deg"])))
+    learn = _Learners(s_ref, cal, cal_tr, refresh_s, nodes)
     files = {}
     for p in paths:
         s = read_record(p)
-        t, q = s.encoder["t_s"], s.encoder["q"]
+        t = s.encoder["t_s"]
         t_split = float(t[0] + warmup * (t[-1] - t[0]))
-        mask = t >= t_split
-        c_true = np.interp(t, s.distal["t_s"], s.distal["c_deg"])
         cache = in_situ_cache if in_situ_cache is not None else {}
         if str(p) not in cache:
             cache[str(p)] = _in_situ(s, t_split, str(p))[0]
-        ins = cache[str(p)]
+        files[Path(p).stem] = learn.rows(s, t_split, cache[str(p)])
+    return {"calibration": str(cal_path), "warmup": warmup, "settings": learn.settings(), "files": files}
+
+
+def shape_noregress(paths, warmup: float = WARMUP, refresh_s: float = 1.0, nodes=SHAPE_NODES) -> dict:
+    """Where nothing drifts: each record of paths with the in-situ model (transition fitted on its
+    own warm-up part, _in_situ) and each learner of shape_ceiling on it, its settings from that
+    part (as a board calibrated there would be flashed), scored after the warm-up. Returns
+    {"warmup", "files": {name: {"in_situ", row: rmse}}} with the rows of shape_ceiling (deg)."""
+    files = {}
+    for p in paths:
+        s = read_record(p)
+        t = s.encoder["t_s"]
+        t_split = float(t[0] + warmup * (t[-1] - t[0]))
+        c_in, _, cal_in, s_in = _in_situ(s, t_split, str(p))
+        files[Path(p).stem] = _Learners(s_in, cal_in, cal_in, refresh_s, nodes).rows(s, t_split, c_in)
+    return {"warmup": warmup, "files": files}
+
+
+NOREGRESS_ROWS = ("board", "shape_8_rls", "branch_8_rls", "weights_rls", "wbranch_4_rls", "wbranch_8_rls")
+
+
+def format_noregress(doc: dict, rows=NOREGRESS_ROWS) -> str:
+    """Markdown table of shape_noregress(): RMSE after the warm-up per record and the change
+    against the in-situ model (target: <= +2 %)."""
+    lines = ["**Where nothing drifts: the in-situ model with each causal learner (RMSE after the warm-up, deg; "
+             "change against in situ)**", "", "| record | in situ | " + " | ".join(rows) + " |",
+             "|---|---" + "|---" * len(rows) + "|"]
+    for n, f in doc["files"].items():
+        lines.append(f"| {n} | {f['in_situ']:.3f} | " +
+                     " | ".join(f"{f[k]:.3f} ({100 * (f[k] / f['in_situ'] - 1):+.0f} %)" for k in rows) + " |")
+    return "\n".join(lines + [""])
+
+
+class _Learners:
+    """The corrections of shape_ceiling on one model (cal_tr: a Calibration with a transition),
+    their settings from its calibration record s_cal (cal: the calibration whose onset frame rate
+    and reversals f_config_from reads)."""
+
+    def __init__(self, s_cal, cal, cal_tr, refresh_s: float, nodes):
+        self.cal_tr, self.nodes = cal_tr, tuple(nodes)
+        self.fps = 1.0 / cal.onset_config["frame_period_s"]
+        self.f_cfg = O.f_config_from(s_cal, cal, refresh_s)
+        self.lam = 1.0 - 2.0 ** -self.f_cfg["mem_log2"]
+        self.every = int(self.f_cfg["publish_every"])
+        y_ref = cal_tr.transition.direct(model.play_operator(s_cal.encoder["q"], cal_tr.B_model))
+        self.y_lo, self.y_hi = float(np.min(y_ref)), float(np.max(y_ref))
+        r_last = float(cal_tr.transition.r[-1])
+        half_span = 0.5 * float(np.ptp(s_cal.encoder["q"]))
+        self.r_extra = (np.linspace(r_last, half_span, N_EXTRA_OPS + 1)[1:] if half_span > r_last else np.zeros(0))
+        self.f_range = (float(np.nanmin(s_cal.distal["c_deg"])), float(np.nanmax(s_cal.distal["c_deg"])))
+
+    def settings(self) -> dict:
+        return {"lambda": self.lam, "publish_every": self.every, "y_range": [self.y_lo, self.y_hi],
+                "nodes": list(self.nodes), "r_extra": [float(v) for v in self.r_extra]}
+
+    def rows(self, s, t_split: float, c_in_situ: np.ndarray) -> dict:
+        """{"in_situ", "board", <kind>_oracle|_warmup|_rls}: RMSE (deg) after t_split on record s."""
+        from ..fit.reversals import frames_from_angle
+
+        cal_tr, fps, lam, every = self.cal_tr, self.fps, self.lam, self.every
+        t, q = s.encoder["t_s"], s.encoder["q"]
+        mask = t >= t_split
+        c_true = np.interp(t, s.distal["t_s"], s.distal["c_deg"])
         y = cal_tr.transition.direct(model.play_operator(q, cal_tr.B_model))
         c0 = cal_tr.f(y)
-        row = {"in_situ": O.rmse((ins - c_true)[mask])}
-        row["board"] = O.rmse((O.board_f_refreshed(s, c0, fps, f_cfg, f_range)[0] - c_true)[mask])
+        row = {"in_situ": O.rmse((c_in_situ - c_true)[mask])}
+        row["board"] = O.rmse((O.board_f_refreshed(s, c0, fps, self.f_cfg, self.f_range)[0] - c_true)[mask])
         t_f, c_f = frames_from_angle(s.distal["t_s"], s.distal["c_deg"], fps)
         ok = np.isfinite(c_f)
         t_f, c_f = t_f[ok], c_f[ok]
@@ -544,19 +594,15 @@ def shape_ceiling(cal_path, paths, warmup: float = WARMUP, refresh_s: float = 1.
 
         d = motion_direction(q)
         j_f = np.clip(np.searchsorted(t, t_f, side="right") - 1, 0, t.size - 1)  # the sample a frame ends on
-        X = weights_regressor(cal_tr, q, r_extra)
+        X = weights_regressor(cal_tr, q, self.r_extra)
         fit_rows("weights", X, X[j_f])
-        for n in nodes:
-            H, Hf = hat_basis(y, y_lo, y_hi, n), hat_basis(y_f, y_lo, y_hi, n)
+        for n in self.nodes:
+            H, Hf = hat_basis(y, self.y_lo, self.y_hi, n), hat_basis(y_f, self.y_lo, self.y_hi, n)
             fit_rows(f"shape_{n}", H, Hf)
             Hb, Hbf = branch_split(H, d), branch_split(Hf, d[j_f])
             fit_rows(f"branch_{n}", Hb, Hbf)
             fit_rows(f"wbranch_{n}", np.hstack([X, Hb]), np.hstack([X[j_f], Hbf]))
-        files[Path(p).stem] = row
-    return {"calibration": str(cal_path), "warmup": warmup,
-            "settings": {"lambda": lam, "publish_every": every, "y_range": [y_lo, y_hi], "nodes": list(nodes),
-                         "r_extra": [float(v) for v in r_extra]},
-            "files": files}
+        return row
 
 
 def format_shape(docs: list[dict]) -> str:

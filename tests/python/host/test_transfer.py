@@ -282,3 +282,19 @@ def test_shape_ceiling_rows_keep_their_bounds_on_an_endoscope_pair():
     tr = evaluate_transfer(cal, [run])["files"]["60"]["rmse_deg"]
     assert f["board"] == pytest.approx(tr["transition_board"], rel=1e-9)
     assert f["in_situ"] == pytest.approx(tr["in_situ"], rel=1e-9)
+
+
+@pytest.mark.skipif(not (REAL_ENDOSCOPE / "60.txt").is_file(), reason="real endoscope recordings absent")
+def test_shape_noregress_runs_the_learners_on_the_in_situ_model():
+    """Nothing drifts: the learners sit on the record's own in-situ model, so its reference and the
+    board learner's row are the transfer table's in_situ and in_situ_board on that record, and
+    the oracle bounds hold as on a transferred model."""
+    from playscope.evaluate.transfer import shape_noregress
+
+    run = REAL_ENDOSCOPE / "60.txt"
+    f = shape_noregress([run], nodes=(4,))["files"]["60"]
+    tr = evaluate_transfer(REAL_ENDOSCOPE / "30.txt", [run])["files"]["60"]["rmse_deg"]
+    assert f["in_situ"] == pytest.approx(tr["in_situ"], rel=1e-12)
+    assert f["board"] == pytest.approx(tr["in_situ_board"], rel=1e-9)
+    for k in ("shape_4", "branch_4", "weights", "wbranch_4"):
+        assert f[f"{k}_oracle"] <= min(f[f"{k}_warmup"], f["in_situ"]) + 1e-12
