@@ -34,6 +34,12 @@ ceiling for the morphological f_remain, so the transfer protocol does not go thr
 Drift measurement (`drift`): each record calibrated in situ on its whole length; its
 parameters compared with the calibration record's over the travel both saw.
 
+What learning could reach (double precision, for choosing what the board should learn):
+`learnable_ceiling` (offset, gain and a B level chosen on the scored samples), `shape_ceiling`
+(a correction of f's shape, per branch of the loop, of the transition's weights, or weights and
+branch together: oracle, warm-up fit and causal RLS) and `shape_noregress` (those learners on
+each record's in-situ model, where nothing drifts).
+
 Readers: the catheter files (importer.import_catheter) and the endoscope files of
 ../shared/data/real/endoscope (importer.import_endoscope: headerless CSV, q = commanded angle, deg).
 """
