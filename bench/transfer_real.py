@@ -92,8 +92,8 @@ def main(argv=None) -> int:
     print()
     # The same learners where nothing drifts (each record's in-situ model): they must not make it worse.
     out["shape_noregress"] = {"endoscope": shape_noregress(ef, a.warmup), "catheter": shape_noregress(cf, a.warmup)}
-    for k in ("endoscope", "catheter"):
-        print(format_noregress(out["shape_noregress"][k]))
+    for k in ("endoscope", "catheter"):  # the instrument in the heading: one generated block each
+        print(format_noregress(out["shape_noregress"][k]).replace("**Where nothing drifts:", f"**Where nothing drifts ({k}):", 1))
     out["drift_catheter"] = drift(cf, cf[0])
     out["drift_endoscope"] = drift(ef, ecal)
     print(format_drift(out["drift_catheter"]))
