@@ -51,6 +51,13 @@ bool psa_set_table(psa_loop_t *l, const calib_t *cal)
     l->cal = cal;
     if (cal == NULL && l->mode != PSA_MODE_IDLE)
         l->mode = PSA_MODE_IDLE; /* nothing left to compensate with: hold */
+    if (l->mode == PSA_MODE_COMPENSATION && l->c_ref_q16 != PSA_NO_REFERENCE) {
+        /* Re-arm now, at the reference the loop holds: the set-points after the commit then do
+         * not depend on whether a tick or the next request comes first. */
+        comp_reset(&l->comp, cal, l->cfg.smooth ? &l->cfg.lim : NULL, l->c_ref_q16);
+        l->comp_armed = false;
+        return true;
+    }
     l->comp_armed = true;
     return true;
 }

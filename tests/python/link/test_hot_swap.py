@@ -68,8 +68,10 @@ def test_commit_during_compensation_carries_on(vlink, pi_w):
 
 def test_commit_with_other_operators_rearms(vlink):
     """Other weights: the operators' states do not carry over, the board restarts the
-    compensator (the core's comp_reset on the new table, bit for bit): at the c* its ticks hold
-    between requests, the last one sent before the commit."""
+    compensator (the core's comp_reset on the new table, bit for bit) at the commit, at the c* it
+    holds: the last one sent before the commit, whether a tick or this test's next request
+    comes first (a re-arm deferred to the next call took that call's c* when no tick ran in
+    between: the test then depended on the machine's timing)."""
     ffi, lib = core()
     t1, t2 = CalibTable(table(1, 0.0, PI_W)), CalibTable(table(2, 1.5, [0.5, 0.3, 0.2]))
     vlink.upload_table(t1.blob)
