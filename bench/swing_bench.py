@@ -7,7 +7,7 @@ worst rendering beside the mean. Figures: B mean absolute error over the sampled
 of the mean true B; t_delay used and its error in frame periods (acceptance: within 1/8); the
 delay the record gives and its interval; refusals count as failures.
 
-Usage: PYTHONPATH=host .venv/bin/python bench/swing_bench.py [--group development|set-aside|fresh]
+Usage: PYTHONPATH=host .venv/bin/python bench/swing_bench.py [--group development|set-aside|fresh|third]
        [--only NAME ...]
 """
 
@@ -54,11 +54,11 @@ def run(r: SR.Rendering) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--group", choices=("development", "set-aside", "fresh"), default="development")
+    ap.add_argument("--group", choices=("development", "set-aside", "fresh", "third"), default="development")
     ap.add_argument("--only", nargs="*", help="rendering names to run (default: all of the group)")
     a = ap.parse_args(argv)
     cases = {"development": swing_cases.DEVELOPMENT, "set-aside": swing_cases.SET_ASIDE,
-             "fresh": swing_cases.SET_ASIDE_FRESH}[a.group]
+             "fresh": swing_cases.SET_ASIDE_FRESH, "third": swing_cases.SET_ASIDE_THIRD}[a.group]
     if a.only:
         cases = [c for c in cases if c[2].name in a.only]
     print(f"group {a.group}: {len(cases)} renderings (bench/swing_render.py)")
