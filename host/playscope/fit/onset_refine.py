@@ -585,6 +585,36 @@ class RobustOnsets:
     warnings: list
 
 
+def choose_delay(d_data: float, ci_s: tuple[float, float], how: str, t_delay_cfg: float | None, period_s: float,
+                 t_delay_from: str = "data") -> tuple[float, str, bool | None, float]:
+    """Which t_delay to use: the record's d_data (s; NaN when the record gives none), its 95 %
+    interval ci_s (s) found by `how`, or the configured t_delay_cfg (s, None: not configured).
+
+    Frame quantisation: an onset seen between two frames is placed within that frame interval,
+    and an effect shared by every reversal (where within the interval the motion shows, a
+    registration flip some fraction of a frame after the tip reverses, the exposure) shifts all
+    of them alike, which the interval's scatter term cannot see. So the configured delay is
+    replaced only when it lies beyond ci_s widened by half a frame period (period_s / 2) on each
+    side, the largest shift that placing an onset within its frame interval leaves. (A correct
+    configured delay was replaced on a registration rendering whose record delay came 0.46 frame
+    early with an interval of 0.03 frame.) t_delay_from "config" keeps the configured delay.
+    Returns (t_delay_s, source text, agrees (None when there is nothing to compare), allowance_s).
+    """
+    allow = period_s / 2.0
+    have = bool(np.isfinite(d_data))
+    agree = None
+    if t_delay_cfg is not None and have:
+        agree = bool(ci_s[0] - allow <= t_delay_cfg <= ci_s[1] + allow)
+    if t_delay_cfg is None:
+        return d_data, f"estimated from the record ({how})", agree, allow
+    if t_delay_from == "config":
+        return t_delay_cfg, "configured (--t-delay-from config)", agree, allow
+    if agree is False:
+        return (d_data, "estimated from the record: the configured value lies outside its 95 % interval widened by "
+                "half a frame period", agree, allow)
+    return t_delay_cfg, "configured (the record agrees within its 95 % interval, widened by half a frame period)", agree, allow
+
+
 def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.ndarray, rq: np.ndarray,
                    t_f: np.ndarray, obs: np.ndarray, fps: float, t_delay_cfg: float | None,
                    t_delay_from: str = "data", board=None, onset_cfg: dict | None = None,
@@ -601,8 +631,9 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     3. ``refine`` every reversal; t_delay from the approach to each stop with the actuator's
        shape (``delay_from_shape``; the stop times, ``delay_from_stops``, without 4 reversals
        to fit), or the actuator-shape model's when its B samples are used.
-    4. t_delay_from "data" (default): use the record's delay; "config": the configured one.
-       They are compared either way; a gap over one frame period is a warning. A configured
+    4. ``choose_delay``: t_delay_from "data" (default): the configured delay unless the record
+       disagrees beyond its 95 % interval widened by half a frame period, then the record's;
+       "config": the configured one. A disagreement is a warning either way. A configured
        delay is never needed: without one the record's delay is used.
     5. b = |q(t2 - t_delay) - q1| with sigma_b = |dq/dt| sigma_t2. A reversal the refinement
        could not fit keeps the board's sample, with sigma_b one frame period of travel.
@@ -714,23 +745,12 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         ci_lo, ci_hi = d_data - 1.96 * d_se, d_data + 1.96 * d_se
     if np.isfinite(d_data) and d_data < 0:  # a delay cannot be negative (the stops can say so on a sine)
         d_data, ci_lo, ci_hi = 0.0, max(ci_lo, 0.0), max(ci_hi, 0.0)
-    have = bool(np.isfinite(d_data))
     if not use_shape:
         pf.ok[:] = False
-    allow = period / 8.0
-    agree = None
-    if t_delay_cfg is not None and have:
-        agree = bool(ci_lo - allow <= t_delay_cfg <= ci_hi + allow)
-    if t_delay_cfg is None:
-        td, src = d_data, f"estimated from the record ({how})"
-    elif t_delay_from == "config":
-        td, src = t_delay_cfg, "configured (--t-delay-from config)"
-    elif agree is False:
-        td, src = d_data, "estimated from the record: the configured value lies outside its 95 % interval"
-    else:
-        td, src = t_delay_cfg, "configured (the record agrees within its 95 % interval)"
+    td, src, agree, allow = choose_delay(d_data, (ci_lo, ci_hi), how, t_delay_cfg, period, t_delay_from)
     if t_delay_cfg is not None and agree is False:
-        warnings.append(f"t_delay: the record says {d_data:.4f} s (95 % {ci_lo:.4f}..{ci_hi:.4f}), the configuration "
+        warnings.append(f"t_delay: the record says {d_data:.4f} s (95 % {ci_lo:.4f}..{ci_hi:.4f}, +-{allow:.4f} s for the "
+                        f"frame period), the configuration "
                         f"{t_delay_cfg:.4f} s; using {'the configured' if t_delay_from == 'config' else 'the record'}'s "
                         f"({'--t-delay-from data' if t_delay_from == 'config' else '--t-delay-from config'} to change)")
     if use_shape and abs(td - pf.t_delay_s) > 0.5 * period / P.SUB:
