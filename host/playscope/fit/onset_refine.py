@@ -564,6 +564,24 @@ def ring_summary(ref: Refined) -> dict:
     return out
 
 
+def actuator_frames(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, b: float,
+                    period_s: float) -> float:
+    """Frames the actuator takes to come back by b (actuator units) from each reversal q1, lower
+    quartile over the reversals (NaN for no b or no reversal that comes back that far before
+    the next). t_enc, q (N,) s and units; rt, rq (M,) reversals; period_s the frame period."""
+    if not (np.isfinite(b) and b > 0) or rt.size < 2:
+        return float("nan")
+    out = []
+    for r in range(1, rt.size):
+        s = 1.0 if rq[r] > rq[r - 1] else -1.0
+        i0 = np.searchsorted(t_enc, rt[r])
+        i1 = np.searchsorted(t_enc, rt[r + 1]) if r + 1 < rt.size else t_enc.size
+        back = np.nonzero(s * (rq[r] - q[i0:i1]) >= b)[0]
+        if back.size:
+            out.append((t_enc[i0 + back[0]] - rt[r]) / period_s)
+    return float(np.percentile(out, 25)) if out else float("nan")
+
+
 def _shape_fit_needed(ref_frames: float) -> bool:
     """Whether the actuator-shape model (onset_play.fit) must be fitted, given the refined
     onsets' frames to take up the play (lower quartile, NaN without refined onsets). Not when
@@ -706,11 +724,19 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     amp = np.abs(np.diff(rq))
     b_max = 0.6 * float(np.median(amp)) if amp.size else float(np.ptp(q))
     M = rt.size
+    # The same figure from the actuator alone, for the board's median eq. 1 width: the refined
+    # onsets can be fooled late (a "step" fitted to noise when no frame is still after a fast
+    # reversal makes the play look taken up over tens of frames), the actuator's trajectory
+    # cannot. The smaller of the two decides whether the play is taken up fast.
+    act_frames = actuator_frames(t_enc, q, rt, rq, float(np.median(board.b[board.b > 0])) if np.any(board.b > 0)
+                                 else float("nan"), period)
+    if np.isfinite(act_frames) and np.isfinite(ref_frames) and act_frames < ref_frames:
+        ref_frames = act_frames
     if not _shape_fit_needed(ref_frames):
         pf = P.PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool),
                        float("nan"), (float("nan"), float("nan")), float("nan"), False, (0.0, 0.0), b_max)
-        pdoc = {"fitted": False, "why": f"refined onsets take the play up over {ref_frames:.1f} frames "
-                                        f"(lower quartile) >= {FAST_FRAMES:g}"}
+        pdoc = {"fitted": False, "why": f"refined onsets (and the actuator, for the board's median b) take the "
+                                        f"play up over {ref_frames:.1f} frames (lower quartile) >= {FAST_FRAMES:g}"}
     else:
         pf, pdoc = P.fit(t_enc, q, rt, rq, t_f, obs, period, b_max)
         pdoc["fitted"] = True
@@ -721,7 +747,17 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     if np.isfinite(ref_frames) and (np.isfinite(fast_frames) or not pdoc["fitted"]):
         fast_frames = ref_frames if not pdoc["fitted"] else max(fast_frames, ref_frames)
     use_shape = bool(np.isfinite(pf.t_delay_s) and fast_frames < FAST_FRAMES)
-    if use_shape:
+    d_stop_ref = d_stops if n_d >= 4 else d1
+    if use_shape and abs(pf.t_delay_s - d_stop_ref) > P.DELAY_SPAN * period:
+        # The model's delay search walked beyond its own span from where the image stops put the
+        # delay (a registration jump fitted as a delay shift on a triangle came to 0.48 s against
+        # 0.08 s from the stops): that delay is not the record's; the stops' is, with its interval.
+        warnings.append(f"t_delay: the actuator-shape model's {pf.t_delay_s:.4f} s lies over {P.DELAY_SPAN:g} frames "
+                        f"from the image stops' {d_stop_ref:.4f} s; the stops' delay is taken as the record's")
+        d_se = d_stops_se if n_d >= 4 else period
+        d_data, ci_lo, ci_hi = d_stop_ref, d_stop_ref - 1.96 * d_se, d_stop_ref + 1.96 * d_se
+        how = "image stop - motor stop, median (the actuator-shape model's delay strayed)"
+    elif use_shape:
         d_data, (ci_lo, ci_hi), d_se = pf.t_delay_s, pf.t_delay_ci_s, pf.t_delay_sd_s
         how = "actuator-shape model, posterior mean"
     else:
@@ -806,7 +842,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                     "shape_reversals": n_shape,
                     "coarse_s": d0, "first_pass_s": d1},
         "actuator_shape": {**pdoc, "samples": int(pf.ok.sum()), "used": use_shape,
-                           "frames_to_take_up": fast_frames, "fast_frames": FAST_FRAMES},
+                           "frames_to_take_up": fast_frames, "fast_frames": FAST_FRAMES,
+                           "actuator_frames_board_b": act_frames},
         "pacing": pace,
         "guard": guard,
         "ringing": ring_summary(ref),
