@@ -89,6 +89,12 @@ $(row observe_deg "psa_observe_deg (= onset_observe_deg), the same excitation se
 $(row table_commit "table commit: calib_table_crc + calib_load + psa_set_table (the built-in table; flash write aside)" "" "")
 $(row b_online_sample_builtin "b_online_sample (on-line B, RLS step + grid rewrite), built-in table's B (33 entries, 9 nodes): on the observation that completes an onset, not in psa_tick" "" "")
 $(row b_online_sample_241 "b_online_sample, costliest B grid (241 entries, 16 nodes: the most nodes a grid gets)" "" "")
+$(row f_online_reading_builtin "on-line offset and gain of f, one angle reading (psa_f_regressor + f_online_sample), built-in table: on the observation call, not in psa_tick" "" "")
+$(row f_online_publish_builtin "f_online_publish (solve + f^-1 rewrite into the spare copy), built-in table: every 12 readings, from the main loop (psa_background), not in psa_tick" "" "")
+$(row f_online_step_builtin "f_online learning step (a reading, and the publish when due), built-in table" "" "")
+$(row f_online_reading_big "f_online, one angle reading, costliest f^-1 (501 entries, f on 256)" "" "")
+$(row f_online_publish_big "f_online_publish, costliest f^-1 (501 entries, f on 256)" "" "")
+$(row f_online_step_big "f_online learning step, costliest f^-1 (501 entries, f on 256)" "" "")
 $(row tick_pi_realistic "psa_tick, compensation with the transition model (table v2, 16 operators, bench_pi_load), realistic c* as above" 250 600)
 $(row tick_pi_stress "psa_tick, compensation with the transition model (16 operators), stress: c* reversing every 512 ticks" 250 600)
 $(row comp_step_pi "of which comp_step with the 16 operators (f^-1, PI^-1, B/2 offset, ramp), realistic c*" "" "")
@@ -105,5 +111,6 @@ $(row comp_step_pirelax "of which comp_step with the operators, the map and the 
 | playscope-fw.elf RAM, everything | $(kib $ram) | <= 24 KiB ($(verdict "$ram" 24576)) | .data $data + .bss $bss (tables, history, loop) + heap minimum $heap_min + stack reservation $stack (__stack_size; high-water mark on the status line) |
 | of which calib_t (table entries + derived f^-1, z_up, z_down, g^-1) | $(kib $calib_sz) | | sizeof(calib_t) (bench/size_probe.c, nm -S) |
 | b_online_t (on-line B: RAM grid, theta, P), when an image enables it | $(kib $(psize probe_b_online_t)) | | sizeof(b_online_t) (bench/size_probe.c) |
+| f_online_t (on-line offset and gain of f: two f^-1 copies, five sums), when an image enables it | $(kib $(psize probe_f_online_t)) | | sizeof(f_online_t) (bench/size_probe.c) |
 | of which psa_loop_t (incl. onset_t with the encoder history) | $(kib $loop_sz) | | sizeof(psa_loop_t); enc_hist_t alone $(kib $hist) |
 EOF2

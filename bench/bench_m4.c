@@ -2,6 +2,7 @@
  * worst single call), under QEMU -icount; printed as BENCH lines that bench_firmware.sh tabulates. */
 #include <stdbool.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "port_board.h"
 #include "port_console.h"
@@ -9,6 +10,7 @@
 #include "ps_table.h"
 #include "psa_builtin_table.h"
 #include "b_online.h"
+#include "f_online.h"
 #include "psa_loop.h"
 #include "stm32f405_regs.h"
 #include "bench_traj.h"
@@ -403,6 +405,95 @@ static void run_b_online(void)
     info("b_online_241_nodes", bench_bo.n_nodes);
 }
 
+/* On-line offset and gain of f (f_online.c). A reading: psa_f_regressor + f_online_sample, what
+ * psa_observe_deg adds on the observation call when the learner is on (never psa_tick). A
+ * publish: f_online_publish (the solve and the f^-1 rewrite into the spare copy, one pointer
+ * store), what psa_background runs from the main loop every publish_every readings. A learning
+ * step as the host mirror counts it (f_online_step: a reading's sample, and the publish when
+ * due): its worst is the publish. On the built-in table and on the costliest f^-1 (close to
+ * CALIB_DERIVED_MAX entries, f on PST_MAX_ENTRIES). */
+static f_online_t bench_fo;
+static int32_t bench_f256[PST_MAX_ENTRIES];
+static int32_t bench_finv[CALIB_DERIVED_MAX];
+
+static void time_f_online(const char *suffix, const lut_t *f, lut_t *f_inv, const calib_t *tab)
+{
+    char name[48];
+    f_online_config_t fc = f_online_default_config();
+    if (f_online_init(&bench_fo, &fc, f, f_inv) != F_ONLINE_OK) {
+        console_put_str("BENCH setup failed (f_online)\r\n");
+        port_exit(1);
+    }
+    psa_config_t c = loop_config();
+    psa_init(&loop, &c);
+    if (!psa_set_table(&loop, tab) || !psa_set_mode(&loop, PSA_MODE_COMPENSATION)) {
+        console_put_str("BENCH setup failed (f_online loop)\r\n");
+        port_exit(1);
+    }
+    int32_t lo = lut_eval(f, f->x0_q16), hi = lut_eval(f, f->x_last_q16);
+    if (lo > hi) {
+        int32_t t = lo;
+        lo = hi;
+        hi = t;
+    }
+    stat_t rd = {0}, pub = {0}, stp = {0};
+    for (uint32_t i = 0; i < 240u; i++) {
+        int32_t c_ref = lo + (int32_t)(((int64_t)(hi - lo) * ((i * 37u) % 240u)) / 240);
+        (void)psa_set_reference(&loop, c_ref);
+        int32_t read = c_ref + PS_Q16_ONE + (int32_t)((i * 7919u) % 13107u); /* +1..1.2 deg */
+        int32_t x;
+        uint32_t c0 = cyc();
+        bool ok = psa_f_regressor(&loop, true, &x);
+        bool due = f_online_sample(&bench_fo, x, read);
+        uint32_t c1 = cyc();
+        stat_add(&rd, since(c0, c1));
+        uint32_t step = since(c0, c1);
+        if (ok && due) {
+            c0 = cyc();
+            f_online_publish(&bench_fo);
+            c1 = cyc();
+            stat_add(&pub, since(c0, c1));
+            step += since(c0, c1) - pair_cycles; /* one read pair per measured window */
+        }
+        stat_add(&stp, step);
+    }
+    sink_q16 = f_online_entries(&bench_fo)[0];
+    f_online_stop(&bench_fo);
+    strcpy(name, "f_online_reading_");
+    strcat(name, suffix);
+    report(name, &rd);
+    strcpy(name, "f_online_publish_");
+    strcat(name, suffix);
+    report(name, &pub);
+    strcpy(name, "f_online_step_");
+    strcat(name, suffix);
+    report(name, &stp);
+}
+
+static void run_f_online(void)
+{
+    lut_t f = cal[0].f, f_inv = cal[0].f_inv; /* copies: cal[0]'s f^-1 keeps the loader's entries */
+    calib_t *tab = &cal[1];
+    *tab = cal[0];
+    tab->f_inv = f_inv;
+    time_f_online("builtin", &f, &tab->f_inv, tab);
+    info("f_online_builtin_inv_entries", tab->f_inv.n);
+    /* f over 250 deg on 256 entries: its inverse takes 501 of the 512 entries (step 2^15 raw). */
+    for (uint32_t j = 0; j < PST_MAX_ENTRIES; j++)
+        bench_f256[j] = (int32_t)(((int64_t)j * 250 * PS_Q16_ONE) / (PST_MAX_ENTRIES - 1)) + (int32_t)((j * j) & 63u);
+    lut_t fb, ib;
+    if (lut_init(&fb, bench_f256, PST_MAX_ENTRIES, 0, 1 << 12) != LUT_OK ||
+        lut_build_inverse(&fb, bench_finv, CALIB_DERIVED_MAX, &ib, NULL) != LUT_OK) {
+        console_put_str("BENCH setup failed (f_online grid)\r\n");
+        port_exit(1);
+    }
+    tab->f = fb;
+    tab->f_inv = ib;
+    time_f_online("big", &tab->f, &tab->f_inv, tab);
+    info("f_online_big_inv_entries", tab->f_inv.n);
+    info("f_online_t_bytes", (uint32_t)sizeof(f_online_t));
+}
+
 int main(void)
 {
     port_init();
@@ -453,6 +544,7 @@ int main(void)
                    (int32_t)((8ull * 3u << 16) / TICK_HZ), false, &obs_stress);
     run_commit();
     run_b_online();
+    run_f_online();
     console_put_str("BENCH done\r\n");
     return 0;
 }

@@ -136,8 +136,10 @@ PART_TIME = (
     ("main job", "~0.5 min"),
     ("real data", "~0.5 min"),
     ("in-situ real data", "~1.5-4 min (two instruments, four splits)"),
+    ("memoryless term", "~2.5 min (development files, two splits)"),
     ("on-line update", "~1.5 min (includes a second bench_firmware.sh)"),
-    ("transfer", "~1 min"),
+    ("transfer", "~2.5 min"),
+    ("no regression with the learner on", "~1 min (reuses the main job's folder)"),
     ("start-up", "~5 s"),
     ("diagnosis speed", "~1 min"),
     ("fast-swing onsets", "~10-20 min; only with --swings (development renderings)"),
@@ -323,15 +325,19 @@ def main(argv=None) -> int:
         table.append(("B error, Fig. 7 on playscope's simulator: two-step (ours) / single-step pose-based",
                       f"{m[1]} deg / {m[3]} deg", "< 0.35 deg", "paper 0.7 deg / 6.6 deg", "bench/fig7_sim_pose.py"))
 
+    # The main job's output folder stays for the run: bench/online_noregress.py reuses it.
+    keep = tempfile.TemporaryDirectory(prefix="playscope-run_all-")
+    main_dir = Path(keep.name) / "main"
+
     def mainjob():
-        with tempfile.TemporaryDirectory() as tmp:
-            t0 = time.perf_counter()
-            out = sh(PLAYSCOPE + ["demo", "--out", f"{tmp}/main", "--json", f"{tmp}/s.json"])
-            wall = time.perf_counter() - t0
-            EXCERPT[:] = main_job_excerpt(out)
-            s = json.loads(Path(f"{tmp}/s.json").read_text())
-            if not a.no_write:
-                save_report_figure(Path(f"{tmp}/main/report.html"), "characteristic", FIGURE)
+        tmp = keep.name
+        t0 = time.perf_counter()
+        out = sh(PLAYSCOPE + ["demo", "--out", str(main_dir), "--json", f"{tmp}/s.json"])
+        wall = time.perf_counter() - t0
+        EXCERPT[:] = main_job_excerpt(out)
+        s = json.loads(Path(f"{tmp}/s.json").read_text())
+        if not a.no_write:
+            save_report_figure(main_dir / "report.html", "characteristic", FIGURE)
         c = "playscope demo"
         b = s["b_error"]
         table.append(("main job: B(q) error vs the simulator's centre width, mean / max", f"{b['mean']:.4f} / {b['max']:.4f} mm", "", "", c))
@@ -425,6 +431,20 @@ def main(argv=None) -> int:
 
     part("in-situ real data", insitu_real)
 
+    # -- why the board carries no memoryless term (bench/memoryless_members.py; docs/method.md)
+    def memoryless():
+        out = sh([PY, "bench/memoryless_members.py", "--splits", "0.5,0.75", "--families"])
+        for inst, fr, m in re.findall(r"\*\*Memoryless term in q, (\w+), split ([\d.]+).*?\n(geomean ours.*?)\n", out, re.S):
+            orc = re.search(r"oracle of [^/]+/ best peer ([\d.]+) \(worst ([\d.]+)\)", m)
+            ours = re.search(r"geomean ours / best peer ([\d.]+) \(worst ([\d.]+)\)", m)
+            if orc and ours:
+                table.append((f"{inst} split {fr}: oracle of the invertible members with a memoryless term (best per file "
+                              "by test error) / best peer, geomean (worst)", f"{orc.group(1)} ({orc.group(2)})",
+                              "what any rule over these members could reach", f"ours {ours.group(1)} ({ours.group(2)})",
+                              "bench/memoryless_members.py --families"))
+
+    part("memoryless term", memoryless)
+
     # -- on-line update during use (bench/online_real.py; docs/online.md)
     def online_real():
         with tempfile.TemporaryDirectory() as tmp:
@@ -455,8 +475,36 @@ def main(argv=None) -> int:
         table.append(("catheter calibrated on data_2_1, run on data_2_2..5: transition + offset refresh, mean (worst)",
                       f"{ours[-2]} ({ours[-1]}) deg", "<= 0.8 x constant play with the same refresh",
                       f"constant play of data_2_1 + offset refresh {ref[-2]} ({ref[-1]}) deg", "bench/transfer_real.py"))
+        ref_b = find(rows, "constant play + poly5 of the calibration record + the board's offset and gain learner")
+        ours_b = find(rows, "transferred with transition + the board's offset and gain learner")
+        per = lambda r: " / ".join(r[:-2])
+        table.append(("catheter calibrated on data_2_1, run on data_2_2..5: transition + the board's offset and gain "
+                      "learner (f_online.c), per file; mean (worst)",
+                      f"{per(ours_b)}; {ours_b[-2]} ({ours_b[-1]}) deg",
+                      "mean <= 0.8 x, and every file <=, the constant play with the same learner",
+                      f"constant play of data_2_1 + the same learner {per(ref_b)}; {ref_b[-2]} ({ref_b[-1]}) deg",
+                      "bench/transfer_real.py"))
+        pairs = re.search(r"transferred with transition \+ the board's offset and gain learner / in situ: (.*)", out)
+        if pairs:
+            table.append(("endoscope development pairs (calibrated in one sheath configuration, run in another): "
+                          "transition + the board's learner / in situ", pairs.group(1).strip(), "within 1.5 x on each", "",
+                          "bench/transfer_real.py"))
 
     part("transfer", transfer)
+
+    def noregress():
+        out = sh([PY, "bench/online_noregress.py"] + (["--main", str(main_dir)] if main_dir.is_dir() else []))
+        rows = md_rows(out)
+        mj = find(rows, "main job")
+        cat = [(k, v) for k, v in rows.items() if k.startswith("data_2_") or "catheter in situ" in k]
+        worst = max(cat, key=lambda kv: float(kv[1][-1].rstrip(" %")))
+        table.append(("the board's offset and gain learner where nothing drifts: main job compensation RMSE off / on",
+                      f"{mj[0]} / {mj[1]} deg ({mj[2]})", "<= +2 %", "", "bench/online_noregress.py"))
+        table.append(("the board's offset and gain learner where nothing drifts: catheter in situ, worst change",
+                      f"{worst[1][-1]} ({worst[0].replace('catheter in situ, ', '')})", "<= +2 %", "",
+                      "bench/online_noregress.py"))
+
+    part("no regression with the learner on", noregress)
 
     def startup():
         out = sh([PY, "bench/bench_startup.py", "10"])
@@ -499,6 +547,7 @@ def main(argv=None) -> int:
     if not a.no_write:
         write_results(table, time.perf_counter() - t_run, times, skipped)
         print(f"[bench] wrote {RESULTS.relative_to(ROOT)} and the README's summary", file=sys.stderr)
+    keep.cleanup()
     return 0
 
 

@@ -7,3 +7,4 @@ char probe_calib_t[sizeof(calib_t)];
 char probe_enc_hist[sizeof(enc_hist_t)];
 char probe_psa_loop_t[sizeof(psa_loop_t)];
 char probe_b_online_t[sizeof(b_online_t)];
+char probe_f_online_t[sizeof(f_online_t)];

@@ -15,16 +15,35 @@ void psa_init(psa_loop_t *l, const psa_config_t *cfg)
     onset_init(&l->onset, &l->cfg.onset);
 }
 
+/* The operator stages of two tables are the same model: same transition operators (count,
+ * weight format, thresholds, weights), same relaxation constants, same threshold map. Their
+ * states (comp_t.pi, .relax) are then valid under either table. O(n) with a map: commit time. */
+static bool same_operators(const calib_t *a, const calib_t *b)
+{
+    const pi_params_t *p = &a->pi_inv, *q = &b->pi_inv;
+    if (p->n != q->n || p->w_frac != q->w_frac || a->relax.kappa_q16 != b->relax.kappa_q16 ||
+        a->relax.lambda_q16 != b->relax.lambda_q16 || a->tmap.n != b->tmap.n)
+        return false;
+    if (memcmp(p->r_q16, q->r_q16, p->n * sizeof(int32_t)) != 0 || memcmp(p->w, q->w, p->n * sizeof(int32_t)) != 0)
+        return false;
+    if (a->tmap.n != 0 &&
+        (a->tmap.x0_q16 != b->tmap.x0_q16 || a->tmap.step_log2 != b->tmap.step_log2 ||
+         memcmp(a->tmap.y_q16, b->tmap.y_q16, a->tmap.n * sizeof(int32_t)) != 0))
+        return false;
+    return true;
+}
+
 bool psa_set_table(psa_loop_t *l, const calib_t *cal)
 {
     if (l->mode == PSA_MODE_EXCITATION)
         return false;
     if (l->mode == PSA_MODE_COMPENSATION && !l->comp_armed && cal != NULL && l->cal != NULL &&
-        cal->pi_inv.n == 0 && l->cal->pi_inv.n == 0 &&
-        cal->relax.kappa_q16 == 0 && l->cal->relax.kappa_q16 == 0) {
-        /* (Operators and the relaxation carry state from their own table: those re-arm.) */
-        /* Hot swap during use (a host refresh of f_remain, an offset or B): the compensator
-         * keeps its direction, offset and ramp and runs the new table from the next tick. */
+        same_operators(cal, l->cal)) {
+        /* Hot swap during use (a host refresh of f_remain, an offset or B, under the same
+         * transition operators, relaxation and map): the compensator keeps its direction,
+         * offset, ramp and the operators' and relaxation's states, and runs the new table
+         * from the next tick. Tables with other operators re-arm (their states belong to
+         * their own operators). */
         l->cal = cal;
         comp_rebind(&l->comp, cal); /* the cached cells held the previous table's entries */
         return true;
@@ -162,7 +181,45 @@ bool psa_observe_px(psa_loop_t *l, uint32_t t_us, int32_t u_q16, int32_t v_q16, 
     return learn(l, onset_observe_px(&l->onset, t_us, u_q16, v_q16, valid, ev), ev);
 }
 
+bool psa_f_regressor(const psa_loop_t *l, bool valid, int32_t *x_q16)
+{
+    if (!valid || l->mode != PSA_MODE_COMPENSATION || l->comp_armed || l->cal == NULL ||
+        l->c_ref_q16 == PSA_NO_REFERENCE)
+        return false;
+    /* The model's tip for the reference being tracked, before the learnt map: the compensator
+     * aims y* = f'^-1(c*) (f' = a + g f, the running f^-1), whose uncorrected angle is f(y*). */
+    *x_q16 = lut_eval(&l->cal->f, lut_eval(&l->cal->f_inv, l->c_ref_q16));
+    return true;
+}
+
 bool psa_observe_deg(psa_loop_t *l, uint32_t t_us, int32_t c_q16, bool valid, onset_event_t *ev)
 {
+    int32_t x_q16;
+    if (l->learn_f != NULL && psa_f_regressor(l, valid, &x_q16) && f_online_sample(l->learn_f, x_q16, c_q16))
+        l->f_publish_due = true;
     return learn(l, onset_observe_deg(&l->onset, t_us, c_q16, valid, ev), ev);
+}
+
+void psa_set_f_learning(psa_loop_t *l, f_online_t *fo)
+{
+    l->learn_f = fo;
+    l->f_publish_due = false;
+}
+
+void psa_f_changed(psa_loop_t *l)
+{
+    /* The compensator's cached cell of f^-1 held the previous map's entries: empty it (one
+     * word store; an interrupt-driven tick refills it from the published copy). comp.h's
+     * comp_b_changed does the same for B's cell. */
+    *(volatile uint32_t *)&l->comp.f_inv_cell.width = 0;
+}
+
+bool psa_background(psa_loop_t *l)
+{
+    if (!l->f_publish_due || l->learn_f == NULL)
+        return false;
+    l->f_publish_due = false;
+    f_online_publish(l->learn_f);
+    psa_f_changed(l);
+    return true;
 }

@@ -10,6 +10,7 @@
 #include "calib.h"
 #include "comp.h"
 #include "exc.h"
+#include "f_online.h"
 #include "onset.h"
 
 /* What the loop commands; the values are the protocol's PSP_MODE_* (ps_proto.h), checked
@@ -50,16 +51,21 @@ typedef struct {
     exc_t exc;
     onset_t onset;               /* detector and encoder history */
     b_online_t *learn;           /* on-line B update fed by the onset samples, NULL: off */
+    f_online_t *learn_f;         /* on-line offset and gain of f fed by the angle readings, NULL: off */
+    bool f_publish_due;          /* learn_f asked for a publish: psa_background runs it */
 } psa_loop_t;
 
 /* Reset: idle, no table, q* = 0, a fresh onset detector (cfg copied). Boot time. */
 void psa_init(psa_loop_t *l, const psa_config_t *cfg);
 
 /* Table commit: from the next tick the loop runs cal (already accepted by calib_load; NULL
- * = none). A running pure-play compensation (both tables without transition operators)
- * carries on with its state (direction, offset, ramp): a host refresh during use moves q*
- * only by what the new table changes. Otherwise a running compensation restarts at its
- * current c* with no direction known (operator states do not carry across tables).
+ * = none). A running compensation whose new table has the same operator stages as the old
+ * (transition operators: count, weight format, thresholds and weights; relaxation constants;
+ * threshold map entries; none at all for the pure play) carries on with its state
+ * (direction, offset, ramp, the operators' and relaxation's states): a commit that changes
+ * f or B moves q* only by what the new table changes. Otherwise a running compensation
+ * restarts at its current c* with no direction known (operator states belong to their
+ * operators). O(1), O(n) with a threshold map (its entries compared).
  * Refused (false) in excitation mode, whose trajectory spans the old table's range. O(1). */
 bool psa_set_table(psa_loop_t *l, const calib_t *cal);
 
@@ -104,6 +110,28 @@ bool psa_observe_deg(psa_loop_t *l, uint32_t t_us, int32_t c_q16, bool valid, on
  * been initialised (b_online_init) on the B of the table the loop runs. NULL stops learning.
  * A sample that a tick completes (the rare finish on timeout) is not learnt. */
 void psa_set_learning(psa_loop_t *l, b_online_t *bo);
+
+/* On-line offset and gain of f during compensation (f_online.h): every valid angle reading
+ * psa_observe_deg receives while a reference is tracked is learnt by fo (f_online_sample,
+ * O(1), on the observation call) against the regressor psa_f_regressor gives; when a publish
+ * is due, psa_background (the main loop's, never psa_tick) runs it. fo must have been
+ * initialised (f_online_init) on the f and f^-1 of the table the loop runs. NULL stops. */
+void psa_set_f_learning(psa_loop_t *l, f_online_t *fo);
+
+/* The regressor of an angle reading: f(f^-1(c*)), the uncorrected model angle of the
+ * position the compensator aims at for the last reference c* (f^-1 the running one, which
+ * carries the learnt map). False (nothing written) unless valid, compensating, armed off and
+ * a reference known. Two table lookups, outside the tick. */
+bool psa_f_regressor(const psa_loop_t *l, bool valid, int32_t *x_q16);
+
+/* Background work of the loop, for the main loop between ticks: a due publish of the learnt
+ * offset and gain (f_online_publish: the solve and the f^-1 rewrite into the spare copy, one
+ * pointer store), then the compensator's cached f^-1 cell is emptied. True if it published. */
+bool psa_background(psa_loop_t *l);
+
+/* The running table's f^-1 entries changed outside the loop (f_online_publish / _stop / a
+ * rebind): the compensator drops its cached cell of f^-1. One word store, O(1). */
+void psa_f_changed(psa_loop_t *l);
 
 /* The running table's B entries changed outside the loop (an on-line B sample published by a
  * background step, b_online_sample / b_online_stop): the compensator drops its cached cell of

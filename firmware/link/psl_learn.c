@@ -18,14 +18,35 @@ void psl_learn_enqueue(psl_t *l, const onset_event_t *ev)
     l->learn_count++;
 }
 
+static void learn_f_stop(psl_t *l)
+{
+    if (l->learn_f_on) {
+        psa_set_f_learning(&l->loop, NULL);
+        f_online_stop(&l->learn_f);
+        psa_f_changed(&l->loop);
+    }
+    l->learn_f_on = false;
+}
+
 static void learn_stop(psl_t *l)
 {
     if (l->learn_on) {
         b_online_stop(&l->learn);
         psa_b_changed(&l->loop);
     }
+    learn_f_stop(l);
     l->learn_on = false;
     l->learn_count = 0;
+}
+
+/* The offset and gain of f start with the B update on the running table (a = 0, g = 1: the
+ * loader's f^-1 keeps running until the first publish). A table the learner cannot take
+ * leaves B learning alone. */
+static void learn_f_start(psl_t *l, uint8_t buf)
+{
+    f_online_config_t fc = f_online_default_config();
+    l->learn_f_on = f_online_init(&l->learn_f, &fc, &l->cal[buf].f, &l->cal[buf].f_inv) == F_ONLINE_OK;
+    psa_set_f_learning(&l->loop, l->learn_f_on ? &l->learn_f : NULL);
 }
 
 /* Start on the running table's B (already running it: the published copy equals the flashed
@@ -37,6 +58,7 @@ static bool learn_start(psl_t *l)
     if (!psl_have_table(l) || b_online_init(&l->learn, &c, &l->cal[l->active_buf].b) != B_ONLINE_OK)
         return false;
     psa_b_changed(&l->loop);
+    learn_f_start(l, l->active_buf);
     l->learn_on = true;
     l->learn_head = 0;
     l->learn_queued = 0;
@@ -55,12 +77,22 @@ void psl_learn_rebind(psl_t *l, uint8_t buf)
             l->learn_count = 0;
         }
     }
+    /* The offset and gain carry over when the new table keeps f (a commit of B), else
+     * restart on its f; they stop with the B update (the new table then runs its loader's
+     * f^-1: nothing is published into it). */
+    if (l->learn_f_on &&
+        (!l->learn_on || f_online_rebind(&l->learn_f, &l->cal[buf].f, &l->cal[buf].f_inv) != F_ONLINE_OK)) {
+        psa_set_f_learning(&l->loop, NULL);
+        l->learn_f_on = false;
+    }
 }
 
 bool psl_background(psl_t *l)
 {
-    if (!l->learn_on || l->learn_count == 0)
+    if (!l->learn_on)
         return false;
+    if (l->learn_count == 0)
+        return psa_background(&l->loop);
     const int32_t *s = l->learn_q[l->learn_head];
     b_online_sample(&l->learn, s[0], s[1]);
     psa_b_changed(&l->loop);

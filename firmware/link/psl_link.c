@@ -199,6 +199,7 @@ static uint16_t do_marker(psl_t *l, uint16_t seq, const uint8_t *pl)
     memcpy(&m, pl, sizeof(m));
     if (m.kind > 1 || m.valid > 1)
         return PSP_ERR_RANGE;
+    l->last_obs_us = m.t_us;
     if (m.kind == 0)
         done = psa_observe_px(&l->loop, m.t_us, m.u_q16, m.v_q16, m.valid != 0, &ev);
     else

@@ -71,6 +71,8 @@ typedef struct {
     uint8_t stream_decim, stream_left;
     psp_enc_samples_t batch;
     uint32_t n_b_events;         /* B samples (or failures) sent unsolicited */
+    uint32_t last_obs_us;        /* board time stamp of the last MARKER_OBS (0 before any): a
+                                    desktop board in lock-step waits for the host (vboard --lockstep-ms) */
     /* On-line B update (PSP_MSG_LEARN): B samples the observations complete are queued by the
      * request handler and learnt by psl_background, outside the tick. */
     bool learn_on;
@@ -78,6 +80,10 @@ typedef struct {
     int32_t learn_q[PSL_LEARN_QUEUE][2]; /* (q_mean, b) Q16, oldest at learn_head */
     uint32_t learn_queued, learn_dropped;
     b_online_t learn;
+    /* On-line offset and gain of f, on with the B update: the angle readings are learnt on the
+     * observation call (O(1)), each publish runs in psl_background. */
+    bool learn_f_on;
+    f_online_t learn_f;
     uint8_t tx[PSF_MAX_FRAME];
 } psl_t;
 
@@ -107,8 +113,9 @@ int32_t psl_tick(psl_t *l, uint32_t t_us, int32_t q_meas_q16);
 /* Work that must not delay a tick, run from the main loop between ticks (or at the lowest
  * priority): learns the oldest queued B sample (b_online_sample: its RLS step, the grid
  * rewritten into the copy the loop does not read, then published by one pointer store) and
- * drops the compensator's cached B cell. True if it learnt one. bench/bench_firmware.sh
- * gives b_online_sample's cost (6 k-28 k M4 instructions). */
+ * drops the compensator's cached B cell; with no B sample waiting, a due publish of the
+ * learnt offset and gain of f (psa_background: f^-1 rewritten into its spare copy, one
+ * pointer store). True if it did either. bench/bench_firmware.sh gives the costs. */
 bool psl_background(psl_t *l);
 
 /* The on-line B state as PSP_MSG_LEARN reports it. */

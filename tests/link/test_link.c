@@ -566,6 +566,77 @@ static void test_learn_during_compensation(void **state)
     assert_ptr_equal(L.cal[L.active_buf].b.y_q16, L.learn.prior_q16);
 }
 
+/* The offset and gain of f learnt with the update on: angle readings while compensating are
+ * learnt on the request (nothing published there), each publish runs in psl_background, the
+ * set-points then follow the core's compensator on a table whose f^-1 is the learner's (the
+ * same learner run here on the same readings); a commit of the same f carries the map over;
+ * stop restores the loader's f^-1. */
+static void test_learn_f_during_compensation(void **state)
+{
+    (void)state;
+    size_t n = make_table(1, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    static uint8_t blob1[PST_MAX_TABLE_SIZE];
+    static calib_t ref;
+    static f_online_t fo;
+    memcpy(blob1, blob.bytes, n);
+    assert_int_equal(calib_load(&ref, blob1, n), CALIB_OK);
+    f_online_config_t fc = f_online_default_config();
+    assert_int_equal(f_online_init(&fo, &fc, &ref.f, &ref.f_inv), F_ONLINE_OK);
+    psp_set_mode_t m = {.mode = PSP_MODE_COMPENSATION};
+    expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
+    (void)learn(PSP_LEARN_START);
+    assert_true(L.learn_f_on);
+    const calib_t *run = &L.cal[L.active_buf];
+    psp_comp_req_t c = {0};
+    int published = 0;
+    for (int k = 0; k < 60; k++) {
+        int32_t c_ref = (int32_t)((20.0 * sin(k * 0.1) + 3.0) * 65536.0);
+        c.c_ref_q16 = c_ref;
+        resp_t r = req(PSP_MSG_COMP_STEP, &c, sizeof c);
+        expect_ok(r, PSP_MSG_COMP_STEP);
+        int32_t x = lut_eval(&ref.f, lut_eval(&ref.f_inv, c_ref));
+        int32_t read = (int32_t)(1.5 * 65536.0) + (int32_t)(((int64_t)x * 70000) >> 16); /* 1.5 + 1.068 x */
+        psp_marker_obs_t mo = {.kind = 1, .t_us = 100000u + (uint32_t)k * 40000u, .u_q16 = read, .valid = 1};
+        const int32_t *before = run->f_inv.y_q16;
+        expect_ok(req(PSP_MSG_MARKER_OBS, &mo, sizeof mo), PSP_MSG_MARKER_OBS);
+        assert_ptr_equal(run->f_inv.y_q16, before); /* learnt in the request, not published */
+        bool due = f_online_step(&fo, x, read);
+        assert_int_equal(psl_background(&L), due);
+        assert_false(psl_background(&L));
+        published += due;
+        if (due) {
+            assert_memory_equal(run->f_inv.y_q16, ref.f_inv.y_q16, run->f_inv.n * sizeof(int32_t));
+            assert_int_equal(L.loop.comp.f_inv_cell.width, 0);
+        }
+    }
+    assert_int_equal(published, 5);
+    assert_true(L.learn_f.g_q16 > 69000 && L.learn_f.g_q16 < 71000);
+    /* The core on a table carrying the same f^-1 gives the board's set-points. */
+    comp_t cp;
+    for (int k = 0; k < 30; k++) {
+        int32_t c_ref = (int32_t)(15.0 * cos(k * 0.1) * 65536.0);
+        if (k == 0)
+            comp_reset(&cp, &ref, NULL, c_ref);
+        c.c_ref_q16 = c_ref;
+        if (k == 0)
+            expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE); /* re-armed at this c* too */
+        resp_t r = req(PSP_MSG_COMP_STEP, &c, sizeof c);
+        assert_int_equal((int32_t)psf_get_u32(r.pl), comp_step(&cp, c_ref));
+    }
+    /* A commit with the same f: the map carries over into the new table at once. */
+    int32_t g = L.learn_f.g_q16;
+    n = make_table(2, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    run = &L.cal[L.active_buf];
+    assert_int_equal(L.learn_f.g_q16, g);
+    assert_memory_equal(run->f_inv.y_q16, ref.f_inv.y_q16, run->f_inv.n * sizeof(int32_t));
+    assert_ptr_not_equal(run->f_inv.y_q16, run->f_inv_buf);
+    (void)learn(PSP_LEARN_STOP);
+    assert_false(L.learn_f_on);
+    assert_ptr_equal(run->f_inv.y_q16, run->f_inv_buf);
+}
+
 /* A power cut at every byte of a commit through the handler: reboot runs old or new. */
 static void test_power_cut_via_handler(void **state)
 {
@@ -788,6 +859,7 @@ int main(void)
         cmocka_unit_test_setup(test_streaming, setup),
         cmocka_unit_test_setup(test_onset_over_the_link, setup),
         cmocka_unit_test_setup(test_learn_during_compensation, setup),
+        cmocka_unit_test_setup(test_learn_f_during_compensation, setup),
         cmocka_unit_test_setup(test_power_cut_via_handler, setup),
         cmocka_unit_test_setup(test_readback_mismatch_keeps_previous, setup),
         cmocka_unit_test_setup(test_upload_session_one_owner, setup),

@@ -65,6 +65,68 @@ static uint64_t now_us(void)
     return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
 }
 
+/* The board clock of a serve loop. Free-running (the default): board time = time_scale x wall
+ * time since start; after a stall of more than VB_TICKS_MAX_PER_WAKE ticks the backlog is dropped
+ * (board time jumps), as on a board whose loop overran.
+ * Lock-step (lead_us > 0, --lockstep-ms, for closed-loop simulations): while the excitation runs,
+ * the board runs at most lead_us of board time past the later of the excitation's start and the
+ * last marker observation, and wall time spent waiting or stalled is not counted, so no tick is
+ * dropped. A host that lags (a loaded machine) then slows the board down instead of sending
+ * observations that arrive after the encoder history (ENC_HIST_LEN) or the onset timeout has
+ * moved on: what a simulated instrument needs to give the same onsets at any machine load. */
+typedef struct {
+    uint64_t wall0_us, held_us;  /* start; wall time not counted (lock-step waits and stalls) */
+    uint64_t ticks, tick_ns;
+    double time_scale;
+    uint32_t lead_us;            /* 0: free-running */
+    uint32_t exc_start_us;       /* board time the excitation started (lock-step reference) */
+    bool in_exc;
+    int32_t q_q16;               /* ideal motor: q measured = last set-point */
+} vb_clock_t;
+
+static void vb_clock_init(vb_clock_t *c, uint32_t tick_hz, double time_scale, uint32_t lead_us)
+{
+    *c = (vb_clock_t){.wall0_us = now_us(), .tick_ns = 1000000000ull / tick_hz, .time_scale = time_scale,
+                      .lead_us = lead_us};
+}
+
+/* Board time up to which lock-step lets the board run. */
+static uint32_t vb_lockstep_limit_us(const vb_clock_t *c)
+{
+    uint32_t ref = c->exc_start_us;
+    if ((int32_t)(board.last_obs_us - ref) > 0)
+        ref = board.last_obs_us;
+    return ref + c->lead_us;
+}
+
+/* Run the ticks due at the wall clock's now, then one background step (an on-line B sample
+ * between ticks, as the M4 images do). */
+static void vb_run_due(vb_clock_t *c)
+{
+    uint64_t wall = now_us() - c->wall0_us;
+    uint64_t due = (uint64_t)((double)(wall - c->held_us) * 1000.0 * c->time_scale / (double)c->tick_ns);
+    bool held = false;
+    for (int k = 0; c->ticks < due && k < VB_TICKS_MAX_PER_WAKE; k++, c->ticks++) {
+        uint32_t t_us = (uint32_t)(c->ticks * c->tick_ns / 1000u);
+        bool exc = board.loop.mode == PSA_MODE_EXCITATION;
+        if (exc && !c->in_exc)
+            c->exc_start_us = t_us;
+        c->in_exc = exc;
+        if (c->lead_us && exc && (int32_t)(t_us - vb_lockstep_limit_us(c)) > 0) {
+            held = true;
+            break;
+        }
+        c->q_q16 = psl_tick(&board, t_us, c->q_q16);
+    }
+    (void)psl_background(&board);
+    if (due <= c->ticks + (held ? 0u : VB_TICKS_MAX_PER_WAKE))
+        return;
+    if (c->lead_us) /* do not count the wall time the board did not run: board time = ticks */
+        c->held_us = wall - (uint64_t)((double)c->ticks * (double)c->tick_ns / 1000.0 / c->time_scale);
+    else
+        c->ticks = due; /* drop the backlog rather than replay a long stall */
+}
+
 static void usage(void)
 {
     fprintf(stderr,
@@ -76,6 +138,9 @@ static void usage(void)
             "  --tick-hz HZ   control tick rate, default 1000\n"
             "  --upload-timeout-ms MS  a table upload session silent this long is free again, default 5000\n"
             "  --time-scale X board clock runs X times the wall clock (simulation only), default 1\n"
+            "  --lockstep-ms L  simulation only: during the excitation the board runs at most L ms of\n"
+            "                 board time past the last marker observation, waiting for a lagging host\n"
+            "                 (its onsets then do not depend on the machine's load); 0 = off (default)\n"
             "  --exc Q0:Q1:AMP:ADV[:V]  excitation used without a table: range, amplitude, advance\n"
             "                 (actuator units) and speed (units/s); default 0:10:1:0.25:10; without V, --pace\n"
             "  --pace BLO:BHI:FRAME_US  pace the excitation to the camera: speed BLO / (4 frame periods),\n"
@@ -85,12 +150,9 @@ static void usage(void)
 
 /* Serve one connection until EOF: frames in, answers and unsolicited frames out, ticks
  * run from the monotonic clock. The motor is ideal: q measured = last set-point. */
-static void serve(int in_fd, uint32_t tick_hz, double time_scale)
+static void serve(int in_fd, vb_clock_t *clk)
 {
     uint8_t buf[4096];
-    uint64_t t0 = now_us(), ticks = 0;
-    int32_t q_q16 = 0;
-    uint64_t tick_ns = 1000000000ull / tick_hz; /* ns per tick */
     while (!stop) {
         struct pollfd p = {.fd = in_fd, .events = POLLIN};
         int r = poll(&p, 1, 1);
@@ -103,30 +165,20 @@ static void serve(int in_fd, uint32_t tick_hz, double time_scale)
             if (n > 0)
                 psl_rx(&board, buf, (size_t)n);
         }
-        /* time_scale != 1 only for closed-loop simulations (playscope run-insitu --sim-plant):
-         * board time = scale x wall time, so a long excitation runs in a fraction of it. */
-        uint64_t due = (uint64_t)((double)(now_us() - t0) * 1000.0 * time_scale / (double)tick_ns);
-        for (int k = 0; ticks < due && k < VB_TICKS_MAX_PER_WAKE; k++, ticks++)
-            q_q16 = psl_tick(&board, (uint32_t)(ticks * tick_ns / 1000u), q_q16);
-        (void)psl_background(&board); /* an on-line B sample between ticks, as the M4 images */
-        if (due > ticks + VB_TICKS_MAX_PER_WAKE)
-            ticks = due; /* drop the backlog rather than replay a long stall */
+        vb_run_due(clk);
     }
 }
 
 /* --listen: up to VB_MAX_HOSTS connections at once. Each port's parser and replay window
  * are swapped into the board around its bytes; answers go back on that port, unsolicited
  * frames (stream, onset events) to the port that spoke last. */
-static void serve_ports(int listen_fd, uint32_t tick_hz, double time_scale)
+static void serve_ports(int listen_fd, vb_clock_t *clk)
 {
     static vb_port_t port[VB_MAX_HOSTS];
     uint8_t buf[4096];
     int one = 1;
     for (int k = 0; k < VB_MAX_HOSTS; k++)
         port[k].fd = -1;
-    uint64_t t0 = now_us(), ticks = 0;
-    int32_t q_q16 = 0;
-    uint64_t tick_ns = 1000000000ull / tick_hz;
     out_fd = -1;
     while (!stop) {
         struct pollfd p[1 + VB_MAX_HOSTS];
@@ -170,12 +222,7 @@ static void serve_ports(int listen_fd, uint32_t tick_hz, double time_scale)
             port[k].parser = board.parser;
             port[k].last_seq = board.last_seq;
         }
-        uint64_t due = (uint64_t)((double)(now_us() - t0) * 1000.0 * time_scale / (double)tick_ns);
-        for (int k = 0; ticks < due && k < VB_TICKS_MAX_PER_WAKE; k++, ticks++)
-            q_q16 = psl_tick(&board, (uint32_t)(ticks * tick_ns / 1000u), q_q16);
-        (void)psl_background(&board); /* an on-line B sample between ticks, as the M4 images */
-        if (due > ticks + VB_TICKS_MAX_PER_WAKE)
-            ticks = due;
+        vb_run_due(clk);
     }
     for (int k = 0; k < VB_MAX_HOSTS; k++)
         if (port[k].fd >= 0)
@@ -188,6 +235,7 @@ int main(int argc, char **argv)
     int listen_port = -1, use_pty = 0;
     uint32_t tick_hz = 1000;
     double time_scale = 1.0;
+    unsigned long lockstep_ms = 0;
     unsigned long upload_timeout_ms = PSL_UPLOAD_TIMEOUT_US / 1000u;
     double exc[5] = {0}, pace[3];
     int have_exc = 0, have_pace = 0;
@@ -206,6 +254,8 @@ int main(int argc, char **argv)
             tick_hz = (uint32_t)strtoul(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--time-scale") && i + 1 < argc)
             time_scale = strtod(argv[++i], NULL);
+        else if (!strcmp(argv[i], "--lockstep-ms") && i + 1 < argc)
+            lockstep_ms = strtoul(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--exc") && i + 1 < argc &&
                  (have_exc = sscanf(argv[++i], "%lf:%lf:%lf:%lf:%lf", &exc[0], &exc[1], &exc[2], &exc[3], &exc[4])) >= 4)
             ;
@@ -223,7 +273,7 @@ int main(int argc, char **argv)
         return 2;
     }
     if (tick_hz == 0 || tick_hz > 100000 || !(time_scale > 0.0 && time_scale <= 100.0) ||
-        upload_timeout_ms == 0 || upload_timeout_ms > 3600000ul) {
+        upload_timeout_ms == 0 || upload_timeout_ms > 3600000ul || lockstep_ms > 10000ul) {
         usage();
         return 2;
     }
@@ -288,6 +338,8 @@ int main(int argc, char **argv)
         }
     }
     psl_init(&board, &cfg, flash, write_all, NULL);
+    vb_clock_t clk;
+    vb_clock_init(&clk, tick_hz, time_scale, (uint32_t)(lockstep_ms * 1000u));
 
     if (listen_port >= 0) {
         int s = socket(AF_INET, SOCK_STREAM, 0), one = 1;
@@ -302,7 +354,7 @@ int main(int argc, char **argv)
         getsockname(s, (struct sockaddr *)&a, &al);
         printf("listening %u\n", ntohs(a.sin_port));
         fflush(stdout);
-        serve_ports(s, tick_hz, time_scale);
+        serve_ports(s, &clk);
     } else if (use_pty) {
         int m = posix_openpt(O_RDWR | O_NOCTTY);
         if (m < 0 || grantpt(m) != 0 || unlockpt(m) != 0) {
@@ -318,10 +370,10 @@ int main(int argc, char **argv)
         printf("pty %s\n", ptsname(m));
         fflush(stdout);
         out_fd = m;
-        serve(m, tick_hz, time_scale);
+        serve(m, &clk);
     } else {
         out_fd = 1;
-        serve(0, tick_hz, time_scale);
+        serve(0, &clk);
     }
     if (flash_path)
         pss_file_close(&ff);

@@ -39,7 +39,7 @@ REPO = Path(os.environ.get("PLAYSCOPE_SRC", Path(__file__).resolve().parents[3])
 COMMON = REPO / "common"
 CORE = REPO / "firmware" / "core"
 CDEF_HEADERS = [COMMON / n for n in ("ps_fixed.h", "ps_table.h", "ps_proto.h", "ps_frame.h")] + [
-    CORE / f"{n}.h" for n in ("lut", "calib", "playop", "comp", "enc_hist", "onset", "exc", "table_write", "b_online")]
+    CORE / f"{n}.h" for n in ("lut", "calib", "playop", "comp", "enc_hist", "onset", "exc", "table_write", "b_online", "f_online")]
 # The USB ids live with the USB device core (firmware/link/usb); only these names are taken from it
 # (its functions belong to the board, not to the host's module). A name cdef'd as "#define NAME ..."
 # gets its value from the C compiler, never from Python.

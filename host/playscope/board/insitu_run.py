@@ -16,7 +16,9 @@
 
 Board clock. With --sim-plant, frames are rendered exactly at board times k / fps once the
 encoder stream has passed them (so the board's clock drives the simulation, whatever its
-speed). With a camera or a video, a frame is stamped when it is read: board time = host time +
+speed), and the virtual board runs in lock-step (ps_vboard --lockstep-ms, commands.device's
+SIM_LOCKSTEP_MS): it waits for the host's observations, so a loaded machine slows the run down
+instead of delivering frames after the board's encoder history has moved on. With a camera or a video, a frame is stamped when it is read: board time = host time +
 offset, where offset is the largest (t_last_sample - host receive time) over encoder batches,
 i.e. that of the least delayed batch (the board sends a batch the tick it fills).
 """

@@ -111,6 +111,149 @@ class BoardB:
         return model.piecewise_linear(self.xs, self.grid())
 
 
+class BoardF:
+    """The board's on-line offset and gain of f (firmware/core/f_online.c, through cffi: the
+    board's integer arithmetic bit for bit) on an f table: f entries (deg, Q16 raw) on the grid
+    x0_q16 + i step_q16, and its f^-1 derived as calib_load derives it (lut_build_inverse into
+    CALIB_DERIVED_MAX entries). `from_range` builds the identity table over an angle range for a
+    replay that has no table (x = f(y) is then a plain angle). f_config: f_online_config_t
+    fields as a dict (None: f_online_default_config()). Errors: ValueError when the C refuses
+    the table or the settings."""
+
+    def __init__(self, f_q16, x0_q16: int, step_q16: int, f_config: dict | None = None):
+        ffi, lib = core()
+        self.ffi, self.lib = ffi, lib
+        self._f = ffi.new("int32_t[]", [int(v) for v in f_q16])
+        self.f_lut = ffi.new("lut_t *")
+        if lib.lut_init(self.f_lut, self._f, len(f_q16), int(x0_q16), int(step_q16)) != lib.LUT_OK:
+            raise ValueError("f grid refused by lut_init")
+        self._inv = ffi.new("int32_t[]", int(lib.CALIB_DERIVED_MAX))
+        self.inv_lut = ffi.new("lut_t *")
+        if lib.lut_build_inverse(self.f_lut, self._inv, lib.CALIB_DERIVED_MAX, self.inv_lut, ffi.NULL) != lib.LUT_OK:
+            raise ValueError("f is not strictly monotone: no f^-1")
+        cfg = lib.f_online_default_config()
+        for k, v in (f_config or {}).items():
+            setattr(cfg, k, int(v))
+        self.fo = ffi.new("f_online_t *")
+        st = lib.f_online_init(self.fo, ffi.new("f_online_config_t *", cfg), self.f_lut, self.inv_lut)
+        if st != lib.F_ONLINE_OK:
+            raise ValueError(f"f_online_init refused the table or the settings (status {st})")
+
+    @classmethod
+    def from_range(cls, lo_deg: float, hi_deg: float, f_config: dict | None = None) -> "BoardF":
+        """Identity f (deg -> deg) on the smallest power-of-two grid of <= PST_MAX_ENTRIES covering
+        [lo_deg, hi_deg] (widened by a quarter of the span each way)."""
+        _, lib = core()
+        pad = 0.25 * (hi_deg - lo_deg)
+        x0, step, n = grid_for(lo_deg - pad, hi_deg + pad, lib.PST_MAX_ENTRIES)
+        xs = x0 + step * np.arange(n, dtype=np.int64)
+        return cls(xs.tolist(), x0, step, f_config)
+
+    def step(self, x_deg: float, c_deg: float) -> bool:
+        """One reading (f_online_step): x the uncorrected model angle, c the angle read. True
+        when it published a new (a, g)."""
+        return bool(self.lib.f_online_step(self.fo, int(to_q16(x_deg)), int(to_q16(c_deg))))
+
+    def map(self) -> tuple[float, float]:
+        """The published (a deg, g): the board's model is a + g f."""
+        return float(from_q16(self.fo.a_q16)), float(from_q16(self.fo.g_q16))
+
+    def inverse_entries(self) -> np.ndarray:
+        """The f^-1 entries the loop runs now (raw Q16)."""
+        return np.array(self.ffi.unpack(self.lib.f_online_entries(self.fo), int(self.inv_lut.n)), dtype=np.int64)
+
+
+def f_config_from(s_ref, cal, refresh_s: float) -> dict:
+    """The board learner's settings by their rules (docs/online.md), from the calibration record
+    only: prior_var = the variance of its angle (the host gain refresh's prior, one reading's
+    worth; a record without an angle sensor: the variance of f over the travel); publish_every = the host refresh period in readings at the onset frame rate;
+    mem_log2 = the memory of the B learner, 8 reversals, in readings at that rate (the
+    calibration record's mean reversal period), rounded up to a power of two, at most the
+    longest the fixed-point sums hold (F_ONLINE_MEM_LOG2_MAX)."""
+    _, lib = core()
+    fps = 1.0 / cal.onset_config["frame_period_s"]
+    t = s_ref.encoder["t_s"]
+    per_rev = float(t[-1] - t[0]) / max(int(cal.doc["reversals"]), 1)
+    mem = int(np.clip(np.ceil(np.log2(max(8.0 * per_rev * fps, 2.0))), 1, lib.F_ONLINE_MEM_LOG2_MAX))
+    distal = getattr(s_ref, "distal", None) or {}
+    c = distal.get("c_deg") if hasattr(distal, "get") else None
+    if c is None or not np.any(np.isfinite(c)):  # an image session: the spread of f over the travel
+        c = cal.f(np.linspace(*cal.q_range, 257))
+    var = float(np.nanvar(c))
+    return {"mem_log2": mem, "publish_every": max(1, int(round(refresh_s * fps))),
+            "prior_var_q16": max(int(to_q16(var)), 1)}
+
+
+def board_f_refreshed(s, c_hat: np.ndarray, fps: float, f_config: dict, f_range: tuple[float, float]) -> tuple[np.ndarray, dict]:
+    """c_hat (the model's angle at every encoder sample, deg) corrected by the board's learner
+    (BoardF.from_range over f_range) fed the session's angle frames in time order: each valid
+    frame (frames_from_angle at fps, complete at t_f + 1/(2 fps)) is one reading against
+    c_hat at the frame; each published (a, g) applies from that frame's completion on.
+    Causal. Returns (a + g c_hat (N,), {"publishes", "a_deg", "g"} at the end)."""
+    from ..fit.reversals import frames_from_angle
+
+    t = s.encoder["t_s"]
+    t_f, c_f = frames_from_angle(s.distal["t_s"], s.distal["c_deg"], fps)
+    x_f = np.interp(t_f, t, c_hat)
+    bf = BoardF.from_range(*f_range, f_config=f_config)
+    a = np.zeros_like(c_hat)
+    g = np.ones_like(c_hat)
+    t_done = t_f + 0.5 / fps
+    for tf, x, c in zip(t_done, x_f, c_f):
+        if np.isfinite(c) and bf.step(float(x), float(c)):
+            ai, gi = bf.map()
+            k = int(np.searchsorted(t, tf, side="left"))
+            a[k:], g[k:] = ai, gi
+    ai, gi = bf.map()
+    return a + g * c_hat, {"publishes": int(bf.fo.publishes), "a_deg": ai, "g": gi}
+
+
+def compensate_learning(blob: bytes, t: np.ndarray, c_ref: np.ndarray, plant, fps: float,
+                        f_config: dict | None = None) -> tuple[np.ndarray, dict]:
+    """Compensation of the reference c_ref (N,) deg at times t (N,) s with the board's table
+    (blob) while the board learns the offset and gain of f from the plant's angle, closed
+    loop, as psa_loop runs it: comp_step per sample (no smoothing, as CalibTable.compensate);
+    one angle reading per frame (every 1/fps s, the plant's angle at that sample) learnt
+    against psa_f_regressor's x = f(f^-1(c*)); each publish rewrites the table's f^-1 and
+    empties the compensator's cached f^-1 cell (psa_f_changed) before the next sample.
+    plant: (t (k,), q (k,)) -> c (k,) deg, causal (run on the prefix up to each publish).
+    Returns (q* (N,) actuator units, {"publishes", "a_deg", "g"})."""
+    from ..fit.table_build import CalibTable
+
+    tab = CalibTable(blob)
+    ffi, lib = tab.ffi, tab.lib
+    cfg = lib.f_online_default_config()
+    for k, v in (f_config or {}).items():
+        setattr(cfg, k, int(v))
+    fo = ffi.new("f_online_t *")
+    f_lut, inv_lut = ffi.addressof(tab.cal.f), ffi.addressof(tab.cal.f_inv)
+    if lib.f_online_init(fo, ffi.new("f_online_config_t *", cfg), f_lut, inv_lut) != lib.F_ONLINE_OK:
+        raise ValueError("f_online_init refused the table or the settings")
+    c_raw = to_q16(c_ref).tolist()
+    frame = np.zeros(len(c_raw), bool)
+    k_f = np.unique(np.searchsorted(t, np.arange(t[0], t[-1], 1.0 / fps), side="left"))
+    frame[k_f[k_f < frame.size]] = True
+    cp = ffi.new("comp_t *")
+    lib.comp_reset(cp, tab.cal, ffi.NULL, c_raw[0])
+    q = np.empty(len(c_raw), np.int64)
+    pending: list[tuple[int, int]] = []  # (sample index, x raw) of readings not yet learnt
+    for k, c in enumerate(c_raw):
+        q[k] = lib.comp_step(cp, c)
+        if frame[k]:
+            pending.append((k, lib.lut_eval(f_lut, lib.lut_eval(inv_lut, c))))
+        if len(pending) == cfg.publish_every or k == len(c_raw) - 1:
+            # The readings of this stretch: the plant on the commands so far (it is causal).
+            c_meas = np.asarray(plant(t[:k + 1], from_q16(q[:k + 1])), float)
+            published = False
+            for i, x in pending:
+                published |= bool(lib.f_online_step(fo, x, int(to_q16(c_meas[i]))))
+            if published:
+                cp.f_inv_cell.width = 0
+            pending = []
+    return from_q16(q), {"publishes": int(fo.publishes), "a_deg": float(from_q16(fo.a_q16)),
+                         "g": float(from_q16(fo.g_q16))}
+
+
 def learn_session(s, board: BoardB | None, cfg: OnsetConfig, hysteresis: float, refresh_s: float | None = None):
     """Feed session s through the firmware's onset detector in time order (ticks, reversals,
     angle frames at cfg.fps) and, when board is given, each B sample into b_online_sample at

@@ -8,6 +8,13 @@ import sys
 from .common import add_command, add_json_arg, dump_json, progress
 
 
+# --sim-plant: board time the virtual board may run past the last marker observation. Above a
+# few frame periods (40 ms at the simulated 25 fps) so the board never waits for a frame the host
+# cannot render yet, and well inside the onset detector's encoder history (ENC_HIST_LEN = 512
+# ticks, 512 ms at 1 kHz) so every observation still finds q(t2 - t_delay) there.
+SIM_LOCKSTEP_MS = 250
+
+
 def _add_device_args(p) -> None:
     from . import argtypes as T
 
@@ -62,7 +69,9 @@ def cmd_run_insitu(args) -> int:
             print("playscope: --sim-plant needs --device virtual (the simulated instrument follows "
                   "the virtual board's clock)", file=sys.stderr)
             return 2
-        vb = ["--time-scale", f"{args.time_scale:g}"]
+        # Lock-step: the board waits for the host's observations (at most SIM_LOCKSTEP_MS of board time
+        # ahead), so a loaded machine slows the run instead of moving the board's onsets.
+        vb = ["--time-scale", f"{args.time_scale:g}", "--lockstep-ms", str(SIM_LOCKSTEP_MS)]
     args.pace = None
     if args.sim_plant or args.video is not None:  # no source: said below
         exc4 = args.exc
@@ -177,7 +186,8 @@ def add_parser(subparsers) -> None:
                    help="SIMULATION: no camera; a simulated instrument follows the virtual board's encoder "
                         "stream and is rendered to frames (simulator preset 'ideal')")
     p.add_argument("--time-scale", type=T.TIME_SCALE, default=4.0,
-                   help="--sim-plant: virtual board clock speed-up over the wall clock (default 4)")
+                   help="--sim-plant: virtual board clock speed-up over the wall clock, at most (default 4): the "
+                        "board waits for a host that lags")
     p.add_argument("--exc", default="-3:3:1.6:0.4", type=T.colon_floats(5, "Q0:Q1:AMP:ADV[:V]", n_min=4),
                    help="virtual board: its excitation Q0:Q1:AMP:ADV[:V] in mm, mm/s (default -3:3:1.6:0.4); "
                         "without V the board paces the swing to the camera: V = B_low x fps / 4, the smallest "

@@ -11,8 +11,8 @@ DESCRIPTION = f"""\
 Calibrates the pure play and ours with the transition on the whole of CAL, runs each SESSION with
 them from its first sample and scores it after the warm-up: in situ (each record calibrated on its
 own warm-up part, the reference), transferred as is, transferred with each on-line update (the
-board's RLS on B, the host's offset refresh, both), and a constant play + poly5 of CAL as is and
-with the same refresh. Records: catheter CSV files (data_2_*.txt) or endoscope files (headerless,
+board's RLS on B, the host's offset refresh, both, the host's offset and gain refresh, the board's
+offset and gain learner), and a constant play + poly5 of CAL as is and with the same updates. Records: catheter CSV files (data_2_*.txt) or endoscope files (headerless,
 q = commanded angle). One Markdown table (bending-angle RMSE, deg); --plot writes RMSE against the
 configuration angle. Default warm-up {WARMUP}: the first half, the only split leaving every endoscope
 record two reversals to calibrate on in situ.
@@ -28,7 +28,7 @@ def add_parser(sub) -> None:
     p.add_argument("--warmup", type=float_range(0.0, 1.0, lo_open=True, hi_open=True), default=WARMUP,
                    help=f"fraction of each record's duration before scoring starts (default {WARMUP})")
     p.add_argument("--refresh", type=float_range(0.0, None, lo_open=True), default=1.0,
-                   help="host offset refresh period, s (default 1)")
+                   help="host offset refresh period, s; also the board learner's publish period (default 1)")
     p.add_argument("--plot", metavar="PNG", type=file_path, help="write RMSE against configuration angle here")
     add_json_arg(p, JSON_KEYS)
     p.set_defaults(func=run, own_progress=True)

@@ -24,6 +24,12 @@ ceiling for the morphological f_remain, so the transfer protocol does not go thr
   transition_offset  ours with the transition + the same offset refresh
   const_play_ref     constant play + poly5 of the calibration record, as is
   const_play_ref_offset  the same + the same offset refresh (the peer given our update)
+  static_affine, transition_affine, const_play_ref_affine, in_situ_affine
+                     the host's offset and gain refresh (least squares on every frame so far)
+  static_board, transition_board, const_play_ref_board, in_situ_board
+                     the board's offset and gain learner instead (firmware/core/f_online.c
+                     through cffi, online.board_f_refreshed: fixed point, forgetting, a publish
+                     every refresh period's worth of frames), settings by online.f_config_from
 
 Drift measurement (`drift`): each record calibrated in situ on its whole length; its
 parameters compared with the calibration record's over the travel both saw.
@@ -50,7 +56,7 @@ from .insitu_split import calibration_frames
 FORMAT = "playscope-transfer/1"
 ROWS = ["in_situ", "in_situ_affine", "in_situ_const_play", "static", "static_transition", "online_b_only", "online_offset_only",
         "online", "transition_offset", "const_play_ref", "const_play_ref_offset", "static_affine", "transition_affine",
-        "const_play_ref_affine"]
+        "const_play_ref_affine", "in_situ_board", "static_board", "transition_board", "const_play_ref_board"]
 LABELS = {
     "in_situ": "in situ: ours (transition) fitted on the record's own warm-up (reference)",
     "in_situ_affine": "in situ: the same + offset and gain refresh (no drift to learn)",
@@ -66,12 +72,18 @@ LABELS = {
     "static_affine": "transferred + offset and gain refresh",
     "transition_affine": "transferred with transition + offset and gain refresh",
     "const_play_ref_affine": "constant play + poly5 of the calibration record + offset and gain refresh",
+    "in_situ_board": "in situ: the same + the board's offset and gain learner (no drift to learn)",
+    "static_board": "transferred + the board's offset and gain learner",
+    "transition_board": "transferred with transition + the board's offset and gain learner",
+    "const_play_ref_board": "constant play + poly5 of the calibration record + the board's offset and gain learner",
 }
 GAIN_BOUNDS = (0.5, 2.0)  # the gain refresh's clamp: a factor 2 either way, far outside any record's fitted gain
 WARMUP = 0.5  # fraction of the duration; the only split giving every endoscope record >= 2 reversals before it
-JSON_KEYS = ("format, calibration {file, reversals, b_samples}, settings {warmup, refresh_s}, order [row], labels "
-             "{row: str}, files {name: {config_deg (sheath angle from the file name, null for the catheter), "
-             "t_split_s, rmse_deg {row: float}, b_samples (learnt on line)}}, mean {row: float}, worst {row: float}")
+JSON_KEYS = ("format, calibration {file, reversals, b_samples}, settings {warmup, refresh_s, board_f {mem_log2, "
+             "publish_every, prior_var_q16}}, order [row], labels {row: str}, files {name: {config_deg (sheath angle "
+             "from the file name, null for the catheter), t_split_s, rmse_deg {row: float}, b_samples (learnt on "
+             "line), board_f {publishes, a_deg, g} (the transition row's learner at the end)}}, mean {row: float}, "
+             "worst {row: float}")
 
 # Endoscope files: column of the distal angle by file name (README of the data set).
 
@@ -121,18 +133,18 @@ def _affine_refreshed(s, c_hat: np.ndarray, fps: float, refresh_s: float, prior_
     return a + g * c_hat
 
 
-def _in_situ(s, t_split: float, src: str) -> tuple[np.ndarray, np.ndarray]:
+def _in_situ(s, t_split: float, src: str):
     """Ours with the transition (calibrate, model_kind "auto") and the constant play + poly5,
     both fitted on the samples of s with t < t_split only (on the frames the chain sees,
     insitu.calibration_frames), run over the whole record from q[0] in double precision:
-    their predictions (N,) deg at the encoder samples."""
+    (their predictions (N,) deg at the encoder samples, ours' Calibration, the part it saw)."""
     from ..fit.baselines import fit_constant_play
 
     cal_s = s.slice_time(-np.inf, t_split)
     cal = calibrate(cal_s, f_method="lsq", model_kind="auto", source=src)
     _, fp, Bc = fit_constant_play(*calibration_frames(cal_s, cal))
     q = s.encoder["q"]
-    return cal.predict(q), model.direct_model(q, Bc, fp)
+    return cal.predict(q), model.direct_model(q, Bc, fp), cal, cal_s
 
 
 def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float = 1.0,
@@ -148,6 +160,8 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
     ref_const = O.const_play_ref(s_ref, cal.fps_frames)
     prior_var = float(np.var(s_ref.distal["c_deg"]))
     fps = 1.0 / cal.onset_config["frame_period_s"]  # the board's detector frame rate, as online.evaluate_online
+    f_cfg = O.f_config_from(s_ref, cal, refresh_s)
+    f_range = (float(np.nanmin(s_ref.distal["c_deg"])), float(np.nanmax(s_ref.distal["c_deg"])))
     st = O.OnlineSettings(refresh_s=refresh_s, score_after=warmup)
     files = {}
     for p in progress(list(paths), desc="transfer"):
@@ -166,13 +180,26 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
         for k, c_hat in (("in_situ_affine", ins[0]), ("static_affine", cal.predict(q)), ("transition_affine", c_tr),
                          ("const_play_ref_affine", c_cp)):
             r[k] = err(_affine_refreshed(s, c_hat, fps, refresh_s, prior_var))
+        board_f = {}
+        # In situ, the learner's settings come from the record's own calibration (its warm-up part),
+        # as a board calibrated there would be flashed with them.
+        cal_in, s_in = ins[2], ins[3]
+        in_cfg = (O.f_config_from(s_in, cal_in, refresh_s), 1.0 / cal_in.onset_config["frame_period_s"],
+                  (float(np.nanmin(s_in.distal["c_deg"])), float(np.nanmax(s_in.distal["c_deg"]))))
+        for k, c_hat in (("in_situ_board", ins[0]), ("static_board", cal.predict(q)), ("transition_board", c_tr),
+                         ("const_play_ref_board", c_cp)):
+            cfg_k, fps_k, range_k = in_cfg if k == "in_situ_board" else (f_cfg, fps, f_range)
+            c_fix, end = O.board_f_refreshed(s, c_hat, fps_k, cfg_k, range_k)
+            r[k] = err(c_fix)
+            if k == "transition_board":
+                board_f = end
         for k in ("static", "online_b_only", "online_offset_only", "online", "const_play_ref_offset"):
             r[k] = on["rmse_deg"][k]
         files[Path(p).stem] = {"config_deg": config_angle(p), "t_split_s": t_split,
-                               "rmse_deg": {k: r[k] for k in ROWS}, "b_samples": on["b_samples"]}
+                               "rmse_deg": {k: r[k] for k in ROWS}, "b_samples": on["b_samples"], "board_f": board_f}
     return {"format": FORMAT, "calibration": {"file": str(cal_path), "reversals": int(cal.doc["reversals"]),
                                               "b_samples": cal.n_b_samples},
-            "settings": {"warmup": warmup, "refresh_s": refresh_s}, "order": ROWS, "labels": LABELS, "files": files,
+            "settings": {"warmup": warmup, "refresh_s": refresh_s, "board_f": f_cfg}, "order": ROWS, "labels": LABELS, "files": files,
             "mean": {k: float(np.mean([f["rmse_deg"][k] for f in files.values()])) for k in ROWS},
             "worst": {k: float(np.max([f["rmse_deg"][k] for f in files.values()])) for k in ROWS}}
 
@@ -225,6 +252,65 @@ def plot_transfer(doc: dict, path, rows=("in_situ", "static", "online", "online_
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+# ---------------------------------------------------------------- what learning the drift could reach
+
+CEILING_LEVELS = np.round(np.arange(0.5, 2.0001, 0.05), 2)  # B scale factors tried: a factor 2 either way, as GAIN_BOUNDS
+
+
+def _best_affine(c_hat: np.ndarray, c_true: np.ndarray) -> float:
+    """RMSE of c_true against the least-squares a + g c_hat (fitted on the same samples)."""
+    A = np.column_stack([np.ones_like(c_hat), c_hat])
+    coef, *_ = np.linalg.lstsq(A, c_true, rcond=None)
+    return float(np.sqrt(np.mean((A @ coef - c_true) ** 2)))
+
+
+def learnable_ceiling(cal_path, paths, warmup: float = WARMUP, in_situ_cache: dict | None = None) -> dict:
+    """What learning the drifting terms could reach at best: CAL's model with the transition run
+    on each record of paths from its first sample, with the offset and gain (and the B level)
+    chosen afterwards on the scored samples themselves (an oracle, not a causal update: a lower
+    bound for any on-line learner of those terms), beside the in-situ reference on the same
+    samples. B level: B scaled by each of CEILING_LEVELS, the best kept. in_situ_cache: a dict
+    the in-situ predictions are kept in by record path (a caller running several calibrations).
+    Returns {"calibration", "warmup", "files": {name: {"in_situ", "affine", "affine_b_level",
+    "b_scale"}}} (RMSE, deg)."""
+    s_ref = read_record(cal_path)
+    cal_tr = calibrate(s_ref, f_method="lsq", model_kind="auto", source=str(cal_path))
+    B = cal_tr.B_model
+    files = {}
+    for p in paths:
+        s = read_record(p)
+        t, q = s.encoder["t_s"], s.encoder["q"]
+        t_split = float(t[0] + warmup * (t[-1] - t[0]))
+        mask = t >= t_split
+        c_true = np.interp(t, s.distal["t_s"], s.distal["c_deg"])[mask]
+        cache = in_situ_cache if in_situ_cache is not None else {}
+        if str(p) not in cache:
+            cache[str(p)] = _in_situ(s, t_split, str(p))[0]
+        ins = cache[str(p)]
+        per_level = [_best_affine(T.direct_chain(q, lambda x, k=k: k * B(x), cal_tr.transition, cal_tr.f)[mask], c_true)
+                     for k in CEILING_LEVELS]
+        i = int(np.argmin(per_level))
+        one = int(np.argmin(np.abs(CEILING_LEVELS - 1.0)))
+        files[Path(p).stem] = {"config_deg": config_angle(p), "in_situ": O.rmse(ins[mask] - c_true),
+                               "affine": per_level[one], "affine_b_level": per_level[i],
+                               "b_scale": float(CEILING_LEVELS[i])}
+    return {"calibration": str(cal_path), "warmup": warmup, "files": files}
+
+
+def format_ceiling(docs: list[dict]) -> str:
+    """Markdown table of learnable_ceiling() results (one per calibration record)."""
+    lines = ["**What learning the drift could reach at best (oracle offset, gain and B level chosen on the scored "
+             "samples; RMSE after the warm-up, deg)**", "",
+             "| calibrated on | run on | in situ (reference) | + best offset and gain | ratio to in situ | "
+             "+ best offset, gain and B level (B scale) | ratio to in situ |", "|---|---|---|---|---|---|---|"]
+    for d in docs:
+        for n, f in d["files"].items():
+            lines.append(f"| {Path(d['calibration']).stem} | {n} | {f['in_situ']:.2f} | {f['affine']:.2f} | "
+                         f"{f['affine'] / f['in_situ']:.1f} | {f['affine_b_level']:.2f} ({f['b_scale']:.2f}) | "
+                         f"{f['affine_b_level'] / f['in_situ']:.1f} |")
+    return "\n".join(lines + [""])
 
 
 # ---------------------------------------------------------------- what drifts between records

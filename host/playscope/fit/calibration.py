@@ -295,7 +295,25 @@ def pose_with_offset(im: model.ImageModel, obs: np.ndarray, c0: np.ndarray) -> t
     return c2, res, offset
 
 
-def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src):
+@dataclass
+class BAndModel:
+    """choose_b_and_model's result: the kept B alternative (BacklashFit), the transition chosen
+    with it (T.Transition), its f (SplineFn) and f's sign, the transition's choice dict
+    (T.ModelChoice.result), one row per B alternative (rows, stiffest first: "smooth",
+    "cv_rmse_deg", "cv_se_deg", "model", "b_scale", "n", "b_sample_pick"), and the kept
+    alternative's T.FitData (its cached play centres and operator outputs, read again by the
+    rest of the calibration)."""
+
+    bfit: BacklashFit
+    transition: T.Transition
+    f: SplineFn
+    sign: int
+    choice: dict
+    rows: list
+    data: T.FitData
+
+
+def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src) -> BAndModel:
     """B(q)'s stiffness and the model chosen together by the model choice's own cross-
     validation on c (transition.choose_model: rolling origin, state from the record's start).
 
@@ -318,10 +336,8 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     s, actuator units; t_f, c_f: (F,) s, deg; td: acquisition delay, s; model_kind "auto"|"pi";
     n_ctrl: f's control points for the pure-play candidate (14 from calibrate: the
     cross-validated f_remain N needs B first); src: file named in errors.
-    Returns (BacklashFit, Transition, f, sign, choice dict, [{"smooth", "cv_rmse_deg",
-    "cv_se_deg", "model", "b_scale", "n", "b_sample_pick"}] stiffest first, the kept
-    alternative's transition.FitData: its cached play centres and operator outputs are what
-    the rest of the calibration reads again)."""
+    Returns BAndModel (the kept B, its transition, f, sign and choice dict, every alternative's
+    row, the kept alternative's FitData)."""
     alts = backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)
     base = T.FitData.from_session(t_enc, q, alts[0][1].B, t_f, c_f, td)
     rows, choices = [], []
@@ -344,7 +360,7 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     # best (rows are stiffest first).
     i = own if rows[own]["cv_rmse_deg"] <= limit else next(i for i, d in enumerate(rows) if d["cv_rmse_deg"] <= limit)
     tr, f, sign, ch = choices[i].result()
-    return alts[i][1], tr, f, sign, ch, rows, choices[i].data
+    return BAndModel(alts[i][1], tr, f, sign, ch, rows, choices[i].data)
 
 
 def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
@@ -498,7 +514,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     if model_kind != "play" and rt.size >= MIN_REVERSALS_TRANSITION:
         # B(q)'s stiffness by the model's own cross-validation on c (see choose_b_and_model).
         joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src)
-        bfit, model_cv, fit_data = joint[0], joint[5], joint[6]
+        bfit, model_cv, fit_data = joint.bfit, joint.rows, joint.data
         B, w = bfit.B, bfit.weight
     if fit_data is None or fit_data.B is not B:
         fit_data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
@@ -532,7 +548,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
                         f"(needs >= {MIN_REVERSALS_TRANSITION}, one stroke per fold)")
     if model_kind != "play":
         if model_cv is not None:  # chosen with B above (its pure-play candidate uses n_ctrl: f_n needs B first)
-            tr, f_pi, sign_pi, choice = joint[1:5]
+            tr, f_pi, sign_pi, choice = joint.transition, joint.f, joint.sign, joint.choice
         else:
             tr, f_pi, sign_pi, choice = T.choose_model(fit_data, model_kind, f_n,
                                                        kinds=T.threshold_kinds(bfit.kind, on.b.size, bfit.n_ctrl))
