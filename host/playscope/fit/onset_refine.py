@@ -45,7 +45,7 @@ POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line ho
 class Refined:
     """Per reversal (M,): refined onset t2_s and its sigma_t2_s (s), stop time tau0_s (image
     clock), step_px (|s|, 0 without a step), ring_hz / ring_alpha (0 without ringing) and
-    ring_px (|r|), ok (fit done)."""
+    ring_px (|r|), ok (fit done); step_vec (M, 2) the step s itself (px, 0 without one)."""
 
     t2_s: np.ndarray
     sigma_t2_s: np.ndarray
@@ -55,6 +55,7 @@ class Refined:
     ring_alpha: np.ndarray
     ring_px: np.ndarray
     ok: np.ndarray
+    step_vec: np.ndarray | None = None
 
 
 def motor_stop_times(t: np.ndarray, q: np.ndarray, t1: np.ndarray, q1: np.ndarray, tol: float) -> np.ndarray:
@@ -353,6 +354,7 @@ class _Episode:
         b = int(np.argmax(lw))
         self.j = int(JJ[b])
         self.step_px = float(np.linalg.norm(coef[b, 1])) if self.j >= 0 else 0.0
+        self.step_vec = np.array(coef[b, 1], float) if self.j >= 0 else np.zeros(2)
         if not np.isfinite(lw[b]):  # no candidate moves back along the old motion
             self.found = False
         if final and self.found:
@@ -418,6 +420,7 @@ def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np
     M = t_stop.size
     res = {k: np.full(M, np.nan) for k in ("t2", "sd", "tau0", "step", "hz", "al", "ring")}
     okm = np.zeros(M, bool)
+    stepv = np.zeros((M, 2))
     for r in range(M):  # episodes are independent; each is a handful of batched solves
         t0 = t_stop[r] + t_delay_s
         t_lim = t_next_stop[r] + t_delay_s - 2 * period_s  # the next episode's old motion stays out
@@ -454,10 +457,11 @@ def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np
         res["sd"][r] = ep.sd * period_s
         res["tau0"][r] = t0 + ep.tau0 * period_s
         res["step"][r] = ep.step_px
+        stepv[r] = getattr(ep, "step_vec", np.zeros(2))
         res["hz"][r] = ep.om / period_s / (2 * np.pi)
         res["al"][r] = ep.al / period_s
         res["ring"][r] = ep.ring_px
-    return Refined(res["t2"], res["sd"], res["tau0"], res["step"], res["hz"], res["al"], res["ring"], okm)
+    return Refined(res["t2"], res["sd"], res["tau0"], res["step"], res["hz"], res["al"], res["ring"], okm, stepv)
 
 
 def delay_from_stops(tau0_s: np.ndarray, t_stop: np.ndarray) -> tuple[float, float, int]:
@@ -562,6 +566,35 @@ def ring_summary(ref: Refined) -> dict:
         out.update({"freq_hz": float(hz), "decay_per_s": float(al), "damping_ratio": float(al / np.hypot(al, w)),
                     "amplitude_px": float(np.median(ref.ring_px[has]))})
     return out
+
+
+def direction_jump(ref: Refined, rq: np.ndarray, shape_doc: dict | None = None) -> dict:
+    """Whether the image jumps at the onsets with the direction of motion (a registration or
+    channel error: the jump's sign follows the distal direction). The refined onsets' step
+    vectors, each signed by its reversal's direction (+1 when q rose to q1), averaged: found
+    when the mean lies over onset_play.JUMP_T standard errors from 0 with steps at half the
+    fitted reversals or more (a jump fitted to noise or ringing comes and goes, and averages
+    out). When the actuator-shape model's B samples are used (shape_doc), its own record-wide
+    choice decides (its jump_px). Returns {"found", "jump_px" (2,) or None, "ratio", "from"}.
+    ref: refine()'s result; rq (M,) reversal positions."""
+    from .onset_play import JUMP_T
+
+    if shape_doc is not None:
+        j = (shape_doc.get("choice") or {}).get("jump_px")
+        return {"found": j is not None, "jump_px": j, "ratio": (shape_doc.get("choice") or {}).get("jump_ratio"),
+                "from": "actuator-shape model"}
+    s = np.sign(np.r_[0.0, np.diff(rq)])
+    sv = ref.step_vec if ref.step_vec is not None else np.zeros((rq.size, 2))
+    k = ref.ok & (ref.step_px > 0) & (s != 0)
+    if k.sum() < 4 or k.sum() < 0.5 * ref.ok.sum():
+        return {"found": False, "jump_px": None, "ratio": None, "from": "refined onsets' steps"}
+    J = s[k, None] * sv[k]
+    m = J.mean(axis=0)
+    se = J.std(axis=0, ddof=1) / np.sqrt(len(J))
+    ratio = float(np.linalg.norm(m) / max(float(np.linalg.norm(se)), 1e-12))
+    found = ratio > JUMP_T
+    return {"found": bool(found), "jump_px": [float(x) for x in m] if found else None, "ratio": ratio,
+            "from": "refined onsets' steps"}
 
 
 def actuator_frames(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, b: float,
@@ -750,14 +783,13 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     d_stop_ref = d_stops if n_d >= 4 else d1
     if use_shape and abs(pf.t_delay_s - d_stop_ref) > P.DELAY_SPAN * period:
         # The model's delay search walked beyond its own span from where the image stops put the
-        # delay (a registration jump fitted as a delay shift on a triangle came to 0.48 s against
-        # 0.08 s from the stops): that delay is not the record's; the stops' is, with its interval.
-        warnings.append(f"t_delay: the actuator-shape model's {pf.t_delay_s:.4f} s lies over {P.DELAY_SPAN:g} frames "
-                        f"from the image stops' {d_stop_ref:.4f} s; the stops' delay is taken as the record's")
-        d_se = d_stops_se if n_d >= 4 else period
-        d_data, ci_lo, ci_hi = d_stop_ref, d_stop_ref - 1.96 * d_se, d_stop_ref + 1.96 * d_se
-        how = "image stop - motor stop, median (the actuator-shape model's delay strayed)"
-    elif use_shape:
+        # delay (a registration jump fitted as a delay shift on a triangle: 0.48 s against 0.08 s
+        # from the stops): the model does not describe this record; the refined onsets do.
+        warnings.append(f"onsets: the actuator-shape model's delay {pf.t_delay_s:.4f} s lies over {P.DELAY_SPAN:g} "
+                        f"frames from the image stops' {d_stop_ref:.4f} s; its B samples are not used")
+        pdoc["strayed_delay_s"] = pf.t_delay_s
+        use_shape = False
+    if use_shape:
         d_data, (ci_lo, ci_hi), d_se = pf.t_delay_s, pf.t_delay_ci_s, pf.t_delay_sd_s
         how = "actuator-shape model, posterior mean"
     else:
@@ -831,6 +863,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                         f"their combined uncertainty on {guard['disagree']} of {guard['compared']} reversals; "
                         f"both B curves are in onset.refine.guard")
     steps = ref.ok & (ref.step_px > 0)
+    registration = direction_jump(ref, rq, pdoc if use_shape else None)
     report = {
         "method": "joint ML change-point model per reversal (playscope.fit.onset_refine)",
         "board_reasons": board.reasons,
@@ -849,6 +882,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         "ringing": ring_summary(ref),
         "steps": {"reversals_with_step": int(steps.sum()),
                   "median_step_px": float(np.median(ref.step_px[steps])) if steps.any() else 0.0},
+        "registration": registration,
         "sigma_t2_s_median": float(np.nanmedian(ref.sigma_t2_s)) if ref.ok.any() else None,
     }
     return RobustOnsets(on, float(td), src, report, warnings)

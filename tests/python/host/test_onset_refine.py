@@ -68,6 +68,36 @@ def test_registration_jump_at_onset_does_not_pull_onsets_early():
     assert abs(err.mean()) < 0.5 and np.abs(err).mean() < 1.0
     assert rob.report["steps"]["reversals_with_step"] >= 0.9 * rob.onsets.t2_s.size
     assert rob.report["steps"]["median_step_px"] == pytest.approx(2 * 600 * np.tan(np.radians(3.0)), rel=0.1)
+    # The jump follows the direction of motion: found, the mean signed step about the rotation's
+    # 2 f tan(3 deg) (calibrate then keeps the B samples' own stiffness: choose_b_and_model).
+    reg = rob.report["registration"]
+    assert reg["found"] and np.linalg.norm(reg["jump_px"]) == pytest.approx(2 * 600 * np.tan(np.radians(3.0)), rel=0.15)
+
+
+def test_no_direction_jump_without_a_registration_error(plain):
+    assert not plain[0].report["registration"]["found"]
+
+
+def test_direction_jump_needs_a_consistent_signed_step():
+    M = 40
+    rq = np.where(np.arange(M) % 2 == 0, 1.0, 0.0)  # up, down, up, ...: directions alternate from the 2nd
+    s = np.sign(np.r_[0.0, np.diff(rq)])
+    rng = np.random.default_rng(0)
+    ok = np.ones(M, bool)
+
+    def ref(vec):
+        return R.Refined(*(np.zeros(M),) * 3, np.linalg.norm(vec, axis=1), *(np.zeros(M),) * 3, ok, vec)
+
+    follows = s[:, None] * np.array([20.0, 0.0]) + rng.normal(0, 2.0, (M, 2))
+    d = R.direction_jump(ref(follows), rq)
+    assert d["found"] and d["jump_px"][0] == pytest.approx(20.0, abs=1.5)
+    # The same steps with signs unrelated to the direction average out: nothing found.
+    d = R.direction_jump(ref(rng.choice([-1.0, 1.0], M)[:, None] * np.array([20.0, 0.0]) + rng.normal(0, 2.0, (M, 2))), rq)
+    assert not d["found"]
+    # Steps at fewer than half the fitted reversals: not a record-wide jump.
+    few = follows.copy()
+    few[: M * 2 // 3] = 0.0
+    assert not R.direction_jump(ref(few), rq)["found"]
 
 
 def test_delay_measured_from_the_record_and_a_wrong_one_warned(plain):

@@ -148,7 +148,7 @@ def _climb_q32_per_tick(link) -> float:
     link.stream(True, 1)
     link.set_mode("excitation")
     samples = []
-    for _ in range(100):
+    for _ in range(400):  # up to 20 s: QEMU on a loaded machine runs the board's clock slower
         for kind, v in link.poll_events(0.05):
             if kind == "enc":
                 samples += v
@@ -161,7 +161,8 @@ def _climb_q32_per_tick(link) -> float:
     q = [b for _, b in samples]
     k0 = next(i for i in range(1, len(q)) if q[i] > q[i - 1])  # the first tick of the run
     k1 = k0 + 150
-    assert k1 < len(q) and all(b > a for a, b in zip(q[k0:k1], q[k0 + 1:k1 + 1])), "not a rising leg"
+    assert k1 < len(q), f"{len(q)} samples streamed, the run starting at {k0}"
+    assert all(b > a for a, b in zip(q[k0:k1], q[k0 + 1:k1 + 1])), f"not a rising leg: {q[k0:k1 + 1]}"
     return (q[k1] - q[k0]) * 2 ** 16 / ((t[k1] - t[k0]) / 1000)
 
 
