@@ -780,8 +780,10 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     if np.isfinite(ref_frames) and (np.isfinite(fast_frames) or not pdoc["fitted"]):
         fast_frames = ref_frames if not pdoc["fitted"] else max(fast_frames, ref_frames)
     use_shape = bool(np.isfinite(pf.t_delay_s) and fast_frames < FAST_FRAMES)
-    d_stop_ref = d_stops if n_d >= 4 else d1
-    if use_shape and abs(pf.t_delay_s - d_stop_ref) > P.DELAY_SPAN * period:
+    d_stop_ref = d_stops
+    # Only where the image stops were found on most reversals (so the refined onsets are there to
+    # fall back on): a record whose stops are not found says nothing against the model's delay.
+    if use_shape and n_d >= max(4, 0.5 * M) and abs(pf.t_delay_s - d_stop_ref) > P.DELAY_SPAN * period:
         # The model's delay search walked beyond its own span from where the image stops put the
         # delay (a registration jump fitted as a delay shift on a triangle: 0.48 s against 0.08 s
         # from the stops): the model does not describe this record; the refined onsets do.
