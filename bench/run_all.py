@@ -138,7 +138,7 @@ PART_TIME = (
     ("in-situ real data", "~1.5-4 min (two instruments, four splits)"),
     ("memoryless term", "~2.5 min (development files, two splits)"),
     ("on-line update", "~1.5 min (includes a second bench_firmware.sh)"),
-    ("transfer", "~2.5 min"),
+    ("transfer", "~4 min (every endoscope pair, the ceilings of each learner)"),
     ("no regression with the learner on", "~1 min (reuses the main job's folder)"),
     ("start-up", "~5 s"),
     ("diagnosis speed", "~1 min"),

@@ -10,11 +10,16 @@ used elsewhere").
   ratio of ours (transition + the board's offset and gain learner) to the in-situ figure.
 - Endoscope, what learning the drifting terms could reach at best: the offset, gain and B level
   chosen on the scored samples themselves (an oracle), against the in-situ figure.
+- Endoscope, what learning f's shape (hat functions on the model's pre-f output), a correction
+  per branch of the loop, or the transition's weights could reach: oracle (on the scored
+  samples), fitted once on the warm-up, and causal RLS from the record's start, per pair; and
+  the weights beside the per-branch correction; and the same learners on each record's in-situ
+  model (endoscope development files and catheter files), where nothing drifts.
 - What drifts: every record calibrated in situ on its whole length, compared with the
   calibration record.
 
 Usage: .venv/bin/python bench/transfer_real.py [DATA_REAL] [--warmup F] [--json OUT] [--plot-dir DIR]
-(about 2 min)
+(about 4 min)
 """
 
 from __future__ import annotations
@@ -25,8 +30,9 @@ import sys
 import time
 from pathlib import Path
 
-from playscope.evaluate.transfer import (WARMUP, drift, evaluate_transfer, format_ceiling, format_drift, format_transfer,
-                                        learnable_ceiling, plot_transfer)
+from playscope.evaluate.transfer import (WARMUP, drift, evaluate_transfer, format_ceiling, format_drift, format_noregress,
+                                        format_shape, format_transfer, learnable_ceiling, plot_transfer, shape_ceiling,
+                                        shape_noregress)
 
 DEFAULT = Path(__file__).resolve().parents[1] / ".." / ".." / "shared" / "data" / "real"
 ENDOSCOPE_DEV = ["30", "60", "120", "conf0_60"]  # development files; the others are set aside
@@ -77,6 +83,17 @@ def main(argv=None) -> int:
     cache: dict = {}
     out["ceiling_endoscope"] = [learnable_ceiling(c, [f for f in ef if f != c], a.warmup, cache) for c in ef]
     print(format_ceiling(out["ceiling_endoscope"]))
+    out["shape_endoscope"] = [shape_ceiling(c, [f for f in ef if f != c], a.warmup, in_situ_cache=cache) for c in ef]
+    print(format_shape(out["shape_endoscope"]))
+    for k in ("shape_8", "branch_8", "weights", "wbranch_4", "wbranch_8"):
+        r = [f[f"{k}_rls"] / f["in_situ"] for d in out["shape_endoscope"] for f in d["files"].values()]
+        print(f"Endoscope, {k} learnt by causal RLS / in situ: {min(r):.1f} .. {max(r):.1f} x over {len(r)} pairs; "
+              f"within 1.5 x on {sum(v <= 1.5 for v in r)}")
+    print()
+    # The same learners where nothing drifts (each record's in-situ model): they must not make it worse.
+    out["shape_noregress"] = {"endoscope": shape_noregress(ef, a.warmup), "catheter": shape_noregress(cf, a.warmup)}
+    for k in ("endoscope", "catheter"):  # the instrument in the heading: one generated block each
+        print(format_noregress(out["shape_noregress"][k]).replace("**Where nothing drifts:", f"**Where nothing drifts ({k}):", 1))
     out["drift_catheter"] = drift(cf, cf[0])
     out["drift_endoscope"] = drift(ef, ecal)
     print(format_drift(out["drift_catheter"]))

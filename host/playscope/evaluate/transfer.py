@@ -34,6 +34,12 @@ ceiling for the morphological f_remain, so the transfer protocol does not go thr
 Drift measurement (`drift`): each record calibrated in situ on its whole length; its
 parameters compared with the calibration record's over the travel both saw.
 
+What learning could reach (double precision, for choosing what the board should learn):
+`learnable_ceiling` (offset, gain and a B level chosen on the scored samples), `shape_ceiling`
+(a correction of f's shape, per branch of the loop, of the transition's weights, or weights and
+branch together: oracle, warm-up fit and causal RLS) and `shape_noregress` (those learners on
+each record's in-situ model, where nothing drifts).
+
 Readers: the catheter files (importer.import_catheter) and the endoscope files of
 ../shared/data/real/endoscope (importer.import_endoscope: headerless CSV, q = commanded angle, deg).
 """
@@ -390,4 +396,235 @@ def format_drift(res: dict) -> str:
                      f"{100 * d['b_level_rel']:+.0f} | {d['b_shape']:.3f} | {tr['model']}, {tr['n_ops']}, "
                      f"{tr['b_scale']:.2f}, [{w}] | {d['offset_effect_deg']:.2f} / {d['gain_effect_deg']:.2f} / "
                      f"{d['b_level_effect_deg']:.2f} / {d['b_shape_effect_deg']:.2f} |")
+    return "\n".join(lines + [""])
+
+
+# ---------------------------------------------------------------- what learning f's shape could reach
+
+SHAPE_NODES = (4, 8)  # node counts measured (16 adds nothing over 8 on the endoscope development pairs)
+
+
+def hat_basis(y: np.ndarray, lo: float, hi: float, n_nodes: int) -> np.ndarray:
+    """Hat functions (linear B-splines) on n_nodes evenly spaced nodes over [lo, hi] at y (N,),
+    y clamped to [lo, hi] (the correction is held constant beyond the end nodes). Returns (N,
+    n_nodes); each row sums to 1 (so the span holds a constant offset and, piecewise, a gain)."""
+    u = (np.clip(np.asarray(y, float), lo, hi) - lo) / (hi - lo) * (n_nodes - 1)
+    i = np.minimum(np.floor(u).astype(int), n_nodes - 2)
+    w = u - i
+    H = np.zeros((u.size, n_nodes))
+    H[np.arange(u.size), i] = 1.0 - w
+    H[np.arange(u.size), i + 1] = w
+    return H
+
+
+def motion_direction(q: np.ndarray) -> np.ndarray:
+    """Direction of motion of q (N,) at each sample: +1 or -1, held through still stretches (the
+    first motion's direction before it)."""
+    dq = np.sign(np.diff(np.asarray(q, float), prepend=q[0]))
+    idx = np.where(dq != 0, np.arange(dq.size), -1)
+    np.maximum.accumulate(idx, out=idx)
+    nz = np.flatnonzero(dq)
+    first = dq[nz[0]] if nz.size else 1.0
+    return np.where(idx >= 0, dq[np.maximum(idx, 0)], first)
+
+
+def branch_split(H: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """(N, n) hat rows -> (N, 2n): the first n columns on the rising branch (d > 0), the last n on
+    the falling one: a correction of f per branch of the loop (its width and its shape)."""
+    up = (np.asarray(d) > 0)[:, None]
+    return np.hstack([H * up, H * ~up])
+
+
+def rls_shape(H: np.ndarray, r: np.ndarray, lam: float, p0: float = 1.0) -> np.ndarray:
+    """Exponentially weighted RLS of r (M,) on the rows of H (M, n) with b_online's bounded
+    covariance (firmware/core/b_online.c, in double): theta = 0, P = p0 I at the start; per row
+    g = P h, s = lam + h'g, k = g/s, theta += k (r - h'theta), P = D (P - k g') D with
+    d_i = 1/sqrt(lam) unless P_ii would pass p0 (then 1). Returns theta after each row (M, n)."""
+    n = H.shape[1]
+    th = np.zeros(n)
+    P = p0 * np.eye(n)
+    out = np.empty((H.shape[0], n))
+    isl = 1.0 / np.sqrt(lam)
+    for m in range(H.shape[0]):
+        h = H[m]
+        g = P @ h
+        k = g / (lam + h @ g)
+        th = th + k * (r[m] - h @ th)
+        P = P - np.outer(k, g)
+        d = np.where(np.diag(P) <= lam * p0, isl, 1.0)
+        P = P * np.outer(d, d)
+        out[m] = th
+    return out
+
+
+N_EXTRA_OPS = 4  # play operators added above the transition's widest for the weights' refit
+
+
+def weights_regressor(cal_tr, q: np.ndarray, r_extra: np.ndarray) -> np.ndarray:
+    """Regressor of a refit of the transition's operator weights, linearised about the model:
+    c ~ f(y) + a + sum_i dw_i f'(y) p_i(z) over the transition's operators (thresholds r) and
+    play operators of thresholds r_extra (a wider play than the calibration saw), z the play
+    centre from q[0], y = PI(z). Columns [1, f'(y) p_i]. q: (N,); returns (N, 1 + n + len(r_extra))."""
+    tr = cal_tr.transition
+    z = model.play_operator(q, cal_tr.B_model)
+    y = tr.direct(z)
+    h = 1e-3 * max(float(np.ptp(y)), 1.0)
+    fp = (cal_tr.f(y + h) - cal_tr.f(y - h)) / (2 * h)
+    P = T.play_ops(tr.to_ops(z), np.r_[tr.r, r_extra])
+    return np.column_stack([np.ones_like(y), fp[:, None] * P])
+
+
+def shape_ceiling(cal_path, paths, warmup: float = WARMUP, refresh_s: float = 1.0, nodes=SHAPE_NODES,
+                  in_situ_cache: dict | None = None) -> dict:
+    """What learning f's shape could reach: CAL's model with the transition (y = PI(play(q; B)),
+    the model's pre-f output) run on each record of paths from its first sample, corrected as
+    c = f_cal(y) + sum_i theta_i h_i(y), h_i hat functions on n nodes evenly over the y range
+    the calibration record's own run covers (hat_basis), scored after the warm-up beside the
+    in-situ reference. Per node count n:
+      shape_<n>_oracle  theta least squares on the scored samples themselves (a lower bound of any constant theta)
+      shape_<n>_rls     theta by rls_shape on the record's angle frames (the board's onset frame
+                        rate) from the first one, forgetting lambda = 1 - 2^-mem_log2 and a
+                        publish every publish_every frames (both f_config_from's, from the
+                        calibration record only), p0 = 1 (the flashed f weighs as one reading per
+                        node); the theta published last applies from its frame's completion on
+      shape_<n>_warmup  theta fitted once on the frames complete before the split (rls_shape
+                        with lambda = 1, i.e. least squares with the p0 = 1 prior) and held: what a
+                        learner with perfect memory knows when scoring starts
+    the branch_<n>_* rows the same with one set of nodes per direction of motion of q
+    (branch_split: a correction of the loop's width as well as of f's shape), the weights_* rows
+    with weights_regressor's columns (a refit of the transition's weights, N_EXTRA_OPS wider plays
+    up to half the calibration record's q span added, linearised, plus an offset), and "board" (the
+    transition + the board's offset and gain learner, for comparison), the wbranch_<n>_* rows both
+    (the weights' columns beside the per-branch hats). Row names: <kind>_oracle, <kind>_warmup,
+    <kind>_rls with kind shape_<n>, branch_<n>, weights or wbranch_<n>.
+    Returns {"calibration", "warmup", "settings", "files": {name: {"in_situ", row: rmse}}} (deg)."""
+    s_ref = read_record(cal_path)
+    cal = calibrate(s_ref, f_method="lsq", model_kind="play", source=str(cal_path))
+    cal_tr = calibrate(s_ref, f_method="lsq", model_kind="auto", source=str(cal_path))
+    learn = _Learners(s_ref, cal, cal_tr, refresh_s, nodes)
+    files = {}
+    for p in paths:
+        s = read_record(p)
+        t = s.encoder["t_s"]
+        t_split = float(t[0] + warmup * (t[-1] - t[0]))
+        cache = in_situ_cache if in_situ_cache is not None else {}
+        if str(p) not in cache:
+            cache[str(p)] = _in_situ(s, t_split, str(p))[0]
+        files[Path(p).stem] = learn.rows(s, t_split, cache[str(p)])
+    return {"calibration": str(cal_path), "warmup": warmup, "settings": learn.settings(), "files": files}
+
+
+def shape_noregress(paths, warmup: float = WARMUP, refresh_s: float = 1.0, nodes=SHAPE_NODES) -> dict:
+    """Where nothing drifts: each record of paths with the in-situ model (transition fitted on its
+    own warm-up part, _in_situ) and each learner of shape_ceiling on it, its settings from that
+    part (as a board calibrated there would be flashed), scored after the warm-up. Returns
+    {"warmup", "files": {name: {"in_situ", row: rmse}}} with the rows of shape_ceiling (deg)."""
+    files = {}
+    for p in paths:
+        s = read_record(p)
+        t = s.encoder["t_s"]
+        t_split = float(t[0] + warmup * (t[-1] - t[0]))
+        c_in, _, cal_in, s_in = _in_situ(s, t_split, str(p))
+        files[Path(p).stem] = _Learners(s_in, cal_in, cal_in, refresh_s, nodes).rows(s, t_split, c_in)
+    return {"warmup": warmup, "files": files}
+
+
+NOREGRESS_ROWS = ("board", "shape_8_rls", "branch_8_rls", "weights_rls", "wbranch_4_rls", "wbranch_8_rls")
+
+
+def format_noregress(doc: dict, rows=NOREGRESS_ROWS) -> str:
+    """Markdown table of shape_noregress(): RMSE after the warm-up per record and the change
+    against the in-situ model (target: <= +2 %)."""
+    lines = ["**Where nothing drifts: the in-situ model with each causal learner (RMSE after the warm-up, deg; "
+             "change against in situ)**", "", "| record | in situ | " + " | ".join(rows) + " |",
+             "|---|---" + "|---" * len(rows) + "|"]
+    for n, f in doc["files"].items():
+        lines.append(f"| {n} | {f['in_situ']:.3f} | " +
+                     " | ".join(f"{f[k]:.3f} ({100 * (f[k] / f['in_situ'] - 1):+.0f} %)" for k in rows) + " |")
+    return "\n".join(lines + [""])
+
+
+class _Learners:
+    """The corrections of shape_ceiling on one model (cal_tr: a Calibration with a transition),
+    their settings from its calibration record s_cal (cal: the calibration whose onset frame rate
+    and reversals f_config_from reads)."""
+
+    def __init__(self, s_cal, cal, cal_tr, refresh_s: float, nodes):
+        self.cal_tr, self.nodes = cal_tr, tuple(nodes)
+        self.fps = 1.0 / cal.onset_config["frame_period_s"]
+        self.f_cfg = O.f_config_from(s_cal, cal, refresh_s)
+        self.lam = 1.0 - 2.0 ** -self.f_cfg["mem_log2"]
+        self.every = int(self.f_cfg["publish_every"])
+        y_ref = cal_tr.transition.direct(model.play_operator(s_cal.encoder["q"], cal_tr.B_model))
+        self.y_lo, self.y_hi = float(np.min(y_ref)), float(np.max(y_ref))
+        r_last = float(cal_tr.transition.r[-1])
+        half_span = 0.5 * float(np.ptp(s_cal.encoder["q"]))
+        self.r_extra = (np.linspace(r_last, half_span, N_EXTRA_OPS + 1)[1:] if half_span > r_last else np.zeros(0))
+        self.f_range = (float(np.nanmin(s_cal.distal["c_deg"])), float(np.nanmax(s_cal.distal["c_deg"])))
+
+    def settings(self) -> dict:
+        return {"lambda": self.lam, "publish_every": self.every, "y_range": [self.y_lo, self.y_hi],
+                "nodes": list(self.nodes), "r_extra": [float(v) for v in self.r_extra]}
+
+    def rows(self, s, t_split: float, c_in_situ: np.ndarray) -> dict:
+        """{"in_situ", "board", <kind>_oracle|_warmup|_rls}: RMSE (deg) after t_split on record s."""
+        from ..fit.reversals import frames_from_angle
+
+        cal_tr, fps, lam, every = self.cal_tr, self.fps, self.lam, self.every
+        t, q = s.encoder["t_s"], s.encoder["q"]
+        mask = t >= t_split
+        c_true = np.interp(t, s.distal["t_s"], s.distal["c_deg"])
+        y = cal_tr.transition.direct(model.play_operator(q, cal_tr.B_model))
+        c0 = cal_tr.f(y)
+        row = {"in_situ": O.rmse((c_in_situ - c_true)[mask])}
+        row["board"] = O.rmse((O.board_f_refreshed(s, c0, fps, self.f_cfg, self.f_range)[0] - c_true)[mask])
+        t_f, c_f = frames_from_angle(s.distal["t_s"], s.distal["c_deg"], fps)
+        ok = np.isfinite(c_f)
+        t_f, c_f = t_f[ok], c_f[ok]
+        y_f = np.interp(t_f, t, y)
+        k_done = np.searchsorted(t, t_f + 0.5 / fps, side="left")
+        r_f = c_f - cal_tr.f(y_f)
+        pre = k_done < np.searchsorted(t, t_split, side="left")
+
+        def fit_rows(kind: str, H: np.ndarray, Hf: np.ndarray) -> None:
+            # The correction H @ theta on the model's c0: oracle, warm-up fit, causal RLS.
+            th, *_ = np.linalg.lstsq(H[mask], (c_true - c0)[mask], rcond=None)
+            row[f"{kind}_oracle"] = O.rmse((c0 + H @ th - c_true)[mask])
+            th_w = rls_shape(Hf[pre], r_f[pre], 1.0)[-1] if pre.any() else np.zeros(H.shape[1])
+            row[f"{kind}_warmup"] = O.rmse((c0 + H @ th_w - c_true)[mask])
+            ths = rls_shape(Hf, r_f, lam)
+            theta_t = np.zeros(H.shape)
+            for m in range(every - 1, len(t_f), every):  # a publish every `every` readings
+                theta_t[k_done[m]:] = ths[m]
+            row[f"{kind}_rls"] = O.rmse((c0 + np.einsum("ij,ij->i", H, theta_t) - c_true)[mask])
+
+        d = motion_direction(q)
+        j_f = np.clip(np.searchsorted(t, t_f, side="right") - 1, 0, t.size - 1)  # the sample a frame ends on
+        X = weights_regressor(cal_tr, q, self.r_extra)
+        fit_rows("weights", X, X[j_f])
+        for n in self.nodes:
+            H, Hf = hat_basis(y, self.y_lo, self.y_hi, n), hat_basis(y_f, self.y_lo, self.y_hi, n)
+            fit_rows(f"shape_{n}", H, Hf)
+            Hb, Hbf = branch_split(H, d), branch_split(Hf, d[j_f])
+            fit_rows(f"branch_{n}", Hb, Hbf)
+            fit_rows(f"wbranch_{n}", np.hstack([X, Hb]), np.hstack([X[j_f], Hbf]))
+        return row
+
+
+def format_shape(docs: list[dict]) -> str:
+    """Markdown table of shape_ceiling() results: RMSE after the warm-up and ratio to in situ."""
+    nodes = docs[0]["settings"]["nodes"]
+    kinds = [(f"shape_{n}", f"f shape {n}") for n in nodes] + [(f"branch_{n}", f"per branch {n}") for n in nodes] + \
+        [("weights", "weights")] + [(f"wbranch_{n}", f"weights + per branch {n}") for n in nodes]
+    ways = (("oracle", "oracle"), ("warmup", "warm-up fit"), ("rls", "RLS"))
+    cols = ["board"] + [f"{k}_{w}" for k, _ in kinds for w, _ in ways]
+    heads = [f"{h} {wh}" for _, h in kinds for _, wh in ways]
+    lines = ["**Learning f's shape (hat functions on the pre-f output y; per branch: one set of nodes per direction "
+             "of motion; weights: the transition's weights refitted, linearised): RMSE after the warm-up, deg (ratio to in situ)**", "",
+             "| calibrated on | run on | in situ | offset+gain (board) | " + " | ".join(heads) + " |",
+             "|---|---|---" + "|---" * len(cols) + "|"]
+    for d in docs:
+        for name, f in d["files"].items():
+            lines.append(f"| {Path(d['calibration']).stem} | {name} | {f['in_situ']:.2f} | " +
+                         " | ".join(f"{f[k]:.2f} ({f[k] / f['in_situ']:.1f})" for k in cols) + " |")
     return "\n".join(lines + [""])

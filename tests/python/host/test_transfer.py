@@ -221,3 +221,80 @@ def test_oracle_ceiling_bounds_the_causal_learners(catheter_transfer):
     assert c["in_situ"] == pytest.approx(r["in_situ"], rel=1e-9)  # the same reference, same samples
     assert c["affine"] <= r["transition_board"] and c["affine"] <= r["transition_affine"]
     assert c["affine_b_level"] <= c["affine"]
+
+
+def test_hat_basis_is_linear_interpolation_of_node_values_held_beyond_the_ends():
+    """H @ v is np.interp of the node values v (the correction the board would write on its grid),
+    each row sums to 1 (an offset is in the span), and beyond the range the end value is held."""
+    from playscope.evaluate.transfer import hat_basis
+
+    rng = np.random.default_rng(3)
+    y = np.r_[rng.uniform(-12.0, 12.0, 500), -30.0, 40.0]
+    v = rng.normal(size=7)
+    H = hat_basis(y, -10.0, 10.0, 7)
+    nodes = np.linspace(-10.0, 10.0, 7)
+    assert np.allclose(H.sum(axis=1), 1.0, atol=1e-12)
+    assert np.allclose(H @ v, np.interp(y, nodes, v), atol=1e-12)
+    assert H[-2] @ v == pytest.approx(v[0]) and H[-1] @ v == pytest.approx(v[-1])
+
+
+def test_rls_shape_without_forgetting_is_least_squares_with_the_p0_prior_and_forgetting_tracks_a_change():
+    """lambda = 1: the last theta is the ridge solution (H'H + I/p0)^-1 H'r exactly (RLS identity);
+    lambda < 1: after the target moves, theta follows it (the old value forgotten)."""
+    from playscope.evaluate.transfer import hat_basis, rls_shape
+
+    rng = np.random.default_rng(5)
+    y = rng.uniform(0.0, 1.0, 400)
+    H = hat_basis(y, 0.0, 1.0, 5)
+    th_true = np.array([0.5, -1.0, 2.0, 0.0, 1.5])
+    r = H @ th_true + 0.05 * rng.normal(size=y.size)
+    for p0 in (1.0, 0.25):
+        ridge = np.linalg.solve(H.T @ H + np.eye(5) / p0, H.T @ r)
+        assert np.allclose(rls_shape(H, r, 1.0, p0)[-1], ridge, atol=1e-9)
+    th_new = th_true + 3.0
+    r2 = np.r_[r, H @ th_new]  # the same readings again, the correction moved by 3 deg
+    end_forget = rls_shape(np.vstack([H, H]), r2, 1.0 - 2.0 ** -5)[-1]
+    end_keep = rls_shape(np.vstack([H, H]), r2, 1.0)[-1]
+    assert np.max(np.abs(end_forget - th_new)) < 0.05  # memory 32 readings of 400 new ones
+    assert np.max(np.abs(end_keep - th_new)) > 1.0     # without forgetting it averages the two
+
+
+REAL_ENDOSCOPE = REAL_CATHETER.parent / "endoscope"
+
+
+@pytest.mark.skipif(not (REAL_ENDOSCOPE / "60.txt").is_file(), reason="real endoscope recordings absent")
+def test_shape_ceiling_rows_keep_their_bounds_on_an_endoscope_pair():
+    """On 30 -> 60 deg (development files): the oracle of each correction is at most its warm-up
+    fit (both a constant theta on the same basis; the oracle is the least squares on the scored
+    samples), the per-branch span holds the f-shape span and the weights-plus-branch span holds
+    both (oracle lower), the reference is the
+    ceiling's in-situ figure, and the board row equals the transfer table's."""
+    from playscope.evaluate.transfer import learnable_ceiling, shape_ceiling
+
+    cal, run = REAL_ENDOSCOPE / "30.txt", REAL_ENDOSCOPE / "60.txt"
+    cache: dict = {}
+    f = shape_ceiling(cal, [run], in_situ_cache=cache, nodes=(4,))["files"]["60"]
+    for k in ("shape_4", "branch_4", "weights", "wbranch_4"):
+        assert f[f"{k}_oracle"] <= f[f"{k}_warmup"] + 1e-12
+    assert f["branch_4_oracle"] <= f["shape_4_oracle"] + 1e-12
+    assert f["wbranch_4_oracle"] <= min(f["branch_4_oracle"], f["weights_oracle"]) + 1e-12
+    assert f["in_situ"] == pytest.approx(learnable_ceiling(cal, [run], in_situ_cache=cache)["files"]["60"]["in_situ"], rel=1e-12)
+    tr = evaluate_transfer(cal, [run])["files"]["60"]["rmse_deg"]
+    assert f["board"] == pytest.approx(tr["transition_board"], rel=1e-9)
+    assert f["in_situ"] == pytest.approx(tr["in_situ"], rel=1e-9)
+
+
+@pytest.mark.skipif(not (REAL_ENDOSCOPE / "60.txt").is_file(), reason="real endoscope recordings absent")
+def test_shape_noregress_runs_the_learners_on_the_in_situ_model():
+    """Nothing drifts: the learners sit on the record's own in-situ model, so its reference and the
+    board learner's row are the transfer table's in_situ and in_situ_board on that record, and
+    the oracle bounds hold as on a transferred model."""
+    from playscope.evaluate.transfer import shape_noregress
+
+    run = REAL_ENDOSCOPE / "60.txt"
+    f = shape_noregress([run], nodes=(4,))["files"]["60"]
+    tr = evaluate_transfer(REAL_ENDOSCOPE / "30.txt", [run])["files"]["60"]["rmse_deg"]
+    assert f["in_situ"] == pytest.approx(tr["in_situ"], rel=1e-12)
+    assert f["board"] == pytest.approx(tr["in_situ_board"], rel=1e-9)
+    for k in ("shape_4", "branch_4", "weights", "wbranch_4"):
+        assert f[f"{k}_oracle"] <= min(f[f"{k}_warmup"], f["in_situ"]) + 1e-12
