@@ -783,10 +783,17 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     d_stop_ref = d_stops
     # Only where the image stops were found on most reversals (so the refined onsets are there to
     # fall back on): a record whose stops are not found says nothing against the model's delay.
-    if use_shape and n_d >= max(4, 0.5 * M) and abs(pf.t_delay_s - d_stop_ref) > P.DELAY_SPAN * period:
+    # On a periodic excitation the delay is ambiguous by a leg (0.47 s from the stops against
+    # 0.151 s, true, from the model on a 0.32 s triangle; 0.48 s from the model against 0.08 s,
+    # true, from the stops on a 0.4 s one): a configured delay that one of the two matches
+    # (within its 95 % interval and half a frame, as choose_delay) settles it.
+    shape_matches_cfg = t_delay_cfg is not None and np.isfinite(pf.t_delay_s) and \
+        pf.t_delay_ci_s[0] - period / 2 <= t_delay_cfg <= pf.t_delay_ci_s[1] + period / 2
+    if use_shape and n_d >= max(4, 0.5 * M) and abs(pf.t_delay_s - d_stop_ref) > P.DELAY_SPAN * period \
+            and not shape_matches_cfg:
         # The model's delay search walked beyond its own span from where the image stops put the
-        # delay (a registration jump fitted as a delay shift on a triangle: 0.48 s against 0.08 s
-        # from the stops): the model does not describe this record; the refined onsets do.
+        # delay, away from the configured one too: the model does not describe this record; the
+        # refined onsets do.
         warnings.append(f"onsets: the actuator-shape model's delay {pf.t_delay_s:.4f} s lies over {P.DELAY_SPAN:g} "
                         f"frames from the image stops' {d_stop_ref:.4f} s; its B samples are not used")
         pdoc["strayed_delay_s"] = pf.t_delay_s
