@@ -763,7 +763,12 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # cannot. The smaller of the two decides whether the play is taken up fast.
     act_frames = actuator_frames(t_enc, q, rt, rq, float(np.median(board.b[board.b > 0])) if np.any(board.b > 0)
                                  else float("nan"), period)
-    if np.isfinite(act_frames) and np.isfinite(ref_frames) and act_frames < ref_frames:
+    # Only when the refined onsets show that symptom: a step on most reversals that does not
+    # follow the direction (no registration to explain it). Otherwise they stand: on a ringing
+    # record the board's onsets come early and its width would call a slow take-up fast.
+    stepped = ref.ok & (ref.step_px > 0)
+    invented = stepped.sum() >= max(4, 0.5 * ref.ok.sum()) and not direction_jump(ref, rq)["found"]
+    if invented and np.isfinite(act_frames) and np.isfinite(ref_frames) and act_frames < ref_frames:
         ref_frames = act_frames
     if not _shape_fit_needed(ref_frames):
         pf = P.PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool),
