@@ -792,13 +792,13 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # 0.151 s, true, from the model on a 0.32 s triangle; 0.48 s from the model against 0.08 s,
     # true, from the stops on a 0.4 s one): a configured delay that one of the two matches
     # (within its 95 % interval and half a frame, as choose_delay) settles it.
-    shape_matches_cfg = t_delay_cfg is not None and np.isfinite(pf.t_delay_s) and \
-        pf.t_delay_ci_s[0] - period / 2 <= t_delay_cfg <= pf.t_delay_ci_s[1] + period / 2
-    if use_shape and n_d >= max(4, 0.5 * M) and abs(pf.t_delay_s - d_stop_ref) > P.DELAY_SPAN * period \
-            and not shape_matches_cfg:
-        # The model's delay search walked beyond its own span from where the image stops put the
-        # delay, away from the configured one too: the model does not describe this record; the
-        # refined onsets do.
+    # Without a configured delay nothing arbitrates and the model stands (the stops may be the
+    # ones a leg off: a 0.25 s triangle without one had the stops at 0.51 s, the model right).
+    stops_match_cfg = t_delay_cfg is not None and n_d >= max(4, 0.5 * M) and \
+        abs(t_delay_cfg - d_stop_ref) <= 1.96 * d_stops_se + period / 2
+    if use_shape and abs(pf.t_delay_s - d_stop_ref) > P.DELAY_SPAN * period and stops_match_cfg:
+        # The model's delay search walked beyond its own span from where the image stops and the
+        # configured delay agree: the model does not describe this record; the refined onsets do.
         warnings.append(f"onsets: the actuator-shape model's delay {pf.t_delay_s:.4f} s lies over {P.DELAY_SPAN:g} "
                         f"frames from the image stops' {d_stop_ref:.4f} s; its B samples are not used")
         pdoc["strayed_delay_s"] = pf.t_delay_s
