@@ -28,21 +28,19 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import b_score  # noqa: E402
 import marker_render as MR  # noqa: E402
 
-from playscope.fit.backlash import fit_backlash_samples  # noqa: E402
-from playscope.fit.onsets import OnsetConfig, run_onsets
-from playscope.fit.reversals import detect_reversals
-from playscope.fit.calibration import calibrate  # noqa: E402
 from playscope.base.errors import InputError  # noqa: E402
 from playscope.base.native import core  # noqa: E402
-from playscope.io.session import load_session  # noqa: E402
+from playscope.fit.backlash import fit_backlash_samples  # noqa: E402
+from playscope.fit.onsets import OnsetConfig, run_onsets  # noqa: E402
+from playscope.fit.reversals import detect_reversals  # noqa: E402
 from playscope.fit.table_build import build_table  # noqa: E402
 
 PAPER = "0.7 deg (4.7 %)"
@@ -78,21 +76,14 @@ def board_only(s, sc, g) -> float | None:
 
 
 def run_case(kw: dict, seed: int) -> dict:
-    """Render, write, calibrate; the errors against the renderer's true B."""
+    """Render, write, calibrate (b_score.score); the errors against the renderer's true B."""
     sc = MR.Scene(seed=seed, **kw)
     if sc.t_delay_config is not None and sc.t_delay_config < 0:
         sc.t_delay_config = 0.0  # a delay cannot be negative: -0.1 s from 0.08 is clamped to 0
-    with tempfile.TemporaryDirectory() as d:
-        MR.write(sc, Path(d))
-        s = load_session(d)
-        try:
-            cal = calibrate(s)
-        except InputError as e:
-            return {"refused": str(e)}
-    qm = cal.b_samples["q_mean"]
-    g = np.linspace(qm.min(), qm.max(), 400)
-    true = sc.B(g)
-    err_mm = float(np.mean(np.abs(cal.B(g) - true)))
+    res = b_score.score(lambda d: MR.write(sc, d), sc.B)
+    if "refused" in res:
+        return res
+    cal, s, g = res["cal"], res["session"], res["grid"]
     raw = cal.B.spl(np.clip(g, cal.B.lo, np.nextafter(cal.B.hi, -np.inf)))
     q0, q1 = cal.q_range
     tab = build_table(cal.B, cal.f, q0, q1, "mm")
@@ -100,8 +91,8 @@ def run_case(kw: dict, seed: int) -> dict:
     n = (len(tab.blob) - h) // 8  # [header][n B entries][n f entries], int32 Q16.16
     tab_min = float(np.frombuffer(tab.blob[h:h + 4 * n], np.int32).min()) / core()[1].PS_Q16_ONE
     ring = cal.onset_refine["ringing"]
-    return {"board_pct": board_only(s, sc, g), "err_deg": float(np.degrees(err_mm / sc.q_per_rad)),
-            "err_pct": 100 * err_mm / float(np.mean(true)),
+    return {"board_pct": board_only(s, sc, g), "err_deg": float(np.degrees(res["err_mm"] / sc.q_per_rad)),
+            "err_pct": res["err_pct"],
             "b_min": float(np.min(raw)), "table_min": tab_min, "t_delay": cal.t_delay_s,
             "ring_hz": ring.get("freq_hz"), "ring_zeta": ring.get("damping_ratio"),
             "samples": cal.n_b_samples, "reversals": cal.reversals,

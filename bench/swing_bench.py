@@ -7,7 +7,7 @@ worst rendering beside the mean. Figures: B mean absolute error over the sampled
 of the mean true B; t_delay used and its error in frame periods (acceptance: within 1/8); the
 delay the record gives and its interval; refusals count as failures.
 
-Usage: PYTHONPATH=host .venv/bin/python bench/swing_bench.py [--group development|set-aside|fresh]
+Usage: PYTHONPATH=host .venv/bin/python bench/swing_bench.py [--group development|set-aside|fresh|third]
        [--only NAME ...]
 """
 
@@ -15,50 +15,37 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import b_score  # noqa: E402
 import swing_cases  # noqa: E402
 import swing_render as SR  # noqa: E402
 
-from playscope.fit.calibration import calibrate  # noqa: E402
-from playscope.base.errors import InputError  # noqa: E402
-from playscope.io.session import load_session  # noqa: E402
-
 
 def run(r: SR.Rendering) -> dict:
-    """Render, write, calibrate; errors against the truth."""
-    with tempfile.TemporaryDirectory() as d:
-        SR.write(r, Path(d))
-        s = load_session(d)
-        t0 = time.time()
-        try:
-            cal = calibrate(s)
-        except InputError as e:
-            return {"refused": str(e)}
-    qm = cal.b_samples["q_mean"]
-    g = np.linspace(qm.min(), qm.max(), 400)
-    true = r.B(g)
-    err = 100 * float(np.mean(np.abs(cal.B(g) - true))) / float(np.mean(true))
+    """Render, write, calibrate (b_score.score); errors against the truth."""
+    sc = b_score.score(lambda d: SR.write(r, d), r.B)
+    if "refused" in sc:
+        return sc
+    cal = sc["cal"]
     ref = cal.onset_refine or {}
     td = ref.get("t_delay", {})
-    return {"err_pct": err, "t_delay": cal.t_delay_s, "td_err_frames": (cal.t_delay_s - r.delay_s) * r.fps,
+    return {"err_pct": sc["err_pct"], "t_delay": cal.t_delay_s, "td_err_frames": (cal.t_delay_s - r.delay_s) * r.fps,
             "record_s": td.get("record_s"), "record_ci_s": td.get("record_ci95_s"),
             "samples": cal.n_b_samples, "reversals": cal.reversals, "warnings": len(cal.warnings),
-            "wall_s": time.time() - t0, "reasons": (cal.doc.get("onset") or {}).get("reasons")}
+            "wall_s": sc["wall_s"], "reasons": (cal.doc.get("onset") or {}).get("reasons")}
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--group", choices=("development", "set-aside", "fresh"), default="development")
+    ap.add_argument("--group", choices=("development", "set-aside", "fresh", "third"), default="development")
     ap.add_argument("--only", nargs="*", help="rendering names to run (default: all of the group)")
     a = ap.parse_args(argv)
     cases = {"development": swing_cases.DEVELOPMENT, "set-aside": swing_cases.SET_ASIDE,
-             "fresh": swing_cases.SET_ASIDE_FRESH}[a.group]
+             "fresh": swing_cases.SET_ASIDE_FRESH, "third": swing_cases.SET_ASIDE_THIRD}[a.group]
     if a.only:
         cases = [c for c in cases if c[2].name in a.only]
     print(f"group {a.group}: {len(cases)} renderings (bench/swing_render.py)")

@@ -83,3 +83,56 @@ def _fresh() -> list:
 
 
 SET_ASIDE_FRESH = _fresh()
+
+# A THIRD set-aside group, fixed (this block committed) before any of the rules it judges: the
+# configured-delay override test, the within-a-frame onsets under heavy noise, ringing through
+# calibrate and the B stiffness on registration-flipped angles were all changed after it. The
+# first two set-aside groups are spent (each run once; now development data). Parameters are
+# drawn, not chosen: a fixed generator (seed 4127) draws each one uniformly across the ranges a
+# bench varies, per planned row; the seeds 401-412 are new. The plan guarantees the rows the
+# rules were written for: fast swings at 25 fps (swing_s 0.12-0.18 s, the play taken up within
+# a frame), heavy noise (0.2-0.3 px), registration, a wrong or missing configured delay, ringing.
+# Run it once, at the end, after the rules are settled.
+
+
+def _third() -> list:
+    import numpy as np
+
+    g = np.random.default_rng(4127)
+    # (category, limit %, shape, fps or None to draw, fast swings, heavy noise)
+    plan = [("none", 5.0, "swings", 25.0, True, False), ("none", 5.0, "swings", 25.0, True, True),
+            ("none", 5.0, "sine", None, False, True), ("none", 5.0, "triangle", None, False, False),
+            ("registration", 5.0, "swings", 25.0, True, False), ("registration", 5.0, "sine", None, False, True),
+            ("registration", 5.0, "triangle", None, False, False),
+            ("delay", 10.0, "swings", 25.0, True, False), ("delay", 10.0, "sine", None, False, False),
+            ("delay", 10.0, "triangle", None, False, True),
+            ("ringing", 10.0, "swings", None, False, False), ("ringing", 10.0, "sine", None, False, True)]
+    out = []
+    for i, (cat, limit, shape, fps, fast, heavy) in enumerate(plan):
+        fps = fps if fps is not None else float(g.choice([25.0, 30.0, 60.0]))
+        delay = round(float(g.uniform(0.04, 0.20)), 3)
+        noise = g.uniform(0.2, 0.3) if heavy else g.uniform(0.05, 0.3)
+        kw = dict(shape=shape, fps=fps, jitter=round(float(g.uniform(0.1, 0.45)), 2),
+                  noise_px=round(float(noise), 3), delay_s=delay, delay_cfg_s=delay,
+                  b_lo=round(float(g.uniform(0.10, 0.15)), 3), b_hi=round(float(g.uniform(0.22, 0.32)), 3),
+                  b_qc=round(float(g.uniform(-0.6, 0.6)), 2), b_w=round(float(g.uniform(0.9, 1.5)), 2))
+        if shape == "swings":
+            kw["swing_s"] = round(float(g.uniform(0.12, 0.18) if fast else g.uniform(0.12, 0.30)), 3)
+        elif shape == "triangle":
+            kw["swing_s"] = round(float(g.uniform(0.25, 0.6)), 3)
+        if cat == "registration":
+            kw["reg_deg"] = round(float(g.uniform(1.0, 1.5)), 2)
+        elif cat == "delay":
+            # a wrong configured delay (off by 50-120 ms, kept in 0-0.3 s), or none at all
+            off = float(g.uniform(0.05, 0.12)) * (1 if g.uniform() < 0.5 else -1)
+            cfg = delay + off if 0.0 <= delay + off <= 0.3 else delay - off
+            kw["delay_cfg_s"] = None if shape == "sine" else round(cfg, 3)
+        elif cat == "ringing":
+            kw["ring_hz"] = round(float(g.uniform(2.0, 5.0)), 2)
+            kw["ring_zeta"] = round(float(g.uniform(0.03, 0.1)), 3)
+        out.append((cat, limit, R(f"third-{cat}-{shape}{fps:g}{'-fast' if fast else ''}{'-noisy' if heavy else ''}",
+                                  401 + i, **kw)))
+    return out
+
+
+SET_ASIDE_THIRD = _third()

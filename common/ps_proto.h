@@ -34,6 +34,8 @@ enum psp_msg_type {
     PSP_MSG_ENC_STREAM = 0x20,   /* H->B psp_stream_ctl_t; B->H psp_enc_samples_t batches */
     PSP_MSG_REVERSAL = 0x21,     /* H->B psp_reversal_t: a commanded direction change (t1, q1) */
     PSP_MSG_MARKER_OBS = 0x22,   /* H->B psp_marker_obs_t; B->H empty, or psp_b_sample_t on an onset */
+    PSP_MSG_EXC_CONFIG = 0x23,   /* H->B psp_exc_config_t: the excitation (paced to the camera or not); B->H
+                                    psp_exc_config_t as the board will run it (speed filled in) */
     PSP_MSG_COMP_STEP = 0x30,    /* H->B psp_comp_req_t; B->H psp_comp_resp_t */
     PSP_MSG_LEARN = 0x31,        /* H->B psp_learn_ctl_t: on-line B update on/off/query; B->H psp_learn_state_t */
     PSP_MSG_ERROR = 0x7F,        /* B->H psp_error_t */
@@ -191,6 +193,27 @@ typedef struct PS_PACKED psp_comp_resp {
     int32_t q_ref_q16;           /* q*[k], actuator units */
 } psp_comp_resp_t;
 PS_STATIC_ASSERT(sizeof(psp_comp_resp_t) == 4, "psp_comp_resp_t must be 4 bytes");
+
+/* The excitation the board runs in PSP_MODE_EXCITATION (firmware/core/exc.h), set from the
+ * host (run-insitu) on any image. v_q32 > 0: that speed; v_q32 == 0: paced to the camera
+ * (exc_pace_config: the smallest play b_low taken up over EXC_PACE_FRAMES frames of
+ * frame_period_us), which needs 0 < b_low <= b_high. frame_period_us != 0 also becomes the
+ * onset detector's frame period. Refused in excitation mode (PSP_ERR_STATE); an invalid one
+ * (PSP_ERR_RANGE, detail = exc_status_t) changes nothing. With a table loaded the trajectory
+ * spans the table's q range (q_start, q_end are then checked, not used). */
+typedef struct PS_PACKED psp_exc_config {
+    int32_t q_start_q16;         /* actuator units */
+    int32_t q_end_q16;
+    int32_t amplitude_q16;
+    int32_t advance_q16;
+    int64_t v_q32;               /* actuator units per tick, Q32.32; 0: paced */
+    int32_t b_low_q16;           /* expected play range, actuator units (pacing) */
+    int32_t b_high_q16;
+    uint32_t frame_period_us;    /* camera frame period; 0: keep the board's */
+    uint8_t return_sweep;        /* 0 or 1 */
+    uint8_t reserved[3];
+} psp_exc_config_t;
+PS_STATIC_ASSERT(sizeof(psp_exc_config_t) == 40, "psp_exc_config_t must be 40 bytes");
 
 /* On-line B update during use (docs/online.md): the B samples the onset
  * detector completes are queued and learnt outside the tick (firmware/core/b_online.h). */

@@ -26,6 +26,7 @@ psl_config_t psl_default_config(uint32_t tick_hz)
     /* 10 units/s as Q32.32 per tick; init time, so the divide is fine. */
     c.exc.v_q32 = (int64_t)(((uint64_t)10 << 32) / (tick_hz ? tick_hz : 1000u));
     c.exc.return_sweep = true;
+    c.pace.tick_hz = tick_hz ? tick_hz : 1000u;
     c.onset = onset_default_config();
     c.upload_timeout_us = PSL_UPLOAD_TIMEOUT_US;
     return c;
@@ -83,7 +84,7 @@ void psl_init(psl_t *l, const psl_config_t *cfg, const pss_flash_t *flash, psl_w
     l->write = write;
     l->write_ctx = write_ctx;
     psf_parser_reset(&l->parser);
-    psa_config_t lc = {.onset = l->cfg.onset, .exc = l->cfg.exc, .smooth = false};
+    psa_config_t lc = {.onset = l->cfg.onset, .exc = l->cfg.exc, .pace = l->cfg.pace, .smooth = false};
     psa_init(&l->loop, &lc);
     l->mode = PSP_MODE_IDLE;
     l->active_buf = PSS_NO_SLOT;
@@ -118,6 +119,7 @@ static int expected_len(uint8_t type)
     case PSP_MSG_ENC_STREAM: return (int)sizeof(psp_stream_ctl_t);
     case PSP_MSG_REVERSAL: return (int)sizeof(psp_reversal_t);
     case PSP_MSG_MARKER_OBS: return (int)sizeof(psp_marker_obs_t);
+    case PSP_MSG_EXC_CONFIG: return (int)sizeof(psp_exc_config_t);
     case PSP_MSG_COMP_STEP: return (int)sizeof(psp_comp_req_t);
     case PSP_MSG_LEARN: return (int)sizeof(psp_learn_ctl_t);
     default: return -1;
@@ -214,6 +216,47 @@ static uint16_t do_marker(psl_t *l, uint16_t seq, const uint8_t *pl)
     return PSP_OK;
 }
 
+/* The excitation (and its pacing to the camera) from the host: checked as psa_set_mode will
+ * run it (exc_pace_config / exc_init on the given range), then kept in cfg and the loop's
+ * config for the next excitation run. Configuration time: exc_pace_config's 64-bit divide. */
+static uint16_t do_exc_config(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t *detail)
+{
+    psp_exc_config_t m;
+    memcpy(&m, pl, sizeof(m));
+    if (l->loop.mode == PSA_MODE_EXCITATION)
+        return PSP_ERR_STATE; /* the running trajectory keeps its config */
+    if (m.return_sweep > 1 || (m.v_q32 < 0))
+        return PSP_ERR_RANGE;
+    exc_config_t c = {.q_start_q16 = m.q_start_q16, .q_end_q16 = m.q_end_q16, .amplitude_q16 = m.amplitude_q16,
+                      .advance_q16 = m.advance_q16, .v_q32 = m.v_q32, .return_sweep = m.return_sweep != 0};
+    exc_pace_t pace = {.b_low_q16 = 0, .b_high_q16 = 0, .tick_hz = l->cfg.pace.tick_hz};
+    uint32_t period_us = m.frame_period_us ? m.frame_period_us : l->loop.cfg.onset.frame_period_us;
+    exc_status_t st;
+    if (m.v_q32 == 0) {
+        pace.b_low_q16 = m.b_low_q16;
+        pace.b_high_q16 = m.b_high_q16;
+        st = pace.b_high_q16 > 0 ? exc_pace_config(&c, pace.b_low_q16, pace.b_high_q16, period_us, pace.tick_hz)
+                                 : EXC_ERR_PACE;
+    } else {
+        exc_t probe;
+        st = exc_init(&probe, &c);
+    }
+    if (st != EXC_OK) {
+        *detail = (uint8_t)st;
+        return PSP_ERR_RANGE;
+    }
+    l->cfg.exc = c;
+    l->cfg.pace = pace;
+    l->cfg.onset.frame_period_us = period_us;
+    l->loop.cfg.exc = c;
+    l->loop.cfg.pace = pace;
+    l->loop.cfg.onset.frame_period_us = period_us; /* the detector restarts with it on the next run */
+    m.v_q32 = c.v_q32;
+    m.frame_period_us = period_us;
+    psl_send(l, PSP_MSG_EXC_CONFIG | PSP_RESPONSE, seq, &m, sizeof(m));
+    return PSP_OK;
+}
+
 static uint16_t do_comp(psl_t *l, uint16_t seq, const uint8_t *pl)
 {
     psp_comp_req_t r;
@@ -277,6 +320,7 @@ void psl_handle(psl_t *l, const psp_frame_header_t *hdr, const uint8_t *payload)
     case PSP_MSG_ENC_STREAM: err = do_stream(l, seq, payload); break;
     case PSP_MSG_REVERSAL: err = do_reversal(l, seq, payload); break;
     case PSP_MSG_MARKER_OBS: err = do_marker(l, seq, payload); break;
+    case PSP_MSG_EXC_CONFIG: err = do_exc_config(l, seq, payload, &detail); break;
     case PSP_MSG_COMP_STEP: err = do_comp(l, seq, payload); break;
     case PSP_MSG_LEARN: err = psl_do_learn(l, seq, payload); break;
     default: err = PSP_ERR_TYPE; break;

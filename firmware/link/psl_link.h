@@ -29,6 +29,8 @@ typedef struct {
     uint32_t fw_version;         /* major << 16 | minor << 8 | patch */
     uint32_t board_id[3];        /* unique id reported by PSP_MSG_INFO */
     exc_config_t exc;            /* excitation used when no table is loaded (with a table: its q range) */
+    exc_pace_t pace;             /* pacing of exc to the camera (b_high 0: off) and the tick rate;
+                                  * both set at run time by PSP_MSG_EXC_CONFIG */
     onset_config_t onset;        /* on-board onset detector */
     uint32_t upload_timeout_us;  /* an upload session with no request for this long is free again (board clock) */
 } psl_config_t;
@@ -86,7 +88,8 @@ typedef struct {
 } psl_t;
 
 /* Defaults: version 0.1.0, board id 0, onset_default_config(), an excitation over
- * [0, 10] actuator units with amplitude 1 and advance 0.25 at 10 units/s for tick_hz,
+ * [0, 10] actuator units with amplitude 1 and advance 0.25 at 10 units/s for tick_hz (pacing
+ * off, pace.tick_hz = tick_hz),
  * upload sessions expiring after PSL_UPLOAD_TIMEOUT_US. */
 psl_config_t psl_default_config(uint32_t tick_hz);
 

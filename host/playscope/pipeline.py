@@ -443,7 +443,9 @@ def write_report_file(cal_path, session_dir, out, eval_json=None) -> Reported:
 class InsituSource:
     """Where run_insitu's frames come from: a simulated instrument rendered from the board's
     encoder stream (sim_plant, with its seed, board time_scale and excitation exc) or a video
-    file / camera index with the geometry file (session.json: robot, camera, hand-eye)."""
+    file / camera index with the geometry file (session.json: robot, camera, hand-eye). exc, the
+    excitation Q0:Q1:AMP:ADV:V, is sent to the board (PSP_MSG_EXC_CONFIG) on every image; with
+    pace the board paces it itself (its exc_pace_config, the same speed as fit.pacing)."""
 
     video: str | int | None = None
     geometry: str | None = None
@@ -451,6 +453,7 @@ class InsituSource:
     seed: int = 1
     time_scale: float = 1.0
     exc: str | None = None
+    pace: tuple | None = None    # (b_low, b_high, fps) when exc's speed was paced to the camera
 
 
 @dataclass
@@ -467,6 +470,7 @@ class InsituRan:
     b_valid: int
     q_range: list
     flash: dict | None = None
+    excitation: dict | None = None
     sim_B_err_mm: dict | None = None
     sim_grid: tuple = ()
 
@@ -488,6 +492,8 @@ class InsituRan:
             d["sim_B_err_mm"] = self.sim_B_err_mm
         if self.flash is not None:
             d["flash"] = self.flash
+        if self.excitation is not None:
+            d["excitation"] = self.excitation
         return d
 
 
@@ -526,6 +532,14 @@ def run_insitu(link, src: InsituSource, seconds=None, n_ctrl: int = 14, out=None
         robot, camera, hand_eye, t_delay = read_geometry(src.geometry)
         source = VideoSource(src.video)
         total = None
+    board_exc = None
+    if src.exc:  # the excitation reaches the board whatever its image (virtual, UART, USB)
+        link.set_mode("idle")
+        if src.pace:
+            board_exc = link.exc_config(":".join(src.exc.split(":")[:4]), *src.pace)
+        else:
+            board_exc = link.exc_config(src.exc)
+        board_exc["exc"] = src.exc
     try:
         run = run_loop(link, source, seconds,
                        progress=(lambda s, n: progress(s, n, total)) if progress else None)
@@ -533,7 +547,8 @@ def run_insitu(link, src: InsituSource, seconds=None, n_ctrl: int = 14, out=None
         if not plant:
             source.close()
     valid = run.valid()
-    res = InsituRan(run.ended, run.board_s, run.wall_s, len(run.mk_t_s), len(run.samples), len(valid), [])
+    res = InsituRan(run.ended, run.board_s, run.wall_s, len(run.mk_t_s), len(run.samples), len(valid), [],
+                    excitation=board_exc)
     if ran:
         ran(res.line())
     s = session_of(run, robot, camera, hand_eye, t_delay)

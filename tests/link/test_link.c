@@ -3,6 +3,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <math.h>
 #include <string.h>
 #include <cmocka.h>
@@ -772,6 +773,80 @@ static void test_readback_mismatch_keeps_previous(void **state)
     assert_int_equal(info().active_generation, 2);
 }
 
+static resp_t exc_config(psp_exc_config_t *m)
+{
+    return req(PSP_MSG_EXC_CONFIG, m, sizeof *m);
+}
+
+static int32_t run_excitation(uint32_t ticks)
+{
+    psp_set_mode_t md = {.mode = PSP_MODE_EXCITATION};
+    expect_ok(req(PSP_MSG_SET_MODE, &md, sizeof md), PSP_MSG_SET_MODE);
+    int32_t q = 0;
+    for (uint32_t k = 1; k <= ticks; k++)
+        q = psl_tick(&L, k * 1000u, q);
+    md.mode = PSP_MODE_IDLE;
+    expect_ok(req(PSP_MSG_SET_MODE, &md, sizeof md), PSP_MSG_SET_MODE);
+    out_n = 0;
+    return q;
+}
+
+/* The excitation set from the host (PSP_MSG_EXC_CONFIG), paced to the camera: the answer
+ * carries the speed of the pacing rule (v = b_low / (EXC_PACE_FRAMES frame periods), here
+ * computed in double), the board runs it, and the frame period reaches the onset detector.
+ * A refused config (play wider than the swing's shorter leg; any config during an excitation)
+ * changes nothing; a given speed is taken as is. */
+static void test_exc_config_paces_the_excitation(void **state)
+{
+    (void)state;
+    const double b_low = 0.25, T = 0.04, tick_hz = 1000.0;
+    psp_exc_config_t m = {.q_start_q16 = 0, .q_end_q16 = 10 * 65536, .amplitude_q16 = 65536,
+                          .advance_q16 = 65536 / 4, .v_q32 = 0, .b_low_q16 = (int32_t)(b_low * 65536),
+                          .b_high_q16 = 65536 / 2, .frame_period_us = 40000, .return_sweep = 1};
+    resp_t r = exc_config(&m);
+    expect_ok(r, PSP_MSG_EXC_CONFIG);
+    assert_int_equal(r.len, sizeof(psp_exc_config_t));
+    psp_exc_config_t a;
+    memcpy(&a, r.pl, sizeof a);
+    const int64_t v_ref = (int64_t)floor(b_low / (EXC_PACE_FRAMES * T) / tick_hz * 4294967296.0);
+    assert_int_equal(a.v_q32, v_ref);
+    assert_int_equal(a.frame_period_us, 40000);
+    assert_int_equal(L.loop.cfg.onset.frame_period_us, 40000);
+    /* 0.5 s at 1.5625 units/s on the first (rising) leg: 0.78125 units. */
+    int32_t q = run_excitation(500);
+    assert_true(abs(q - (int32_t)(0.78125 * 65536)) <= 1);
+
+    /* The widest play must fit the shorter leg (amplitude - advance = 0.75): 0.8 is refused. */
+    psp_exc_config_t bad = m;
+    bad.b_high_q16 = (int32_t)(0.8 * 65536);
+    r = exc_config(&bad);
+    expect_err(r, PSP_ERR_RANGE);
+    assert_int_equal(r.pl[3], EXC_ERR_PACE);
+    bad = m;
+    bad.b_low_q16 = 0; /* pacing without a play range */
+    expect_err(exc_config(&bad), PSP_ERR_RANGE);
+    bad = m;
+    bad.return_sweep = 2;
+    expect_err(exc_config(&bad), PSP_ERR_RANGE);
+    psp_set_mode_t md = {.mode = PSP_MODE_EXCITATION};
+    expect_ok(req(PSP_MSG_SET_MODE, &md, sizeof md), PSP_MSG_SET_MODE);
+    expect_err(exc_config(&m), PSP_ERR_STATE);
+    md.mode = PSP_MODE_IDLE;
+    expect_ok(req(PSP_MSG_SET_MODE, &md, sizeof md), PSP_MSG_SET_MODE);
+    q = run_excitation(500); /* unchanged by the refusals */
+    assert_true(abs(q - (int32_t)(0.78125 * 65536)) <= 1);
+
+    /* A given speed (2 units/s) is run as is, pacing off. */
+    m.v_q32 = (int64_t)(2.0 / tick_hz * 4294967296.0);
+    r = exc_config(&m);
+    expect_ok(r, PSP_MSG_EXC_CONFIG);
+    memcpy(&a, r.pl, sizeof a);
+    assert_int_equal(a.v_q32, m.v_q32);
+    assert_int_equal(L.cfg.pace.b_high_q16, 0);
+    q = run_excitation(250);
+    assert_true(abs(q - 65536 / 2) <= 1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -788,6 +863,7 @@ int main(void)
         cmocka_unit_test_setup(test_power_cut_via_handler, setup),
         cmocka_unit_test_setup(test_readback_mismatch_keeps_previous, setup),
         cmocka_unit_test_setup(test_upload_session_one_owner, setup),
+        cmocka_unit_test_setup(test_exc_config_paces_the_excitation, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -241,6 +241,43 @@ class Link:
         st = self.ffi.from_buffer("psp_learn_state_t *", pl)
         return {k: int(getattr(st, k)) for k in ("samples", "queued", "dropped", "b_crc32", "n_grid", "n_nodes", "on")}
 
+    def exc_config(self, exc: str, b_low: float | None = None, b_high: float | None = None,
+                   fps: float | None = None) -> dict:
+        """Set the excitation the board runs next (PSP_MSG_EXC_CONFIG), on any image. exc
+        "Q0:Q1:AMP:ADV:V" (actuator units, V units/s) runs at V; "Q0:Q1:AMP:ADV" is paced to the
+        camera by the board itself (exc_pace_config: b_low taken up over EXC_PACE_FRAMES frames),
+        which needs the expected play b_low, b_high (units) and the camera's fps (also the onset
+        detector's frame period). Q values as the board holds them (truncated to Q16, as
+        fit.pacing.paced_exc). Returns what the board will run: {"v_q32", "v" (units/s),
+        "frame_period_us"}. Errors: ValueError for a malformed exc or a missing play range or
+        frame rate; DeviceError RANGE (detail: exc_status_t) for a config the board refuses,
+        STATE during an excitation."""
+        from ..base import native
+        from ..fit.pacing import TICK_HZ, _play_q16, frame_period_us
+
+        parts = exc.split(":")
+        try:
+            vals = [float(x) for x in parts]
+        except ValueError:
+            vals = []
+        if len(vals) not in (4, 5):
+            raise ValueError(f"excitation {exc!r} is not Q0:Q1:AMP:ADV[:V] (4 or 5 numbers separated by ':')")
+        q16 = [int(x * native.Q16_ONE) for x in vals[:4]]
+        f = dict(q_start_q16=q16[0], q_end_q16=q16[1], amplitude_q16=q16[2], advance_q16=q16[3], return_sweep=1,
+                 frame_period_us=frame_period_us(fps) if fps is not None else 0)
+        if len(vals) == 5:
+            f["v_q32"] = int(vals[4] / TICK_HZ * 2.0**32)
+            if f["v_q32"] <= 0:
+                raise ValueError(f"excitation {exc!r}: the speed V must be > 0")
+        else:
+            if b_low is None or b_high is None or fps is None:
+                raise ValueError(f"excitation {exc!r} without a speed is paced to the camera: it needs the "
+                                 f"expected play range and the frame rate")
+            f.update(v_q32=0, b_low_q16=_play_q16("b_low", b_low), b_high_q16=_play_q16("b_high", b_high))
+        pl = self.request(self.lib.PSP_MSG_EXC_CONFIG, _struct_bytes(self.ffi, "psp_exc_config_t", **f))
+        a = self.ffi.from_buffer("psp_exc_config_t *", pl)
+        return {"v_q32": int(a.v_q32), "v": int(a.v_q32) * TICK_HZ / 2.0**32, "frame_period_us": int(a.frame_period_us)}
+
     def poll_events(self, timeout_s: float = 0.0) -> list:
         """Drain unsolicited frames: ('b', dict) for B samples, ('enc', [(t_us, q_q16)...])."""
         if timeout_s > 0:

@@ -72,7 +72,8 @@ def cmd_run_insitu(args) -> int:
         # Lock-step: the board waits for the host's observations (at most SIM_LOCKSTEP_MS of board time
         # ahead), so a loaded machine slows the run instead of moving the board's onsets.
         vb = ["--time-scale", f"{args.time_scale:g}", "--lockstep-ms", str(SIM_LOCKSTEP_MS)]
-    if args.device == "virtual" and (args.sim_plant or args.video is not None):  # no source: said below
+    args.pace = None
+    if args.sim_plant or args.video is not None:  # no source: said below
         exc4 = args.exc
         try:
             paced = pace_excitation(args.exc, args.fps, args.b_range, args.sim_plant, args.seed, args.video)
@@ -81,8 +82,10 @@ def cmd_run_insitu(args) -> int:
             return 2
         if paced.fps is not None:
             print(paced.line(), file=sys.stderr)
+            args.pace = (paced.b_low_mm, paced.b_high_mm, paced.fps)
         args.exc = paced.exc
-        vb += ["--exc", exc4] + paced.vboard_args  # without V: the board computes it itself (--pace)
+        if args.device == "virtual":  # also at start-up (the link sends it again: every image takes it so)
+            vb += ["--exc", exc4] + paced.vboard_args  # without V: the board computes it itself (--pace)
     with contextlib.closing(_open(args, vb)) as link:
         return _run_insitu(link, args)
 
@@ -101,7 +104,7 @@ def _run_insitu(link, args) -> int:
                   file=sys.stderr)
             return 2
     src = InsituSource(video=args.video, geometry=args.geometry, sim_plant=args.sim_plant, seed=args.seed,
-                       time_scale=args.time_scale, exc=args.exc)
+                       time_scale=args.time_scale, exc=args.exc, pace=args.pace)
     if args.sim_plant:
         print(f"SIMULATION: --sim-plant renders a simulated instrument (simulator preset 'ideal') "
               f"from the board's encoder stream; board clock x{args.time_scale:g}", file=sys.stderr)

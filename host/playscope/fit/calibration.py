@@ -313,7 +313,8 @@ class BAndModel:
     data: T.FitData
 
 
-def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src) -> BAndModel:
+def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src,
+                       c_confounded: bool = False) -> BAndModel:
     """B(q)'s stiffness and the model chosen together by the model choice's own cross-
     validation on c (transition.choose_model: rolling origin, state from the record's start).
 
@@ -335,7 +336,10 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     on: the onset samples (onsets.Onsets); bfit: their fit_backlash_auto result; t_enc, q: (N,)
     s, actuator units; t_f, c_f: (F,) s, deg; td: acquisition delay, s; model_kind "auto"|"pi";
     n_ctrl: f's control points for the pure-play candidate (14 from calibrate: the
-    cross-validated f_remain N needs B first); src: file named in errors.
+    cross-validated f_remain N needs B first); src: file named in errors. c_confounded: the image
+    jumps with the direction of motion (onset_refine.direction_jump: a registration or channel
+    error), so c carries a direction-following offset that a wider or narrower B mimics; the CV
+    on c then has no evidence about B's stiffness and the B-sample CV's own pick is kept.
     Returns BAndModel (the kept B, its transition, f, sign and choice dict, every alternative's
     row, the kept alternative's FitData)."""
     alts = backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)
@@ -358,7 +362,8 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     # error of the best: B is the anchor measured by eq. 1, and a CV on c that cannot tell the
     # stiffnesses apart has no evidence to move it. Beyond, the stiffest B within one SE of the
     # best (rows are stiffest first).
-    i = own if rows[own]["cv_rmse_deg"] <= limit else next(i for i, d in enumerate(rows) if d["cv_rmse_deg"] <= limit)
+    i = own if c_confounded or rows[own]["cv_rmse_deg"] <= limit else \
+        next(i for i, d in enumerate(rows) if d["cv_rmse_deg"] <= limit)
     tr, f, sign, ch = choices[i].result()
     return BAndModel(alts[i][1], tr, f, sign, ch, rows, choices[i].data)
 
@@ -513,7 +518,8 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     model_cv, fit_data = None, None
     if model_kind != "play" and rt.size >= MIN_REVERSALS_TRANSITION:
         # B(q)'s stiffness by the model's own cross-validation on c (see choose_b_and_model).
-        joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src)
+        jump = ((refine_doc or {}).get("registration") or {}).get("found", False)
+        joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src, c_confounded=jump)
         bfit, model_cv, fit_data = joint.bfit, joint.rows, joint.data
         B, w = bfit.B, bfit.weight
     if fit_data is None or fit_data.B is not B:

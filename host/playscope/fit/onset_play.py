@@ -49,7 +49,7 @@ PRE_S, POST_S = 1.0, 3.5              # window around t1 (s, scene clock)
 NB = 160                              # b grid points
 RING_HZ = np.arange(1.5, 7.01, 0.5)   # ringing searched (Hz) when the record rings
 RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
-RING_GAIN = np.arange(-1.0, 4.0001, 0.1)  # the tip mode's gain g searched (drive z + g (y - z))
+RING_GAIN = np.arange(0.0, 4.0001, 0.1)  # the tip mode's gain g searched (drive z + g (y - z)); g >= 0: a tip driven through its base lags it
 DELAY_REVERSALS = 24
 JUMP_T = 4.0                          # signed-jump mean / standard error for a record's jump
 

@@ -45,7 +45,7 @@ POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line ho
 class Refined:
     """Per reversal (M,): refined onset t2_s and its sigma_t2_s (s), stop time tau0_s (image
     clock), step_px (|s|, 0 without a step), ring_hz / ring_alpha (0 without ringing) and
-    ring_px (|r|), ok (fit done)."""
+    ring_px (|r|), ok (fit done); step_vec (M, 2) the step s itself (px, 0 without one)."""
 
     t2_s: np.ndarray
     sigma_t2_s: np.ndarray
@@ -55,6 +55,7 @@ class Refined:
     ring_alpha: np.ndarray
     ring_px: np.ndarray
     ok: np.ndarray
+    step_vec: np.ndarray | None = None
 
 
 def motor_stop_times(t: np.ndarray, q: np.ndarray, t1: np.ndarray, q1: np.ndarray, tol: float) -> np.ndarray:
@@ -353,6 +354,7 @@ class _Episode:
         b = int(np.argmax(lw))
         self.j = int(JJ[b])
         self.step_px = float(np.linalg.norm(coef[b, 1])) if self.j >= 0 else 0.0
+        self.step_vec = np.array(coef[b, 1], float) if self.j >= 0 else np.zeros(2)
         if not np.isfinite(lw[b]):  # no candidate moves back along the old motion
             self.found = False
         if final and self.found:
@@ -418,6 +420,7 @@ def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np
     M = t_stop.size
     res = {k: np.full(M, np.nan) for k in ("t2", "sd", "tau0", "step", "hz", "al", "ring")}
     okm = np.zeros(M, bool)
+    stepv = np.zeros((M, 2))
     for r in range(M):  # episodes are independent; each is a handful of batched solves
         t0 = t_stop[r] + t_delay_s
         t_lim = t_next_stop[r] + t_delay_s - 2 * period_s  # the next episode's old motion stays out
@@ -454,10 +457,11 @@ def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np
         res["sd"][r] = ep.sd * period_s
         res["tau0"][r] = t0 + ep.tau0 * period_s
         res["step"][r] = ep.step_px
+        stepv[r] = getattr(ep, "step_vec", np.zeros(2))
         res["hz"][r] = ep.om / period_s / (2 * np.pi)
         res["al"][r] = ep.al / period_s
         res["ring"][r] = ep.ring_px
-    return Refined(res["t2"], res["sd"], res["tau0"], res["step"], res["hz"], res["al"], res["ring"], okm)
+    return Refined(res["t2"], res["sd"], res["tau0"], res["step"], res["hz"], res["al"], res["ring"], okm, stepv)
 
 
 def delay_from_stops(tau0_s: np.ndarray, t_stop: np.ndarray) -> tuple[float, float, int]:
@@ -564,6 +568,53 @@ def ring_summary(ref: Refined) -> dict:
     return out
 
 
+def direction_jump(ref: Refined, rq: np.ndarray, shape_doc: dict | None = None) -> dict:
+    """Whether the image jumps at the onsets with the direction of motion (a registration or
+    channel error: the jump's sign follows the distal direction). The refined onsets' step
+    vectors, each signed by its reversal's direction (+1 when q rose to q1), averaged: found
+    when the mean lies over onset_play.JUMP_T standard errors from 0 with steps at half the
+    fitted reversals or more (a jump fitted to noise or ringing comes and goes, and averages
+    out). When the actuator-shape model's B samples are used (shape_doc), its own record-wide
+    choice decides (its jump_px). Returns {"found", "jump_px" (2,) or None, "ratio", "from"}.
+    ref: refine()'s result; rq (M,) reversal positions."""
+    from .onset_play import JUMP_T
+
+    if shape_doc is not None:
+        j = (shape_doc.get("choice") or {}).get("jump_px")
+        return {"found": j is not None, "jump_px": j, "ratio": (shape_doc.get("choice") or {}).get("jump_ratio"),
+                "from": "actuator-shape model"}
+    s = np.sign(np.r_[0.0, np.diff(rq)])
+    sv = ref.step_vec if ref.step_vec is not None else np.zeros((rq.size, 2))
+    k = ref.ok & (ref.step_px > 0) & (s != 0)
+    if k.sum() < 4 or k.sum() < 0.5 * ref.ok.sum():
+        return {"found": False, "jump_px": None, "ratio": None, "from": "refined onsets' steps"}
+    J = s[k, None] * sv[k]
+    m = J.mean(axis=0)
+    se = J.std(axis=0, ddof=1) / np.sqrt(len(J))
+    ratio = float(np.linalg.norm(m) / max(float(np.linalg.norm(se)), 1e-12))
+    found = ratio > JUMP_T
+    return {"found": bool(found), "jump_px": [float(x) for x in m] if found else None, "ratio": ratio,
+            "from": "refined onsets' steps"}
+
+
+def actuator_frames(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, b: float,
+                    period_s: float) -> float:
+    """Frames the actuator takes to come back by b (actuator units) from each reversal q1, lower
+    quartile over the reversals (NaN for no b or no reversal that comes back that far before
+    the next). t_enc, q (N,) s and units; rt, rq (M,) reversals; period_s the frame period."""
+    if not (np.isfinite(b) and b > 0) or rt.size < 2:
+        return float("nan")
+    out = []
+    for r in range(1, rt.size):
+        s = 1.0 if rq[r] > rq[r - 1] else -1.0
+        i0 = np.searchsorted(t_enc, rt[r])
+        i1 = np.searchsorted(t_enc, rt[r + 1]) if r + 1 < rt.size else t_enc.size
+        back = np.nonzero(s * (rq[r] - q[i0:i1]) >= b)[0]
+        if back.size:
+            out.append((t_enc[i0 + back[0]] - rt[r]) / period_s)
+    return float(np.percentile(out, 25)) if out else float("nan")
+
+
 def _shape_fit_needed(ref_frames: float) -> bool:
     """Whether the actuator-shape model (onset_play.fit) must be fitted, given the refined
     onsets' frames to take up the play (lower quartile, NaN without refined onsets). Not when
@@ -585,6 +636,36 @@ class RobustOnsets:
     warnings: list
 
 
+def choose_delay(d_data: float, ci_s: tuple[float, float], how: str, t_delay_cfg: float | None, period_s: float,
+                 t_delay_from: str = "data") -> tuple[float, str, bool | None, float]:
+    """Which t_delay to use: the record's d_data (s; NaN when the record gives none), its 95 %
+    interval ci_s (s) found by `how`, or the configured t_delay_cfg (s, None: not configured).
+
+    Frame quantisation: an onset seen between two frames is placed within that frame interval,
+    and an effect shared by every reversal (where within the interval the motion shows, a
+    registration flip some fraction of a frame after the tip reverses, the exposure) shifts all
+    of them alike, which the interval's scatter term cannot see. So the configured delay is
+    replaced only when it lies beyond ci_s widened by half a frame period (period_s / 2) on each
+    side, the largest shift that placing an onset within its frame interval leaves. (A correct
+    configured delay was replaced on a registration rendering whose record delay came 0.46 frame
+    early with an interval of 0.03 frame.) t_delay_from "config" keeps the configured delay.
+    Returns (t_delay_s, source text, agrees (None when there is nothing to compare), allowance_s).
+    """
+    allow = period_s / 2.0
+    have = bool(np.isfinite(d_data))
+    agree = None
+    if t_delay_cfg is not None and have:
+        agree = bool(ci_s[0] - allow <= t_delay_cfg <= ci_s[1] + allow)
+    if t_delay_cfg is None:
+        return d_data, f"estimated from the record ({how})", agree, allow
+    if t_delay_from == "config":
+        return t_delay_cfg, "configured (--t-delay-from config)", agree, allow
+    if agree is False:
+        return (d_data, "estimated from the record: the configured value lies outside its 95 % interval widened by "
+                "half a frame period", agree, allow)
+    return t_delay_cfg, "configured (the record agrees within its 95 % interval, widened by half a frame period)", agree, allow
+
+
 def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.ndarray, rq: np.ndarray,
                    t_f: np.ndarray, obs: np.ndarray, fps: float, t_delay_cfg: float | None,
                    t_delay_from: str = "data", board=None, onset_cfg: dict | None = None,
@@ -601,8 +682,9 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     3. ``refine`` every reversal; t_delay from the approach to each stop with the actuator's
        shape (``delay_from_shape``; the stop times, ``delay_from_stops``, without 4 reversals
        to fit), or the actuator-shape model's when its B samples are used.
-    4. t_delay_from "data" (default): use the record's delay; "config": the configured one.
-       They are compared either way; a gap over one frame period is a warning. A configured
+    4. ``choose_delay``: t_delay_from "data" (default): the configured delay unless the record
+       disagrees beyond its 95 % interval widened by half a frame period, then the record's;
+       "config": the configured one. A disagreement is a warning either way. A configured
        delay is never needed: without one the record's delay is used.
     5. b = |q(t2 - t_delay) - q1| with sigma_b = |dq/dt| sigma_t2. A reversal the refinement
        could not fit keeps the board's sample, with sigma_b one frame period of travel.
@@ -675,11 +757,24 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     amp = np.abs(np.diff(rq))
     b_max = 0.6 * float(np.median(amp)) if amp.size else float(np.ptp(q))
     M = rt.size
+    # The same figure from the actuator alone, for the board's median eq. 1 width: the refined
+    # onsets can be fooled late (a "step" fitted to noise when no frame is still after a fast
+    # reversal makes the play look taken up over tens of frames), the actuator's trajectory
+    # cannot. The smaller of the two decides whether the play is taken up fast.
+    act_frames = actuator_frames(t_enc, q, rt, rq, float(np.median(board.b[board.b > 0])) if np.any(board.b > 0)
+                                 else float("nan"), period)
+    # Only when the refined onsets show that symptom: a step on most reversals that does not
+    # follow the direction (no registration to explain it). Otherwise they stand: on a ringing
+    # record the board's onsets come early and its width would call a slow take-up fast.
+    stepped = ref.ok & (ref.step_px > 0)
+    invented = stepped.sum() >= max(4, 0.5 * ref.ok.sum()) and not direction_jump(ref, rq)["found"]
+    if invented and np.isfinite(act_frames) and np.isfinite(ref_frames) and act_frames < ref_frames:
+        ref_frames = act_frames
     if not _shape_fit_needed(ref_frames):
         pf = P.PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool),
                        float("nan"), (float("nan"), float("nan")), float("nan"), False, (0.0, 0.0), b_max)
-        pdoc = {"fitted": False, "why": f"refined onsets take the play up over {ref_frames:.1f} frames "
-                                        f"(lower quartile) >= {FAST_FRAMES:g}"}
+        pdoc = {"fitted": False, "why": f"refined onsets (and the actuator, for the board's median b) take the "
+                                        f"play up over {ref_frames:.1f} frames (lower quartile) >= {FAST_FRAMES:g}"}
     else:
         pf, pdoc = P.fit(t_enc, q, rt, rq, t_f, obs, period, b_max)
         pdoc["fitted"] = True
@@ -690,6 +785,24 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     if np.isfinite(ref_frames) and (np.isfinite(fast_frames) or not pdoc["fitted"]):
         fast_frames = ref_frames if not pdoc["fitted"] else max(fast_frames, ref_frames)
     use_shape = bool(np.isfinite(pf.t_delay_s) and fast_frames < FAST_FRAMES)
+    d_stop_ref = d_stops
+    # Only where the image stops were found on most reversals (so the refined onsets are there to
+    # fall back on): a record whose stops are not found says nothing against the model's delay.
+    # On a periodic excitation the delay is ambiguous by a leg (0.47 s from the stops against
+    # 0.151 s, true, from the model on a 0.32 s triangle; 0.48 s from the model against 0.08 s,
+    # true, from the stops on a 0.4 s one): a configured delay that one of the two matches
+    # (within its 95 % interval and half a frame, as choose_delay) settles it.
+    # Without a configured delay nothing arbitrates and the model stands (the stops may be the
+    # ones a leg off: a 0.25 s triangle without one had the stops at 0.51 s, the model right).
+    stops_match_cfg = t_delay_cfg is not None and n_d >= max(4, 0.5 * M) and \
+        abs(t_delay_cfg - d_stop_ref) <= 1.96 * d_stops_se + period / 2
+    if use_shape and abs(pf.t_delay_s - d_stop_ref) > P.DELAY_SPAN * period and stops_match_cfg:
+        # The model's delay search walked beyond its own span from where the image stops and the
+        # configured delay agree: the model does not describe this record; the refined onsets do.
+        warnings.append(f"onsets: the actuator-shape model's delay {pf.t_delay_s:.4f} s lies over {P.DELAY_SPAN:g} "
+                        f"frames from the image stops' {d_stop_ref:.4f} s; its B samples are not used")
+        pdoc["strayed_delay_s"] = pf.t_delay_s
+        use_shape = False
     if use_shape:
         d_data, (ci_lo, ci_hi), d_se = pf.t_delay_s, pf.t_delay_ci_s, pf.t_delay_sd_s
         how = "actuator-shape model, posterior mean"
@@ -714,23 +827,12 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         ci_lo, ci_hi = d_data - 1.96 * d_se, d_data + 1.96 * d_se
     if np.isfinite(d_data) and d_data < 0:  # a delay cannot be negative (the stops can say so on a sine)
         d_data, ci_lo, ci_hi = 0.0, max(ci_lo, 0.0), max(ci_hi, 0.0)
-    have = bool(np.isfinite(d_data))
     if not use_shape:
         pf.ok[:] = False
-    allow = period / 8.0
-    agree = None
-    if t_delay_cfg is not None and have:
-        agree = bool(ci_lo - allow <= t_delay_cfg <= ci_hi + allow)
-    if t_delay_cfg is None:
-        td, src = d_data, f"estimated from the record ({how})"
-    elif t_delay_from == "config":
-        td, src = t_delay_cfg, "configured (--t-delay-from config)"
-    elif agree is False:
-        td, src = d_data, "estimated from the record: the configured value lies outside its 95 % interval"
-    else:
-        td, src = t_delay_cfg, "configured (the record agrees within its 95 % interval)"
+    td, src, agree, allow = choose_delay(d_data, (ci_lo, ci_hi), how, t_delay_cfg, period, t_delay_from)
     if t_delay_cfg is not None and agree is False:
-        warnings.append(f"t_delay: the record says {d_data:.4f} s (95 % {ci_lo:.4f}..{ci_hi:.4f}), the configuration "
+        warnings.append(f"t_delay: the record says {d_data:.4f} s (95 % {ci_lo:.4f}..{ci_hi:.4f}, +-{allow:.4f} s for the "
+                        f"frame period), the configuration "
                         f"{t_delay_cfg:.4f} s; using {'the configured' if t_delay_from == 'config' else 'the record'}'s "
                         f"({'--t-delay-from data' if t_delay_from == 'config' else '--t-delay-from config'} to change)")
     if use_shape and abs(td - pf.t_delay_s) > 0.5 * period / P.SUB:
@@ -775,6 +877,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                         f"their combined uncertainty on {guard['disagree']} of {guard['compared']} reversals; "
                         f"both B curves are in onset.refine.guard")
     steps = ref.ok & (ref.step_px > 0)
+    registration = direction_jump(ref, rq, pdoc if use_shape else None)
     report = {
         "method": "joint ML change-point model per reversal (playscope.fit.onset_refine)",
         "board_reasons": board.reasons,
@@ -786,12 +889,14 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                     "shape_reversals": n_shape,
                     "coarse_s": d0, "first_pass_s": d1},
         "actuator_shape": {**pdoc, "samples": int(pf.ok.sum()), "used": use_shape,
-                           "frames_to_take_up": fast_frames, "fast_frames": FAST_FRAMES},
+                           "frames_to_take_up": fast_frames, "fast_frames": FAST_FRAMES,
+                           "actuator_frames_board_b": act_frames},
         "pacing": pace,
         "guard": guard,
         "ringing": ring_summary(ref),
         "steps": {"reversals_with_step": int(steps.sum()),
                   "median_step_px": float(np.median(ref.step_px[steps])) if steps.any() else 0.0},
+        "registration": registration,
         "sigma_t2_s_median": float(np.nanmedian(ref.sigma_t2_s)) if ref.ok.any() else None,
     }
     return RobustOnsets(on, float(td), src, report, warnings)

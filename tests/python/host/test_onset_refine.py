@@ -68,6 +68,36 @@ def test_registration_jump_at_onset_does_not_pull_onsets_early():
     assert abs(err.mean()) < 0.5 and np.abs(err).mean() < 1.0
     assert rob.report["steps"]["reversals_with_step"] >= 0.9 * rob.onsets.t2_s.size
     assert rob.report["steps"]["median_step_px"] == pytest.approx(2 * 600 * np.tan(np.radians(3.0)), rel=0.1)
+    # The jump follows the direction of motion: found, the mean signed step about the rotation's
+    # 2 f tan(3 deg) (calibrate then keeps the B samples' own stiffness: choose_b_and_model).
+    reg = rob.report["registration"]
+    assert reg["found"] and np.linalg.norm(reg["jump_px"]) == pytest.approx(2 * 600 * np.tan(np.radians(3.0)), rel=0.15)
+
+
+def test_no_direction_jump_without_a_registration_error(plain):
+    assert not plain[0].report["registration"]["found"]
+
+
+def test_direction_jump_needs_a_consistent_signed_step():
+    M = 40
+    rq = np.where(np.arange(M) % 2 == 0, 1.0, 0.0)  # up, down, up, ...: directions alternate from the 2nd
+    s = np.sign(np.r_[0.0, np.diff(rq)])
+    rng = np.random.default_rng(0)
+    ok = np.ones(M, bool)
+
+    def ref(vec):
+        return R.Refined(*(np.zeros(M),) * 3, np.linalg.norm(vec, axis=1), *(np.zeros(M),) * 3, ok, vec)
+
+    follows = s[:, None] * np.array([20.0, 0.0]) + rng.normal(0, 2.0, (M, 2))
+    d = R.direction_jump(ref(follows), rq)
+    assert d["found"] and d["jump_px"][0] == pytest.approx(20.0, abs=1.5)
+    # The same steps with signs unrelated to the direction average out: nothing found.
+    d = R.direction_jump(ref(rng.choice([-1.0, 1.0], M)[:, None] * np.array([20.0, 0.0]) + rng.normal(0, 2.0, (M, 2))), rq)
+    assert not d["found"]
+    # Steps at fewer than half the fitted reversals: not a record-wide jump.
+    few = follows.copy()
+    few[: M * 2 // 3] = 0.0
+    assert not R.direction_jump(ref(few), rq)["found"]
 
 
 def test_delay_measured_from_the_record_and_a_wrong_one_warned(plain):
@@ -75,7 +105,7 @@ def test_delay_measured_from_the_record_and_a_wrong_one_warned(plain):
     rob, err, sc = refined(seed=0, t_delay_config=0.18)
     # True apparent delay 0.08 s + half the 8 ms exposure; measured 0.085-0.0865 s over seeds 0-2.
     assert rob.t_delay_s == pytest.approx(0.084, abs=0.004)
-    # The configured 0.08 s lies within the record's interval widened by T/8: it stands; 0.18 s
+    # The configured 0.08 s lies within the record's interval widened by T/2: it stands; 0.18 s
     # does not: the record's delay is used, the same figure either way.
     assert rob0.t_delay_s == 0.08 and rob0.report["t_delay"]["used"] == "configured"
     assert rob.report["t_delay"]["used"] == "record" and not rob.report["t_delay"]["agrees_with_configured"]
@@ -85,6 +115,26 @@ def test_delay_measured_from_the_record_and_a_wrong_one_warned(plain):
     # The board ran eq. 1 with the wrong configured delay: the guard rail says its B is off.
     assert rob.report["guard"]["warn"] and not plain[0].report["guard"]["warn"]
     assert np.abs(err).mean() < 0.15
+
+
+def test_configured_delay_replaced_only_beyond_the_interval_and_half_a_frame():
+    T = 1 / 25.0
+    # The record of a registration rendering (swings at 25 fps, 1.3 deg flipping with the distal
+    # direction): 0.1125 s, 95 % 0.1113..0.1138 s, the true and configured delay 0.131 s (0.46
+    # frame away). Half a frame of quantisation allowance keeps the configured one.
+    td, src, agree, allow = R.choose_delay(0.1125, (0.1113, 0.1138), "m", 0.131, T)
+    assert (td, agree, allow) == (0.131, True, T / 2) and src.startswith("configured")
+    # A configured delay 50 ms (1.25 frames) off, the smallest error the benches render: replaced.
+    td, src, agree, _ = R.choose_delay(0.1125, (0.1113, 0.1138), "m", 0.1125 + 0.05, T)
+    assert td == 0.1125 and agree is False and "outside" in src
+    # The boundary is the interval's edge plus T/2, on either side.
+    assert R.choose_delay(0.1, (0.09, 0.11), "m", 0.11 + T / 2 - 1e-9, T)[2] is True
+    assert R.choose_delay(0.1, (0.09, 0.11), "m", 0.09 - T / 2 - 1e-6, T)[2] is False
+    # --t-delay-from config keeps it whatever the record says; without a configured delay, or
+    # without a record delay, nothing is compared.
+    assert R.choose_delay(0.1, (0.09, 0.11), "m", 0.3, T, "config")[:3:2] == (0.3, False)
+    assert R.choose_delay(0.1, (0.09, 0.11), "m", None, T)[:3:2] == (0.1, None)
+    assert R.choose_delay(float("nan"), (np.nan, np.nan), "m", 0.08, T)[:3:2] == (0.08, None)
 
 
 def test_ringing_reported_and_onsets_not_fooled():

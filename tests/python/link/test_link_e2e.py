@@ -103,6 +103,69 @@ def test_qemu_flash_readback_compensator():
         link.close()
 
 
+@pytest.mark.skipif(shutil.which("qemu-system-arm") is None or find_qemu_image() is None,
+                    reason="needs qemu-system-arm and the playscope-link-fw image (stm32f405 preset)")
+def test_qemu_excitation_paced_to_the_camera():
+    link = Link(QemuTransport())
+    try:
+        check_exc_config(link)
+    finally:
+        link.close()
+
+
+def test_vboard_excitation_paced_to_the_camera(vlink):
+    check_exc_config(vlink)
+
+
+def check_exc_config(link) -> None:
+    """run-insitu's excitation reaches the board on any image (PSP_MSG_EXC_CONFIG): paced to the
+    camera, the board picks the host's speed (fit.pacing, the same C rule) to the bit and its
+    set-points then climb at that speed (encoder stream, one sample per tick: the link images'
+    motor is ideal); a play wider than the swing's down leg is refused with EXC_ERR_PACE and
+    leaves the speed as it was; a given speed is run as is."""
+    from playscope.base.native import core
+    from playscope.fit.pacing import TICK_HZ, pace_v_q32
+
+    lib = core()[1]
+    link.set_mode("idle")
+    got = link.exc_config("-3:3:1.6:0.4", 0.35, 0.8, 25.0)
+    v_q32 = pace_v_q32(0.35, 0.8, 25.0)
+    assert got["v_q32"] == v_q32 and got["frame_period_us"] == 40000
+    # b_low x fps / EXC_PACE_FRAMES, b_low rounded to Q16 (half an LSB: 2.2e-5 of 0.35)
+    assert got["v"] == pytest.approx(0.35 * 25.0 / 4, rel=3e-5)
+    with pytest.raises(DeviceError) as e:
+        link.exc_config("-3:3:1.6:0.4", 0.35, 1.3, 25.0)  # down leg 1.2 < widest play 1.3
+    assert e.value.code == 7 and e.value.detail == lib.EXC_ERR_PACE
+    assert _climb_q32_per_tick(link) == pytest.approx(v_q32, abs=2 ** 16)  # one Q16 LSB over the run
+    got = link.exc_config("-3:3:1.6:0.4:1.5")
+    assert got["v_q32"] == int(1.5 / TICK_HZ * 2 ** 32)
+    assert _climb_q32_per_tick(link) == pytest.approx(got["v_q32"], abs=2 ** 16)
+
+
+def _climb_q32_per_tick(link) -> float:
+    """Run the excitation briefly with the encoder streamed; the set-point's rise per tick on the
+    first (rising) leg, Q32.32 (from the first to the last streamed sample before the turn)."""
+    link.stream(True, 1)
+    link.set_mode("excitation")
+    samples = []
+    for _ in range(400):  # up to 20 s: QEMU on a loaded machine runs the board's clock slower
+        for kind, v in link.poll_events(0.05):
+            if kind == "enc":
+                samples += v
+        if len(samples) >= 200:
+            break
+    link.set_mode("idle")
+    link.stream(False)
+    link.poll_events(0.1)
+    t = [a for a, _ in samples]
+    q = [b for _, b in samples]
+    k0 = next(i for i in range(1, len(q)) if q[i] > q[i - 1])  # the first tick of the run
+    k1 = k0 + 150
+    assert k1 < len(q), f"{len(q)} samples streamed, the run starting at {k0}"
+    assert all(b > a for a, b in zip(q[k0:k1], q[k0 + 1:k1 + 1])), f"not a rising leg: {q[k0:k1 + 1]}"
+    return (q[k1] - q[k0]) * 2 ** 16 / ((t[k1] - t[k0]) / 1000)
+
+
 def check_learn_start_stop(link, blob: bytes) -> None:
     """On-line B update on a board running `blob` (PSP_MSG_LEARN): off at boot, start reports the
     table's B grid with the CRC of its flashed entries (computed here from the blob through the

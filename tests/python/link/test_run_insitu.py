@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from playscope.cli import main
 from playscope.board.insitu_run import BoardClock, exc_duration_s
@@ -36,6 +37,10 @@ def test_run_insitu_sim_plant_recovers_B(tmp_path, capsys):
     assert r["sim_B_err_mm"]["mean"] < 0.02, r
     assert r["sim_B_err_mm"]["max"] < 0.05, r
     assert r["flash"]["generation"] == 1 and r["flash"]["vectors"] == 100
+    # The excitation went to the board over the link (PSP_MSG_EXC_CONFIG, as on every image):
+    # it runs the given 1 mm/s, to the Q32.32 step per tick.
+    assert r["excitation"]["exc"] == "-3:3:1.6:0.4:1.0"
+    assert r["excitation"]["v"] == pytest.approx(1.0, abs=1000 / 2**32)
     # The run is kept as a session that `playscope calibrate` takes offline.
     for name in ("b_samples.csv", "calibration.json", "table.bin", "session/session.json",
                  "session/encoder.csv", "session/marker.csv"):

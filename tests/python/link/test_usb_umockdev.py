@@ -48,6 +48,10 @@ def test_usb_emulated_flash_readback_compensator(tmp_path):
     assert out["readback_identical"] and out["bytes"] == 2108
     assert out["comp_steps"] == 300 and out["comp_mismatches"] == 0
     assert out["replay_error"] == 4  # PSP_ERR_SEQ
+    from playscope.fit.pacing import pace_v_q32
+
+    assert out["exc_config"]["v_q32"] == pace_v_q32(0.35, 0.8, 25.0)  # the board's own pacing, host's rule
+    assert out["exc_config"]["frame_period_us"] == 40000
 
 
 def test_usb_emulated_cli_info_and_flash(tmp_path):

@@ -30,6 +30,8 @@ def check(link: Link, n_vectors: int, blob: bytes | None = None) -> dict:
     out = {"flash": r, "readback_identical": back == sent, "bytes": len(back),
            "comp_steps": len(c), "comp_mismatches": sum(a != b for a, b in zip(q_board, q_host)),
            "readback_hex": back.hex(), "q_board": q_board}
+    # run-insitu's paced excitation reaches the board through USB as through the UART
+    out["exc_config"] = link.exc_config("-3:3:1.6:0.4", 0.35, 0.8, 25.0)
     last = link.info()["last_seq"]
     try:  # a replayed request over USB is refused like on every transport
         link.request(link.lib.PSP_MSG_SET_MODE, bytes([0, 0, 0, 0]), seq=last)
