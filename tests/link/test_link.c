@@ -172,6 +172,18 @@ static resp_t upload(const uint8_t *t, size_t n)
     return req(PSP_MSG_TABLE_COMMIT, &cm, sizeof cm);
 }
 
+/* Upload and commit generation 1 of make_table(f_fn), and load the same bytes into *ref on this
+ * side (from ref_blob, a copy that outlives the call: calib_load reads entries in place): the
+ * board's table, for a reference run of the core. Returns the table's size in bytes. */
+static size_t commit_table1_with_reference(calib_t *ref, uint8_t *ref_blob)
+{
+    size_t n = make_table(1, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    memcpy(ref_blob, blob.bytes, n);
+    assert_int_equal(calib_load(ref, ref_blob, n), CALIB_OK);
+    return n;
+}
+
 static size_t read_back(uint8_t *dst, size_t n)
 {
     size_t off = 0;
@@ -327,12 +339,9 @@ static void test_replay_and_order(void **state)
 static void test_commit_during_compensation_not_excitation(void **state)
 {
     (void)state;
-    size_t n = make_table(1, f_fn);
-    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
     static calib_t cal1, cal2;
     static uint8_t blob1[PST_MAX_TABLE_SIZE];
-    memcpy(blob1, blob.bytes, n);
-    assert_int_equal(calib_load(&cal1, blob1, n), CALIB_OK);
+    size_t n = commit_table1_with_reference(&cal1, blob1);
     psp_set_mode_t m = {.mode = PSP_MODE_COMPENSATION};
     expect_ok(req(PSP_MSG_SET_MODE, &m, sizeof m), PSP_MSG_SET_MODE);
     comp_t cp;
@@ -479,13 +488,10 @@ static void test_learn_during_compensation(void **state)
     expect_err(req(PSP_MSG_LEARN, &bad, sizeof bad), PSP_ERR_RANGE);
     psp_learn_ctl_t start = {.op = PSP_LEARN_START};
     expect_err(req(PSP_MSG_LEARN, &start, sizeof start), PSP_ERR_STATE); /* no table */
-    size_t n = make_table(1, f_fn);
-    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
     static uint8_t blob1[PST_MAX_TABLE_SIZE];
     static calib_t ref;
     static b_online_t bo;
-    memcpy(blob1, blob.bytes, n);
-    assert_int_equal(calib_load(&ref, blob1, n), CALIB_OK);
+    size_t n = commit_table1_with_reference(&ref, blob1);
     const int32_t *flashed = ref.b.y_q16;
     b_online_config_t bc = b_online_default_config();
     assert_int_equal(b_online_init(&bo, &bc, &ref.b), B_ONLINE_OK);
@@ -574,13 +580,10 @@ static void test_learn_during_compensation(void **state)
 static void test_learn_f_during_compensation(void **state)
 {
     (void)state;
-    size_t n = make_table(1, f_fn);
-    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
     static uint8_t blob1[PST_MAX_TABLE_SIZE];
     static calib_t ref;
     static f_online_t fo;
-    memcpy(blob1, blob.bytes, n);
-    assert_int_equal(calib_load(&ref, blob1, n), CALIB_OK);
+    size_t n = commit_table1_with_reference(&ref, blob1);
     f_online_config_t fc = f_online_default_config();
     assert_int_equal(f_online_init(&fo, &fc, &ref.f, &ref.f_inv), F_ONLINE_OK);
     psp_set_mode_t m = {.mode = PSP_MODE_COMPENSATION};
