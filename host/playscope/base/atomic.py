@@ -72,17 +72,24 @@ def output_guard(inputs: Iterable[str | os.PathLike], force: bool = False) -> It
         _guard = prev
 
 
-def check_output(dest: str | os.PathLike) -> None:
-    """Refuse dest (InputError naming it) when the armed guard forbids writing it; no-op unarmed."""
-    if _guard is None:
-        return
+def _refuse_inputs(dest: str | os.PathLike, advice: str) -> Path:
+    """dest resolved; InputError naming it, ending with advice, when it is an input of the armed
+    guard, a folder holding one, or a file of an input folder. Call only with the guard armed."""
     d = _resolve(dest)
     for inp in _guard["inputs"]:
         if d == inp or inp.is_relative_to(d):
             raise InputError(dest, f"is {'an input' if d == inp else 'a folder holding the input ' + str(inp)} "
-                             "of this command; write the output elsewhere")
+                             f"of this command; {advice}")
     if d in _guard["files"]:
-        raise InputError(dest, f"is a file of the input {_guard['files'][d]}; write the output elsewhere")
+        raise InputError(dest, f"is a file of the input {_guard['files'][d]}; {advice}")
+    return d
+
+
+def check_output(dest: str | os.PathLike) -> None:
+    """Refuse dest (InputError naming it) when the armed guard forbids writing it; no-op unarmed."""
+    if _guard is None:
+        return
+    d = _refuse_inputs(dest, "write the output elsewhere")
     if os.path.lexists(dest) and not _guard["force"]:
         raise InputError(dest, "exists; pass --force to replace it")
     parent = d.parent
@@ -170,14 +177,7 @@ def check_flash_file(path: str | os.PathLike | None) -> None:
     if path is None:
         return
     if _guard is not None:
-        d = _resolve(path)
-        for inp in _guard["inputs"]:
-            if d == inp or inp.is_relative_to(d):
-                raise InputError(path, f"is {'an input' if d == inp else 'a folder holding the input ' + str(inp)} "
-                                 "of this command; give the board's flash image its own file")
-        if d in _guard["files"]:
-            raise InputError(path, f"is a file of the input {_guard['files'][d]}; give the board's flash image "
-                             "its own file")
+        _refuse_inputs(path, "give the board's flash image its own file")
     if not os.path.lexists(path):
         return
     import stat

@@ -16,8 +16,8 @@
 
 Board clock. With --sim-plant, frames are rendered exactly at board times k / fps once the
 encoder stream has passed them (so the board's clock drives the simulation, whatever its
-speed), and the virtual board runs in lock-step (ps_vboard --lockstep-ms, commands.device's
-SIM_LOCKSTEP_MS): it waits for the host's observations, so a loaded machine slows the run down
+speed), and the virtual board runs in lock-step (ps_vboard --lockstep-ms SIM_LOCKSTEP_MS,
+sim_vboard_args): it waits for the host's observations, so a loaded machine slows the run down
 instead of delivering frames after the board's encoder history has moved on. With a camera or a video, a frame is stamped when it is read: board time = host time +
 offset, where offset is the largest (t_last_sample - host receive time) over encoder batches,
 i.e. that of the least delayed batch (the board sends a batch the tick it fills).
@@ -40,6 +40,21 @@ from ..base import native
 
 
 # --------------------------------------------------------------------------- board clock
+# --sim-plant: board time the virtual board may run past the last marker observation. Above a
+# few frame periods (40 ms at the simulated 25 fps) so the board never waits for a frame the host
+# cannot render yet, and well inside the onset detector's encoder history (ENC_HIST_LEN = 512
+# ticks, 512 ms at 1 kHz) so every observation still finds q(t2 - t_delay) there.
+SIM_LOCKSTEP_MS = 250
+
+
+def sim_vboard_args(time_scale: float) -> list[str]:
+    """ps_vboard options for a closed-loop run through a simulated instrument: its clock at most
+    time_scale x the wall clock (dimensionless, > 0), in lock-step with the host's observations
+    (the board waits for a host that lags, so a loaded machine slows the run instead of moving
+    the board's onsets)."""
+    return ["--time-scale", f"{time_scale:g}", "--lockstep-ms", str(SIM_LOCKSTEP_MS)]
+
+
 class BoardClock:
     """Board time (us) from host time, learnt from encoder batches (module docstring).
     Assumes the board and host clocks run at the same rate (no --time-scale)."""

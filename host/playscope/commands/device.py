@@ -8,13 +8,6 @@ import sys
 from .common import add_command, add_json_arg, dump_json, progress
 
 
-# --sim-plant: board time the virtual board may run past the last marker observation. Above a
-# few frame periods (40 ms at the simulated 25 fps) so the board never waits for a frame the host
-# cannot render yet, and well inside the onset detector's encoder history (ENC_HIST_LEN = 512
-# ticks, 512 ms at 1 kHz) so every observation still finds q(t2 - t_delay) there.
-SIM_LOCKSTEP_MS = 250
-
-
 def _add_device_args(p) -> None:
     from . import argtypes as T
 
@@ -69,9 +62,9 @@ def cmd_run_insitu(args) -> int:
             print("playscope: --sim-plant needs --device virtual (the simulated instrument follows "
                   "the virtual board's clock)", file=sys.stderr)
             return 2
-        # Lock-step: the board waits for the host's observations (at most SIM_LOCKSTEP_MS of board time
-        # ahead), so a loaded machine slows the run instead of moving the board's onsets.
-        vb = ["--time-scale", f"{args.time_scale:g}", "--lockstep-ms", str(SIM_LOCKSTEP_MS)]
+        from ..board.insitu_run import sim_vboard_args
+
+        vb = sim_vboard_args(args.time_scale)
     args.pace = None
     if args.sim_plant or args.video is not None:  # no source: said below
         exc4 = args.exc
