@@ -344,6 +344,10 @@ INVERTIBLE = ("ours", "gpi_mono", "gpi_mono_grid", "ours+m", "play+m", "chosen+m
 
 
 def run(inst, reader, stem, split) -> dict:
+    """One development file at one split (fraction of its duration, 0..1): every candidate and
+    peer fitted on t < t_split and scored on t >= t_split (test RMSE, deg, in "test"), with the
+    family chosen, the gpi peer's lowest slope and the CV rules' choices. Errors: InputError from
+    the reader (the row then says so)."""
     path = REAL / inst / f"{stem}.txt"
     s = reader(path)
     ts = IS.split_time(s.encoder["t_s"], split)

@@ -31,6 +31,8 @@ DEFAULT = Path(__file__).resolve().parents[1] / ".." / ".." / "shared" / "data" 
 
 
 def main_job_rows(main_dir: Path) -> list[tuple[str, float, float]]:
+    """[(case, RMSE off, RMSE on)] in deg: the main job's open-loop compensation test from a
+    `playscope demo --out` folder, its table as flashed and with the board's learner closed loop."""
     from playscope.board import online as O
     from playscope.evaluate.prediction import reference_trajectory
     from playscope.fit.calibration_check import load_calibration
@@ -56,6 +58,8 @@ def main_job_rows(main_dir: Path) -> list[tuple[str, float, float]]:
 
 
 def catheter_rows(folder: Path) -> list[tuple[str, float, float]]:
+    """[(case, RMSE off, RMSE on)] in deg: every catheter file of folder in situ (calibrated on
+    its first half, scored on the second), without and with the board's learner replayed."""
     from playscope.board import online as O
     from playscope.evaluate.transfer import WARMUP, _in_situ
     from playscope.io.importer import read_record

@@ -331,6 +331,7 @@ def _offset_timeline(t: np.ndarray, t_f: np.ndarray, r_f: np.ndarray, refresh_s:
 
 
 def rmse(e) -> float:
+    """Root mean square of the residuals e (any shape), in e's unit."""
     return float(np.sqrt(np.mean(np.square(e))))
 
 
