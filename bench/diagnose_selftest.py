@@ -51,11 +51,12 @@ ROOT = Path(__file__).resolve().parent.parent
 # changed in this round of changes: each reported seed is run once, at full size, at the end of the
 # round; rules are never settled on it. Seeds already run once are spent and are development seeds
 # now: seed 0 of both generators, 1000-4000 of the first, and the previous reported seeds 7919
-# (first) and 6151 (second).
+# (first) and 6151, 40093 (second). 47211 was drawn for the second generator with its asymmetric
+# play that the base model cannot absorb (turn_set_slack), before any diagnosis ran on that form.
 REPORTED_SEED_FIRST = 52711
-REPORTED_SEED_SECOND = 40093
+REPORTED_SEED_SECOND = 47211
 SPENT_SEEDS_FIRST = (0, 1000, 2000, 3000, 4000, 7919)
-SPENT_SEEDS_SECOND = (0, 6151)
+SPENT_SEEDS_SECOND = (0, 6151, 40093)
 
 
 def main(argv=None) -> int:
@@ -66,8 +67,8 @@ def main(argv=None) -> int:
     ap.add_argument("--selftest-only", action="store_true", help="skip the catheter part")
     ap.add_argument("--catheter", help="folder of data_2_*.txt (see module doc for the default)")
     ap.add_argument("--json", help="write all results as JSON")
-    ap.add_argument("--effects", help="comma-separated library effects to plant (a subset while developing; "
-                    "the reported figure is the full list)")
+    ap.add_argument("--effects", help="comma-separated library effects to plant, in either generator (a subset "
+                    "while developing; the reported figure is the full list)")
     ap.add_argument("--nulls", type=int, help=f"number of null cases (default {selftest.REPORTED_NULLS}, --quick 2)")
     ap.add_argument("--no-ool", action="store_true", help="leave out the out-of-library cases")
     ap.add_argument("--seed", type=int, default=REPORTED_SEED_FIRST,
@@ -84,8 +85,15 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     out = {}
     t_start = time.monotonic()
+    effects = selftest.LIB_EFFECTS
+    if a.effects:
+        effects = tuple(e.strip() for e in a.effects.split(",") if e.strip())
+        bad = [e for e in effects if e not in selftest.LIB_EFFECTS]
+        if bad:
+            ap.error(f"unknown effect(s) {', '.join(bad)}; choose from {', '.join(selftest.LIB_EFFECTS)}")
     if a.second or a.second_only:
         sc2 = selftest.run_second(a.second_seed, a.second_nulls, not a.no_ool, workers=a.workers,
+                                  effects=effects if a.effects else None,
                                   strengths="strong" if a.quick else "both", log=lambda s: print(s, flush=True))
         print(f"second generator (sim/withheld_b), seed {a.second_seed}, wall time {time.monotonic() - t_start:.0f} s:")
         print(selftest.format_report(sc2))
@@ -95,12 +103,6 @@ def main(argv=None) -> int:
             a.selftest_only = True
     t_second = time.monotonic() - t_start
     if not a.real_only:
-        effects = selftest.LIB_EFFECTS
-        if a.effects:
-            effects = tuple(e.strip() for e in a.effects.split(",") if e.strip())
-            bad = [e for e in effects if e not in selftest.LIB_EFFECTS]
-            if bad:
-                ap.error(f"unknown effect(s) {', '.join(bad)}; choose from {', '.join(selftest.LIB_EFFECTS)}")
         nulls = a.nulls if a.nulls is not None else (2 if a.quick else selftest.REPORTED_NULLS)
         sc = selftest.run("strong" if a.quick else "both", nulls, not a.no_ool, seed=a.seed, workers=a.workers,
                           effects=effects, log=lambda s: print(s, flush=True), recover=not a.no_recover)

@@ -17,6 +17,7 @@ This module is the harness: it is the one place that imports both sides.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import multiprocessing
 import os
@@ -30,6 +31,7 @@ from ..sim.withheld.oracle import effect_free_fit, identifiable
 from ..sim.withheld.recover import recoverable
 from ..sim.withheld.hidden_plant import perturbed, record
 from ..sim.withheld.variants import OUT_OF_LIBRARY, VARIANTS
+from . import fitmodel
 from .attribute import attribute
 from .fitmodel import C_LIBRARY, from_session
 from .split import choose_split
@@ -122,6 +124,53 @@ def _diagnose_blind(s, case: dict, candidates):
            "rmse_base_deg": r0, "rmse_after_deg": res["test"]["rmse_final_deg"], "rmse_noise_only_deg": r_noise,
            "shrink_true_deg": r0 - r_noise, "shrink_recovered_deg": r0 - res["test"]["rmse_final_deg"]}
     return data, sp, res, out
+
+
+# Spline classes of the base-model trace check: the diagnosis' own (B at N_KNOTS, f_remain on
+# N_FKNOTS interior knots) and a richer one (about twice the knots each way). A planted effect whose
+# trace above the noise vanishes with the richer classes is a relabelling of the base model that
+# the diagnosis' classes happen to be too coarse to absorb.
+TRACE_CLASSES = {"diagnosis": (fitmodel.N_KNOTS, fitmodel.N_FKNOTS), "rich": (17, 24)}
+
+
+@contextlib.contextmanager
+def _spline_classes(n_b: int, n_f: int):
+    """Run the diagnosis' base model with n_b B knots and n_f f_remain interior knots (module
+    globals of fitmodel, read at each Model's construction and evaluation; restored on exit)."""
+    old = fitmodel.N_KNOTS, fitmodel.N_FKNOTS
+    fitmodel.N_KNOTS, fitmodel.N_FKNOTS = n_b, n_f
+    try:
+        yield
+    finally:
+        fitmodel.N_KNOTS, fitmodel.N_FKNOTS = old
+
+
+def base_trace(s, configs=(("diagnosis", 0.0), ("diagnosis", 10.0), ("rich", 10.0))) -> dict:
+    """Does a planted effect leave a trace in the data? The diagnosis' base model (play of width
+    B(q) then f_remain, no effect) fitted on the record's fit part (split.choose_split) and judged on
+    its test part, on the noisy reading and on the generator's noise-free one
+    (s.meta["clean_reading_deg"]). No effect is fitted, selected or named: this measures what any
+    diagnosis could see. configs: (spline class of TRACE_CLASSES, seconds of the record's start
+    left out of the fit rows) per fit. Why leave the start out: the base model starts its play at
+    z = q[0], a generator its carrier where it chooses; when the two differ, the first stroke's
+    misfit is fitted into f_remain and shows on the test rows as a trace of the start, not of the
+    effect.
+    Returns {"noise_only_deg": test RMSE of the noise alone, "split", "fits": [{"classes",
+    "skip_start_s", "noisy_deg", "clean_deg", "excess_deg": noisy minus noise-only}]} (deg)."""
+    data = from_session(s)
+    sp = choose_split(data)
+    clean = from_session(type(s)(**{**s.__dict__, "distal": {"t_s": s.distal["t_s"], "c_deg": s.meta["clean_reading_deg"]}}))
+    ok = sp.test & np.isfinite(data.y_m)
+    e = (data.y_m - clean.y_m)[ok]
+    out = {"noise_only_deg": float(np.sqrt(np.mean(e * e))), "split": sp.method, "fits": []}
+    for name, skip in configs:
+        rows = sp.fit & (data.t_m >= data.t_m[0] + skip)
+        with _spline_classes(*TRACE_CLASSES[name]):
+            noisy = fitmodel.Model(data).fit(rows, uncertainty=False).rmse(data.y_m, sp.test)
+            free = fitmodel.Model(clean).fit(rows, uncertainty=False).rmse(clean.y_m, sp.test)
+        out["fits"].append({"classes": name, "skip_start_s": skip, "noisy_deg": noisy, "clean_deg": free,
+                            "excess_deg": noisy - out["noise_only_deg"]})
+    return out
 
 
 def run_case(case: dict, duration_s: float = 120.0, candidates=C_LIBRARY, oracle: bool = True,

@@ -44,3 +44,39 @@ def test_excitation_pauses_stays_in_its_span_and_each_half_sees_the_range():
         # the judged parts stay near the fitted range (split.choose_split trims what is beyond it)
         assert part.min() > lo - 0.15 * (hi - lo) and part.max() < hi + 0.15 * (hi - lo)
     assert q.min() > -2.8 - 1e-9 and q.max() < 2.8 + 1e-9
+
+
+def test_turn_set_slack_takes_up_a_slack_set_at_each_down_to_up_turn():
+    # the form's own statement, against a hand-made q: two upward strokes through the same q from
+    # turns at different depths take up slack W/2 (1 + a v_turn); going down it stays W/2
+    q = np.concatenate([np.linspace(0, 2, 201), np.linspace(2, -2, 401)[1:], np.linspace(-2, 2, 401)[1:],
+                        np.linspace(2, 0, 201)[1:], np.linspace(0, 2, 201)[1:]])
+    w = np.full(q.size, 0.15)
+    ctx = {"q": q, "w_up": w.copy(), "w_dn": w.copy()}
+    g.turn_set_slack("edges", ctx, 1.0)
+    assert np.array_equal(ctx["w_dn"], w)
+    v_deep = (2 - (-2)) / 4.0          # the turn at q = -2: v = 1
+    v_shallow = (2 - 0) / 4.0          # the turn at q = 0: v = 0.5
+    assert np.allclose(ctx["w_up"][:601], 0.15)                        # before the first turn
+    assert np.allclose(ctx["w_up"][601:1201], 0.15 * (1 + v_deep))     # up from -2, down again
+    assert np.allclose(ctx["w_up"][1201:], 0.15 * (1 + v_shallow))     # up from 0
+
+
+def _base_excess(effect, variant, k, seed=11):
+    from playscope.diagnose.selftest import base_trace
+
+    case = {"id": 0, "truth": effect or "none", "effect": effect, "variant": variant, "strength": k, "unit": "",
+            "seed": seed}
+    return base_trace(g.session(case, duration_s=60.0), (("diagnosis", 10.0),))["fits"][0]["clean_deg"]
+
+
+def test_the_asymmetric_play_leaves_a_trace_the_retired_one_does_not():
+    # The base model (no effect) fitted to the noise-free reading of a 60-s record (first 10 s out
+    # of the fit rows): the retired form (edges on q alone) is a relabelling, absorbed exactly as the
+    # null is (both 0.0073 deg here: the spline classes' own misfit); the turn-set slack is not
+    # (0.106 deg at a = 1).
+    null = _base_excess(None, None, 0.0)
+    old = _base_excess("asymmetric_backlash", "loaded_side_slack", 2.0)
+    new = _base_excess("asymmetric_backlash", "turn_set_slack", 1.0)
+    assert null < 0.015 and abs(old - null) < 0.002, (null, old)
+    assert new > 0.05, new
