@@ -34,6 +34,7 @@ from ..fit.reversals import detect_reversals, frames_from_angle
 from ..fit import model
 from ..fit.calibration import auto_fps
 from ..base.native import core, from_q16, to_q16
+from ..base.metrics import rmse  # noqa: F401  (online.rmse: the figure the transfer and no-regression rows use)
 from ..fit.table_build import grid_for
 
 ROWS = ["online", "online_b_only", "online_offset_only", "static", "const_play_insitu",
@@ -328,11 +329,6 @@ def _offset_timeline(t: np.ndarray, t_f: np.ndarray, r_f: np.ndarray, refresh_s:
     t_r = t[0] + refresh_s * np.floor((t - t[0]) / refresh_s)  # last refresh at or before t
     n = np.searchsorted(tf, t_r, side="left")                   # frames strictly before it
     return np.where(n > 0, csum[n] / np.maximum(n, 1), 0.0)
-
-
-def rmse(e) -> float:
-    """Root mean square of the residuals e (any shape), in e's unit."""
-    return float(np.sqrt(np.mean(np.square(e))))
 
 
 def const_play_insitu(s, t_split: float) -> np.ndarray:

@@ -39,6 +39,7 @@ from ..fit import model
 from ..fit import transition as T
 from ..fit.calibration import Calibration
 from ..base.errors import InputError
+from ..base.metrics import rmse_finite as rmse  # noqa: F401  (over the finite residuals: a reference may leave f^-1 undefined)
 from ..io.session import Session
 from ..sim.plant import NO_PLANT  # the note for a real recording, beside the simulator it names
 
@@ -53,12 +54,6 @@ def stats(x: np.ndarray) -> dict:
     if a.size == 0:
         return {"mean": float("nan"), "std": float("nan"), "max": float("nan")}
     return {"mean": float(a.mean()), "std": float(a.std()), "max": float(a.max())}
-
-
-def rmse(x: np.ndarray) -> float:
-    a = np.asarray(x, float)
-    a = a[np.isfinite(a)]
-    return float(np.sqrt(np.mean(a * a))) if a.size else float("nan")
 
 
 def inverse_of(f, lo: float, hi: float, n: int = 20001):

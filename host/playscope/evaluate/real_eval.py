@@ -27,6 +27,7 @@ from . import insitu_split as insitu
 from ..fit import model
 from ..fit.calibration import calibrate
 from ..io.importer import import_catheter
+from ..base.metrics import rmse  # noqa: F401  (real_eval.rmse: the in-situ tables' figure)
 
 MODELS = ["linear", "const_play", "ours", "paper"]
 
@@ -113,10 +114,6 @@ def evaluate_real_reimaged(folder, work, progress=lambda it, **kw: it) -> dict:
         if name != ref_name:
             out["across"][name] = judge(s, fit, np.ones(s.encoder["t_s"].size, bool))
     return out
-
-
-def rmse(e) -> float:
-    return float(np.sqrt(np.mean(np.square(e))))
 
 
 def _empty() -> dict:
