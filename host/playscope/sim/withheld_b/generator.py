@@ -8,6 +8,8 @@ Excitation: sine sweeps of 0.15-0.35 Hz whose amplitude and centre wander over t
 a 1.2 s pause every 20 s (the diagnosis' noise floor needs still periods).
 Every effect is a function of (stage, ctx, k) applied at one stage: "edges" (play half-widths),
 "carrier" (x), "bend" (c), "sensor" (timestamps), "reading" (sensed c).
+LIBRARY / EXTRA_EFFECTS: the forms the self-test plants; RETIRED: forms no longer planted because
+they leave no trace in the data (kept for the trace check, bench/diagnose_trace.py).
 """
 
 from __future__ import annotations
