@@ -51,12 +51,13 @@ ROOT = Path(__file__).resolve().parent.parent
 # changed in this round of changes: each reported seed is run once, at full size, at the end of the
 # round; rules are never settled on it. Seeds already run once are spent and are development seeds
 # now: seed 0 of both generators, 1000-4000 of the first, and the previous reported seeds 7919
-# (first) and 6151, 40093 (second). 47211 was drawn for the second generator with its asymmetric
-# play that the base model cannot absorb (turn_set_slack), before any diagnosis ran on that form.
-REPORTED_SEED_FIRST = 52711
-REPORTED_SEED_SECOND = 47211
-SPENT_SEEDS_FIRST = (0, 1000, 2000, 3000, 4000, 7919)
-SPENT_SEEDS_SECOND = (0, 6151, 40093)
+# (first) and 6151, 40093, 47211 (second; 47211 was the first reported seed of its asymmetric play
+# that the base model cannot absorb, turn_set_slack). 47552 and 82900 were drawn before the
+# noise floor's ringing rule was written (attribute.still_periods_ring).
+REPORTED_SEED_FIRST = 47552
+REPORTED_SEED_SECOND = 82900
+SPENT_SEEDS_FIRST = (0, 1000, 2000, 3000, 4000, 7919, 52711)
+SPENT_SEEDS_SECOND = (0, 6151, 40093, 47211)
 
 
 def main(argv=None) -> int:
