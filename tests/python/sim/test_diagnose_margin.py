@@ -135,6 +135,35 @@ def test_noise_autocorrelation_is_read_from_the_still_periods():
     assert 100 < dof < 2000, dof
 
 
+def _staircase(rng, settle):
+    """The staircase record above (3 s ramps, 4 s holds, AR(1) noise rho 0.6, sd 0.03 deg) with
+    settle(time since the hold began, s) added during each hold."""
+    from types import SimpleNamespace
+    dt = 0.02
+    t = np.arange(0, 140, dt)
+    ph = t % 7.0
+    q = 0.2 * (np.floor(t / 7.0) + np.clip(ph / 3.0, 0, 1))
+    y = 5 * np.sin(q) + _ar1(rng, t.size, 0.6, 0.03) + np.where(ph > 3.0, settle(ph - 3.0), 0.0)
+    return SimpleNamespace(t_m=t, y_m=y, t_int=t, q_int=q, q_hi=q.max(), q_lo=q.min(), t_delay_s=0.0)
+
+
+def test_a_tip_that_rings_through_the_stops_is_not_taken_for_noise():
+    # A 3.2-Hz mode (1.2 s decay) rung at each stop, 0.5 deg: the still periods' spread is mostly
+    # the ring (0.12 deg measured, against 0.03 of noise), so the floor comes from second
+    # differences instead (0.018 deg measured: they read AR(1) noise low). A creep that settles
+    # over 0.5 s in the holds (0.5 deg) is no oscillation: the still periods stay the floor.
+    from playscope.diagnose.attribute import noise_floor, still_periods_ring
+    ring = _staircase(np.random.default_rng(16), lambda s: 0.5 * np.exp(-s / 1.2) * np.sin(2 * np.pi * 3.2 * s))
+    sigma, method, _ = noise_floor(ring)
+    assert still_periods_ring(ring) and method.startswith("second differences"), method
+    assert sigma < 0.06, sigma
+    creep = _staircase(np.random.default_rng(16), lambda s: 0.5 * np.exp(-s / 0.5))
+    sigma_c, method_c, _ = noise_floor(creep)
+    assert not still_periods_ring(creep) and method_c == "still periods", method_c
+    plain = _staircase(np.random.default_rng(16), lambda s: 0.0 * s)
+    assert not still_periods_ring(plain)
+
+
 def test_with_the_noise_se_a_null_gain_passes_at_about_the_nominal_rate():
     # Null for the noise SE: the two models are wrong by 0.3 deg waves of equal mean square over
     # the rows (a sine and a cosine over whole periods), so on these rows neither is better and the
