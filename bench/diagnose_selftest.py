@@ -23,8 +23,9 @@ Usage: .venv/bin/python bench/diagnose_selftest.py [--quick] [--workers 2] [--js
        (a subset while developing, e.g. --effects viscous_hysteresis,cable_elongation --nulls 0
        --no-ool --seed 1000 --selftest-only; the reported figures are the REPORTED_SEED_* seeds with every case)
        (full, reported seeds, on 2 cores shared with other jobs (load 4-7): second generator 41 cases
-       in 450 s (seed 47211: 307 s at load 2-3); first generator 58 cases in 1987 s with the
-       recoverability oracle (723 s without it, --no-recover, the round before); over the 10-min CI budget together, so this is a
+       in 450 s (seeds 47211 / 82900: 307 s at load 2-3 / 313 s at load 4-6); first generator 58
+       cases in 1987 s with the recoverability oracle (seed 47552: 1470 s at load 6-7; 723 s
+       without it, --no-recover, two rounds before); over the 10-min CI budget together, so this is a
        nightly-style bench that prints its wall time, not a CI job; --quick: strong strength only,
        2 nulls; --real-only ~2 min)
 """

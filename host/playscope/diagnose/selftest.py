@@ -96,6 +96,12 @@ def _rows_to_samples(t_rows: np.ndarray, mask: np.ndarray, t_samples: np.ndarray
     return mask[j]
 
 
+def _clean_data(s):
+    """The diagnosis' Data of session s with the generator's noise-free reading
+    (s.meta["clean_reading_deg"]) in place of the measured one: same rows, same reduction."""
+    return from_session(type(s)(**{**s.__dict__, "distal": {"t_s": s.distal["t_s"], "c_deg": s.meta["clean_reading_deg"]}}))
+
+
 def _diagnose_blind(s, case: dict, candidates):
     """Diagnose session s blind (the record's own fit / validation / test split) and score it
     against the generator's truth: the case's labels, the verdict and kept effects, the screen,
@@ -105,7 +111,7 @@ def _diagnose_blind(s, case: dict, candidates):
     data = from_session(s)
     sp = choose_split(data)
     res = attribute(data, sp.fit, sp.val, candidates=candidates, test_mask=sp.test)
-    clean = from_session(type(s)(**{**s.__dict__, "distal": {"t_s": s.distal["t_s"], "c_deg": s.meta["clean_reading_deg"]}}))
+    clean = _clean_data(s)
     e = (data.y_m - clean.y_m)[sp.test & np.isfinite(data.y_m)]
     r_noise = float(np.sqrt(np.mean(e * e)))
     r0 = res["test"]["rmse_base_deg"]
@@ -159,7 +165,7 @@ def base_trace(s, configs=(("diagnosis", 0.0), ("diagnosis", 10.0), ("rich", 10.
     "skip_start_s", "noisy_deg", "clean_deg", "excess_deg": noisy minus noise-only}]} (deg)."""
     data = from_session(s)
     sp = choose_split(data)
-    clean = from_session(type(s)(**{**s.__dict__, "distal": {"t_s": s.distal["t_s"], "c_deg": s.meta["clean_reading_deg"]}}))
+    clean = _clean_data(s)
     ok = sp.test & np.isfinite(data.y_m)
     e = (data.y_m - clean.y_m)[ok]
     out = {"noise_only_deg": float(np.sqrt(np.mean(e * e))), "split": sp.method, "fits": []}
