@@ -45,6 +45,9 @@ import numpy as np
 
 SUB = 16                              # delay grid points per frame period
 DELAY_SPAN = 3.0                      # the delay grid reaches +- this many frames from the guess
+HOLD_BACK = 0.2                       # a ringing record's window ends when q comes back this share of b_max
+FAR_RING = 1.2                        # ... and the new branch may reach b_max + this x b_max (a whole swing)
+RING_LASTS = 1.0                      # ... when the ring lasts: decay (1/s) <= this x frequency (Hz), zeta <~ 0.16
 PRE_S, POST_S = 1.0, 3.5              # window around t1 (s, scene clock)
 NB = 160                              # b grid points
 RING_HZ = np.arange(1.5, 7.01, 0.5)   # ringing searched (Hz) when the record rings
@@ -226,9 +229,20 @@ def _lse(x: np.ndarray, axis=None) -> np.ndarray:
     return np.squeeze(m, axis=axis) + np.log(np.sum(np.exp(x - m), axis=axis))
 
 
-def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=None) -> list:
+def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=None, hold=False) -> list:
     """A _Rev per reversal (None where the old branch is not known to be engaged: the first
-    reversal, or q not moved by b_max since the previous one)."""
+    reversal, or q not moved by b_max since the previous one).
+
+    hold (a ringing record): the window runs over the whole new motion and the hold after it,
+    past the next reversal until q has come back from it by HOLD_BACK b_max (the play stays
+    engaged on the new side: z holds), instead of ending at the next reversal and where the new
+    branch leaves the old one's reach. A tip that rings hides the few moving frames of a fast
+    swing, but the ring that the onset's velocity step excites lasts the whole hold, and its
+    phase and amplitude follow where z started (the tip mode's drive, `_Rev._ring_drive`): on a
+    3 Hz ringing record at 25 fps the short windows put b near 0 on the fast swings' reversals,
+    the long ones within a few % (development renderings). Not used without ringing: a
+    registration flip makes the image curve differ by direction, and a long branch then costs
+    (dev-reg-swings25 7.8 -> 14.1 %)."""
     out = []
     for r in range(rt.size):
         if r == 0:
@@ -242,12 +256,17 @@ def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=Non
             continue
         t_start = max(t_enc[i0 + moved[0]], rt[r] - PRE_S)
         t_end = min(rt[r + 1] if r + 1 < rt.size else t_enc[-1], rt[r] + POST_S)
+        if hold and r + 1 < rt.size:
+            k1 = np.searchsorted(t_enc, rt[r + 1])
+            k2 = np.searchsorted(t_enc, rt[r] + POST_S)
+            back = np.nonzero(np.abs(q[k1:k2] - rq[r + 1]) > HOLD_BACK * b_max)[0]
+            t_end = min(t_enc[k1 + back[0]] if back.size else t_enc[min(k2, t_enc.size - 1)], rt[r] + POST_S)
         # The new branch no further from q1 than b_max plus the old branch's reach, so both
         # branches see the same stretch of the image curve.
         span = float(np.ptp(q[np.searchsorted(t_enc, t_start):i1 + 1]))
         j1 = np.searchsorted(t_enc, rt[r])
         j2 = np.searchsorted(t_enc, t_end)
-        far = np.nonzero(s * (rq[r] - q[j1:j2]) > b_max + span)[0]
+        far = np.nonzero(s * (rq[r] - q[j1:j2]) > b_max + (max(span, FAR_RING * b_max) if hold else span))[0]
         if far.size:
             t_end = min(t_end, t_enc[j1 + far[0]])
         rv = _Rev(t_enc, q, rt[r], rq[r], s, t_start, t_end, t_f, obs, d_lo, d_hi, b_max, period, b_of_q)
@@ -505,6 +524,50 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
     cw = np.cumsum(w)
     lo = float(grid[min(np.searchsorted(cw, 0.025), grid.size - 1)]) - 0.5 * T / SUB
     hi = float(grid[min(np.searchsorted(cw, 0.975), grid.size - 1)]) + 0.5 * T / SUB
+    if ring is not None and ring[1] <= RING_LASTS * ring[0]:
+        # A ringing record: the long windows (`_reversals` hold), when the ring lasts (at most
+        # one e-fold per period: it is still there after the swing). A heavily damped "ring"
+        # (sa-delay150-cfg50, no ringing rendered: 3.9 Hz, 12 /s) is the model soaking up
+        # something else, and the long windows made that record worse (12.7 -> 18.9 %).
+        # The b grid gets its full reach back: its top came from samples in short windows, which
+        # such a ring fools (twice their 90th percentile held b below the truth on dev-ring3:
+        # a 0.076 mm top against a true 0.12-0.30 mm); without a lasting ring the cut stays,
+        # which serves the ringless fast swings (a full grid put third-none-swings25-fast at
+        # 10.7 % against 7.9 %).
+        # The first B(q) came from short windows too: once more from the long windows' samples
+        # at the delay found, then the windows again with it, and the delay's likelihood on them.
+        b2 = b_max
+        # The frequency again on the long windows: it was chosen on short ones to 0.1 Hz, and over a
+        # hold of a second or more the phase of a ring that far off drifts by a good part of a
+        # cycle (third-ringing-swings25: 4.8 Hz chosen for a 4.68 Hz mode put b near 0 and
+        # calibrate refused at the tables). 0.02 Hz grid +- 0.2 Hz, summed over the subset.
+        long_ = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, b2, T, bq, hold=True)
+        for rv in long_:
+            if rv is not None:
+                rv.jump = jump
+        lsub = [long_[k] for k in pick if long_[k] is not None]
+        if lsub:
+            hzs = ring[0] + np.arange(-0.2, 0.2001, 0.02)
+            Lh = [sum(float(np.max(rv.logw(d, rv.b_grid[::4], steps, (float(h), ring[1], ring[2]))[0])) for rv in lsub)
+                  for h in hzs]
+            ring = (float(hzs[int(np.argmax(Lh))]), ring[1], ring[2])
+        mid = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring, b2),
+                      _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq, hold=True), d)
+        if mid.ok.sum() >= 4:
+            bq = _b_of_q(rq, mid)
+        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq, hold=True)
+        for rv in revs:
+            if rv is not None:
+                rv.jump = jump
+        sub = [revs[k] for k in pick if revs[k] is not None]
+        L = _delay_profile(sub, grid, steps, ring)
+        w = np.exp(L - L.max())
+        w /= w.sum()
+        d = float(np.sum(w * grid))
+        sd = float(np.sqrt(np.sum(w * (grid - d) ** 2) + (T / SUB) ** 2 / 12))
+        cw = np.cumsum(w)
+        lo = float(grid[min(np.searchsorted(cw, 0.025), grid.size - 1)]) - 0.5 * T / SUB
+        hi = float(grid[min(np.searchsorted(cw, 0.975), grid.size - 1)]) + 0.5 * T / SUB
     out = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring or (0.0, 0.0), b2),
                   revs, d)
     out.b_of_q = bq
@@ -551,7 +614,8 @@ def refit_at(pf: PlayFit, t_enc, q, rt, rq, t_f, obs, period_s: float, d: float)
     """pf's B samples again at delay d (a configured delay that stands), with pf's choices.
     Returns a new PlayFit (the delay figures kept)."""
     M = rt.size
-    revs = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, pf.b_max, period_s, getattr(pf, "b_of_q", None))
+    revs = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, pf.b_max, period_s, getattr(pf, "b_of_q", None),
+                      hold=bool(0 < pf.ring[0] and pf.ring[1] <= RING_LASTS * pf.ring[0]))
     for rv in revs:
         if rv is not None:
             rv.jump = getattr(pf, "jump", None)

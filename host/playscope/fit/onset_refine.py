@@ -7,6 +7,7 @@ onsets with a joint model of the marker around a reversal, fitted to the frames:
              + r e^(-alpha (t - tau0)) sin(w (t - tau0))  ringing after the stop (optional)
              + s [t >= t_j]                               a step: registration / channel jump (optional)
              + v1 max(t - tau, 0)                         new motion from the onset tau
+             + r1 e^(-alpha (t - tau)) sin(w (t - tau))   ringing the onset excites (with the record's ringing)
 
 Q is the 2-D marker (px); a, v0, r, s, v1 are 2-vectors, linear given the change points
 (tau0, tau, frame j) and the ringing (w, alpha), so each candidate is one linear least-squares
@@ -215,8 +216,12 @@ class _Episode:
         return _solve_t(self._stop_columns(tau0, om, al, j), self._stop_proj())
 
     def _stop_proj(self):
-        """`_project` of the stop fits' shared columns [ones, new motion from the held onset]."""
-        return self._proj(("stop", self.tau), lambda: [np.maximum(self.tk - float(self.tau), 0.0)])
+        """`_project` of the stop fits' shared columns [ones, new motion from the held onset,
+        ringing from the held onset (the record's ringing only, see `_solve_onset`)]."""
+        om, al = self._ring_on if self.fixed_ring is not None else (0.0, 0.0)
+        return self._proj(("stop", self.tau, om, al),
+                          lambda: [np.maximum(self.tk - float(self.tau), 0.0),
+                                   _col_ring(self.tk, [self.tau], [om], [al])[0]])
 
     def _stop_columns(self, tau0, om, al, j):
         """The stop candidates' own columns [old, ring, step] as rows: (G, 3, n)."""
@@ -229,14 +234,22 @@ class _Episode:
 
     def _solve_onset(self, tau, j):
         """Candidates (onset, step frame) with the stop and ringing held: (RSS, coef of
-        [new, step])."""
+        [new, step, ringing from the onset])."""
         proj = self._proj(("onset", self.tau0, self.om, self.al),
                           lambda: [_col_old(self.tk, [self.tau0])[0],
                                    _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
         tau = np.asarray(tau, float)
-        Vt = np.empty((tau.size, 2, self.tk.size))
+        Vt = np.empty((tau.size, 3, self.tk.size))
         np.maximum(self.tk[None, :] - tau[:, None], 0.0, out=Vt[:, 0])  # new motion: max(t - tau, 0)
         Vt[:, 1] = _col_step(self.k, j)
+        # The onset is a step in the carrier's velocity: it excites the tip mode as the stop does
+        # (a tip driven through its base starts with its own ringing, here even against the
+        # motion: dev-ring5-sine30 put the onsets ~300 ms late without it, 1.5 ring periods).
+        # Only with the record's ringing (the second pass): searched per reversal in the first
+        # pass, the extra freedom moved the stops of a 60 fps triangle that rings between every
+        # two reversals (sa-ring4-tri60: the record's delay 0.26 s against 0.08 s).
+        Vt[:, 2] = (_col_ring(self.tk, tau, np.full(tau.size, self.om), np.full(tau.size, self.al))
+                    if self.fixed_ring is not None else 0.0)
         return _solve_t(Vt, proj)
 
     def fit_stop(self):
@@ -247,6 +260,7 @@ class _Episode:
         eighth-frame grid around the best gives tau0's posterior, marginalised over the step."""
         from scipy.optimize import minimize
 
+        self._ring_on = (self.om, self.al)  # the onset's ringing stays as it was while the stop is fitted
         lo = max(-self.stop_back, self.tk[0] + 0.5)  # around the first guess (t = 0): no drift
         hi = min(3.0, self.tau - 1.0)
         if hi <= lo:
@@ -278,6 +292,7 @@ class _Episode:
             p = minimize(f, [self.om, self.al], method="Nelder-Mead",
                          options={"xatol": 1e-4, "fatol": 1e-9, "maxiter": 200}).x
             self.om, self.al = float(abs(p[0])), float(abs(p[1]))
+            self._ring_on = (self.om, self.al)
         gf = np.arange(max(t0b - 1.0, lo), min(t0b + 1.0, hi) + 1e-9, 0.5 / SUB)
         js = np.unique([-1, self.j]).astype(float)
         TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
@@ -325,7 +340,8 @@ class _Episode:
         if hi <= lo:
             self.ok = False
             return
-        pen_ring = 4.0 * (self.om > 0)
+        # the stop's ringing (amplitude 2-D, w, alpha) and, with the record's ringing, the onset's (2-D)
+        pen_ring = (4.0 + 2.0 * (self.fixed_ring is not None)) * (self.om > 0)
         # Coarse: tau on a half-frame grid; the step none, the current one (a step at the stop
         # comes from fit_stop) or at a frame within 2 periods of tau (the onset's jump).
         gt = np.arange(lo, hi + 1e-9, 0.5)
@@ -524,9 +540,18 @@ def delay_from_shape(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.nd
         crit = np.full(grid.size, np.inf)
         first = np.cumsum(tk[None, :] > rt[r] + grid[:, None], axis=1)  # 1 at the stop's first frame
         ring_cols = []
-        if ring[0] > 0:  # the record's ringing, started at the stop (as in the change-point model)
+        if ring[0] > 0:
+            # The record's ringing, started at the stop: a velocity step there (a constant-speed
+            # approach) starts it in sine phase, an acceleration step (a sine's or a swing's
+            # deceleration ends at the stop) as 1 - cosine (continuous, zero velocity).
             tau = np.maximum(tk[None, :] - rt[r] - grid[:, None], 0.0)
-            ring_cols = [np.exp(-ring[1] * tau) * np.sin(2 * np.pi * ring[0] * tau)]
+            e = np.exp(-ring[1] * tau)
+            ring_cols = [e * np.sin(2 * np.pi * ring[0] * tau), 1.0 - e * np.cos(2 * np.pi * ring[0] * tau)]
+            # and a ring carried over from before the window (the previous onset's), free phase
+            tw = tk - tk[0]
+            ew = np.exp(-ring[1] * tw)
+            ring_cols += [np.broadcast_to(ew * np.sin(2 * np.pi * ring[0] * tw), h.shape),
+                          np.broadcast_to(ew * np.cos(2 * np.pi * ring[0] * tw), h.shape)]
         for m in (0, 1, 2):  # no step, or one from the stop's first or second frame
             cols = [np.ones_like(h), h, h * h] + ring_cols + ([(first >= m).astype(float)] if m else [])
             X = np.stack(cols, axis=-1)  # (G, n, p)
