@@ -142,6 +142,7 @@ PART_TIME = (
     ("no regression with the learner on", "~1 min (reuses the main job's folder)"),
     ("start-up", "~5 s"),
     ("diagnosis speed", "~1 min"),
+    ("asymmetric-play trace", "~4 min (base-model fits on the generators' asymmetric cases and nulls)"),
     ("fast-swing onsets", "~10-20 min; only with --swings (development renderings)"),
     ("diagnosis self-test", "~15-40 min (both generators, quick form), the slowest part; --skip-selftest leaves it out"),
 )
@@ -524,6 +525,27 @@ def main(argv=None) -> int:
                       "median <= 20 s", "", "bench/diagnose_speed.py"))
 
     part("diagnosis speed", diagnose_speed)
+
+    # -- does a planted asymmetric play leave a trace at all? (bench/diagnose_trace.py; docs/diagnosis.md)
+    def asym_trace():
+        out = sh([PY, "bench/diagnose_trace.py", "--nulls", "6"])
+        ways = "fit from the start / without the first 10 s / twice the knots"
+        groups: dict[tuple[str, str], list[list[float]]] = {}
+        for g, what, cells in re.findall(r"^(first|second)\s+(\S+)\s+\(seed \d+\)\s+[\d.]+ \|(.*)$", out, re.M):
+            ex = [float(a) for a, _ in re.findall(r"(-?[\d.]+)\s+(-?[\d.]+)", cells)]  # (excess noisy, clean) per way
+            key = (g, "nulls" if what.startswith("null") else what.split("@")[0].split("/")[-1])
+            groups.setdefault(key, []).append(ex)
+        if not groups:
+            raise RuntimeError("bench/diagnose_trace.py printed no case rows")
+        for (g, form), rows in groups.items():
+            if any(len(r) != 3 for r in rows):
+                raise RuntimeError(f"bench/diagnose_trace.py: unexpected row for {g} {form}")
+            rng = " / ".join(f"{min(r[i] for r in rows):.4f}-{max(r[i] for r in rows):.4f}" for i in range(3))
+            table.append((f"asymmetric play, base-model trace, {g} generator, {form} ({len(rows)} records): "
+                          f"excess over the noise-only RMSE, {ways}", f"{rng} deg",
+                          "a trace: above the nulls in all three ways", "", "bench/diagnose_trace.py --nulls 6"))
+
+    part("asymmetric-play trace", asym_trace)
 
     def swings():
         # The development renderings only: the set-aside group is run once, by hand, after the
