@@ -200,6 +200,7 @@ class _Episode:
         self.n_obs = 2 * tk.size
         self.stop_back = 5.0  # frames searched before the stop guess (ringing makes it late)
         self.fixed_ring = None  # (om, al) per frame period: the record's ringing, not searched
+        self.onset_ring = False  # with fixed_ring: the ringing the onset excites is a column too
 
     def _proj(self, key, cols):
         """`_project` of the shared columns F = [ones, *cols()] and Y, once per key (the held
@@ -218,7 +219,7 @@ class _Episode:
     def _stop_proj(self):
         """`_project` of the stop fits' shared columns [ones, new motion from the held onset,
         ringing from the held onset (the record's ringing only, see `_solve_onset`)]."""
-        om, al = self._ring_on if self.fixed_ring is not None else (0.0, 0.0)
+        om, al = self._ring_on if self.onset_ring else (0.0, 0.0)
         return self._proj(("stop", self.tau, om, al),
                           lambda: [np.maximum(self.tk - float(self.tau), 0.0),
                                    _col_ring(self.tk, [self.tau], [om], [al])[0]])
@@ -249,7 +250,7 @@ class _Episode:
         # pass, the extra freedom moved the stops of a 60 fps triangle that rings between every
         # two reversals (sa-ring4-tri60: the record's delay 0.26 s against 0.08 s).
         Vt[:, 2] = (_col_ring(self.tk, tau, np.full(tau.size, self.om), np.full(tau.size, self.al))
-                    if self.fixed_ring is not None else 0.0)
+                    if self.onset_ring else 0.0)
         return _solve_t(Vt, proj)
 
     def fit_stop(self):
@@ -341,7 +342,7 @@ class _Episode:
             self.ok = False
             return
         # the stop's ringing (amplitude 2-D, w, alpha) and, with the record's ringing, the onset's (2-D)
-        pen_ring = (4.0 + 2.0 * (self.fixed_ring is not None)) * (self.om > 0)
+        pen_ring = (4.0 + 2.0 * self.onset_ring) * (self.om > 0)
         # Coarse: tau on a half-frame grid; the step none, the current one (a step at the stop
         # comes from fit_stop) or at a frame within 2 periods of tau (the onset's jump).
         gt = np.arange(lo, hi + 1e-9, 0.5)
@@ -399,6 +400,10 @@ def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, rin
     ep.stop_back = stop_back
     if ring is not None:
         ep.fixed_ring = (2 * np.pi * ring[0] * period_s, ring[1] * period_s)
+        # The onset's own ring only when half its period fits in the frames the onset is fitted
+        # on (POST_FRAMES): a slower ring's column is a part-cycle curve there that trades with
+        # the new motion's ramp (the Fig. 7 replica's 2 Hz ring at 25 fps: 5.5 -> 50 % with it).
+        ep.onset_ring = ring[0] * 2 * POST_FRAMES * period_s >= 1.0
     if np.isfinite(state[4]):
         ep.tau = min(max(state[4], state[0] + 1.0), tk[-1] - 2.0)
     if stop or len(state) < 6:
