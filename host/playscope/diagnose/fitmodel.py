@@ -153,8 +153,9 @@ class Data:
         return float(np.max(self.q_int))
 
 
-def knots(data: Data) -> np.ndarray:
-    return np.linspace(data.q_lo, data.q_hi, N_KNOTS)
+def knots(data: Data, n: int = N_KNOTS) -> np.ndarray:
+    """The n knots of B (q units, (n,)): evenly over the record's actuator range."""
+    return np.linspace(data.q_lo, data.q_hi, n)
 
 
 @dataclass
@@ -335,11 +336,14 @@ def _direction(z: np.ndarray) -> np.ndarray:
 class Model:
     """The diagnostic model for one Data and one set of effects (names from C_LIBRARY)."""
 
-    def __init__(self, data: Data, effects=(), frame: "Model | None" = None, dead_zone_side: str | None = None):
+    def __init__(self, data: Data, effects=(), frame: "Model | None" = None, dead_zone_side: str | None = None,
+                 spline_knots: tuple[int, int] | None = None):
         """frame: another Model whose knots and normalisation are reused, so a fit made on one
         session can be evaluated on another (across-session protocol). dead_zone_side: where the
         dead band acts, "actuator" (on q, before the play; default) or "distal" (on the play
-        output z, before f_remain; see design()); a frame's side is kept."""
+        output z, before f_remain; see design()); a frame's side is kept. spline_knots: (knots of
+        B, interior knots of f_remain), default (N_KNOTS, N_FKNOTS) or the frame's (a richer class
+        for the self-test's trace check, selftest.base_trace)."""
         self.d = data
         self.effects = tuple(e for e in C_LIBRARY if e in effects)
         side = dead_zone_side or (frame.dead_zone_side if frame is not None else "actuator")
@@ -347,15 +351,18 @@ class Model:
             raise ValueError(f"dead_zone_side must be one of {DEAD_ZONE_SIDES}, not {side!r}")
         self.dead_zone_side = side
         self.frame = frame
+        if spline_knots is None:
+            spline_knots = (frame.n_b, frame.n_f) if frame is not None else (N_KNOTS, N_FKNOTS)
+        self.n_b, self.n_f = int(spline_knots[0]), int(spline_knots[1])
         ref = frame.d if frame is not None else data
         span = ref.q_hi - ref.q_lo
         self.q_mid = 0.5 * (ref.q_hi + ref.q_lo)
         self.q_range = (ref.q_lo, ref.q_hi)
         self.q_half = max(0.5 * span, 1e-9)
-        self.kn = knots(ref)
+        self.kn = knots(ref, self.n_b)
         self.zg = np.r_[self.kn[0] - 10 * span - 1, np.linspace(self.kn[0], self.kn[-1], 600), self.kn[-1] + 10 * span + 1]
         names, init, lo, hi = [], [], [], []
-        for i in range(N_KNOTS):
+        for i in range(self.n_b):
             names.append(f"B{i}_q")
             init.append(0.1 * span)
             lo.append(0.0)
@@ -376,7 +383,7 @@ class Model:
                 hi.append(h)
         self.names, self.init = names, np.array(init, float)
         self.lo, self.hi = np.array(lo, float), np.array(hi, float)
-        inner = np.linspace(-1, 1, N_FKNOTS + 2)
+        inner = np.linspace(-1, 1, self.n_f + 2)
         self.ftk = np.r_[[-1.5] * 4, inner[1:-1], [1.5] * 4]
         self.coef_names = [f"P{j}" for j in range(self.ftk.size - 4)]
         if "drift" in self.effects:
@@ -446,7 +453,7 @@ class Model:
             # crosses [z0 - w, z0 + w].
             zc, w = self._band(theta, self.q_range)
             q = zc + _dead_band(q - zc, w, self._corner(theta) * w)
-        Bk = np.maximum(theta[:N_KNOTS], 0.0)
+        Bk = np.maximum(theta[:self.n_b], 0.0)
         alpha = self._get(theta, "asymmetric_backlash", "alpha") if "asymmetric_backlash" in self.effects else 0.0
         z0 = float(q[0])
         widths = [1.0]

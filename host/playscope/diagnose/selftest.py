@@ -17,7 +17,6 @@ This module is the harness: it is the one place that imports both sides.
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import multiprocessing
 import os
@@ -31,6 +30,7 @@ from ..sim.withheld.oracle import effect_free_fit, identifiable
 from ..sim.withheld.recover import recoverable
 from ..sim.withheld.hidden_plant import perturbed, record
 from ..sim.withheld.variants import OUT_OF_LIBRARY, VARIANTS
+from ..base.metrics import rmse
 from . import fitmodel
 from .attribute import attribute
 from .fitmodel import C_LIBRARY, from_session
@@ -112,8 +112,7 @@ def _diagnose_blind(s, case: dict, candidates):
     sp = choose_split(data)
     res = attribute(data, sp.fit, sp.val, candidates=candidates, test_mask=sp.test)
     clean = _clean_data(s)
-    e = (data.y_m - clean.y_m)[sp.test & np.isfinite(data.y_m)]
-    r_noise = float(np.sqrt(np.mean(e * e)))
+    r_noise = rmse((data.y_m - clean.y_m)[sp.test & np.isfinite(data.y_m)])
     r0 = res["test"]["rmse_base_deg"]
     sig = res["stick_slip_signature"]
     out = {"id": case["id"], "truth": case["truth"], "effect": case["effect"], "variant": case["variant"],
@@ -139,18 +138,6 @@ def _diagnose_blind(s, case: dict, candidates):
 TRACE_CLASSES = {"diagnosis": (fitmodel.N_KNOTS, fitmodel.N_FKNOTS), "rich": (17, 24)}
 
 
-@contextlib.contextmanager
-def _spline_classes(n_b: int, n_f: int):
-    """Run the diagnosis' base model with n_b B knots and n_f f_remain interior knots (module
-    globals of fitmodel, read at each Model's construction and evaluation; restored on exit)."""
-    old = fitmodel.N_KNOTS, fitmodel.N_FKNOTS
-    fitmodel.N_KNOTS, fitmodel.N_FKNOTS = n_b, n_f
-    try:
-        yield
-    finally:
-        fitmodel.N_KNOTS, fitmodel.N_FKNOTS = old
-
-
 def base_trace(s, configs=(("diagnosis", 0.0), ("diagnosis", 10.0), ("rich", 10.0))) -> dict:
     """Does a planted effect leave a trace in the data? The diagnosis' base model (play of width
     B(q) then f_remain, no effect) fitted on the record's fit part (split.choose_split) and judged on
@@ -166,14 +153,13 @@ def base_trace(s, configs=(("diagnosis", 0.0), ("diagnosis", 10.0), ("rich", 10.
     data = from_session(s)
     sp = choose_split(data)
     clean = _clean_data(s)
-    ok = sp.test & np.isfinite(data.y_m)
-    e = (data.y_m - clean.y_m)[ok]
-    out = {"noise_only_deg": float(np.sqrt(np.mean(e * e))), "split": sp.method, "fits": []}
+    out = {"noise_only_deg": rmse((data.y_m - clean.y_m)[sp.test & np.isfinite(data.y_m)]), "split": sp.method,
+           "fits": []}
     for name, skip in configs:
         rows = sp.fit & (data.t_m >= data.t_m[0] + skip)
-        with _spline_classes(*TRACE_CLASSES[name]):
-            noisy = fitmodel.Model(data).fit(rows, uncertainty=False).rmse(data.y_m, sp.test)
-            free = fitmodel.Model(clean).fit(rows, uncertainty=False).rmse(clean.y_m, sp.test)
+        kn = TRACE_CLASSES[name]
+        noisy = fitmodel.Model(data, spline_knots=kn).fit(rows, uncertainty=False).rmse(data.y_m, sp.test)
+        free = fitmodel.Model(clean, spline_knots=kn).fit(rows, uncertainty=False).rmse(clean.y_m, sp.test)
         out["fits"].append({"classes": name, "skip_start_s": skip, "noisy_deg": noisy, "clean_deg": free,
                             "excess_deg": noisy - out["noise_only_deg"]})
     return out

@@ -166,13 +166,12 @@ def handeye_signature(model, fit, fit_mask, eval_mask) -> dict:
     # Which way the offset goes: with the motion of the reading (delta of the sign of the gain
     # dc/dq, the slope of y on q over the fit rows) or against it, and over what travel of the
     # play output it switches, against the play's width (median of B at its knots).
-    from .fitmodel import N_KNOTS
     q_rows = np.interp(d.t_m - delay, d.t_int, d.q_int)
     mf = fit_mask & np.isfinite(y)
     gain_sign = float(np.sign(np.polyfit(q_rows[mf], y[mf], 1)[0])) if mf.sum() > 2 else 1.0
     delta = float(fit.params().get("handeye_direction.delta_deg", (0.0, 0.0))[0])
     travel = float(np.exp(model._get(fit.theta, "handeye_direction", "log_travel")) * 2 * model.q_half)
-    width = float(np.median(np.maximum(fit.theta[:N_KNOTS], 0.0)))
+    width = float(np.median(np.maximum(fit.theta[:model.n_b], 0.0)))
     out.update(delta_deg=delta, lags_motion=bool(delta * gain_sign < 0), switch_travel_mm=travel,
                play_width_mm=width, gradual_lag=bool(delta * gain_sign < 0 and travel > HE_TRAVEL_SHARE * width))
     return out

@@ -274,6 +274,34 @@ def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=Non
     return out
 
 
+def _ring_lasts(ring) -> bool:
+    """A ringing (Hz, decay 1/s[, gain]) that lasts: at most RING_LASTS e-folds of decay per
+    second per hertz, so it is still there after a swing (the long windows of `_reversals`).
+    None or a zero frequency: no."""
+    return ring is not None and ring[0] > 0 and ring[1] <= RING_LASTS * ring[0]
+
+
+def _set_jump(revs: list, jump) -> None:
+    """The record's jump vector (px, (2,), or None: free) on every reversal of revs (None kept)."""
+    for rv in revs:
+        if rv is not None:
+            rv.jump = jump
+
+
+def _delay_posterior(L: np.ndarray, grid: np.ndarray, T: float) -> tuple[float, float, float, float]:
+    """The delay's posterior from its log-likelihood L (grid,) on grid (s) under a flat prior: mean,
+    sd (with the grid step's own T / SUB / sqrt(12)) and the 2.5-97.5 % points widened by half a
+    grid step (s). Returns (mean, sd, lo, hi)."""
+    w = np.exp(L - L.max())
+    w /= w.sum()
+    d = float(np.sum(w * grid))
+    sd = float(np.sqrt(np.sum(w * (grid - d) ** 2) + (T / SUB) ** 2 / 12))
+    cw = np.cumsum(w)
+    lo = float(grid[min(np.searchsorted(cw, 0.025), grid.size - 1)]) - 0.5 * T / SUB
+    hi = float(grid[min(np.searchsorted(cw, 0.975), grid.size - 1)]) + 0.5 * T / SUB
+    return d, sd, lo, hi
+
+
 def _delay_profile(revs, grid, steps, ring) -> np.ndarray:
     """Sum over reversals of log p(frames | t_delay), marginal over b and the jump. (grid,)"""
     L = np.zeros(grid.size)
@@ -299,8 +327,7 @@ def _choose(revs, d, ring_grid=True) -> tuple[np.ndarray | None, tuple | None, d
     pen = 0.5 * n_p * np.log(np.mean([2 * rv.n for rv in revs]))
 
     def set_jump(jump):
-        for rv in revs:
-            rv.jump = jump
+        _set_jump(revs, jump)
 
     def find_jump(ring):
         set_jump(None)
@@ -500,9 +527,7 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
             rg, rs = rg[rg >= 0.0], rs[rg >= 0.0]
             dc = float(rg[int(np.argmax(rs))])
             revs = _reversals(t_enc, q, rt, rq, t_f, obs, dc, dc, b_max, T)
-            for rv in revs:
-                if rv is not None:
-                    rv.jump = jump
+            _set_jump(revs, jump)
             again = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), dc, (dc, dc), T, jump is not None,
                                     ring, b_max), revs, dc)
             if again.ok.sum() >= 4:
@@ -510,21 +535,14 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
                 bq = _b_of_q(rq, again)
             continue
         steps = jump is not None
-        for rv in revs:
-            if rv is not None:
-                rv.jump = jump
+        _set_jump(revs, jump)
         L = _delay_profile(sub, grid, steps, ring)
-        w = np.exp(L - L.max())
-        w /= w.sum()
-        d = float(np.sum(w * grid))
+        d = _delay_posterior(L, grid, T)[0]
         if abs(d - dc) < T / 4:
             break
         dc = float(grid[int(np.argmax(L))])
-    sd = float(np.sqrt(np.sum(w * (grid - d) ** 2) + (T / SUB) ** 2 / 12))
-    cw = np.cumsum(w)
-    lo = float(grid[min(np.searchsorted(cw, 0.025), grid.size - 1)]) - 0.5 * T / SUB
-    hi = float(grid[min(np.searchsorted(cw, 0.975), grid.size - 1)]) + 0.5 * T / SUB
-    if ring is not None and ring[1] <= RING_LASTS * ring[0]:
+    d, sd, lo, hi = _delay_posterior(L, grid, T)
+    if _ring_lasts(ring):
         # A ringing record: the long windows (`_reversals` hold), when the ring lasts (at most
         # one e-fold per period: it is still there after the swing). A heavily damped "ring"
         # (sa-delay150-cfg50, no ringing rendered: 3.9 Hz, 12 /s) is the model soaking up
@@ -542,9 +560,7 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
         # cycle (third-ringing-swings25: 4.8 Hz chosen for a 4.68 Hz mode put b near 0 and
         # calibrate refused at the tables). 0.02 Hz grid +- 0.2 Hz, summed over the subset.
         long_ = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, b2, T, bq, hold=True)
-        for rv in long_:
-            if rv is not None:
-                rv.jump = jump
+        _set_jump(long_, jump)
         lsub = [long_[k] for k in pick if long_[k] is not None]
         if lsub:
             hzs = ring[0] + np.arange(-0.2, 0.2001, 0.02)
@@ -556,18 +572,9 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
         if mid.ok.sum() >= 4:
             bq = _b_of_q(rq, mid)
         revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq, hold=True)
-        for rv in revs:
-            if rv is not None:
-                rv.jump = jump
+        _set_jump(revs, jump)
         sub = [revs[k] for k in pick if revs[k] is not None]
-        L = _delay_profile(sub, grid, steps, ring)
-        w = np.exp(L - L.max())
-        w /= w.sum()
-        d = float(np.sum(w * grid))
-        sd = float(np.sqrt(np.sum(w * (grid - d) ** 2) + (T / SUB) ** 2 / 12))
-        cw = np.cumsum(w)
-        lo = float(grid[min(np.searchsorted(cw, 0.025), grid.size - 1)]) - 0.5 * T / SUB
-        hi = float(grid[min(np.searchsorted(cw, 0.975), grid.size - 1)]) + 0.5 * T / SUB
+        d, sd, lo, hi = _delay_posterior(_delay_profile(sub, grid, steps, ring), grid, T)
     out = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring or (0.0, 0.0), b2),
                   revs, d)
     out.b_of_q = bq
@@ -615,10 +622,8 @@ def refit_at(pf: PlayFit, t_enc, q, rt, rq, t_f, obs, period_s: float, d: float)
     Returns a new PlayFit (the delay figures kept)."""
     M = rt.size
     revs = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, pf.b_max, period_s, getattr(pf, "b_of_q", None),
-                      hold=bool(0 < pf.ring[0] and pf.ring[1] <= RING_LASTS * pf.ring[0]))
-    for rv in revs:
-        if rv is not None:
-            rv.jump = getattr(pf, "jump", None)
+                      hold=_ring_lasts(pf.ring))
+    _set_jump(revs, getattr(pf, "jump", None))
     out = PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool), pf.t_delay_s,
                   pf.t_delay_ci_s, pf.t_delay_sd_s, pf.steps, pf.ring, pf.b_max)
     return samples(out, revs, d)

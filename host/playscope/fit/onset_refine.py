@@ -219,7 +219,7 @@ class _Episode:
     def _stop_proj(self):
         """`_project` of the stop fits' shared columns [ones, new motion from the held onset,
         ringing from the held onset (the record's ringing only, see `_solve_onset`)]."""
-        om, al = self._ring_on if self.onset_ring else (0.0, 0.0)
+        om, al = self.fixed_ring if self.onset_ring else (0.0, 0.0)
         return self._proj(("stop", self.tau, om, al),
                           lambda: [np.maximum(self.tk - float(self.tau), 0.0),
                                    _col_ring(self.tk, [self.tau], [om], [al])[0]])
@@ -261,7 +261,6 @@ class _Episode:
         eighth-frame grid around the best gives tau0's posterior, marginalised over the step."""
         from scipy.optimize import minimize
 
-        self._ring_on = (self.om, self.al)  # the onset's ringing stays as it was while the stop is fitted
         lo = max(-self.stop_back, self.tk[0] + 0.5)  # around the first guess (t = 0): no drift
         hi = min(3.0, self.tau - 1.0)
         if hi <= lo:
@@ -293,7 +292,6 @@ class _Episode:
             p = minimize(f, [self.om, self.al], method="Nelder-Mead",
                          options={"xatol": 1e-4, "fatol": 1e-9, "maxiter": 200}).x
             self.om, self.al = float(abs(p[0])), float(abs(p[1]))
-            self._ring_on = (self.om, self.al)
         gf = np.arange(max(t0b - 1.0, lo), min(t0b + 1.0, hi) + 1e-9, 0.5 / SUB)
         js = np.unique([-1, self.j]).astype(float)
         TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
