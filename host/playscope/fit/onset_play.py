@@ -43,6 +43,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .image_curve import fit_image_curve
+
 SUB = 16                              # delay grid points per frame period
 DELAY_SPAN = 3.0                      # the delay grid reaches +- this many frames from the guess
 HOLD_BACK = 0.2                       # a ringing record's window ends when q comes back this share of b_max
@@ -52,6 +54,7 @@ PRE_S, POST_S = 1.0, 3.5              # window around t1 (s, scene clock)
 NB = 160                              # b grid points
 RING_HZ = np.arange(1.5, 7.01, 0.5)   # ringing searched (Hz) when the record rings
 RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
+RING_MIN_FRAMES = 3.0                 # a ringing's e-fold lasts this many frame periods at least (_choose)
 RING_GAIN = np.arange(0.0, 4.0001, 0.1)  # the tip mode's gain g searched (drive z + g (y - z)); g >= 0: a tip driven through its base lags it
 DELAY_REVERSALS = 24
 JUMP_T = 4.0                          # signed-jump mean / standard error for a record's jump
@@ -89,13 +92,15 @@ class _Rev:
         self.D = np.maximum.accumulate(np.maximum(back, 0.0))  # travel back from q1 (nondecreasing)
         # Frames whose scene time lies in the window for every delay on the grid.
         sel = (t_f - d_lo >= t_start) & (t_f - d_hi <= t_end) & np.all(np.isfinite(obs), axis=1)
-        self.tf, self.Y = t_f[sel], obs[sel] - obs[sel].mean(axis=0)
         self.n = int(sel.sum())
+        self.ymean = obs[sel].mean(axis=0) if self.n else np.zeros(2)
+        self.tf, self.Y = t_f[sel], obs[sel] - self.ymean
         d_end = float(self.D[-1])
         self.b_grid = np.linspace(0.0, min(b_max, 0.95 * d_end), NB) if d_end > 0 else np.zeros(0)
         self.period = period
         self.b_of_q = b_of_q
         self.jump = None  # the record's jump vector J (px), the jump being s J; None: free
+        self.curve = None  # the record's image curve G(z) (image_curve.ImageCurve); None: a cubic of z here
 
     def onset_scene(self, b: np.ndarray) -> np.ndarray:
         """Scene time at which q has come back by b from q1 (first encoder sample)."""
@@ -106,12 +111,13 @@ class _Rev:
         """Log weight (profile likelihood less BIC penalties) of each candidate (b, jump frame);
         returns (lw (nb, J), b) with J = 1 (no jump) or 3 (none, onset frame, the next)."""
         X, w, ts, t_on = self._design(d, b, ring)
+        Y0 = self._target(w, b)
         N = 2 * self.n
         # A record with jumps (chosen over the record) has one at every reversal: the no-jump
         # candidate would otherwise win where b and the jump cannot be told apart (no frame in
         # the dead band), and b would take the jump in; with the jump, b spreads over the frame
         # interval instead, and sigma_b says so.
-        outs = [] if steps else [self._rss(X)]
+        outs = [] if steps else [self._rss(X, Y0)]
         pen = [] if steps else [0.0]
         if steps:
             first = np.cumsum(ts[None, :] > t_on[:, None], axis=1)        # 1 at the onset's first frame
@@ -121,10 +127,10 @@ class _Rev:
                 # image curve a little (a slope from frame m on, 0 at the onset).
                 st = (first >= m).astype(float)
                 if self.jump is not None:
-                    Yg = self.Y[None] - st[..., None] * (self.s * self.jump)[None, None, :]
+                    Yg = Y0 - st[..., None] * (self.s * self.jump)[None, None, :]
                     outs.append(self._rss(np.concatenate([X, (st * w)[..., None]], axis=-1), Yg))
                 else:
-                    outs.append(self._rss(np.concatenate([X, st[..., None], (st * w)[..., None]], axis=-1)))
+                    outs.append(self._rss(np.concatenate([X, st[..., None], (st * w)[..., None]], axis=-1), Y0))
                 pen.append(0.0)
         rss = np.stack(outs, axis=1)                                      # (nb, J)
         pen_steps = 2 * np.log(N) if steps else 0.0                       # 4 parameters: (4/2) log N
@@ -161,8 +167,20 @@ class _Rev:
                 w = w + ring[2] * (y - w)
             else:  # g free (choosing the ringing): y is a column of its own
                 ring_cols.append(y)
-        cols = [np.ones_like(w), w, w * w, w * w * w] + ring_cols
-        return np.stack(cols, axis=-1), w, ts, t_on
+        # With the record's image curve the shape of Q(z) is known (_target takes it off); an
+        # offset and a slope stay free here, so only G's shape is relied on (image_curve).
+        poly = [np.ones_like(w), w] if self.curve is not None else [np.ones_like(w), w, w * w, w * w * w]
+        return np.stack(poly + ring_cols, axis=-1), w, ts, t_on
+
+    def _target(self, w: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """What the columns fit, per candidate b: the centred frames Y (1, n, 2) when the image
+        curve is free here, or Y less G(z) (nb, n, 2) with the record's curve, z = the drive w in
+        actuator units less s b / 2 (the play's centre, eq. 3; its constant part is the offset's)."""
+        if self.curve is None:
+            return self.Y[None]
+        scale = max(float(np.max(self.D)), 1e-9)
+        z = w * scale + self.q1 - 0.5 * self.s * b[:, None]
+        return (self.Y + self.ymean)[None] - self.curve(z)
 
     def _ring_drive(self, b: np.ndarray, ring: tuple, ts: np.ndarray) -> np.ndarray:
         """The tip mode's response to the drive for each b, at scene times ts: (nb, n).
@@ -206,17 +224,17 @@ class _Rev:
         X, w, ts, t_on = self._design(d, b[i:i + 1], ring)
         st = (np.cumsum(ts > t_on[0]) >= m + 1).astype(float)
         Xj = np.column_stack([X[0], st, st * w[0]])
-        coef, *_ = np.linalg.lstsq(Xj, self.Y, rcond=None)
+        coef, *_ = np.linalg.lstsq(Xj, self._target(w, b[i:i + 1])[0], rcond=None)
         return coef[X.shape[2]]
 
-    def _rss(self, X: np.ndarray, Yg: np.ndarray | None = None) -> np.ndarray:
-        """Residual sum of squares of Y (n, 2), or of each candidate's own Yg (G, n, 2), on each
-        candidate's columns X (G, n, p)."""
+    def _rss(self, X: np.ndarray, Yg: np.ndarray) -> np.ndarray:
+        """Residual sum of squares of the targets Yg ((1, n, 2): one for every candidate, or
+        (G, n, 2): each candidate's own) on each candidate's columns X (G, n, p)."""
         A = np.einsum("gnp,gnq->gpq", X, X)
         A += 1e-9 * np.maximum(np.einsum("gpp->g", A), 1.0)[:, None, None] * np.eye(X.shape[2])[None]
-        if Yg is None:
-            r = np.einsum("gnp,nc->gpc", X, self.Y)
-            yy = float(np.sum(self.Y * self.Y))
+        if Yg.shape[0] == 1:
+            r = np.einsum("gnp,nc->gpc", X, Yg[0])
+            yy = float(np.sum(Yg[0] * Yg[0]))
         else:
             r = np.einsum("gnp,gnc->gpc", X, Yg)
             yy = np.einsum("gnc,gnc->g", Yg, Yg)
@@ -229,9 +247,10 @@ def _lse(x: np.ndarray, axis=None) -> np.ndarray:
     return np.squeeze(m, axis=axis) + np.log(np.sum(np.exp(x - m), axis=axis))
 
 
-def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=None, hold=False) -> list:
+def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=None, hold=False, curve=None) -> list:
     """A _Rev per reversal (None where the old branch is not known to be engaged: the first
-    reversal, or q not moved by b_max since the previous one).
+    reversal, or q not moved by b_max since the previous one); curve: the record's image curve
+    (image_curve.ImageCurve) each takes, or None (a cubic of the drive per reversal).
 
     hold (a ringing record): the window runs over the whole new motion and the hold after it,
     past the next reversal until q has come back from it by HOLD_BACK b_max (the play stays
@@ -270,6 +289,7 @@ def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=Non
         if far.size:
             t_end = min(t_end, t_enc[j1 + far[0]])
         rv = _Rev(t_enc, q, rt[r], rq[r], s, t_start, t_end, t_f, obs, d_lo, d_hi, b_max, period, b_of_q)
+        rv.curve = curve
         out.append(rv if rv.n >= 8 and rv.b_grid.size else None)
     return out
 
@@ -346,10 +366,14 @@ def _choose(revs, d, ring_grid=True) -> tuple[np.ndarray | None, tuple | None, d
     def score(ring, steps):
         return float(sum(np.max(rv.logw(d, rv.b_grid[::4], steps, ring)[0]) for rv in revs)) - (pen if ring else 0.0)
 
+    frame_s = revs[0].period if revs else 0.04
+
     def light(hz, al):
         """A ringing is lightly damped (decay rate <= half the angular frequency, damping
-        ratio <= 0.45); a heavier one is a transient that fits the window's first frames."""
-        return al <= 0.5 * 2 * np.pi * hz
+        ratio <= 0.45) and lasts RING_MIN_FRAMES frame periods per e-fold at least, so the frames
+        sample it; a heavier or shorter one is a transient that fits the window's first frames
+        (7.4 Hz, 23 /s on a 25 fps rendering without ringing: its B 2.2 -> 6.2 %)."""
+        return al <= min(0.5 * 2 * np.pi * hz, 1.0 / (RING_MIN_FRAMES * frame_s))
 
     def best_ring(steps):
         best, ring = score(None, steps), None
@@ -509,12 +533,15 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
         return empty, {"usable_reversals": len(usable), "scan_s": d0}
     b2 = min(b_max, 2.0 * float(np.percentile(first.b[first.ok], 90)))
     bq = _b_of_q(rq, first)
+    # From here on the record's image curve (image_curve) in place of a cubic per reversal: z
+    # from the first B(q) at the scan's delay; each reversal keeps a free offset and slope.
+    curve = fit_image_curve(t_enc, q, t_f, obs, d0, bq, T)
     dc = d0
     for it in range(4):  # the jump and ringing are chosen at the current delay: again if it moved
         grid = dc + np.arange(-1.5 * SUB, 1.5 * SUB + 1) * T / SUB
         grid = grid[grid >= 0.0]
         d_lo, d_hi = float(grid[0]), float(grid[-1])
-        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq)
+        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq, curve=curve)
         sub = [revs[k] for k in pick if revs[k] is not None]
         jump, ring, choice = _choose(sub, dc)
         if ring is not None and it == 0:
@@ -526,7 +553,7 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
                                  dc + np.arange(-12, 13) * T / 4)
             rg, rs = rg[rg >= 0.0], rs[rg >= 0.0]
             dc = float(rg[int(np.argmax(rs))])
-            revs = _reversals(t_enc, q, rt, rq, t_f, obs, dc, dc, b_max, T)
+            revs = _reversals(t_enc, q, rt, rq, t_f, obs, dc, dc, b_max, T, curve=curve)
             _set_jump(revs, jump)
             again = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), dc, (dc, dc), T, jump is not None,
                                     ring, b_max), revs, dc)
@@ -559,7 +586,7 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
         # hold of a second or more the phase of a ring that far off drifts by a good part of a
         # cycle (third-ringing-swings25: 4.8 Hz chosen for a 4.68 Hz mode put b near 0 and
         # calibrate refused at the tables). 0.02 Hz grid +- 0.2 Hz, summed over the subset.
-        long_ = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, b2, T, bq, hold=True)
+        long_ = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, b2, T, bq, hold=True, curve=curve)
         _set_jump(long_, jump)
         lsub = [long_[k] for k in pick if long_[k] is not None]
         if lsub:
@@ -568,10 +595,10 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
                   for h in hzs]
             ring = (float(hzs[int(np.argmax(Lh))]), ring[1], ring[2])
         mid = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring, b2),
-                      _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq, hold=True), d)
+                      _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq, hold=True, curve=curve), d)
         if mid.ok.sum() >= 4:
             bq = _b_of_q(rq, mid)
-        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq, hold=True)
+        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq, hold=True, curve=curve)
         _set_jump(revs, jump)
         sub = [revs[k] for k in pick if revs[k] is not None]
         d, sd, lo, hi = _delay_posterior(_delay_profile(sub, grid, steps, ring), grid, T)
@@ -579,9 +606,11 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
                   revs, d)
     out.b_of_q = bq
     out.jump = jump
+    out.curve = curve
     doc = {"usable_reversals": len(usable), "delay_reversals": len(sub), "delay_grid_step_s": T / SUB,
            "scan_s": d0, "iterations": it + 1, "choice": choice, "b_max": b2, "steps": steps,
-           "ring": None if ring is None else {"hz": ring[0], "decay_per_s": ring[1], "gain": ring[2]}}
+           "ring": None if ring is None else {"hz": ring[0], "decay_per_s": ring[1], "gain": ring[2]},
+           "image_curve": None if curve is None else curve.doc()}
     return out, doc
 
 
@@ -622,7 +651,7 @@ def refit_at(pf: PlayFit, t_enc, q, rt, rq, t_f, obs, period_s: float, d: float)
     Returns a new PlayFit (the delay figures kept)."""
     M = rt.size
     revs = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, pf.b_max, period_s, getattr(pf, "b_of_q", None),
-                      hold=_ring_lasts(pf.ring))
+                      hold=_ring_lasts(pf.ring), curve=getattr(pf, "curve", None))
     _set_jump(revs, getattr(pf, "jump", None))
     out = PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool), pf.t_delay_s,
                   pf.t_delay_ci_s, pf.t_delay_sd_s, pf.steps, pf.ring, pf.b_max)
