@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import BSpline
 
-from .model import play_operator
+from .model import held_direction, play_operator
 
 INTERVALS = 14        # knot intervals over the z range (a 4 mm travel: one per 0.3 mm)
 SKIP_FRAMES = 2.0     # frames after each reversal of z left out of the fit
@@ -71,16 +71,6 @@ class ImageCurve:
                 "frames": self.frames}
 
 
-def held_direction(z: np.ndarray) -> np.ndarray:
-    """Sign of z's last motion at each sample (+1 before any motion). z (N,). Returns (N,)."""
-    dz = np.diff(z, prepend=z[0])
-    s = np.where(np.abs(dz) > 1e-12, np.sign(dz), 0.0)
-    idx = np.maximum.accumulate(np.where(s != 0, np.arange(s.size), 0))
-    out = s[idx]
-    out[out == 0] = 1.0
-    return out
-
-
 def fit_image_curve(t_enc: np.ndarray, q: np.ndarray, t_f: np.ndarray, obs: np.ndarray, t_delay_s: float,
                     b_of_q, period_s: float) -> ImageCurve | None:
     """Fit G and J (module doc) at delay t_delay_s with the play width b_of_q (callable q -> B).
@@ -91,7 +81,7 @@ def fit_image_curve(t_enc: np.ndarray, q: np.ndarray, t_f: np.ndarray, obs: np.n
     z = play_operator(q, b_of_q)
     ts = np.asarray(t_f, float) - t_delay_s
     ok = np.all(np.isfinite(obs), axis=1) & (ts >= t_enc[0]) & (ts <= t_enc[-1])
-    held = held_direction(z)
+    held = held_direction(z, 1e-12)
     flips = t_enc[np.nonzero(np.diff(held))[0] + 1]
     zk = np.interp(ts, t_enc, z)
     dk = held[np.clip(np.searchsorted(t_enc, ts, side="right") - 1, 0, t_enc.size - 1)]
@@ -107,15 +97,17 @@ def fit_image_curve(t_enc: np.ndarray, q: np.ndarray, t_f: np.ndarray, obs: np.n
     knots = np.r_[[z_lo] * 3, np.linspace(z_lo, z_hi, INTERVALS + 1), [z_hi] * 3]
     Y = np.asarray(obs, float)
     keep = ok.copy()
-    for _ in range(2):
+    for first in (True, False):
         A = np.column_stack([BSpline.design_matrix(np.clip(zk[keep], z_lo, z_hi), knots, 3).toarray(), dk[keep]])
         coef, *_ = np.linalg.lstsq(A, Y[keep], rcond=None)
         res = Y[keep] - A @ coef
+        if not first:
+            break
         sd = 1.4826 * np.median(np.abs(res - np.median(res, axis=0)), axis=0)
         out = np.any(np.abs(res) > OUTLIER_K * np.maximum(sd, 1e-9), axis=1)
         if not out.any() or (keep.sum() - out.sum()) < MIN_FRAMES:
             break
-        idx = np.nonzero(keep)[0]
-        keep[idx[out]] = False
+        keep[np.nonzero(keep)[0][out]] = False
+    # The figures of the fit returned: its residual rms over the frames it was fitted on.
     rms = np.sqrt(np.mean(res * res, axis=0))
     return ImageCurve(knots, coef[:-1], z_lo, z_hi, coef[-1], rms, int(keep.sum()))

@@ -11,7 +11,9 @@ to q1), then z holds until q has come back by b, then z = q + s b/2. Up to the c
 
 and the marker of frame k (stamped t_k, captured at t_k - t_delay) is, near the reversal,
 
-    p_k = A + K w_k + K2 w_k^2                  the image of z (a smooth curve, locally quadratic)
+    p_k = G(z_k) + A + K w_k                    the image of z: the record's image curve G
+                                                (fit/image_curve.py) once B(q) has a first fit,
+                                                before that a cubic in w free per reversal
           + S [k >= j]                          optional: a registration / channel jump at the
                                                 onset's first or second frame (j)
           + ringing (optional, the record's frequency and decay): a free-phase ring carried

@@ -225,8 +225,8 @@ def test_image_curve_predicts_the_noise_free_marker():
     # frame away from the tip's reversals. z from the true B(q) (the renderer's B is of q, the
     # model's of z: a second-order difference that G absorbs). Measured (60 s, seed 101,
     # 0.12 px noise): rms 0.03 px, worst 0.12 px; J 0.03 px (no registration rendered).
-    from playscope.fit.image_curve import fit_image_curve, held_direction
-    from playscope.fit.model import play_operator
+    from playscope.fit.image_curve import fit_image_curve
+    from playscope.fit.model import held_direction, play_operator
 
     r, t, q, rt, rq, t_f, obs, _ = record(duration_s=60.0)
     d0 = SR.render(SR.Rendering("t", 101, duration_s=60.0, noise_px=0.0))
