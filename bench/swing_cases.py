@@ -151,3 +151,9 @@ SET_ASIDE_FOURTH = _drawn(7309, 501, "fourth")
 # the first four groups are spent (each run once; development data now). The third's plan, drawn
 # by another generator seed (8821) with new rendering seeds 601-612. Run it once, at the end.
 SET_ASIDE_FIFTH = _drawn(8821, 601, "fifth")
+
+# A SIXTH set-aside group, fixed (this line committed) before this stop's onset rules were touched
+# (the session of 2026-11-24); the first five groups are spent (each run once; development data
+# now). The third's plan, drawn by another generator seed (9907) with new rendering seeds 701-712.
+# Run it once, at the end, after the rules are settled.
+SET_ASIDE_SIXTH = _drawn(9907, 701, "sixth")
