@@ -505,12 +505,15 @@ def _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick, ring=None,
 
 
 def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: np.ndarray, obs: np.ndarray,
-        period_s: float, b_max: float, d_max: float = 0.5) -> tuple[PlayFit, dict]:
+        period_s: float, b_max: float, d_max: float = 0.5, d_guess: float | None = None) -> tuple[PlayFit, dict]:
     """B samples and t_delay from the record (module doc). t_enc, q (N,) encoder; rt, rq (M,)
     reversals; t_f (F,), obs (F, 2) px (NaN = lost); period_s the frame period; b_max the
-    largest play considered (actuator units); d_max the largest delay searched (s).
+    largest play considered (actuator units); d_max the largest delay searched (s); d_guess
+    (s, or None) confines the first scan to +- DELAY_SPAN frames of it (a periodic excitation's
+    delay is ambiguous by a leg: the caller's independent delay picks the leg).
 
-    1. Delay scan 0..d_max (quarter frame) on up to 24 reversals spread over the record.
+    1. Delay scan 0..d_max (quarter frame; or around d_guess) on up to 24 reversals spread over
+       the record.
     2. B samples there without jumps or ringing; a first B(q) (cubic) and b_max from them.
     3. With that B(q): the record's jumps and ringing (BIC, summed over the 24; `_choose`);
        when a ringing is found, the scan (+-3 frames) and the first B samples are redone with
@@ -528,14 +531,19 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
         return empty, {"usable_reversals": len(usable)}
     pick = [usable[i] for i in np.unique(np.linspace(0, len(usable) - 1, min(len(usable), DELAY_REVERSALS))
                                          .round().astype(int))]
-    wg, ws = _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick)
+    near = None if d_guess is None else d_guess + np.arange(-4 * DELAY_SPAN, 4 * DELAY_SPAN + 1) * T / 4
+    wg, ws = _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick,
+                         grid=None if near is None else near[near >= 0.0])
     d0 = float(wg[int(np.argmax(ws))])
     revs = _reversals(t_enc, q, rt, rq, t_f, obs, d0, d0, b_max, T)
     first = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d0, (d0, d0), T, False, (0.0, 0.0), b_max),
                     revs, d0)
     if first.ok.sum() < 4:
         return empty, {"usable_reversals": len(usable), "scan_s": d0}
-    b2 = min(b_max, 2.0 * float(np.percentile(first.b[first.ok], 90)))
+    # The b grid keeps its full reach (b_max) throughout: a top taken from these first samples
+    # (twice their 90th percentile) cut it below the truth where they come out low, and the
+    # reversals whose b lay beyond it lost their samples (fifth-none-swings25-fast-noisy: a top
+    # of 0.119 mm against a true 0.12-0.30 mm, 35 of 98 samples left, B 64 %).
     bq = _b_of_q(rq, first)
     # From here on the record's image curve (image_curve) in place of a cubic per reversal: z
     # from the first B(q) at the scan's delay; each reversal keeps a free offset and slope.
@@ -545,12 +553,12 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
         grid = dc + np.arange(-1.5 * SUB, 1.5 * SUB + 1) * T / SUB
         grid = grid[grid >= 0.0]
         d_lo, d_hi = float(grid[0]), float(grid[-1])
-        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq, curve=curve)
+        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, T, bq, curve=curve)
         sub = [revs[k] for k in pick if revs[k] is not None]
         jump, ring, choice = _choose(sub, dc)
         if ring is not None and it == 0:
             # The scan and the first B samples ran without ringing, which a ringing tip fools
-            # (the b grid's top and the first B(q) come from them): scan again near the delay
+            # (the first B(q) comes from them): scan again near the delay
             # with the ringing found, take the first samples again there with it, and choose
             # again.
             rg, rs = _wide_delay(t_enc, q, rt, rq, t_f, obs, T, b_max, d_max, pick, ring[:2],
@@ -562,7 +570,6 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
             again = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), dc, (dc, dc), T, jump is not None,
                                     ring, b_max), revs, dc)
             if again.ok.sum() >= 4:
-                b2 = min(b_max, 2.0 * float(np.percentile(again.b[again.ok], 90)))
                 bq = _b_of_q(rq, again)
             continue
         steps = jump is not None
@@ -578,19 +585,14 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
         # one e-fold per period: it is still there after the swing). A heavily damped "ring"
         # (sa-delay150-cfg50, no ringing rendered: 3.9 Hz, 12 /s) is the model soaking up
         # something else, and the long windows made that record worse (12.7 -> 18.9 %).
-        # The b grid gets its full reach back: its top came from samples in short windows, which
-        # such a ring fools (twice their 90th percentile held b below the truth on dev-ring3:
-        # a 0.076 mm top against a true 0.12-0.30 mm); without a lasting ring the cut stays,
-        # which serves the ringless fast swings (a full grid put third-none-swings25-fast at
-        # 10.7 % against 7.9 %).
-        # The first B(q) came from short windows too: once more from the long windows' samples
-        # at the delay found, then the windows again with it, and the delay's likelihood on them.
-        b2 = b_max
+        # The first B(q) came from short windows, which such a ring fools: once more from the long
+        # windows' samples at the delay found, then the windows again with it, and the delay's
+        # likelihood on them.
         # The frequency again on the long windows: it was chosen on short ones to 0.1 Hz, and over a
         # hold of a second or more the phase of a ring that far off drifts by a good part of a
         # cycle (third-ringing-swings25: 4.8 Hz chosen for a 4.68 Hz mode put b near 0 and
         # calibrate refused at the tables). 0.02 Hz grid +- 0.2 Hz, summed over the subset.
-        long_ = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, b2, T, bq, hold=True, curve=curve)
+        long_ = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, b_max, T, bq, hold=True, curve=curve)
         _set_jump(long_, jump)
         lsub = [long_[k] for k in pick if long_[k] is not None]
         if lsub:
@@ -598,15 +600,15 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
             Lh = [sum(float(np.max(rv.logw(d, rv.b_grid[::4], steps, (float(h), ring[1], ring[2]))[0])) for rv in lsub)
                   for h in hzs]
             ring = (float(hzs[int(np.argmax(Lh))]), ring[1], ring[2])
-        mid = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring, b2),
-                      _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq, hold=True, curve=curve), d)
+        mid = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring, b_max),
+                      _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, T, bq, hold=True, curve=curve), d)
         if mid.ok.sum() >= 4:
             bq = _b_of_q(rq, mid)
-        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b2, T, bq, hold=True, curve=curve)
+        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, T, bq, hold=True, curve=curve)
         _set_jump(revs, jump)
         sub = [revs[k] for k in pick if revs[k] is not None]
         d, sd, lo, hi = _delay_posterior(_delay_profile(sub, grid, steps, ring), grid, T)
-    out = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring or (0.0, 0.0), b2),
+    out = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring or (0.0, 0.0), b_max),
                   revs, d)
     for _ in range(CURVE_PASSES if curve is not None else 0):
         # z, and so the image curve, came from the first B(q) (a cubic per reversal, biased on fast
@@ -617,15 +619,15 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
             break
         bq = _b_of_q(rq, out)
         curve = fit_image_curve(t_enc, q, t_f, obs, d, bq, T) or curve
-        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, b2, T, bq, hold=_ring_lasts(ring), curve=curve)
+        revs = _reversals(t_enc, q, rt, rq, t_f, obs, d, d, b_max, T, bq, hold=_ring_lasts(ring), curve=curve)
         _set_jump(revs, jump)
         out = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring or (0.0, 0.0),
-                              b2), revs, d)
+                              b_max), revs, d)
     out.b_of_q = bq
     out.jump = jump
     out.curve = curve
     doc = {"usable_reversals": len(usable), "delay_reversals": len(sub), "delay_grid_step_s": T / SUB,
-           "scan_s": d0, "iterations": it + 1, "choice": choice, "b_max": b2, "steps": steps,
+           "scan_s": d0, "iterations": it + 1, "choice": choice, "b_max": b_max, "steps": steps,
            "ring": None if ring is None else {"hz": ring[0], "decay_per_s": ring[1], "gain": ring[2]},
            "image_curve": None if curve is None else curve.doc()}
     return out, doc

@@ -794,6 +794,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # Only when the refined onsets show that symptom: a step on most reversals that does not
     # follow the direction (no registration to explain it). Otherwise they stand: on a ringing
     # record the board's onsets come early and its width would call a slow take-up fast.
+    ref_frames_raw = ref_frames
     stepped = ref.ok & (ref.step_px > 0)
     invented = stepped.sum() >= max(4, 0.5 * ref.ok.sum()) and not direction_jump(ref, rq)["found"]
     if invented and np.isfinite(act_frames) and np.isfinite(ref_frames) and act_frames < ref_frames:
@@ -806,13 +807,18 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     else:
         pf, pdoc = P.fit(t_enc, q, rt, rq, t_f, obs, period, b_max)
         pdoc["fitted"] = True
-    fast_frames = float("nan")
+    shape_frames = float("nan")
     if pf.ok.any():
         va = np.abs(np.interp(pf.t2_s[pf.ok] - pf.t_delay_s, t_enc, v)) / fps
-        fast_frames = float(np.percentile(pf.b[pf.ok] / np.maximum(va, 1e-12), 25))
-    if np.isfinite(ref_frames) and (np.isfinite(fast_frames) or not pdoc["fitted"]):
-        fast_frames = ref_frames if not pdoc["fitted"] else max(fast_frames, ref_frames)
-    use_shape = bool(np.isfinite(pf.t_delay_s) and fast_frames < FAST_FRAMES)
+        shape_frames = float(np.percentile(pf.b[pf.ok] / np.maximum(va, 1e-12), 25))
+    # Once fitted (the refined onsets, or the actuator where they invent steps, call the take-up
+    # fast), the model stands when either figure is below FAST_FRAMES. (The larger deciding
+    # turned it down on a 60 fps triangle whose figures were 4.2 (model) and 2.8 (refined):
+    # the refined onsets' delay then came from the stops a leg off, 0.47 s for a true 0.149 s,
+    # B 47 %, where the model's delay was 0.150 s; fifth-delay-triangle60-noisy.)
+    fast_frames = float(np.nanmin([shape_frames, ref_frames])) if np.isfinite([shape_frames, ref_frames]).any() \
+        else float("nan")
+    use_shape = bool(pdoc["fitted"] and np.isfinite(pf.t_delay_s) and fast_frames < FAST_FRAMES)
     d_stop_ref = d_stops
     # Only where the image stops were found on most reversals (so the refined onsets are there to
     # fall back on): a record whose stops are not found says nothing against the model's delay.
@@ -826,11 +832,21 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         abs(t_delay_cfg - d_stop_ref) <= 1.96 * d_stops_se + period / 2
     if use_shape and abs(pf.t_delay_s - d_stop_ref) > P.DELAY_SPAN * period and stops_match_cfg:
         # The model's delay search walked beyond its own span from where the image stops and the
-        # configured delay agree: the model does not describe this record; the refined onsets do.
-        warnings.append(f"onsets: the actuator-shape model's delay {pf.t_delay_s:.4f} s lies over {P.DELAY_SPAN:g} "
-                        f"frames from the image stops' {d_stop_ref:.4f} s; its B samples are not used")
+        # configured delay agree: most often the leg a periodic excitation leaves open (its wide
+        # scan found the next leg). Fitted again with the scan confined to +- DELAY_SPAN frames of
+        # the stops' delay; when it still strays, the model does not describe this record and the
+        # refined onsets do.
         pdoc["strayed_delay_s"] = pf.t_delay_s
-        use_shape = False
+        pf2, pdoc2 = P.fit(t_enc, q, rt, rq, t_f, obs, period, b_max, d_guess=d_stop_ref)
+        if np.isfinite(pf2.t_delay_s) and abs(pf2.t_delay_s - d_stop_ref) <= P.DELAY_SPAN * period:
+            warnings.append(f"onsets: the actuator-shape model's delay {pf.t_delay_s:.4f} s lay over {P.DELAY_SPAN:g} "
+                            f"frames from the image stops' {d_stop_ref:.4f} s, which the configured delay matches; "
+                            f"fitted again near them ({pf2.t_delay_s:.4f} s)")
+            pf, pdoc = pf2, {**pdoc2, "fitted": True, "strayed_delay_s": pf.t_delay_s, "refitted_near_s": d_stop_ref}
+        else:
+            warnings.append(f"onsets: the actuator-shape model's delay {pf.t_delay_s:.4f} s lies over {P.DELAY_SPAN:g} "
+                            f"frames from the image stops' {d_stop_ref:.4f} s; its B samples are not used")
+            use_shape = False
     if use_shape:
         d_data, (ci_lo, ci_hi), d_se = pf.t_delay_s, pf.t_delay_ci_s, pf.t_delay_sd_s
         how = "actuator-shape model, posterior mean"
@@ -917,8 +933,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                     "shape_reversals": n_shape,
                     "coarse_s": d0, "first_pass_s": d1},
         "actuator_shape": {**pdoc, "samples": int(pf.ok.sum()), "used": use_shape,
-                           "frames_to_take_up": fast_frames, "fast_frames": FAST_FRAMES,
-                           "actuator_frames_board_b": act_frames},
+                           "frames_to_take_up": fast_frames, "model_frames": shape_frames, "fast_frames": FAST_FRAMES,
+                           "actuator_frames_board_b": act_frames, "refined_frames": ref_frames_raw},
         "pacing": pace,
         "guard": guard,
         "ringing": ring_summary(ref),
