@@ -39,6 +39,7 @@ RING_ALPHA = np.array([0.5, 1.5, 3.0, 6.0, 12.0])
 SUB = 8          # onset / stop grid points per frame period
 PRE_FRAMES = 3   # frames of old motion kept before the earliest stop searched
 FAST_FRAMES = 4.0  # below: the actuator-shape model (onset_play) gives the B samples and t_delay
+FOOLED_LATE = 4.0  # refined onsets this many times later than the actuator's figure are fooled late
 POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line holds over ~0.25 s)
 
 
@@ -794,10 +795,17 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # Only when the refined onsets show that symptom: a step on most reversals that does not
     # follow the direction (no registration to explain it). Otherwise they stand: on a ringing
     # record the board's onsets come early and its width would call a slow take-up fast.
+    # Or when they look many times later than the actuator says (FOOLED_LATE): a ringing tip
+    # or a registration jump after a fast reversal fools them just as late, with steps that do
+    # follow the direction (dev-ring3-swings25: 28.1 frames against the actuator's 2.4;
+    # fourth-registration-swings25-fast: 17.2 against 1.25). The slow records where the
+    # refined onsets are right stay within a small factor of the board's early width (Fig. 7
+    # replica, ringing included: 2.2 at most).
     ref_frames_raw = ref_frames
     stepped = ref.ok & (ref.step_px > 0)
     invented = stepped.sum() >= max(4, 0.5 * ref.ok.sum()) and not direction_jump(ref, rq)["found"]
-    if invented and np.isfinite(act_frames) and np.isfinite(ref_frames) and act_frames < ref_frames:
+    fooled = bool(np.isfinite(act_frames) and np.isfinite(ref_frames) and ref_frames > FOOLED_LATE * act_frames)
+    if (invented or fooled) and np.isfinite(act_frames) and np.isfinite(ref_frames) and act_frames < ref_frames:
         ref_frames = act_frames
     if not _shape_fit_needed(ref_frames):
         pf = P.PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool),
