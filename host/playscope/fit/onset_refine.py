@@ -644,6 +644,17 @@ def actuator_frames(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.nda
     return float(np.percentile(out, 25)) if out else float("nan")
 
 
+def gate_frames(ref_frames: float, act_frames: float, invented: bool) -> float:
+    """The frames-to-take-up figure the model gate (FAST_FRAMES) reads: the refined onsets'
+    (ref_frames, NaN without them), or the actuator's for the board's median width (act_frames,
+    `actuator_frames`) when it is smaller and the refined onsets are fooled late: they invent
+    steps (``invented``: a step on most reversals that does not follow the direction), or they
+    look over FOOLED_LATE times later than the actuator says. Frames (lower quartiles)."""
+    if not (np.isfinite(act_frames) and np.isfinite(ref_frames)) or act_frames >= ref_frames:
+        return ref_frames
+    return act_frames if invented or ref_frames > FOOLED_LATE * act_frames else ref_frames
+
+
 def _shape_fit_needed(ref_frames: float) -> bool:
     """Whether the actuator-shape model (onset_play.fit) must be fitted, given the refined
     onsets' frames to take up the play (lower quartile, NaN without refined onsets). Not when
@@ -804,9 +815,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     ref_frames_raw = ref_frames
     stepped = ref.ok & (ref.step_px > 0)
     invented = stepped.sum() >= max(4, 0.5 * ref.ok.sum()) and not direction_jump(ref, rq)["found"]
-    fooled = bool(np.isfinite(act_frames) and np.isfinite(ref_frames) and ref_frames > FOOLED_LATE * act_frames)
-    if (invented or fooled) and np.isfinite(act_frames) and np.isfinite(ref_frames) and act_frames < ref_frames:
-        ref_frames = act_frames
+    ref_frames = gate_frames(ref_frames, act_frames, invented)
     if not _shape_fit_needed(ref_frames):
         pf = P.PlayFit(np.full(M, np.nan), np.full(M, np.nan), np.full(M, np.nan), np.zeros(M, bool),
                        float("nan"), (float("nan"), float("nan")), float("nan"), False, (0.0, 0.0), b_max)

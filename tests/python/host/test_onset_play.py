@@ -308,3 +308,21 @@ def test_delay_guess_confines_the_first_scan():
     pf, doc = P.fit(t, q, rt, rq, d["t_f"], np.column_stack([d["u"], d["v"]]), T, b_max, d_guess=guess)
     assert abs(doc["scan_s"] - guess) <= P.DELAY_SPAN * T + 1e-9
     assert abs(pf.t_delay_s - r.delay_s) < T / 8
+
+
+def test_gate_takes_the_actuators_figure_when_the_refined_onsets_are_fooled_late():
+    # Figures measured on development renderings (refined onsets' frames, the actuator's for the
+    # board's median width): a ringing fast swing's refined onsets look late by an order of
+    # magnitude with direction-following steps (dev-ring3-swings25); a slow ringing record of the
+    # Fig. 7 replica (3.5 Hz) has the board's width early by a factor 2.2, and the refined onsets
+    # are right there; the main job's record has the actuator slower than the refined onsets.
+    assert R.gate_frames(28.1, 2.4, invented=False) == 2.4
+    assert R.gate_frames(17.2, 1.25, invented=False) == 1.25
+    assert R.gate_frames(5.4, 2.5, invented=False) == 5.4
+    assert R.gate_frames(5.4, 2.5, invented=True) == 2.5
+    assert R.gate_frames(5.0, 6.15, invented=True) == 5.0
+    assert R.gate_frames(30.0, float("nan"), invented=True) == 30.0
+    assert np.isnan(R.gate_frames(float("nan"), 2.0, invented=True))
+    edge = R.FOOLED_LATE * 2.0
+    assert R.gate_frames(edge, 2.0, invented=False) == edge
+    assert R.gate_frames(edge + 1e-9, 2.0, invented=False) == 2.0
