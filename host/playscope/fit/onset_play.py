@@ -514,7 +514,8 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
 
     1. Delay scan 0..d_max (quarter frame; or around d_guess) on up to 24 reversals spread over
        the record.
-    2. B samples there without jumps or ringing; a first B(q) (cubic) and b_max from them.
+    2. B samples there without jumps or ringing; a first B(q) (cubic) from them (the b grid
+       keeps b_max).
     3. With that B(q): the record's jumps and ringing (BIC, summed over the 24; `_choose`);
        when a ringing is found, the scan (+-3 frames) and the first B samples are redone with
        it; then the delay's likelihood on a 1/16-frame grid +-1.5 frames around the scan's best.

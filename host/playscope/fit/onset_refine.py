@@ -824,10 +824,14 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     else:
         pf, pdoc = P.fit(t_enc, q, rt, rq, t_f, obs, period, b_max)
         pdoc["fitted"] = True
-    shape_frames = float("nan")
-    if pf.ok.any():
+    def model_frames(pf) -> float:
+        """The actuator-shape model's own frames to take up the play (lower quartile)."""
+        if not pf.ok.any():
+            return float("nan")
         va = np.abs(np.interp(pf.t2_s[pf.ok] - pf.t_delay_s, t_enc, v)) / fps
-        shape_frames = float(np.percentile(pf.b[pf.ok] / np.maximum(va, 1e-12), 25))
+        return float(np.percentile(pf.b[pf.ok] / np.maximum(va, 1e-12), 25))
+
+    shape_frames = model_frames(pf)
     # Once fitted (the refined onsets, or the actuator where they invent steps, call the take-up
     # fast), the model stands when either figure is below FAST_FRAMES. (The larger deciding
     # turned it down on a 60 fps triangle whose figures were 4.2 (model) and 2.8 (refined):
@@ -860,6 +864,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                             f"frames from the image stops' {d_stop_ref:.4f} s, which the configured delay matches; "
                             f"fitted again near them ({pf2.t_delay_s:.4f} s)")
             pf, pdoc = pf2, {**pdoc2, "fitted": True, "strayed_delay_s": pf.t_delay_s, "refitted_near_s": d_stop_ref}
+            shape_frames = model_frames(pf)  # reported; the gate was read on the first fit
         else:
             warnings.append(f"onsets: the actuator-shape model's delay {pf.t_delay_s:.4f} s lies over {P.DELAY_SPAN:g} "
                             f"frames from the image stops' {d_stop_ref:.4f} s; its B samples are not used")
