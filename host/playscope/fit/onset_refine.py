@@ -40,6 +40,7 @@ SUB = 8          # onset / stop grid points per frame period
 PRE_FRAMES = 3   # frames of old motion kept before the earliest stop searched
 FAST_FRAMES = 4.0  # below: the actuator-shape model (onset_play) gives the B samples and t_delay
 FOOLED_LATE = 4.0  # refined onsets this many times later than the actuator's figure are fooled late
+RING_DELAY_SHARE = 0.5  # a ringing record's approach delay: its interval widened by this share of the ring's period
 POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line holds over ~0.25 s)
 
 
@@ -891,6 +892,16 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
             d_se = d_stops_se if n_d >= 4 else period
             how = "image stop - motor stop, median"
         ci_lo, ci_hi = d_data - 1.96 * d_se, d_data + 1.96 * d_se
+        if ring[0] > 0:
+            # A ringing record: the tip's ring after the stop and the stop's own time trade within
+            # about half the ring's period (a half-cycle of the ring looks like the approach's end),
+            # alike at every reversal, which the interval's scatter term cannot see. The interval is
+            # widened by RING_DELAY_SHARE of the period, so a configured delay within it stands
+            # (ringing sines on development: the record's delay came 1.4-4.4 frames early, 0.055-
+            # 0.145 s, with 2.5-5 Hz rings, and replaced a right configured one).
+            widen = RING_DELAY_SHARE / ring[0]
+            ci_lo, ci_hi = ci_lo - widen, ci_hi + widen
+            how += f", interval widened by {RING_DELAY_SHARE:g} of the ring's period"
     if np.isfinite(d_data) and d_data < 0:  # a delay cannot be negative (the stops can say so on a sine)
         d_data, ci_lo, ci_hi = 0.0, max(ci_lo, 0.0), max(ci_hi, 0.0)
     if not use_shape:
