@@ -657,11 +657,13 @@ def gate_frames(ref_frames: float, act_frames: float, invented: bool) -> float:
 
 
 def _shape_fit_needed(ref_frames: float) -> bool:
-    """Whether the actuator-shape model (onset_play.fit) must be fitted, given the refined
-    onsets' frames to take up the play (lower quartile, NaN without refined onsets). Not when
-    they take it up over FAST_FRAMES frames or more: the larger of the two models' figures
-    decides, so the actuator-shape model could not be chosen whatever it gave, and the B
-    samples are the same without it (it is most of the onset path's cost on a slow excitation)."""
+    """Whether the actuator-shape model (onset_play.fit) is fitted, given the gate's figure
+    (`gate_frames`: the refined onsets' frames to take up the play, or the actuator's where they
+    are fooled late; lower quartile, NaN without refined onsets). Not when it is FAST_FRAMES or
+    more: this gate, not the model's own figure, keeps the model off slow records (the Fig. 7
+    replica's and the main job's, where the change-point model does better and where the model is
+    most of the onset path's cost). A model fitted anyway would also be used if its own figure
+    came out below FAST_FRAMES (robust_samples reads either figure once fitted)."""
     return not ref_frames >= FAST_FRAMES
 
 
@@ -724,7 +726,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
        shape (``delay_from_shape``; the stop times, ``delay_from_stops``, without 4 reversals
        to fit), or the actuator-shape model's when its B samples are used.
     4. ``choose_delay``: t_delay_from "data" (default): the configured delay unless the record
-       disagrees beyond its 95 % interval widened by half a frame period, then the record's;
+       disagrees beyond its 95 % interval widened by half a frame period (on a ringing record
+       also by RING_DELAY_SHARE of the ring's period), then the record's;
        "config": the configured one. A disagreement is a warning either way. A configured
        delay is never needed: without one the record's delay is used.
     5. b = |q(t2 - t_delay) - q1| with sigma_b = |dq/dt| sigma_t2. A reversal the refinement
@@ -789,7 +792,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # Frames to take up the play (b over the travel of one frame period at the onset), the
     # lower quartile over the reversals: a swing that is fast on one side only (the paper's
     # square-ish swings: fast out, slow back) still leaves a quarter or more within a frame.
-    # Both models' figures, the larger deciding: a model fooled into small b cannot claim it.
+    # The refined onsets' figure (or the actuator's, `gate_frames`) decides whether the model is
+    # fitted; once fitted, either figure below FAST_FRAMES uses it (below).
     ref_frames = float("nan")
     if ref.ok.any():
         t2r = ref.t2_s[ref.ok] - (d_stops if n_d >= 4 else d1)
@@ -812,7 +816,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # follow the direction (dev-ring3-swings25: 28.1 frames against the actuator's 2.4;
     # fourth-registration-swings25-fast: 17.2 against 1.25). The slow records where the
     # refined onsets are right stay within a small factor of the board's early width (Fig. 7
-    # replica, ringing included: 2.2 at most).
+    # replica, every case, ringing included, seeds 0 and 1: 2.4 at most, its 3.5 Hz ring).
     ref_frames_raw = ref_frames
     stepped = ref.ok & (ref.step_px > 0)
     invented = stepped.sum() >= max(4, 0.5 * ref.ok.sum()) and not direction_jump(ref, rq)["found"]
@@ -893,12 +897,15 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
             how = "image stop - motor stop, median"
         ci_lo, ci_hi = d_data - 1.96 * d_se, d_data + 1.96 * d_se
         if ring[0] > 0:
-            # A ringing record: the tip's ring after the stop and the stop's own time trade within
-            # about half the ring's period (a half-cycle of the ring looks like the approach's end),
-            # alike at every reversal, which the interval's scatter term cannot see. The interval is
-            # widened by RING_DELAY_SHARE of the period, so a configured delay within it stands
-            # (ringing sines on development: the record's delay came 1.4-4.4 frames early, 0.055-
-            # 0.145 s, with 2.5-5 Hz rings, and replaced a right configured one).
+            # A ringing record (the change-point model's ringing on most reversals of its first
+            # pass), whichever of the delays above is used: the tip's ring after the stop and the
+            # stop's own time trade within about half the ring's period (a half-cycle of the ring
+            # looks like the approach's end), alike at every reversal, which the interval's scatter
+            # term cannot see. The interval is widened by RING_DELAY_SHARE of the period, so a
+            # configured delay within it stands. Development ringing sines: the record's delay came
+            # 0.055-0.058 s early on two (replacing a right configured one; kept out by this) and
+            # 0.24 s early on a third with a 2.5 Hz ring (beyond half its period: still replaced).
+            # The price: a configured delay wrong by less than this is kept on a ringing record.
             widen = RING_DELAY_SHARE / ring[0]
             ci_lo, ci_hi = ci_lo - widen, ci_hi + widen
             how += f", interval widened by {RING_DELAY_SHARE:g} of the ring's period"

@@ -263,8 +263,9 @@ def test_batched_solve_matches_lstsq_and_shared_projection():
 
 
 def test_slow_record_skips_the_actuator_shape_fit_with_the_same_samples(plain, monkeypatch):
-    # The plain record takes the play up over many frames: the actuator-shape model cannot be
-    # chosen, so it is not fitted; fitting it anyway must give the same B samples and delay.
+    # The plain record takes the play up over many frames: the gate keeps the actuator-shape
+    # model unfitted. Fitted anyway, its own figure is over the gate too, so it is not used and
+    # the B samples and delay are the same.
     rob = plain[0]
     assert rob.report["actuator_shape"]["fitted"] is False
     assert rob.report["actuator_shape"]["frames_to_take_up"] >= R.FAST_FRAMES
