@@ -163,3 +163,9 @@ SET_ASIDE_SIXTH = _drawn(9907, 701, "sixth")
 # are spent (development data now). The third's plan, generator seed 3343, seeds 801-812. Run it
 # once, at the end.
 SET_ASIDE_SEVENTH = _drawn(3343, 801, "seventh")
+
+# An EIGHTH set-aside group, fixed (this line committed) at the start of the session of
+# 2026-11-24 (second stop), before any onset rule of that session was touched; the first seven
+# groups are spent (development data now). The third's plan, generator seed 5521, seeds 901-912.
+# Run it once, at the end.
+SET_ASIDE_EIGHTH = _drawn(5521, 901, "eighth")
