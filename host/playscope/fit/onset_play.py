@@ -313,8 +313,8 @@ def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=Non
             # Where the previous reversal's play is surely taken up: q gone SAFE_REACH x the first
             # B(q) from it (b_max, the window's start, is the swing's reach and comes later).
             reach = min(b_max, SAFE_REACH * float(b_of_q(np.array([rq[r - 1]]))[0]))
-            far_prev = np.nonzero(np.abs(q[i0:i1] - rq[r - 1]) > reach)[0]
-            t_safe = max(t_enc[i0 + far_prev[0]], rt[r] - PRE_S)
+            far_prev = np.nonzero(np.abs(q[i0:i1] - rq[r - 1]) > reach)[0] if np.isfinite(reach) else moved
+            t_safe = max(t_enc[i0 + (far_prev[0] if far_prev.size else moved[0])], rt[r] - PRE_S)
         t_end = min(rt[r + 1] if r + 1 < rt.size else t_enc[-1], rt[r] + POST_S)
         if hold and r + 1 < rt.size:
             k1 = np.searchsorted(t_enc, rt[r + 1])
