@@ -922,7 +922,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # The samples again at the delay used whenever it is not the model's own, however close: on
     # a fast swing (~10 mm/s at the take-up) half a millisecond moves every fast frame's drive by
     # 0.005 mm and b with it. A skip under 1/32 frame left the heavy-noise fast-swing rendering of
-    # the seventh set-aside group at 5.64 % (configured 0.147 s, the model's 0.1475 s); 2.27 % now.
+    # the seventh set-aside group at 5.64 % (configured 0.147 s, the model's 0.1475 s); 2.27 % with
+    # this change alone.
     if use_shape and td != pf.t_delay_s:
         pf = P.refit_at(pf, t_enc, q, rt, rq, t_f, obs, period, td)
     # B samples (eq. 1): the actuator-shape model's; the refined onset's, then the board's, where it has none.
