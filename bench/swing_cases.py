@@ -169,3 +169,9 @@ SET_ASIDE_SEVENTH = _drawn(3343, 801, "seventh")
 # groups are spent (development data now). The third's plan, generator seed 5521, seeds 901-912.
 # Run it once, at the end.
 SET_ASIDE_EIGHTH = _drawn(5521, 901, "eighth")
+
+# A NINTH set-aside group, fixed (this line committed) at the start of the session of 2026-11-24
+# (third stop), before any onset rule of that session was touched; the first eight groups are
+# spent (development data now). The third's plan, generator seed 6691, seeds 1101-1112. Run it
+# once, at the end.
+SET_ASIDE_NINTH = _drawn(6691, 1101, "ninth")
