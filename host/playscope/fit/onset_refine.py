@@ -41,6 +41,7 @@ PRE_FRAMES = 3   # frames of old motion kept before the earliest stop searched
 FAST_FRAMES = 4.0  # below: the actuator-shape model (onset_play) gives the B samples and t_delay
 FOOLED_LATE = 4.0  # refined onsets this many times later than the actuator's figure are fooled late
 RING_DELAY_SHARE = 0.5  # a ringing record's approach delay: its interval widened by this share of the ring's period
+DELAY_SHAPE_SPAN = 3.0  # frames searched either side of the guess by delay_from_shape
 POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line holds over ~0.25 s)
 
 
@@ -307,6 +308,12 @@ class _Episode:
         m = lw2.max()
         self.tau0, self.sd0 = _posterior(gf, m + np.log(np.exp(lw2 - m).sum(axis=1)), 0.5 / SUB)
 
+    def score(self) -> float:
+        """This window's log-weight under the fitted model: the onset's (its 3 parameters v1, tau
+        charged as in `fit_onset`'s test) when one was found, else the best still model's."""
+        on = self.lw_best - 1.5 * np.log(self.n_obs) if self.found else -np.inf
+        return float(max(on, self.null_lw))
+
     def _back(self, coef: np.ndarray) -> np.ndarray:
         """0 for onset candidates whose new motion goes back along the old one (after a reversal
         the tip retraces its path at the actuator's speed: velocity 3 frames after the onset
@@ -362,6 +369,7 @@ class _Episode:
         rn, _ = self._solve_onset(np.full(jn.size, 1e9), jn)
         null = float(np.max(_logw(rn, self.n_obs, 3.0 * (jn >= 0) + pen_ring)))
         self.found = lw[b] - 1.5 * np.log(self.n_obs) > null
+        self.null_lw = null  # the best still model's log-weight (`score`)
         gf = np.arange(max(tb - 1.5, lo), min(tb + 1.5, hi) + 1e-9, 1.0 / SUB)
         near = self.k[np.abs(self.tk - tb) <= 2.5]
         js = np.unique(np.concatenate(([-1, self.j], near))).astype(float)
@@ -370,6 +378,7 @@ class _Episode:
         lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
         b = int(np.argmax(lw))
         self.j = int(JJ[b])
+        self.lw_best = float(lw[b])  # the best onset candidate's log-weight (`score`)
         self.step_px = float(np.linalg.norm(coef[b, 1])) if self.j >= 0 else 0.0
         self.step_vec = np.array(coef[b, 1], float) if self.j >= 0 else np.zeros(2)
         if not np.isfinite(lw[b]):  # no candidate moves back along the old motion
@@ -385,11 +394,14 @@ class _Episode:
         self.ok = True
 
 
-def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, ring=None, stop_back=5.0):
+def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, ring=None, stop_back=5.0,
+                onset_ring=False):
     """Fit the frames in [t0 - (PRE_FRAMES + 5) periods, end] starting from ``state`` (tau0,
     om, al, j, tau; in periods from t0, tau = inf when no onset is known): stop, onset, stop,
     onset (the last one final when asked; stop=False: the stop held from ``state``, onset only,
-    while the window grows). Returns the _Episode or None (too few frames)."""
+    while the window grows). ring: the record's ringing (Hz, 1/s), held; onset_ring: with it,
+    the ringing the onset excites is a column too (`onset_ring_evidence` decides). Returns the
+    _Episode or None (too few frames)."""
     sel = (tf >= t0 - (PRE_FRAMES + 5) * period_s) & (tf <= end)
     if sel.sum() < 8:
         return None
@@ -400,10 +412,7 @@ def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, rin
     ep.stop_back = stop_back
     if ring is not None:
         ep.fixed_ring = (2 * np.pi * ring[0] * period_s, ring[1] * period_s)
-        # The onset's own ring only when half its period fits in the frames the onset is fitted
-        # on (POST_FRAMES): a slower ring's column is a part-cycle curve there that trades with
-        # the new motion's ramp (the Fig. 7 replica's 2 Hz ring at 25 fps: 5.5 -> 50 % with it).
-        ep.onset_ring = ring[0] * 2 * POST_FRAMES * period_s >= 1.0
+        ep.onset_ring = bool(onset_ring) and ring[0] > 0
     if np.isfinite(state[4]):
         ep.tau = min(max(state[4], state[0] + 1.0), tk[-1] - 2.0)
     if stop or len(state) < 6:
@@ -421,9 +430,88 @@ def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, rin
     return ep
 
 
+def _refine_one(tf, o, kf, t0, t_lim, t2_guess, period_s, ring, stop_back, onset_ring):
+    """One reversal's episode (`refine`): frames tf (s), o (px), kf (frame numbers) with the
+    lost ones left out; t0 the stop guess and t_lim the episode's end (s, image clock); t2_guess
+    the board's candidate (NaN: none). Returns (the final _Episode or None, its window's end s)."""
+    guess = t2_guess if np.isfinite(t2_guess) else -np.inf
+    # The first window ends 4 frames after the stop (the stop and ringing are fitted
+    # there, before any onset); the next one reaches past the board's candidate.
+    end = min(t0 + 4 * period_s, t_lim)
+    state = (0.0, 0.0, 0.0, -1, np.inf)  # tau0, om, al, j, tau (inf: no onset known yet)
+    kw = dict(ring=ring, stop_back=stop_back, onset_ring=onset_ring)
+    for _ in range(40):  # grow the window until an onset sits well inside it, then trim to it
+        ep = _fit_window(tf, o, kf, t0, end, period_s, state, stop=len(state) < 6, **kw)
+        if ep is None:
+            return None, end
+        state = (ep.tau0, ep.om, ep.al, ep.j, ep.tau if ep.found else np.inf, ep.v0, ep.ring_px)
+        if ep.found and ep.tau * period_s + t0 < end - (POST_FRAMES - 1.5) * period_s:
+            trim = min(ep.tau * period_s + t0 + POST_FRAMES * period_s, t_lim)
+            e2 = _fit_window(tf, o, kf, t0, trim, period_s, state, final=True, **kw)
+            if e2 is not None and e2.found and abs(e2.tau - ep.tau) < 2.0:
+                return e2, trim
+        if end >= t_lim:
+            return None, end
+        # Never shrink: an onset the longer window no longer supports was a jump or a swing.
+        if ep.found:
+            end = min(max(end + period_s, ep.tau * period_s + t0 + POST_FRAMES * period_s), t_lim)
+        else:
+            end = min(max(end, guess) + POST_FRAMES * period_s, t_lim)
+        guess = -np.inf
+    return ep, end
+
+
+def onset_ring_evidence(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np.ndarray,
+                        t2_guess: np.ndarray, t_delay_s: float, period_s: float, ring: tuple,
+                        stop_back: float = 1.5) -> dict:
+    """Whether the onset excites the record's ringing: the model with the onset's ring column
+    (r1, module doc) against the one without, by BIC summed over the given reversals.
+
+    A tip mode driven through its base (x'' + 2 zeta w x' + w^2 x = -g c'') rings wherever the
+    carrier's velocity steps: at the stop and again at the onset, where it starts against the
+    new motion and makes the onset look late (fifth-ringing-sine30-noisy: 99 % off without the
+    column). A tip that only overshoots at the stop (the Fig. 7 replica's renderer) has no onset
+    ring, and there the column trades with the new motion's ramp (2 Hz ring at 25 fps: 5.5 ->
+    12 %). The mode is the record's, shared by every reversal, so the record decides, not each
+    reversal: per reversal both models are refined (`refine`), then fitted again on the same
+    frames (to the later end of the windows that found an onset) and their log-weights compared
+    (`_Episode.score`: -N/2 log RSS less half the BIC penalty, the column's 2 parameters
+    included, Schwarz 1978; a model that finds no onset there scores its best still model, so a
+    reversal only one of them can explain counts for it: fourth-ringing-swings25 found onsets on
+    10 of 24 reversals with the column, 1 without). The column is used when the sum is positive.
+    Arrays as `refine` (M,) for the reversals to use; ring (Hz, 1/s) the record's ringing.
+    Returns {"reversals": compared, "delta_log_weight": sum, "share_for": share of reversals
+    favouring the column, "used": bool}."""
+    ok_f = np.all(np.isfinite(obs), axis=1)
+    tf, o = t_f[ok_f], obs[ok_f]
+    kf = np.nonzero(ok_f)[0]
+    d = []
+    for r in range(t_stop.size):
+        t0 = t_stop[r] + t_delay_s
+        t_lim = t_next_stop[r] + t_delay_s - 2 * period_s
+        fits = [_refine_one(tf, o, kf, t0, t_lim, t2_guess[r], period_s, ring, stop_back, on) for on in (False, True)]
+        found = [ep for ep, _ in fits if ep is not None and ep.found]
+        if not found:
+            continue
+        end = max(e for ep, e in fits if ep is not None and ep.found)
+        lw = []
+        for on, (ep, _) in zip((False, True), fits):
+            src = ep if ep is not None and ep.found else found[0]  # start from an onset one of them found
+            state = (src.tau0, src.om, src.al, src.j, src.tau, src.v0, src.ring_px)
+            e2 = _fit_window(tf, o, kf, t0, end, period_s, state, final=True, ring=ring, stop_back=stop_back,
+                             onset_ring=on)
+            lw.append(e2.score() if e2 is not None else np.nan)
+        if np.all(np.isfinite(lw)):
+            d.append(lw[1] - lw[0])
+    d = np.asarray(d, float)
+    total = float(d.sum()) if d.size else 0.0
+    return {"reversals": int(d.size), "delta_log_weight": total,
+            "share_for": float(np.mean(d > 0)) if d.size else 0.0, "used": bool(d.size and total > 0)}
+
+
 def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np.ndarray,
            t2_guess: np.ndarray, t_delay_s: float, period_s: float, ring: tuple | None = None,
-           stop_back: float = 5.0) -> Refined:
+           stop_back: float = 5.0, onset_ring: bool = False) -> Refined:
     """Refine every reversal's onset with the joint model (module doc).
 
     t_f (F,), obs (F, 2) px (NaN = lost) on the image clock; t_stop (M,) motor stops (s,
@@ -431,7 +519,8 @@ def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np
     t2_guess (M,) the board's onset candidates (NaN: none, e.g. ONSET_ERR_NO_STILL when the tip
     rings); t_delay_s the current delay (its error may be a few frames: the stop is searched
     from stop_back frames before t_stop + t_delay_s to 3 after); period_s the frame period;
-    ring (hz, alpha 1/s) fixes the ringing (hz 0: none) instead of searching it. The window is grown
+    ring (hz, alpha 1/s) fixes the ringing (hz 0: none) instead of searching it; onset_ring
+    (with it) fits the ringing the onset excites too (`onset_ring_evidence`). The window is grown
     until the onset lies POST_FRAMES before its end, so a candidate fired by ringing or by a
     jump is only a start. Returns Refined; ok False where no onset fits before the next stop.
     """
@@ -445,32 +534,7 @@ def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np
     for r in range(M):  # episodes are independent; each is a handful of batched solves
         t0 = t_stop[r] + t_delay_s
         t_lim = t_next_stop[r] + t_delay_s - 2 * period_s  # the next episode's old motion stays out
-        guess = t2_guess[r] if np.isfinite(t2_guess[r]) else -np.inf
-        # The first window ends 4 frames after the stop (the stop and ringing are fitted
-        # there, before any onset); the next one reaches past the board's candidate.
-        end = min(t0 + 4 * period_s, t_lim)
-        state = (0.0, 0.0, 0.0, -1, np.inf)  # tau0, om, al, j, tau (inf: no onset known yet)
-        ep = None
-        for _ in range(40):  # grow the window until an onset sits well inside it, then trim to it
-            ep = _fit_window(tf, o, kf, t0, end, period_s, state, stop=len(state) < 6, ring=ring, stop_back=stop_back)
-            if ep is None:
-                break
-            state = (ep.tau0, ep.om, ep.al, ep.j, ep.tau if ep.found else np.inf, ep.v0, ep.ring_px)
-            if ep.found and ep.tau * period_s + t0 < end - (POST_FRAMES - 1.5) * period_s:
-                trim = min(ep.tau * period_s + t0 + POST_FRAMES * period_s, t_lim)
-                e2 = _fit_window(tf, o, kf, t0, trim, period_s, state, final=True, ring=ring, stop_back=stop_back)
-                if e2 is not None and e2.found and abs(e2.tau - ep.tau) < 2.0:
-                    ep = e2
-                    break
-            if end >= t_lim:
-                ep = None
-                break
-            # Never shrink: an onset the longer window no longer supports was a jump or a swing.
-            if ep.found:
-                end = min(max(end + period_s, ep.tau * period_s + t0 + POST_FRAMES * period_s), t_lim)
-            else:
-                end = min(max(end, guess) + POST_FRAMES * period_s, t_lim)
-            guess = -np.inf
+        ep, _ = _refine_one(tf, o, kf, t0, t_lim, t2_guess[r], period_s, ring, stop_back, onset_ring)
         if ep is None or not ep.found or not hasattr(ep, "sd"):
             continue
         okm[r] = True
@@ -650,7 +714,13 @@ def gate_frames(ref_frames: float, act_frames: float, invented: bool) -> float:
     (ref_frames, NaN without them), or the actuator's for the board's median width (act_frames,
     `actuator_frames`) when it is smaller and the refined onsets are fooled late: they invent
     steps (``invented``: a step on most reversals that does not follow the direction), or they
-    look over FOOLED_LATE times later than the actuator says. Frames (lower quartiles)."""
+    look over FOOLED_LATE times later than the actuator says. Frames (lower quartiles).
+    Invented steps with no board width to check them against (the board found no onset: its
+    configured delay 0.1 s off on third-delay-swings25-fast, 99 reversals without a still frame)
+    leave no figure to trust: NaN, so the model is fitted and its own figure decides (74 % off
+    on that rendering with the refined onsets' 31 frames, 3.0 % with the model)."""
+    if invented and not np.isfinite(act_frames):
+        return float("nan")
     if not (np.isfinite(act_frames) and np.isfinite(ref_frames)) or act_frames >= ref_frames:
         return ref_frames
     return act_frames if invented or ref_frames > FOOLED_LATE * act_frames else ref_frames
@@ -775,7 +845,11 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     d1 = d1 if n1 >= 4 else d0
     rs = ring_summary(ref1)
     ring = (rs["freq_hz"], rs["decay_per_s"]) if rs["share"] > 0.5 else (0.0, 0.0)
-    ref = refine(t_f, obs, t_stop, t_next, guess, d1, period, ring=ring, stop_back=1.5)
+    # Whether the onset rings too: the record decides on pass 1's reversals (onset_ring_evidence).
+    onset_ring = onset_ring_evidence(t_f, obs, t_stop[sub], t_next[sub], guess[sub], d1, period, ring) \
+        if ring[0] > 0 else None
+    ref = refine(t_f, obs, t_stop, t_next, guess, d1, period, ring=ring, stop_back=1.5,
+                 onset_ring=bool(onset_ring and onset_ring["used"]))
     d_stops, d_stops_se, n_d = delay_from_stops(ref.tau0_s, t_stop)
     # The actuator-shape model (playscope.fit.onset_play): the delay's likelihood over the record
     # and a B sample per reversal that needs no "still" frame.
@@ -883,9 +957,13 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         # here, where they are used; recentred while it lands near its grid's edge.
         t2_img = np.where(ref.ok, ref.t2_s, np.nan)
         guess_d = d_stops if n_d >= 4 else d1
+        # A delay cannot be negative; the stops can say so on a ringing sine (a half-cycle of
+        # the ring looks like the approach's end: -0.12 s on eighth-ringing-sine25-noisy), and a
+        # grid centred there holds almost no delay >= 0. Its span then starts at 0.
+        guess_d = max(guess_d, DELAY_SHAPE_SPAN * period)
         for _ in range(3):
             d_shape, d_shape_se, n_shape = delay_from_shape(t_enc, q, rt, rq, t_f, obs, t2_img, guess_d, period,
-                                                            ring=ring)
+                                                            span_frames=DELAY_SHAPE_SPAN, ring=ring)
             if not (n_shape >= 4 and abs(d_shape - guess_d) > 2.0 * period):
                 break
             guess_d = d_shape
@@ -982,7 +1060,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                            "actuator_frames_board_b": act_frames, "refined_frames": ref_frames_raw},
         "pacing": pace,
         "guard": guard,
-        "ringing": ring_summary(ref),
+        "ringing": {**ring_summary(ref), "onset_ring": onset_ring},
         "steps": {"reversals_with_step": int(steps.sum()),
                   "median_step_px": float(np.median(ref.step_px[steps])) if steps.any() else 0.0},
         "registration": registration,

@@ -334,7 +334,8 @@ def test_gate_takes_the_actuators_figure_when_the_refined_onsets_are_fooled_late
     assert R.gate_frames(5.97, 2.5, invented=False) == 5.97
     assert R.gate_frames(5.4, 2.5, invented=True) == 2.5
     assert R.gate_frames(5.0, 6.15, invented=True) == 5.0
-    assert R.gate_frames(30.0, float("nan"), invented=True) == 30.0
+    assert np.isnan(R.gate_frames(30.0, float("nan"), invented=True))  # nothing to check them against
+    assert R.gate_frames(30.0, float("nan"), invented=False) == 30.0
     assert np.isnan(R.gate_frames(float("nan"), 2.0, invented=True))
     edge = R.FOOLED_LATE * 2.0
     assert R.gate_frames(edge, 2.0, invented=False) == edge
@@ -458,3 +459,36 @@ def test_first_scan_leaves_out_the_mirror_image_a_leg_off(monkeypatch):
     monkeypatch.setattr(P, "_image_direction", lambda *a: np.zeros(2))  # without the rule: both fit
     g, s0 = P._wide_delay(t, q, rt, rq, t_f, obs, T, b_max_of(rq), 0.5, pick, grid=grid)
     assert s0[0] == s[0] and abs(s0[1] - s0[0]) < 0.1
+
+
+def test_a_negative_delay_from_the_stops_does_not_confine_the_approachs_search():
+    """A ringing sine (the eighth set-aside group's ringing rendering, spent: 3.64 Hz ring, 25 fps,
+    heavy noise, the configured delay right at 0.071 s): the image stops come 0.12 s *before* the
+    motor's (a half-cycle of the ring looks like the approach's end). The approach's delay search
+    was centred there and held almost no delay >= 0: no reversal gave one, the stops' delay
+    (clipped to 0) replaced the right configured one, B 29 % off. Its search now starts at 0.
+    Measured: the approach's delay 0.061 s from 71 reversals, the configured delay kept, median
+    B error within 2 %."""
+    r = SR.Rendering("t", 912, shape="sine", fps=25.0, jitter=0.43, noise_px=0.252, delay_s=0.071, delay_cfg_s=0.071,
+                     b_lo=0.113, b_hi=0.251, b_qc=0.09, b_w=1.24, ring_hz=3.64, ring_zeta=0.069)
+    rob, _ = robust(r)
+    td = rob.report["t_delay"]
+    assert td["stops_s"] < 0  # the premise: the stops say the image moves first
+    assert td["shape_reversals"] >= 30 and abs(td["shape_s"] - r.delay_s) < 0.5 / r.fps, td
+    assert td["used"] == "configured" and rob.t_delay_s == r.delay_s
+    assert abs(median_error(r, rob.onsets.q_mean, rob.onsets.b)) < 0.04
+
+
+def test_invented_steps_with_no_board_onset_leave_the_gate_to_the_model():
+    """Fast swings with the configured delay 0.1 s short (third-delay-swings25-fast, a spent
+    set-aside rendering): the board, run at that delay, finds no still frame and no onset; the
+    refined onsets fit a ~30 px step on every reversal and look 31 frames slow. With no board
+    width to check that against, the actuator-shape model is fitted and its own figure decides.
+    Measured: the model used, t_delay 0.1069 s for a true 0.107 s (the configured one replaced),
+    B 3.0 % off (74 % with the refined onsets)."""
+    r = SR.Rendering("t", 408, shape="swings", swing_s=0.141, fps=25.0, jitter=0.19, noise_px=0.093, delay_s=0.107,
+                     delay_cfg_s=0.007, b_lo=0.148, b_hi=0.266, b_qc=-0.32, b_w=0.9)
+    rob, rt = robust(r)
+    assert rob.report["actuator_shape"]["used"]
+    assert abs(rob.t_delay_s - r.delay_s) < 1 / (8 * r.fps) and rob.report["t_delay"]["used"] == "record"
+    assert abs(median_error(r, rob.onsets.q_mean, rob.onsets.b)) < 0.04
