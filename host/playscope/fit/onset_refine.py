@@ -7,7 +7,8 @@ onsets with a joint model of the marker around a reversal, fitted to the frames:
              + r e^(-alpha (t - tau0)) sin(w (t - tau0))  ringing after the stop (optional)
              + s [t >= t_j]                               a step: registration / channel jump (optional)
              + v1 max(t - tau, 0)                         new motion from the onset tau
-             + r1 e^(-alpha (t - tau)) sin(w (t - tau))   ringing the onset excites (with the record's ringing)
+             + r1 e^(-alpha (t - tau)) sin(w (t - tau))   ringing the onset excites (with the record's
+                                                          ringing, when the record says so: onset_ring_evidence)
 
 Q is the 2-D marker (px); a, v0, r, s, v1 are 2-vectors, linear given the change points
 (tau0, tau, frame j) and the ringing (w, alpha), so each candidate is one linear least-squares
@@ -959,7 +960,9 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         guess_d = d_stops if n_d >= 4 else d1
         # A delay cannot be negative; the stops can say so on a ringing sine (a half-cycle of
         # the ring looks like the approach's end: -0.12 s on eighth-ringing-sine25-noisy), and a
-        # grid centred there holds almost no delay >= 0. Its span then starts at 0.
+        # grid centred there held no delay >= 0 (the stops' figure, clipped to 0, then replaced a
+        # right configured delay). A figure under DELAY_SHAPE_SPAN frames puts the grid's start
+        # at 0 (its span 0 to twice DELAY_SHAPE_SPAN frames).
         guess_d = max(guess_d, DELAY_SHAPE_SPAN * period)
         for _ in range(3):
             d_shape, d_shape_se, n_shape = delay_from_shape(t_enc, q, rt, rq, t_f, obs, t2_img, guess_d, period,

@@ -484,8 +484,8 @@ def test_invented_steps_with_no_board_onset_leave_the_gate_to_the_model():
     set-aside rendering): the board, run at that delay, finds no still frame and no onset; the
     refined onsets fit a ~30 px step on every reversal and look 31 frames slow. With no board
     width to check that against, the actuator-shape model is fitted and its own figure decides.
-    Measured: the model used, t_delay 0.1069 s for a true 0.107 s (the configured one replaced),
-    B 3.0 % off (74 % with the refined onsets)."""
+    Measured: the model used, t_delay 0.1069 s for a true 0.107 s (the configured one replaced);
+    in bench/swing_bench.py B 3.0 % off (74 % with the refined onsets)."""
     r = SR.Rendering("t", 408, shape="swings", swing_s=0.141, fps=25.0, jitter=0.19, noise_px=0.093, delay_s=0.107,
                      delay_cfg_s=0.007, b_lo=0.148, b_hi=0.266, b_qc=-0.32, b_w=0.9)
     rob, rt = robust(r)
