@@ -345,21 +345,19 @@ def test_gate_takes_the_actuators_figure_when_the_refined_onsets_are_fooled_late
 @pytest.mark.parametrize("share", [0.0, R.RING_DELAY_SHARE])
 def test_ringing_record_keeps_a_configured_delay_within_half_the_rings_period(share, monkeypatch):
     """A ringing sine (dev-ring5-sine30's scene, 60 s: 5 Hz ring, 30 fps, the configured delay
-    right): the approach's delay comes early by over a frame (the ring after the stop trades with
-    the stop's time). Measured: without the widening (share 0) the record's 0.038 s replaced the
-    right 0.08 s and the B samples' median error was +14.4 %; with half the ring's period the
-    configured delay stands, -0.04 %."""
+    right): the approach's delay comes early (the ring after the stop trades with the stop's
+    time). Measured before the approach's search started at 0 (the third stop of 2026-11-24):
+    0.038 s, and without the widening (share 0) it replaced the right 0.08 s, B samples' median
+    error +14.4 %. Now 0.056 s (0.73 frame early, interval 0.040-0.071 s): the configured delay
+    stands with or without the widening, median error -0.04 %."""
     monkeypatch.setattr(R, "RING_DELAY_SHARE", share)
     r = SR.Rendering("t", 109, shape="sine", fps=30.0, ring_hz=5.0, ring_zeta=0.08, duration_s=60.0)
     rob, _ = robust(r)
     td = rob.report["t_delay"]
     assert rob.report["ringing"]["share"] > 0.5 and not rob.report["actuator_shape"]["used"]
-    assert td["record_s"] < r.delay_s - 1 / r.fps  # the approach's delay is early on a ringing sine
+    assert r.delay_s - 1 / r.fps < td["record_s"] < r.delay_s  # early, by under a frame
     e = median_error(r, rob.onsets.q_mean, rob.onsets.b)
-    if share == 0.0:
-        assert td["used"] == "record" and e > 0.07
-    else:
-        assert td["used"] == "configured" and rob.t_delay_s == r.delay_s and abs(e) < 0.03
+    assert td["used"] == "configured" and rob.t_delay_s == r.delay_s and abs(e) < 0.03
 
 
 def test_a_reversals_frames_are_past_the_previous_take_up_for_every_delay_of_the_grid():
