@@ -80,14 +80,17 @@ __attribute__((always_inline)) static inline void relax_update_inline(relax_stat
         uint32_t g = (uint32_t)(((uint64_t)adv * rp->inv_lam_q47) >> 16); /* < 2^31 */
         g_q31 = (int32_t)g < g_q31 ? (int32_t)g : g_q31;
     }
-    s->r_q32 += ((int64_t)(x_q16 - r16) * g_q31 + (1 << 14)) >> 15; /* Q47 -> Q32 */
+    s->r_q32 += (((int64_t)x_q16 - r16) * g_q31 + (1 << 14)) >> 15; /* Q47 -> Q32 */
 }
 
 __attribute__((always_inline)) static inline int32_t relax_direct_inline(relax_state_t *s, const relax_params_t *rp,
                                                                           int32_t x_q16)
 {
     int32_t r16 = (int32_t)((s->r_q32 + (1 << 15)) >> 16);
-    int32_t v = x_q16 + (int32_t)(((int64_t)rp->kappa_q16 * (r16 - x_q16) + (1 << 15)) >> 16);
+    /* In 64 bits and saturated: r16 - x_q16 overflowed int32 on a fuzzed table (UBSan, fuzz_table);
+     * in range the result is the same. */
+    int64_t v64 = (int64_t)x_q16 + (((int64_t)rp->kappa_q16 * ((int64_t)r16 - x_q16) + (1 << 15)) >> 16);
+    int32_t v = v64 > INT32_MAX ? INT32_MAX : (v64 < INT32_MIN ? INT32_MIN : (int32_t)v64);
     relax_update_inline(s, rp, x_q16, v, r16);
     return v;
 }
