@@ -175,3 +175,9 @@ SET_ASIDE_EIGHTH = _drawn(5521, 901, "eighth")
 # spent (development data now). The third's plan, generator seed 6691, seeds 1101-1112. Run it
 # once, at the end.
 SET_ASIDE_NINTH = _drawn(6691, 1101, "ninth")
+
+# A TENTH set-aside group, fixed (this line committed) at the start of the session of 2026-11-24
+# (fourth stop), before any onset rule of that session was touched; the first nine groups are
+# spent (development data now). The third's plan, generator seed 8317, seeds 1201-1212. Run it
+# once, at the end.
+SET_ASIDE_TENTH = _drawn(8317, 1201, "tenth")
