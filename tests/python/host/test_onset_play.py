@@ -491,3 +491,25 @@ def test_invented_steps_with_no_board_onset_leave_the_gate_to_the_model():
     assert rob.report["actuator_shape"]["used"]
     assert abs(rob.t_delay_s - r.delay_s) < 1 / (8 * r.fps) and rob.report["t_delay"]["used"] == "record"
     assert abs(median_error(r, rob.onsets.q_mean, rob.onsets.b)) < 0.015
+
+
+def test_with_the_image_curve_the_window_runs_to_the_next_reversal():
+    # dev-swings25's fast swings: without the record's curve the new branch is cut where it leaves
+    # the old branch's reach (a frame or two after a fast reversal); with it, the window runs to
+    # the next reversal (or POST_S) and takes in the whole swing.
+    from playscope.fit.image_curve import fit_image_curve
+
+    r, t, q, rt, rq, t_f, obs, _ = record(duration_s=30.0)
+    T, b_max = 1 / r.fps, b_max_of(rq)
+    G = fit_image_curve(t, q, t_f, obs, r.delay_s, r.B, T)
+    cut = P._reversals(t, q, rt, rq, t_f, obs, r.delay_s, r.delay_s, b_max, T, r.B)
+    whole = P._reversals(t, q, rt, rq, t_f, obs, r.delay_s, r.delay_s, b_max, T, r.B, curve=G)
+    longer = 0
+    for k in range(1, rt.size - 1):
+        if cut[k] is None or whole[k] is None:
+            continue
+        assert whole[k].tf[0] == cut[k].tf[0]
+        end = min(rt[k + 1], rt[k] + P.POST_S)
+        assert whole[k].tf[-1] - r.delay_s <= end and end - (whole[k].tf[-1] - r.delay_s) < 1.5 * T
+        longer += whole[k].n > cut[k].n
+    assert longer >= 0.4 * (rt.size - 2)
