@@ -332,8 +332,9 @@ def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=Non
         # branch, too few to tell a registration jump at the onset's frame from one a frame
         # later (which moves b by a frame's travel); the whole swing's frames tell them apart
         # (eighth-registration-swings25-fast: B 16.8 -> 5.1 %; development renderings). A ringing
-        # record's long windows (hold) keep their own reach (FAR_RING): without it third- and
-        # fifth-ringing-swings25 went 7.4 -> 31.3 % and 9.1 -> 58.8 %.
+        # record's long windows (hold) keep their own reach (FAR_RING), as before. Known cost:
+        # third- and fifth-ringing-swings25 (short windows, a ring that does not last) went
+        # 7.4 -> 31.3 % and 9.1 -> 58.8 % with the longer windows (CHANGELOG, known limits).
         span = float(np.ptp(q[np.searchsorted(t_enc, t_start):i1 + 1]))
         j1 = np.searchsorted(t_enc, rt[r])
         j2 = np.searchsorted(t_enc, t_end)
