@@ -2,12 +2,12 @@
 """B(q) and t_delay of `playscope calibrate` on fast-swing sessions from bench/swing_render.py.
 
 One row per rendering of the chosen group (bench/swing_cases.py: "development", on which the
-rules are settled, or "set-aside", run once and spent; "fresh", "third", "fourth", "fifth", "sixth", "seventh", "eighth", "ninth" and "tenth", further set-aside groups, each run once), then one row per category with the
+rules are settled, or "set-aside", run once and spent; "fresh", "third", ... "eleventh", further set-aside groups, each run once; swing_cases.GROUPS), then one row per category with the
 worst rendering beside the mean. Figures: B mean absolute error over the sampled q range in %
 of the mean true B; t_delay used and its error in frame periods (acceptance: within 1/8); the
 delay the record gives and its interval; refusals count as failures.
 
-Usage: PYTHONPATH=host .venv/bin/python bench/swing_bench.py [--group development|set-aside|fresh|third|fourth|fifth|sixth|seventh|eighth|ninth|tenth]
+Usage: PYTHONPATH=host .venv/bin/python bench/swing_bench.py [--group development|set-aside|fresh|third|...|eleventh]
        [--only NAME ...]
 """
 
@@ -41,14 +41,10 @@ def run(r: SR.Rendering) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--group", choices=("development", "set-aside", "fresh", "third", "fourth", "fifth", "sixth", "seventh", "eighth", "ninth", "tenth"), default="development")
+    ap.add_argument("--group", choices=tuple(swing_cases.GROUPS), default="development")
     ap.add_argument("--only", nargs="*", help="rendering names to run (default: all of the group)")
     a = ap.parse_args(argv)
-    cases = {"development": swing_cases.DEVELOPMENT, "set-aside": swing_cases.SET_ASIDE,
-             "fresh": swing_cases.SET_ASIDE_FRESH, "third": swing_cases.SET_ASIDE_THIRD, "fourth": swing_cases.SET_ASIDE_FOURTH,
-             "fifth": swing_cases.SET_ASIDE_FIFTH, "sixth": swing_cases.SET_ASIDE_SIXTH,
-             "seventh": swing_cases.SET_ASIDE_SEVENTH, "eighth": swing_cases.SET_ASIDE_EIGHTH,
-             "ninth": swing_cases.SET_ASIDE_NINTH, "tenth": swing_cases.SET_ASIDE_TENTH}[a.group]
+    cases = swing_cases.GROUPS[a.group]
     if a.only:
         cases = [c for c in cases if c[2].name in a.only]
     print(f"group {a.group}: {len(cases)} renderings (bench/swing_render.py)")
