@@ -335,12 +335,13 @@ def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=Non
         # record's long windows (hold) keep their own reach (FAR_RING), as before. Known cost:
         # third- and fifth-ringing-swings25 (short windows, a ring that does not last) went
         # 7.4 -> 31.3 % and 9.1 -> 58.8 % with the longer windows (CHANGELOG, known limits).
-        span = float(np.ptp(q[np.searchsorted(t_enc, t_start):i1 + 1]))
-        j1 = np.searchsorted(t_enc, rt[r])
-        j2 = np.searchsorted(t_enc, t_end)
-        far = np.nonzero(s * (rq[r] - q[j1:j2]) > b_max + (max(span, FAR_RING * b_max) if hold else span))[0]
-        if far.size and (curve is None or hold):
-            t_end = min(t_end, t_enc[j1 + far[0]])
+        if curve is None or hold:
+            span = float(np.ptp(q[np.searchsorted(t_enc, t_start):i1 + 1]))
+            j1 = np.searchsorted(t_enc, rt[r])
+            j2 = np.searchsorted(t_enc, t_end)
+            far = np.nonzero(s * (rq[r] - q[j1:j2]) > b_max + (max(span, FAR_RING * b_max) if hold else span))[0]
+            if far.size:
+                t_end = min(t_end, t_enc[j1 + far[0]])
         rv = _Rev(t_enc, q, rt[r], rq[r], s, t_start, t_end, t_f, obs, d_lo, d_hi, b_max, period, b_of_q, t_safe)
         rv.curve = curve
         out.append(rv if rv.n >= 8 and rv.b_grid.size else None)

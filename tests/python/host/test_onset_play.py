@@ -513,3 +513,31 @@ def test_with_the_image_curve_the_window_runs_to_the_next_reversal():
         assert whole[k].tf[-1] - r.delay_s <= end and end - (whole[k].tf[-1] - r.delay_s) < 1.5 * T
         longer += whole[k].n > cut[k].n
     assert longer >= 0.4 * (rt.size - 2)
+
+
+def test_hold_windows_keep_their_reach_with_the_image_curve():
+    # A ringing record's long windows (hold) are cut where the new branch leaves the reach
+    # b_max + max(span, FAR_RING b_max) with the image curve as without it; only the short windows
+    # run to the next reversal with the curve. On dev-swings25's ramp reversals the cut acts:
+    # measured 8 of 17 windows end at the reach (1.29 mm against b_max 0.59).
+    from playscope.fit.image_curve import fit_image_curve
+
+    r, t, q, rt, rq, t_f, obs, _ = record(duration_s=30.0)
+    T, b_max = 1 / r.fps, b_max_of(rq)
+    G = fit_image_curve(t, q, t_f, obs, r.delay_s, r.B, T)
+    plain = P._reversals(t, q, rt, rq, t_f, obs, r.delay_s, r.delay_s, b_max, T, r.B, hold=True)
+    held = P._reversals(t, q, rt, rq, t_f, obs, r.delay_s, r.delay_s, b_max, T, r.B, hold=True, curve=G)
+    at_reach = 0
+    for k in range(1, rt.size - 1):
+        if plain[k] is None:
+            continue
+        assert np.array_equal(held[k].tf, plain[k].tf)
+        s = 1.0 if rq[k] > rq[k - 1] else -1.0
+        i0, i1 = np.searchsorted(t, [rt[k - 1], rt[k]])
+        start = np.searchsorted(t, held[k].tf[0] - r.delay_s)
+        reach = b_max + max(float(np.ptp(q[min(start, i1):i1 + 1])), P.FAR_RING * b_max)
+        j1, j2 = np.searchsorted(t, [rt[k], held[k].tf[-1] - r.delay_s])
+        went = float(np.max(s * (rq[k] - q[j1:j2 + 1])))
+        assert went <= reach + 0.01
+        at_reach += went > reach - 0.02
+    assert at_reach >= 0.3 * (rt.size - 2)
