@@ -70,13 +70,14 @@ int32_t relax_inverse(relax_state_t *s, const relax_params_t *rp, int32_t v_q16)
 __attribute__((always_inline)) static inline void relax_update_inline(relax_state_t *s, const relax_params_t *rp,
                                                                        int32_t x_q16, int32_t v_q16, int32_t r16)
 {
-    int32_t dv = v_q16 - s->v_prev_q16;
+    /* In 64 bits: v - v_prev overflowed int32 on a fuzzed table (UBSan, fuzz_table, 2026-11-24). */
+    int64_t dv = (int64_t)v_q16 - s->v_prev_q16;
     if (dv == 0)
         return;                  /* no travel, no relaxation: the recursion is rate-independent */
     s->v_prev_q16 = v_q16;
-    uint32_t adv = (uint32_t)(dv < 0 ? -dv : dv);
+    uint64_t adv = (uint64_t)(dv < 0 ? -dv : dv);
     int32_t g_q31 = rp->g_max_q31;                                  /* the cap 1 - kappa */
-    if (adv < (uint32_t)rp->lambda_q16) {
+    if (adv < (uint64_t)(uint32_t)rp->lambda_q16) {
         uint32_t g = (uint32_t)(((uint64_t)adv * rp->inv_lam_q47) >> 16); /* < 2^31 */
         g_q31 = (int32_t)g < g_q31 ? (int32_t)g : g_q31;
     }
