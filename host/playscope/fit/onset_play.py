@@ -334,9 +334,10 @@ def _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, period, b_of_q=Non
         # branch, too few to tell a registration jump at the onset's frame from one a frame
         # later (which moves b by a frame's travel); the whole swing's frames tell them apart
         # (eighth-registration-swings25-fast: B 16.8 -> 5.1 %; development renderings). A ringing
-        # record's long windows (hold) keep their own reach (FAR_RING), as before. Known cost:
-        # third- and fifth-ringing-swings25 (short windows, a ring that does not last) went
-        # 7.4 -> 31.3 % and 9.1 -> 58.8 % with the longer windows (CHANGELOG, known limits).
+        # record's long windows (hold) keep their own reach (FAR_RING), as before. The longer
+        # windows first cost third- and fifth-ringing-swings25 7.4 -> 31.3 % and 9.1 -> 58.8 %;
+        # the cause was the ringing gain chosen apart from the delay (`_gain_settle`), with which
+        # they are at 5.3 and 7.6 %.
         if curve is None or hold:
             span = float(np.ptp(q[np.searchsorted(t_enc, t_start):i1 + 1]))
             j1 = np.searchsorted(t_enc, rt[r])
@@ -554,21 +555,21 @@ def _choose(revs, d, ring_grid=True, allow_jump=True) -> tuple[np.ndarray | None
     return jump_a, ring_a, doc
 
 
-def _gain_settle(revs, grid, steps, ring, L):
+def _gain_settle(revs, grid, steps, ring) -> tuple[tuple | None, np.ndarray]:
     """The ringing's gain g and the delay together: the record's likelihood on (delay, g), each
     reversal marginal over b, on every other point of the delay grid (s) and RING_GAIN up to
     GAIN_TOP; g at the best pair (a parabola through its neighbours), the delay's profile
     (`_delay_profile`) again at that g. revs the reversals (`_Rev`), ring (Hz, 1/s, g) or None,
-    L (grid,) the current profile (returned as it is when nothing changes).
+    grid (G,) delays (s).
 
     Why: g and the delay trade (a stronger tip mode moves the new branch's first frames as a
     later delay does), so choosing g at the current delay and then the delay at that g settles
     wherever it starts: 0.140 s and g 1.07 on third-ringing-swings25 (true 0.127 s, the
     renderer's g 0.74), B 21.6 % low; the joint best is 0.130 s, g 0.8 (B 5.3 %).
-    Returns (ring with that g, L (grid,)); (ring, L) unchanged without a ringing gain or when the
-    best g is 0."""
+    Returns (ring with that g, the delay's profile (G,) at it); the ring unchanged without a
+    ringing gain or when the best g is 0."""
     if ring is None or len(ring) < 3:
-        return ring, L
+        return ring, _delay_profile(revs, grid, steps, ring)
     gs = RING_GAIN[RING_GAIN <= GAIN_TOP]
     ds = grid[::2]
     J = np.array([[sum(float(_lse(rv.logw(x, rv.b_grid[::4], steps, (ring[0], ring[1], float(g)))[0])) for rv in revs)
@@ -579,9 +580,8 @@ def _gain_settle(revs, grid, steps, ring, L):
         den = J[i, k - 1] - 2 * J[i, k] + J[i, k + 1]
         if den < 0:
             g += float(np.clip(0.5 * (J[i, k - 1] - J[i, k + 1]) / den, -1.0, 1.0)) * float(gs[1] - gs[0])
-    if g <= 0:
-        return ring, L
-    ring = (ring[0], ring[1], g)
+    if g > 0:
+        ring = (ring[0], ring[1], g)
     return ring, _delay_profile(revs, grid, steps, ring)
 
 
@@ -810,7 +810,8 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
             choice = {**choice, "jump_px": None, "jump_dropped": "no better than none at each one's best delay"}
     # Once the delay has settled: the ringing's gain with the delay (`_gain_settle`), then the
     # choice again on the curve refitted there (`_choose_settled`), and the gain again if it changed.
-    ring, L = _gain_settle(sub, grid, steps, ring, L)
+    if ring is not None:
+        ring, L = _gain_settle(sub, grid, steps, ring)
     rechoice = _choose_settled(t_enc, q, rt, rq, t_f, obs, b_max, T, pick, grid, revs, L, jump, ring, bq, curve)
     if rechoice is not None:
         jump, ring, choice2, bq, curve = rechoice
@@ -819,8 +820,7 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
         revs = _reversals(t_enc, q, rt, rq, t_f, obs, d_lo, d_hi, b_max, T, bq, curve=curve)
         _set_jump(revs, jump)
         sub = [revs[k] for k in pick if revs[k] is not None]
-        L = _delay_profile(sub, grid, steps, ring)
-        ring, L = _gain_settle(sub, grid, steps, ring, L)
+        ring, L = _gain_settle(sub, grid, steps, ring)
     d, sd, lo, hi = _delay_posterior(L, grid, T)
     if _ring_lasts(ring):
         # A ringing record: the long windows (`_reversals` hold), when the ring lasts (at most
@@ -851,8 +851,8 @@ def fit(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: n
         sub = [revs[k] for k in pick if revs[k] is not None]
         # The gain with the delay again on the long windows (fifth-ringing-swings25: g 0.98 from the
         # short windows, 0.82 here against the renderer's 0.78; B 16.0 -> 7.6 %).
-        ring, Lr = _gain_settle(sub, grid, steps, ring, None)
-        d, sd, lo, hi = _delay_posterior(Lr if Lr is not None else _delay_profile(sub, grid, steps, ring), grid, T)
+        ring, L = _gain_settle(sub, grid, steps, ring)
+        d, sd, lo, hi = _delay_posterior(L, grid, T)
     d, sd, lo, hi = _fine_delay(sub, grid, (d, sd, lo, hi), steps, ring, T)
     out = samples(PlayFit(nanv(), nanv(), nanv(), np.zeros(M, bool), d, (lo, hi), sd, steps, ring or (0.0, 0.0), b_max),
                   revs, d)
