@@ -6,11 +6,15 @@ onsets with a joint model of the marker around a reversal, fitted to the frames:
     Q(t) = a + v0 min(t - tau0, 0)                       old motion, stops at tau0
              + r e^(-alpha (t - tau0)) sin(w (t - tau0))  ringing after the stop (optional)
              + s [t >= t_j]                               a step: registration / channel jump (optional)
+             + p [frame j - 1]                            its part frame: an exposure that caught the
+                                                          step part-way (optional, on a registration record)
+             + e^(-alpha t) (c1 sin(w t) + c2 cos(w t))   the ringing an earlier onset left, any phase
+                                                          (with the record's ringing)
              + v1 max(t - tau, 0)                         new motion from the onset tau
              + r1 e^(-alpha (t - tau)) sin(w (t - tau))   ringing the onset excites (with the record's
                                                           ringing, when the record says so: onset_ring_evidence)
 
-Q is the 2-D marker (px); a, v0, r, s, v1 are 2-vectors, linear given the change points
+Q is the 2-D marker (px); a, v0, r, s, p, c1, c2, v1 are 2-vectors, linear given the change points
 (tau0, tau, frame j) and the ringing (w, alpha), so each candidate is one linear least-squares
 solve and the change points are found on grids (coordinate ascent: stop and ringing, then onset
 and step, then stop again). Gaussian noise of unknown variance gives the profile likelihood
@@ -43,6 +47,7 @@ FAST_FRAMES = 4.0  # below: the actuator-shape model (onset_play) gives the B sa
 FOOLED_LATE = 4.0  # refined onsets this many times later than the actuator's figure are fooled late
 RING_DELAY_SHARE = 0.5  # a ringing record's approach delay: its interval widened by this share of the ring's period
 DELAY_SHAPE_SPAN = 3.0  # frames searched either side of the guess by delay_from_shape
+RING_ZETA_MAX = 0.5  # a fitted ringing more damped than this does not ring (overshoot under 16 %)
 POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line holds over ~0.25 s)
 
 
@@ -205,6 +210,9 @@ class _Episode:
         self.stop_back = 5.0  # frames searched before the stop guess (ringing makes it late)
         self.fixed_ring = None  # (om, al) per frame period: the record's ringing, not searched
         self.onset_ring = False  # with fixed_ring: the ringing the onset excites is a column too
+        self.carry_ring = False  # with fixed_ring: the ringing an earlier event left, any phase
+        self.part = False  # the step's first frame caught it part-way (its own level: `_col_part`)
+        self.allow_part = False  # whether steps with a part frame are candidates (the record's registration)
 
     def _proj(self, key, cols):
         """`_project` of the shared columns F = [ones, *cols()] and Y, once per key (the held
@@ -215,9 +223,20 @@ class _Episode:
             cache[key] = _project(np.column_stack([np.ones(self.tk.size), *cols()]), self.Y)
         return cache[key]
 
+    def _col_part(self, j, part):
+        """The frame before the step's first frame j, when the step was caught part-way through
+        its exposure (part): a level of its own, whatever share of the step it shows. (G, n).
+        A registration that flips with the tip's direction, or any jump, lands inside an
+        exposure now and then; the frame then shows part of it, which no onset or step fits,
+        and the fit put the onset a few frames early to take it in (eleventh-registration-
+        sine25-noisy: the 10 samples 0.05-0.09 mm short were each such a split flip)."""
+        j = np.asarray(j, float)[:, None]
+        part = np.asarray(part, bool)[:, None]
+        return ((self.k[None, :] == j - 1) & part & (j >= 0)).astype(float)
+
     def _solve_stop(self, tau0, om, al, j):
         """Candidates (tau0, ringing, step frame j) with the onset held: (RSS, coef of [old,
-        ring, step])."""
+        ring, step, the step's part frame])."""
         return _solve_t(self._stop_columns(tau0, om, al, j), self._stop_proj())
 
     def _stop_proj(self):
@@ -226,26 +245,44 @@ class _Episode:
         om, al = self.fixed_ring if self.onset_ring else (0.0, 0.0)
         return self._proj(("stop", self.tau, om, al),
                           lambda: [np.maximum(self.tk - float(self.tau), 0.0),
-                                   _col_ring(self.tk, [self.tau], [om], [al])[0]])
+                                   _col_ring(self.tk, [self.tau], [om], [al])[0], *self._carry_cols()])
+
+    def _carry_cols(self) -> list:
+        """The ringing the last onset left in the window: the record's mode (held) with any phase
+        and amplitude, e^(-al t) (sin, cos)(om t) over every frame; none unless carry_ring (set in
+        the second pass where onsets excite the mode: `robust_samples`). A lightly damped mode still rings
+        a few px at the next reversal; at 60 fps the window spans under a ring period and that
+        ring passed for the onset (eleventh-ringing-sine60-noisy: 44 of 100 B samples 0.05-0.24
+        mm off without these columns)."""
+        if not (self.carry_ring and self.fixed_ring is not None and self.fixed_ring[0] > 0):
+            return []
+        om, al = self.fixed_ring
+        e = np.exp(-al * (self.tk - self.tk[0]))
+        return [e * np.sin(om * self.tk), e * np.cos(om * self.tk)]
 
     def _stop_columns(self, tau0, om, al, j):
-        """The stop candidates' own columns [old, ring, step] as rows: (G, 3, n)."""
+        """The stop candidates' own columns [old, ring, step, the step's part frame (with
+        self.part held)] as rows: (G, 4, n)."""
         tau0 = np.asarray(tau0, float)
-        Vt = np.empty((tau0.size, 3, self.tk.size))
+        Vt = np.empty((tau0.size, 4, self.tk.size))
         np.minimum(self.tk[None, :] - tau0[:, None], 0.0, out=Vt[:, 0])  # old motion: _col_old
         Vt[:, 1] = _col_ring(self.tk, tau0, om, al)
         Vt[:, 2] = _col_step(self.k, j)
+        Vt[:, 3] = self._col_part(np.broadcast_to(j, tau0.shape), np.full(tau0.size, self.part))
         return Vt
 
-    def _solve_onset(self, tau, j):
-        """Candidates (onset, step frame) with the stop and ringing held: (RSS, coef of
-        [new, step, ringing from the onset])."""
+    def _solve_onset(self, tau, j, part=None):
+        """Candidates (onset, step frame, part: the frame before it caught the step part-way)
+        with the stop and ringing held: (RSS, coef of [new, step, ringing from the onset, the
+        part frame])."""
         proj = self._proj(("onset", self.tau0, self.om, self.al),
                           lambda: [_col_old(self.tk, [self.tau0])[0],
-                                   _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0]])
+                                   _col_ring(self.tk, [self.tau0], [self.om], [self.al])[0],
+                                   *self._carry_cols()])
         tau = np.asarray(tau, float)
-        Vt = np.empty((tau.size, 3, self.tk.size))
+        Vt = np.empty((tau.size, 4, self.tk.size))
         np.maximum(self.tk[None, :] - tau[:, None], 0.0, out=Vt[:, 0])  # new motion: max(t - tau, 0)
+        Vt[:, 3] = self._col_part(j, np.zeros(tau.size, bool) if part is None else part)
         Vt[:, 1] = _col_step(self.k, j)
         # The onset is a step in the carrier's velocity: it excites the tip mode as the stop does
         # (a tip driven through its base starts with its own ringing, here even against the
@@ -278,13 +315,13 @@ class _Episode:
             T0, R_ = np.repeat(g0, om.size), np.tile(np.arange(om.size), g0.size)
             J = np.full(T0.size, float(self.j))
             rss, _ = self._solve_stop(T0, om[R_], al[R_], J)
-            lw = _logw(rss, self.n_obs, 4.0 * (om[R_] > 0) + 3.0 * (J >= 0))
+            lw = _logw(rss, self.n_obs, 4.0 * (om[R_] > 0) + (3.0 + 2.0 * self.part) * (J >= 0))
             b = int(np.argmax(lw))
             self.om, self.al = float(om[R_[b]]), float(al[R_[b]])
         js = np.unique(np.concatenate(([-1, self.j], self.k[(self.tk >= lo - 1) & (self.tk <= hi + 1)]))).astype(float)
         T0, J = np.repeat(g0, js.size), np.tile(js, g0.size)
         rss, _ = self._solve_stop(T0, np.full(T0.size, self.om), np.full(T0.size, self.al), J)
-        lw = _logw(rss, self.n_obs, 3.0 * (J >= 0))
+        lw = _logw(rss, self.n_obs, (3.0 + 2.0 * self.part) * (J >= 0))
         b = int(np.argmax(lw))
         self.j, t0b = int(J[b]), float(T0[b])
         if self.om > 0 and self.fixed_ring is None:
@@ -300,7 +337,7 @@ class _Episode:
         js = np.unique([-1, self.j]).astype(float)
         TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
         rss, coef = self._solve_stop(TT, np.full(TT.size, self.om), np.full(TT.size, self.al), JJ)
-        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0))
+        lw = _logw(rss, self.n_obs, (3.0 + 2.0 * self.part) * (JJ >= 0))
         b = int(np.argmax(lw))
         self.j = int(JJ[b])
         self.ring_px = float(np.linalg.norm(coef[b, 1])) if self.om > 0 else 0.0
@@ -330,13 +367,15 @@ class _Episode:
         ok = (along > 0.3 * n0) & (along < 3.0 * n0) & (along > 0.7071 * np.linalg.norm(vel, axis=1))
         return np.where(ok, 0.0, -np.inf)
 
-    def _order(self, tau: np.ndarray, j: np.ndarray) -> np.ndarray:
-        """0, or -inf for a step seen from a frame less than 1.5 periods before the onset. A
+    def _order(self, tau: np.ndarray, j: np.ndarray, part: np.ndarray | None = None) -> np.ndarray:
+        """0, or -inf for a step seen from a frame less than 1.5 periods before the onset (its
+        part frame, when it has one). A
         registration or channel jump comes with the reversal (at the stop, many frames
         earlier) or with the onset (in its frame interval or after); a jump just before the
         onset would leave that frame free of the line, and the fit would take it for any
         curvature of the first moving frames, putting the onset late."""
-        tj = np.where(j >= 0, self.tk[np.clip(np.searchsorted(self.k, j), 0, self.k.size - 1)], -np.inf)
+        jf = j - (0.0 if part is None else np.asarray(part, float))
+        tj = np.where(j >= 0, self.tk[np.clip(np.searchsorted(self.k, jf), 0, self.k.size - 1)], -np.inf)
         return np.where((tau - tj > 0) & (tau - tj < 1.5), -np.inf, 0.0)
 
     def fit_onset(self, final: bool):
@@ -360,25 +399,35 @@ class _Episode:
         ti, ki = np.nonzero(band)
         TT = np.concatenate((gt, gt, gt[ti]))
         JJ = np.concatenate((np.full(gt.size, -1.0), np.full(gt.size, float(self.j)), ks[ki].astype(float)))
-        rss, coef = self._solve_onset(TT, JJ)
-        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
+        PP = np.zeros(TT.size, bool)
+        if self.allow_part:  # every step candidate also with its part frame (`_col_part`: 2 more parameters)
+            st = JJ >= 0
+            TT, JJ, PP = np.r_[TT, TT[st]], np.r_[JJ, JJ[st]], np.r_[PP, np.ones(int(st.sum()), bool)]
+        rss, coef = self._solve_onset(TT, JJ, PP)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + 2.0 * PP + pen_ring) + self._back(coef) + \
+            self._order(TT, JJ, PP)
         b = int(np.argmax(lw))
-        tb, self.j = float(TT[b]), int(JJ[b])
+        tb, self.j, self.part = float(TT[b]), int(JJ[b]), bool(PP[b])
         # No onset in the window unless new motion beats the best still model (level, old
         # motion, ringing, and a step anywhere or none) by BIC: its 3 parameters (v1, tau).
-        jn = np.concatenate(([-1], ks)).astype(float)
-        rn, _ = self._solve_onset(np.full(jn.size, 1e9), jn)
-        null = float(np.max(_logw(rn, self.n_obs, 3.0 * (jn >= 0) + pen_ring)))
+        jn = np.concatenate(([-1], ks, ks if self.allow_part else [])).astype(float)
+        pn = np.r_[False, np.zeros(ks.size, bool), np.ones(ks.size if self.allow_part else 0, bool)]
+        rn, _ = self._solve_onset(np.full(jn.size, 1e9), jn, pn)
+        null = float(np.max(_logw(rn, self.n_obs, 3.0 * (jn >= 0) + 2.0 * pn + pen_ring)))
         self.found = lw[b] - 1.5 * np.log(self.n_obs) > null
         self.null_lw = null  # the best still model's log-weight (`score`)
         gf = np.arange(max(tb - 1.5, lo), min(tb + 1.5, hi) + 1e-9, 1.0 / SUB)
         near = self.k[np.abs(self.tk - tb) <= 2.5]
         js = np.unique(np.concatenate(([-1, self.j], near))).astype(float)
-        TT, JJ = np.repeat(gf, js.size), np.tile(js, gf.size)
-        rss, coef = self._solve_onset(TT, JJ)
-        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + pen_ring) + self._back(coef) + self._order(TT, JJ)
+        ps = np.zeros(js.size, bool)
+        if self.allow_part:  # each step also with its part frame
+            ps, js = np.r_[ps, np.ones(js.size - 1, bool)], np.r_[js, js[1:]]
+        TT, JJ, PP = np.repeat(gf, js.size), np.tile(js, gf.size), np.tile(ps, gf.size)
+        rss, coef = self._solve_onset(TT, JJ, PP)
+        lw = _logw(rss, self.n_obs, 3.0 * (JJ >= 0) + 2.0 * PP + pen_ring) + self._back(coef) + \
+            self._order(TT, JJ, PP)
         b = int(np.argmax(lw))
-        self.j = int(JJ[b])
+        self.j, self.part = int(JJ[b]), bool(PP[b])
         self.lw_best = float(lw[b])  # the best onset candidate's log-weight (`score`)
         self.step_px = float(np.linalg.norm(coef[b, 1])) if self.j >= 0 else 0.0
         self.step_vec = np.array(coef[b, 1], float) if self.j >= 0 else np.zeros(2)
@@ -396,7 +445,7 @@ class _Episode:
 
 
 def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, ring=None, stop_back=5.0,
-                onset_ring=False):
+                onset_ring=False, part=False, carry=False):
     """Fit the frames in [t0 - (PRE_FRAMES + 5) periods, end] starting from ``state`` (tau0,
     om, al, j, tau; in periods from t0, tau = inf when no onset is known): stop, onset, stop,
     onset (the last one final when asked; stop=False: the stop held from ``state``, onset only,
@@ -411,9 +460,11 @@ def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, rin
     ep.period_s = period_s
     ep.om, ep.al, ep.j = state[1], state[2], state[3]
     ep.stop_back = stop_back
+    ep.allow_part = bool(part)
     if ring is not None:
         ep.fixed_ring = (2 * np.pi * ring[0] * period_s, ring[1] * period_s)
         ep.onset_ring = bool(onset_ring) and ring[0] > 0
+        ep.carry_ring = bool(carry) and ring[0] > 0
     if np.isfinite(state[4]):
         ep.tau = min(max(state[4], state[0] + 1.0), tk[-1] - 2.0)
     if stop or len(state) < 6:
@@ -431,7 +482,7 @@ def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, rin
     return ep
 
 
-def _refine_one(tf, o, kf, t0, t_lim, t2_guess, period_s, ring, stop_back, onset_ring):
+def _refine_one(tf, o, kf, t0, t_lim, t2_guess, period_s, ring, stop_back, onset_ring, part=False, carry=False):
     """One reversal's episode (`refine`): frames tf (s), o (px), kf (frame numbers) with the
     lost ones left out; t0 the stop guess and t_lim the episode's end (s, image clock); t2_guess
     the board's candidate (NaN: none). Returns (the final _Episode or None, its window's end s)."""
@@ -440,11 +491,18 @@ def _refine_one(tf, o, kf, t0, t_lim, t2_guess, period_s, ring, stop_back, onset
     # there, before any onset); the next one reaches past the board's candidate.
     end = min(t0 + 4 * period_s, t_lim)
     state = (0.0, 0.0, 0.0, -1, np.inf)  # tau0, om, al, j, tau (inf: no onset known yet)
-    kw = dict(ring=ring, stop_back=stop_back, onset_ring=onset_ring)
+    kw = dict(ring=ring, stop_back=stop_back, onset_ring=onset_ring, part=part, carry=carry)
     for _ in range(40):  # grow the window until an onset sits well inside it, then trim to it
         ep = _fit_window(tf, o, kf, t0, end, period_s, state, stop=len(state) < 6, **kw)
         if ep is None:
-            return None, end
+            # No onset can be fitted in the frames so far. With the record's ringing the carried
+            # ring's columns (`_Episode._carry_cols`) need more of them than the first window's
+            # 4 frames past the stop: a longer window, up to the episode's end (returning there
+            # left 63 of 100 reversals of fifth-ringing-sine30-noisy to the board, 2.9 -> 24.6 %).
+            if end >= t_lim or not (carry and ring is not None and ring[0] > 0):
+                return None, end
+            end = min(end + period_s, t_lim)
+            continue
         state = (ep.tau0, ep.om, ep.al, ep.j, ep.tau if ep.found else np.inf, ep.v0, ep.ring_px)
         if ep.found and ep.tau * period_s + t0 < end - (POST_FRAMES - 1.5) * period_s:
             trim = min(ep.tau * period_s + t0 + POST_FRAMES * period_s, t_lim)
@@ -464,7 +522,7 @@ def _refine_one(tf, o, kf, t0, t_lim, t2_guess, period_s, ring, stop_back, onset
 
 def onset_ring_evidence(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np.ndarray,
                         t2_guess: np.ndarray, t_delay_s: float, period_s: float, ring: tuple,
-                        stop_back: float = 1.5) -> dict:
+                        stop_back: float = 1.5, part: bool = False) -> dict:
     """Whether the onset excites the record's ringing: the model with the onset's ring column
     (r1, module doc) against the one without, by BIC summed over the given reversals.
 
@@ -480,8 +538,8 @@ def onset_ring_evidence(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_
     included, Schwarz 1978; a model that finds no onset there scores its best still model, so a
     reversal only one of them can explain counts for it: fourth-ringing-swings25 found onsets on
     10 of 24 reversals with the column, 1 without). The column is used when the sum is positive.
-    Arrays as `refine` (M,) for the reversals to use; ring (Hz, 1/s) the record's ringing.
-    Returns {"reversals": compared, "delta_log_weight": sum, "share_for": share of reversals
+    Arrays as `refine` (M,) for the reversals to use; ring (Hz, 1/s) the record's ringing; part
+    as `refine`. Returns {"reversals": compared, "delta_log_weight": sum, "share_for": share of reversals
     favouring the column, "used": bool}."""
     ok_f = np.all(np.isfinite(obs), axis=1)
     tf, o = t_f[ok_f], obs[ok_f]
@@ -490,7 +548,8 @@ def onset_ring_evidence(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_
     for r in range(t_stop.size):
         t0 = t_stop[r] + t_delay_s
         t_lim = t_next_stop[r] + t_delay_s - 2 * period_s
-        fits = [_refine_one(tf, o, kf, t0, t_lim, t2_guess[r], period_s, ring, stop_back, on) for on in (False, True)]
+        fits = [_refine_one(tf, o, kf, t0, t_lim, t2_guess[r], period_s, ring, stop_back, on, part)
+                for on in (False, True)]
         found = [ep for ep, _ in fits if ep is not None and ep.found]
         if not found:
             continue
@@ -500,7 +559,7 @@ def onset_ring_evidence(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_
             src = ep if ep is not None and ep.found else found[0]  # start from an onset one of them found
             state = (src.tau0, src.om, src.al, src.j, src.tau, src.v0, src.ring_px)
             e2 = _fit_window(tf, o, kf, t0, end, period_s, state, final=True, ring=ring, stop_back=stop_back,
-                             onset_ring=on)
+                             onset_ring=on, part=part)
             lw.append(e2.score() if e2 is not None else np.nan)
         if np.all(np.isfinite(lw)):
             d.append(lw[1] - lw[0])
@@ -512,7 +571,7 @@ def onset_ring_evidence(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_
 
 def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np.ndarray,
            t2_guess: np.ndarray, t_delay_s: float, period_s: float, ring: tuple | None = None,
-           stop_back: float = 5.0, onset_ring: bool = False) -> Refined:
+           stop_back: float = 5.0, onset_ring: bool = False, part: bool = False, carry: bool = False) -> Refined:
     """Refine every reversal's onset with the joint model (module doc).
 
     t_f (F,), obs (F, 2) px (NaN = lost) on the image clock; t_stop (M,) motor stops (s,
@@ -521,7 +580,9 @@ def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np
     rings); t_delay_s the current delay (its error may be a few frames: the stop is searched
     from stop_back frames before t_stop + t_delay_s to 3 after); period_s the frame period;
     ring (hz, alpha 1/s) fixes the ringing (hz 0: none) instead of searching it; onset_ring
-    (with it) fits the ringing the onset excites too (`onset_ring_evidence`). The window is grown
+    (with it) fits the ringing the onset excites too (`onset_ring_evidence`); part: a step may
+    come with a part frame (`_Episode._col_part`; the record's registration decides, `robust_samples`);
+    carry (with ring): the ring an earlier onset left is fitted too (`_Episode._carry_cols`). The window is grown
     until the onset lies POST_FRAMES before its end, so a candidate fired by ringing or by a
     jump is only a start. Returns Refined; ok False where no onset fits before the next stop.
     """
@@ -535,7 +596,7 @@ def refine(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np
     for r in range(M):  # episodes are independent; each is a handful of batched solves
         t0 = t_stop[r] + t_delay_s
         t_lim = t_next_stop[r] + t_delay_s - 2 * period_s  # the next episode's old motion stays out
-        ep, _ = _refine_one(tf, o, kf, t0, t_lim, t2_guess[r], period_s, ring, stop_back, onset_ring)
+        ep, _ = _refine_one(tf, o, kf, t0, t_lim, t2_guess[r], period_s, ring, stop_back, onset_ring, part, carry)
         if ep is None or not ep.found or not hasattr(ep, "sd"):
             continue
         okm[r] = True
@@ -846,11 +907,37 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     d1 = d1 if n1 >= 4 else d0
     rs = ring_summary(ref1)
     ring = (rs["freq_hz"], rs["decay_per_s"]) if rs["share"] > 0.5 else (0.0, 0.0)
+    # A tip mode that rings: damping ratio under RING_ZETA_MAX. A heavily damped "ringing" is the
+    # change-point model bending its kink to a sine's gradual stop (fourth-delay-sine30: 2.5 Hz,
+    # zeta 0.74; eleventh-delay-sine60: 3.8 Hz, 0.60; the rendered rings were 0.03-0.1): kept in
+    # the change-point model, where it takes that curvature up (without it eleventh-delay-sine60
+    # was 19 % off, 1 % with), and in the delay interval's widening below (the approach's figure
+    # is as uncertain there: 1.3 frames off on seventh-none-sine60-noisy, which the widening
+    # leaves to its right configured delay), but not a column of the delay's approach fit, where
+    # it took the approach's curvature for itself (eleventh-delay-sine60: +0.23 -> +0.07 frame).
+    ring_mode = ring if rs["share"] > 0.5 and rs["damping_ratio"] < RING_ZETA_MAX else (0.0, 0.0)
     # Whether the onset rings too: the record decides on pass 1's reversals (onset_ring_evidence).
     onset_ring = onset_ring_evidence(t_f, obs, t_stop[sub], t_next[sub], guess[sub], d1, period, ring) \
         if ring[0] > 0 else None
-    ref = refine(t_f, obs, t_stop, t_next, guess, d1, period, ring=ring, stop_back=1.5,
-                 onset_ring=bool(onset_ring and onset_ring["used"]))
+    # Where the onset excites the mode, the ring the last onset left is still there at the next
+    # reversal: its columns too (`_Episode._carry_cols`). The evidence above is taken without
+    # them (with them in the onset's model only, it also counted the ring the last stop left,
+    # and took the onset's column in where only the stop rings: the Fig. 7 replica's 2 Hz ring).
+    kw_ref = dict(ring=ring, stop_back=1.5, onset_ring=bool(onset_ring and onset_ring["used"]),
+                  carry=bool(onset_ring and onset_ring["used"]))
+    ref = refine(t_f, obs, t_stop, t_next, guess, d1, period, **kw_ref)
+    # A registration that flips with the direction (the refined onsets' steps follow it,
+    # `direction_jump`): an exposure then catches its step part-way now and then, so every
+    # reversal is refined again with steps that may come with a part frame (`_Episode._col_part`;
+    # eleventh-registration-sine25-noisy: 5.4 -> 4.1 %). Not on a ringing record (a mode that
+    # rings, `ring_mode`): the ring the onset excites starts against the motion at every
+    # reversal, so its steps follow the direction too (ratio 5.6-5.9 on two development ringing
+    # sines after the second pass, 6-17 on four after the first), and there the part frame took
+    # in the first moving frame and put the onsets early (fresh-ringing-sine30: 1.6 -> 4.7 %;
+    # dev-ring5-sine30 with part frames on every record: b 0.007 mm short at the median).
+    part = ring_mode[0] == 0 and direction_jump(ref, rq)["found"]
+    if part:
+        ref = refine(t_f, obs, t_stop, t_next, guess, d1, period, part=True, **kw_ref)
     d_stops, d_stops_se, n_d = delay_from_stops(ref.tau0_s, t_stop)
     # The actuator-shape model (playscope.fit.onset_play): the delay's likelihood over the record
     # and a B sample per reversal that needs no "still" frame.
@@ -966,7 +1053,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         guess_d = max(guess_d, DELAY_SHAPE_SPAN * period)
         for _ in range(3):
             d_shape, d_shape_se, n_shape = delay_from_shape(t_enc, q, rt, rq, t_f, obs, t2_img, guess_d, period,
-                                                            span_frames=DELAY_SHAPE_SPAN, ring=ring)
+                                                            span_frames=DELAY_SHAPE_SPAN, ring=ring_mode)
             if not (n_shape >= 4 and abs(d_shape - guess_d) > 2.0 * period):
                 break
             guess_d = d_shape
