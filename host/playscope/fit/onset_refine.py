@@ -915,7 +915,10 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # is as uncertain there: 1.3 frames off on seventh-none-sine60-noisy, which the widening
     # leaves to its right configured delay), but not a column of the delay's approach fit, where
     # it took the approach's curvature for itself (eleventh-delay-sine60: +0.23 -> +0.07 frame).
-    ring_mode = ring if rs["share"] > 0.5 and rs["damping_ratio"] < RING_ZETA_MAX else (0.0, 0.0)
+    # Nor is one below the band searched (RING_HZ; its polish walked out of it): that is the
+    # approach's own curvature (tenth-delay-triangle60-noisy: 0.74 Hz, 33 px, on a triangle).
+    ring_mode = ring if rs["share"] > 0.5 and rs["damping_ratio"] < RING_ZETA_MAX and ring[0] >= RING_HZ[0] \
+        else (0.0, 0.0)
     # Whether the onset rings too: the record decides on pass 1's reversals (onset_ring_evidence).
     onset_ring = onset_ring_evidence(t_f, obs, t_stop[sub], t_next[sub], guess[sub], d1, period, ring) \
         if ring[0] > 0 else None
@@ -924,7 +927,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # them (with them in the onset's model only, it also counted the ring the last stop left,
     # and took the onset's column in where only the stop rings: the Fig. 7 replica's 2 Hz ring).
     kw_ref = dict(ring=ring, stop_back=1.5, onset_ring=bool(onset_ring and onset_ring["used"]),
-                  carry=bool(onset_ring and onset_ring["used"]))
+                  carry=bool(onset_ring and onset_ring["used"]) and ring_mode[0] > 0)
     ref = refine(t_f, obs, t_stop, t_next, guess, d1, period, **kw_ref)
     # A registration that flips with the direction (the refined onsets' steps follow it,
     # `direction_jump`): an exposure then catches its step part-way now and then, so every
