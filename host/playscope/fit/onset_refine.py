@@ -522,7 +522,7 @@ def _refine_one(tf, o, kf, t0, t_lim, t2_guess, period_s, ring, stop_back, onset
 
 def onset_ring_evidence(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_next_stop: np.ndarray,
                         t2_guess: np.ndarray, t_delay_s: float, period_s: float, ring: tuple,
-                        stop_back: float = 1.5, part: bool = False) -> dict:
+                        stop_back: float = 1.5) -> dict:
     """Whether the onset excites the record's ringing: the model with the onset's ring column
     (r1, module doc) against the one without, by BIC summed over the given reversals.
 
@@ -538,8 +538,8 @@ def onset_ring_evidence(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_
     included, Schwarz 1978; a model that finds no onset there scores its best still model, so a
     reversal only one of them can explain counts for it: fourth-ringing-swings25 found onsets on
     10 of 24 reversals with the column, 1 without). The column is used when the sum is positive.
-    Arrays as `refine` (M,) for the reversals to use; ring (Hz, 1/s) the record's ringing; part
-    as `refine`. Returns {"reversals": compared, "delta_log_weight": sum, "share_for": share of reversals
+    Arrays as `refine` (M,) for the reversals to use; ring (Hz, 1/s) the record's ringing.
+    Returns {"reversals": compared, "delta_log_weight": sum, "share_for": share of reversals
     favouring the column, "used": bool}."""
     ok_f = np.all(np.isfinite(obs), axis=1)
     tf, o = t_f[ok_f], obs[ok_f]
@@ -548,8 +548,7 @@ def onset_ring_evidence(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_
     for r in range(t_stop.size):
         t0 = t_stop[r] + t_delay_s
         t_lim = t_next_stop[r] + t_delay_s - 2 * period_s
-        fits = [_refine_one(tf, o, kf, t0, t_lim, t2_guess[r], period_s, ring, stop_back, on, part)
-                for on in (False, True)]
+        fits = [_refine_one(tf, o, kf, t0, t_lim, t2_guess[r], period_s, ring, stop_back, on) for on in (False, True)]
         found = [ep for ep, _ in fits if ep is not None and ep.found]
         if not found:
             continue
@@ -559,7 +558,7 @@ def onset_ring_evidence(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_
             src = ep if ep is not None and ep.found else found[0]  # start from an onset one of them found
             state = (src.tau0, src.om, src.al, src.j, src.tau, src.v0, src.ring_px)
             e2 = _fit_window(tf, o, kf, t0, end, period_s, state, final=True, ring=ring, stop_back=stop_back,
-                             onset_ring=on, part=part)
+                             onset_ring=on)
             lw.append(e2.score() if e2 is not None else np.nan)
         if np.all(np.isfinite(lw)):
             d.append(lw[1] - lw[0])
