@@ -862,7 +862,9 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
        "config": the configured one. A disagreement is a warning either way. A configured
        delay is never needed: without one the record's delay is used.
     5. b = |q(t2 - t_delay) - q1| with sigma_b = |dq/dt| sigma_t2. A reversal the refinement
-       could not fit keeps the board's sample, with sigma_b one frame period of travel.
+       could not fit, or whose refined onset comes before t1 + t_delay (not an onset), keeps the
+       board's sample (when that one comes after it), timed to a frame period or to the board's
+       median distance from the refined onsets, whichever is larger.
     t_enc, q, q_rev (N,); rt, rq (M,) reversals; t_f (F,), obs (F, 2) px. Returns RobustOnsets.
     Errors: ValueError for an unknown t_delay_from.
     """
@@ -1098,7 +1100,16 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         pf = P.refit_at(pf, t_enc, q, rt, rq, t_f, obs, period, td)
     # B samples (eq. 1): the actuator-shape model's; the refined onset's, then the board's, where it has none.
     rows, row_r = [], []
-    n_play = n_ref = n_board = 0
+    n_play = n_ref = n_board = n_before = 0
+    # The board's onset where the refinement has none: its timing uncertainty is a frame period,
+    # or, where it is larger, how far the board's onsets lie from the refined ones on the
+    # reversals that have both (median |difference|): on a ringing record the board fires early
+    # or late by several frames (twelfth-ringing-sine60-noisy: 7-10 frames late), and a sample
+    # weighted as if timed to a frame pulled B(q) up.
+    both = ref.ok & (bidx >= 0)
+    board_sd = period
+    if both.sum() >= 4:
+        board_sd = max(period, float(np.median(np.abs(board.t2_s[bidx[both]] - ref.t2_s[both]))))
     for r in range(rt.size):
         row_r.append(r)
         if pf.ok[r]:
@@ -1108,11 +1119,18 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
             rows.append((rt[r], t2, rq[r], q2, 0.5 * (rq[r] + q2), b, sb))
             n_play += 1
             continue
-        if ref.ok[r]:
+        # Eq. 1 needs t2 - t_delay after t1: an onset before the direction change is not one.
+        # A sine's gradual stop is fitted early, and its true end, a ring's half-cycle later,
+        # can fall into the onset's search (twelfth-ringing-sine60-noisy: 6 of 68 refined
+        # onsets, each b ~ 0 with sigma_b near 0, where the actuator barely moves). Such a
+        # reversal keeps the board's onset, when that one comes after t1.
+        if ref.ok[r] and ref.t2_s[r] - td < rt[r]:
+            n_before += 1
+        if ref.ok[r] and ref.t2_s[r] - td >= rt[r]:
             t2, sd = ref.t2_s[r], ref.sigma_t2_s[r]
             n_ref += 1
-        elif bidx[r] >= 0:
-            t2, sd = board.t2_s[bidx[r]], period
+        elif bidx[r] >= 0 and board.t2_s[bidx[r]] - td >= rt[r]:
+            t2, sd = board.t2_s[bidx[r]], board_sd
             n_board += 1
         else:
             row_r.pop()
@@ -1157,6 +1175,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                   "median_step_px": float(np.median(ref.step_px[steps])) if steps.any() else 0.0},
         "registration": registration,
         "sigma_t2_s_median": float(np.nanmedian(ref.sigma_t2_s)) if ref.ok.any() else None,
+        "refined_before_reversal": n_before,
+        "board_sigma_t2_s": board_sd,
     }
     return RobustOnsets(on, float(td), src, report, warnings)
 
