@@ -163,7 +163,7 @@ def choose_stiffness(q: np.ndarray, b: np.ndarray, n_ctrl: int, lo: float, hi: f
         preds.append(pred)
     # The clip: 3 robust sds of the held-out residuals of the candidate they scatter least about
     # (MAD), where that is below B's own spread s. Clipped at B's spread, one false onset among
-    # many still chose the model alone: a sample 0.2 mm off among 83 (twelfth-ringing-sine60-noisy,
+    # many still chose the model alone: a sample 0.14 mm off among 83 (twelfth-ringing-sine60-noisy,
     # B 0.13-0.26 mm) outweighed every other error 30 times, and its standard error let the
     # one-standard-error rule take the stiffest spline (5.5 % off B against 1.0 at the best).
     s_res = min(1.4826 * float(np.median(np.abs((p - b) - np.median(p - b)))) for p in preds)
