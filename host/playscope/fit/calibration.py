@@ -469,6 +469,9 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     no_onset = on.b.size == 0
     if no_onset:
         why = ", ".join(f"{k} {v}" for k, v in on.reasons.items() if v) or "none reached"
+        if (refine_doc or {}).get("lost_before_reversal"):
+            why += (f"; on {refine_doc['lost_before_reversal']} of them every onset lay before the reversal at the "
+                    f"t_delay used, {td:.4f} s: check the delay (session.json's t_delay, --t-delay-from config)")
         if not across_families:
             raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset "
                              f"({why}); check that the distal end moves after each reversal and the back-and-forth "

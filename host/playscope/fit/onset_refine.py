@@ -1100,7 +1100,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         pf = P.refit_at(pf, t_enc, q, rt, rq, t_f, obs, period, td)
     # B samples (eq. 1): the actuator-shape model's; the refined onset's, then the board's, where it has none.
     rows, row_r = [], []
-    n_play = n_ref = n_board = n_before = 0
+    n_play = n_ref = n_board = n_before = n_lost_before = 0
     # The board's onset where the refinement has none: its timing uncertainty is a frame period,
     # or, where it is larger, how far the board's onsets lie from the refined ones on the
     # reversals that have both (median |difference|): on a ringing record the board fires early
@@ -1133,11 +1133,19 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
             t2, sd = board.t2_s[bidx[r]], board_sd
             n_board += 1
         else:
+            n_lost_before += bool(ref.ok[r] or bidx[r] >= 0)  # it had an onset, only before t1
             row_r.pop()
             continue
         q2 = float(np.interp(t2 - td, t_enc, q))
         sb = abs(float(np.interp(t2 - td, t_enc, v))) * sd
         rows.append((rt[r], t2, rq[r], q2, 0.5 * (rq[r] + q2), abs(q2 - rq[r]), sb))
+    if n_lost_before >= max(4, 0.5 * (n_lost_before + n_ref + n_board)):
+        # Most reversals lost because their onsets lie before t1: the delay used, not the onsets,
+        # is the suspect (a delay at the edge of the coarse scan, 0.5 s against 0.178 s true on a
+        # 90 s rendering of tenth-delay-triangle60-noisy, put every onset there).
+        warnings.append(f"onsets: {n_lost_before} reversals give no B sample because their onsets lie before the "
+                        f"reversal at the t_delay used, {td:.4f} s ({src}); the delay is likely wrong: check "
+                        f"session.json's t_delay, or keep it with --t-delay-from config")
     a = np.array(rows, float).reshape(-1, 7)
     row_r = np.array(row_r, int)
     reasons = {"actuator_shape": n_play, "refined": n_ref, "board_only": n_board,
@@ -1176,6 +1184,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         "registration": registration,
         "sigma_t2_s_median": float(np.nanmedian(ref.sigma_t2_s)) if ref.ok.any() else None,
         "refined_before_reversal": n_before,
+        "lost_before_reversal": n_lost_before,
         "board_sigma_t2_s": board_sd,
     }
     return RobustOnsets(on, float(td), src, report, warnings)
