@@ -1100,7 +1100,16 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         pf = P.refit_at(pf, t_enc, q, rt, rq, t_f, obs, period, td)
     # B samples (eq. 1): the actuator-shape model's; the refined onset's, then the board's, where it has none.
     rows, row_r = [], []
-    n_play = n_ref = n_board = n_before = n_lost_before = 0
+    n_play = n_ref = n_board = n_lost_before = 0
+    # Eq. 1 needs t2 - t_delay after t1: an onset before the direction change is not one.
+    # A sine's gradual stop is fitted early, and its true end, a ring's half-cycle later,
+    # can fall into the onset's search (twelfth-ringing-sine60-noisy: 6 of 68 refined
+    # onsets, each b ~ 0 with sigma_b near 0, where the actuator barely moves). Such a
+    # reversal keeps the board's onset, when that one comes after t1 (NaN onsets compare False).
+    ref_after = ref.ok & (ref.t2_s - td >= rt)
+    board_after = (bidx >= 0) & (board.t2_s[np.maximum(bidx, 0)] - td >= rt) if board.t2_s.size \
+        else np.zeros(rt.size, bool)
+    n_before = int(np.sum(ref.ok & ~ref_after & ~pf.ok))  # where the actuator-shape samples are not used
     # The board's onset where the refinement has none: its timing uncertainty is a frame period,
     # or, where it is larger, how far the board's onsets lie from the refined ones on the
     # reversals that have both (median |difference|): on a ringing record the board fires early
@@ -1119,17 +1128,10 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
             rows.append((rt[r], t2, rq[r], q2, 0.5 * (rq[r] + q2), b, sb))
             n_play += 1
             continue
-        # Eq. 1 needs t2 - t_delay after t1: an onset before the direction change is not one.
-        # A sine's gradual stop is fitted early, and its true end, a ring's half-cycle later,
-        # can fall into the onset's search (twelfth-ringing-sine60-noisy: 6 of 68 refined
-        # onsets, each b ~ 0 with sigma_b near 0, where the actuator barely moves). Such a
-        # reversal keeps the board's onset, when that one comes after t1.
-        if ref.ok[r] and ref.t2_s[r] - td < rt[r]:
-            n_before += 1
-        if ref.ok[r] and ref.t2_s[r] - td >= rt[r]:
+        if ref_after[r]:
             t2, sd = ref.t2_s[r], ref.sigma_t2_s[r]
             n_ref += 1
-        elif bidx[r] >= 0 and board.t2_s[bidx[r]] - td >= rt[r]:
+        elif board_after[r]:
             t2, sd = board.t2_s[bidx[r]], board_sd
             n_board += 1
         else:
