@@ -95,9 +95,11 @@ SET_ASIDE_FRESH = _fresh()
 # Run it once, at the end, after the rules are settled.
 
 
-def _drawn(gen_seed: int, first_seed: int, prefix: str) -> list:
+def _drawn(gen_seed: int, first_seed: int, prefix: str, durations: bool = False) -> list:
     """A drawn set-aside group: the plan below, each row's parameters drawn by a fixed generator
-    (numpy default_rng(gen_seed)) in the plan's order, rendering seeds first_seed, first_seed + 1..."""
+    (numpy default_rng(gen_seed)) in the plan's order, rendering seeds first_seed, first_seed + 1...
+    With durations, each row's record length is drawn too (uniform 60-150 s, the last draw of its
+    row, so the groups drawn without it are unchanged); otherwise every record is 150 s."""
     import numpy as np
 
     g = np.random.default_rng(gen_seed)
@@ -132,6 +134,8 @@ def _drawn(gen_seed: int, first_seed: int, prefix: str) -> list:
         elif cat == "ringing":
             kw["ring_hz"] = round(float(g.uniform(2.0, 5.0)), 2)
             kw["ring_zeta"] = round(float(g.uniform(0.03, 0.1)), 3)
+        if durations:
+            kw["duration_s"] = round(float(g.uniform(60.0, 150.0)), 1)
         out.append((cat, limit, R(f"{prefix}-{cat}-{shape}{fps:g}{'-fast' if fast else ''}{'-noisy' if heavy else ''}",
                                   first_seed + i, **kw)))
     return out
@@ -200,9 +204,17 @@ SET_ASIDE_TWELFTH = _drawn(4463, 1401, "twelfth")
 # 1501-1512. Run it once, at the end.
 SET_ASIDE_THIRTEENTH = _drawn(5839, 1501, "thirteenth")
 
+# A FOURTEENTH set-aside group, fixed (this line committed) at the start of the session of
+# 2026-11-24 (ninth stop), before any onset or delay rule of that session was touched; the first
+# thirteen groups are spent (development data now). The third's plan, generator seed 7127, seeds
+# 1601-1612, and, unlike every group before it, each record's length drawn in 60-150 s: the last
+# stop found a 90 s record that no 150 s group could have caught.
+SET_ASIDE_FOURTEENTH = _drawn(7127, 1601, "fourteenth", durations=True)
+
 # Every group by the name swing_bench --group takes, in the order they were fixed.
 GROUPS = {"development": DEVELOPMENT, "set-aside": SET_ASIDE, "fresh": SET_ASIDE_FRESH,
           "third": SET_ASIDE_THIRD, "fourth": SET_ASIDE_FOURTH, "fifth": SET_ASIDE_FIFTH,
           "sixth": SET_ASIDE_SIXTH, "seventh": SET_ASIDE_SEVENTH, "eighth": SET_ASIDE_EIGHTH,
           "ninth": SET_ASIDE_NINTH, "tenth": SET_ASIDE_TENTH, "eleventh": SET_ASIDE_ELEVENTH,
-          "twelfth": SET_ASIDE_TWELFTH, "thirteenth": SET_ASIDE_THIRTEENTH}
+          "twelfth": SET_ASIDE_TWELFTH, "thirteenth": SET_ASIDE_THIRTEENTH,
+          "fourteenth": SET_ASIDE_FOURTEENTH}
