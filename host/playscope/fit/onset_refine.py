@@ -36,6 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 # Ringing grid: 1.5-7 Hz (below Nyquist at 25 fps with margin; the 2-5 Hz of the bench renderings inside) and
 # decay rates 0.5-12 /s (damping ratio ~0.01-0.8 at 3 Hz).
@@ -49,6 +50,9 @@ RING_DELAY_SHARE = 0.5  # a ringing record's approach delay: its interval widene
 DELAY_SHAPE_SPAN = 3.0  # frames searched either side of the guess by delay_from_shape
 RING_ZETA_MAX = 0.5  # a fitted ringing more damped than this does not ring (overshoot under 16 %)
 POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line holds over ~0.25 s)
+MIN_REFINED = 4  # refined onsets needed for their frames-to-take-up figure (as for a delay from the stops)
+SLOW_PER_DELAY = 6.0  # coarse_delay's slow travel: averages over this many times its longest lag
+SLOW_R2_MIN = 0.9  # ... which must follow q that closely to give the image direction of q
 
 
 @dataclass
@@ -82,23 +86,54 @@ def motor_stop_times(t: np.ndarray, q: np.ndarray, t1: np.ndarray, q1: np.ndarra
     return out
 
 
+def image_direction_of_q(t_f: np.ndarray, obs: np.ndarray, t_enc: np.ndarray, q: np.ndarray, t_at: np.ndarray,
+                         window_s: float) -> np.ndarray | None:
+    """The image direction in which the marker moves as q grows, at the motor positions q(t_at):
+    d/dq of a cubic fitted, per image coordinate, to the record's slow travel (image positions
+    and q(t), each a moving average over window_s). The average moves by delay / window_s of
+    the travel inside the window when the image lags the motor, so a delay well under window_s
+    leaves the direction's sign right, whatever the swings do. t_f (F,) s, obs (F, 2) px, all
+    finite; t_enc, q (N,); t_at (M,) s. Returns (M, 2), not normalised (px / unit of q), or None
+    when the slow travel does not determine it: the cubic explains under SLOW_R2_MIN of the
+    slow image motion (no ramp, no travel) or there are fewer than 8 frames."""
+    if t_f.size < 8:
+        return None
+    n = max(3, int(round(window_s / float(np.median(np.diff(t_f))))))
+    pb = uniform_filter1d(obs, n, axis=0, mode="nearest")
+    qb = uniform_filter1d(np.interp(t_f, t_enc, q), n, mode="nearest")
+    if not np.ptp(qb) > 0.0:
+        return None
+    fit = [np.polynomial.Polynomial.fit(qb, pb[:, j], 3) for j in range(pb.shape[1])]
+    res = pb - np.column_stack([f(qb) for f in fit])
+    ss = float(np.sum((pb - pb.mean(axis=0)) ** 2))
+    if not ss > 0.0 or 1.0 - float(np.sum(res ** 2)) / ss < SLOW_R2_MIN:
+        return None
+    q_at = np.interp(t_at, t_enc, q)
+    return np.column_stack([f.deriv()(q_at) for f in fit])
+
+
 def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np.ndarray, q: np.ndarray,
                  period: float, max_delay: float = 0.5) -> float:
     """First guess of t_delay (s): cross-correlation of commanded and observed motion around
     the motor stops. For each reversal the image velocity along the old motion's image
-    direction (from the half second before the motor stop) is multiplied by the sign of the
-    motor's velocity at t - lag (+1 on, -1 back, 0 held), over 8 frame periods before
-    t_stop + lag and 4 after; the sum over reversals peaks at the delay (earlier lags meet
-    the tip still going while the motor is back; later ones meet the dead band). A ringing tip
-    keeps going for up to a quarter period after the stop, so the guess may be late by that;
-    velocities are clipped at 3 median so a jump does not count. ``refine`` fits each stop
-    from 5 frames before the guess to 3 after."""
+    direction is multiplied by the sign of the motor's velocity at t - lag (+1 on, -1 back,
+    0 held), over 8 frame periods before t_stop + lag and 4 after; the sum over reversals peaks
+    at the delay (earlier lags meet the tip still going while the motor is back; later ones meet
+    the dead band). The old motion's image direction is the motor's direction at the stop times
+    the image direction of increasing q (`image_direction_of_q`, from the record's slow travel,
+    which no delay in the scan moves); without slow travel, the image displacement over the
+    half second before the motor stop, whose sign is wrong when that half second reaches back
+    into the leg before (legs under 0.5 s plus the delay). A ringing tip keeps going for up to a
+    quarter period after the stop, so the guess may be late by that; velocities are clipped at
+    3 median so a jump does not count. ``refine`` fits each stop from 5 frames before the guess
+    to 3 after."""
     ok = np.all(np.isfinite(obs), axis=1)
     tf, o = t_f[ok], obs[ok]
     P = lambda tt: np.stack([np.interp(tt, tf, o[:, 0]), np.interp(tt, tf, o[:, 1])], axis=-1)  # noqa: E731
-    e = P(t_stop) - P(t_stop - 0.5)
-    e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-12)
     sgn = np.sign(np.interp(t_stop, t_enc, q) - np.interp(t_stop - 0.1, t_enc, q))
+    u = image_direction_of_q(tf, o, t_enc, q, t_stop, SLOW_PER_DELAY * max_delay)
+    e = P(t_stop) - P(t_stop - 0.5) if u is None else u * sgn[:, None]
+    e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-12)
     dq = np.diff(q)
     tm = 0.5 * (t_enc[1:] + t_enc[:-1])
     ks = np.arange(-8, 4) + 0.5
@@ -770,6 +805,26 @@ def actuator_frames(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.nda
     return float(np.percentile(out, 25)) if out else float("nan")
 
 
+def refined_frames(ref: Refined, t_enc: np.ndarray, q: np.ndarray, v: np.ndarray, rq: np.ndarray,
+                   t_delay_s: float, fps: float) -> float:
+    """Frames the refined onsets take to take up the play: b = |q(t2 - t_delay) - q1| over the
+    actuator's travel in one frame period at t2 - t_delay, lower quartile over the refined
+    reversals (a swing that is fast on one side only, the paper's square-ish swings: fast out,
+    slow back, still leaves a quarter or more within a frame). ref: `refine`'s (M,); t_enc, q,
+    v (N,) s, units, units/s; rq (M,) q1; fps frames/s. NaN with fewer than MIN_REFINED refined
+    onsets: a quartile of so few says nothing about the record (then the actuator-shape model is
+    fitted and its own figure decides, as `gate_frames` does where nothing can be trusted).
+    Found on fourth-ringing-swings25: its first pass fitted none of 24 reversals at a coarse
+    delay 1.6 frames late, 3 of 99 were refined, each a 25 px "step" put at the next swing, and
+    their 31.8 frames kept the model off a record whose play is taken up within about two
+    frames (77.6 % off; with the model, 98 samples)."""
+    if ref.ok.sum() < MIN_REFINED:
+        return float("nan")
+    t2r = ref.t2_s[ref.ok] - t_delay_s
+    br = np.abs(np.interp(t2r, t_enc, q) - rq[ref.ok])
+    return float(np.percentile(br / np.maximum(np.abs(np.interp(t2r, t_enc, v)) / fps, 1e-12), 25))
+
+
 def gate_frames(ref_frames: float, act_frames: float, invented: bool) -> float:
     """The frames-to-take-up figure the model gate (FAST_FRAMES) reads: the refined onsets'
     (ref_frames, NaN without them), or the actuator's for the board's median width (act_frames,
@@ -955,16 +1010,9 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # records (10-25 frames, ringing included) were checked on, and where the actuator-shape
     # model did worse on development (2 Hz ringing, sine excitation, docs/host.md).
     v = np.gradient(q, t_enc)
-    # Frames to take up the play (b over the travel of one frame period at the onset), the
-    # lower quartile over the reversals: a swing that is fast on one side only (the paper's
-    # square-ish swings: fast out, slow back) still leaves a quarter or more within a frame.
     # The refined onsets' figure (or the actuator's, `gate_frames`) decides whether the model is
     # fitted; once fitted, either figure below FAST_FRAMES uses it (below).
-    ref_frames = float("nan")
-    if ref.ok.any():
-        t2r = ref.t2_s[ref.ok] - (d_stops if n_d >= 4 else d1)
-        br = np.abs(np.interp(t2r, t_enc, q) - rq[ref.ok])
-        ref_frames = float(np.percentile(br / np.maximum(np.abs(np.interp(t2r, t_enc, v)) / fps, 1e-12), 25))
+    ref_frames = refined_frames(ref, t_enc, q, v, rq, d_stops if n_d >= 4 else d1, fps)
     amp = np.abs(np.diff(rq))
     b_max = 0.6 * float(np.median(amp)) if amp.size else float(np.ptp(q))
     M = rt.size
@@ -1115,7 +1163,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # reversals that have both (median |difference|): on a ringing record the board fires early
     # or late by several frames (twelfth-ringing-sine60-noisy: 7-10 frames late), and a sample
     # weighted as if timed to a frame pulled B(q) up.
-    both = ref.ok & (bidx >= 0)
+    both = ref_after & (bidx >= 0)  # refined onsets that are onsets (after t1)
     board_sd = period
     if both.sum() >= 4:
         board_sd = max(period, float(np.median(np.abs(board.t2_s[bidx[both]] - ref.t2_s[both]))))
