@@ -126,7 +126,9 @@ def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np
     into the leg before (legs under 0.5 s plus the delay). A ringing tip keeps going for up to a
     quarter period after the stop, so the guess may be late by that; velocities are clipped at
     3 median so a jump does not count. ``refine`` fits each stop from 5 frames before the guess
-    to 3 after."""
+    to 3 after. t_f (F,) s, obs (F, 2) px (rows with NaN, lost frames, are skipped); t_stop (M,)
+    s (`motor_stop_times`); t_enc, q (N,) s and actuator units; period, max_delay s. Returns s,
+    on the scan's grid in [0, max_delay] (period / SUB steps)."""
     ok = np.all(np.isfinite(obs), axis=1)
     tf, o = t_f[ok], obs[ok]
     P = lambda tt: np.stack([np.interp(tt, tf, o[:, 0]), np.interp(tt, tf, o[:, 1])], axis=-1)  # noqa: E731

@@ -529,7 +529,8 @@ def test_image_direction_of_q_from_slow_travel_or_none():
 
 def test_refined_frames_needs_enough_refined_onsets():
     # Frames to take up the play from the refined onsets: b over one frame's travel, lower
-    # quartile. Actuator at 2 units/s, q1 = 0, b = 0.1..0.4 -> 1.25, 2.5, 3.75, 5 frames at 25 fps.
+    # quartile. Actuator at 2 units/s, q1 = 0, b = 0.1, 0.2, ... -> 1.25, 2.5, ... frames at 25 fps;
+    # the first MIN_REFINED - 1, then MIN_REFINED of them refined.
     # With fewer than MIN_REFINED refined onsets there is no figure (fourth-ringing-swings25: 3 of
     # 99 refined, 31.8 frames, kept the actuator-shape model off a fast record, 77.6 % off).
     t_enc = np.linspace(0.0, 10.0, 10001)
