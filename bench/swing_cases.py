@@ -211,10 +211,16 @@ SET_ASIDE_THIRTEENTH = _drawn(5839, 1501, "thirteenth")
 # stop found a 90 s record that no 150 s group could have caught.
 SET_ASIDE_FOURTEENTH = _drawn(7127, 1601, "fourteenth", durations=True)
 
+# A FIFTEENTH set-aside group, fixed (this line committed) at the start of the session of
+# 2026-11-24 (tenth stop), before any onset or delay rule of that session was touched; the first
+# fourteen groups are spent (development data now). The fourteenth's plan (lengths drawn in
+# 60-150 s), generator seed 9173, seeds 1701-1712. Run it once, at the end.
+SET_ASIDE_FIFTEENTH = _drawn(9173, 1701, "fifteenth", durations=True)
+
 # Every group by the name swing_bench --group takes, in the order they were fixed.
 GROUPS = {"development": DEVELOPMENT, "set-aside": SET_ASIDE, "fresh": SET_ASIDE_FRESH,
           "third": SET_ASIDE_THIRD, "fourth": SET_ASIDE_FOURTH, "fifth": SET_ASIDE_FIFTH,
           "sixth": SET_ASIDE_SIXTH, "seventh": SET_ASIDE_SEVENTH, "eighth": SET_ASIDE_EIGHTH,
           "ninth": SET_ASIDE_NINTH, "tenth": SET_ASIDE_TENTH, "eleventh": SET_ASIDE_ELEVENTH,
           "twelfth": SET_ASIDE_TWELFTH, "thirteenth": SET_ASIDE_THIRTEENTH,
-          "fourteenth": SET_ASIDE_FOURTEENTH}
+          "fourteenth": SET_ASIDE_FOURTEENTH, "fifteenth": SET_ASIDE_FIFTEENTH}
