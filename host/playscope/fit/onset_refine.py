@@ -50,6 +50,7 @@ RING_DELAY_SHARE = 0.5  # a ringing record's approach delay: its interval widene
 DELAY_SHAPE_SPAN = 3.0  # frames searched either side of the guess by delay_from_shape
 RING_ZETA_MAX = 0.5  # a fitted ringing more damped than this does not ring (overshoot under 16 %)
 POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line holds over ~0.25 s)
+POST_RING_SHARE = 0.5  # with an onset that rings, at least this share of the ring's period kept after it
 MIN_REFINED = 4  # refined onsets needed for their frames-to-take-up figure (as for a delay from the stops)
 SLOW_PER_DELAY = 6.0  # coarse_delay's slow travel: averages over this many times its longest lag
 SLOW_R2_MIN = 0.9  # ... which must follow q that closely to give the image direction of q
@@ -519,6 +520,21 @@ def _fit_window(tf, o, kf, t0, end, period_s, state, final=False, stop=True, rin
     return ep
 
 
+def post_frames(ring: tuple | None, period_s: float) -> float:
+    """Frames of new motion the onset's window keeps after the onset: POST_FRAMES, or, where the
+    onset excites the record's ringing (ring (Hz, 1/s), None or 0 Hz: it does not), at least
+    POST_RING_SHARE of the ring's period. The onset's ring column r1 e^(-alpha t) sin(w t) (module
+    doc) is a ramp over a quarter period or less, the new motion's own shape, so only a window
+    that reaches the ring's turn tells the two apart. POST_FRAMES was set at 25 fps, where a
+    2-5 Hz ring's half period is 2.5-6 frames; at 60 fps a 2.5 Hz ring's is 12, and the 6-frame
+    window (0.1 s) traded the onset for its ring: refined onsets 30-38 frames early on 10 of
+    34 reversals of fourteenth-ringing-sine60-noisy (a slow sine, the play taken up over
+    23-34 frames; B 46 % off). Returns frames (float)."""
+    if ring is None or not ring[0] > 0:
+        return float(POST_FRAMES)
+    return max(float(POST_FRAMES), POST_RING_SHARE / (ring[0] * period_s))
+
+
 def _refine_one(tf, o, kf, t0, t_lim, t2_guess, period_s, ring, stop_back, onset_ring, part=False, carry=False):
     """One reversal's episode (`refine`): frames tf (s), o (px), kf (frame numbers) with the
     lost ones left out; t0 the stop guess and t_lim the episode's end (s, image clock); t2_guess
@@ -529,6 +545,7 @@ def _refine_one(tf, o, kf, t0, t_lim, t2_guess, period_s, ring, stop_back, onset
     end = min(t0 + 4 * period_s, t_lim)
     state = (0.0, 0.0, 0.0, -1, np.inf)  # tau0, om, al, j, tau (inf: no onset known yet)
     kw = dict(ring=ring, stop_back=stop_back, onset_ring=onset_ring, part=part, carry=carry)
+    post = post_frames(ring if onset_ring else None, period_s)
     for _ in range(40):  # grow the window until an onset sits well inside it, then trim to it
         ep = _fit_window(tf, o, kf, t0, end, period_s, state, stop=len(state) < 6, **kw)
         if ep is None:
@@ -541,8 +558,8 @@ def _refine_one(tf, o, kf, t0, t_lim, t2_guess, period_s, ring, stop_back, onset
             end = min(end + period_s, t_lim)
             continue
         state = (ep.tau0, ep.om, ep.al, ep.j, ep.tau if ep.found else np.inf, ep.v0, ep.ring_px)
-        if ep.found and ep.tau * period_s + t0 < end - (POST_FRAMES - 1.5) * period_s:
-            trim = min(ep.tau * period_s + t0 + POST_FRAMES * period_s, t_lim)
+        if ep.found and ep.tau * period_s + t0 < end - (post - 1.5) * period_s:
+            trim = min(ep.tau * period_s + t0 + post * period_s, t_lim)
             e2 = _fit_window(tf, o, kf, t0, trim, period_s, state, final=True, **kw)
             if e2 is not None and e2.found and abs(e2.tau - ep.tau) < 2.0:
                 return e2, trim
@@ -550,9 +567,9 @@ def _refine_one(tf, o, kf, t0, t_lim, t2_guess, period_s, ring, stop_back, onset
             return None, end
         # Never shrink: an onset the longer window no longer supports was a jump or a swing.
         if ep.found:
-            end = min(max(end + period_s, ep.tau * period_s + t0 + POST_FRAMES * period_s), t_lim)
+            end = min(max(end + period_s, ep.tau * period_s + t0 + post * period_s), t_lim)
         else:
-            end = min(max(end, guess) + POST_FRAMES * period_s, t_lim)
+            end = min(max(end, guess) + post * period_s, t_lim)
         guess = -np.inf
     return ep, end
 
