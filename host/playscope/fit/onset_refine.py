@@ -824,12 +824,19 @@ def actuator_frames(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.nda
     return float(np.percentile(out, 25)) if out else float("nan")
 
 
+def frames_to_take_up(b: np.ndarray, t_drive_s: np.ndarray, t_enc: np.ndarray, v: np.ndarray, fps: float) -> float:
+    """Frames the play takes to take up: each b (K,) over the actuator's travel in one frame
+    period at its drive time t_drive_s (K,) s (t2 - t_delay), lower quartile (a swing that is
+    fast on one side only, the paper's square-ish swings: fast out, slow back, still leaves a
+    quarter or more within a frame). t_enc, v (N,) s and units/s; fps frames/s. Frames; the
+    refined onsets' (`refined_frames`) and the actuator-shape model's figure alike. K >= 1."""
+    return float(np.percentile(b / np.maximum(np.abs(np.interp(t_drive_s, t_enc, v)) / fps, 1e-12), 25))
+
+
 def refined_frames(ref: Refined, t_enc: np.ndarray, q: np.ndarray, v: np.ndarray, rq: np.ndarray,
                    t_delay_s: float, fps: float) -> float:
-    """Frames the refined onsets take to take up the play: b = |q(t2 - t_delay) - q1| over the
-    actuator's travel in one frame period at t2 - t_delay, lower quartile over the refined
-    reversals (a swing that is fast on one side only, the paper's square-ish swings: fast out,
-    slow back, still leaves a quarter or more within a frame). ref: `refine`'s (M,); t_enc, q,
+    """Frames the refined onsets take to take up the play (`frames_to_take_up` of their
+    b = |q(t2 - t_delay) - q1| at t2 - t_delay, over the refined reversals). ref: `refine`'s (M,); t_enc, q,
     v (N,) s, units, units/s; rq (M,) q1; fps frames/s. NaN with fewer than MIN_REFINED refined
     onsets: a quartile of so few says nothing about the record (then the actuator-shape model is
     fitted and its own figure decides, as `gate_frames` does where nothing can be trusted).
@@ -840,8 +847,7 @@ def refined_frames(ref: Refined, t_enc: np.ndarray, q: np.ndarray, v: np.ndarray
     if ref.ok.sum() < MIN_REFINED:
         return float("nan")
     t2r = ref.t2_s[ref.ok] - t_delay_s
-    br = np.abs(np.interp(t2r, t_enc, q) - rq[ref.ok])
-    return float(np.percentile(br / np.maximum(np.abs(np.interp(t2r, t_enc, v)) / fps, 1e-12), 25))
+    return frames_to_take_up(np.abs(np.interp(t2r, t_enc, q) - rq[ref.ok]), t2r, t_enc, v, fps)
 
 
 def gate_frames(ref_frames: float, act_frames: float, invented: bool) -> float:
@@ -1066,8 +1072,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         """The actuator-shape model's own frames to take up the play (lower quartile)."""
         if not pf.ok.any():
             return float("nan")
-        va = np.abs(np.interp(pf.t2_s[pf.ok] - pf.t_delay_s, t_enc, v)) / fps
-        return float(np.percentile(pf.b[pf.ok] / np.maximum(va, 1e-12), 25))
+        return frames_to_take_up(pf.b[pf.ok], pf.t2_s[pf.ok] - pf.t_delay_s, t_enc, v, fps)
 
     shape_frames = model_frames(pf)
     # Once fitted (the refined onsets, or the actuator where they invent steps, call the take-up
