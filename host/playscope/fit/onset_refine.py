@@ -549,11 +549,13 @@ def _refine_one(tf, o, kf, t0, t_lim, t2_guess, period_s, ring, stop_back, onset
     for _ in range(40):  # grow the window until an onset sits well inside it, then trim to it
         ep = _fit_window(tf, o, kf, t0, end, period_s, state, stop=len(state) < 6, **kw)
         if ep is None:
-            # No onset can be fitted in the frames so far. With the record's ringing the carried
-            # ring's columns (`_Episode._carry_cols`) need more of them than the first window's
-            # 4 frames past the stop: a longer window, up to the episode's end (returning there
-            # left 63 of 100 reversals of fifth-ringing-sine30-noisy to the board, 2.9 -> 24.6 %).
-            if end >= t_lim or not (carry and ring is not None and ring[0] > 0):
+            # No onset can be fitted in the frames so far: a longer window, up to the episode's
+            # end. The carried ring's columns (`_Episode._carry_cols`) need more frames than the
+            # first window's 4 past the stop (returning there left 63 of 100 reversals of
+            # fifth-ringing-sine30-noisy to the board, 2.9 -> 24.6 %), and so does a stop guessed
+            # early, whose fit sits at its search's far end with no room left for an onset
+            # (fifteenth-delay-sine60: 33 of 54 reversals left to the board, 15.9 % off).
+            if end >= t_lim:
                 return None, end
             end = min(end + period_s, t_lim)
             continue
@@ -777,6 +779,29 @@ def ring_summary(ref: Refined) -> dict:
     return out
 
 
+def tip_mode(summary: dict) -> tuple:
+    """The record's tip mode that rings, from pass 1's `ring_summary`: (Hz, decay 1/s), or
+    (0.0, 0.0) where none rings. Kept where over half the fitted reversals ring, the damping ratio
+    is under RING_ZETA_MAX and the frequency within the band searched (RING_HZ). summary: dict
+    with "share", and where over 0, "freq_hz", "decay_per_s", "damping_ratio".
+
+    A heavily damped "ringing" is the change-point model bending its kink to a sine's gradual stop
+    (fourth-delay-sine30: 2.5 Hz, zeta 0.74; eleventh-delay-sine60: 3.8 Hz, 0.60; the rendered rings
+    were 0.03-0.1): kept in the change-point model, where it takes that curvature up (without it
+    eleventh-delay-sine60 was 19 % off, 1 % with), and in the delay interval's widening
+    (`robust_samples`; the approach's figure is as uncertain there: 1.3 frames off on
+    seventh-none-sine60-noisy, which the widening leaves to its right configured delay), but not a
+    column of the delay's approach fit, where it took the approach's curvature for itself
+    (eleventh-delay-sine60: +0.23 -> +0.07 frame). Nor is one below the band searched (RING_HZ; its
+    polish walked out of it): that is the approach's own curvature (tenth-delay-triangle60-noisy:
+    0.74 Hz, 33 px, on a triangle).
+    """
+    if not (summary["share"] > 0.5 and summary["damping_ratio"] < RING_ZETA_MAX
+            and summary["freq_hz"] >= RING_HZ[0]):
+        return (0.0, 0.0)
+    return (summary["freq_hz"], summary["decay_per_s"])
+
+
 def direction_jump(ref: Refined, rq: np.ndarray, shape_doc: dict | None = None) -> dict:
     """Whether the image jumps at the onsets with the direction of motion (a registration or
     channel error: the jump's sign follows the distal direction). The refined onsets' step
@@ -804,6 +829,18 @@ def direction_jump(ref: Refined, rq: np.ndarray, shape_doc: dict | None = None) 
     found = ratio > JUMP_T
     return {"found": bool(found), "jump_px": [float(x) for x in m] if found else None, "ratio": ratio,
             "from": "refined onsets' steps"}
+
+
+def board_width(b: np.ndarray) -> float:
+    """The board's median eq. 1 width (actuator units) over its onsets with a width (b > 0), the
+    width `actuator_frames` checks the refined onsets against; NaN with fewer than MIN_REFINED of
+    them, as for the refined onsets' own figure. One width is no check: a configured delay 0.1 s
+    short left the board one onset on fifteenth-delay-swings25-fast (fast swings, no still
+    frame), its width 37 frames of travel, which passed 5 refined onsets with invented 36 px steps
+    (28 frames) and kept the actuator-shape model off (58 % off; 2.2 % with the model). b (K,)."""
+    b = np.asarray(b, float)
+    b = b[np.isfinite(b) & (b > 0)]
+    return float(np.median(b)) if b.size >= MIN_REFINED else float("nan")
 
 
 def actuator_frames(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, b: float,
@@ -988,18 +1025,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     d1 = d1 if n1 >= 4 else d0
     rs = ring_summary(ref1)
     ring = (rs["freq_hz"], rs["decay_per_s"]) if rs["share"] > 0.5 else (0.0, 0.0)
-    # A tip mode that rings: damping ratio under RING_ZETA_MAX. A heavily damped "ringing" is the
-    # change-point model bending its kink to a sine's gradual stop (fourth-delay-sine30: 2.5 Hz,
-    # zeta 0.74; eleventh-delay-sine60: 3.8 Hz, 0.60; the rendered rings were 0.03-0.1): kept in
-    # the change-point model, where it takes that curvature up (without it eleventh-delay-sine60
-    # was 19 % off, 1 % with), and in the delay interval's widening below (the approach's figure
-    # is as uncertain there: 1.3 frames off on seventh-none-sine60-noisy, which the widening
-    # leaves to its right configured delay), but not a column of the delay's approach fit, where
-    # it took the approach's curvature for itself (eleventh-delay-sine60: +0.23 -> +0.07 frame).
-    # Nor is one below the band searched (RING_HZ; its polish walked out of it): that is the
-    # approach's own curvature (tenth-delay-triangle60-noisy: 0.74 Hz, 33 px, on a triangle).
-    ring_mode = ring if rs["share"] > 0.5 and rs["damping_ratio"] < RING_ZETA_MAX and ring[0] >= RING_HZ[0] \
-        else (0.0, 0.0)
+    ring_mode = tip_mode(rs)
     # Whether the onset rings too: the record decides on pass 1's reversals (onset_ring_evidence).
     onset_ring = onset_ring_evidence(t_f, obs, t_stop[sub], t_next[sub], guess[sub], d1, period, ring) \
         if ring[0] > 0 else None
@@ -1045,8 +1071,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # onsets can be fooled late (a "step" fitted to noise when no frame is still after a fast
     # reversal makes the play look taken up over tens of frames), the actuator's trajectory
     # cannot. The smaller of the two decides whether the play is taken up fast.
-    act_frames = actuator_frames(t_enc, q, rt, rq, float(np.median(board.b[board.b > 0])) if np.any(board.b > 0)
-                                 else float("nan"), period)
+    act_frames = actuator_frames(t_enc, q, rt, rq, board_width(board.b), period)
     # Only when the refined onsets show that symptom: a step on most reversals that does not
     # follow the direction (no registration to explain it). Otherwise they stand: on a ringing
     # record the board's onsets come early and its width would call a slow take-up fast.
