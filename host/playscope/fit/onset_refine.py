@@ -1025,6 +1025,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     d1 = d1 if n1 >= 4 else d0
     rs = ring_summary(ref1)
     ring = (rs["freq_hz"], rs["decay_per_s"]) if rs["share"] > 0.5 else (0.0, 0.0)
+    # ring: any ringing pass 1 kept (the change-point model's columns, the delay interval's
+    # widening); ring_mode: only a tip mode that rings (`tip_mode`: light, in the band searched).
     ring_mode = tip_mode(rs)
     # Whether the onset rings too: the record decides on pass 1's reversals (onset_ring_evidence).
     onset_ring = onset_ring_evidence(t_f, obs, t_stop[sub], t_next[sub], guess[sub], d1, period, ring) \

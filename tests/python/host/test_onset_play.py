@@ -195,7 +195,6 @@ def test_actuator_frames_of_a_constant_speed_triangle():
     assert np.isnan(R.actuator_frames(t, q, rt, rq, 2.0, 0.04))  # never comes back that far
 
 
-
 def test_the_board_width_needs_as_many_onsets_as_the_refined_figure():
     # The board's median eq. 1 width (`board_width`), the actuator's check on refined onsets that
     # invent steps: from MIN_REFINED onsets with a width on, NaN below (then `gate_frames` trusts
@@ -207,6 +206,7 @@ def test_the_board_width_needs_as_many_onsets_as_the_refined_figure():
     assert np.isnan(R.board_width(b))
     assert R.board_width(np.r_[b, 0.6]) == pytest.approx(np.median(np.r_[np.full(n - 1, 0.2), 0.6]))
     assert np.isnan(R.board_width(np.array([])))
+
 
 def test_fast_swings_under_heavy_noise_use_the_actuator_shape():
     """0.15 s swings at 25 fps with 0.275 px of noise (the play taken up within a frame): the

@@ -435,9 +435,9 @@ def test_no_onset_before_its_reversal_and_the_board_fallback_weighted_by_its_dis
     # The refinement no longer puts onsets there on this record (3 did with the onset's window of
     # 6 frames; with half the ring's period kept after the onset, none): 3 of its refined onsets
     # are moved 3 frames before their reversal here, so the guard is exercised whatever the
-    # refinement does. Measured (60 s, seed 3): samples timed
-    # under 0.01 mm all within 10 %; errors over 5 sigma_b 0 of 39 (8 with the board's samples
-    # weighted as timed to a frame; seeds 1, 2: 1 against 4 and 5).
+    # refinement does. Measured (60 s, seed 3): samples timed under 0.01 mm all within 10 %;
+    # errors over 5 sigma_b 0 of 39 (8 with the board's samples weighted as timed to a frame;
+    # seeds 1, 2: 1 against 4 and 5).
     rs = _swing_render()
     r = rs.Rendering("t", 3, shape="sine", fps=60.0, noise_px=0.22, ring_hz=3.0, ring_zeta=0.035, ring_px=10.0,
                      delay_s=0.149, delay_cfg_s=0.149, duration_s=60.0)
