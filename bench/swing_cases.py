@@ -223,6 +223,12 @@ SET_ASIDE_FIFTEENTH = _drawn(9173, 1701, "fifteenth", durations=True)
 # drawn in 60-150 s), generator seed 2311, seeds 1801-1812. Run it once, at the end.
 SET_ASIDE_SIXTEENTH = _drawn(2311, 1801, "sixteenth", durations=True)
 
+# A SEVENTEENTH set-aside group, fixed (this line committed) at the start of the session of
+# 2026-11-25 (second stop), before any onset or delay rule of that session was touched; the first
+# sixteen groups are spent (development data now). The fourteenth's plan (lengths drawn in
+# 60-150 s), generator seed 6271, seeds 1901-1912. Run it once, at the end.
+SET_ASIDE_SEVENTEENTH = _drawn(6271, 1901, "seventeenth", durations=True)
+
 # Every group by the name swing_bench --group takes, in the order they were fixed.
 GROUPS = {"development": DEVELOPMENT, "set-aside": SET_ASIDE, "fresh": SET_ASIDE_FRESH,
           "third": SET_ASIDE_THIRD, "fourth": SET_ASIDE_FOURTH, "fifth": SET_ASIDE_FIFTH,
@@ -230,4 +236,4 @@ GROUPS = {"development": DEVELOPMENT, "set-aside": SET_ASIDE, "fresh": SET_ASIDE
           "ninth": SET_ASIDE_NINTH, "tenth": SET_ASIDE_TENTH, "eleventh": SET_ASIDE_ELEVENTH,
           "twelfth": SET_ASIDE_TWELFTH, "thirteenth": SET_ASIDE_THIRTEENTH,
           "fourteenth": SET_ASIDE_FOURTEENTH, "fifteenth": SET_ASIDE_FIFTEENTH,
-          "sixteenth": SET_ASIDE_SIXTEENTH}
+          "sixteenth": SET_ASIDE_SIXTEENTH, "seventeenth": SET_ASIDE_SEVENTEENTH}
