@@ -24,6 +24,11 @@ DEVELOPMENT = [
                       delay_cfg_s=0.14)),
     ("ringing", 10.0, R("dev-ring3-swings25", 108, ring_hz=3.0, ring_zeta=0.05)),
     ("ringing", 10.0, R("dev-ring5-sine30", 109, shape="sine", fps=30.0, ring_hz=5.0, ring_zeta=0.08)),
+    # Added 2026-11-25 (second stop): sixteenth-registration-swings25-fast (spent) with the
+    # registration flipping at the onset itself (reg_lag 0) instead of up to a frame later.
+    ("registration", 5.0, R("dev-reg0-swings25-fast", 1805, swing_s=0.165, duration_s=121.1, jitter=0.26,
+                            noise_px=0.3, delay_s=0.082, delay_cfg_s=0.082, b_lo=0.144, b_hi=0.297, b_qc=0.48,
+                            b_w=1.01, reg_deg=1.3, reg_lag=0.0)),
 ]
 
 SET_ASIDE = [

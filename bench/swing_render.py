@@ -20,7 +20,8 @@ files, as a user's data would be. What it varies is what a bench varies:
               each frame the mean over a 4 ms exposure centred on its capture time (the
               true delay is from that centre), Gaussian marker noise per axis;
   registration the camera frame rotated by +-reg_deg about its y axis, the sign following the
-              distal direction, flipping a uniform 0..1 frame period after the tip reverses.
+              distal direction, flipping a uniform 0..reg_lag frame period after the tip
+              reverses (reg_lag 1 by default; 0: at the onset itself).
 
 Truth: B(q) callable, the true delay, and per reversal the scene-clock stop and onset.
 """
@@ -62,6 +63,7 @@ class Rendering:
     ring_zeta: float = 0.05
     ring_px: float = 10.0           # largest ringing excursion in the image (approx.)
     reg_deg: float = 0.0
+    reg_lag: float = 1.0            # the registration flips uniform 0..reg_lag frame periods late
     q_per_rad: float = 3.0
     L: float = 20.0
     tip: float = 5.0
@@ -174,7 +176,7 @@ def render(r: Rendering) -> dict:
     T = 1.0 / r.fps
     sign = np.full(t.size, dz[0])
     for i in flips:  # the registration follows the distal direction, a little late
-        j = np.searchsorted(t, t[i] + rng.uniform(0.0, T))
+        j = np.searchsorted(t, t[i] + r.reg_lag * rng.uniform(0.0, T))
         sign[j:] = dz[i]
     n = int((t[-1] - 0.5 - 0.2) / T)
     tcap = 0.5 + np.arange(n) * T + rng.uniform(-r.jitter, r.jitter, n) * T

@@ -52,6 +52,7 @@ RING_ZETA_MAX = 0.5  # a fitted ringing more damped than this does not ring (ove
 POST_FRAMES = 6  # frames of new motion kept after the onset (a straight line holds over ~0.25 s)
 POST_RING_SHARE = 0.5  # with an onset that rings, at least this share of the ring's period kept after it
 MIN_REFINED = 4  # refined onsets needed for their frames-to-take-up figure (as for a delay from the stops)
+MIN_REFINED_SHARE = 0.5  # ... and at least this share of the reversals (`refined_frames`)
 SLOW_PER_DELAY = 6.0  # coarse_delay's slow travel: averages over this many times its longest lag
 SLOW_R2_MIN = 0.9  # ... which must follow q that closely to give the image direction of q
 
@@ -875,13 +876,17 @@ def refined_frames(ref: Refined, t_enc: np.ndarray, q: np.ndarray, v: np.ndarray
     """Frames the refined onsets take to take up the play (`frames_to_take_up` of their
     b = |q(t2 - t_delay) - q1| at t2 - t_delay, over the refined reversals). ref: `refine`'s (M,); t_enc, q,
     v (N,) s, units, units/s; rq (M,) q1; fps frames/s. NaN with fewer than MIN_REFINED refined
-    onsets: a quartile of so few says nothing about the record (then the actuator-shape model is
-    fitted and its own figure decides, as `gate_frames` does where nothing can be trusted).
+    onsets, or fewer than MIN_REFINED_SHARE of the reversals: a quartile of so few says nothing
+    about the record (then the actuator-shape model is fitted and its own figure decides, as
+    `gate_frames` does where nothing can be trusted). The share: a registration that flips at
+    the onset itself on fast swings (the flip's lag 0) left 6 of 81 reversals refined, each on
+    a step it could not tell from the take-up; their 5.1 frames (the actuator's, for the board's
+    width: 1.3) kept the model off, and B came from the board, 69 % off.
     Found on fourth-ringing-swings25: its first pass fitted none of 24 reversals at a coarse
     delay 1.6 frames late, 3 of 99 were refined, each a 25 px "step" put at the next swing, and
     their 31.8 frames kept the model off a record whose play is taken up within about two
     frames (77.6 % off; with the model, 98 samples)."""
-    if ref.ok.sum() < MIN_REFINED:
+    if ref.ok.sum() < max(MIN_REFINED, MIN_REFINED_SHARE * ref.ok.size):
         return float("nan")
     t2r = ref.t2_s[ref.ok] - t_delay_s
     return frames_to_take_up(np.abs(np.interp(t2r, t_enc, q) - rq[ref.ok]), t2r, t_enc, v, fps)

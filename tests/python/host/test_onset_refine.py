@@ -568,6 +568,28 @@ def test_refined_frames_needs_enough_refined_onsets():
             assert got == pytest.approx(np.percentile(b[ok] / (2.0 / 25.0), 25), rel=1e-6)
 
 
+def test_refined_frames_needs_half_the_reversals_refined():
+    # The same actuator (2 units/s, b = 0.1 ... 1.2 over 12 reversals): 5 refined onsets are
+    # MIN_REFINED or more but under half of the 12 reversals, so no figure; 6 give one.
+    # (A registration flipping at the onset on fast swings left 6 of 81 refined, each on a step
+    # it could not tell from the take-up: their 5.1 frames kept the model off, B 69 % off.)
+    t_enc = np.linspace(0.0, 10.0, 10001)
+    q = 2.0 * t_enc
+    v = np.gradient(q, t_enc)
+    b = 0.1 * np.arange(1, 13)
+    td = 0.1
+    t2 = b / 2.0 + td
+    M = b.size
+    z = np.zeros(M)
+    for n_ok in (5, 6):
+        ok = np.arange(M) < n_ok
+        got = R.refined_frames(R.Refined(t2, z + 0.004, z, z, z, z, z, ok), t_enc, q, v, z, td, 25.0)
+        if n_ok < R.MIN_REFINED_SHARE * M:
+            assert np.isnan(got)
+        else:
+            assert got == pytest.approx(np.percentile(b[ok] / (2.0 / 25.0), 25), rel=1e-6)
+
+
 def test_an_onset_that_rings_keeps_half_the_ring_period_after_it(monkeypatch):
     # The onset's ring column is a ramp over a quarter of its period, the new motion's own shape:
     # only a window reaching the ring's turn tells them apart (post_frames). POST_FRAMES (6) was
