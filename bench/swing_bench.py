@@ -2,12 +2,12 @@
 """B(q) and t_delay of `playscope calibrate` on fast-swing sessions from bench/swing_render.py.
 
 One row per rendering of the chosen group (bench/swing_cases.py: "development", on which the
-rules are settled, or "set-aside", run once and spent; "fresh", "third", ... "seventeenth", further set-aside groups, each run once; swing_cases.GROUPS), then one row per category with the
+rules are settled, or "set-aside", run once and spent; "fresh", "third", ... "eighteenth", further set-aside groups, each run once; swing_cases.GROUPS), then one row per category with the
 worst rendering beside the mean. Figures: B mean absolute error over the sampled q range in %
 of the mean true B; t_delay used and its error in frame periods (acceptance: within 1/8); the
 delay the record gives and its interval; refusals count as failures.
 
-Usage: PYTHONPATH=host .venv/bin/python bench/swing_bench.py [--group development|set-aside|fresh|third|...|seventeenth]
+Usage: PYTHONPATH=host .venv/bin/python bench/swing_bench.py [--group development|set-aside|fresh|third|...|eighteenth]
        [--only NAME ...]
 """
 

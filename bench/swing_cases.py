@@ -234,6 +234,12 @@ SET_ASIDE_SIXTEENTH = _drawn(2311, 1801, "sixteenth", durations=True)
 # 60-150 s), generator seed 6271, seeds 1901-1912. Run it once, at the end.
 SET_ASIDE_SEVENTEENTH = _drawn(6271, 1901, "seventeenth", durations=True)
 
+# An EIGHTEENTH set-aside group, fixed (this line committed) at the start of the session of
+# 2026-11-25 (third stop), before any onset or delay rule of that session was touched; the first
+# seventeen groups are spent (development data now). The fourteenth's plan (lengths drawn in
+# 60-150 s), generator seed 3797, seeds 2001-2012. Run it once, at the end.
+SET_ASIDE_EIGHTEENTH = _drawn(3797, 2001, "eighteenth", durations=True)
+
 # Every group by the name swing_bench --group takes, in the order they were fixed.
 GROUPS = {"development": DEVELOPMENT, "set-aside": SET_ASIDE, "fresh": SET_ASIDE_FRESH,
           "third": SET_ASIDE_THIRD, "fourth": SET_ASIDE_FOURTH, "fifth": SET_ASIDE_FIFTH,
@@ -241,4 +247,5 @@ GROUPS = {"development": DEVELOPMENT, "set-aside": SET_ASIDE, "fresh": SET_ASIDE
           "ninth": SET_ASIDE_NINTH, "tenth": SET_ASIDE_TENTH, "eleventh": SET_ASIDE_ELEVENTH,
           "twelfth": SET_ASIDE_TWELFTH, "thirteenth": SET_ASIDE_THIRTEENTH,
           "fourteenth": SET_ASIDE_FOURTEENTH, "fifteenth": SET_ASIDE_FIFTEENTH,
-          "sixteenth": SET_ASIDE_SIXTEENTH, "seventeenth": SET_ASIDE_SEVENTEENTH}
+          "sixteenth": SET_ASIDE_SIXTEENTH, "seventeenth": SET_ASIDE_SEVENTEENTH,
+          "eighteenth": SET_ASIDE_EIGHTEENTH}
