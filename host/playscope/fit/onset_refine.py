@@ -945,11 +945,22 @@ def choose_delay(d_data: float, ci_s: tuple[float, float], how: str, t_delay_cfg
     side, the largest shift that placing an onset within its frame interval leaves. (A correct
     configured delay was replaced on a registration rendering whose record delay came 0.46 frame
     early with an interval of 0.03 frame.) t_delay_from "config" keeps the configured delay.
+    A record delay whose interval, so widened, lies wholly below zero is no delay at all (no tip
+    moves before its motor): the estimator is biased on this record, and what it says cannot
+    arbitrate. Its figure is reported, the configured delay kept (agrees None), and without one
+    0 s is used. (A ringing 25 fps sine's stops said -0.039 s, 95 % -0.047..-0.030 s, clipped to
+    0 s and replacing a right configured 0.069 s: B 124.7 %, seventeenth-ringing-sine25-noisy.)
     Returns (t_delay_s, source text, agrees (None when there is nothing to compare), allowance_s).
     """
     allow = period_s / 2.0
     have = bool(np.isfinite(d_data))
     agree = None
+    if have and ci_s[1] + allow < 0.0:
+        if t_delay_cfg is not None:
+            return t_delay_cfg, "configured (the record's delay lies below zero beyond its interval and half a frame: " \
+                                "not a delay)", None, allow
+        return 0.0, f"estimated from the record ({how}) below zero beyond its interval and half a frame; 0 s used", \
+            None, allow
     if t_delay_cfg is not None and have:
         agree = bool(ci_s[0] - allow <= t_delay_cfg <= ci_s[1] + allow)
     if t_delay_cfg is None:
@@ -1036,6 +1047,20 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # Whether the onset rings too: the record decides on pass 1's reversals (onset_ring_evidence).
     onset_ring = onset_ring_evidence(t_f, obs, t_stop[sub], t_next[sub], guess[sub], d1, period, ring) \
         if ring[0] > 0 else None
+    ring_from = "pass 1, over half the reversals" if ring[0] > 0 else None
+    if ring[0] == 0 and rs["reversals_ringing"] >= MIN_REFINED and tip_mode({**rs, "share": 1.0})[0] > 0:
+        # A mode the onset excites rings after the onset, not after the stop, where a sine or a
+        # swing decelerates gradually; pass 1's windows end soon after the onset, so the ring shows
+        # on a minority of them, and there the refined onsets took it for a step (15 px on every
+        # reversal) and came late: seventeenth-ringing-sine25-noisy, 8 of 17 ringing (4.49 Hz; 4.19
+        # rendered), B 101 %. The record decides, as for the onset's column: pass 1's ringing, a
+        # tip mode on at least MIN_REFINED reversals, is kept where the onset's ring column wins
+        # on the record (`onset_ring_evidence`, its sum positive) and on most of its reversals.
+        cand = (rs["freq_hz"], rs["decay_per_s"])
+        ev = onset_ring_evidence(t_f, obs, t_stop[sub], t_next[sub], guess[sub], d1, period, cand)
+        if ev["used"] and ev["share_for"] > 0.5:
+            ring, ring_mode, onset_ring = cand, cand, ev
+            ring_from = "pass 1's minority, the onset's ring column on the record"
     # Where the onset excites the mode, the ring the last onset left is still there at the next
     # reversal: its columns too (`_Episode._carry_cols`). The evidence above is taken without
     # them (with them in the onset's model only, it also counted the ring the last stop left,
@@ -1185,11 +1210,19 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
             widen = RING_DELAY_SHARE / ring[0]
             ci_lo, ci_hi = ci_lo - widen, ci_hi + widen
             how += f", interval widened by {RING_DELAY_SHARE:g} of the ring's period"
-    if np.isfinite(d_data) and d_data < 0:  # a delay cannot be negative (the stops can say so on a sine)
+    # A delay cannot be negative (the stops can say so on a sine): clipped to 0 s where its
+    # interval and half a frame reach zero; one that lies wholly below is left as it is, reported
+    # and not used (choose_delay).
+    admissible = not (np.isfinite(d_data) and ci_hi + period / 2.0 < 0.0)
+    if np.isfinite(d_data) and d_data < 0 and admissible:
         d_data, ci_lo, ci_hi = 0.0, max(ci_lo, 0.0), max(ci_hi, 0.0)
     if not use_shape:
         pf.ok[:] = False
     td, src, agree, allow = choose_delay(d_data, (ci_lo, ci_hi), how, t_delay_cfg, period, t_delay_from)
+    if not admissible:
+        warnings.append(f"t_delay: the record says {d_data:.4f} s (95 % {ci_lo:.4f}..{ci_hi:.4f}, +-{allow:.4f} s for "
+                        f"the frame period), below zero: its estimator does not describe this record; using "
+                        f"{td:.4f} s ({src})")
     if t_delay_cfg is not None and agree is False:
         warnings.append(f"t_delay: the record says {d_data:.4f} s (95 % {ci_lo:.4f}..{ci_hi:.4f}, +-{allow:.4f} s for the "
                         f"frame period), the configuration "
@@ -1274,7 +1307,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         "board_reasons": board.reasons,
         "board_threshold": threshold_rule,
         "t_delay": {"configured_s": t_delay_cfg, "record_s": d_data, "record_se_s": d_se,
-                    "record_ci95_s": [ci_lo, ci_hi], "agrees_with_configured": agree,
+                    "record_ci95_s": [ci_lo, ci_hi], "record_admissible": admissible, "agrees_with_configured": agree,
                     "frame_allowance_s": allow, "used_s": td, "used": "configured" if td == t_delay_cfg else "record",
                     "from": t_delay_from, "source": src, "stops_s": d_stops, "stops_fitted": n_d, "shape_s": d_shape, "shape_se_s": d_shape_se,
                     "shape_reversals": n_shape,
@@ -1284,7 +1317,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                            "actuator_frames_board_b": act_frames, "refined_frames": ref_frames_raw},
         "pacing": pace,
         "guard": guard,
-        "ringing": {**ring_summary(ref), "onset_ring": onset_ring},
+        "ringing": {**ring_summary(ref), "onset_ring": onset_ring, "ring_from": ring_from},
         "steps": {"reversals_with_step": int(steps.sum()),
                   "median_step_px": float(np.median(ref.step_px[steps])) if steps.any() else 0.0},
         "registration": registration,
