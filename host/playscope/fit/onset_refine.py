@@ -780,11 +780,12 @@ def ring_summary(ref: Refined) -> dict:
     return out
 
 
-def tip_mode(summary: dict) -> tuple:
+def tip_mode(summary: dict, min_share: float = 0.5) -> tuple:
     """The record's tip mode that rings, from pass 1's `ring_summary`: (Hz, decay 1/s), or
-    (0.0, 0.0) where none rings. Kept where over half the fitted reversals ring, the damping ratio
-    is under RING_ZETA_MAX and the frequency within the band searched (RING_HZ). summary: dict
-    with "share", and where over 0, "freq_hz", "decay_per_s", "damping_ratio".
+    (0.0, 0.0) where none rings. Kept where over min_share of the fitted reversals ring (half by
+    default; 0: any, for `robust_samples`' record-level test of a minority ringing), the damping
+    ratio is under RING_ZETA_MAX and the frequency within the band searched (RING_HZ). summary:
+    dict with "share", and where over 0, "freq_hz", "decay_per_s", "damping_ratio".
 
     A heavily damped "ringing" is the change-point model bending its kink to a sine's gradual stop
     (fourth-delay-sine30: 2.5 Hz, zeta 0.74; eleventh-delay-sine60: 3.8 Hz, 0.60; the rendered rings
@@ -797,7 +798,7 @@ def tip_mode(summary: dict) -> tuple:
     polish walked out of it): that is the approach's own curvature (tenth-delay-triangle60-noisy:
     0.74 Hz, 33 px, on a triangle).
     """
-    if not (summary["share"] > 0.5 and summary["damping_ratio"] < RING_ZETA_MAX
+    if not (summary["share"] > min_share and summary["damping_ratio"] < RING_ZETA_MAX
             and summary["freq_hz"] >= RING_HZ[0]):
         return (0.0, 0.0)
     return (summary["freq_hz"], summary["decay_per_s"])
@@ -932,6 +933,14 @@ class RobustOnsets:
     warnings: list
 
 
+def delay_below_zero(d_data: float, ci_hi_s: float, period_s: float) -> bool:
+    """Whether a record's delay d_data (s; NaN: none) is no delay at all: its 95 % interval's top
+    ci_hi_s (s), widened by half a frame period (period_s / 2, the quantisation allowance of
+    `choose_delay`), lies below zero. No tip moves before its motor, so such a figure says the
+    estimator does not describe the record; `choose_delay` does not use it."""
+    return bool(np.isfinite(d_data) and ci_hi_s + period_s / 2.0 < 0.0)
+
+
 def choose_delay(d_data: float, ci_s: tuple[float, float], how: str, t_delay_cfg: float | None, period_s: float,
                  t_delay_from: str = "data") -> tuple[float, str, bool | None, float]:
     """Which t_delay to use: the record's d_data (s; NaN when the record gives none), its 95 %
@@ -955,7 +964,7 @@ def choose_delay(d_data: float, ci_s: tuple[float, float], how: str, t_delay_cfg
     allow = period_s / 2.0
     have = bool(np.isfinite(d_data))
     agree = None
-    if have and ci_s[1] + allow < 0.0:
+    if delay_below_zero(d_data, ci_s[1], period_s):
         if t_delay_cfg is not None:
             return t_delay_cfg, "configured (the record's delay lies below zero beyond its interval and half a frame: " \
                                 "not a delay)", None, allow
@@ -986,12 +995,16 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
        delay, as the board would have run it (the coarse one when none is configured), and
        its threshold from the record (onset_settings.image_onset_settings) unless onset_cfg gives
        one; the rule and its figures are in report["board_threshold"].
-    3. ``refine`` every reversal; t_delay from the approach to each stop with the actuator's
+    3. ``refine`` every reversal (the record's ringing from a first pass on up to 24: kept where
+       over half its reversals ring, or, a tip mode on at least MIN_REFINED, where the onset's
+       ring column wins on the record, ``onset_ring_evidence``; report["ringing"]["ring_from"]);
+       t_delay from the approach to each stop with the actuator's
        shape (``delay_from_shape``; the stop times, ``delay_from_stops``, without 4 reversals
        to fit), or the actuator-shape model's when its B samples are used.
     4. ``choose_delay``: t_delay_from "data" (default): the configured delay unless the record
        disagrees beyond its 95 % interval widened by half a frame period (on a ringing record
-       also by RING_DELAY_SHARE of the ring's period), then the record's;
+       also by RING_DELAY_SHARE of the ring's period), then the record's; a record's delay
+       wholly below zero (``delay_below_zero``) is reported, never used;
        "config": the configured one. A disagreement is a warning either way. A configured
        delay is never needed: without one the record's delay is used.
     5. b = |q(t2 - t_delay) - q1| with sigma_b = |dq/dt| sigma_t2. A reversal the refinement
@@ -1048,7 +1061,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     onset_ring = onset_ring_evidence(t_f, obs, t_stop[sub], t_next[sub], guess[sub], d1, period, ring) \
         if ring[0] > 0 else None
     ring_from = "pass 1, over half the reversals" if ring[0] > 0 else None
-    if ring[0] == 0 and rs["reversals_ringing"] >= MIN_REFINED and tip_mode({**rs, "share": 1.0})[0] > 0:
+    if ring[0] == 0 and rs["reversals_ringing"] >= MIN_REFINED and tip_mode(rs, min_share=0.0)[0] > 0:
         # A mode the onset excites rings after the onset, not after the stop, where a sine or a
         # swing decelerates gradually; pass 1's windows end soon after the onset, so the ring shows
         # on a minority of them, and there the refined onsets took it for a step (15 px on every
@@ -1213,7 +1226,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     # A delay cannot be negative (the stops can say so on a sine): clipped to 0 s where its
     # interval and half a frame reach zero; one that lies wholly below is left as it is, reported
     # and not used (choose_delay).
-    admissible = not (np.isfinite(d_data) and ci_hi + period / 2.0 < 0.0)
+    admissible = not delay_below_zero(d_data, ci_hi, period)
     if np.isfinite(d_data) and d_data < 0 and admissible:
         d_data, ci_lo, ci_hi = 0.0, max(ci_lo, 0.0), max(ci_hi, 0.0)
     if not use_shape:

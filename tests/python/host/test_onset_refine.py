@@ -164,10 +164,26 @@ def test_a_record_delay_wholly_below_zero_does_not_replace_the_configured_one():
     # Without a configured delay, 0 s, said so.
     td, src, agree, _ = R.choose_delay(-0.0385, (-0.0467, -0.0304), "m", None, T)
     assert (td, agree) == (0.0, None) and "below zero" in src
-    # The boundary: the interval's top plus T/2 at zero. Just above, the record is a delay (the
-    # caller clips it to 0 s) and is compared as before: a configured 0.069 s lies outside.
+    # The boundary: the interval's top plus T/2 at zero. Just below, not a delay; just above, a
+    # delay, compared as before (a configured 0.069 s lies outside: replaced; robust_samples
+    # clips such a figure to 0 s before it gets here).
+    assert R.delay_below_zero(-0.03, -T / 2 - 1e-6, T) and not R.delay_below_zero(-0.03, -T / 2 + 1e-6, T)
     assert R.choose_delay(-0.03, (-0.04, -T / 2 - 1e-6), "m", 0.069, T)[:3:2] == (0.069, None)
+    assert R.choose_delay(-0.03, (-0.04, -T / 2 + 1e-6), "m", 0.069, T)[:3:2] == (-0.03, False)
     assert R.choose_delay(0.0, (0.0, 0.0), "m", 0.069, T)[:3:2] == (0.0, False)
+    assert not R.delay_below_zero(float("nan"), float("nan"), T)
+
+
+def test_robust_samples_keeps_the_configured_delay_when_the_record_says_below_zero(monkeypatch):
+    # The plumbing of the rule above: the approach's delay forced to -0.04 s (se 2 ms) on a plain
+    # record (true and configured 0.08 s). Reported as it is, with a warning; the configured delay
+    # used. (Before, clipped to [0, 0] s, it replaced the configured one: t_delay 0 s.)
+    monkeypatch.setattr(R, "delay_from_shape", lambda *a, **k: (-0.04, 0.002, 10))
+    rob, err, sc = refined(seed=0)
+    td = rob.report["t_delay"]
+    assert td["record_s"] == -0.04 and td["record_admissible"] is False and td["agrees_with_configured"] is None
+    assert rob.t_delay_s == sc.t_delay_config == 0.08 and td["used"] == "configured"
+    assert sum("below zero" in w for w in rob.warnings) == 1
 
 
 def test_ringing_reported_and_onsets_not_fooled():
