@@ -1,0 +1,148 @@
+"""The onset scoreboard's renderings (issue 48): 300 FRESH renderings from three renderers
+written apart, drawn and committed before any code of the one-model onset stage.
+
+Each renderer gets 100 rows. Their parameters are drawn, not chosen: a fixed generator
+(numpy default_rng(seed) per renderer, below) draws each row in the plan's order. The ranges
+are the issue's: fps 25, 30 or 60 with capture jitter (the first renderer has a random phase
+and no jitter); swings from slow to the play taken up within one frame; noise 0.05-0.3 px;
+delay 40-200 ms, configured right, wrong by up to 100 ms, or absent; tip modes 2-8 Hz;
+registration flipping by 1-3 deg (about y, or any camera axis where the renderer offers it);
+record lengths 60-150 s.
+
+Categories and limits (the issue's): "none" and "registration" B <= 5 %; "delay" (configured
+wrong, or absent) and "ringing" B <= 10 %; where the configured delay is right, t_delay used
+within 1/8 frame period of the truth. A refusal is a failure.
+
+The renderers:
+  marker    bench/marker_render.py (Scene): constant-speed back-and-forth on a ramp; random
+            camera phase; registration forms rot_distal / rot_motor / channel; ringing after
+            each motor turn.
+  swing     bench/swing_render.py (Rendering): the paper's swings, a sine or a triangle on a
+            ramp; jittered capture; registration about the camera's y axis, flipping 0..reg_lag
+            frames late; a tip mode driven by the bending's acceleration.
+  render_c  bench/render_c.py (Spec): written by a helper session that never read the
+            estimator, the other renderers or this project's simulator; registration about
+            any camera axis.
+
+Rows are (renderer, category, limit %, params dict); `make(row)` builds the renderer's own
+object. This file fixes the draws; the renderers render them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# Per renderer: (generator seed, first rendering seed). New seeds, used by no group before.
+SEEDS = {"marker": (48101, 480001), "swing": (48202, 480201), "render_c": (48303, 480401)}
+
+# 100 rows per renderer: (category, limit %, delay status) x count.
+PLAN = ([("none", 5.0, "right")] * 25 + [("registration", 5.0, "right")] * 25
+        + [("delay", 10.0, "wrong")] * 15 + [("delay", 10.0, "absent")] * 10
+        + [("ringing", 10.0, "right")] * 25)
+
+
+def _delay(g, status: str) -> tuple[float, float | None]:
+    """True delay 40-200 ms; configured right, wrong by 30-100 ms either way (kept >= 0), or None."""
+    d = round(float(g.uniform(0.04, 0.20)), 3)
+    off = float(g.uniform(0.03, 0.10)) * (1.0 if g.uniform() < 0.5 else -1.0)
+    cfg = d + off if d + off >= 0.0 else d - off
+    return d, {"right": d, "wrong": round(cfg, 3), "absent": None}[status]
+
+
+def _marker(g, i: int, cat: str, status: str, seed: int) -> dict:
+    fps = float(g.choice([25.0, 30.0, 60.0]))
+    delay, cfg = _delay(g, status)
+    kw = dict(seed=seed, fps=fps, noise_px=round(float(g.uniform(0.05, 0.3)), 3), t_delay_true=delay,
+              t_delay_config=cfg, B_kind=str(g.choice(["stras", "fig7"])),
+              # 0.4-6 mm/s: at the top, 0.12 mm of play is taken up within a 60 fps frame
+              speed=round(float(np.exp(g.uniform(np.log(0.4), np.log(6.0)))), 3),
+              duration=round(float(g.uniform(60.0, 150.0)), 1))
+    if cat == "registration":
+        kw["form"] = str(g.choice(["rot_distal", "rot_motor", "channel"]))
+        kw["size_deg"] = round(float(g.uniform(1.0, 3.0)), 2)
+    elif cat == "ringing":
+        kw["ring_hz"] = round(float(g.uniform(2.0, 8.0)), 2)
+        kw["ring_zeta"] = round(float(g.uniform(0.03, 0.15)), 3)
+        kw["ring_px"] = round(float(g.uniform(2.0, 12.0)), 1)
+    return kw
+
+
+def _swing(g, i: int, cat: str, status: str, seed: int) -> dict:
+    fps = float(g.choice([25.0, 30.0, 60.0]))
+    shape = str(g.choice(["swings", "swings", "sine", "triangle"]))
+    delay, cfg = _delay(g, status)
+    kw = dict(seed=seed, shape=shape, fps=fps, jitter=round(float(g.uniform(0.1, 0.45)), 2),
+              noise_px=round(float(g.uniform(0.05, 0.3)), 3), delay_s=delay, delay_cfg_s=cfg,
+              b_lo=round(float(g.uniform(0.10, 0.15)), 3), b_hi=round(float(g.uniform(0.22, 0.32)), 3),
+              b_qc=round(float(g.uniform(-0.6, 0.6)), 2), b_w=round(float(g.uniform(0.9, 1.5)), 2),
+              # one swing (or triangle leg) 0.08-1.0 s: from the play taken up within a frame to slow
+              swing_s=round(float(np.exp(g.uniform(np.log(0.08), np.log(1.0)))), 3),
+              duration_s=round(float(g.uniform(60.0, 150.0)), 1))
+    kw["swing_period_s"] = round(max(1.5, 2.5 * kw["swing_s"]), 3)
+    if cat == "registration":
+        kw["reg_deg"] = round(float(g.uniform(1.0, 3.0)), 2)
+        kw["reg_lag"] = round(float(g.uniform(0.0, 1.0)), 2)
+    elif cat == "ringing":
+        kw["ring_hz"] = round(float(g.uniform(2.0, 8.0)), 2)
+        kw["ring_zeta"] = round(float(g.uniform(0.03, 0.15)), 3)
+        kw["ring_px"] = round(float(g.uniform(2.0, 12.0)), 1)
+    return kw
+
+
+def _render_c(g, i: int, cat: str, status: str, seed: int) -> dict:
+    fps = float(g.choice([25.0, 30.0, 60.0]))
+    excitation = str(g.choice(["swings", "swings", "sine", "triangle"]))
+    delay, cfg = _delay(g, status)
+    swing_time = float(np.exp(g.uniform(np.log(0.08), np.log(1.0))))
+    kw = dict(seed=seed, fps=fps, jitter_frac=round(float(g.uniform(0.1, 0.45)), 2), excitation=excitation,
+              swing_mm=round(float(g.uniform(0.35, 0.6)), 3), swing_time_s=round(swing_time, 3),
+              swing_period_s=round(max(1.5, 2.5 * swing_time), 3),
+              duration_s=round(float(g.uniform(60.0, 150.0)), 1),
+              noise_px=round(float(g.uniform(0.05, 0.3)), 3), delay_s=delay, delay_cfg_s=cfg,
+              b_min_mm=round(float(g.uniform(0.10, 0.15)), 3), b_max_mm=round(float(g.uniform(0.22, 0.32)), 3))
+    if cat == "registration":
+        kw["reg_axis"] = str(g.choice(["x", "y", "z"]))
+        kw["reg_deg"] = round(float(g.uniform(1.0, 3.0)), 2)
+    elif cat == "ringing":
+        kw["tip_hz"] = round(float(g.uniform(2.0, 8.0)), 2)
+        kw["tip_zeta"] = round(float(g.uniform(0.03, 0.15)), 3)
+        kw["tip_px"] = round(float(g.uniform(2.0, 12.0)), 1)
+    return kw
+
+
+DRAW = {"marker": _marker, "swing": _swing, "render_c": _render_c}
+
+
+def _rows(renderer: str) -> list:
+    gen_seed, first = SEEDS[renderer]
+    g = np.random.default_rng(gen_seed)
+    out = []
+    for i, (cat, limit, status) in enumerate(PLAN):
+        kw = DRAW[renderer](g, i, cat, status, first + i)
+        name = f"{renderer}-{i:03d}-{cat}" + ("" if cat != "delay" else f"-{status}")
+        out.append((renderer, name, cat, limit, status, kw))
+    return out
+
+
+# The 300 rows, in a fixed order: (renderer, name, category, limit %, delay status, params).
+FRESH_300 = _rows("marker") + _rows("swing") + _rows("render_c")
+
+
+def make(row):
+    """The renderer's own object for a row and its write function: (obj, write(obj, folder),
+    true_B(q) callable, true delay s, configured delay s or None)."""
+    renderer, name, _cat, _limit, _status, kw = row
+    if renderer == "marker":
+        import marker_render as M
+
+        sc = M.Scene(**kw)
+        return sc, M.write, sc.B, sc.t_delay_true, sc.t_delay_config
+    if renderer == "swing":
+        import swing_render as S
+
+        r = S.Rendering(name, **kw)
+        return r, S.write, r.B, r.delay_s, r.delay_cfg_s
+    import render_c as C
+
+    sp = C.Spec(name=name, **kw)
+    return sp, C.write, sp.B, sp.delay_s, sp.delay_cfg_s
