@@ -1,7 +1,7 @@
 """Independent renderer of marker records for checking the onset estimator.
 
 Written apart from playscope: it imports numpy and the standard library only, and shares no
-code with the onset detector, playscope.fit.onset_refine or playscope.sim (a test checks the
+code with the onset detector, playscope.fit.onset_model or playscope.sim (a test checks the
 imports). It writes a session folder in the documented format (docs/session-format.md), so
 the estimator is judged from files, as a user's data would be.
 

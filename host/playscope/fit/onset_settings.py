@@ -163,7 +163,7 @@ def image_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
                          t_f: np.ndarray, obs: np.ndarray, t_delay_s: float, fps: float):
     """Onset threshold of the image (marker, px) detector from the record: the angle rule
     (angle_onset_settings) in 2-D, at the camera's own frame rate. Used by `calibrate` on every
-    image session (onset_refine.robust_samples) unless a threshold is given. On the demo's
+    image session (onset_stage.record_samples) unless a threshold is given. On the demo's
     STRAS-like preset, whose tip creeps through the dead band, it fires earlier on the creep
     than the C detector's automatic threshold did, closer to the first motion: with constant
     transition thresholds that made the compensation worse (0.41 against 0.33 deg); with the

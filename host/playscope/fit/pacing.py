@@ -10,12 +10,14 @@ Q32.32 units per control tick, rounded down; the host passes the same integers.
 
 Used by `playscope simulate` (the default excitation speed), `playscope run-insitu` (the
 virtual board's --exc speed when none is given) and calibrate's "a slower swing would measure
-B better" advice (onset_refine.pacing).
+B better" advice (`pacing`).
 """
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from ..base import native
 
@@ -101,3 +103,22 @@ def paced_exc(exc4: str, b_low: float, b_high: float, fps: float, tick_hz: int =
         raise ValueError(f"excitation {exc4!r} refused by the board (need Q1 > Q0, AMP > ADV > 0, and one tick "
                          f"shorter than a leg at the paced speed)")
     return f"{exc4}:{cfg.v_q32 * tick_hz / 2.0**32:.9g}"
+
+
+def pacing(t_enc: np.ndarray, q: np.ndarray, on, fps: float, t_delay_s: float) -> dict:
+    """How many frames the play takes to take up at the excitation's speed, and the swing speed
+    that would spread it over EXC_PACE_FRAMES frames (the board's pacing rule, playscope.fit.pacing):
+    speed = B_low fps / EXC_PACE_FRAMES,
+    B_low the 10th percentile of the B samples. The actuator speed at each onset is |dq/dt| at
+    t2 - t_delay, in actuator units/s. Returns a JSON-ready dict; frames_to_take_up inf without
+    samples."""
+    frames = pace_frames()
+    if on.b.size == 0:
+        return {"frames_to_take_up": float("inf"), "speed_to_use": float("nan"), "sigma_frame_travel": float("nan"),
+                "frames_wanted": frames}
+    v = np.abs(np.interp(on.t2_s - t_delay_s, t_enc, np.gradient(q, t_enc)))
+    travel = np.maximum(v / fps, 1e-12)  # actuator travel in one frame period at the onset
+    b_low = float(np.percentile(on.b, 10))
+    return {"frames_to_take_up": float(np.median(on.b / travel)), "speed_at_onset_median": float(np.median(v)),
+            "sigma_frame_travel": float(np.median(travel) / np.sqrt(12)), "b_low": b_low,
+            "speed_to_use": b_low * fps / frames, "frames_wanted": frames}

@@ -89,7 +89,7 @@ def test_diary_check_fires_on_a_planted_line(tmp_path):
 
 
 def test_every_file_a_page_names_exists():
-    """A path a page names (`host/playscope/fit/onset_refine.py`, `firmware/core/relax.c`,
+    """A path a page names (`host/playscope/fit/onset_model.py`, `firmware/core/relax.c`,
     `bench/insitu_real.py`, or a package folder-relative `fit/backlash.py`) is a file of the tree:
     a moved module cannot leave a page pointing at nothing."""
     roots = ("host/", "firmware/", "common/", "bench/", "tests/", "tools/", "fuzz/")

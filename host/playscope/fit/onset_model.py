@@ -1,0 +1,769 @@
+"""Eq. 1 from one model of the whole image record (paper section III-A; issue 48).
+
+The marker at frame j, stamped t_j on the encoder's clock, shows the scene at tau_j = t_j - t_delay:
+
+    Q_j = G(z_j) + G'(z_j) (g_stop x_stop(tau_j) + g_start x_start(tau_j))   image path; tip mode
+          + S_tip(tau_j) (D0 + D1 zn_j) + S_motor(tau_j) (E0 + E1 zn_j)          registration terms
+          + e_j                                                                   noise
+
+  z       the play's output (eq. 3): the encoder's q through a play of width B(q), B a cubic
+          B-spline over the travel; z_j = z(tau_j). No pose is estimated: G, a cubic B-spline
+          curve in the image per axis, absorbs f_remain and the camera (eq. 1 needs no pose).
+  x_stop, x_start
+          a damped tip mode (frequency f, damping ratio zeta, shared by the record) driven by the
+          play output's acceleration (base excitation, x'' + 2 zeta w x' + w^2 x = -z''), split
+          into the part that slows the tip (a stop) and the part that starts it (an onset), each
+          with its own gain; along the path's tangent G'.
+  S_tip, S_motor
+          +-1 with the direction the tip (resp. the motor) last moved in: a registration that
+          switches with the bending direction, offset D0 + D1 zn (zn: z scaled to [-1, 1]; a
+          rotation about the optical axis moves the offset along the path). A registration that
+          follows the image can switch only once a frame shows the reversal, so within one frame
+          period of it; with the switch time unknown and uniform there, a frame in that period
+          carries the switch's expected share (a linear ramp over the period).
+  e_j     Huber noise (k = 1.345 sigma, 95 % efficiency at the Gaussian; Huber 1964), sigma the
+          record's robust residual scale, by iteratively reweighted least squares.
+
+Fit: variable projection (Golub & Pereyra 1973): G, the gains and the registration offsets are
+linear and solved exactly for each value of the nonlinear parameters theta = (t_delay, B's
+coefficients[, log f, zeta]), which scipy.optimize.least_squares fits (trust-region reflective,
+forward-difference Jacobian). The configured delay enters as a Gaussian prior of sd one frame
+period / sqrt(12) (a delay measured in whole frames is known to that), not as a value a rule
+overrides. Start: the coarse delay (delay_guess) and the configured one, each with the constant
+play width that fits best; the board's plain eq. 1 samples are a third start when given.
+
+Terms by evidence: the tip mode and each registration term enter when they lower the record's
+BIC (Schwarz 1978) on the robust objective at the base model's sigma, the same criterion for
+each; the search adds the best term, refits, and tries the rest again.
+
+Eq. 1's samples are then read off the fitted model: after each reversal (t1, q1), the instant t2
+the play output starts to move, b = |q(t2) - q1|, with its standard error from the fit's
+covariance.
+
+Units: t in s, q and B in actuator units, image points in px.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.optimize import least_squares
+from scipy.signal import lfilter
+
+HUBER_K = 1.345        # Huber's tuning constant, in sigma (95 % efficiency at the Gaussian; Huber 1964)
+GRID_HZ_MAX = 1000.0   # the play runs on a uniform grid at the encoder's rate, at most this (1 ms timing)
+RING_HZ_LO = 1.0       # the tip mode searched from this (Hz) ...
+RING_NYQUIST = 0.45    # ... to this share of the frame rate (below Nyquist, with the exposure's margin)
+G_CTRL = (6, 10, 14)   # the image path's coefficients per axis, chosen by BIC on the start
+B_REV_PER_CTRL = 4     # B(q) gets one coefficient per this many reversals (a cubic's support spans 4 spans) ...
+B_CTRL_MAX = 10        # ... and at most this many
+IRLS_ROUNDS = 3        # reweightings of the Huber fit (the weights settle in 2-3 on every record tried)
+TERMS = ("ring", "reg_tip", "reg_motor")
+
+
+@dataclass
+class Record:
+    """What the model sees. t (N,) s uniform scene grid, q (N,) on it; t_f (F,) s frame stamps,
+    obs (F, 2) px (finite rows only); rt, rq (M,) reversals, s_new (M,) the motor's new direction
+    (+1 / -1), i1 (M,) their grid index; period_s the frame period."""
+
+    t: np.ndarray
+    q: np.ndarray
+    t_f: np.ndarray
+    obs: np.ndarray
+    rt: np.ndarray
+    rq: np.ndarray
+    s_new: np.ndarray
+    i1: np.ndarray
+    period_s: float
+
+    @property
+    def dt(self) -> float:
+        return float(self.t[1] - self.t[0])
+
+
+def make_record(t_enc, q, rt, rq, t_f, obs, fps: float) -> Record:
+    """Resample the encoder onto a uniform grid at its own median rate (at most GRID_HZ_MAX) and
+    keep the finite frames. Shapes as in Record. Errors: ValueError with fewer than 2 reversals
+    or 20 frames."""
+    t_enc, q = np.asarray(t_enc, float), np.asarray(q, float)
+    ok = np.all(np.isfinite(obs), axis=1)
+    if rt.size < 2 or ok.sum() < 20:
+        raise ValueError(f"the record model needs >= 2 reversals and 20 frames ({rt.size}, {int(ok.sum())})")
+    rate = min(GRID_HZ_MAX, 1.0 / float(np.median(np.diff(t_enc))))
+    t = np.arange(t_enc[0], t_enc[-1], 1.0 / rate)
+    qg = np.interp(t, t_enc, q)
+    i1 = np.clip(np.searchsorted(t, rt), 1, t.size - 2)
+    s_new = -np.sign(rq - np.interp(rt - 0.05, t_enc, q))
+    s_new[s_new == 0] = 1.0
+    return Record(t, qg, np.asarray(t_f, float)[ok], np.asarray(obs, float)[ok], np.asarray(rt, float),
+                  np.asarray(rq, float), s_new, i1, 1.0 / fps)
+
+
+def _basis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
+    """Cubic clamped B-spline basis (len(x), n) on [lo, hi] (dense; x clipped into the range)."""
+    inner = np.linspace(lo, hi, n - 2)
+    knots = np.r_[[lo] * 3, inner, [hi] * 3]
+    xc = np.clip(x, lo, np.nextafter(hi, -np.inf))
+    return BSpline.design_matrix(xc, knots, 3).toarray()
+
+
+def _sparse_basis(x: np.ndarray, lo: float, hi: float, n: int):
+    """`_basis` as a CSR matrix (4 non-zeros a row): the play's width over the whole grid."""
+    inner = np.linspace(lo, hi, n - 2)
+    knots = np.r_[[lo] * 3, inner, [hi] * 3]
+    return BSpline.design_matrix(np.clip(x, lo, np.nextafter(hi, -np.inf)), knots, 3).tocsr()
+
+
+def _dbasis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
+    """Derivative of `_basis` with respect to x, (len(x), n)."""
+    inner = np.linspace(lo, hi, n - 2)
+    knots = np.r_[[lo] * 3, inner, [hi] * 3]
+    xc = np.clip(x, lo, np.nextafter(hi, -np.inf))
+    return np.column_stack([BSpline(knots, np.eye(n)[i], 3).derivative()(xc) for i in range(n)])
+
+
+def _play(lo: np.ndarray, hi: np.ndarray, z0: float) -> np.ndarray:
+    from ..diagnose import kernels
+
+    if kernels.available():
+        return kernels.play_on_edges(lo, hi, z0)
+    from .model import play_on_edges
+
+    return play_on_edges(lo, hi, z0)
+
+
+def _tip_mode(u: np.ndarray, f_hz: float, zeta: float, dt: float) -> np.ndarray:
+    """Response x of x'' + 2 zeta w x' + w^2 x = u (u sampled every dt), by impulse invariance:
+    h[n] = r^n sin(n theta) / w_d, r = exp(-zeta w dt), theta = w_d dt."""
+    w = 2 * np.pi * f_hz
+    wd = w * np.sqrt(max(1.0 - zeta * zeta, 1e-6))
+    r, th = np.exp(-zeta * w * dt), wd * dt
+    return lfilter([0.0, dt * r * np.sin(th) / wd], [1.0, -2 * r * np.cos(th), r * r], u)
+
+
+def _ramp_sign(tau: np.ndarray, t_ev: np.ndarray, s_ev: np.ndarray, s0: float, T: float) -> np.ndarray:
+    """+-1 held between events, switching to s_ev[k] over [t_ev[k], t_ev[k] + T] linearly (the
+    switch's expected share in a frame period that may or may not have seen it). t_ev increasing."""
+    if t_ev.size == 0:
+        return np.full(tau.size, s0)
+    tk = np.column_stack([t_ev, t_ev + T]).ravel()
+    prev = np.r_[s0, s_ev[:-1]]
+    vk = np.column_stack([prev, s_ev]).ravel()
+    tk = np.maximum.accumulate(tk + np.arange(tk.size) * 1e-12)  # strictly increasing for interp
+    return np.interp(tau, tk, vk, left=s0, right=s_ev[-1])
+
+
+@dataclass
+class Terms:
+    ring: bool = False
+    reg_tip: bool = False
+    reg_motor: bool = False
+
+    def names(self) -> list[str]:
+        return [n for n in TERMS if getattr(self, n)]
+
+    def with_(self, name: str) -> "Terms":
+        d = {n: getattr(self, n) for n in TERMS}
+        d[name] = True
+        return Terms(**d)
+
+
+@dataclass
+class Eval:
+    """One evaluation of the model at theta: residuals (2F,) px (u then v), the onsets t_on (M,)
+    scene s (NaN: the play not taken up before the next reversal), beta the linear parameters."""
+
+    resid: np.ndarray
+    t_on: np.ndarray
+    beta: np.ndarray
+    cols: dict
+    z_f: np.ndarray
+    state: dict
+
+
+class RecordModel:
+    """The model of one record for given terms, B and G sizes (module doc). theta = [t_delay,
+    B coefficients (n_b)[, log f_hz, zeta]]."""
+
+    def __init__(self, rec: Record, n_b: int, n_g: int, terms: Terms, prior: tuple[float, float] | None,
+                 d_fixed: float | None = None):
+        self.rec, self.n_b, self.n_g, self.terms = rec, n_b, n_g, terms
+        self.prior, self.d_fixed = prior, d_fixed
+        q = rec.q
+        self.q_lo, self.q_hi = float(q.min()), float(q.max())
+        span = self.q_hi - self.q_lo
+        self.Phi_B = _sparse_basis(q, self.q_lo, self.q_hi, n_b) if n_b > 1 else None
+        self.z_lo, self.z_hi = self.q_lo - 0.25 * span, self.q_hi + 0.25 * span
+        self.w = np.ones(2 * rec.t_f.size)  # IRLS weights
+        self.slope = None  # G' at the frames from the previous round: (F, 2), for the ring's direction
+
+    # ---- theta layout: [t_delay, B's coefficients (n_b)[, log f_hz, zeta][, lag_tip][, lag_motor]]
+    def layout(self) -> dict[str, slice]:
+        """Where each named part of theta sits."""
+        out, i = {"d": slice(0, 1), "B": slice(1, 1 + self.n_b)}, 1 + self.n_b
+        for name, size, on in (("ring", 2, self.terms.ring), ("lag_tip", 1, self.terms.reg_tip),
+                               ("lag_motor", 1, self.terms.reg_motor)):
+            if on:
+                out[name], i = slice(i, i + size), i + size
+        return out
+
+    def n_theta(self) -> int:
+        return max(sl.stop for sl in self.layout().values())
+
+    def theta(self, parts: dict) -> np.ndarray:
+        """theta from named parts; a part not given starts at the tip mode (3 Hz, zeta 0.1) or a
+        switch lag of half a frame period (the middle of its range)."""
+        th = np.empty(self.n_theta())
+        dflt = {"ring": np.array([np.log(3.0), 0.1]), "lag_tip": np.array([0.5 * self.rec.period_s]),
+                "lag_motor": np.array([0.5 * self.rec.period_s])}
+        for name, sl in self.layout().items():
+            th[sl] = parts[name] if name in parts else dflt[name]
+        return th
+
+    def parts(self, th: np.ndarray) -> dict:
+        return {name: np.array(th[sl]) for name, sl in self.layout().items()}
+
+    def unpack(self, th: np.ndarray):
+        """(t_delay s, B's coefficients, (f_hz, zeta) or None, {"tip": L, "motor": L} s), each
+        clipped into its admissible region (LM is unbounded): d >= 0, B >= 0, the tip mode in its
+        band, a switch lag L in [T / 20, T] (a switch the registration makes within a frame of the
+        reversal it follows; T / 20, a step to the frame's resolution)."""
+        lay = self.layout()
+        d = self.d_fixed if self.d_fixed is not None else max(float(th[0]), 0.0)
+        cB = np.maximum(th[lay["B"]], 0.0)
+        ring = None
+        if "ring" in lay:
+            f_hi = RING_NYQUIST / self.rec.period_s
+            lf, z = th[lay["ring"]]
+            ring = (float(np.clip(np.exp(lf), RING_HZ_LO, f_hi)), float(np.clip(z, 0.005, 0.7)))
+        T = self.rec.period_s
+        lags = {n: float(np.clip(th[lay["lag_" + n]][0], T / 20, T)) for n in ("tip", "motor") if "lag_" + n in lay}
+        return float(d), cB, ring, lags
+
+    def B_of(self, cB: np.ndarray, q: np.ndarray) -> np.ndarray:
+        if self.n_b == 1:
+            return np.full(np.shape(q), float(cB[0]))
+        return _basis(np.asarray(q, float), self.q_lo, self.q_hi, self.n_b) @ cB
+
+    # ---- forward model
+    def play(self, cB: np.ndarray, edges: bool = False):
+        """z on the grid (N,) for B's coefficients cB; with edges, also (lo, hi) (N,) each."""
+        rec = self.rec
+        B = np.maximum(self.Phi_B @ cB if self.Phi_B is not None else np.full(rec.q.size, cB[0]), 0.0)
+        lo, hi = rec.q - 0.5 * B, rec.q + 0.5 * B
+        z = _play(lo, hi, float(rec.q[0]))
+        return (z, lo, hi) if edges else z
+
+    def onsets(self, z: np.ndarray) -> np.ndarray:
+        """Scene time (M,) at which z starts to move after each reversal (linear within the grid
+        step), NaN when it does not before the next reversal."""
+        rec = self.rec
+        mv = np.flatnonzero(z[1:] != z[:-1]) + 1
+        out = np.full(rec.rt.size, np.nan)
+        if mv.size == 0:
+            return out
+        nxt = np.r_[rec.i1[1:], rec.t.size]
+        # the hold starts at the reversal; the first move after the grid point past it
+        k = np.searchsorted(mv, rec.i1 + 1)
+        has = k < mv.size
+        kk = mv[np.minimum(k, mv.size - 1)]
+        has &= kk < nxt
+        dz = np.abs(z[kk] - z[kk - 1])
+        dq = np.maximum(np.abs(rec.q[kk] - rec.q[kk - 1]), 1e-15)
+        t_on = rec.t[kk] - rec.dt * np.clip(dz / dq, 0.0, 1.0)
+        out[has] = t_on[has]
+        return out
+
+    def columns(self, th: np.ndarray) -> tuple[dict, np.ndarray, np.ndarray, dict]:
+        """The linear model's columns at theta: {"G": (F, n_g), "ring": [(F,) x 2] or absent,
+        "tip": (F, 2), "motor": (F, 2)}, the onsets t_on (M,), z at the frames (F,) and what
+        `jacobian` needs (a dict)."""
+        rec = self.rec
+        d, cB, ring, lags = self.unpack(th)
+        z, lo, hi = self.play(cB, edges=True)
+        t_on = self.onsets(z)
+        tau = rec.t_f - d
+        z_f = np.interp(tau, rec.t, z)
+        cols = {"G": _basis(z_f, self.z_lo, self.z_hi, self.n_g)}
+        zn = (2 * z_f - (self.q_lo + self.q_hi)) / max(self.q_hi - self.q_lo, 1e-12)
+        T = rec.period_s
+        st = {"z": z, "lo": lo, "hi": hi, "tau": tau, "zn": zn, "ring": ring}
+        if self.terms.ring:
+            v = np.diff(z) / rec.dt
+            a = np.diff(v) / rec.dt
+            stop = a * v[:-1] < 0.0  # slowing the tip down (a stop); the rest starts it
+            st["u"] = [np.where(m, -a, 0.0) for m in (stop, ~stop)]
+            st["x"] = [_tip_mode(u, ring[0], ring[1], rec.dt) for u in st["u"]]
+            cols["ring"] = [np.interp(tau, rec.t[1:-1], x) for x in st["x"]]
+        if self.terms.reg_tip:
+            ok = np.isfinite(t_on)
+            s_ev = rec.s_new[ok]
+            keep = np.r_[True, s_ev[1:] != s_ev[:-1]]  # a direction the tip already moves in is no switch
+            s0 = -s_ev[0] if s_ev.size else 1.0
+            t_ev, s_ev, r_ev = t_on[ok][keep], s_ev[keep], np.flatnonzero(ok)[keep]
+            S = _ramp_sign(tau, t_ev, s_ev, s0, lags["tip"])
+            cols["tip"] = np.column_stack([S, S * zn])
+            st["tip"] = (S, t_ev, s_ev, np.r_[s0, s_ev[:-1]], lags["tip"], r_ev)
+        if self.terms.reg_motor:
+            s0 = -rec.s_new[0]
+            S = _ramp_sign(tau, rec.rt, rec.s_new, s0, lags["motor"])
+            cols["motor"] = np.column_stack([S, S * zn])
+            st["motor"] = (S, rec.rt, rec.s_new, np.r_[s0, rec.s_new[:-1]], lags["motor"])
+        return cols, t_on, z_f, st
+
+    def solve(self, cols: dict) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted least squares of the stacked [u; v] on the columns, by the normal equations
+        (the B-spline and sign columns are well conditioned; a 1e-10 relative ridge keeps an
+        absent column's zero pivot harmless): (beta, residuals (2F,))."""
+        o = self.rec.obs
+        F = o.shape[0]
+        A1 = np.hstack([cols["G"]] + [cols[k] for k in ("tip", "motor") if k in cols])
+        p = A1.shape[1]
+        wu, wv = self.w[:F], self.w[F:]
+        ring = []
+        if "ring" in cols:
+            sl = self.slope if self.slope is not None else np.zeros((F, 2))
+            ring = [(sl[:, 0] * x, sl[:, 1] * x) for x in cols["ring"]]
+        P = 2 * p + len(ring)
+        M = np.zeros((P, P))
+        rhs = np.zeros(P)
+        M[:p, :p] = A1.T @ (wu[:, None] * A1)
+        M[p:2 * p, p:2 * p] = A1.T @ (wv[:, None] * A1)
+        rhs[:p] = A1.T @ (wu * o[:, 0])
+        rhs[p:2 * p] = A1.T @ (wv * o[:, 1])
+        for i, (ru, rv) in enumerate(ring):
+            k = 2 * p + i
+            M[:p, k] = M[k, :p] = A1.T @ (wu * ru)
+            M[p:2 * p, k] = M[k, p:2 * p] = A1.T @ (wv * rv)
+            for j, (su, sv) in enumerate(ring):
+                M[k, 2 * p + j] = np.sum(wu * ru * su) + np.sum(wv * rv * sv)
+            rhs[k] = np.sum(wu * ru * o[:, 0]) + np.sum(wv * rv * o[:, 1])
+        M[np.diag_indices(P)] += 1e-10 * (np.trace(M) / P + 1e-30)
+        beta = np.linalg.solve(M, rhs)
+        fu = A1 @ beta[:p] + sum(b * r[0] for b, r in zip(beta[2 * p:], ring))
+        fv = A1 @ beta[p:2 * p] + sum(b * r[1] for b, r in zip(beta[2 * p:], ring))
+        self._lin = (A1, ring, M, p)
+        return beta, np.r_[o[:, 0] - fu, o[:, 1] - fv]
+
+    def project(self, Gu: np.ndarray, Gv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(I - A (A'WA)^-1 A'W) applied to the stacked columns [Gu; Gv] ((F, k) each), A and W
+        those of the last `solve`: the part of a change of the prediction the linear
+        parameters cannot take up (variable projection)."""
+        A1, ring, M, p = self._lin
+        F = A1.shape[0]
+        wu, wv = self.w[:F, None], self.w[F:, None]
+        rhs = [A1.T @ (wu * Gu), A1.T @ (wv * Gv)]
+        rhs += [(wu[:, 0] * ru) @ Gu + (wv[:, 0] * rv) @ Gv for ru, rv in ring]
+        X = np.linalg.solve(M, np.vstack([np.atleast_2d(r) for r in rhs]))
+        Au = A1 @ X[:p] + sum(np.outer(ru, X[2 * p + i]) for i, (ru, _) in enumerate(ring))
+        Av = A1 @ X[p:2 * p] + sum(np.outer(rv, X[2 * p + i]) for i, (_, rv) in enumerate(ring))
+        return Gu - Au, Gv - Av
+
+    def jacobian(self, th: np.ndarray, ev: "Eval", sigma: float) -> np.ndarray:
+        """d residual / d theta (2F [+ 1 prior row], n_theta) of `_residual_fn`'s residuals, by
+        Kaufman's variable-projection Jacobian (Kaufman 1975, BIT 15: the prediction's
+        derivative at fixed linear parameters, projected off the linear columns). The play's
+        derivative: z moves with the band edge that last dragged it, dz/dc_i = -+ phi_i(q) / 2 at
+        that sample; an onset moves by (dz_hold/dc_i + s phi_i(q_on) / 2) / q'(t_on) (s: the new
+        direction); the delay moves every frame's tau by -dd. The tip mode's response to B is
+        left out (it changes the ring by a part in B's share of the drive; the fit's steps see it)
+        and its frequency and damping are differenced. Same units as the residuals (sigma)."""
+        rec, st = self.rec, ev.state
+        d, cB, ring, lags = self.unpack(th)
+        lay = self.layout()
+        z, tau, zn = st["z"], st["tau"], st["zn"]
+        F = tau.size
+        A1, rcols, M, p = self._lin
+        beta = ev.beta
+        bu, bv, gr = beta[:p], beta[p:2 * p], beta[2 * p:]
+        ng = self.n_g
+        dzn = 2.0 / max(self.q_hi - self.q_lo, 1e-12)
+        dBas = _dbasis(ev.z_f, self.z_lo, self.z_hi, ng)
+        dz_u, dz_v = dBas @ bu[:ng], dBas @ bv[:ng]          # dP/dz at fixed beta
+        off = ng
+        reg = {}
+        for name in ("tip", "motor"):
+            if name in st:
+                S = st[name][0]
+                dz_u = dz_u + S * bu[off + 1] * dzn
+                dz_v = dz_v + S * bv[off + 1] * dzn
+                reg[name] = (bu[off] + bu[off + 1] * zn, bv[off] + bv[off + 1] * zn)
+                off += 2
+        dt = rec.dt
+        zdot = np.interp(tau, rec.t[:-1] + 0.5 * dt, np.diff(z) / dt)
+        Gu = np.zeros((F, th.size))
+        Gv = np.zeros((F, th.size))
+        # the delay: tau = t_f - d
+        Gu[:, 0] = -dz_u * zdot
+        Gv[:, 0] = -dz_v * zdot
+        if self.terms.ring:
+            sl = self.slope
+            for k, x in enumerate(st["x"]):
+                xdot = np.interp(tau, rec.t[1:-2] + 0.5 * dt, np.diff(x) / dt)
+                Gu[:, 0] -= sl[:, 0] * gr[k] * xdot
+                Gv[:, 0] -= sl[:, 1] * gr[k] * xdot
+        ramps = {}
+        for name, val in reg.items():
+            t_ev, s_ev, s_prev, L = st[name][1:5]
+            e = np.searchsorted(t_ev, tau, side="right") - 1
+            e0 = np.maximum(e, 0)
+            inr = (e >= 0) & (tau < t_ev[e0] + L)
+            dS = np.where(inr, (s_ev[e0] - s_prev[e0]) / L, 0.0)     # dS / dtau inside a switch
+            Gu[:, 0] -= dS * val[0]
+            Gv[:, 0] -= dS * val[1]
+            dL = -dS * np.where(inr, tau - t_ev[e0], 0.0) / L         # dS / dL
+            i = lay["lag_" + name].start
+            Gu[:, i] = dL * val[0]
+            Gv[:, i] = dL * val[1]
+            ramps[name] = (e, inr, dS)
+        # B's coefficients: through z at each frame (the last drag), and the tip switch's onsets
+        drag = (z == st["lo"]) | (z == st["hi"])
+        last = np.maximum.accumulate(np.where(drag, np.arange(z.size), 0))
+        side = np.where(z == st["lo"], -0.5, 0.5)
+        k_f = np.clip(np.searchsorted(rec.t, tau), 0, z.size - 1)
+        lk = last[k_f]
+        Phi = self.Phi_B
+        Zc = (Phi[lk].toarray() if Phi is not None else np.ones((F, 1))) * side[lk][:, None]
+        sl_b = slice(1, 1 + self.n_b)
+        Gu[:, sl_b] = dz_u[:, None] * Zc
+        Gv[:, sl_b] = dz_v[:, None] * Zc
+        if "tip" in ramps:
+            e, inr, dS = ramps["tip"]
+            r_ev = st["tip"][5]
+            kk = np.clip(np.searchsorted(rec.t, st["tip"][1]), 1, z.size - 1)
+            lh = last[kk - 1]
+            phi_on = Phi[kk].toarray() if Phi is not None else np.ones((kk.size, 1))
+            phi_h = (Phi[lh].toarray() if Phi is not None else np.ones((kk.size, 1))) * side[lh][:, None]
+            qdot = (rec.q[kk] - rec.q[kk - 1]) / dt
+            qdot = np.where(np.abs(qdot) > 1e-12, qdot, 1e-12)
+            dton = (phi_h + rec.s_new[r_ev][:, None] * 0.5 * phi_on) / qdot[:, None]   # (E, n_b)
+            fr = np.flatnonzero(inr)
+            val = reg["tip"]
+            Gu[fr, sl_b] += (-dS[fr] * val[0][fr])[:, None] * dton[e[fr]]
+            Gv[fr, sl_b] += (-dS[fr] * val[1][fr])[:, None] * dton[e[fr]]
+        if self.terms.ring:
+            sl = self.slope
+            i0 = lay["ring"].start
+            for j, h in enumerate((0.01, 0.005)):
+                f2 = (ring[0] * np.exp(h), ring[1]) if j == 0 else (ring[0], ring[1] + h)
+                for k, u in enumerate(st["u"]):
+                    dx = (np.interp(tau, rec.t[1:-1], _tip_mode(u, f2[0], f2[1], dt)) - ev.cols["ring"][k]) / h
+                    Gu[:, i0 + j] += sl[:, 0] * gr[k] * dx
+                    Gv[:, i0 + j] += sl[:, 1] * gr[k] * dx
+        if self.d_fixed is not None:
+            Gu[:, 0] = Gv[:, 0] = 0.0
+        Pu, Pv = self.project(Gu, Gv)
+        sw = np.sqrt(self.w)
+        J = -sw[:, None] * np.vstack([Pu, Pv]) / sigma
+        if self.prior is not None and self.d_fixed is None:
+            prow = np.zeros((1, th.size))
+            prow[0, 0] = 1.0 / self.prior[1]
+            J = np.vstack([J, prow])
+        return J
+
+    def evaluate(self, th: np.ndarray) -> Eval:
+        cols, t_on, z_f, st = self.columns(th)
+        beta, r = self.solve(cols)
+        return Eval(r, t_on, beta, cols, z_f, st)
+
+    def n_linear(self) -> int:
+        per = self.n_g + (2 if self.terms.reg_tip else 0) + (2 if self.terms.reg_motor else 0)
+        return 2 * per + (2 if self.terms.ring else 0)
+
+    def G_slope(self, ev: Eval) -> np.ndarray:
+        """G'(z) at the frames (F, 2), px per actuator unit, from an evaluation's beta."""
+        p = ev.cols["G"].shape[1] + sum(ev.cols[k].shape[1] for k in ("tip", "motor") if k in ev.cols)
+        dB = _dbasis(ev.z_f, self.z_lo, self.z_hi, self.n_g)
+        return np.column_stack([dB @ ev.beta[:self.n_g], dB @ ev.beta[p:p + self.n_g]])
+
+
+def huber_weights(r: np.ndarray, sigma: float) -> np.ndarray:
+    """IRLS weights psi(r)/r of Huber's loss at k = HUBER_K sigma."""
+    a = np.abs(r) / (HUBER_K * sigma)
+    return np.where(a <= 1.0, 1.0, 1.0 / np.maximum(a, 1e-12))
+
+
+def huber_rho(r: np.ndarray, sigma: float) -> np.ndarray:
+    """Huber's loss of r / sigma (quadratic to HUBER_K, linear beyond), in squared-sigma units / 2."""
+    a = np.abs(r) / sigma
+    return np.where(a <= HUBER_K, 0.5 * a * a, HUBER_K * a - 0.5 * HUBER_K ** 2)
+
+
+def noise_sigma(obs: np.ndarray) -> float:
+    """The marker's noise per axis (px), model-free: 1.4826 MAD of the second differences of
+    consecutive frames over sqrt(6) (white noise e gives Var(e[j+1] - 2 e[j] + e[j-1]) = 6 Var e;
+    the motion's own curvature is small between frames on most of a record, and the MAD ignores
+    the rest). Pooled over both axes."""
+    d2 = np.diff(obs, 2, axis=0).ravel()
+    return float(1.4826 * np.median(np.abs(d2)) / np.sqrt(6.0)) + 1e-9
+
+
+def robust_sigma(r: np.ndarray) -> float:
+    """1.4826 MAD: the Gaussian-consistent robust scale."""
+    return float(1.4826 * np.median(np.abs(r - np.median(r)))) + 1e-9
+
+
+@dataclass
+class Fit:
+    model: RecordModel
+    theta: np.ndarray
+    ev: Eval
+    sigma: float
+    cost: float          # sum of Huber rho at sigma (plus the prior's half square)
+    jac: np.ndarray | None = None
+    info: dict = field(default_factory=dict)
+
+    def bic(self, sigma: float) -> float:
+        """BIC on the robust objective at a common sigma: 2 sum rho(r / sigma) + k ln n."""
+        m = self.model
+        n = self.ev.resid.size
+        k = m.n_theta() - (1 if m.d_fixed is not None else 0) + m.n_linear()
+        return 2.0 * float(np.sum(huber_rho(self.ev.resid, sigma))) + k * np.log(n)
+
+
+def _steps(m: RecordModel, th: np.ndarray) -> np.ndarray:
+    """Forward-difference steps (the reference `jacobian` is checked against): t_delay T/16; B
+    coefficients 2 % of the mean width, at least the travel of two grid steps at the record's
+    median speed; log f 0.01; zeta 0.005; switch lags T/40."""
+    rec = m.rec
+    v = float(np.median(np.abs(np.diff(rec.q)))) / rec.dt
+    hb = max(0.02 * float(np.mean(np.abs(th[1:1 + m.n_b]))), 2 * v * rec.dt, 1e-6)
+    h = [rec.period_s / 16] + [hb] * m.n_b
+    if m.terms.ring:
+        h += [0.01, 0.005]
+    h += [rec.period_s / 40] * (m.terms.reg_tip + m.terms.reg_motor)
+    return np.array(h)
+
+
+def _residual_fn(m: RecordModel, sigma: float):
+    """theta -> weighted residuals in sigma units (and the delay prior), for least_squares."""
+    sw = np.sqrt(m.w)
+    cache = {}
+
+    def fun(th):
+        key = th.tobytes()
+        if key not in cache:
+            ev = m.evaluate(th)
+            r = sw * ev.resid / sigma
+            if m.prior is not None and m.d_fixed is None:
+                r = np.r_[r, (th[0] - m.prior[0]) / m.prior[1]]
+            cache.clear()
+            cache[key] = r
+        return cache[key]
+
+    return fun
+
+
+def _jac(m: RecordModel, fun, th: np.ndarray, r0: np.ndarray) -> np.ndarray:
+    h = _steps(m, th)
+    J = np.empty((r0.size, th.size))
+    for i in range(th.size):
+        if i == 0 and m.d_fixed is not None:
+            J[:, 0] = 0.0
+            continue
+        t2 = th.copy()
+        t2[i] += h[i]
+        J[:, i] = (fun(t2) - r0) / h[i]
+    return J
+
+
+def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_nfev: int = 20,
+              rounds: int = IRLS_ROUNDS) -> Fit:
+    """Huber fit of the model from th0 by IRLS rounds of least_squares (Levenberg-Marquardt,
+    MINPACK; the model clips theta into its admissible region: d >= 0, B >= 0, the tip mode in
+    its band). sigma: the scale (None: from the first round's residuals, 1.4826 MAD). Returns Fit."""
+    th = np.array(th0, float)
+    ev = m.evaluate(th)
+    if m.terms.ring:
+        m.slope = m.G_slope(ev)
+    sig = sigma if sigma is not None else robust_sigma(ev.resid)
+    nfev = 0
+    for rnd in range(rounds):
+        m.w = huber_weights(ev.resid, sig)
+        fun = _residual_fn(m, sig)
+        free = np.arange(th.size) if m.d_fixed is None else np.arange(1, th.size)
+        full = th.copy()
+
+        def f_free(x, full=full, free=free, fun=fun):
+            full[free] = x
+            return fun(full)
+
+        def j_free(x, full=full, free=free, sig=sig):
+            full[free] = x
+            return m.jacobian(full, m.evaluate(full), sig)[:, free]
+
+        res = least_squares(f_free, th[free], jac=j_free, method="lm", max_nfev=max_nfev, xtol=1e-6, ftol=1e-8)
+        th[free] = res.x
+        nfev += res.nfev
+        ev = m.evaluate(th)
+        if m.terms.ring:
+            m.slope = m.G_slope(ev)
+            ev = m.evaluate(th)
+        if sigma is None and rnd == 0:
+            sig = robust_sigma(ev.resid)
+    m.w = huber_weights(ev.resid, sig)
+    ev = m.evaluate(th)
+    cost = float(np.sum(huber_rho(ev.resid, sig)))
+    if m.prior is not None and m.d_fixed is None:
+        cost += 0.5 * float(((th[0] - m.prior[0]) / m.prior[1]) ** 2)
+    f = Fit(m, th, ev, sig, cost, info={"nfev": nfev})
+    f.jac = m.jacobian(th, ev, sig)
+    return f
+
+
+# --------------------------------------------------------------------------- the start
+def _n_b(n_rev: int) -> int:
+    return int(np.clip(n_rev // B_REV_PER_CTRL, 1, B_CTRL_MAX))
+
+
+def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarray | None,
+           sigma: float) -> tuple[dict, int]:
+    """The start: for each delay candidate, each constant width (12 log-spaced in 2 %..100 % of
+    the median swing between reversals, and the board's median sample when given) and each set of
+    the linear registration terms (none, tip, motor: cheap, and a switch left out of the start
+    drags the width), the lowest BIC at sigma; then G's size by BIC there. The terms themselves
+    are chosen later, on B(q) as a spline (at a constant width, a tip-registration offset takes
+    up B's own variation over the travel); each registration term's own best start is kept for
+    when the search tries it. Returns ({term names (tuple): (t_delay, width)}, n_g)."""
+    swing = float(np.median(np.abs(np.diff(rec.rq)))) if rec.rq.size > 1 else float(np.ptp(rec.q))
+    widths = list(swing * np.geomspace(0.02, 1.0, 12))
+    if board_b is not None and board_b.size:
+        widths.append(float(np.median(board_b)))
+    best = {}
+    for terms in (Terms(), Terms(reg_tip=True), Terms(reg_motor=True)):
+        m = RecordModel(rec, 1, G_CTRL[1], terms, prior, d_fixed)
+        for d in d_starts:
+            for b in widths:
+                ev = m.evaluate(m.theta({"d": np.array([d]), "B": np.array([b])}))
+                c = 2 * float(np.sum(huber_rho(ev.resid, sigma))) + m.n_linear() * np.log(ev.resid.size)
+                key = tuple(terms.names())
+                if key not in best or c < best[key][0]:
+                    best[key] = (c, d, b)
+    _, d, b = min(best.values())
+    bics = []
+    for n_g in G_CTRL:
+        m = RecordModel(rec, 1, n_g, Terms(), prior, d_fixed)
+        ev = m.evaluate(m.theta({"d": np.array([d]), "B": np.array([b])}))
+        bics.append(2 * float(np.sum(huber_rho(ev.resid, sigma))) + m.n_linear() * np.log(ev.resid.size))
+    return {k: v[1:] for k, v in best.items()}, G_CTRL[int(np.argmin(bics))]
+
+
+def _ring_start(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
+    """The tip mode's start for model m (with the ring term) from the other parts of theta: the
+    frequency (0.25 Hz steps, RING_HZ_LO to RING_NYQUIST fps, damping ratio 0.1) with the lowest
+    robust cost."""
+    fs = np.arange(RING_HZ_LO, RING_NYQUIST / m.rec.period_s, 0.25)
+    m.slope = m.G_slope(m.evaluate(m.theta({**parts, "ring": np.array([np.log(fs[0]), 0.1])})))
+    costs = [float(np.sum(huber_rho(m.evaluate(m.theta({**parts, "ring": np.array([np.log(f), 0.1])})).resid, sigma)))
+             for f in fs]
+    return m.theta({**parts, "ring": np.array([np.log(fs[int(np.argmin(costs))]), 0.1])})
+
+
+def fit_record(rec: Record, t_delay_cfg: float | None, t_delay_from: str, d_coarse: float,
+               board_b: np.ndarray | None = None, prior_sd_s: float | None = None) -> tuple[Fit, dict]:
+    """The record's model with its terms chosen by BIC (module doc). Returns (the final Fit,
+    a JSON-ready dict of the term search). Runs its linear algebra on one BLAS thread: the
+    matrices are small (frames x tens), where threads cost more than they give."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1):
+        return _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s)
+
+
+def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
+    T = rec.period_s
+    sd = prior_sd_s if prior_sd_s is not None else T / np.sqrt(12.0)
+    prior = None if t_delay_cfg is None else (float(t_delay_cfg), float(sd))
+    d_fixed = float(t_delay_cfg) if (t_delay_from == "config" and t_delay_cfg is not None) else None
+    starts = [d_coarse] + ([] if t_delay_cfg is None else [float(t_delay_cfg)])
+    if d_fixed is not None:
+        starts = [d_fixed]
+    sigma = noise_sigma(rec.obs)  # one scale for every fit and every BIC of the record
+    st, n_g = _start(rec, starts, prior, d_fixed, board_b, sigma)
+    d0, b0 = min(st.items(), key=lambda kv: len(kv[0]))[1]  # the base model's own start
+    terms = Terms()
+    n_b = _n_b(rec.rt.size)
+    m = RecordModel(rec, n_b, n_g, terms, prior, d_fixed)
+    fit = fit_model(m, m.theta({"d": np.array([d0]), "B": np.full(n_b, b0)}), sigma=sigma)
+    bic = fit.bic(sigma)
+    log = [{"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])}]
+    while True:
+        cands = []
+        for name in (n for n in TERMS if not getattr(terms, n)):
+            mt = RecordModel(rec, n_b, n_g, terms.with_(name), prior, d_fixed)
+            parts = m.parts(fit.theta)
+            if name == "ring":
+                th0s = [_ring_start(mt, parts, sigma)]
+            else:
+                mt.slope = m.slope
+                th0s = [mt.theta(parts)]
+                if (name,) in st:  # also from the start profiled with this switch
+                    d_s, b_s = st[(name,)]
+                    th0s.append(mt.theta({**parts, "d": np.array([d_s]), "B": np.full(n_b, b_s)}))
+            for th0 in th0s:
+                mt.w = huber_weights(mt.evaluate(th0).resid, sigma)
+                f = fit_model(mt, th0, sigma=sigma, max_nfev=8, rounds=1)
+                cands.append((f.bic(sigma), name, f))
+        if not cands:
+            break
+        c_bic, name, f = min(cands, key=lambda c: c[0])
+        log.append({"tried": [(c[1], c[0]) for c in cands]})
+        if c_bic >= bic:
+            break
+        terms, m = terms.with_(name), f.model
+        fit = fit_model(m, f.theta, sigma=sigma)
+        bic = fit.bic(sigma)
+        log.append({"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])})
+    return fit, {"steps": log, "sigma_px": sigma, "n_b": n_b, "n_g": n_g}
+
+
+# --------------------------------------------------------------------------- samples
+@dataclass
+class ModelSamples:
+    """Eq. 1's samples read off a fitted model (arrays (K,), one per reversal whose play was
+    taken up within the record's frames): t1_s (scene), t2_s (image clock = scene + t_delay),
+    q1, q2, q_mean, b (actuator units), sigma_b; t_delay_s and its standard error; rev (K,) the
+    reversal indices."""
+
+    t1_s: np.ndarray
+    t2_s: np.ndarray
+    q1: np.ndarray
+    q2: np.ndarray
+    q_mean: np.ndarray
+    b: np.ndarray
+    sigma_b: np.ndarray
+    rev: np.ndarray
+    t_delay_s: float
+    t_delay_se_s: float
+
+
+def samples(fit: Fit) -> ModelSamples:
+    """B samples of eq. 1 from the fitted play (module doc), each with its standard error from the
+    fit's covariance sigma^2 (J'J)^-1 (J: the weighted residuals' Jacobian in sigma units, so the
+    covariance is (J'J)^-1)."""
+    m, th = fit.model, fit.theta
+    rec = m.rec
+    d, cB = m.unpack(th)[:2]
+    z = m.play(cB)
+    t_on = m.onsets(z)
+    J = fit.jac
+    cov = np.linalg.pinv(J.T @ J)
+    # b's gradient over theta by the same forward steps
+    h = _steps(m, th)
+    q_on = np.interp(t_on, rec.t, rec.q)
+    grad = np.zeros((rec.rt.size, th.size))
+    for i in range(1, 1 + m.n_b):
+        t2 = th.copy()
+        t2[i] += h[i]
+        on2 = m.onsets(m.play(m.unpack(t2)[1]))
+        grad[:, i] = (np.abs(np.interp(on2, rec.t, rec.q) - rec.rq) - np.abs(q_on - rec.rq)) / h[i]
+    var_b = np.einsum("mi,ij,mj->m", np.nan_to_num(grad), cov, np.nan_to_num(grad))
+    se_d = float(np.sqrt(max(cov[0, 0], 0.0))) if m.d_fixed is None else 0.0
+    # the onset must fall within the frames' span (a model extrapolated past the video says nothing)
+    ok = np.isfinite(t_on) & (t_on + d > rec.t_f[0] + rec.period_s) & (t_on + d < rec.t_f[-1] - rec.period_s)
+    q2 = q_on[ok]
+    return ModelSamples(rec.rt[ok], t_on[ok] + d, rec.rq[ok], q2, 0.5 * (rec.rq[ok] + q2), np.abs(q2 - rec.rq[ok]),
+                        np.sqrt(np.maximum(var_b[ok], 0.0)), np.flatnonzero(ok), float(d), se_d)

@@ -1,0 +1,141 @@
+"""The onset stage of `calibrate` for image sessions: eq. 1's B samples and t_delay from the one
+model of the record (onset_model), started from the board's plain eq. 1 onsets.
+
+1. Motor stops and a coarse delay (delay_guess); the board's detector (firmware/core/onset.c via
+   cffi, onsets.run_onsets) at the configured delay, or the coarse one when none is configured,
+   with its threshold from the record's still noise (onset_settings.image_onset_settings) unless
+   onset_cfg gives one; or the onsets the board itself measured (`board`, run-insitu).
+2. The record model fitted with its terms chosen by BIC (onset_model.fit_record); the configured
+   delay is its prior (t_delay_from "data", the default) or held (t_delay_from "config").
+3. The samples read off the model (onset_model.samples), with their standard errors.
+
+A record the model cannot take (fewer than 2 reversals or 20 frames) keeps the board's samples.
+Units: t in s, q in actuator units, image points in px.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import onset_model as OM
+from .delay_guess import coarse_delay, motor_stop_times
+from .onsets import OnsetConfig, Onsets, run_onsets
+from .onset_settings import image_onset_settings
+from .pacing import pacing
+
+DELAY_DISAGREE_Z = 3.0  # a configured delay this many combined standard errors from the record's is reported
+
+
+@dataclass
+class RobustOnsets:
+    """What `record_samples` gives calibrate: the B samples (onsets.Onsets with sigma_b), the
+    delay used and where it came from, the record's diagnosis (JSON-ready dict) and warnings."""
+
+    onsets: Onsets
+    t_delay_s: float
+    t_delay_source: str
+    report: dict
+    warnings: list
+
+
+def _board(t_enc, q, rt, rq, t_f, obs, fps, td_board, onset_cfg):
+    over = dict(onset_cfg or {})
+    if "threshold" not in over:
+        auto, rule = image_onset_settings(t_enc, q, rt, rq, t_f, obs, td_board, fps)
+        over.update(auto)
+    else:
+        rule = {"rule": "given", "threshold_px": float(over["threshold"])}
+    return run_onsets(t_enc, q, rt, rq, t_f, obs, "image", OnsetConfig(t_delay_s=td_board, fps=fps, **over)), rule
+
+
+def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.ndarray, rq: np.ndarray,
+                   t_f: np.ndarray, obs: np.ndarray, fps: float, t_delay_cfg: float | None,
+                   t_delay_from: str = "data", board: Onsets | None = None, onset_cfg: dict | None = None,
+                   hysteresis: float = 0.0, t_delay_sd_s: float | None = None) -> RobustOnsets:
+    """B samples of eq. 1 and t_delay for an image session (module doc). t_enc, q, q_rev (N,) the
+    encoder (q_rev: the signal the reversals rt, rq (M,) came from); t_f (F,) s, obs (F, 2) px (NaN
+    rows: lost); fps the camera's rate; t_delay_cfg s or None; t_delay_sd_s the configured delay's
+    standard deviation (None: one frame period / sqrt(12)). Errors: ValueError for an unknown
+    t_delay_from."""
+    if t_delay_from not in ("data", "config"):
+        raise ValueError(f"t_delay_from must be 'data' or 'config', not {t_delay_from!r}")
+    period = 1.0 / fps
+    tol = max(0.02 * hysteresis, 1e-9 * max(float(np.ptp(q_rev)), 1.0))
+    t_stop = motor_stop_times(t_enc, q_rev, rt, rq, tol)
+    d0 = coarse_delay(t_f, obs, t_stop, t_enc, q_rev, period)
+    rule = None
+    if board is None:
+        board, rule = _board(t_enc, q, rt, rq, t_f, obs, fps, d0 if t_delay_cfg is None else t_delay_cfg, onset_cfg)
+    warnings: list[str] = []
+    try:
+        rec = OM.make_record(t_enc, q, rt, rq, t_f, obs, fps)
+    except ValueError as e:
+        td = float(t_delay_cfg if t_delay_cfg is not None else d0)
+        warnings.append(f"onsets: {e}; the board's plain eq. 1 samples are used")
+        report = {"method": "the board's eq. 1 detector (the record is too short for the record model)",
+                  "board_reasons": board.reasons, "board_threshold": rule,
+                  "t_delay": {"configured_s": t_delay_cfg, "coarse_s": d0, "used_s": td}, "lost_before_reversal": 0,
+                  "registration": {"found": False}, "ringing": {"found": False}}
+        return RobustOnsets(board, td, "configured" if t_delay_cfg is not None else "coarse (record)", report, warnings)
+    fit, search = OM.fit_record(rec, t_delay_cfg, t_delay_from, d0, board.b if board.b.size else None, t_delay_sd_s)
+    sm = OM.samples(fit)
+    m = fit.model
+    d, _, ring, lags = m.unpack(fit.theta)
+    held = m.d_fixed is not None
+    se = sm.t_delay_se_s
+    if held:
+        src = "configured (--t-delay-from config)"
+    elif t_delay_cfg is None:
+        src = "estimated from the record (record model)"
+    else:
+        src = "estimated from the record (record model, the configured delay its prior)"
+    agree = None
+    if t_delay_cfg is not None and not held:
+        sd = m.prior[1]
+        agree = bool(abs(d - t_delay_cfg) <= DELAY_DISAGREE_Z * np.hypot(se, sd))
+        if not agree:
+            warnings.append(f"t_delay: the record gives {d:.4f} s (95 % {d - 1.96 * se:.4f}..{d + 1.96 * se:.4f} s) "
+                            f"against the configured {t_delay_cfg:.4f} s; using the record's (--t-delay-from config "
+                            "to keep the configured one)")
+    n = sm.b.size
+    reasons = {"record_model": int(n), "none": int(rt.size - n)}
+    on = Onsets(sm.t1_s, sm.t2_s, sm.q1, sm.q2, sm.q_mean, sm.b, reasons, sigma_b=sm.sigma_b)
+    pace = pacing(t_enc, q, on, fps, d)
+    if n and pace["frames_to_take_up"] < pace["frames_wanted"]:
+        warnings.append(f"the play is taken up in {pace['frames_to_take_up']:.1f} frame(s) (median): B is timed to "
+                        f"about {pace['sigma_frame_travel']:.3g} per sample by the frame period; a swing at "
+                        f"<= {pace['speed_to_use']:.3g} units/s would take it up over {pace['frames_wanted']} frames")
+    terms = m.terms
+    F = rec.t_f.size
+    p = m.n_g + 2 * terms.reg_tip + 2 * terms.reg_motor
+    beta = fit.ev.beta
+    reg = {}
+    off = m.n_g
+    for name in ("tip", "motor"):
+        if getattr(terms, "reg_" + name):
+            reg[name] = {"jump_px": [2 * float(beta[off]), 2 * float(beta[p + off])],
+                         "jump_slope_px": [2 * float(beta[off + 1]), 2 * float(beta[p + off + 1])],
+                         "switch_lag_s": lags[name]}
+            off += 2
+    report = {
+        "method": "one model of the record (playscope.fit.onset_model)",
+        "board_reasons": board.reasons, "board_threshold": rule,
+        "board_samples": int(board.b.size),
+        "t_delay": {"configured_s": t_delay_cfg, "record_s": None if held else d, "record_se_s": None if held else se,
+                    "record_ci95_s": None if held else [d - 1.96 * se, d + 1.96 * se],
+                    "prior_sd_s": None if m.prior is None else m.prior[1], "agrees_with_configured": agree,
+                    "used_s": d, "used": "configured" if held else "record", "from": t_delay_from, "source": src,
+                    "coarse_s": d0},
+        "terms": {"chosen": terms.names(), "search": search["steps"], "criterion": "BIC on the Huber objective",
+                  "noise_px": search["sigma_px"], "B_ctrl": search["n_b"], "G_ctrl": search["n_g"], "frames": int(F)},
+        "ringing": {"found": terms.ring, "freq_hz": ring[0] if ring else None,
+                    "damping_ratio": ring[1] if ring else None,
+                    "gains": [float(g) for g in beta[2 * p:]] if ring else None},
+        "registration": {"found": bool(reg), **reg},
+        "pacing": pace,
+        "sigma_b_median": float(np.median(sm.sigma_b)) if n else None,
+        "lost_before_reversal": 0,
+    }
+    return RobustOnsets(on, float(d), src, report, warnings)
