@@ -1,0 +1,174 @@
+#!/usr/bin/env python3
+"""The onset scoreboard (issue 48): `playscope calibrate`'s B(q) and t_delay over many renderings
+of several renderers written apart, judged as a failure rate with its exact 95 % interval
+(Clopper-Pearson), never row by row.
+
+Groups:
+  fresh        bench/onset_cases.py FRESH_300: 100 renderings from each of marker_render,
+               swing_render and render_c, drawn and committed before the record model's code.
+               A failure: B error over its limit (5 % none / registration, 10 % wrong or absent
+               delay / ringing), or, where the configured delay is right, |t_delay error| over
+               1/8 frame, or a refusal.
+  development  every group of bench/swing_cases.py (208 renderings of swing_render, the rules of
+               the old onset stage were settled on them): judged as bench/swing_bench.py did
+               (B over its limit, |t_delay error| over 1/8 frame on every row, or a refusal).
+
+B error: mean |B_fit - B_true| over the q range the B samples cover, in % of the mean true B
+(bench/b_score.py). Each row is written as one JSON line to build/onset_scoreboard/<group>.jsonl
+as it finishes (a rerun skips rows already there; --fresh-start removes them), then the tables:
+per category and per renderer, failures / n, the rate and its interval, the median and 95th
+percentile of the B error, the worst row.
+
+Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group fresh|development
+       [--jobs 2] [--only NAME ...] [--fresh-start] [--markdown FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+OUT = HERE.parent / "build" / "onset_scoreboard"
+
+
+def _rows(group: str) -> list:
+    """(renderer, name, category, limit %, delay status, params or Rendering) for the group."""
+    if group == "fresh":
+        import onset_cases
+
+        return list(onset_cases.FRESH_300)
+    import swing_cases
+
+    out = []
+    for g, cases in swing_cases.GROUPS.items():
+        for cat, limit, r in cases:
+            status = "absent" if r.delay_cfg_s is None else ("right" if abs(r.delay_cfg_s - r.delay_s) < 1e-9 else "wrong")
+            out.append(("swing", r.name, cat, limit, status, r))
+    return out
+
+
+def run_row(args) -> dict:
+    """Render, write, calibrate one row; its figures (a JSON-ready dict)."""
+    group, row = args
+    import b_score
+
+    renderer, name, cat, limit, status, kw = row
+    if group == "fresh":
+        import onset_cases
+
+        obj, write, true_B, d_true, d_cfg = onset_cases.make(row)
+    else:
+        import swing_render
+
+        obj, write, true_B, d_true, d_cfg = kw, swing_render.write, kw.B, kw.delay_s, kw.delay_cfg_s
+    fps = float(getattr(obj, "fps"))
+    t0 = time.time()
+    sc = b_score.score(lambda d: write(obj, d), true_B)
+    out = {"name": name, "renderer": renderer, "category": cat, "limit_pct": limit, "delay_status": status,
+           "fps": fps, "delay_true_s": d_true, "delay_cfg_s": d_cfg, "total_s": None}
+    if "refused" in sc:
+        out.update(refused=sc["refused"], fail=True)
+    else:
+        cal = sc["cal"]
+        td_err = (cal.t_delay_s - d_true) * fps
+        ref = cal.onset_refine or {}
+        check_td = status == "right" if group == "fresh" else True
+        fail = bool(sc["err_pct"] > limit or (check_td and abs(td_err) > 0.125))
+        out.update(err_pct=sc["err_pct"], t_delay_s=cal.t_delay_s, td_err_frames=td_err, td_checked=check_td,
+                   samples=cal.n_b_samples, reversals=cal.reversals, calibrate_s=sc["wall_s"],
+                   terms=(ref.get("terms") or {}).get("chosen"), fail=fail)
+    out["total_s"] = time.time() - t0
+    return out
+
+
+def clopper_pearson(k: int, n: int, conf: float = 0.95) -> tuple[float, float]:
+    """Exact binomial interval for k failures in n (Clopper & Pearson 1934)."""
+    from scipy.stats import beta
+
+    a = 1.0 - conf
+    lo = 0.0 if k == 0 else float(beta.ppf(a / 2, k, n - k + 1))
+    hi = 1.0 if k == n else float(beta.ppf(1 - a / 2, k + 1, n - k))
+    return lo, hi
+
+
+def table(res: list[dict], key: str) -> list[str]:
+    lines = [f"| {key} | failures / n | rate [exact 95 %] | B error % median | P95 | worst (row) |",
+             "|---|---|---|---|---|---|"]
+    groups: dict[str, list] = {}
+    for r in res:
+        groups.setdefault(r[key], []).append(r)
+    groups["all"] = res
+    for g, rs in groups.items():
+        k, n = sum(r["fail"] for r in rs), len(rs)
+        lo, hi = clopper_pearson(k, n)
+        e = np.array([r.get("err_pct", np.inf) for r in rs])
+        w = rs[int(np.argmax(e))]
+        lines.append(f"| {g} | {k} / {n} | {100 * k / n:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] | "
+                     f"{np.median(e):.2f} | {np.percentile(e, 95):.2f} | {np.max(e):.2f} ({w['name']}) |")
+    return lines
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--group", choices=("fresh", "development"), default="development")
+    ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument("--only", nargs="*", help="row names to run (default: all of the group)")
+    ap.add_argument("--fresh-start", action="store_true", help="forget the rows already run")
+    ap.add_argument("--markdown", help="also write the tables and the failing rows to this file")
+    a = ap.parse_args(argv)
+    rows = _rows(a.group)
+    if a.only:
+        rows = [r for r in rows if r[1] in a.only]
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / f"{a.group}.jsonl"
+    if a.fresh_start and path.exists():
+        path.unlink()
+    done = {}
+    if path.exists():
+        for line in path.read_text().splitlines():
+            d = json.loads(line)
+            done[d["name"]] = d
+    todo = [r for r in rows if r[1] not in done]
+    print(f"group {a.group}: {len(rows)} renderings, {len(todo)} to run, {a.jobs} jobs; rows to {path}", flush=True)
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(a.jobs) as ex, open(path, "a") as f:
+        for i, d in enumerate(ex.map(run_row, [(a.group, r) for r in todo])):
+            f.write(json.dumps(d) + "\n")
+            f.flush()
+            done[d["name"]] = d
+            tag = "FAIL" if d["fail"] else "ok"
+            fig = d.get("refused", "")[:80] if "refused" in d else \
+                f"B {d['err_pct']:.2f} % (<= {d['limit_pct']:g}), t_delay {d['td_err_frames']:+.3f} frame, {d['terms']}"
+            print(f"[{i + 1}/{len(todo)}] {tag:4s} {d['name']}: {fig}, {d['total_s']:.0f} s", flush=True)
+    res = [done[r[1]] for r in rows if r[1] in done]
+    out = [f"## Onset scoreboard, group {a.group}: {len(res)} renderings", ""]
+    out += table(res, "category") + [""] + table(res, "renderer") + [""]
+    fails = [r for r in res if r["fail"]]
+    out.append(f"Failing rows ({len(fails)}):")
+    for r in fails:
+        fig = "refused: " + r["refused"][:120] if "refused" in r else \
+            f"B {r['err_pct']:.2f} % (limit {r['limit_pct']:g}), t_delay error {r['td_err_frames']:+.3f} frame" \
+            f"{'' if r['td_checked'] else ' (not judged)'}, terms {r['terms']}"
+        out.append(f"- {r['name']} ({r['category']}, delay {r['delay_status']}, {r['fps']:g} fps): {fig}")
+    cs = np.array([r["calibrate_s"] for r in res if "calibrate_s" in r])
+    if cs.size:
+        out.append(f"\n`calibrate` wall time over the rows (two processes on a 2-core machine): median {np.median(cs):.1f} s, "
+                   f"worst {cs.max():.1f} s")
+    text = "\n".join(out)
+    print(text)
+    if a.markdown:
+        Path(a.markdown).write_text(text + "\n")
+    return 0 if not fails else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
