@@ -362,6 +362,24 @@ class RecordModel:
         Av = A1 @ X[p:2 * p] + sum(np.outer(rv, X[2 * p + i]) for i, (_, rv) in enumerate(ring))
         return Gu - Au, Gv - Av
 
+    def onset_gradient(self, z, lo, hi, t_on, s_new) -> np.ndarray:
+        """d t_on / d (B's coefficients), (E, n_b) s per actuator unit, for onsets t_on (E,) of the
+        play z on its edges lo, hi (N,) whose new directions are s_new (E,): where q - s B(q) / 2
+        meets the held z, t_on moves by (dz_hold/dc_i + s phi_i(q_on) / 2) / q'(t_on); dz/dc_i is
+        -+ phi_i / 2 at the sample that last dragged z (the lower edge: -, the upper: +)."""
+        rec = self.rec
+        drag = (z == lo) | (z == hi)
+        last = np.maximum.accumulate(np.where(drag, np.arange(z.size), 0))
+        side = np.where(z == lo, -0.5, 0.5)
+        kk = np.clip(np.searchsorted(rec.t, t_on), 1, z.size - 1)
+        lh = last[kk - 1]
+        Phi = self.Phi_B
+        phi_on = Phi[kk].toarray() if Phi is not None else np.ones((kk.size, 1))
+        phi_h = (Phi[lh].toarray() if Phi is not None else np.ones((kk.size, 1))) * side[lh][:, None]
+        qdot = (rec.q[kk] - rec.q[kk - 1]) / rec.dt
+        qdot = np.where(np.abs(qdot) > 1e-12, qdot, 1e-12)
+        return (phi_h + s_new[:, None] * 0.5 * phi_on) / qdot[:, None]
+
     def jacobian(self, th: np.ndarray, ev: "Eval", sigma: float) -> np.ndarray:
         """d residual / d theta (2F [+ 1 prior row], n_theta) of `_residual_fn`'s residuals, by
         Kaufman's variable-projection Jacobian (Kaufman 1975, BIT 15: the prediction's
@@ -432,14 +450,7 @@ class RecordModel:
         Gv[:, sl_b] = dz_v[:, None] * Zc
         if "tip" in ramps:
             e, inr, dS = ramps["tip"]
-            r_ev = st["tip"][5]
-            kk = np.clip(np.searchsorted(rec.t, st["tip"][1]), 1, z.size - 1)
-            lh = last[kk - 1]
-            phi_on = Phi[kk].toarray() if Phi is not None else np.ones((kk.size, 1))
-            phi_h = (Phi[lh].toarray() if Phi is not None else np.ones((kk.size, 1))) * side[lh][:, None]
-            qdot = (rec.q[kk] - rec.q[kk - 1]) / dt
-            qdot = np.where(np.abs(qdot) > 1e-12, qdot, 1e-12)
-            dton = (phi_h + rec.s_new[r_ev][:, None] * 0.5 * phi_on) / qdot[:, None]   # (E, n_b)
+            dton = self.onset_gradient(z, st["lo"], st["hi"], st["tip"][1], rec.s_new[st["tip"][5]])  # (E, n_b)
             fr = np.flatnonzero(inr)
             val = reg["tip"]
             Gu[fr, sl_b] += (-dS[fr] * val[0][fr])[:, None] * dton[e[fr]]

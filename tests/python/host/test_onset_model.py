@@ -1,0 +1,165 @@
+"""The record model of the onset stage (playscope.fit.onset_model, onset_stage) on short renderings of
+bench/swing_render.py, a renderer written apart from the estimator: each term against its truth.
+Statistics over many renderings live in bench/onset_scoreboard.py, not here."""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from playscope.fit import onset_model as OM
+from playscope.fit.onset_stage import record_samples
+from playscope.fit.reversals import detect_reversals
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def _swing_render():
+    spec = importlib.util.spec_from_file_location("swing_render", ROOT / "bench" / "swing_render.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["swing_render"] = mod  # dataclasses look the module up by name
+    spec.loader.exec_module(mod)
+    return mod
+
+
+SR = _swing_render()
+
+
+def _record(**kw):
+    """A 40 s rendering (the ramp over half the travel) as the stage takes it."""
+    r = SR.Rendering(kw.pop("name", "t"), kw.pop("seed", 7), duration_s=kw.pop("duration_s", 40.0), **kw)
+    d = SR.render(r)
+    t, q = d["t_enc"], d["q"]
+    hyst = 0.01 * np.ptp(q)
+    rt, rq, _ = detect_reversals(t, q, hyst)
+    return r, d, t, q, rt, rq, np.column_stack([d["u"], d["v"]]), hyst
+
+
+def _b_error_pct(r, on):
+    """Mean |B_model - B_true| at the samples' own q, % of the mean true B: each sample of eq. 1 is
+    |q2 - q1|, the width at take-up, so it is judged against the true width between q1 and q2."""
+    true = 0.5 * (r.B(on.q1) + r.B(on.q2))
+    return 100 * float(np.mean(np.abs(on.b - true)) / np.mean(true))
+
+
+def test_onsets_of_the_play_are_where_q_has_come_back_by_B_eq_1():
+    # A constant width b and a triangle q: after each reversal the play output holds until q has
+    # come back by b (eq. 1), at t1 + b / speed.
+    t = np.arange(0.0, 10.0, 1e-3)
+    speed, b = 2.0, 0.3
+    q = 1.0 - np.abs(((speed * t) % 4.0) - 2.0)  # legs of 2 units at 2 units/s, reversals every 1 s
+    rt = np.arange(1.0, 9.5, 1.0)
+    rq = np.interp(rt, t, q)
+    rec = OM.make_record(t, q, rt, rq, np.arange(0.5, 9.5, 0.04), np.zeros((225, 2)), 25.0)
+    m = OM.RecordModel(rec, 1, 6, OM.Terms(), None)
+    t_on = m.onsets(m.play(np.array([b])))
+    assert np.allclose(t_on[1:], rt[1:] + b / speed, atol=1.5e-3)  # one grid step
+
+
+def test_noise_sigma_recovers_white_noise_on_a_slow_record():
+    rng = np.random.default_rng(3)
+    x = np.column_stack([np.linspace(0, 50, 4000), np.sin(np.linspace(0, 6, 4000)) * 30])
+    assert OM.noise_sigma(x + rng.normal(0, 0.2, x.shape)) == pytest.approx(0.2, rel=0.08)
+
+
+@pytest.mark.parametrize("terms", [(), ("reg_tip", "reg_motor"), ("ring",)])
+def test_the_analytic_jacobian_agrees_with_finite_differences(terms):
+    # Kaufman's variable-projection Jacobian against the projected residual's forward differences
+    # (which re-solve the linear parameters): the gradient J'r, what the fit follows, and each
+    # column of the delay and of B. The tip mode's drive through B is left out of the analytic
+    # one (module doc), so with the ring only the gradient is compared.
+    r, d, t, q, rt, rq, obs, _ = _record(reg_deg=1.5 if terms and terms[0] == "reg_tip" else 0.0,
+                                         ring_hz=3.0 if "ring" in terms else 0.0, duration_s=30.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    m = OM.RecordModel(rec, 4, 10, OM.Terms(**{k: True for k in terms}), (r.delay_s, 0.01))
+    g = np.linspace(rec.q.min(), rec.q.max(), 40)
+    cB = np.linalg.lstsq(OM._basis(g, g[0], g[-1], 4), r.B(g), rcond=None)[0]
+    th = m.theta({"d": np.array([r.delay_s + 0.003]), "B": 1.03 * cB, "ring": np.array([np.log(3.1), 0.06])})
+    ev = m.evaluate(th)
+    m.slope = m.G_slope(ev)
+    m.w = OM.huber_weights(m.evaluate(th).resid, 0.12)
+    fun = OM._residual_fn(m, 0.12)
+    r0 = fun(th)
+    Ja = m.jacobian(th, m.evaluate(th), 0.12)
+    Jf = OM._jac(m, fun, th, r0)
+    cos = lambda a, b: float(a @ b / np.linalg.norm(a) / np.linalg.norm(b))  # noqa: E731
+    # measured 0.99999 (none), 0.9979 (ring); with the switches 0.970: a frame crossing a switch's
+    # ramp edge between the forward steps makes the differences themselves coarse there
+    assert cos(Ja.T @ r0, Jf.T @ r0) > (0.9 if "reg_tip" in terms else 0.99)
+    # column by column where no switch hangs on the onsets (through them, a forward step moves a
+    # slow onset across frames; `test_the_onsets_gradient...` checks that part with a small step)
+    if not terms:
+        for i in range(1 + m.n_b):
+            assert cos(Ja[:, i], Jf[:, i]) > 0.95  # measured 0.98..1.0
+
+
+def test_the_onsets_gradient_over_B_agrees_with_small_differences():
+    r, d, t, q, rt, rq, obs, _ = _record(duration_s=30.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    m = OM.RecordModel(rec, 4, 10, OM.Terms(), None)
+    cB = np.array([0.15, 0.25, 0.28, 0.16])
+    z, lo, hi = m.play(cB, edges=True)
+    t_on = m.onsets(z)
+    ok = np.isfinite(t_on)
+    an = m.onset_gradient(z, lo, hi, t_on[ok], rec.s_new[ok])
+    for i in range(4):
+        c2 = cB.copy()
+        c2[i] += 1e-4
+        fd = (m.onsets(m.play(c2))[ok] - t_on[ok]) / 1e-4
+        rel = np.abs(an[:, i] - fd) / (np.abs(fd) + 1e-3)
+        # measured: median 1e-10; all but one or two onsets within 9 %, the rest where the step
+        # moves a near-still onset across a grid sample
+        assert np.median(rel) < 1e-6 and np.mean(rel < 0.1) >= 0.85
+
+
+def test_a_clean_record_gives_B_and_the_delay():
+    r, d, t, q, rt, rq, obs, hyst = _record()
+    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
+    assert rob.report["terms"]["chosen"] == []
+    assert abs(rob.t_delay_s - r.delay_s) * r.fps < 0.125
+    assert _b_error_pct(r, rob.onsets) < 5.0
+    assert np.all(rob.onsets.sigma_b > 0) and np.all(rob.onsets.sigma_b < 0.05 * r.b_hi)
+
+
+def test_a_wrong_configured_delay_is_a_prior_the_record_overrules_and_config_holds_it():
+    r, d, t, q, rt, rq, obs, hyst = _record(delay_s=0.18, delay_cfg_s=0.08)
+    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, 0.08, "data", hysteresis=hyst)
+    assert abs(rob.t_delay_s - 0.18) * r.fps < 0.125
+    assert rob.report["t_delay"]["agrees_with_configured"] is False
+    assert any("against the configured 0.0800 s" in w for w in rob.warnings)
+    held = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, 0.08, "config", hysteresis=hyst)
+    assert held.t_delay_s == 0.08 and held.report["t_delay"]["used"] == "configured"
+    with pytest.raises(ValueError, match="t_delay_from"):
+        record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, 0.08, "guess", hysteresis=hyst)
+
+
+@pytest.fixture(scope="module")
+def registration_record():
+    r, d, t, q, rt, rq, obs, hyst = _record(reg_deg=1.5, seed=11)
+    return r, record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
+
+
+def test_a_registration_that_switches_with_the_tip_is_found(registration_record):
+    r, rob = registration_record
+    assert "reg_tip" in rob.report["terms"]["chosen"]
+    jump = np.hypot(*rob.report["registration"]["tip"]["jump_px"])
+    assert 20 < jump < 45  # 2 x 600 px x tan(1.5 deg) = 31 px, less the view's own tilt
+    assert abs(rob.t_delay_s - r.delay_s) * r.fps < 0.125
+
+
+@pytest.mark.xfail(strict=True, reason="known gap (CHANGELOG, docs/host.md): a switch whose lag differs per "
+                   "reversal leaves the frame inside each switch window a 30 px outlier whose Huber cost pulls B; "
+                   "12.7 % here against 5 %. Passes once the model carries a per-reversal switch share.")
+def test_a_registration_that_switches_with_the_tip_leaves_B_within_5_percent(registration_record):
+    r, rob = registration_record
+    assert _b_error_pct(r, rob.onsets) < 5.0
+
+
+def test_a_tip_mode_is_found_at_its_frequency():
+    r, d, t, q, rt, rq, obs, hyst = _record(ring_hz=3.0, ring_zeta=0.05, seed=5)
+    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
+    ring = rob.report["ringing"]
+    assert ring["found"] and ring["freq_hz"] == pytest.approx(3.0, rel=0.05)
+    assert _b_error_pct(r, rob.onsets) < 10.0
