@@ -8,6 +8,7 @@ licence: read in place, never copied) map as: Time -> t_s, "Tendon Disp." (mm) -
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import re
 from pathlib import Path
@@ -87,23 +88,26 @@ def import_csv(path, t_col=None, q_col=None, c_col=None, time_scale: float = 1.0
     if not has_header:
         notes.append(f"{path}: no header row (the first row is numbers): columns by number, t = {cols[0]}, "
                      f"q = {cols[1]}, c = {cols[2]}")
-    d = read_csv(path, cols, time_col=cols[0], notes=notes, header=header if not has_header else None)
+    tt: list = []
+    d = read_csv(path, cols, time_col=cols[0], notes=notes, header=header if not has_header else None, time_text=tt)
     n = d[cols[0]].size
     if n < 2:
         raise InputError(path, f"{n} row(s) with a distinct time stamp after repairs: a session needs at least two "
                          "(are all stamps equal? check --t-col and --time-scale)")
     t = d[cols[0]] * time_scale
-    enc = {"t_s": t, "q": d[cols[1]] * q_scale}
-    dist = {"t_s": t.copy(), "c_deg": d[cols[2]] * c_scale}
+    enc = {"t_s": t, "q": d[cols[1]] * q_scale, "_row": d["_row"]}
+    dist = {"t_s": t.copy(), "c_deg": d[cols[2]] * c_scale, "_row": d["_row"].copy()}
     check_range(enc, "q", path, notes, q_limit(), unit)
     if q_per_rad is None:
         q_per_rad = CATHETER_Q_PER_RAD if unit == "mm" else 180.0 / math.pi
+    text = dataclasses.replace(tt[0], scale=float(time_scale))
     return time_origin(Session(notes=notes, actuator_unit=unit, distal_kind="angle",
                                robot=Robot("constant_curvature", bend_length_mm, tip_length_mm, q_per_rad),
                                encoder=enc, distal=dist, t_delay_s=0.0 if t_delay_s is None else float(t_delay_s),
                                q_source=q_source,
                                meta={"source": {"file": str(path), "columns": cols, "header": has_header,
-                                                "time_scale": time_scale, "q_scale": q_scale, "c_scale": c_scale}}))
+                                                "time_scale": time_scale, "q_scale": q_scale, "c_scale": c_scale}}),
+                       {"encoder": text, "distal": text})
 
 
 def _is_number(x: str) -> bool:
