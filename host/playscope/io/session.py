@@ -614,6 +614,10 @@ def load_session(folder: str | os.PathLike) -> Session:
     if (folder / "truth.csv").is_file():
         s.truth = read_csv(folder / "truth.csv", ["t_s", "c_deg"], time_text=tt("truth"))
     time_origin(s, {name: lst[0] for name, lst in found.items() if lst})
+    fps = s.camera.fps if s.camera is not None else None
+    for name in RECORD_TABLES:
+        if getattr(s, name) is not None:
+            check_time_unit(getattr(s, name)["t_s"], folder / f"{name}.csv", fps if name in ("marker", "frames") else None)
     check_overlap(s, folder)
     if s.truth is not None and s.truth["t_s"].size and (s.truth["t_s"][0] > s.encoder["t_s"][-1]
                                                         or s.truth["t_s"][-1] < s.encoder["t_s"][0]):
@@ -653,6 +657,58 @@ def thin_encoder(enc: dict, path, max_hz: float = ENCODER_MAX_HZ) -> tuple[dict,
     note = (f"{path}: a {1 / dt:.0f} Hz log, thinned to {max_hz:.0f} Hz at load (the first sample of each "
             f"{1000 / max_hz:g} ms: {int(keep.sum())} of {t.size} rows kept)")
     return {k: v[keep] for k, v in enc.items()}, note
+
+
+# Time units of stamps: seconds per unit (import --time-unit; session files hold seconds).
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+TIME_UNIT_NAMES = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
+PER_SECOND = {"s": "1", "ms": "1000", "us": "1e6", "ns": "1e9"}
+# A log sampled more slowly than once a second shows no onset (swings last 0.25-0.5 s): a median
+# step above this, read as seconds, is stamps in a smaller unit.
+MAX_STEP_S = 1.0
+# A camera stream whose median step is this many frame periods (camera.fps) is not in seconds.
+MAX_STEP_FRAMES = 10.0
+
+
+def guess_time_unit(step: float, fps: float | None = None) -> str | None:
+    """The unit ("ms", "us", "ns") in which a median step of ``step`` (file units) is a plausible
+    sample spacing: with a stated frame rate, the unit putting step nearest one frame period
+    (within a factor 10); without one, the largest unit giving a step of at most MAX_STEP_S.
+    None when no unit fits."""
+    if fps:
+        best = min(("ms", "us", "ns"), key=lambda u: abs(math.log10(step * TIME_UNITS[u] * fps)))
+        return best if abs(math.log10(step * TIME_UNITS[best] * fps)) < 1 else None
+    for u in ("ms", "us", "ns"):
+        if step * TIME_UNITS[u] <= MAX_STEP_S:
+            return u
+    return None
+
+
+def check_time_unit(t_s: np.ndarray, path, fps: float | None = None, scale: float = 1.0,
+                    fix: str | None = None) -> None:
+    """Refuse stamps whose spacing says they are not seconds (times scale): a median step above
+    MAX_STEP_FRAMES frame periods of fps when the rate is stated (camera), else above MAX_STEP_S.
+    The one-line InputError names the unit the spacing suggests and fix(unit) -> how to pass it
+    (default: the session-file remedy)."""
+    t = np.asarray(t_s, float)
+    if t.size < 3:
+        return
+    step = float(np.median(np.diff(t)))
+    if not (step > 0 and math.isfinite(step)):
+        return
+    limit, why = ((MAX_STEP_FRAMES / fps, f"{step * fps:.4g} frame periods at camera.fps {fps:g}") if fps
+                  else (MAX_STEP_S, f"{1 / step:.3g} samples/s, too slow for any log this method reads"))
+    if step <= limit:
+        return
+    unit = guess_time_unit(step / scale, fps)
+    if unit is None:
+        raise InputError(path, f"the time stamps step by a median of {step:.6g} s ({why}): not seconds, and no "
+                         "unit among ms, us, ns fits either; check the time column")
+    rate = 1 / (step / scale * TIME_UNITS[unit])
+    how = fix(unit) if fix else (f"session files hold seconds: divide t_s by {PER_SECOND[unit]} (or import "
+                                 f"the log with `playscope import --time-unit {unit}`)")
+    raise InputError(path, f"the time stamps step by a median of {step:.6g} s ({why}): they look like "
+                     f"{TIME_UNIT_NAMES[unit]} (a {rate:.4g} Hz stream); {how}")
 
 
 # A bending angle beyond ten turns is a corrupt reading, not a pose (an unwrapped multi-turn
