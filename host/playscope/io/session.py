@@ -434,26 +434,44 @@ def read_json(path: Path, what: str = "JSON file"):
     except RecursionError:
         raise InputError(path, f"JSON nested too deeply: not a {what}") from None
 
-def _get(d: dict, key: str, path: Path, where: str, kind=None):
+_EXPECT = {float: "a finite number", dict: "a JSON object", str: "a string", list: "a list"}
+
+
+def json_kind(v) -> str:
+    """What a JSON value is, as a user reads it: 'a string "x"', 'a list [1, 2]', 'null'."""
+    if v is None:
+        return "null"
+    kind = ("a boolean" if isinstance(v, bool) else
+            {dict: "an object", list: "a list", str: "a string"}.get(type(v), "a number"))
+    return f"{kind} {json.dumps(v)[:40]}"
+
+
+def _get(d: dict, key: str, path: Path, where: str, kind=None, expect: str | None = None):
+    """d[key], refused with one line naming the key (where + key), what it must be (expect, or
+    the JSON type of kind) and what it is."""
+    what = expect or _EXPECT.get(kind)
     if not isinstance(d, dict) or key not in d:
-        raise InputError(path, f"missing key {where}{key}")
+        raise InputError(path, f"missing key {where}{key}" + (f": expected {what}" if what else ""))
     v = d[key]
     if kind is float:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise InputError(path, f"{where}{key} must be a finite number, got {v!r}")
+            raise InputError(path, f"{where}{key} must be {what}, got {json_kind(v)}")
         return float(v)
     if kind is not None and not isinstance(v, kind):
-        raise InputError(path, f"{where}{key} has the wrong type ({type(v).__name__})")
+        raise InputError(path, f"{where}{key} must be {what}, got {json_kind(v)}")
     return v
 
 
 def _matrix(v, shape, path: Path, name: str) -> np.ndarray:
+    what = "finite numbers, a list of 3 lists of 3" if shape == (3, 3) else f"finite numbers, a list of {shape[0]}"
     try:
+        if isinstance(v, (bool, str, dict)) or any(isinstance(x, (bool, str)) for x in np.ravel(np.asarray(v, dtype=object))):
+            raise ValueError  # float() would take "1.5" and True
         a = np.asarray(v, dtype=float)
     except (TypeError, ValueError):
-        raise InputError(path, f"{name} must be numeric of shape {shape}") from None
+        raise InputError(path, f"{name} must be {what}, got {json_kind(v)}") from None
     if a.shape != shape or not np.all(np.isfinite(a)):
-        raise InputError(path, f"{name} must be finite of shape {shape}, got {a.shape}")
+        raise InputError(path, f"{name} must be {what}, got {json_kind(v)}")
     return a
 
 
@@ -464,14 +482,14 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
     fmt = d.get("format")
     if fmt != FORMAT:
         raise InputError(path, f"format is {fmt!r}, expected {FORMAT!r}")
-    unit = _get(_get(d, "actuator", path, "", dict), "unit", path, "actuator.")
+    unit = _get(_get(d, "actuator", path, "", dict), "unit", path, "actuator.", expect="'mm' or 'deg'")
     if unit not in ACTUATOR_UNITS:
         raise InputError(path, f"actuator.unit must be one of {ACTUATOR_UNITS}, got {unit!r}")
-    kind = _get(_get(d, "distal", path, "", dict), "kind", path, "distal.")
+    kind = _get(_get(d, "distal", path, "", dict), "kind", path, "distal.", expect="'image' or 'angle'")
     if kind not in DISTAL_KINDS:
         raise InputError(path, f"distal.kind must be one of {DISTAL_KINDS}, got {kind!r}")
     r = _get(d, "robot", path, "", dict)
-    model = _get(r, "model", path, "robot.")
+    model = _get(r, "model", path, "robot.", expect="'constant_curvature'")
     if model != "constant_curvature":
         raise InputError(path, f"robot.model {model!r} not supported (only 'constant_curvature')")
     robot = Robot(model, _get(r, "bend_length_mm", path, "robot.", float),
@@ -480,12 +498,14 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
         raise InputError(path, "robot.q_per_rad must be non-zero and robot.bend_length_mm positive")
     out: dict[str, Any] = {"actuator_unit": unit, "distal_kind": kind, "robot": robot}
     q_source = d["actuator"].get("q_source", "measured")
+    if not isinstance(q_source, str):
+        raise InputError(path, f"actuator.q_source must be 'measured' or 'command', got {json_kind(q_source)}")
     if q_source not in Q_SOURCES:
         raise InputError(path, f"actuator.q_source must be one of {Q_SOURCES}, got {q_source!r}")
     out["q_source"] = q_source
     if "camera" in d or kind == "image":
         c = _get(d, "camera", path, "", dict)
-        K = _matrix(_get(c, "K", path, "camera."), (3, 3), path, "camera.K")
+        K = _matrix(_get(c, "K", path, "camera.", expect="a 3x3 list of numbers"), (3, 3), path, "camera.K")
         dist = _matrix(c.get("dist", [0, 0, 0, 0, 0]), (5,), path, "camera.dist")
         w, h_px = _get(c, "width", path, "camera.", float), _get(c, "height", path, "camera.", float)
         if not (1 <= w <= MAX_IMAGE_PX and 1 <= h_px <= MAX_IMAGE_PX) or w != int(w) or h_px != int(h_px):
@@ -497,12 +517,12 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
         check_camera(out["camera"], path)
     if "hand_eye" in d or kind == "image":
         h = _get(d, "hand_eye", path, "", dict)
-        R = _matrix(_get(h, "R", path, "hand_eye."), (3, 3), path, "hand_eye.R")
+        R = _matrix(_get(h, "R", path, "hand_eye.", expect="a 3x3 list of numbers"), (3, 3), path, "hand_eye.R")
         with np.errstate(all="ignore"):  # huge entries overflow: then not a rotation either
             rotation = bool(np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0)
         if not rotation:
             raise InputError(path, "hand_eye.R is not a rotation matrix")
-        out["hand_eye"] = HandEye(R, _matrix(_get(h, "t_mm", path, "hand_eye."), (3,), path, "hand_eye.t_mm"))
+        out["hand_eye"] = HandEye(R, _matrix(_get(h, "t_mm", path, "hand_eye.", expect="a list of 3 numbers"), (3,), path, "hand_eye.t_mm"))
     if d.get("t_delay_s") is not None:
         out["t_delay_s"] = _get(d, "t_delay_s", path, "", float)
         if not 0 <= out["t_delay_s"] <= MAX_T_DELAY_S:
