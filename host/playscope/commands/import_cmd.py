@@ -14,7 +14,7 @@ from .common import warn, add_json_arg, dump_json
 EPILOG = """\
 examples:
   playscope import data_2_1.txt -o sessions/d21
-  playscope import log.csv --t-col 1 --q-col 3 --c-col 4 --time-scale 1e-3 --unit deg -o sessions/mine
+  playscope import log.csv --t-col 1 --q-col 3 --c-col 4 --time-unit ms --unit deg -o sessions/mine
   playscope import log.csv --t-col stamp --q-col motor_cmd --c-col tip_rad --c-scale 57.29578 \
       --q-source command -o sessions/cmd   (q is the commanded position, angle in rad)
   playscope import run.bag --q-topic /joint_states:joint=bend --c-topic /em_tracker/angle:data \\
@@ -54,8 +54,11 @@ def add_parser(sub) -> None:
     g.add_argument("--q-col", help=f"actuator column: name or number (default {CATHETER['q']!r}, or 2)")
     g.add_argument("--c-col", help=f"bending-angle column, deg after --c-scale: name or number "
                    f"(default {CATHETER['c']!r}, or 3)")
+    g.add_argument("--time-unit", choices=["s", "ms", "us", "ns"], default=None,
+                   help="unit of the time column (default s; stamps whose spacing says ms, us or ns are refused "
+                   "naming the unit to pass)")
     g.add_argument("--time-scale", type=T.float_range(0.0, 1e9, lo_open=True), default=1.0,
-                   help="multiply time by this to get s (1e-3 for ms)")
+                   help="multiply time by this to get s (any factor; --time-unit for a unit)")
     b = p.add_argument_group("ROS bag input")
     b.add_argument("--q-topic", metavar="TOPIC[:FIELD]", help="actuator position topic (required for a bag)")
     b.add_argument("--c-topic", metavar="TOPIC[:FIELD]", help="distal bending angle topic: an angle session")
@@ -91,7 +94,7 @@ def run(a) -> int:
             return 2
         q_per_rad = a.q_per_rad if a.q_per_rad is not None else (5.0 if a.unit == "mm" else 180.0 / math.pi)
         csv_only = [o for o, v in (("--t-col", a.t_col), ("--q-col", a.q_col), ("--c-col", a.c_col),
-                                   ("--time-scale", a.time_scale != 1.0)) if v]
+                                   ("--time-scale", a.time_scale != 1.0), ("--time-unit", a.time_unit)) if v]
         if csv_only:
             raise InputError(a.source, f"{', '.join(csv_only)}: CSV options, and this is a ROS bag (give topics: "
                              "--q-topic, --c-topic, --image-topic)")
@@ -112,7 +115,8 @@ def run(a) -> int:
         if bag_only:
             raise InputError(a.source, f"{', '.join(bag_only)}: ROS bag options, and this is a CSV (use --t-col, "
                              "--q-col, --c-col)")
-        csv = dict(t_col=a.t_col, q_col=a.q_col, c_col=a.c_col, time_scale=a.time_scale, q_scale=a.q_scale,
+        csv = dict(t_col=a.t_col, q_col=a.q_col, c_col=a.c_col, time_scale=a.time_scale, time_unit=a.time_unit,
+                   q_scale=a.q_scale,
                    unit=a.unit, q_per_rad=a.q_per_rad, c_scale=a.c_scale, t_delay_s=a.t_delay, q_source=a.q_source)
         res = import_recording(a.source, a.out, csv=csv, overwrite=a.force)
         warn(res.notes)

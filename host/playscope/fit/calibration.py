@@ -602,6 +602,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
                             f"somewhere and the board refused to invert it (slope_floor in the JSON)")
     doc = {
         "format": FORMAT, "actuator_unit": s.actuator_unit, "source": src,
+        "t_origin_s": _origin_text(s.t_origin_us),
         "q_range": [float(q.min()), float(q.max())],
         "t_delay_s": float(td), "t_delay_source": td_src, "fps_frames": float(fr),
         "reversal_hysteresis": float(hyst), "reversals": int(rt.size),
@@ -628,3 +629,11 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
 
     return Calibration(B, f, sign, s.robot.q_per_rad, plain_json(doc), tr, plain_json(choice), f_play,
                        None if f_play is None else int(play_doc["sign"]), B_product, plain_json(fam_choice))
+
+
+def _origin_text(t_origin_us: int) -> str:
+    """The files' time of the record's first sample (Session.t_origin_us) as exact decimal
+    seconds: every time in the calibration (b_samples.t1_s, ...) is relative to it."""
+    from ..io.session import format_us
+
+    return format_us(int(t_origin_us))

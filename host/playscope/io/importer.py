@@ -8,6 +8,7 @@ licence: read in place, never copied) map as: Time -> t_s, "Tendon Disp." (mm) -
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import re
 from pathlib import Path
@@ -45,7 +46,7 @@ def resolve_column(spec, header: list[str], has_header: bool, path, option: str)
 def import_csv(path, t_col=None, q_col=None, c_col=None, time_scale: float = 1.0, q_scale: float = 1.0,
                unit: str = "mm", q_per_rad: float | None = None, bend_length_mm: float = 30.0,
                tip_length_mm: float = 0.0, c_scale: float = 1.0, t_delay_s: float | None = None,
-               q_source: str = "measured") -> Session:
+               q_source: str = "measured", time_unit: str | None = None) -> Session:
     """Read one CSV into an angle session (encoder and distal share rows).
 
     t_col, q_col, c_col: header names or 1-based column numbers (as str or int); None takes
@@ -56,10 +57,13 @@ def import_csv(path, t_col=None, q_col=None, c_col=None, time_scale: float = 1.0
     (the catheter) for mm, 180/pi deg/rad (1:1) for deg. t_delay_s: the angle sensor's delay
     behind the encoder clock (None: 0, one clock; calibrate measures it from the record when
     q_source is "command"). q_source: "measured" or "command" (session.json actuator.q_source).
+    time_unit: "s", "ms", "us" or "ns", the time column's unit (instead of time_scale); stamps
+    whose median step says they are not seconds after the scaling are refused naming the unit
+    (session.check_time_unit).
     Repeated and backward time stamps are repaired as for a session (session.regularize_time).
     Errors: InputError naming the file, the row or the option."""
     from .inputfile import MAX_CSV_BYTES, check_input_file
-    from .session import Q_SOURCES, check_range, q_limit
+    from .session import Q_SOURCES, TIME_UNITS, check_range, check_time_unit, q_limit
 
     path = Path(path)
     check_input_file(path, "CSV file", MAX_CSV_BYTES)
@@ -83,27 +87,40 @@ def import_csv(path, t_col=None, q_col=None, c_col=None, time_scale: float = 1.0
         raise InputError(path, f"--t-col, --q-col and --c-col name the same column twice ({', '.join(cols)})")
     if q_source not in Q_SOURCES:
         raise InputError(None, f"--q-source must be one of {Q_SOURCES}, got {q_source!r}")
+    if time_unit is not None:
+        if time_unit not in TIME_UNITS:
+            raise InputError(None, f"--time-unit must be one of {', '.join(TIME_UNITS)}, got {time_unit!r}")
+        if time_scale != 1.0:
+            raise InputError(None, f"--time-unit {time_unit} and --time-scale {time_scale:g} both say what the time "
+                             "column's unit is: give one")
+        time_scale = TIME_UNITS[time_unit]
     notes: list[str] = []
     if not has_header:
         notes.append(f"{path}: no header row (the first row is numbers): columns by number, t = {cols[0]}, "
                      f"q = {cols[1]}, c = {cols[2]}")
-    d = read_csv(path, cols, time_col=cols[0], notes=notes, header=header if not has_header else None)
+    tt: list = []
+    d = read_csv(path, cols, time_col=cols[0], notes=notes, header=header if not has_header else None, time_text=tt)
     n = d[cols[0]].size
     if n < 2:
         raise InputError(path, f"{n} row(s) with a distinct time stamp after repairs: a session needs at least two "
                          "(are all stamps equal? check --t-col and --time-scale)")
     t = d[cols[0]] * time_scale
-    enc = {"t_s": t, "q": d[cols[1]] * q_scale}
-    dist = {"t_s": t.copy(), "c_deg": d[cols[2]] * c_scale}
+    read_as = f"--time-unit {time_unit}" if time_unit else ("seconds" if time_scale == 1.0 else f"--time-scale {time_scale:g}")
+    check_time_unit(t, path, scale=time_scale,
+                    fix=lambda u: f"pass --time-unit {u}" + ("" if read_as == "seconds" else f" instead of {read_as}"))
+    enc = {"t_s": t, "q": d[cols[1]] * q_scale, "_row": d["_row"]}
+    dist = {"t_s": t.copy(), "c_deg": d[cols[2]] * c_scale, "_row": d["_row"].copy()}
     check_range(enc, "q", path, notes, q_limit(), unit)
     if q_per_rad is None:
         q_per_rad = CATHETER_Q_PER_RAD if unit == "mm" else 180.0 / math.pi
+    text = dataclasses.replace(tt[0], scale=float(time_scale))
     return time_origin(Session(notes=notes, actuator_unit=unit, distal_kind="angle",
                                robot=Robot("constant_curvature", bend_length_mm, tip_length_mm, q_per_rad),
                                encoder=enc, distal=dist, t_delay_s=0.0 if t_delay_s is None else float(t_delay_s),
                                q_source=q_source,
                                meta={"source": {"file": str(path), "columns": cols, "header": has_header,
-                                                "time_scale": time_scale, "q_scale": q_scale, "c_scale": c_scale}}))
+                                                "time_scale": time_scale, "q_scale": q_scale, "c_scale": c_scale}}),
+                       {"encoder": text, "distal": text})
 
 
 def _is_number(x: str) -> bool:

@@ -154,7 +154,7 @@ class Session:
 # --------------------------------------------------------------------------- CSV
 def read_csv(path: Path, required: list[str], optional: list[str] = (), nullable: set[str] = frozenset(),
              time_col: str | None = "t_s", notes: list[str] | None = None,
-             header: list[str] | None = None) -> dict[str, np.ndarray]:
+             header: list[str] | None = None, time_text: list | None = None) -> dict[str, np.ndarray]:
     """Read a numeric CSV with a header row into float64 arrays.
 
     required/optional: column names (others are kept too). nullable: columns whose empty
@@ -162,7 +162,9 @@ def read_csv(path: Path, required: list[str], optional: list[str] = (), nullable
     an error. header: the column names of a file without a header row (its first line is
     data, row 1); None reads them from the first line. time_col must be strictly increasing, unless ``notes`` (a list) is given: then
     repeated and backward time stamps are repaired by ``regularize_time`` and what it did is
-    appended to notes as one line.
+    appended to notes as one line. time_text: a list to which a TimeText of the time column is
+    appended, the table then carrying a "_row" column (data row numbers, kept through the
+    repairs) so that time_origin can rebase the stamps' text exactly.
     Errors: InputError(file, message, row) with the 1-based line number.
     """
     from .inputfile import MAX_CSV_BYTES, check_input_file
@@ -174,6 +176,9 @@ def read_csv(path: Path, required: list[str], optional: list[str] = (), nullable
         out = fast
     else:
         out = _read_csv_checked(path, required, nullable, header)
+    if time_text is not None and time_col is not None:
+        time_text.append(TimeText(path, list(out).index(time_col), header is None))
+        out["_row"] = np.arange(len(out[time_col]), dtype=np.int64)
     if time_col is not None and notes is not None:
         out, note = regularize_time(out, path, time_col)
         if note:
@@ -335,7 +340,38 @@ def t_col_fmt(x: float) -> str:
     return f"{x:.9g}"
 
 
-def _fmt_us(u: int) -> str:
+@dataclass(frozen=True)
+class TimeText:
+    """Where a table's time stamps were read: the file, the time column's index, whether the
+    file's first line is a header, and the factor to seconds the stamps were multiplied by
+    (import --time-unit/--time-scale). time_origin re-reads the stamps' text through it to
+    rebase them exactly in decimal."""
+
+    path: Path
+    col: int
+    has_header: bool = True
+    scale: float = 1.0
+
+    def read(self) -> list[str] | None:
+        """The time column's text of every data row, in the order read_csv numbered them
+        (lines that np.loadtxt skips, blank or comment-only, skipped too); None when the file
+        cannot be read again."""
+        try:
+            with open(self.path, newline="", encoding="utf-8") as fh:
+                rows = csv.reader(fh)
+                if self.has_header:
+                    next(rows, None)
+                out = []
+                for row in rows:
+                    if not row or not "".join(row).split("#")[0].strip():
+                        continue
+                    out.append(row[self.col].split("#")[0].strip() if self.col < len(row) else "")
+                return out
+        except (OSError, UnicodeDecodeError, csv.Error):
+            return None
+
+
+def format_us(u: int) -> str:
     """Integer microseconds as exact decimal seconds, trailing zeros dropped."""
     sign, u = ("-", -u) if u < 0 else ("", u)
     q, r = divmod(u, 1_000_000)
@@ -356,7 +392,7 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str
     cols = []
     for nm, a, f in zip(names, arrays, fmts):
         if nm == "t_s" and nm not in formats and np.all(np.isfinite(a)):
-            cols.append([_fmt_us(int(u)) for u in time_us(a) + int(t_origin_us)])
+            cols.append([format_us(int(u)) for u in time_us(a) + int(t_origin_us)])
         else:
             cols.append(["" if not math.isfinite(x) else f.format(x) for x in a.tolist()])
     with open(path, "w", newline="") as fh:
@@ -398,26 +434,44 @@ def read_json(path: Path, what: str = "JSON file"):
     except RecursionError:
         raise InputError(path, f"JSON nested too deeply: not a {what}") from None
 
-def _get(d: dict, key: str, path: Path, where: str, kind=None):
+_EXPECT = {float: "a finite number", dict: "a JSON object", str: "a string", list: "a list"}
+
+
+def json_kind(v) -> str:
+    """What a JSON value is, as a user reads it: 'a string "x"', 'a list [1, 2]', 'null'."""
+    if v is None:
+        return "null"
+    kind = ("a boolean" if isinstance(v, bool) else
+            {dict: "an object", list: "a list", str: "a string"}.get(type(v), "a number"))
+    return f"{kind} {json.dumps(v)[:40]}"
+
+
+def _get(d: dict, key: str, path: Path, where: str, kind=None, expect: str | None = None):
+    """d[key], refused with one line naming the key (where + key), what it must be (expect, or
+    the JSON type of kind) and what it is."""
+    what = expect or _EXPECT.get(kind)
     if not isinstance(d, dict) or key not in d:
-        raise InputError(path, f"missing key {where}{key}")
+        raise InputError(path, f"missing key {where}{key}" + (f": expected {what}" if what else ""))
     v = d[key]
     if kind is float:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise InputError(path, f"{where}{key} must be a finite number, got {v!r}")
+            raise InputError(path, f"{where}{key} must be {what}, got {json_kind(v)}")
         return float(v)
     if kind is not None and not isinstance(v, kind):
-        raise InputError(path, f"{where}{key} has the wrong type ({type(v).__name__})")
+        raise InputError(path, f"{where}{key} must be {what}, got {json_kind(v)}")
     return v
 
 
 def _matrix(v, shape, path: Path, name: str) -> np.ndarray:
+    what = "finite numbers, a list of 3 lists of 3" if shape == (3, 3) else f"finite numbers, a list of {shape[0]}"
     try:
+        if isinstance(v, (bool, str, dict)) or any(isinstance(x, (bool, str)) for x in np.ravel(np.asarray(v, dtype=object))):
+            raise ValueError  # float() would take "1.5" and True
         a = np.asarray(v, dtype=float)
     except (TypeError, ValueError):
-        raise InputError(path, f"{name} must be numeric of shape {shape}") from None
+        raise InputError(path, f"{name} must be {what}, got {json_kind(v)}") from None
     if a.shape != shape or not np.all(np.isfinite(a)):
-        raise InputError(path, f"{name} must be finite of shape {shape}, got {a.shape}")
+        raise InputError(path, f"{name} must be {what}, got {json_kind(v)}")
     return a
 
 
@@ -428,14 +482,14 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
     fmt = d.get("format")
     if fmt != FORMAT:
         raise InputError(path, f"format is {fmt!r}, expected {FORMAT!r}")
-    unit = _get(_get(d, "actuator", path, "", dict), "unit", path, "actuator.")
+    unit = _get(_get(d, "actuator", path, "", dict), "unit", path, "actuator.", expect="'mm' or 'deg'")
     if unit not in ACTUATOR_UNITS:
         raise InputError(path, f"actuator.unit must be one of {ACTUATOR_UNITS}, got {unit!r}")
-    kind = _get(_get(d, "distal", path, "", dict), "kind", path, "distal.")
+    kind = _get(_get(d, "distal", path, "", dict), "kind", path, "distal.", expect="'image' or 'angle'")
     if kind not in DISTAL_KINDS:
         raise InputError(path, f"distal.kind must be one of {DISTAL_KINDS}, got {kind!r}")
     r = _get(d, "robot", path, "", dict)
-    model = _get(r, "model", path, "robot.")
+    model = _get(r, "model", path, "robot.", expect="'constant_curvature'")
     if model != "constant_curvature":
         raise InputError(path, f"robot.model {model!r} not supported (only 'constant_curvature')")
     robot = Robot(model, _get(r, "bend_length_mm", path, "robot.", float),
@@ -444,12 +498,14 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
         raise InputError(path, "robot.q_per_rad must be non-zero and robot.bend_length_mm positive")
     out: dict[str, Any] = {"actuator_unit": unit, "distal_kind": kind, "robot": robot}
     q_source = d["actuator"].get("q_source", "measured")
+    if not isinstance(q_source, str):
+        raise InputError(path, f"actuator.q_source must be 'measured' or 'command', got {json_kind(q_source)}")
     if q_source not in Q_SOURCES:
         raise InputError(path, f"actuator.q_source must be one of {Q_SOURCES}, got {q_source!r}")
     out["q_source"] = q_source
     if "camera" in d or kind == "image":
         c = _get(d, "camera", path, "", dict)
-        K = _matrix(_get(c, "K", path, "camera."), (3, 3), path, "camera.K")
+        K = _matrix(_get(c, "K", path, "camera.", expect="a 3x3 list of numbers"), (3, 3), path, "camera.K")
         dist = _matrix(c.get("dist", [0, 0, 0, 0, 0]), (5,), path, "camera.dist")
         w, h_px = _get(c, "width", path, "camera.", float), _get(c, "height", path, "camera.", float)
         if not (1 <= w <= MAX_IMAGE_PX and 1 <= h_px <= MAX_IMAGE_PX) or w != int(w) or h_px != int(h_px):
@@ -461,12 +517,12 @@ def parse_meta(d: dict, path: Path) -> dict[str, Any]:
         check_camera(out["camera"], path)
     if "hand_eye" in d or kind == "image":
         h = _get(d, "hand_eye", path, "", dict)
-        R = _matrix(_get(h, "R", path, "hand_eye."), (3, 3), path, "hand_eye.R")
+        R = _matrix(_get(h, "R", path, "hand_eye.", expect="a 3x3 list of numbers"), (3, 3), path, "hand_eye.R")
         with np.errstate(all="ignore"):  # huge entries overflow: then not a rotation either
             rotation = bool(np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0)
         if not rotation:
             raise InputError(path, "hand_eye.R is not a rotation matrix")
-        out["hand_eye"] = HandEye(R, _matrix(_get(h, "t_mm", path, "hand_eye."), (3,), path, "hand_eye.t_mm"))
+        out["hand_eye"] = HandEye(R, _matrix(_get(h, "t_mm", path, "hand_eye.", expect="a list of 3 numbers"), (3,), path, "hand_eye.t_mm"))
     if d.get("t_delay_s") is not None:
         out["t_delay_s"] = _get(d, "t_delay_s", path, "", float)
         if not 0 <= out["t_delay_s"] <= MAX_T_DELAY_S:
@@ -546,18 +602,25 @@ def load_session(folder: str | os.PathLike) -> Session:
     d = read_json(jpath, "session.json")
     kw = parse_meta(d, jpath)
     notes: list[str] = []
-    enc = read_csv(folder / "encoder.csv", ["t_s", "q"], ["q_cmd"], notes=notes)
+    found: dict[str, list] = {}  # table name -> [the TimeText read_csv appends]
+
+    def tt(name: str) -> list:
+        return found.setdefault(name, [])
+
+    enc = read_csv(folder / "encoder.csv", ["t_s", "q"], ["q_cmd"], notes=notes, time_text=tt("encoder"))
     if len(enc["t_s"]) < 2:
         raise InputError(folder / "encoder.csv", "fewer than two samples")
     check_range(enc, "q", folder / "encoder.csv", notes, q_limit(), kw["actuator_unit"])
     s = Session(encoder=enc, path=folder, notes=notes, **kw)
     if kw["distal_kind"] == "angle":
-        s.distal = read_csv(folder / "distal.csv", ["t_s", "c_deg"], nullable={"c_deg"}, notes=notes)
+        s.distal = read_csv(folder / "distal.csv", ["t_s", "c_deg"], nullable={"c_deg"}, notes=notes,
+                            time_text=tt("distal"))
         check_range(s.distal, "c_deg", folder / "distal.csv", notes, MAX_ABS_C_DEG, "deg")
         s.distal = _noted(drop_held(s.distal, ["c_deg"], folder / "distal.csv"), notes)
     else:
         if (folder / "marker.csv").is_file():
-            s.marker = read_csv(folder / "marker.csv", ["t_s", "u_px", "v_px"], nullable={"u_px", "v_px"}, notes=notes)
+            s.marker = read_csv(folder / "marker.csv", ["t_s", "u_px", "v_px"], nullable={"u_px", "v_px"}, notes=notes,
+                                time_text=tt("marker"))
             s.marker = _noted(drop_held(s.marker, ["u_px", "v_px"], folder / "marker.csv"), notes)
             if np.any(np.isnan(s.marker["u_px"]) != np.isnan(s.marker["v_px"])):
                 k = int(np.nonzero(np.isnan(s.marker["u_px"]) != np.isnan(s.marker["v_px"]))[0][0])
@@ -565,12 +628,22 @@ def load_session(folder: str | os.PathLike) -> Session:
         videos = sorted(p for p in folder.glob("video.*") if p.suffix.lower() in VIDEO_SUFFIXES)
         if videos:
             s.video = videos[0]
-            s.frames = read_csv(folder / "frames.csv", ["frame", "t_s"])
+            s.frames = read_csv(folder / "frames.csv", ["frame", "t_s"], time_text=tt("frames"))
         if s.marker is None and s.video is None:
             raise InputError(folder / "marker.csv", "file not found (and no video.* with frames.csv)")
     if (folder / "truth.csv").is_file():
-        s.truth = read_csv(folder / "truth.csv", ["t_s", "c_deg"])
-    time_origin(s)
+        s.truth = read_csv(folder / "truth.csv", ["t_s", "c_deg"], time_text=tt("truth"))
+    time_origin(s, {name: lst[0] for name, lst in found.items() if lst})
+    fps = s.camera.fps if s.camera is not None else None
+    for name in RECORD_TABLES:
+        if getattr(s, name) is not None:
+            check_time_unit(getattr(s, name)["t_s"], folder / f"{name}.csv", fps if name in ("marker", "frames") else None)
+    check_overlap(s, folder)
+    if s.truth is not None and s.truth["t_s"].size and (s.truth["t_s"][0] > s.encoder["t_s"][-1]
+                                                        or s.truth["t_s"][-1] < s.encoder["t_s"][0]):
+        notes.append(f"{folder / 'truth.csv'}: its stamps ({s.truth['t_s'][0]:.6g} .. {s.truth['t_s'][-1]:.6g} s from "
+                     f"the record's first sample) do not overlap encoder.csv's ({s.encoder['t_s'][0]:.6g} .. "
+                     f"{s.encoder['t_s'][-1]:.6g} s): ground truth on another clock, not comparable with the record")
     for name, tab in (("encoder.csv", s.encoder), ("distal.csv", s.distal), ("marker.csv", s.marker),
                       ("frames.csv", s.frames)):
         if tab is not None:
@@ -604,6 +677,58 @@ def thin_encoder(enc: dict, path, max_hz: float = ENCODER_MAX_HZ) -> tuple[dict,
     note = (f"{path}: a {1 / dt:.0f} Hz log, thinned to {max_hz:.0f} Hz at load (the first sample of each "
             f"{1000 / max_hz:g} ms: {int(keep.sum())} of {t.size} rows kept)")
     return {k: v[keep] for k, v in enc.items()}, note
+
+
+# Time units of stamps: seconds per unit (import --time-unit; session files hold seconds).
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+TIME_UNIT_NAMES = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
+PER_SECOND = {"s": "1", "ms": "1000", "us": "1e6", "ns": "1e9"}
+# A log sampled more slowly than once a second shows no onset (swings last 0.25-0.5 s): a median
+# step above this, read as seconds, is stamps in a smaller unit.
+MAX_STEP_S = 1.0
+# A camera stream whose median step is this many frame periods (camera.fps) is not in seconds.
+MAX_STEP_FRAMES = 10.0
+
+
+def guess_time_unit(step: float, fps: float | None = None) -> str | None:
+    """The unit ("ms", "us", "ns") in which a median step of ``step`` (file units) is a plausible
+    sample spacing: with a stated frame rate, the unit putting step nearest one frame period
+    (within a factor 10); without one, the largest unit giving a step of at most MAX_STEP_S.
+    None when no unit fits."""
+    if fps:
+        best = min(("ms", "us", "ns"), key=lambda u: abs(math.log10(step * TIME_UNITS[u] * fps)))
+        return best if abs(math.log10(step * TIME_UNITS[best] * fps)) < 1 else None
+    for u in ("ms", "us", "ns"):
+        if step * TIME_UNITS[u] <= MAX_STEP_S:
+            return u
+    return None
+
+
+def check_time_unit(t_s: np.ndarray, path, fps: float | None = None, scale: float = 1.0,
+                    fix: str | None = None) -> None:
+    """Refuse stamps whose spacing says they are not seconds (times scale): a median step above
+    MAX_STEP_FRAMES frame periods of fps when the rate is stated (camera), else above MAX_STEP_S.
+    The one-line InputError names the unit the spacing suggests and fix(unit) -> how to pass it
+    (default: the session-file remedy)."""
+    t = np.asarray(t_s, float)
+    if t.size < 3:
+        return
+    step = float(np.median(np.diff(t)))
+    if not (step > 0 and math.isfinite(step)):
+        return
+    limit, why = ((MAX_STEP_FRAMES / fps, f"{step * fps:.4g} frame periods at camera.fps {fps:g}") if fps
+                  else (MAX_STEP_S, f"{1 / step:.3g} samples/s, too slow for any log this method reads"))
+    if step <= limit:
+        return
+    unit = guess_time_unit(step / scale, fps)
+    if unit is None:
+        raise InputError(path, f"the time stamps step by a median of {step:.6g} s ({why}): not seconds, and no "
+                         "unit among ms, us, ns fits either; check the time column")
+    rate = 1 / (step / scale * TIME_UNITS[unit])
+    how = fix(unit) if fix else (f"session files hold seconds: divide t_s by {PER_SECOND[unit]} (or import "
+                                 f"the log with `playscope import --time-unit {unit}`)")
+    raise InputError(path, f"the time stamps step by a median of {step:.6g} s ({why}): they look like "
+                     f"{TIME_UNIT_NAMES[unit]} (a {rate:.4g} Hz stream); {how}")
 
 
 # A bending angle beyond ten turns is a corrupt reading, not a pose (an unwrapped multi-turn
@@ -640,17 +765,33 @@ def check_range(tab: dict, col: str, path, notes: list[str], limit: float, unit:
 
 
 def check_span(tab: dict, path, notes: list[str]) -> None:
-    """Refuse a stream spanning more than the board's uint32 us clock (71.6 min) from the
-    session's first stamp, naming the row after the largest gap: one corrupt stamp (1e9 s)
-    looks exactly like that."""
+    """Refuse a stream reaching beyond the board's uint32 us clock (71.6 min) from the record's
+    first sample (tab's t_s rebased by time_origin), stating the record's duration and naming
+    the row after the largest gap: one corrupt stamp (1e9 s) looks exactly like that."""
     t = tab["t_s"]
     if t.size == 0 or t[-1] * 1e6 <= MAX_SPAN_US:
         return
     gaps = np.diff(t) if t.size > 1 else np.array([t[0]])
     k = int(np.argmax(gaps)) + 1 if t.size > 1 else 0
-    raise InputError(path, f"spans {t[-1]:.6g} s from the session's first stamp, beyond the 71.6 min the board's "
-                     f"clock holds; the largest gap is {gaps.max():.6g} s before t_s = {t[k]:.9g} s (a corrupt time "
-                     "stamp there?); otherwise split the recording", _row(k, path, notes))
+    raise InputError(path, f"the record lasts {t[-1]:.6g} s ({t[-1] / 60:.4g} min) from its first sample to this "
+                     f"file's last, beyond the {MAX_SPAN_US / 6e7:.1f} min the board's clock holds; the largest "
+                     f"gap is {gaps.max():.6g} s before t_s = {t[k]:.9g} s (a corrupt time stamp there?); otherwise "
+                     "split the recording", _row(k, path, notes))
+
+
+def check_overlap(s: "Session", folder: Path) -> None:
+    """Refuse record streams that do not overlap in time (after time_origin): two clocks, or one
+    file shifted, which no delay estimate can join. Names both files and their spans."""
+    spans = [(n, getattr(s, n)["t_s"]) for n in RECORD_TABLES
+             if getattr(s, n) is not None and getattr(s, n)["t_s"].size]
+    for i, (a, ta) in enumerate(spans):
+        for b, tb in spans[i + 1:]:
+            if ta[0] > tb[-1] or tb[0] > ta[-1]:
+                (x, tx), (y, ty) = ((a, ta), (b, tb)) if ta[0] > tb[-1] else ((b, tb), (a, ta))
+                raise InputError(folder / f"{x}.csv", f"its stamps ({tx[0]:.6g} .. {tx[-1]:.6g} s from the "
+                                 f"record's first sample) begin after {y}.csv's end ({ty[0]:.6g} .. {ty[-1]:.6g} s): "
+                                 "the files do not overlap in time; were they stamped by two clocks, or one file "
+                                 "shifted? give both the same clock")
 
 
 def time_us(t) -> np.ndarray:
@@ -660,28 +801,79 @@ def time_us(t) -> np.ndarray:
     return np.round(np.asarray(t, dtype=np.float64) * 1e6).astype(np.int64)
 
 
-def time_origin(s: "Session") -> "Session":
-    """Make every t_s of s relative to the session's first stamp (the earliest first row of
-    its streams), through integer microseconds, in place; s.t_origin_us keeps the files'
-    time of that stamp. The same motion then gives bit-identical times, hence the same
-    calibration, whatever the clock's origin (0, a device uptime, an epoch stamp of 1.7e9 s
-    as ROS bags carry): float64 seconds at 1.7e9 s would hold only 0.24 us steps, and every
-    difference taken from them would carry that rounding. Stamps are quantised to 1 us.
-    A repeated stamp after the quantisation keeps the last row (as regularize_time)."""
-    tabs = [t for t in (s.encoder, s.distal, s.marker, s.frames, s.truth) if t is not None and len(t["t_s"])]
-    if not tabs:
+# Streams that make up the record (what a sensor measured); truth.csv is the simulator's
+# ground truth, rebased with them but never their origin.
+RECORD_TABLES = ("encoder", "distal", "marker", "frames")
+
+
+def time_origin(s: "Session", texts: dict[str, TimeText] | None = None) -> "Session":
+    """Make every t_s of s relative to the record's first sample (the earliest first row of
+    encoder, distal, marker, frames; truth.csv follows them), in place, quantised to 1 us;
+    s.t_origin_us keeps the files' time of that sample (integer us). The same motion then
+    gives bit-identical times, hence the same calibration, whatever the clock's origin (0, a
+    device uptime, an epoch stamp of 1.7e9 s as ROS bags carry).
+
+    How: a record starting at 0 keeps the stamps as parsed (rel = t). Otherwise, with texts
+    ({table name: TimeText} from read_csv), each stamp is rebased in decimal from its text,
+    rel = float(Decimal(text) - Decimal(origin text)) * scale, so any decimal shift of the
+    files gives the same rel, to the last bit, whatever the stamps' digits (float64 seconds at
+    1.7e9 s hold only 0.24 us steps: rebasing the parsed floats would carry that rounding).
+    Without texts (a Session built in memory) the parsed stamps are rebased through integer
+    microseconds, exact for stamps of at most 6 decimals below 2^31 s. Then rel is quantised
+    to 1 us (round(rel * 1e6) / 1e6); a repeated stamp after the quantisation keeps the last
+    row (as regularize_time)."""
+    from decimal import Decimal, InvalidOperation
+
+    names = [n for n in RECORD_TABLES + ("truth",) if getattr(s, n) is not None and len(getattr(s, n)["t_s"])]
+    rec = [n for n in names if n != "truth"] or names
+    if not names:
         return s
-    us = [time_us(t["t_s"]) for t in tabs]
-    origin = min(int(u[0]) for u in us)
-    for tab, u in zip(tabs, us):
-        rel = u - origin
-        keep = np.r_[rel[1:] != rel[:-1], True] if rel.size > 1 else np.ones(rel.size, bool)
+    tabs = {n: getattr(s, n) for n in names}
+    f0 = min(float(tabs[n]["t_s"][0]) for n in rec)
+    rel: dict[str, np.ndarray] | None = None
+    origin_us = 0
+    if f0 == 0.0:
+        rel = {n: np.asarray(tabs[n]["t_s"], float) for n in names}
+    elif texts and all(n in texts and "_row" in tabs[n] for n in names) \
+            and len({texts[n].scale for n in names}) == 1:
+        dec: dict[str, list] = {}
+        cache: dict[TimeText, list | None] = {}
+        try:
+            for n in names:
+                tt = texts[n]
+                if tt not in cache:
+                    cache[tt] = tt.read()
+                all_text = cache[tt]
+                rows = tabs[n]["_row"]
+                if all_text is None or len(all_text) <= int(rows.max()):
+                    raise ValueError
+                sel = [all_text[int(r)] for r in rows]
+                parsed = np.array([float(x) for x in sel]) * tt.scale
+                if not np.array_equal(parsed, np.asarray(tabs[n]["t_s"], float)):
+                    raise ValueError  # not the text read_csv parsed: keep to the floats
+                dec[n] = [Decimal(x) for x in sel]
+            origin = min(dec[n][0] for n in rec)
+            scale = texts[names[0]].scale
+            rel = {n: np.array([float(d - origin) for d in dec[n]]) * scale for n in names}
+            origin_us = int((origin * Decimal(repr(scale)) * 1_000_000).to_integral_value())
+        except (ValueError, InvalidOperation):
+            rel = None
+    if rel is None:  # in-memory tables: through integer microseconds
+        us = {n: time_us(tabs[n]["t_s"]) for n in names}
+        origin_us = min(int(us[n][0]) for n in rec)
+        rel_us = {n: us[n] - origin_us for n in names}
+    else:
+        rel_us = {n: np.round(rel[n] * 1e6).astype(np.int64) for n in names}
+    for n in names:
+        tab, r = tabs[n], rel_us[n]
+        tab.pop("_row", None)
+        keep = np.r_[r[1:] != r[:-1], True] if r.size > 1 else np.ones(r.size, bool)
         if not keep.all():  # sub-microsecond rows: keep the last of each
             for k in list(tab):
                 tab[k] = tab[k][keep]
-            rel = rel[keep]
-        tab["t_s"] = rel / 1e6
-    s.t_origin_us += origin
+            r = r[keep]
+        tab["t_s"] = r / 1e6
+    s.t_origin_us += origin_us
     return s
 
 
