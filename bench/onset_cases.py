@@ -1,4 +1,4 @@
-"""The onset scoreboard's renderings (issue 48): 300 FRESH renderings from three renderers
+"""The onset scoreboard's renderings: 300 FRESH renderings from three renderers
 written apart, drawn and committed before any code of the one-model onset stage.
 
 Each renderer gets 100 rows. Their parameters are drawn, not chosen: a fixed generator

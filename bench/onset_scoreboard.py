@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The onset scoreboard (issue 48): `playscope calibrate`'s B(q) and t_delay over many renderings
+"""The onset scoreboard: `playscope calibrate`'s B(q) and t_delay over many renderings
 of several renderers written apart, judged as a failure rate with its exact 95 % interval
 (Clopper-Pearson), never row by row.
 

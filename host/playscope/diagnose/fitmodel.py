@@ -23,7 +23,7 @@ from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
 from ..fit.model import play_on_edges
-from . import kernels
+from ..base import kernels
 
 N_KNOTS = 9
 N_FKNOTS = 12  # interior knots of the cubic B-spline f_remain

@@ -1,4 +1,4 @@
-"""Eq. 1 from one model of the whole image record (paper section III-A; issue 48).
+"""Eq. 1 from one model of the whole image record (paper section III-A).
 
 The marker at frame j, stamped t_j on the encoder's clock, shows the scene at tau_j = t_j - t_delay:
 
@@ -126,7 +126,7 @@ def _dbasis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
 
 
 def _play(lo: np.ndarray, hi: np.ndarray, z0: float) -> np.ndarray:
-    from ..diagnose import kernels
+    from ..base import kernels
 
     if kernels.available():
         return kernels.play_on_edges(lo, hi, z0)
@@ -627,7 +627,10 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
 
 # --------------------------------------------------------------------------- the start
 def _n_b(n_rev: int) -> int:
-    return int(np.clip(n_rev // B_REV_PER_CTRL, 1, B_CTRL_MAX))
+    """B's coefficients for n_rev reversals: one per B_REV_PER_CTRL, at most B_CTRL_MAX; a constant
+    width (1) when that gives fewer than the 4 a cubic B-spline needs."""
+    n = n_rev // B_REV_PER_CTRL
+    return 1 if n < 4 else min(n, B_CTRL_MAX)
 
 
 def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarray | None,

@@ -194,7 +194,8 @@ def image_record():
 
 
 @pytest.mark.parametrize("record,why", [(play_record, "kappa 0"), (pi_record, "kappa 0"),
-                                        (image_record, "cannot win by the one-SE margin")])
+                                        # either shortcut, depending on the record model's B
+                                        (image_record, ("cannot win by the one-SE margin", "kappa 0"))])
 def test_a_skipped_relaxed_member_would_not_have_won_its_cv(record, why, monkeypatch):
     """The shortcuts of choose (a relaxed member whose search finds kappa 0, or whose in-sample
     gain is at most its base's CV SE, is not cross-validated) against the CV they skip, run here
@@ -203,7 +204,8 @@ def test_a_skipped_relaxed_member_would_not_have_won_its_cv(record, why, monkeyp
     cal = calibrate(record(), model_kind="auto")
     ctx, rows = seen["ctx"], {d["family"]: d for d in cal.family_choice["candidates"]}
     skipped = [n for n in FAM.RELAXED if rows[n].get("skipped")]
-    assert skipped and all(why in rows[n]["skipped"] for n in skipped), rows
+    whys = (why,) if isinstance(why, str) else why
+    assert skipped and all(any(w in rows[n]["skipped"] for w in whys) for n in skipped), rows
     splits = T.rolling_origins(ctx.data, T.KFOLD)
     for name in skipped:
         base = rows[FAM.RELAXED[name]]

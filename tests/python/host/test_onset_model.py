@@ -163,3 +163,14 @@ def test_a_tip_mode_is_found_at_its_frequency():
     ring = rob.report["ringing"]
     assert ring["found"] and ring["freq_hz"] == pytest.approx(3.0, rel=0.05)
     assert _b_error_pct(r, rob.onsets) < 10.0
+
+
+@pytest.mark.parametrize("name", ["marker_render.py", "swing_render.py"])
+def test_the_renderers_that_judge_the_onset_stage_import_numpy_and_the_standard_library_only(name):
+    import ast
+
+    tree = ast.parse((ROOT / "bench" / name).read_text())
+    mods = {a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    mods |= {n.module.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
+    assert mods <= {"numpy", "json", "dataclasses", "pathlib", "__future__", "math"} | set(sys.stdlib_module_names)
+    assert "playscope" not in mods

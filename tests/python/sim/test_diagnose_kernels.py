@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from scipy.interpolate import BSpline
 
-from playscope.diagnose import fitmodel, kernels
+from playscope.base import kernels
+from playscope.diagnose import fitmodel
 from playscope.fit.model import play_on_edges
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="no C compiler for the diagnosis kernels")

@@ -1,4 +1,5 @@
-"""The diagnosis' sequential kernels in C (kernels.c), loaded through cffi like the firmware core
+"""Sequential kernels in C (kernels.c): the play operator (the onsets' record model and the
+diagnosis use it) and the diagnosis' recursions, loaded through cffi like the firmware core
 (playscope.base.native): compiled on first use into $PLAYSCOPE_CACHE/diagkernels-<hash of the C, the
 header and this file>, so an edit rebuilds it and a stale build is never loaded.
 
