@@ -87,9 +87,10 @@ def model_text(cal: Calibration) -> str:
 def calibrate_session(session_dir, out, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
                       t_delay_s: float | None = None, t_delay_from: str = "data",
                       hysteresis: float | None = None, threshold: float | None = None,
-                      model_kind: str = "auto") -> Calibrated:
+                      model_kind: str = "auto", onset_stage: str = "refine") -> Calibrated:
     """calibration.calibrate on the session folder or recording file (importer.load_recording), saved to out (docs/calibration-format.md).
-    threshold: the onset threshold T per frame (px or deg), default automatic."""
+    threshold: the onset threshold T per frame (px or deg), default automatic; onset_stage as in
+    calibration.calibrate."""
     from .fit.calibration import calibrate
     from .io.importer import load_recording
 
@@ -97,7 +98,7 @@ def calibrate_session(session_dir, out, n_ctrl: int = 14, f_method: str = "lsq",
     notes = list(s.notes)  # what the loader repaired (repeated or backward stamps, a held sensor)
     ov = {"threshold": threshold} if threshold is not None else None
     cal = calibrate(s, n_ctrl, f_method, fps, t_delay_s, hysteresis, ov, t_delay_from=t_delay_from,
-                    model_kind=model_kind)
+                    model_kind=model_kind, onset_stage=onset_stage)
     cal.save(out)
     return Calibrated(os.fspath(out), cal, notes)
 

@@ -38,6 +38,11 @@ def add_parser(sub) -> None:
     p.add_argument("--t-delay-from", choices=["data", "config"], default="data",
                    help="image sessions: use the delay measured from the record (data, default) or the configured "
                    "one (config); a gap over one frame period is warned about either way")
+    p.add_argument("--onsets", choices=["refine", "record-model"], default="refine",
+                   help="image sessions: how eq. 1's samples and t_delay are found. refine (default): the board's "
+                   "onsets refined per reversal by change-point models (docs/host.md); record-model (preview): "
+                   "one model of the whole record, the play, the delay and the camera's effects fitted jointly "
+                   "(docs/host.md 'Onsets from one model of the record', and its known gaps)")
     p.add_argument("--hysteresis", type=T.HYSTERESIS, help="reversal detection hysteresis, actuator units (default 1%% of travel)")
     p.add_argument("--threshold", type=T.THRESHOLD, help="onset threshold T per frame (px or deg); default: from this record's still noise and a "
                    "false-alarm rate of 0.01 onsets per reversal (docs/method.md 'Settings from the record', "
@@ -50,7 +55,7 @@ def add_parser(sub) -> None:
 
 def run(a) -> int:
     res = calibrate_session(a.session, a.out, a.control_points, a.f_method, a.fps, a.t_delay, a.t_delay_from,
-                            a.hysteresis, a.threshold, a.model)
+                            a.hysteresis, a.threshold, a.model, a.onsets)
     for w in res.warnings:
         print(f"playscope: warning: {w}", file=sys.stderr)
     return emit(a, res)

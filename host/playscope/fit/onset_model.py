@@ -57,8 +57,8 @@ GRID_HZ_MAX = 1000.0   # the play runs on a uniform grid at the encoder's rate, 
 RING_HZ_LO = 1.0       # the tip mode searched from this (Hz) ...
 RING_NYQUIST = 0.45    # ... to this share of the frame rate (below Nyquist, with the exposure's margin)
 G_CTRL = (6, 10, 14)   # the image path's coefficients per axis, chosen by BIC on the start
-B_REV_PER_CTRL = 4     # B(q) gets one coefficient per this many reversals (a cubic's support spans 4 spans) ...
-B_CTRL_MAX = 10        # ... and at most this many
+B_CTRL = (4, 8, 16)    # B(q)'s coefficients, chosen by BIC on the plain model (a cubic needs 4) ...
+B_REV_PER_CTRL = 1     # ... with at least one reversal (one onset) per coefficient
 IRLS_ROUNDS = 3        # reweightings of the Huber fit (the weights settle in 2-3 on every record tried)
 TERMS = ("ring", "reg_tip", "reg_motor")
 
@@ -626,11 +626,10 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
 
 
 # --------------------------------------------------------------------------- the start
-def _n_b(n_rev: int) -> int:
-    """B's coefficients for n_rev reversals: one per B_REV_PER_CTRL, at most B_CTRL_MAX; a constant
-    width (1) when that gives fewer than the 4 a cubic B-spline needs."""
-    n = n_rev // B_REV_PER_CTRL
-    return 1 if n < 4 else min(n, B_CTRL_MAX)
+def _n_b_ladder(n_rev: int) -> list[int]:
+    """B's sizes the plain model tries for n_rev reversals: those of B_CTRL with at least
+    B_REV_PER_CTRL reversals each; a constant width (1) when none has."""
+    return [n for n in B_CTRL if n * B_REV_PER_CTRL <= n_rev] or [1]
 
 
 def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarray | None,
@@ -699,11 +698,15 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
     st, n_g = _start(rec, starts, prior, d_fixed, board_b, sigma)
     d0, b0 = min(st.items(), key=lambda kv: len(kv[0]))[1]  # the base model's own start
     terms = Terms()
-    n_b = _n_b(rec.rt.size)
-    m = RecordModel(rec, n_b, n_g, terms, prior, d_fixed)
-    fit = fit_model(m, m.theta({"d": np.array([d0]), "B": np.full(n_b, b0)}), sigma=sigma)
-    bic = fit.bic(sigma)
-    log = [{"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])}]
+    fits = []
+    for n_b in _n_b_ladder(rec.rt.size):  # B's size by the same criterion as the terms
+        m = RecordModel(rec, n_b, n_g, terms, prior, d_fixed)
+        f = fit_model(m, m.theta({"d": np.array([d0]), "B": np.full(n_b, b0)}), sigma=sigma)
+        fits.append((f.bic(sigma), n_b, f))
+    bic, n_b, fit = min(fits, key=lambda x: x[0])
+    m = fit.model
+    log = [{"B_ctrl": {n: b for b, n, _ in fits}},
+           {"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])}]
     while True:
         cands = []
         for name in (n for n in TERMS if not getattr(terms, n)):

@@ -1,4 +1,5 @@
-"""The record model of the onset stage (playscope.fit.onset_model, onset_stage) on short renderings of
+"""The record model of the onsets (playscope.fit.onset_model, onset_stage; `calibrate --onsets
+record-model`) on short renderings of
 bench/swing_render.py, a renderer written apart from the estimator: each term against its truth.
 Statistics over many renderings live in bench/onset_scoreboard.py, not here."""
 

@@ -13,14 +13,12 @@ def test_demo_end_to_end(tmp_path, capsys):
     s = json.loads((out / "summary.json").read_text())
     assert s == json.loads((tmp_path / "s.json").read_text())
     # B(q) from the onsets. With the STRAS preset's smooth transition (operator widths
-    # B (1 +- spread u)) the tip first moves once (1 - spread) B is taken up and then creeps until
-    # (1 + spread) B. The record model fits a pure play to that motion (the transition is not one
-    # of its terms), so its width lies within the operators' span: measured B_est / B 0.83-1.17
-    # (mean 1.06) on the 90 s main job and up to 1.39 on this 40 s one, seed 1. (The old
-    # change-point onsets found the first motion: 0.56-0.81.)
+    # B (1 +- spread u)) the tip first moves once (1 - spread) B is taken up and then creeps, so
+    # eq. 1's onset lies between the first-motion width and the centre width B: measured B_est / B
+    # 0.56-0.81 (mean 0.66) on the 90 s main job, seed 1, with the threshold from the record.
     b = s["b_error"]
     assert b["spread"] == 0.5
-    assert 1 - b["spread"] - 0.1 < b["ratio_min"] and b["ratio_max"] < 1.0 + b["spread"], b
+    assert 1 - b["spread"] - 0.1 < b["ratio_min"] and b["ratio_max"] < 1.0 + 0.1, b
     # Flashed over the emulated USB device, read back identical, compensator bit-exact.
     assert "read back identical" in s["flash"] and "bit-identical" in s["flash"]
     # Table I rows for the paper's three models plus the fixed-point one.
