@@ -9,9 +9,10 @@ independently rendered records and the pose-based baseline, paper Fig. 7), `play
 (main job: B error, Table I and compensation ratios, time), `playscope evaluate-real`
 (real-data RMSE), bench/insitu_real.py (every model on both instruments, ours / best peer),
 bench/online_real.py and transfer_real.py (on-line update, a calibration used elsewhere),
-bench/bench_startup.py, bench/diagnose_speed.py, then with --swings bench/swing_bench.py
-(development renderings) and, unless --skip-selftest, bench/diagnose_selftest.py --quick
---second (both generators). Only figures measured in this run are printed; a part that fails or
+bench/bench_startup.py, bench/diagnose_speed.py, the Python tests marked slow (`pytest -m
+slow tests/python`: what ./tools/run-tests.sh leaves out, CONTRIBUTING.md), then with --swings
+bench/swing_bench.py (development renderings) and, unless --skip-selftest,
+bench/diagnose_selftest.py --quick --second (both generators). Only figures measured in this run are printed; a part that fails or
 is skipped says so in its row, and the README's summary keeps a line for it.
 
 It writes docs/results.md (machine, date, commit, time per part, the figure table, then every
@@ -143,6 +144,7 @@ PART_TIME = (
     ("start-up", "~5 s"),
     ("diagnosis speed", "~1 min"),
     ("asymmetric-play trace", "~4 min (base-model fits on the generators' asymmetric cases and nulls)"),
+    ("slow tests", "the Python tests marked slow, in parallel (none marked at present: seconds)"),
     ("fast-swing onsets", "~10-20 min; only with --swings (development renderings)"),
     ("diagnosis self-test", "~15-40 min (both generators, quick form), the slowest part; --skip-selftest leaves it out"),
 )
@@ -548,6 +550,25 @@ def main(argv=None) -> int:
                           "bench/diagnose_trace.py --nulls 6"))
 
     part("asymmetric-play trace", asym_trace)
+
+    # -- the Python tests marked slow: too long for the README's test command, run here (and by
+    # ./tools/run-tests.sh --all); CONTRIBUTING.md says which and why. Exit 5: none is marked.
+    def slow_tests():
+        cmd = [PY, "-m", "pytest", "-q", "-n", "auto", "--dist", "loadfile", "-m", "slow", "tests/python"]
+        shown = "python -m pytest -q -n auto --dist loadfile -m slow tests/python"
+        r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=7200)
+        RAW.append((shown, shown, r.stdout))
+        last = next((ln.strip("= ") for ln in reversed(r.stdout.splitlines()) if ln.strip()), "")
+        if r.returncode == 5:
+            measured = "none marked slow"
+        elif r.returncode in (0, 1):
+            measured = last
+        else:
+            raise RuntimeError(f"pytest -m slow exited {r.returncode}: {last}")
+        table.append(("Python tests marked slow (left out of ./tools/run-tests.sh)", measured, "all pass", "",
+                      "pytest -m slow tests/python"))
+
+    part("slow tests", slow_tests)
 
     def swings():
         # The development renderings only: the set-aside group is run once, by hand, after the

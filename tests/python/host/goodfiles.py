@@ -29,6 +29,11 @@ def make_good(root: Path) -> dict[str, Path]:
     c = np.interp(t, s.distal["t_s"], s.distal["c_deg"])
     lines = ["Time,Tendon Disp.,Angle x"] + [f"{a:.4f},{b:.5f},{d:.4f}" for a, b, d in zip(t, q, c)]
     (root / "rec.csv").write_text("\n".join(lines) + "\n")
+    return good_paths(root)
+
+
+def good_paths(root: Path) -> dict[str, Path]:
+    """name -> path of the files make_good wrote under root."""
     return {"session": root / "session", "cal": root / "cal.json", "table": root / "table.pstb",
             "csv": root / "rec.csv"}
 

@@ -117,13 +117,33 @@ def spy_context(monkeypatch):
     return seen
 
 
+@pytest.fixture(scope="module")
+def auto_cal():
+    """auto_cal(record) -> (calibrate(record(), model_kind="auto"), the Context it gave
+    families.choose): each generator record calibrated once for the module (a calibration takes
+    seconds; calibrate is deterministic, and the tests only read what it returns)."""
+    done = {}
+
+    def get(record):
+        if record.__name__ not in done:
+            mp = pytest.MonkeyPatch()
+            seen = spy_context(mp)
+            try:
+                cal = calibrate(record(), model_kind="auto")
+            finally:
+                mp.undo()
+            done[record.__name__] = (cal, seen["ctx"])
+        return done[record.__name__]
+    return get
+
+
 # --------------------------------------------------------------------------- the choice
 # right: families that hold the generating model; wrong: ones that cannot (onset_transition reduces to
 # the pure play when its own choice finds no transition, so it is neither for the play record).
 @pytest.mark.parametrize("record,right,wrong", [(play_record, {"onset_play", "const_play"}, {"pi_const"}),
                                                 (pi_record, {"onset_transition", "pi_const"}, {"onset_play", "const_play"})])
-def test_choice_picks_the_family_that_generated_the_record(record, right, wrong):
-    cal = calibrate(record(), model_kind="auto")
+def test_choice_picks_the_family_that_generated_the_record(record, right, wrong, auto_cal):
+    cal, _ = auto_cal(record)
     ch = cal.family_choice
     cvs = {d["family"]: d["cv_rmse_deg"] for d in ch["candidates"]}
     print(record.__name__, cal.family, cvs)
@@ -138,8 +158,8 @@ def test_choice_picks_the_family_that_generated_the_record(record, right, wrong)
         (cal.family in ("onset_play", "onset_transition"))
 
 
-def test_calibration_round_trip_writes_the_same_table(tmp_path):
-    cal = calibrate(pi_record(), model_kind="auto")
+def test_calibration_round_trip_writes_the_same_table(tmp_path, auto_cal):
+    cal, _ = auto_cal(pi_record)
     cal.save(tmp_path / "cal.json")
     back = Calibration.load(tmp_path / "cal.json")
     assert back.family == cal.family and back.family_choice == cal.family_choice
@@ -169,8 +189,8 @@ def test_choice_takes_the_relaxation_on_a_record_that_has_one(relaxed_cal):
 
 
 @pytest.mark.parametrize("record", [play_record, pi_record])
-def test_choice_leaves_the_relaxation_out_on_records_without_one(record):
-    cal = calibrate(record(), model_kind="auto")
+def test_choice_leaves_the_relaxation_out_on_records_without_one(record, auto_cal):
+    cal, _ = auto_cal(record)
     assert not cal.family.endswith("_relax") and cal.relax is None
     assert cal.family_choice["relax"] is None
 
@@ -195,13 +215,12 @@ def image_record():
 
 @pytest.mark.parametrize("record,why", [(play_record, "kappa 0"), (pi_record, "kappa 0"),
                                         (image_record, "cannot win by the one-SE margin")])
-def test_a_skipped_relaxed_member_would_not_have_won_its_cv(record, why, monkeypatch):
+def test_a_skipped_relaxed_member_would_not_have_won_its_cv(record, why, auto_cal):
     """The shortcuts of choose (a relaxed member whose search finds kappa 0, or whose in-sample
     gain is at most its base's CV SE, is not cross-validated) against the CV they skip, run here
     anyway on the same folds."""
-    seen = spy_context(monkeypatch)
-    cal = calibrate(record(), model_kind="auto")
-    ctx, rows = seen["ctx"], {d["family"]: d for d in cal.family_choice["candidates"]}
+    cal, ctx = auto_cal(record)
+    rows = {d["family"]: d for d in cal.family_choice["candidates"]}
     skipped = [n for n in FAM.RELAXED if rows[n].get("skipped")]
     assert skipped and all(why in rows[n]["skipped"] for n in skipped), rows
     splits = T.rolling_origins(ctx.data, T.KFOLD)
@@ -239,12 +258,8 @@ def test_chosen_relaxed_table_is_layout_4_bit_exact_and_follows_the_double_chain
 
 # --------------------------------------------------------------------------- every family's table
 @pytest.fixture(scope="module")
-def pi_context():
-    mp = pytest.MonkeyPatch()
-    seen = spy_context(mp)
-    calibrate(pi_record(), model_kind="auto")
-    mp.undo()
-    return seen["ctx"]
+def pi_context(auto_cal):
+    return auto_cal(pi_record)[1]
 
 
 @pytest.mark.parametrize("fam", FAM.FAMILIES, ids=lambda f: f.name)

@@ -19,7 +19,7 @@ import pytest
 
 from playscope.cli import main
 
-from .goodfiles import copy_good, make_good
+from .goodfiles import copy_good
 
 JUNK = bytes(range(256)) * 3
 
@@ -429,11 +429,6 @@ CASES = cases()
 def test_corpus_size():
     assert len(CASES) >= 300, len(CASES)
     assert len({c[0] for c in CASES}) == len(CASES)  # ids unique
-
-
-@pytest.fixture(scope="module")
-def good(tmp_path_factory):
-    return make_good(tmp_path_factory.mktemp("good"))
 
 
 def _digest(root) -> dict:

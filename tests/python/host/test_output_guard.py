@@ -13,12 +13,7 @@ from playscope.base.atomic import check_output, output_guard, write_text_atomic
 from playscope.cli import main
 from playscope.base.errors import InputError
 
-from .goodfiles import copy_good, make_good
-
-
-@pytest.fixture(scope="module")
-def good(tmp_path_factory):
-    return make_good(tmp_path_factory.mktemp("good"))
+from .goodfiles import copy_good
 
 
 def _digest(root) -> dict:

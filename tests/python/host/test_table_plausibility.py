@@ -14,15 +14,10 @@ from hypothesis import strategies as st
 from playscope.base.native import core
 from playscope.board.table_check import TableFileError, check_blob
 
-from .goodfiles import make_good, reseal, table_nonsense
+from .goodfiles import reseal, table_nonsense
 
 NONSENSE = table_nonsense()
 Q = 65536.0
-
-
-@pytest.fixture(scope="module")
-def good(tmp_path_factory):
-    return make_good(tmp_path_factory.mktemp("good"))
 
 
 def _load(blob: bytes) -> int:

@@ -262,8 +262,15 @@ def test_rls_shape_without_forgetting_is_least_squares_with_the_p0_prior_and_for
 REAL_ENDOSCOPE = REAL_CATHETER.parent / "endoscope"
 
 
+@pytest.fixture(scope="module")
+def transfer_30_60():
+    """The transfer table's rows for the endoscope pair 30 -> 60 deg (both shape tests compare
+    with it; computed once)."""
+    return evaluate_transfer(REAL_ENDOSCOPE / "30.txt", [REAL_ENDOSCOPE / "60.txt"])["files"]["60"]["rmse_deg"]
+
+
 @pytest.mark.skipif(not (REAL_ENDOSCOPE / "60.txt").is_file(), reason="real endoscope recordings absent")
-def test_shape_ceiling_rows_keep_their_bounds_on_an_endoscope_pair():
+def test_shape_ceiling_rows_keep_their_bounds_on_an_endoscope_pair(transfer_30_60):
     """On 30 -> 60 deg (development files): the oracle of each correction is at most its warm-up
     fit (both a constant theta on the same basis; the oracle is the least squares on the scored
     samples), the per-branch span holds the f-shape span and the weights-plus-branch span holds
@@ -279,13 +286,13 @@ def test_shape_ceiling_rows_keep_their_bounds_on_an_endoscope_pair():
     assert f["branch_4_oracle"] <= f["shape_4_oracle"] + 1e-12
     assert f["wbranch_4_oracle"] <= min(f["branch_4_oracle"], f["weights_oracle"]) + 1e-12
     assert f["in_situ"] == pytest.approx(learnable_ceiling(cal, [run], in_situ_cache=cache)["files"]["60"]["in_situ"], rel=1e-12)
-    tr = evaluate_transfer(cal, [run])["files"]["60"]["rmse_deg"]
+    tr = transfer_30_60
     assert f["board"] == pytest.approx(tr["transition_board"], rel=1e-9)
     assert f["in_situ"] == pytest.approx(tr["in_situ"], rel=1e-9)
 
 
 @pytest.mark.skipif(not (REAL_ENDOSCOPE / "60.txt").is_file(), reason="real endoscope recordings absent")
-def test_shape_noregress_runs_the_learners_on_the_in_situ_model():
+def test_shape_noregress_runs_the_learners_on_the_in_situ_model(transfer_30_60):
     """Nothing drifts: the learners sit on the record's own in-situ model, so its reference and the
     board learner's row are the transfer table's in_situ and in_situ_board on that record, and
     the oracle bounds hold as on a transferred model."""
@@ -293,7 +300,7 @@ def test_shape_noregress_runs_the_learners_on_the_in_situ_model():
 
     run = REAL_ENDOSCOPE / "60.txt"
     f = shape_noregress([run], nodes=(4,))["files"]["60"]
-    tr = evaluate_transfer(REAL_ENDOSCOPE / "30.txt", [run])["files"]["60"]["rmse_deg"]
+    tr = transfer_30_60
     assert f["in_situ"] == pytest.approx(tr["in_situ"], rel=1e-12)
     assert f["board"] == pytest.approx(tr["in_situ_board"], rel=1e-9)
     for k in ("shape_4", "branch_4", "weights", "wbranch_4"):
