@@ -34,11 +34,18 @@ import numpy as np
 
 # Per renderer: (generator seed, first rendering seed). New seeds, used by no group before.
 SEEDS = {"marker": (48101, 480001), "swing": (48202, 480201), "render_c": (48303, 480401)}
+# The second set-aside group, SETASIDE_150 (drawn and committed before the record model's
+# second round of terms; FRESH_300 was run once and is development data from then on).
+SEEDS_2 = {"marker": (49101, 490001), "swing": (49202, 490201), "render_c": (49303, 490401)}
 
 # 100 rows per renderer: (category, limit %, delay status) x count.
 PLAN = ([("none", 5.0, "right")] * 25 + [("registration", 5.0, "right")] * 25
         + [("delay", 10.0, "wrong")] * 15 + [("delay", 10.0, "absent")] * 10
         + [("ringing", 10.0, "right")] * 25)
+# 50 rows per renderer for the second group, in the same proportions (rounded).
+PLAN_2 = ([("none", 5.0, "right")] * 12 + [("registration", 5.0, "right")] * 13
+          + [("delay", 10.0, "wrong")] * 8 + [("delay", 10.0, "absent")] * 5
+          + [("ringing", 10.0, "right")] * 12)
 
 
 def _delay(g, status: str) -> tuple[float, float | None]:
@@ -113,19 +120,21 @@ def _render_c(g, i: int, cat: str, status: str, seed: int) -> dict:
 DRAW = {"marker": _marker, "swing": _swing, "render_c": _render_c}
 
 
-def _rows(renderer: str) -> list:
-    gen_seed, first = SEEDS[renderer]
+def _rows(renderer: str, seeds: dict = SEEDS, plan: list = PLAN, tag: str = "") -> list:
+    gen_seed, first = seeds[renderer]
     g = np.random.default_rng(gen_seed)
     out = []
-    for i, (cat, limit, status) in enumerate(PLAN):
+    for i, (cat, limit, status) in enumerate(plan):
         kw = DRAW[renderer](g, i, cat, status, first + i)
-        name = f"{renderer}-{i:03d}-{cat}" + ("" if cat != "delay" else f"-{status}")
+        name = f"{tag}{renderer}-{i:03d}-{cat}" + ("" if cat != "delay" else f"-{status}")
         out.append((renderer, name, cat, limit, status, kw))
     return out
 
 
 # The 300 rows, in a fixed order: (renderer, name, category, limit %, delay status, params).
 FRESH_300 = _rows("marker") + _rows("swing") + _rows("render_c")
+# The 150 rows of the second set-aside group, named "s2-...".
+SETASIDE_150 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_2, PLAN_2, "s2-")]
 
 
 def make(row):

@@ -8,7 +8,10 @@ Groups:
                swing_render and render_c, drawn and committed before the record model's code.
                A failure: B error over its limit (5 % none / registration, 10 % wrong or absent
                delay / ringing), or, where the configured delay is right, |t_delay error| over
-               1/8 frame, or a refusal.
+               1/8 frame, or a refusal. Run once (stop 47); development data since.
+  setaside     bench/onset_cases.py SETASIDE_150: 50 more renderings from each renderer (new
+               seeds), drawn and committed before the record model's second round of terms,
+               judged as fresh.
   development  every group of bench/swing_cases.py (208 renderings of swing_render, the rules of
                the old onset stage were settled on them): judged as bench/swing_bench.py did
                (B over its limit, |t_delay error| over 1/8 frame on every row, or a refusal).
@@ -19,7 +22,7 @@ as it finishes (a rerun skips rows already there; --fresh-start removes them), t
 per category and per renderer, failures / n, the rate and its interval, the median and 95th
 percentile of the B error, the worst row.
 
-Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group fresh|development
+Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group fresh|setaside|development
        [--stage record-model|refine] [--jobs 2] [--only NAME ...] [--fresh-start] [--markdown FILE]
 """
 
@@ -41,10 +44,10 @@ OUT = HERE.parent / "build" / "onset_scoreboard"
 
 def _rows(group: str) -> list:
     """(renderer, name, category, limit %, delay status, params or Rendering) for the group."""
-    if group == "fresh":
+    if group in ("fresh", "setaside"):
         import onset_cases
 
-        return list(onset_cases.FRESH_300)
+        return list(onset_cases.FRESH_300 if group == "fresh" else onset_cases.SETASIDE_150)
     import swing_cases
 
     out = []
@@ -61,7 +64,7 @@ def run_row(args) -> dict:
     import b_score
 
     renderer, name, cat, limit, status, kw = row
-    if group == "fresh":
+    if group in ("fresh", "setaside"):
         import onset_cases
 
         obj, write, true_B, d_true, d_cfg = onset_cases.make(row)
@@ -80,7 +83,7 @@ def run_row(args) -> dict:
         cal = sc["cal"]
         td_err = (cal.t_delay_s - d_true) * fps
         ref = cal.onset_refine or {}
-        check_td = status == "right" if group == "fresh" else True
+        check_td = status == "right" if group in ("fresh", "setaside") else True
         fail = bool(sc["err_pct"] > limit or (check_td and abs(td_err) > 0.125))
         out.update(err_pct=sc["err_pct"], t_delay_s=cal.t_delay_s, td_err_frames=td_err, td_checked=check_td,
                    samples=cal.n_b_samples, reversals=cal.reversals, calibrate_s=sc["wall_s"],
@@ -118,7 +121,7 @@ def table(res: list[dict], key: str) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--group", choices=("fresh", "development"), default="development")
+    ap.add_argument("--group", choices=("fresh", "setaside", "development"), default="development")
     ap.add_argument("--stage", choices=("record-model", "refine"), default="record-model",
                     help="calibrate's onset stage judged (calibrate --onsets); rows go to <group>[-refine].jsonl")
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
