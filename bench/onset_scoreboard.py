@@ -127,13 +127,14 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--only", nargs="*", help="row names to run (default: all of the group)")
     ap.add_argument("--fresh-start", action="store_true", help="forget the rows already run")
+    ap.add_argument("--tag", default="", help="suffix of the rows' file (a development run beside the recorded one)")
     ap.add_argument("--markdown", help="also write the tables and the failing rows to this file")
     a = ap.parse_args(argv)
     rows = _rows(a.group)
     if a.only:
         rows = [r for r in rows if r[1] in a.only]
     OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / (f"{a.group}.jsonl" if a.stage == "record-model" else f"{a.group}-{a.stage}.jsonl")
+    path = OUT / ((f"{a.group}" if a.stage == "record-model" else f"{a.group}-{a.stage}") + a.tag + ".jsonl")
     if a.fresh_start and path.exists():
         path.unlink()
     done = {}

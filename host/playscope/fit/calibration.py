@@ -463,7 +463,8 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         else:
             raise ValueError(f"onset_stage must be 'refine' or 'record-model', not {onset_stage!r}")
         cfg_td = t_delay_s if t_delay_s is not None else s.t_delay_s
-        rob = stage(t_enc, q, q_rev, rt, rq, t_f, obs, fr, cfg_td, t_delay_from, onsets, onset_cfg, hyst)
+        extra = {"camera_K": s.camera.K} if onset_stage == "record-model" else {}
+        rob = stage(t_enc, q, q_rev, rt, rq, t_f, obs, fr, cfg_td, t_delay_from, onsets, onset_cfg, hyst, **extra)
         td, refine_doc = rob.t_delay_s, rob.report
         warnings += rob.warnings
         td_src = "argument" if t_delay_s is not None and t_delay_from == "config" else rob.t_delay_source

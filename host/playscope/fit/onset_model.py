@@ -3,7 +3,7 @@
 The marker at frame j, stamped t_j on the encoder's clock, shows the scene at tau_j = t_j - t_delay:
 
     Q_j = G(z_j) + G'(z_j) (g_stop x_stop(tau_j) + g_start x_start(tau_j))   image path; tip mode
-          + S_tip(tau_j) (D0 + D1 zn_j) + S_motor(tau_j) (E0 + E1 zn_j)          registration terms
+          + S_tip(tau_j) R(Q_j; a_tip) + S_motor(tau_j) R(Q_j; a_motor)             registration terms
           + e_j                                                                   noise
 
   z       the play's output (eq. 3): the encoder's q through a play of width B(q), B a cubic
@@ -16,13 +16,26 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
           with its own gain; along the path's tangent G'.
   S_tip, S_motor
           +-1 with the direction the tip (resp. the motor) last moved in: a registration that
-          switches with the bending direction, offset D0 + D1 zn (zn: z scaled to [-1, 1]; a
-          rotation about the optical axis moves the offset along the path). A registration that
-          follows the image can switch only once a frame shows the reversal, so within one frame
-          period of it; with the switch time unknown and uniform there, a frame in that period
-          carries the switch's expected share (a linear ramp over the period).
-  e_j     Huber noise (k = 1.345 sigma, 95 % efficiency at the Gaussian; Huber 1964), sigma the
-          record's robust residual scale, by iteratively reweighted least squares.
+          switches with the bending direction. R is the image motion of a small rotation
+          a = (a_x, a_y, a_z) rad of the camera frame (the rotational motion field, Longuet-Higgins
+          & Prazdny 1980): with x = (u - c_u) / f, y = (v - c_v) / f the point's normalised image
+          position (principal point c and focal length f from the session's K),
+          R = f [a_x (x y, 1 + y^2) + a_y (-(1 + x^2), -x y) + a_z (y, -x)]. Three coefficients
+          shared by both image axes, evaluated at the observed point (the offset moves it by a few
+          px: a second-order change). A translation of the instrument in its channel moves the
+          image nearly as a rotation about the perpendicular axis does (to x^2 of it). Why this
+          form and not a free offset per axis: a registration offset along the path is a change of
+          B at the image's level, and a free offset (or one linear along the path) takes up B's
+          own variation wherever the path is straight or a parabola; the rigid form is what tells
+          the two apart where the path curves, and the onsets' timing does the rest.
+          A registration that follows the image can switch only once a frame shows the reversal,
+          so within one frame period of it; with the switch time unknown and uniform within a
+          lag L, a frame in that window sees the old or the new registration, the new one with
+          probability p (its share of the window): its mean is the expected share p (a linear
+          ramp) and the jump J adds p (1 - p) J^2 to the frame's variance per axis.
+  e_j     Huber noise (k = 1.345 sigma_j, 95 % efficiency at the Gaussian; Huber 1964), sigma_j^2
+          = sigma^2 (the record's model-free noise) plus the switch's share variance above, by
+          iteratively reweighted least squares.
 
 Fit: variable projection (Golub & Pereyra 1973): G, the gains and the registration offsets are
 linear and solved exactly for each value of the nonlinear parameters theta = (t_delay, B's
@@ -33,8 +46,9 @@ overrides. Start: the coarse delay (delay_guess) and the configured one, each wi
 play width that fits best; the board's plain eq. 1 samples are a third start when given.
 
 Terms by evidence: the tip mode and each registration term enter when they lower the record's
-BIC (Schwarz 1978) on the robust objective at the base model's sigma, the same criterion for
-each; the search adds the best term, refits, and tries the rest again.
+BIC (Schwarz 1978) on the robust objective (2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma),
+the Gaussian's normalisation for the inflated scales), the same criterion for each; the search
+adds the best term, refits, and tries the rest again.
 
 Eq. 1's samples are then read off the fitted model: after each reversal (t1, q1), the instant t2
 the play output starts to move, b = |q(t2) - q1|, with its standard error from the fit's
@@ -50,6 +64,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import BSpline
 from scipy.optimize import least_squares
+from scipy.special import expit, logit
 from scipy.signal import lfilter
 
 HUBER_K = 1.345        # Huber's tuning constant, in sigma (95 % efficiency at the Gaussian; Huber 1964)
@@ -61,13 +76,15 @@ B_CTRL = (4, 8, 16)    # B(q)'s coefficients, chosen by BIC on the plain model (
 B_REV_PER_CTRL = 1     # ... with at least one reversal (one onset) per coefficient
 IRLS_ROUNDS = 3        # reweightings of the Huber fit (the weights settle in 2-3 on every record tried)
 TERMS = ("ring", "reg_tip", "reg_motor")
+N_REG = 3              # the registration's rotation (rad) about the camera's x, y and optical axes (module doc: R)
 
 
 @dataclass
 class Record:
     """What the model sees. t (N,) s uniform scene grid, q (N,) on it; t_f (F,) s frame stamps,
     obs (F, 2) px (finite rows only); rt, rq (M,) reversals, s_new (M,) the motor's new direction
-    (+1 / -1), i1 (M,) their grid index; period_s the frame period."""
+    (+1 / -1), i1 (M,) their grid index; period_s the frame period; reg_gen (F, N_REG, 2) px per
+    rad, the image motions of the camera's rotations at the observed points (module doc: R)."""
 
     t: np.ndarray
     q: np.ndarray
@@ -78,16 +95,31 @@ class Record:
     s_new: np.ndarray
     i1: np.ndarray
     period_s: float
+    reg_gen: np.ndarray
 
     @property
     def dt(self) -> float:
         return float(self.t[1] - self.t[0])
 
 
-def make_record(t_enc, q, rt, rq, t_f, obs, fps: float) -> Record:
+def registration_generators(obs: np.ndarray, centre_px, focal_px: float) -> np.ndarray:
+    """The image motions (F, N_REG, 2) px per rad of small rotations of the camera about its x, y
+    and optical axes at the points obs (F, 2) px, for the principal point centre_px (2,) px and
+    focal length focal_px (module doc: R; Longuet-Higgins & Prazdny 1980, the rotational motion
+    field)."""
+    x = (obs[:, 0] - centre_px[0]) / focal_px
+    y = (obs[:, 1] - centre_px[1]) / focal_px
+    fields = ((x * y, 1.0 + y * y), (-(1.0 + x * x), -x * y), (y, -x))
+    return focal_px * np.stack([np.column_stack(uv) for uv in fields], axis=1)
+
+
+def make_record(t_enc, q, rt, rq, t_f, obs, fps: float, centre_px=None, focal_px: float | None = None) -> Record:
     """Resample the encoder onto a uniform grid at its own median rate (at most GRID_HZ_MAX) and
-    keep the finite frames. Shapes as in Record. Errors: ValueError with fewer than 2 reversals
-    or 20 frames."""
+    keep the finite frames. Shapes as in Record; centre_px (2,) and focal_px the camera's principal
+    point and focal length, px (None: the frames' bounding box's centre and a focal length of twice
+    its larger side; they place the registration's perspective parts, second-order in the
+    registration).
+    Errors: ValueError with fewer than 2 reversals or 20 frames."""
     t_enc, q = np.asarray(t_enc, float), np.asarray(q, float)
     ok = np.all(np.isfinite(obs), axis=1)
     if rt.size < 2 or ok.sum() < 20:
@@ -98,8 +130,13 @@ def make_record(t_enc, q, rt, rq, t_f, obs, fps: float) -> Record:
     i1 = np.clip(np.searchsorted(t, rt), 1, t.size - 2)
     s_new = -np.sign(rq - np.interp(rt - 0.05, t_enc, q))
     s_new[s_new == 0] = 1.0
-    return Record(t, qg, np.asarray(t_f, float)[ok], np.asarray(obs, float)[ok], np.asarray(rt, float),
-                  np.asarray(rq, float), s_new, i1, 1.0 / fps)
+    o = np.asarray(obs, float)[ok]
+    if centre_px is None:
+        centre_px = 0.5 * (o.min(axis=0) + o.max(axis=0))
+    if focal_px is None:
+        focal_px = 2.0 * max(float(np.ptp(o, axis=0).max()), 1.0)
+    return Record(t, qg, np.asarray(t_f, float)[ok], o, np.asarray(rt, float),
+                  np.asarray(rq, float), s_new, i1, 1.0 / fps, registration_generators(o, centre_px, float(focal_px)))
 
 
 def _basis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
@@ -142,6 +179,17 @@ def _tip_mode(u: np.ndarray, f_hz: float, zeta: float, dt: float) -> np.ndarray:
     wd = w * np.sqrt(max(1.0 - zeta * zeta, 1e-6))
     r, th = np.exp(-zeta * w * dt), wd * dt
     return lfilter([0.0, dt * r * np.sin(th) / wd], [1.0, -2 * r * np.cos(th), r * r], u)
+
+
+def _share_var(tau: np.ndarray, t_ev: np.ndarray, T: float) -> np.ndarray:
+    """p (1 - p) at each tau (F,): p its share of the switch window [t_ev[k], t_ev[k] + T] it
+    falls in (0 outside every window); the Bernoulli variance of a switch at a uniform time."""
+    if t_ev.size == 0:
+        return np.zeros(tau.size)
+    e = np.searchsorted(t_ev, tau, side="right") - 1
+    p = np.where(e >= 0, (tau - t_ev[np.maximum(e, 0)]) / T, 1.0)
+    p = np.clip(p, 0.0, 1.0)
+    return p * (1.0 - p)
 
 
 def _ramp_sign(tau: np.ndarray, t_ev: np.ndarray, s_ev: np.ndarray, s0: float, T: float) -> np.ndarray:
@@ -200,7 +248,28 @@ class RecordModel:
         self.w = np.ones(2 * rec.t_f.size)  # IRLS weights
         self.slope = None  # G' at the frames from the previous round: (F, 2), for the ring's direction
 
-    # ---- theta layout: [t_delay, B's coefficients (n_b)[, log f_hz, zeta][, lag_tip][, lag_motor]]
+    # ---- theta layout: [t_delay, B's coefficients (n_b)[, ring (2)][, lag_tip][, lag_motor]]. The
+    # bounded parts enter through logistic maps onto their ranges (a clip would stall the fit on
+    # a bound, its slope zero there): the tip mode's log frequency over its band and its damping
+    # ratio over [0.005, 0.7]; a switch lag over [T / 20, T].
+    ZETA_LO, ZETA_HI = 0.005, 0.7
+
+    def ring_band(self) -> tuple[float, float]:
+        return RING_HZ_LO, RING_NYQUIST / self.rec.period_s
+
+    def ring_theta(self, f_hz: float, zeta: float) -> np.ndarray:
+        """The ring's part of theta (2,) for a tip mode (f_hz, zeta), each clipped into its range."""
+        lo, hi = np.log(self.ring_band())
+        a = np.clip((np.log(f_hz) - lo) / (hi - lo), 1e-3, 1 - 1e-3)
+        b = np.clip((zeta - self.ZETA_LO) / (self.ZETA_HI - self.ZETA_LO), 1e-3, 1 - 1e-3)
+        return np.array([logit(a), logit(b)])
+
+    def lag_map(self, x: float) -> tuple[float, float]:
+        """(L s, dL/dx) for a switch lag's part of theta x."""
+        T = self.rec.period_s
+        e = float(expit(x))
+        return T / 20 + (T - T / 20) * e, (T - T / 20) * e * (1.0 - e)
+
     def layout(self) -> dict[str, slice]:
         """Where each named part of theta sits."""
         out, i = {"d": slice(0, 1), "B": slice(1, 1 + self.n_b)}, 1 + self.n_b
@@ -215,10 +284,9 @@ class RecordModel:
 
     def theta(self, parts: dict) -> np.ndarray:
         """theta from named parts; a part not given starts at the tip mode (3 Hz, zeta 0.1) or a
-        switch lag of half a frame period (the middle of its range)."""
+        switch lag in the middle of its range."""
         th = np.empty(self.n_theta())
-        dflt = {"ring": np.array([np.log(3.0), 0.1]), "lag_tip": np.array([0.5 * self.rec.period_s]),
-                "lag_motor": np.array([0.5 * self.rec.period_s])}
+        dflt = {"ring": self.ring_theta(3.0, 0.1), "lag_tip": np.zeros(1), "lag_motor": np.zeros(1)}
         for name, sl in self.layout().items():
             th[sl] = parts[name] if name in parts else dflt[name]
         return th
@@ -227,20 +295,20 @@ class RecordModel:
         return {name: np.array(th[sl]) for name, sl in self.layout().items()}
 
     def unpack(self, th: np.ndarray):
-        """(t_delay s, B's coefficients, (f_hz, zeta) or None, {"tip": L, "motor": L} s), each
-        clipped into its admissible region (LM is unbounded): d >= 0, B >= 0, the tip mode in its
-        band, a switch lag L in [T / 20, T] (a switch the registration makes within a frame of the
+        """(t_delay s, B's coefficients, (f_hz, zeta) or None, {"tip": L, "motor": L} s), each in
+        its admissible region (LM is unbounded): d >= 0 and B >= 0 clipped (neither bound is
+        reached by a fit that means anything), the tip mode in its band and a switch lag L in
+        [T / 20, T] by their logistic maps (a switch the registration makes within a frame of the
         reversal it follows; T / 20, a step to the frame's resolution)."""
         lay = self.layout()
         d = self.d_fixed if self.d_fixed is not None else max(float(th[0]), 0.0)
         cB = np.maximum(th[lay["B"]], 0.0)
         ring = None
         if "ring" in lay:
-            f_hi = RING_NYQUIST / self.rec.period_s
-            lf, z = th[lay["ring"]]
-            ring = (float(np.clip(np.exp(lf), RING_HZ_LO, f_hi)), float(np.clip(z, 0.005, 0.7)))
-        T = self.rec.period_s
-        lags = {n: float(np.clip(th[lay["lag_" + n]][0], T / 20, T)) for n in ("tip", "motor") if "lag_" + n in lay}
+            lo, hi = np.log(self.ring_band())
+            a, b = expit(th[lay["ring"]])
+            ring = (float(np.exp(lo + (hi - lo) * a)), float(self.ZETA_LO + (self.ZETA_HI - self.ZETA_LO) * b))
+        lags = {n: self.lag_map(th[lay["lag_" + n]][0])[0] for n in ("tip", "motor") if "lag_" + n in lay}
         return float(d), cB, ring, lags
 
     def B_of(self, cB: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -279,8 +347,9 @@ class RecordModel:
 
     def columns(self, th: np.ndarray) -> tuple[dict, np.ndarray, np.ndarray, dict]:
         """The linear model's columns at theta: {"G": (F, n_g), "ring": [(F,) x 2] or absent,
-        "tip": (F, 2), "motor": (F, 2)}, the onsets t_on (M,), z at the frames (F,) and what
-        `jacobian` needs (a dict)."""
+        "tip", "motor": (F, N_REG, 2) each or absent (S times the rigid registration's motions)},
+        the onsets t_on (M,), z at the frames (F,) and what `jacobian` needs (a dict; "pvar_tip",
+        "pvar_motor" (F,): each frame's switch-share variance p (1 - p))."""
         rec = self.rec
         d, cB, ring, lags = self.unpack(th)
         z, lo, hi = self.play(cB, edges=True)
@@ -305,28 +374,73 @@ class RecordModel:
             s0 = -s_ev[0] if s_ev.size else 1.0
             t_ev, s_ev, r_ev = t_on[ok][keep], s_ev[keep], np.flatnonzero(ok)[keep]
             S = _ramp_sign(tau, t_ev, s_ev, s0, lags["tip"])
-            cols["tip"] = np.column_stack([S, S * zn])
+            cols["tip"] = S[:, None, None] * rec.reg_gen
             st["tip"] = (S, t_ev, s_ev, np.r_[s0, s_ev[:-1]], lags["tip"], r_ev)
+            st["pvar_tip"] = _share_var(tau, t_ev, lags["tip"])
         if self.terms.reg_motor:
             s0 = -rec.s_new[0]
             S = _ramp_sign(tau, rec.rt, rec.s_new, s0, lags["motor"])
-            cols["motor"] = np.column_stack([S, S * zn])
+            cols["motor"] = S[:, None, None] * rec.reg_gen
             st["motor"] = (S, rec.rt, rec.s_new, np.r_[s0, rec.s_new[:-1]], lags["motor"])
+            st["pvar_motor"] = _share_var(tau, rec.rt, lags["motor"])
         return cols, t_on, z_f, st
+
+    def shared_columns(self, cols: dict) -> list:
+        """The columns whose coefficient both image axes share, as (u, v) pairs of (F,): the tip
+        mode's two along the path's tangent (from the previous round's G'), then the tip's and the
+        motor's registration (N_REG each). beta = [G_u (n_g), G_v (n_g), these in this order]."""
+        F = self.rec.obs.shape[0]
+        out = []
+        if "ring" in cols:
+            sl = self.slope if self.slope is not None else np.zeros((F, 2))
+            out += [(sl[:, 0] * x, sl[:, 1] * x) for x in cols["ring"]]
+        for k in ("tip", "motor"):
+            if k in cols:
+                out += [(cols[k][:, i, 0], cols[k][:, i, 1]) for i in range(N_REG)]
+        return out
+
+    def reg_offset(self, ev: "Eval", name: str) -> tuple[np.ndarray, np.ndarray]:
+        """The registration term name's ("tip" or "motor") offset at S = +1, (u, v) (F,) px each,
+        from an evaluation's beta (its rotation, rad): half the jump a switch makes."""
+        k = 2 * self.n_g + 2 * self.terms.ring + (N_REG if (name == "motor" and self.terms.reg_tip) else 0)
+        a = ev.beta[k:k + N_REG]
+        g = self.rec.reg_gen
+        return g[:, :, 0] @ a, g[:, :, 1] @ a
+
+    def scales(self, ev: "Eval", sigma: float) -> np.ndarray:
+        """Each residual's scale sigma_j (2F,) px: sigma with the switch-share variance added
+        (module doc)."""
+        F = self.rec.obs.shape[0]
+        var = np.full(2 * F, sigma * sigma)
+        for name in ("tip", "motor"):
+            if "pvar_" + name in ev.state:
+                du, dv = self.reg_offset(ev, name)
+                pv = ev.state["pvar_" + name]
+                var += np.r_[pv * (2 * du) ** 2, pv * (2 * dv) ** 2]
+        return np.sqrt(var)
+
+    def weights(self, ev: "Eval", sigma: float) -> np.ndarray:
+        """IRLS weights (2F,) relative to sigma: Huber's psi(r)/r at each residual's own scale,
+        times sigma^2 / sigma_j^2."""
+        sj = self.scales(ev, sigma)
+        return huber_weights(ev.resid, sj) * (sigma / sj) ** 2
+
+    def objective(self, ev: "Eval", sigma: float) -> float:
+        """2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma): the robust objective the BIC
+        uses (module doc)."""
+        sj = self.scales(ev, sigma)
+        return 2.0 * float(np.sum(huber_rho(ev.resid, sj))) + 2.0 * float(np.sum(np.log(sj / sigma)))
 
     def solve(self, cols: dict) -> tuple[np.ndarray, np.ndarray]:
         """Weighted least squares of the stacked [u; v] on the columns, by the normal equations
-        (the B-spline and sign columns are well conditioned; a 1e-10 relative ridge keeps an
-        absent column's zero pivot harmless): (beta, residuals (2F,))."""
+        (the B-spline and registration columns are well conditioned; a 1e-10 relative ridge keeps
+        an absent column's zero pivot harmless): (beta, residuals (2F,))."""
         o = self.rec.obs
         F = o.shape[0]
-        A1 = np.hstack([cols["G"]] + [cols[k] for k in ("tip", "motor") if k in cols])
+        A1 = cols["G"]
         p = A1.shape[1]
         wu, wv = self.w[:F], self.w[F:]
-        ring = []
-        if "ring" in cols:
-            sl = self.slope if self.slope is not None else np.zeros((F, 2))
-            ring = [(sl[:, 0] * x, sl[:, 1] * x) for x in cols["ring"]]
+        ring = self.shared_columns(cols)
         P = 2 * p + len(ring)
         M = np.zeros((P, P))
         rhs = np.zeros(P)
@@ -334,13 +448,14 @@ class RecordModel:
         M[p:2 * p, p:2 * p] = A1.T @ (wv[:, None] * A1)
         rhs[:p] = A1.T @ (wu * o[:, 0])
         rhs[p:2 * p] = A1.T @ (wv * o[:, 1])
-        for i, (ru, rv) in enumerate(ring):
-            k = 2 * p + i
-            M[:p, k] = M[k, :p] = A1.T @ (wu * ru)
-            M[p:2 * p, k] = M[k, p:2 * p] = A1.T @ (wv * rv)
-            for j, (su, sv) in enumerate(ring):
-                M[k, 2 * p + j] = np.sum(wu * ru * su) + np.sum(wv * rv * sv)
-            rhs[k] = np.sum(wu * ru * o[:, 0]) + np.sum(wv * rv * o[:, 1])
+        if ring:
+            Ru = np.column_stack([r[0] for r in ring])
+            Rv = np.column_stack([r[1] for r in ring])
+            M[:p, 2 * p:] = A1.T @ (wu[:, None] * Ru)
+            M[p:2 * p, 2 * p:] = A1.T @ (wv[:, None] * Rv)
+            M[2 * p:, :2 * p] = M[:2 * p, 2 * p:].T
+            M[2 * p:, 2 * p:] = Ru.T @ (wu[:, None] * Ru) + Rv.T @ (wv[:, None] * Rv)
+            rhs[2 * p:] = Ru.T @ (wu * o[:, 0]) + Rv.T @ (wv * o[:, 1])
         M[np.diag_indices(P)] += 1e-10 * (np.trace(M) / P + 1e-30)
         beta = np.linalg.solve(M, rhs)
         fu = A1 @ beta[:p] + sum(b * r[0] for b, r in zip(beta[2 * p:], ring))
@@ -392,24 +507,15 @@ class RecordModel:
         rec, st = self.rec, ev.state
         d, cB, ring, lags = self.unpack(th)
         lay = self.layout()
-        z, tau, zn = st["z"], st["tau"], st["zn"]
+        z, tau = st["z"], st["tau"]
         F = tau.size
         A1, rcols, M, p = self._lin
         beta = ev.beta
         bu, bv, gr = beta[:p], beta[p:2 * p], beta[2 * p:]
         ng = self.n_g
-        dzn = 2.0 / max(self.q_hi - self.q_lo, 1e-12)
         dBas = _dbasis(ev.z_f, self.z_lo, self.z_hi, ng)
         dz_u, dz_v = dBas @ bu[:ng], dBas @ bv[:ng]          # dP/dz at fixed beta
-        off = ng
-        reg = {}
-        for name in ("tip", "motor"):
-            if name in st:
-                S = st[name][0]
-                dz_u = dz_u + S * bu[off + 1] * dzn
-                dz_v = dz_v + S * bv[off + 1] * dzn
-                reg[name] = (bu[off] + bu[off + 1] * zn, bv[off] + bv[off + 1] * zn)
-                off += 2
+        reg = {name: self.reg_offset(ev, name) for name in ("tip", "motor") if name in st}
         dt = rec.dt
         zdot = np.interp(tau, rec.t[:-1] + 0.5 * dt, np.diff(z) / dt)
         Gu = np.zeros((F, th.size))
@@ -432,8 +538,8 @@ class RecordModel:
             dS = np.where(inr, (s_ev[e0] - s_prev[e0]) / L, 0.0)     # dS / dtau inside a switch
             Gu[:, 0] -= dS * val[0]
             Gv[:, 0] -= dS * val[1]
-            dL = -dS * np.where(inr, tau - t_ev[e0], 0.0) / L         # dS / dL
             i = lay["lag_" + name].start
+            dL = -dS * np.where(inr, tau - t_ev[e0], 0.0) / L * self.lag_map(th[i])[1]  # dS / d theta_i
             Gu[:, i] = dL * val[0]
             Gv[:, i] = dL * val[1]
             ramps[name] = (e, inr, dS)
@@ -458,8 +564,11 @@ class RecordModel:
         if self.terms.ring:
             sl = self.slope
             i0 = lay["ring"].start
-            for j, h in enumerate((0.01, 0.005)):
-                f2 = (ring[0] * np.exp(h), ring[1]) if j == 0 else (ring[0], ring[1] + h)
+            h = 0.01
+            for j in range(2):
+                t2 = th.copy()
+                t2[i0 + j] += h
+                f2 = self.unpack(t2)[2]
                 for k, u in enumerate(st["u"]):
                     dx = (np.interp(tau, rec.t[1:-1], _tip_mode(u, f2[0], f2[1], dt)) - ev.cols["ring"][k]) / h
                     Gu[:, i0 + j] += sl[:, 0] * gr[k] * dx
@@ -481,12 +590,11 @@ class RecordModel:
         return Eval(r, t_on, beta, cols, z_f, st)
 
     def n_linear(self) -> int:
-        per = self.n_g + (2 if self.terms.reg_tip else 0) + (2 if self.terms.reg_motor else 0)
-        return 2 * per + (2 if self.terms.ring else 0)
+        return 2 * self.n_g + 2 * self.terms.ring + N_REG * (self.terms.reg_tip + self.terms.reg_motor)
 
     def G_slope(self, ev: Eval) -> np.ndarray:
         """G'(z) at the frames (F, 2), px per actuator unit, from an evaluation's beta."""
-        p = ev.cols["G"].shape[1] + sum(ev.cols[k].shape[1] for k in ("tip", "motor") if k in ev.cols)
+        p = self.n_g
         dB = _dbasis(ev.z_f, self.z_lo, self.z_hi, self.n_g)
         return np.column_stack([dB @ ev.beta[:self.n_g], dB @ ev.beta[p:p + self.n_g]])
 
@@ -528,24 +636,24 @@ class Fit:
     info: dict = field(default_factory=dict)
 
     def bic(self, sigma: float) -> float:
-        """BIC on the robust objective at a common sigma: 2 sum rho(r / sigma) + k ln n."""
+        """BIC on the robust objective at a common sigma (RecordModel.objective) + k ln n."""
         m = self.model
         n = self.ev.resid.size
         k = m.n_theta() - (1 if m.d_fixed is not None else 0) + m.n_linear()
-        return 2.0 * float(np.sum(huber_rho(self.ev.resid, sigma))) + k * np.log(n)
+        return m.objective(self.ev, sigma) + k * np.log(n)
 
 
 def _steps(m: RecordModel, th: np.ndarray) -> np.ndarray:
     """Forward-difference steps (the reference `jacobian` is checked against): t_delay T/16; B
     coefficients 2 % of the mean width, at least the travel of two grid steps at the record's
-    median speed; log f 0.01; zeta 0.005; switch lags T/40."""
+    median speed; the ring's and the lags' (logistic) parts 0.01 and 0.05."""
     rec = m.rec
     v = float(np.median(np.abs(np.diff(rec.q)))) / rec.dt
     hb = max(0.02 * float(np.mean(np.abs(th[1:1 + m.n_b]))), 2 * v * rec.dt, 1e-6)
     h = [rec.period_s / 16] + [hb] * m.n_b
     if m.terms.ring:
-        h += [0.01, 0.005]
-    h += [rec.period_s / 40] * (m.terms.reg_tip + m.terms.reg_motor)
+        h += [0.01, 0.01]
+    h += [0.05] * (m.terms.reg_tip + m.terms.reg_motor)
     return np.array(h)
 
 
@@ -593,7 +701,7 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
     sig = sigma if sigma is not None else robust_sigma(ev.resid)
     nfev = 0
     for rnd in range(rounds):
-        m.w = huber_weights(ev.resid, sig)
+        m.w = m.weights(ev, sig)
         fun = _residual_fn(m, sig)
         free = np.arange(th.size) if m.d_fixed is None else np.arange(1, th.size)
         full = th.copy()
@@ -615,9 +723,9 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
             ev = m.evaluate(th)
         if sigma is None and rnd == 0:
             sig = robust_sigma(ev.resid)
-    m.w = huber_weights(ev.resid, sig)
+    m.w = m.weights(ev, sig)
     ev = m.evaluate(th)
-    cost = float(np.sum(huber_rho(ev.resid, sig)))
+    cost = 0.5 * m.objective(ev, sig)
     if m.prior is not None and m.d_fixed is None:
         cost += 0.5 * float(((th[0] - m.prior[0]) / m.prior[1]) ** 2)
     f = Fit(m, th, ev, sig, cost, info={"nfev": nfev})
@@ -651,7 +759,7 @@ def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarr
         for d in d_starts:
             for b in widths:
                 ev = m.evaluate(m.theta({"d": np.array([d]), "B": np.array([b])}))
-                c = 2 * float(np.sum(huber_rho(ev.resid, sigma))) + m.n_linear() * np.log(ev.resid.size)
+                c = m.objective(ev, sigma) + m.n_linear() * np.log(ev.resid.size)
                 key = tuple(terms.names())
                 if key not in best or c < best[key][0]:
                     best[key] = (c, d, b)
@@ -660,7 +768,7 @@ def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarr
     for n_g in G_CTRL:
         m = RecordModel(rec, 1, n_g, Terms(), prior, d_fixed)
         ev = m.evaluate(m.theta({"d": np.array([d]), "B": np.array([b])}))
-        bics.append(2 * float(np.sum(huber_rho(ev.resid, sigma))) + m.n_linear() * np.log(ev.resid.size))
+        bics.append(m.objective(ev, sigma) + m.n_linear() * np.log(ev.resid.size))
     return {k: v[1:] for k, v in best.items()}, G_CTRL[int(np.argmin(bics))]
 
 
@@ -669,10 +777,9 @@ def _ring_start(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
     frequency (0.25 Hz steps, RING_HZ_LO to RING_NYQUIST fps, damping ratio 0.1) with the lowest
     robust cost."""
     fs = np.arange(RING_HZ_LO, RING_NYQUIST / m.rec.period_s, 0.25)
-    m.slope = m.G_slope(m.evaluate(m.theta({**parts, "ring": np.array([np.log(fs[0]), 0.1])})))
-    costs = [float(np.sum(huber_rho(m.evaluate(m.theta({**parts, "ring": np.array([np.log(f), 0.1])})).resid, sigma)))
-             for f in fs]
-    return m.theta({**parts, "ring": np.array([np.log(fs[int(np.argmin(costs))]), 0.1])})
+    m.slope = m.G_slope(m.evaluate(m.theta({**parts, "ring": m.ring_theta(fs[0], 0.1)})))
+    costs = [m.objective(m.evaluate(m.theta({**parts, "ring": m.ring_theta(f, 0.1)})), sigma) for f in fs]
+    return m.theta({**parts, "ring": m.ring_theta(fs[int(np.argmin(costs))], 0.1)})
 
 
 def fit_record(rec: Record, t_delay_cfg: float | None, t_delay_from: str, d_coarse: float,
@@ -721,7 +828,7 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
                     d_s, b_s = st[(name,)]
                     th0s.append(mt.theta({**parts, "d": np.array([d_s]), "B": np.full(n_b, b_s)}))
             for th0 in th0s:
-                mt.w = huber_weights(mt.evaluate(th0).resid, sigma)
+                mt.w = mt.weights(mt.evaluate(th0), sigma)
                 f = fit_model(mt, th0, sigma=sigma, max_nfev=8, rounds=1)
                 cands.append((f.bic(sigma), name, f))
         if not cands:

@@ -53,11 +53,14 @@ def _board(t_enc, q, rt, rq, t_f, obs, fps, td_board, onset_cfg):
 def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.ndarray, rq: np.ndarray,
                    t_f: np.ndarray, obs: np.ndarray, fps: float, t_delay_cfg: float | None,
                    t_delay_from: str = "data", board: Onsets | None = None, onset_cfg: dict | None = None,
-                   hysteresis: float = 0.0, t_delay_sd_s: float | None = None) -> RobustOnsets:
+                   hysteresis: float = 0.0, t_delay_sd_s: float | None = None,
+                   camera_K: np.ndarray | None = None) -> RobustOnsets:
     """B samples of eq. 1 and t_delay for an image session (module doc). t_enc, q, q_rev (N,) the
     encoder (q_rev: the signal the reversals rt, rq (M,) came from); t_f (F,) s, obs (F, 2) px (NaN
     rows: lost); fps the camera's rate; t_delay_cfg s or None; t_delay_sd_s the configured delay's
-    standard deviation (None: one frame period / sqrt(12)). Errors: ValueError for an unknown
+    standard deviation (None: one frame period / sqrt(12)); camera_K (3, 3) px the camera's
+    intrinsics (its principal point and focal length place the registration term's perspective
+    parts; None: from the frames, onset_model.make_record). Errors: ValueError for an unknown
     t_delay_from."""
     if t_delay_from not in ("data", "config"):
         raise ValueError(f"t_delay_from must be 'data' or 'config', not {t_delay_from!r}")
@@ -70,7 +73,9 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         board, rule = _board(t_enc, q, rt, rq, t_f, obs, fps, d0 if t_delay_cfg is None else t_delay_cfg, onset_cfg)
     warnings: list[str] = []
     try:
-        rec = OM.make_record(t_enc, q, rt, rq, t_f, obs, fps)
+        K = None if camera_K is None else np.asarray(camera_K, float)
+        rec = OM.make_record(t_enc, q, rt, rq, t_f, obs, fps, None if K is None else K[:2, 2],
+                             None if K is None else float(np.sqrt(K[0, 0] * K[1, 1])))
     except ValueError as e:
         td = float(t_delay_cfg if t_delay_cfg is not None else d0)
         warnings.append(f"onsets: {e}; the board's plain eq. 1 samples are used")
@@ -109,16 +114,16 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                         f"<= {pace['speed_to_use']:.3g} units/s would take it up over {pace['frames_wanted']} frames")
     terms = m.terms
     F = rec.t_f.size
-    p = m.n_g + 2 * terms.reg_tip + 2 * terms.reg_motor
     beta = fit.ev.beta
     reg = {}
-    off = m.n_g
     for name in ("tip", "motor"):
         if getattr(terms, "reg_" + name):
-            reg[name] = {"jump_px": [2 * float(beta[off]), 2 * float(beta[p + off])],
-                         "jump_slope_px": [2 * float(beta[off + 1]), 2 * float(beta[p + off + 1])],
+            du, dv = m.reg_offset(fit.ev, name)
+            k = 2 * m.n_g + 2 * terms.ring + (OM.N_REG if (name == "motor" and terms.reg_tip) else 0)
+            reg[name] = {"jump_px": [2 * float(np.median(du)), 2 * float(np.median(dv))],
+                         "jump_px_range": [2 * float(np.min(np.hypot(du, dv))), 2 * float(np.max(np.hypot(du, dv)))],
+                         "half_switch_deg_about_xyz": [float(np.degrees(a)) for a in beta[k:k + OM.N_REG]],
                          "switch_lag_s": lags[name]}
-            off += 2
     report = {
         "method": "one model of the record (playscope.fit.onset_model)",
         "board_reasons": board.reasons, "board_threshold": rule,
@@ -132,7 +137,7 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                   "noise_px": search["sigma_px"], "B_ctrl": search["n_b"], "G_ctrl": search["n_g"], "frames": int(F)},
         "ringing": {"found": terms.ring, "freq_hz": ring[0] if ring else None,
                     "damping_ratio": ring[1] if ring else None,
-                    "gains": [float(g) for g in beta[2 * p:]] if ring else None},
+                    "gains": [float(g) for g in beta[2 * m.n_g:2 * m.n_g + 2]] if ring else None},
         "registration": {"found": bool(reg), **reg},
         "pacing": pace,
         "sigma_b_median": float(np.median(sm.sigma_b)) if n else None,

@@ -77,7 +77,7 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms):
     m = OM.RecordModel(rec, 4, 10, OM.Terms(**{k: True for k in terms}), (r.delay_s, 0.01))
     g = np.linspace(rec.q.min(), rec.q.max(), 40)
     cB = np.linalg.lstsq(OM._basis(g, g[0], g[-1], 4), r.B(g), rcond=None)[0]
-    th = m.theta({"d": np.array([r.delay_s + 0.003]), "B": 1.03 * cB, "ring": np.array([np.log(3.1), 0.06])})
+    th = m.theta({"d": np.array([r.delay_s + 0.003]), "B": 1.03 * cB, "ring": m.ring_theta(3.1, 0.06)})
     ev = m.evaluate(th)
     m.slope = m.G_slope(ev)
     m.w = OM.huber_weights(m.evaluate(th).resid, 0.12)
