@@ -206,6 +206,9 @@ def _ramp_sign(tau: np.ndarray, t_ev: np.ndarray, s_ev: np.ndarray, s0: float, T
 
 @dataclass
 class Terms:
+    """Which camera terms a model carries (module doc): the tip mode (ring), a registration
+    switching with the tip's direction (reg_tip) or with the motor's (reg_motor)."""
+
     ring: bool = False
     reg_tip: bool = False
     reg_motor: bool = False
@@ -627,6 +630,10 @@ def robust_sigma(r: np.ndarray) -> float:
 
 @dataclass
 class Fit:
+    """A fitted model: theta (model.layout), its evaluation, the noise scale sigma (px) the fit
+    and its BIC use, cost (half the robust objective, plus the delay prior's half square, in
+    sigma^2 units), the weighted Jacobian (2F [+1], n_theta) in sigma units, and fit details."""
+
     model: RecordModel
     theta: np.ndarray
     ev: Eval

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .delay_guess import coarse_delay, image_direction_of_q, motor_stop_times  # noqa: F401 (re-exported)
+from .onsets import RobustOnsets
 from .pacing import pacing
 
 # Ringing grid: 1.5-7 Hz (below Nyquist at 25 fps with margin; the 2-5 Hz of the bench renderings inside) and
@@ -843,18 +844,6 @@ def _shape_fit_needed(ref_frames: float) -> bool:
     return not ref_frames >= FAST_FRAMES
 
 
-@dataclass
-class RobustOnsets:
-    """What `robust_samples` gives calibrate: the B samples (onsets.Onsets with sigma_b), the
-    delay used and where it came from, and the record's diagnosis (JSON-ready dict)."""
-
-    onsets: "object"
-    t_delay_s: float
-    t_delay_source: str
-    report: dict
-    warnings: list
-
-
 def delay_below_zero(d_data: float, ci_hi_s: float, period_s: float) -> bool:
     """Whether a record's delay d_data (s; NaN: none) is no delay at all: its 95 % interval's top
     ci_hi_s (s), widened by half a frame period (period_s / 2, the quantisation allowance of
@@ -936,8 +925,7 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     t_enc, q, q_rev (N,); rt, rq (M,) reversals; t_f (F,), obs (F, 2) px. Returns RobustOnsets.
     Errors: ValueError for an unknown t_delay_from.
     """
-    from .onset_settings import image_onset_settings
-    from .onsets import OnsetConfig, Onsets, run_onsets
+    from .onsets import Onsets, board_onsets
 
     if t_delay_from not in ("data", "config"):
         raise ValueError(f"t_delay_from must be 'data' or 'config', not {t_delay_from!r}")
@@ -947,18 +935,8 @@ def robust_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     d0 = coarse_delay(t_f, obs, t_stop, t_enc, q_rev, period)
     threshold_rule = None
     if board is None:
-        td_board = d0 if t_delay_cfg is None else t_delay_cfg
-        over = dict(onset_cfg or {})
-        if "threshold" not in over:
-            # The detector's threshold from this record's still noise and false-alarm rate
-            # (onset_settings.image_onset_settings), not the C detector's automatic k = 3 with its
-            # constant 0.05 / 1 px floor and ceiling; at the delay the detector itself runs with.
-            auto, threshold_rule = image_onset_settings(t_enc, q, rt, rq, t_f, obs, td_board, fps)
-            over.update(auto)
-        else:
-            threshold_rule = {"rule": "given", "threshold_px": float(over["threshold"])}
-        cfg = OnsetConfig(t_delay_s=td_board, fps=fps, **over)
-        board = run_onsets(t_enc, q, rt, rq, t_f, obs, "image", cfg)
+        board, threshold_rule = board_onsets(t_enc, q, rt, rq, t_f, obs, fps,
+                                             d0 if t_delay_cfg is None else t_delay_cfg, onset_cfg)
     # The board's candidates by reversal (its t1 is the commanded reversal, up to rounding).
     guess = np.full(rt.size, np.nan)
     bidx = np.full(rt.size, -1)

@@ -15,39 +15,14 @@ Units: t in s, q in actuator units, image points in px.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from . import onset_model as OM
 from .delay_guess import coarse_delay, motor_stop_times
-from .onsets import OnsetConfig, Onsets, run_onsets
-from .onset_settings import image_onset_settings
+from .onsets import Onsets, RobustOnsets, board_onsets
 from .pacing import pacing
 
 DELAY_DISAGREE_Z = 3.0  # a configured delay this many combined standard errors from the record's is reported
-
-
-@dataclass
-class RobustOnsets:
-    """What `record_samples` gives calibrate: the B samples (onsets.Onsets with sigma_b), the
-    delay used and where it came from, the record's diagnosis (JSON-ready dict) and warnings."""
-
-    onsets: Onsets
-    t_delay_s: float
-    t_delay_source: str
-    report: dict
-    warnings: list
-
-
-def _board(t_enc, q, rt, rq, t_f, obs, fps, td_board, onset_cfg):
-    over = dict(onset_cfg or {})
-    if "threshold" not in over:
-        auto, rule = image_onset_settings(t_enc, q, rt, rq, t_f, obs, td_board, fps)
-        over.update(auto)
-    else:
-        rule = {"rule": "given", "threshold_px": float(over["threshold"])}
-    return run_onsets(t_enc, q, rt, rq, t_f, obs, "image", OnsetConfig(t_delay_s=td_board, fps=fps, **over)), rule
 
 
 def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.ndarray, rq: np.ndarray,
@@ -70,7 +45,7 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     d0 = coarse_delay(t_f, obs, t_stop, t_enc, q_rev, period)
     rule = None
     if board is None:
-        board, rule = _board(t_enc, q, rt, rq, t_f, obs, fps, d0 if t_delay_cfg is None else t_delay_cfg, onset_cfg)
+        board, rule = board_onsets(t_enc, q, rt, rq, t_f, obs, fps, d0 if t_delay_cfg is None else t_delay_cfg, onset_cfg)
     warnings: list[str] = []
     try:
         K = None if camera_K is None else np.asarray(camera_K, float)
