@@ -315,21 +315,26 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str
     The time column t_s is written to the microsecond, exactly (t_origin_us added back:
     Session.t_origin_us), whatever its magnitude: %.9g would keep whole seconds of an epoch
     stamp."""
+    from .csvtable import CHUNK_ROWS
+
     names = list(columns)
     arrays = [np.asarray(columns[n], float) for n in names]
     n = len(arrays[0]) if arrays else 0
     formats = formats or {}
     fmts = [formats.get(nm, "{:.9g}") for nm in names]
-    cols = []
-    for nm, a, f in zip(names, arrays, fmts):
-        if nm == "t_s" and nm not in formats and np.all(np.isfinite(a)):
-            cols.append([format_us(int(u)) for u in time_us(a) + int(t_origin_us)])
-        else:
-            cols.append(["" if not math.isfinite(x) else f.format(x) for x in a.tolist()])
+    exact_t = [nm == "t_s" and nm not in formats and bool(np.all(np.isfinite(a))) for nm, a in zip(names, arrays)]
     with open(path, "w", newline="") as fh:
         fh.write(",".join(names) + "\n")
-        for i in range(n):
-            fh.write(",".join(c[i] for c in cols) + "\n")
+        # In chunks: the text of a whole long log (millions of rows) would cost GBs at once.
+        for i0 in range(0, n, CHUNK_ROWS):
+            cols = []
+            for a, f, ex in zip(arrays, fmts, exact_t):
+                part = a[i0:i0 + CHUNK_ROWS]
+                if ex:
+                    cols.append([format_us(u) for u in (time_us(part) + int(t_origin_us)).tolist()])
+                else:
+                    cols.append(["" if not math.isfinite(x) else f.format(x) for x in part.tolist()])
+            fh.write("".join(",".join(row) + "\n" for row in zip(*cols)))
 
 
 # --------------------------------------------------------------------------- JSON
