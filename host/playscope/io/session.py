@@ -656,7 +656,7 @@ def check_time_unit(t_s: np.ndarray, path, fps: float | None = None, scale: floa
     The one-line InputError names the unit the spacing suggests and fix(unit) -> how to pass it
     (default: the session-file remedy)."""
     t = np.asarray(t_s, float)
-    if t.size < 3:
+    if t.size < 2:  # two rows already have a step (a 2-row log of ns stamps is no session either)
         return
     step = float(np.median(np.diff(t)))
     if not (step > 0 and math.isfinite(step)):
@@ -821,6 +821,7 @@ def time_origin(s: "Session", texts: dict[str, TimeText] | None = None) -> "Sess
     if rel is not None:
         for n in names:
             _check_us_range(rel[n], texts[n].path if texts and n in texts else None)
+        _check_us_range([origin_us / 1e6], texts[rec[0]].path if texts and rec[0] in texts else None, absolute=True)
     else:
         for n in names:
             _check_us_range(tabs[n]["t_s"], texts[n].path if texts and n in texts else None, absolute=True)
