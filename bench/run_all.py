@@ -146,6 +146,8 @@ PART_TIME = (
     ("asymmetric-play trace", "~4 min (base-model fits on the generators' asymmetric cases and nulls)"),
     ("slow tests", "the Python tests marked slow, in parallel (none marked at present: seconds)"),
     ("fast-swing onsets", "~10-20 min; only with --swings (development renderings)"),
+    ("long logs", "only with --long-logs: generates ~0.5 GB of logs under build/long-logs once, then import, "
+                  "calibrate and evaluate-insitu on them (tens of minutes while calibrate misses its limit)"),
     ("diagnosis self-test", "~15-40 min (both generators, quick form), the slowest part; --skip-selftest leaves it out"),
 )
 
@@ -243,6 +245,9 @@ def main(argv=None) -> int:
     ap.add_argument("--swings", action="store_true",
                     help="also run bench/swing_bench.py on the development fast-swing renderings (slow; the "
                          "set-aside group is run once by hand)")
+    ap.add_argument("--long-logs", action="store_true",
+                    help="also run bench/bench_long_log.py (import, calibrate, evaluate-insitu on a 1-h 1 kHz log and a "
+                         "27-min 5 kHz log read in place: wall time and peak RSS against the long-log limits)")
     ap.add_argument("--no-write", action="store_true",
                     help="print the table only; leave docs/results.md and the README as they are")
     ap.add_argument("--docs-only", action="store_true",
@@ -579,6 +584,23 @@ def main(argv=None) -> int:
         RAW.append(("swing", "python bench/swing_bench.py --group development", out))
         table.extend(swing_rows(out, "development", "bench/swing_bench.py --group development"))
 
+    def long_logs():
+        # One row per command the bench times, labelled with the exact command line; the
+        # measured cell keeps the mean beside the worst run, the target cell the limit.
+        c = "bench/bench_long_log.py"
+        out = subprocess.run([PY, c], cwd=ROOT, capture_output=True, text=True, timeout=7200).stdout
+        RAW.append(("long logs", f"python {c}", out))
+        rows = [r for r in md_rows(out).items() if r[0].startswith("playscope ")]
+        if not rows:
+            raise RuntimeError(f"{c} printed no rows")
+        for label, r in rows:
+            table.append((f"{label}: wall time mean / worst, peak RSS mean / worst",
+                          f"{r[0]} / {r[1]} s, {r[2]} / {r[3]} MiB ({r[5]})", r[4], "", c))
+
+    if a.long_logs:
+        part("long logs", long_logs)
+    else:
+        skipped.append("long logs")
     if a.swings:
         part("fast-swing onsets", swings)
     else:

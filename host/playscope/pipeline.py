@@ -87,14 +87,14 @@ def model_text(cal: Calibration) -> str:
 def calibrate_session(session_dir, out, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
                       t_delay_s: float | None = None, t_delay_from: str = "data",
                       hysteresis: float | None = None, threshold: float | None = None,
-                      model_kind: str = "auto", onset_stage: str = "refine") -> Calibrated:
+                      model_kind: str = "auto", onset_stage: str = "refine", progress=None) -> Calibrated:
     """calibration.calibrate on the session folder or recording file (importer.load_recording), saved to out (docs/calibration-format.md).
     threshold: the onset threshold T per frame (px or deg), default automatic; onset_stage as in
-    calibration.calibrate."""
+    calibration.calibrate; progress: a tqdm-like factory for the reading's bar, or None."""
     from .fit.calibration import calibrate
     from .io.importer import load_recording
 
-    s = load_recording(session_dir)
+    s = load_recording(session_dir, progress)
     notes = list(s.notes)  # what the loader repaired (repeated or backward stamps, a held sensor)
     ov = {"threshold": threshold} if threshold is not None else None
     cal = calibrate(s, n_ctrl, f_method, fps, t_delay_s, hysteresis, ov, t_delay_from=t_delay_from,
@@ -602,10 +602,10 @@ class Imported:
 
 
 def import_recording(source, out, csv: dict | None = None, bag: dict | None = None, q_source: str | None = None,
-                     overwrite: bool = False) -> Imported:
+                     overwrite: bool = False, progress=None) -> Imported:
     """A foreign recording -> a session folder at out. csv: importer.import_csv's keyword
     arguments (t_col, q_col, c_col, time_scale, q_scale, unit, q_per_rad, c_scale, t_delay_s,
-    q_source) for a CSV; bag: rosbag.import_bag's (q, c, image: the topics; geometry, unit,
+    q_source) for a CSV (progress: a tqdm-like factory for the reading's bar); bag: rosbag.import_bag's (q, c, image: the topics; geometry, unit,
     q_scale, c_scale, q_per_rad, t_delay_s) for a ROS bag (q_source set on the session after).
     Errors: InputError naming the file and row; ValueError for a bag the reader refuses."""
     if bag is not None:
@@ -619,7 +619,7 @@ def import_recording(source, out, csv: dict | None = None, bag: dict | None = No
         from .io.importer import import_csv
         from .io.session import write_session
 
-        s = import_csv(source, **(csv or {}))
+        s = import_csv(source, **(csv or {}), progress=progress)
         notes = list(s.notes)
         write_session(s, out, overwrite=overwrite)
     t = s.encoder["t_s"]

@@ -6,7 +6,7 @@ import sys
 
 from . import argtypes as T
 from ..pipeline import calibrate_session
-from .common import add_command, add_json_arg, emit
+from .common import add_command, add_json_arg, emit, progress
 
 
 DESCRIPTION = """\
@@ -55,7 +55,7 @@ def add_parser(sub) -> None:
 
 def run(a) -> int:
     res = calibrate_session(a.session, a.out, a.control_points, a.f_method, a.fps, a.t_delay, a.t_delay_from,
-                            a.hysteresis, a.threshold, a.model, a.onsets)
+                            a.hysteresis, a.threshold, a.model, a.onsets, progress=progress)
     for w in res.warnings:
         print(f"playscope: warning: {w}", file=sys.stderr)
     return emit(a, res)

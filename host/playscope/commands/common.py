@@ -37,7 +37,7 @@ def load_session_noted(folder):
     `playscope: warning:` line each on stderr."""
     from ..io.importer import load_recording
 
-    s = load_recording(folder)
+    s = load_recording(folder, progress)
     warn(s.notes)
     return s
 

@@ -9,7 +9,7 @@ import sys
 from . import argtypes as T
 from ..base.errors import InputError
 from ..io.importer import CATHETER
-from .common import warn, add_json_arg, dump_json
+from .common import warn, add_json_arg, dump_json, progress
 
 EPILOG = """\
 examples:
@@ -118,7 +118,7 @@ def run(a) -> int:
         csv = dict(t_col=a.t_col, q_col=a.q_col, c_col=a.c_col, time_scale=a.time_scale, time_unit=a.time_unit,
                    q_scale=a.q_scale,
                    unit=a.unit, q_per_rad=a.q_per_rad, c_scale=a.c_scale, t_delay_s=a.t_delay, q_source=a.q_source)
-        res = import_recording(a.source, a.out, csv=csv, overwrite=a.force)
+        res = import_recording(a.source, a.out, csv=csv, overwrite=a.force, progress=progress)
         warn(res.notes)
     print(res.line())
     dump_json(a.json, res.to_json())

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.errors import InputError
+from .csvtable import split_header
 from .session import Robot, Session, read_csv, time_origin
 
 CATHETER = {"t": "Time", "q": "Tendon Disp.", "c": "Angle x"}
@@ -46,7 +47,7 @@ def resolve_column(spec, header: list[str], has_header: bool, path, option: str)
 def import_csv(path, t_col=None, q_col=None, c_col=None, time_scale: float = 1.0, q_scale: float = 1.0,
                unit: str = "mm", q_per_rad: float | None = None, bend_length_mm: float = 30.0,
                tip_length_mm: float = 0.0, c_scale: float = 1.0, t_delay_s: float | None = None,
-               q_source: str = "measured", time_unit: str | None = None) -> Session:
+               q_source: str = "measured", time_unit: str | None = None, progress=None) -> Session:
     """Read one CSV into an angle session (encoder and distal share rows).
 
     t_col, q_col, c_col: header names or 1-based column numbers (as str or int); None takes
@@ -68,8 +69,8 @@ def import_csv(path, t_col=None, q_col=None, c_col=None, time_scale: float = 1.0
     path = Path(path)
     check_input_file(path, "CSV file", MAX_CSV_BYTES)
     try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            first = [h.strip() for h in next(csv.reader(fh), [])]
+        with open(path, newline="", encoding="utf-8-sig") as fh:  # -sig: a spreadsheet's BOM
+            first = split_header(fh.readline())
     except UnicodeDecodeError as e:
         raise InputError(path, f"not UTF-8 text (byte {e.start}): a CSV with a header row was expected", 1) from None
     except csv.Error as e:
@@ -99,7 +100,10 @@ def import_csv(path, t_col=None, q_col=None, c_col=None, time_scale: float = 1.0
         notes.append(f"{path}: no header row (the first row is numbers): columns by number, t = {cols[0]}, "
                      f"q = {cols[1]}, c = {cols[2]}")
     tt: list = []
-    d = read_csv(path, cols, time_col=cols[0], notes=notes, header=header if not has_header else None, time_text=tt)
+    # Only the three columns mapped are read (others=False): a spreadsheet's other columns may
+    # hold anything, and a long log's memory is then three float64 columns.
+    d = read_csv(path, cols, time_col=cols[0], notes=notes, header=header if not has_header else None, time_text=tt,
+                 others=False, progress=progress)
     n = d[cols[0]].size
     if n < 2:
         raise InputError(path, f"{n} row(s) with a distinct time stamp after repairs: a session needs at least two "
@@ -130,9 +134,9 @@ def _is_number(x: str) -> bool:
         return False
 
 
-def import_catheter(path) -> Session:
+def import_catheter(path, progress=None) -> Session:
     """One data_2_*.txt file of the catheter set as an angle session (q in mm)."""
-    return import_csv(path, CATHETER["t"], CATHETER["q"], CATHETER["c"])
+    return import_csv(path, CATHETER["t"], CATHETER["q"], CATHETER["c"], progress=progress)
 
 
 # The endoscopic instrument's recordings (../shared/data/real/endoscope/, README there; no licence:
@@ -198,21 +202,27 @@ def import_endoscope(path, c_col: int | None = None) -> Session:
 
 
 # --------------------------------------------------------------------------- a recording in place
-def read_record(path) -> Session:
+def read_record(path, progress=None) -> Session:
     """A recording file read in place, without an import step: the catheter's CSV with a header
     (import_catheter) or the endoscope's headerless CSV (import_endoscope), told apart by the
-    first line. Errors: InputError naming the file (and row)."""
+    first line; its encoder thinned as a session folder's (session.thin_record, one rule).
+    progress: a tqdm-like factory for a bar while a large file is read, or None.
+    Errors: InputError naming the file (and row)."""
+    from .session import thin_record
+
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
-    with open(path, encoding="utf-8", errors="replace") as fh:
+    with open(path, encoding="utf-8-sig", errors="replace") as fh:
         first = fh.readline()
-    return import_endoscope(path) if re.match(r"\s*[-0-9.]", first) else import_catheter(path)
+    s = import_endoscope(path) if re.match(r"\s*[-0-9.]", first) else import_catheter(path, progress)
+    return thin_record(s, path)
 
 
-def load_recording(path) -> Session:
+def load_recording(path, progress=None) -> Session:
     """What every command taking a session reads: a session folder (session.load_session) or a
-    recording file read in place (read_record). Repairs made while reading are in Session.notes."""
+    recording file read in place (read_record), thinned alike. Repairs made while reading are in
+    Session.notes. progress: a tqdm-like factory for a bar while a large file is read, or None."""
     from .session import load_session
 
-    return read_record(path) if Path(path).is_file() else load_session(path)
+    return read_record(path, progress) if Path(path).is_file() else load_session(path, progress)

@@ -154,30 +154,41 @@ class Session:
 # --------------------------------------------------------------------------- CSV
 def read_csv(path: Path, required: list[str], optional: list[str] = (), nullable: set[str] = frozenset(),
              time_col: str | None = "t_s", notes: list[str] | None = None,
-             header: list[str] | None = None, time_text: list | None = None) -> dict[str, np.ndarray]:
-    """Read a numeric CSV with a header row into float64 arrays.
+             header: list[str] | None = None, time_text: list | None = None,
+             others: bool = True, progress=None) -> dict[str, np.ndarray]:
+    """Read a numeric CSV with a header row into float64 arrays (n,), in chunks (csvtable).
 
-    required/optional: column names (others are kept too). nullable: columns whose empty
-    fields mean "lost" (NaN); anywhere else an empty, non-numeric, NaN or infinite field is
-    an error. header: the column names of a file without a header row (its first line is
-    data, row 1); None reads them from the first line. time_col must be strictly increasing, unless ``notes`` (a list) is given: then
+    required/optional: column names; the header's other columns are kept too when others is
+    True, a cell there that is not a finite number becoming NaN (they are not used by the
+    method). nullable: columns whose empty or NaN fields mean "lost" (NaN); in a required column
+    anywhere else an empty, non-numeric, NaN or infinite field is an error. An optional column
+    with an empty or NaN field is left out, with a note when notes is given (a spreadsheet's
+    half-filled column is not a measurement). A UTF-8 BOM and a trailing separator are read as
+    spreadsheets write them. header: the column names of a file without a header row (its
+    first line is data, row 1); None reads them from the first line. time_col must be strictly
+    increasing, unless ``notes`` (a list) is given: then
     repeated and backward time stamps are repaired by ``regularize_time`` and what it did is
     appended to notes as one line. time_text: a list to which a TimeText of the time column is
     appended, the table then carrying a "_row" column (data row numbers, kept through the
-    repairs) so that time_origin can rebase the stamps' text exactly.
+    repairs) so that time_origin can rebase the stamps' text exactly. progress: a tqdm-like
+    factory for a bar while a large file is read (csvtable.read_table), or None.
     Errors: InputError(file, message, row) with the 1-based line number.
     """
+    from .csvtable import read_table
     from .inputfile import MAX_CSV_BYTES, check_input_file
 
     path = Path(path)
     check_input_file(path, "CSV file", MAX_CSV_BYTES)
-    fast = _read_csv_fast(path, required, nullable, header)
-    if fast is not None:
-        out = fast
-    else:
-        out = _read_csv_checked(path, required, nullable, header)
+    out, names = read_table(path, required, optional, nullable, header, others, progress)
+    for name in optional:
+        if name in out and name not in nullable and np.isnan(out[name]).any():
+            bad = np.isnan(out[name])
+            del out[name]
+            if notes is not None:
+                notes.append(f"{path}: column {name!r} is empty or NaN in {int(bad.sum())} of {bad.size} rows (the "
+                             f"first at row {int(np.argmax(bad)) + (2 if header is None else 1)}): left out")
     if time_text is not None and time_col is not None:
-        time_text.append(TimeText(path, list(out).index(time_col), header is None))
+        time_text.append(TimeText(path, names.index(time_col), header is None))
         out["_row"] = np.arange(len(out[time_col]), dtype=np.int64)
     if time_col is not None and notes is not None:
         out, note = regularize_time(out, path, time_col)
@@ -266,76 +277,6 @@ def drop_held(tab: dict[str, np.ndarray], cols: list[str], path) -> tuple[dict[s
     return {k: v[keep] for k, v in tab.items()}, note
 
 
-def _read_csv_fast(path: Path, required, nullable, given_header=None) -> dict[str, np.ndarray] | None:
-    """np.loadtxt (C parser) for the common clean file; None when anything looks off, so
-    the row-by-row reader runs and names the offending row."""
-    try:
-        if given_header is None:
-            with open(path, newline="") as fh:
-                header = [h.strip() for h in fh.readline().split(",")]
-        else:
-            header = list(given_header)
-        if any(n not in header for n in required) or len(set(header)) != len(header):
-            return None
-        with warnings.catch_warnings():  # "no data": the checked reader reports it as one line
-            warnings.simplefilter("ignore")
-            data = np.loadtxt(path, delimiter=",", skiprows=0 if given_header is not None else 1, ndmin=2,
-                              dtype=float)
-    except (ValueError, OSError, IndexError):
-        return None
-    if data.shape[0] == 0 or data.shape[1] != len(header) or not np.all(np.isfinite(data)):
-        return None
-    return {h: data[:, j].copy() for j, h in enumerate(header)}
-
-
-def _read_csv_checked(path: Path, required, nullable, given_header=None) -> dict[str, np.ndarray]:
-    first_row = 2 if given_header is None else 1  # file row of the first data row
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            reader = csv.reader(fh)
-            try:
-                header = [h.strip() for h in next(reader)] if given_header is None else list(given_header)
-            except StopIteration:
-                raise InputError(path, "empty file (no header row)", 1) from None
-            for name in required:
-                if name not in header:
-                    raise InputError(path, f"missing column {name!r} (header: {','.join(header)})", 1)
-            dup = sorted({h for h in header if header.count(h) > 1})
-            if dup:
-                raise InputError(path, f"column {dup[0]!r} appears {header.count(dup[0])} times in the header "
-                                 f"({','.join(header)}): which one is meant? rename or drop the others", 1)
-            rows = list(reader)
-    except UnicodeDecodeError as e:
-        raise InputError(path, f"not UTF-8 text (byte {e.start}): a CSV of numbers was expected") from None
-    except csv.Error as e:
-        raise InputError(path, f"not a CSV file ({e})", getattr(reader, "line_num", None) or None) from None
-    except OSError as e:
-        raise InputError(path, f"cannot read: {e.strerror or e}; check the permissions") from None
-    ncol = len(header)
-    data = np.full((len(rows), ncol), np.nan)
-    null_idx = {header.index(n) for n in nullable if n in header}
-    for i, row in enumerate(rows):
-        lineno = i + first_row
-        if len(row) != ncol:
-            raise InputError(path, f"expected {ncol} fields, found {len(row)} (truncated or malformed row)", lineno)
-        for j, cell in enumerate(row):
-            cell = cell.strip()
-            if cell == "":
-                if j in null_idx:
-                    continue
-                raise InputError(path, f"empty value in column {header[j]!r}", lineno)
-            try:
-                x = float(cell)
-            except ValueError:
-                raise InputError(path, f"not a number in column {header[j]!r}: {cell!r}", lineno) from None
-            if not math.isfinite(x):
-                raise InputError(path, f"non-finite value in column {header[j]!r}: {cell!r}", lineno)
-            data[i, j] = x
-    if len(rows) == 0:
-        raise InputError(path, "no data rows", first_row)
-    return {h: data[:, j].copy() for j, h in enumerate(header)}
-
-
 def t_col_fmt(x: float) -> str:
     return f"{x:.9g}"
 
@@ -352,23 +293,13 @@ class TimeText:
     has_header: bool = True
     scale: float = 1.0
 
-    def read(self) -> list[str] | None:
-        """The time column's text of every data row, in the order read_csv numbered them
-        (lines that np.loadtxt skips, blank or comment-only, skipped too); None when the file
-        cannot be read again."""
-        try:
-            with open(self.path, newline="", encoding="utf-8") as fh:
-                rows = csv.reader(fh)
-                if self.has_header:
-                    next(rows, None)
-                out = []
-                for row in rows:
-                    if not row or not "".join(row).split("#")[0].strip():
-                        continue
-                    out.append(row[self.col].split("#")[0].strip() if self.col < len(row) else "")
-                return out
-        except (OSError, UnicodeDecodeError, csv.Error):
-            return None
+    def ticks(self) -> tuple[np.ndarray, int] | None:
+        """The time column's exact values, (ticks (n,), D): stamp = ticks / 10^D, in the order
+        read_csv numbered the rows (csvtable.time_ticks); None when the file cannot be read
+        again or a stamp is not a decimal number."""
+        from .csvtable import time_ticks
+
+        return time_ticks(self.path, self.col, self.has_header)
 
 
 def format_us(u: int) -> str:
@@ -384,21 +315,26 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str
     The time column t_s is written to the microsecond, exactly (t_origin_us added back:
     Session.t_origin_us), whatever its magnitude: %.9g would keep whole seconds of an epoch
     stamp."""
+    from .csvtable import CHUNK_ROWS
+
     names = list(columns)
     arrays = [np.asarray(columns[n], float) for n in names]
     n = len(arrays[0]) if arrays else 0
     formats = formats or {}
     fmts = [formats.get(nm, "{:.9g}") for nm in names]
-    cols = []
-    for nm, a, f in zip(names, arrays, fmts):
-        if nm == "t_s" and nm not in formats and np.all(np.isfinite(a)):
-            cols.append([format_us(int(u)) for u in time_us(a) + int(t_origin_us)])
-        else:
-            cols.append(["" if not math.isfinite(x) else f.format(x) for x in a.tolist()])
+    exact_t = [nm == "t_s" and nm not in formats and bool(np.all(np.isfinite(a))) for nm, a in zip(names, arrays)]
     with open(path, "w", newline="") as fh:
         fh.write(",".join(names) + "\n")
-        for i in range(n):
-            fh.write(",".join(c[i] for c in cols) + "\n")
+        # In chunks: the text of a whole long log (millions of rows) would cost GBs at once.
+        for i0 in range(0, n, CHUNK_ROWS):
+            cols = []
+            for a, f, ex in zip(arrays, fmts, exact_t):
+                part = a[i0:i0 + CHUNK_ROWS]
+                if ex:
+                    cols.append([format_us(u) for u in (time_us(part) + int(t_origin_us)).tolist()])
+                else:
+                    cols.append(["" if not math.isfinite(x) else f.format(x) for x in part.tolist()])
+            fh.write("".join(",".join(row) + "\n" for row in zip(*cols)))
 
 
 # --------------------------------------------------------------------------- JSON
@@ -587,8 +523,9 @@ def check_camera(cam: Camera, path) -> None:
 
 
 # --------------------------------------------------------------------------- load / write
-def load_session(folder: str | os.PathLike) -> Session:
-    """Load and validate a session folder.
+def load_session(folder: str | os.PathLike, progress=None) -> Session:
+    """Load and validate a session folder; the encoder log thinned by thin_record.
+    progress: a tqdm-like factory for a bar while a large CSV is read, or None.
 
     Errors: InputError naming the file (and row for CSV content): missing folder or file,
     bad JSON, unknown format, NaN/empty/non-numeric fields, non-increasing time, missing
@@ -607,14 +544,15 @@ def load_session(folder: str | os.PathLike) -> Session:
     def tt(name: str) -> list:
         return found.setdefault(name, [])
 
-    enc = read_csv(folder / "encoder.csv", ["t_s", "q"], ["q_cmd"], notes=notes, time_text=tt("encoder"))
+    enc = read_csv(folder / "encoder.csv", ["t_s", "q"], ["q_cmd"], notes=notes, time_text=tt("encoder"),
+                   progress=progress)
     if len(enc["t_s"]) < 2:
         raise InputError(folder / "encoder.csv", "fewer than two samples")
     check_range(enc, "q", folder / "encoder.csv", notes, q_limit(), kw["actuator_unit"])
     s = Session(encoder=enc, path=folder, notes=notes, **kw)
     if kw["distal_kind"] == "angle":
         s.distal = read_csv(folder / "distal.csv", ["t_s", "c_deg"], nullable={"c_deg"}, notes=notes,
-                            time_text=tt("distal"))
+                            time_text=tt("distal"), progress=progress)
         check_range(s.distal, "c_deg", folder / "distal.csv", notes, MAX_ABS_C_DEG, "deg")
         s.distal = _noted(drop_held(s.distal, ["c_deg"], folder / "distal.csv"), notes)
     else:
@@ -648,9 +586,16 @@ def load_session(folder: str | os.PathLike) -> Session:
                       ("frames.csv", s.frames)):
         if tab is not None:
             check_span(tab, folder / name, notes)
-    s.encoder, note = thin_encoder(s.encoder, folder / "encoder.csv")
+    return thin_record(s, folder / "encoder.csv")
+
+
+def thin_record(s: Session, enc_path) -> Session:
+    """The one thinning of every record read (a session folder, a recording file read in place):
+    s.encoder by thin_encoder, in place, its note appended to s.notes. enc_path names the
+    encoder log in the note. Returns s."""
+    s.encoder, note = thin_encoder(s.encoder, enc_path)
     if note:
-        notes.append(note)
+        s.notes.append(note)
     return s
 
 
@@ -711,7 +656,7 @@ def check_time_unit(t_s: np.ndarray, path, fps: float | None = None, scale: floa
     The one-line InputError names the unit the spacing suggests and fix(unit) -> how to pass it
     (default: the session-file remedy)."""
     t = np.asarray(t_s, float)
-    if t.size < 3:
+    if t.size < 2:  # two rows already have a step (a 2-row log of ns stamps is no session either)
         return
     step = float(np.median(np.diff(t)))
     if not (step > 0 and math.isfinite(step)):
@@ -818,6 +763,8 @@ def time_origin(s: "Session", texts: dict[str, TimeText] | None = None) -> "Sess
     rel = float(Decimal(text) - Decimal(origin text)) * scale, so any decimal shift of the
     files gives the same rel, to the last bit, whatever the stamps' digits (float64 seconds at
     1.7e9 s hold only 0.24 us steps: rebasing the parsed floats would carry that rounding).
+    The text is held as integers (TimeText.ticks: stamp = ticks / 10^D), not as Python
+    objects per row, so a long log's rebase costs a few int64 arrays.
     Without texts (a Session built in memory) the parsed stamps are rebased through integer
     microseconds, exact for stamps of at most 6 decimals below 2^31 s. Then rel is quantised
     to 1 us (round(rel * 1e6) / 1e6); a repeated stamp after the quantisation keeps the last
@@ -836,28 +783,48 @@ def time_origin(s: "Session", texts: dict[str, TimeText] | None = None) -> "Sess
         rel = {n: np.asarray(tabs[n]["t_s"], float) for n in names}
     elif texts and all(n in texts and "_row" in tabs[n] for n in names) \
             and len({texts[n].scale for n in names}) == 1:
-        dec: dict[str, list] = {}
-        cache: dict[TimeText, list | None] = {}
+        from .csvtable import _scaled
+
+        ticks: dict[str, tuple[np.ndarray, int]] = {}
+        cache: dict[TimeText, tuple | None] = {}
         try:
             for n in names:
                 tt = texts[n]
                 if tt not in cache:
-                    cache[tt] = tt.read()
-                all_text = cache[tt]
+                    cache[tt] = tt.ticks()
+                got = cache[tt]
                 rows = tabs[n]["_row"]
-                if all_text is None or len(all_text) <= int(rows.max()):
+                if got is None or got[0].size <= int(rows.max()):
                     raise ValueError
-                sel = [all_text[int(r)] for r in rows]
-                parsed = np.array([float(x) for x in sel]) * tt.scale
-                if not np.array_equal(parsed, np.asarray(tabs[n]["t_s"], float)):
+                tk = got[0][rows]
+                parsed = np.array([float(x) for x in tk], float) if tk.dtype == object else tk.astype(float)
+                parsed = parsed / 10.0 ** got[1] * tt.scale
+                if not np.allclose(parsed, np.asarray(tabs[n]["t_s"], float), rtol=1e-15, atol=0.0):
                     raise ValueError  # not the text read_csv parsed: keep to the floats
-                dec[n] = [Decimal(x) for x in sel]
-            origin = min(dec[n][0] for n in rec)
+                ticks[n] = (tk, got[1])
+            d_max = max(d for _, d in ticks.values())
+            exact = {n: _scaled(tk, np.full(tk.size, d_max - d, np.int64)) for n, (tk, d) in ticks.items()}
+            origin = min(int(exact[n][0]) for n in rec)
             scale = texts[names[0]].scale
-            rel = {n: np.array([float(d - origin) for d in dec[n]]) * scale for n in names}
-            origin_us = int((origin * Decimal(repr(scale)) * 1_000_000).to_integral_value())
-        except (ValueError, InvalidOperation):
+            rel = {}
+            for n in names:
+                diff = exact[n] - origin
+                if diff.dtype != object and np.all(np.abs(diff) < 2**53):
+                    # int64 -> float64 exact below 2^53, 10^d exact: one correctly rounded
+                    # division, the same float as float(Decimal(diff) / 10^d)
+                    rel[n] = diff.astype(float) / 10.0 ** d_max * scale
+                else:  # Python ints: true division is correctly rounded too
+                    rel[n] = np.array([int(x) / 10 ** d_max for x in diff], float) * scale
+            origin_us = int((Decimal(origin).scaleb(-d_max) * Decimal(repr(scale)) * 1_000_000).to_integral_value())
+        except (ValueError, InvalidOperation, OverflowError):
             rel = None
+    if rel is not None:
+        for n in names:
+            _check_us_range(rel[n], texts[n].path if texts and n in texts else None)
+        _check_us_range([origin_us / 1e6], texts[rec[0]].path if texts and rec[0] in texts else None, absolute=True)
+    else:
+        for n in names:
+            _check_us_range(tabs[n]["t_s"], texts[n].path if texts and n in texts else None, absolute=True)
     if rel is None:  # in-memory tables: through integer microseconds
         us = {n: time_us(tabs[n]["t_s"]) for n in names}
         origin_us = min(int(us[n][0]) for n in rec)
@@ -875,6 +842,22 @@ def time_origin(s: "Session", texts: dict[str, TimeText] | None = None) -> "Sess
         tab["t_s"] = r / 1e6
     s.t_origin_us += origin_us
     return s
+
+
+# Times (s) whose microseconds int64 holds with room to spare (2^62 us, 146 000 years).
+MAX_ABS_TIME_S = 2.0**62 / 1e6
+
+
+def _check_us_range(t, path, absolute: bool = False) -> None:
+    """Refuse stamps whose microseconds would overflow int64 (they would all collapse into one
+    row): nanosecond or picosecond counts read as seconds. absolute: t are the files' stamps,
+    else times from the record's first sample. Errors: InputError naming the file."""
+    t = np.asarray(t, float)
+    big = float(np.max(np.abs(t))) if t.size else 0.0
+    if big > MAX_ABS_TIME_S or not math.isfinite(big):
+        what = "the stamps reach" if absolute else "the stamps span"
+        raise InputError(path, f"{what} {big:.4g} s: more than int64 microseconds hold; a count of nanoseconds "
+                         "read as seconds? (`playscope import --time-unit ns`, or divide t_s by 1e9)")
 
 
 def _noted(result, notes: list[str]):
