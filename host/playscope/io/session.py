@@ -320,6 +320,8 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str
     names = list(columns)
     arrays = [np.asarray(columns[n], float) for n in names]
     n = len(arrays[0]) if arrays else 0
+    if any(len(a) != n for a in arrays):  # zip would cut the longer ones without a word
+        raise ValueError(f"{path.name}: columns of unequal length " + ", ".join(f"{nm} {len(a)}" for nm, a in zip(names, arrays)))
     formats = formats or {}
     fmts = [formats.get(nm, "{:.9g}") for nm in names]
     exact_t = [nm == "t_s" and nm not in formats and bool(np.all(np.isfinite(a))) for nm, a in zip(names, arrays)]
