@@ -6,9 +6,16 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
           + S_tip(tau_j) R(Q_j; a_tip) + S_motor(tau_j) R(Q_j; a_motor)             registration terms
           + e_j                                                                   noise
 
-  z       the play's output (eq. 3): the encoder's q through a play of width B(q), B a cubic
+  z       the play's output (eq. 3): the encoder's q through a play of width B, B a cubic
           B-spline over the travel; z_j = z(tau_j). No pose is estimated: G, a cubic B-spline
           curve in the image per axis, absorbs f_remain and the camera (eq. 1 needs no pose).
+          Where the width is read is a property of the plant, chosen by the same criterion as
+          the terms: at the input, the band q -+ B(q) / 2 (a play whose width follows the motor's
+          side, e.g. the cable's slack at the drum), or at the output, z -+ B(z) / 2 = q, the
+          paper's eq. 2 (f_1,2(q -+ B(q) / 2) = f(q): a width that follows the bending section's
+          configuration). They differ by B' B / 2 along each leg, where a narrow bump of B is read
+          a fraction of its height low in the wrong form. At the output, eq. 1 is exact:
+          |q2 - q1| = B(z_hold) with z_hold = (q1 + q2) / 2.
   x_stop, x_start
           a damped tip mode (frequency f, damping ratio zeta, shared by the record) driven by the
           play output's acceleration (base excitation, x'' + 2 zeta w x' + w^2 x = -z''), split
@@ -76,6 +83,8 @@ B_CTRL = (4, 8, 16)    # B(q)'s coefficients, chosen by BIC on the plain model (
 B_REV_PER_CTRL = 1     # ... with at least one reversal (one onset) per coefficient
 IRLS_ROUNDS = 3        # reweightings of the Huber fit (the weights settle in 2-3 on every record tried)
 TERMS = ("ring", "reg_tip", "reg_motor")
+WIDTH_AT = ("input", "output")  # where the play's width is read: B(q) or B(z) (module doc)
+Z_GRID = 4001          # points of the output grid the band's edges are inverted on (B at the output)
 N_REG = 3              # the registration's rotation (rad) about the camera's x, y and optical axes (module doc: R)
 
 
@@ -240,13 +249,18 @@ class RecordModel:
     B coefficients (n_b)[, log f_hz, zeta]]."""
 
     def __init__(self, rec: Record, n_b: int, n_g: int, terms: Terms, prior: tuple[float, float] | None,
-                 d_fixed: float | None = None):
+                 d_fixed: float | None = None, width_at: str = "input"):
+        if width_at not in WIDTH_AT:
+            raise ValueError(f"width_at must be one of {WIDTH_AT}, not {width_at!r}")
         self.rec, self.n_b, self.n_g, self.terms = rec, n_b, n_g, terms
-        self.prior, self.d_fixed = prior, d_fixed
+        self.prior, self.d_fixed, self.width_at = prior, d_fixed, width_at
         q = rec.q
         self.q_lo, self.q_hi = float(q.min()), float(q.max())
         span = self.q_hi - self.q_lo
         self.Phi_B = _sparse_basis(q, self.q_lo, self.q_hi, n_b) if n_b > 1 else None
+        if width_at == "output":  # the play's output grid the edges are inverted on (module doc)
+            self.z_grid = np.linspace(self.q_lo - 0.5 * span, self.q_hi + 0.5 * span, Z_GRID)
+            self.Phi_Bz = _sparse_basis(self.z_grid, self.q_lo, self.q_hi, n_b) if n_b > 1 else None
         self.z_lo, self.z_hi = self.q_lo - 0.25 * span, self.q_hi + 0.25 * span
         self.w = np.ones(2 * rec.t_f.size)  # IRLS weights
         self.slope = None  # G' at the frames from the previous round: (F, 2), for the ring's direction
@@ -320,13 +334,38 @@ class RecordModel:
         return _basis(np.asarray(q, float), self.q_lo, self.q_hi, self.n_b) @ cB
 
     # ---- forward model
+    def edges(self, cB: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The play's band (lo, hi) (N,) on the grid for B's coefficients cB (module doc: B at the
+        input, q -+ B(q) / 2; at the output, the z with z +- B(z) / 2 = q, by inverting
+        z -> z +- B(z) / 2 on z_grid, kept increasing where B' would pass -+2)."""
+        rec = self.rec
+        if self.width_at == "input":
+            B = np.maximum(self.Phi_B @ cB if self.Phi_B is not None else np.full(rec.q.size, cB[0]), 0.0)
+            return rec.q - 0.5 * B, rec.q + 0.5 * B
+        zg = self.z_grid
+        Bz = np.maximum(self.Phi_Bz @ cB if self.Phi_Bz is not None else np.full(zg.size, cB[0]), 0.0)
+        q_up = np.maximum.accumulate(zg + 0.5 * Bz)  # the lower edge drags z up: q = z + B(z) / 2
+        q_dn = np.maximum.accumulate(zg - 0.5 * Bz)  # the upper edge drags z down: q = z - B(z) / 2
+        return np.interp(rec.q, q_up, zg), np.interp(rec.q, q_dn, zg)
+
     def play(self, cB: np.ndarray, edges: bool = False):
         """z on the grid (N,) for B's coefficients cB; with edges, also (lo, hi) (N,) each."""
-        rec = self.rec
-        B = np.maximum(self.Phi_B @ cB if self.Phi_B is not None else np.full(rec.q.size, cB[0]), 0.0)
-        lo, hi = rec.q - 0.5 * B, rec.q + 0.5 * B
-        z = _play(lo, hi, float(rec.q[0]))
+        lo, hi = self.edges(cB)
+        z = _play(lo, hi, float(self.rec.q[0]))
         return (z, lo, hi) if edges else z
+
+    def edge_gradient(self, cB: np.ndarray, k: np.ndarray, z: np.ndarray, side: np.ndarray) -> np.ndarray:
+        """d z / d (B's coefficients), (len(k), n_b), where z (len(k),) lies on the band's edge
+        side (-0.5 the lower, +0.5 the upper) at grid samples k: z = q + side B(q) at the input,
+        so side phi_i(q); z = q + side B(z) at the output, so side phi_i(z) / (1 - side B'(z))."""
+        if self.width_at == "input":
+            phi = self.Phi_B[k].toarray() if self.Phi_B is not None else np.ones((k.size, 1))
+            return phi * side[:, None]
+        if self.n_b == 1:
+            return (side / 1.0)[:, None] * np.ones((k.size, 1))
+        phi = _basis(z, self.q_lo, self.q_hi, self.n_b)
+        dB = _dbasis(z, self.q_lo, self.q_hi, self.n_b) @ cB
+        return phi * (side / np.maximum(1.0 - side * dB, 0.05))[:, None]
 
     def onsets(self, z: np.ndarray) -> np.ndarray:
         """Scene time (M,) at which z starts to move after each reversal (linear within the grid
@@ -480,23 +519,24 @@ class RecordModel:
         Av = A1 @ X[p:2 * p] + sum(np.outer(rv, X[2 * p + i]) for i, (_, rv) in enumerate(ring))
         return Gu - Au, Gv - Av
 
-    def onset_gradient(self, z, lo, hi, t_on, s_new) -> np.ndarray:
+    def onset_gradient(self, cB, z, lo, hi, t_on, s_new) -> np.ndarray:
         """d t_on / d (B's coefficients), (E, n_b) s per actuator unit, for onsets t_on (E,) of the
-        play z on its edges lo, hi (N,) whose new directions are s_new (E,): where q - s B(q) / 2
-        meets the held z, t_on moves by (dz_hold/dc_i + s phi_i(q_on) / 2) / q'(t_on); dz/dc_i is
-        -+ phi_i / 2 at the sample that last dragged z (the lower edge: -, the upper: +)."""
+        play z on its edges lo, hi (N,) for B's coefficients cB, whose new directions are s_new
+        (E,): the new edge e (side -s / 2) meets the held z within the grid step k where z first
+        moves, t_on = t_k - dt (e_k - z_hold) / (q_k - q_k-1) (`onsets`), so t_on moves by
+        (dz_hold/dc_i - de_k/dc_i) / q'(t_k) (`edge_gradient`); the held z moves with the edge
+        that last dragged it."""
         rec = self.rec
         drag = (z == lo) | (z == hi)
         last = np.maximum.accumulate(np.where(drag, np.arange(z.size), 0))
         side = np.where(z == lo, -0.5, 0.5)
         kk = np.clip(np.searchsorted(rec.t, t_on), 1, z.size - 1)
         lh = last[kk - 1]
-        Phi = self.Phi_B
-        phi_on = Phi[kk].toarray() if Phi is not None else np.ones((kk.size, 1))
-        phi_h = (Phi[lh].toarray() if Phi is not None else np.ones((kk.size, 1))) * side[lh][:, None]
+        g_h = self.edge_gradient(cB, lh, z[lh], side[lh])
+        g_on = self.edge_gradient(cB, kk, z[kk], -0.5 * s_new)  # z[kk]: the new edge, where it caught z
         qdot = (rec.q[kk] - rec.q[kk - 1]) / rec.dt
         qdot = np.where(np.abs(qdot) > 1e-12, qdot, 1e-12)
-        return (phi_h + s_new[:, None] * 0.5 * phi_on) / qdot[:, None]
+        return (g_h - g_on) / qdot[:, None]
 
     def jacobian(self, th: np.ndarray, ev: "Eval", sigma: float) -> np.ndarray:
         """d residual / d theta (2F [+ 1 prior row], n_theta) of `_residual_fn`'s residuals, by
@@ -552,14 +592,13 @@ class RecordModel:
         side = np.where(z == st["lo"], -0.5, 0.5)
         k_f = np.clip(np.searchsorted(rec.t, tau), 0, z.size - 1)
         lk = last[k_f]
-        Phi = self.Phi_B
-        Zc = (Phi[lk].toarray() if Phi is not None else np.ones((F, 1))) * side[lk][:, None]
+        Zc = self.edge_gradient(cB, lk, z[lk], side[lk])
         sl_b = slice(1, 1 + self.n_b)
         Gu[:, sl_b] = dz_u[:, None] * Zc
         Gv[:, sl_b] = dz_v[:, None] * Zc
         if "tip" in ramps:
             e, inr, dS = ramps["tip"]
-            dton = self.onset_gradient(z, st["lo"], st["hi"], st["tip"][1], rec.s_new[st["tip"][5]])  # (E, n_b)
+            dton = self.onset_gradient(cB, z, st["lo"], st["hi"], st["tip"][1], rec.s_new[st["tip"][5]])  # (E, n_b)
             fr = np.flatnonzero(inr)
             val = reg["tip"]
             Gu[fr, sl_b] += (-dS[fr] * val[0][fr])[:, None] * dton[e[fr]]
@@ -813,18 +852,19 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
     d0, b0 = min(st.items(), key=lambda kv: len(kv[0]))[1]  # the base model's own start
     terms = Terms()
     fits = []
-    for n_b in _n_b_ladder(rec.rt.size):  # B's size by the same criterion as the terms
-        m = RecordModel(rec, n_b, n_g, terms, prior, d_fixed)
-        f = fit_model(m, m.theta({"d": np.array([d0]), "B": np.full(n_b, b0)}), sigma=sigma)
-        fits.append((f.bic(sigma), n_b, f))
-    bic, n_b, fit = min(fits, key=lambda x: x[0])
+    for n_b in _n_b_ladder(rec.rt.size):  # B's size and where it is read, by the same criterion as the terms
+        for width_at in (WIDTH_AT if n_b > 1 else WIDTH_AT[:1]):  # a constant width is read nowhere
+            m = RecordModel(rec, n_b, n_g, terms, prior, d_fixed, width_at)
+            f = fit_model(m, m.theta({"d": np.array([d0]), "B": np.full(n_b, b0)}), sigma=sigma)
+            fits.append((f.bic(sigma), n_b, width_at, f))
+    bic, n_b, width_at, fit = min(fits, key=lambda x: x[0])
     m = fit.model
-    log = [{"B_ctrl": {n: b for b, n, _ in fits}},
+    log = [{"B_ctrl": {f"{n} {w}": b for b, n, w, _ in fits}},
            {"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])}]
     while True:
         cands = []
         for name in (n for n in TERMS if not getattr(terms, n)):
-            mt = RecordModel(rec, n_b, n_g, terms.with_(name), prior, d_fixed)
+            mt = RecordModel(rec, n_b, n_g, terms.with_(name), prior, d_fixed, width_at)
             parts = m.parts(fit.theta)
             if name == "ring":
                 th0s = [_ring_start(mt, parts, sigma)]
@@ -848,7 +888,7 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
         fit = fit_model(m, f.theta, sigma=sigma)
         bic = fit.bic(sigma)
         log.append({"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])})
-    return fit, {"steps": log, "sigma_px": sigma, "n_b": n_b, "n_g": n_g}
+    return fit, {"steps": log, "sigma_px": sigma, "n_b": n_b, "n_g": n_g, "width_at": width_at}
 
 
 # --------------------------------------------------------------------------- samples

@@ -109,7 +109,7 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                     "used_s": d, "used": "configured" if held else "record", "from": t_delay_from, "source": src,
                     "coarse_s": d0},
         "terms": {"chosen": terms.names(), "search": search["steps"], "criterion": "BIC on the Huber objective",
-                  "noise_px": search["sigma_px"], "B_ctrl": search["n_b"], "G_ctrl": search["n_g"], "frames": int(F)},
+                  "noise_px": search["sigma_px"], "B_ctrl": search["n_b"], "B_read_at": search["width_at"], "G_ctrl": search["n_g"], "frames": int(F)},
         "ringing": {"found": terms.ring, "freq_hz": ring[0] if ring else None,
                     "damping_ratio": ring[1] if ring else None,
                     "gains": [float(g) for g in beta[2 * m.n_g:2 * m.n_g + 2]] if ring else None},

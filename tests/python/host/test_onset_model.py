@@ -65,8 +65,9 @@ def test_noise_sigma_recovers_white_noise_on_a_slow_record():
     assert OM.noise_sigma(x + rng.normal(0, 0.2, x.shape)) == pytest.approx(0.2, rel=0.08)
 
 
-@pytest.mark.parametrize("terms", [(), ("reg_tip", "reg_motor"), ("ring",)])
-def test_the_analytic_jacobian_agrees_with_finite_differences(terms):
+@pytest.mark.parametrize("terms,width_at", [((), "input"), ((), "output"), (("reg_tip", "reg_motor"), "input"),
+                                             (("reg_tip", "reg_motor"), "output"), (("ring",), "input")])
+def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
     # Kaufman's variable-projection Jacobian against the projected residual's forward differences
     # (which re-solve the linear parameters): the gradient J'r, what the fit follows, and each
     # column of the delay and of B. The tip mode's drive through B is left out of the analytic
@@ -74,7 +75,7 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms):
     r, d, t, q, rt, rq, obs, _ = _record(reg_deg=1.5 if terms and terms[0] == "reg_tip" else 0.0,
                                          ring_hz=3.0 if "ring" in terms else 0.0, duration_s=30.0)
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
-    m = OM.RecordModel(rec, 4, 10, OM.Terms(**{k: True for k in terms}), (r.delay_s, 0.01))
+    m = OM.RecordModel(rec, 4, 10, OM.Terms(**{k: True for k in terms}), (r.delay_s, 0.01), width_at=width_at)
     g = np.linspace(rec.q.min(), rec.q.max(), 40)
     cB = np.linalg.lstsq(OM._basis(g, g[0], g[-1], 4), r.B(g), rcond=None)[0]
     th = m.theta({"d": np.array([r.delay_s + 0.003]), "B": 1.03 * cB, "ring": m.ring_theta(3.1, 0.06)})
@@ -96,23 +97,25 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms):
             assert cos(Ja[:, i], Jf[:, i]) > 0.95  # measured 0.98..1.0
 
 
-def test_the_onsets_gradient_over_B_agrees_with_small_differences():
+@pytest.mark.parametrize("width_at", OM.WIDTH_AT)
+def test_the_onsets_gradient_over_B_agrees_with_small_differences(width_at):
     r, d, t, q, rt, rq, obs, _ = _record(duration_s=30.0)
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
-    m = OM.RecordModel(rec, 4, 10, OM.Terms(), None)
+    m = OM.RecordModel(rec, 4, 10, OM.Terms(), None, width_at=width_at)
     cB = np.array([0.15, 0.25, 0.28, 0.16])
     z, lo, hi = m.play(cB, edges=True)
     t_on = m.onsets(z)
     ok = np.isfinite(t_on)
-    an = m.onset_gradient(z, lo, hi, t_on[ok], rec.s_new[ok])
+    an = m.onset_gradient(cB, z, lo, hi, t_on[ok], rec.s_new[ok])
     for i in range(4):
         c2 = cB.copy()
         c2[i] += 1e-4
         fd = (m.onsets(m.play(c2))[ok] - t_on[ok]) / 1e-4
         rel = np.abs(an[:, i] - fd) / (np.abs(fd) + 1e-3)
-        # measured: median 1e-10; all but one or two onsets within 9 %, the rest where the step
+        # measured: median 1e-10 at the input, 4e-6 at the output (its band is interpolated on
+        # the model's z grid); all but one or two onsets within 9 %, the rest where the step
         # moves a near-still onset across a grid sample
-        assert np.median(rel) < 1e-6 and np.mean(rel < 0.1) >= 0.85
+        assert np.median(rel) < (1e-6 if width_at == "input" else 2e-5) and np.mean(rel < 0.1) >= 0.85
 
 
 def test_a_clean_record_gives_B_and_the_delay():
