@@ -866,11 +866,15 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
         for name in (n for n in TERMS if not getattr(terms, n)):
             mt = RecordModel(rec, n_b, n_g, terms.with_(name), prior, d_fixed, width_at)
             parts = m.parts(fit.theta)
+            # from the fit so far, and from each delay start (the coarse and the configured one) at
+            # the start's width: a term the fit so far lacked may have dragged its delay and B into
+            # another basin (a ring read as a late onset)
+            bases = [{**parts, "d": np.array([d]), "B": np.full(n_b, b0)} for d in starts]
             if name == "ring":
-                th0s = [_ring_start(mt, parts, sigma)]
+                th0s = [_ring_start(mt, p, sigma) for p in [parts] + bases]
             else:
                 mt.slope = m.slope
-                th0s = [mt.theta(parts)]
+                th0s = [mt.theta(p) for p in [parts] + bases]
                 if (name,) in st:  # also from the start profiled with this switch
                     d_s, b_s = st[(name,)]
                     th0s.append(mt.theta({**parts, "d": np.array([d_s]), "B": np.full(n_b, b_s)}))
