@@ -23,7 +23,7 @@ per category and per renderer, failures / n, the rate and its interval, the medi
 percentile of the B error, the worst row.
 
 Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group fresh|setaside|development
-       [--stage record-model|refine] [--jobs 2] [--only NAME ...] [--fresh-start] [--markdown FILE]
+       [--jobs 2] [--only NAME ...] [--fresh-start] [--markdown FILE]
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def _rows(group: str) -> list:
 
 def run_row(args) -> dict:
     """Render, write, calibrate one row; its figures (a JSON-ready dict)."""
-    group, row, stage = args
+    group, row = args
     import b_score
 
     renderer, name, cat, limit, status, kw = row
@@ -74,8 +74,8 @@ def run_row(args) -> dict:
         obj, write, true_B, d_true, d_cfg = kw, swing_render.write, kw.B, kw.delay_s, kw.delay_cfg_s
     fps = float(getattr(obj, "fps"))
     t0 = time.time()
-    sc = b_score.score(lambda d: write(obj, d), true_B, onset_stage=stage)
-    out = {"name": name, "stage": stage, "renderer": renderer, "category": cat, "limit_pct": limit, "delay_status": status,
+    sc = b_score.score(lambda d: write(obj, d), true_B)
+    out = {"name": name, "renderer": renderer, "category": cat, "limit_pct": limit, "delay_status": status,
            "fps": fps, "delay_true_s": d_true, "delay_cfg_s": d_cfg, "total_s": None}
     if "refused" in sc:
         out.update(refused=sc["refused"], fail=True)
@@ -122,8 +122,6 @@ def table(res: list[dict], key: str) -> list[str]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--group", choices=("fresh", "setaside", "development"), default="development")
-    ap.add_argument("--stage", choices=("record-model", "refine"), default="record-model",
-                    help="calibrate's onset stage judged (calibrate --onsets); rows go to <group>[-refine].jsonl")
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--only", nargs="*", help="row names to run (default: all of the group)")
     ap.add_argument("--fresh-start", action="store_true", help="forget the rows already run")
@@ -134,7 +132,7 @@ def main(argv=None) -> int:
     if a.only:
         rows = [r for r in rows if r[1] in a.only]
     OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / ((f"{a.group}" if a.stage == "record-model" else f"{a.group}-{a.stage}") + a.tag + ".jsonl")
+    path = OUT / (a.group + a.tag + ".jsonl")
     if a.fresh_start and path.exists():
         path.unlink()
     done = {}
@@ -147,7 +145,7 @@ def main(argv=None) -> int:
     from concurrent.futures import ProcessPoolExecutor
 
     with ProcessPoolExecutor(a.jobs) as ex, open(path, "a") as f:
-        for i, d in enumerate(ex.map(run_row, [(a.group, r, a.stage) for r in todo])):
+        for i, d in enumerate(ex.map(run_row, [(a.group, r) for r in todo])):
             f.write(json.dumps(d) + "\n")
             f.flush()
             done[d["name"]] = d
@@ -156,7 +154,7 @@ def main(argv=None) -> int:
                 f"B {d['err_pct']:.2f} % (<= {d['limit_pct']:g}), t_delay {d['td_err_frames']:+.3f} frame, {d['terms']}"
             print(f"[{i + 1}/{len(todo)}] {tag:4s} {d['name']}: {fig}, {d['total_s']:.0f} s", flush=True)
     res = [done[r[1]] for r in rows if r[1] in done]
-    out = [f"## Onset scoreboard, group {a.group}, onset stage {a.stage}: {len(res)} renderings", ""]
+    out = [f"## Onset scoreboard, group {a.group}: {len(res)} renderings", ""]
     out += table(res, "category") + [""] + table(res, "renderer") + [""]
     fails = [r for r in res if r["fail"]]
     out.append(f"Failing rows ({len(fails)}):")

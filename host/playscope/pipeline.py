@@ -87,10 +87,9 @@ def model_text(cal: Calibration) -> str:
 def calibrate_session(session_dir, out, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
                       t_delay_s: float | None = None, t_delay_from: str = "data",
                       hysteresis: float | None = None, threshold: float | None = None,
-                      model_kind: str = "auto", onset_stage: str = "refine", progress=None) -> Calibrated:
+                      model_kind: str = "auto", progress=None) -> Calibrated:
     """calibration.calibrate on the session folder or recording file (importer.load_recording), saved to out (docs/calibration-format.md).
-    threshold: the onset threshold T per frame (px or deg), default automatic; onset_stage as in
-    calibration.calibrate; progress: a tqdm-like factory for the reading's bar, or None."""
+    threshold: the onset threshold T per frame (px or deg), default automatic; progress: a tqdm-like factory for the reading's bar, or None."""
     from .fit.calibration import calibrate
     from .io.importer import load_recording
 
@@ -98,7 +97,7 @@ def calibrate_session(session_dir, out, n_ctrl: int = 14, f_method: str = "lsq",
     notes = list(s.notes)  # what the loader repaired (repeated or backward stamps, a held sensor)
     ov = {"threshold": threshold} if threshold is not None else None
     cal = calibrate(s, n_ctrl, f_method, fps, t_delay_s, hysteresis, ov, t_delay_from=t_delay_from,
-                    model_kind=model_kind, onset_stage=onset_stage)
+                    model_kind=model_kind)
     cal.save(out)
     return Calibrated(os.fspath(out), cal, notes)
 

@@ -10,8 +10,9 @@ from .common import add_command, add_json_arg, emit, progress
 
 
 DESCRIPTION = """\
-Paper Fig. 4: reversals -> motion onsets (the firmware's C detector, eq. 1; image sessions:
-refined on the host by a joint ML model, t_delay measured from the record) -> B(q) robust cubic
+Paper Fig. 4: reversals -> motion onsets (eq. 1; image sessions: read off one model of the
+whole record, the play, the delay and the camera's effects fitted jointly from the firmware's C
+detector's onsets, t_delay measured from the record, docs/host.md) -> B(q) robust cubic
 B-spline (N control points) -> f_remain (play-consistent least squares, or the paper's
 morphological median line) -> calibration JSON (docs/calibration-format.md).
 """
@@ -38,11 +39,6 @@ def add_parser(sub) -> None:
     p.add_argument("--t-delay-from", choices=["data", "config"], default="data",
                    help="image sessions: use the delay measured from the record (data, default) or the configured "
                    "one (config); a gap over one frame period is warned about either way")
-    p.add_argument("--onsets", choices=["refine", "record-model"], default="refine",
-                   help="image sessions: how eq. 1's samples and t_delay are found. refine (default): the board's "
-                   "onsets refined per reversal by change-point models (docs/host.md); record-model (preview): "
-                   "one model of the whole record, the play, the delay and the camera's effects fitted jointly "
-                   "(docs/host.md 'Onsets from one model of the record', and its known gaps)")
     p.add_argument("--hysteresis", type=T.HYSTERESIS, help="reversal detection hysteresis, actuator units (default 1%% of travel)")
     p.add_argument("--threshold", type=T.THRESHOLD, help="onset threshold T per frame (px or deg); default: from this record's still noise and a "
                    "false-alarm rate of 0.01 onsets per reversal (docs/method.md 'Settings from the record', "
@@ -55,7 +51,7 @@ def add_parser(sub) -> None:
 
 def run(a) -> int:
     res = calibrate_session(a.session, a.out, a.control_points, a.f_method, a.fps, a.t_delay, a.t_delay_from,
-                            a.hysteresis, a.threshold, a.model, a.onsets, progress=progress)
+                            a.hysteresis, a.threshold, a.model, progress=progress)
     for w in res.warnings:
         print(f"playscope: warning: {w}", file=sys.stderr)
     return emit(a, res)

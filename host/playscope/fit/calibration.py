@@ -337,7 +337,7 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     s, actuator units; t_f, c_f: (F,) s, deg; td: acquisition delay, s; model_kind "auto"|"pi";
     n_ctrl: f's control points for the pure-play candidate (14 from calibrate: the
     cross-validated f_remain N needs B first); src: file named in errors. c_confounded: the image
-    jumps with the direction of motion (onset_refine.direction_jump, or the record model's tip switch: a registration or channel
+    jumps with the direction of motion (the record model's tip switch: a registration or channel
     error), so c carries a direction-following offset that a wider or narrower B mimics; the CV
     on c then has no evidence about B's stiffness and the B-sample CV's own pick is kept.
     Returns BAndModel (the kept B, its transition, f, sign and choice dict, every alternative's
@@ -372,7 +372,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
               t_delay_s: float | None = None, hysteresis: float | None = None,
               onset_cfg: dict | None = None, source: str | None = None,
               onsets: Onsets | None = None, t_delay_from: str = "data",
-              model_kind: str = "auto", f_ctrl: int | None = None, onset_stage: str = "refine") -> Calibration:
+              model_kind: str = "auto", f_ctrl: int | None = None) -> Calibration:
     """Run the chain on a session (image or angle).
 
     1 reversals (q_cmd if logged, else the encoder with hysteresis, default 1 % of the
@@ -381,11 +381,10 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
       f_method "lsq" (play-consistent) or "morph" (paper); the other one is kept as
       f_remain_alt. t_delay: argument, else session.json, else estimated (image
       sessions; 0 for angle sessions, whose sensor shares the encoder clock).
-    Image sessions: the onsets are refined on the host and t_delay is measured from the record
-      (onset_stage "refine", default: playscope.fit.onset_refine.robust_samples), or both come from
-      one model of the record (onset_stage "record-model", a preview: playscope.fit.onset_stage.
-      record_samples, the configured delay its prior); t_delay_from "data" (default) uses the
-      record's delay, "config" the configured one; a disagreement is a warning (doc["warnings"]).
+    Image sessions: eq. 1's samples and t_delay come from one model of the record
+      (playscope.fit.onset_stage.record_samples, the configured delay its prior); t_delay_from
+      "data" (default) uses the record's delay, "config" the configured one; a disagreement is a
+      warning (doc["warnings"]).
     onsets: B samples measured elsewhere (e.g. by the board's own detector during
       `playscope run-insitu`); they replace the detector run of step 2 (image sessions: as the
       refinement's candidates; angle sessions: fitted as they are).
@@ -456,15 +455,11 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         defaults = {}
     refine_doc = None
     if s.distal_kind == "image":
-        if onset_stage == "record-model":
-            from .onset_stage import record_samples as stage
-        elif onset_stage == "refine":
-            from .onset_refine import robust_samples as stage
-        else:
-            raise ValueError(f"onset_stage must be 'refine' or 'record-model', not {onset_stage!r}")
+        from .onset_stage import record_samples
+
         cfg_td = t_delay_s if t_delay_s is not None else s.t_delay_s
-        extra = {"camera_K": s.camera.K} if onset_stage == "record-model" else {}
-        rob = stage(t_enc, q, q_rev, rt, rq, t_f, obs, fr, cfg_td, t_delay_from, onsets, onset_cfg, hyst, **extra)
+        rob = record_samples(t_enc, q, q_rev, rt, rq, t_f, obs, fr, cfg_td, t_delay_from, onsets, onset_cfg, hyst,
+                             camera_K=s.camera.K)
         td, refine_doc = rob.t_delay_s, rob.report
         warnings += rob.warnings
         td_src = "argument" if t_delay_s is not None and t_delay_from == "config" else rob.t_delay_source

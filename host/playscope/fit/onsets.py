@@ -159,8 +159,7 @@ def run_onsets(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.nd
 
 @dataclass
 class RobustOnsets:
-    """What an image session's onset stage (onset_stage.record_samples, onset_refine.robust_samples)
-    gives calibrate: the B samples (Onsets with sigma_b), the delay used (s) and where it came
+    """What an image session's onset stage (onset_stage.record_samples) gives calibrate: the B samples (Onsets with sigma_b), the delay used (s) and where it came
     from, the record's diagnosis (a JSON-ready dict) and warnings (one line each)."""
 
     onsets: Onsets

@@ -431,7 +431,7 @@ def test_evaluation_without_any_onset_refuses_the_onset_rows_and_scores_ours(mon
     none = Onsets(*(np.zeros(0) for _ in range(6)), reasons={"no_still": 3})
     from playscope.fit import calibration, onset_settings, onsets
 
-    # the detector's module (onset_refine imports it at call time) and the modules binding its name
+    # the detector's module and the modules binding its name
     for mod in (onsets, calibration, onset_settings):
         monkeypatch.setattr(mod, "run_onsets", lambda *a, **k: none)
     doc = insitu.evaluate_insitu(play_record(), 0.5, source="rec.txt")

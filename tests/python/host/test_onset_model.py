@@ -1,6 +1,5 @@
-"""The record model of the onsets (playscope.fit.onset_model, onset_stage; `calibrate --onsets
-record-model`) on short renderings of
-bench/swing_render.py, a renderer written apart from the estimator: each term against its truth.
+"""The record model of the onsets (playscope.fit.onset_model, onset_stage: calibrate's onset
+stage for image sessions) on short renderings of bench/swing_render.py, a renderer written apart from the estimator: each term against its truth.
 Statistics over many renderings live in bench/onset_scoreboard.py, not here."""
 
 import importlib.util
