@@ -739,17 +739,34 @@ def _jac(m: RecordModel, fun, th: np.ndarray, r0: np.ndarray) -> np.ndarray:
     return J
 
 
+def _settle(m: RecordModel, th: np.ndarray, sig: float) -> tuple[Eval, float]:
+    """The model at theta with its Huber weights reweighted once from there (the form every fit
+    is scored in): (its evaluation, half the robust objective plus the delay prior's half square)."""
+    ev = m.evaluate(th)
+    if m.terms.ring:
+        m.slope = m.G_slope(ev)
+    m.w = m.weights(ev, sig)
+    ev = m.evaluate(th)
+    cost = 0.5 * m.objective(ev, sig)
+    if m.prior is not None and m.d_fixed is None:
+        cost += 0.5 * float(((th[0] - m.prior[0]) / m.prior[1]) ** 2)
+    return ev, cost
+
+
 def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_nfev: int = 20,
               rounds: int = IRLS_ROUNDS) -> Fit:
     """Huber fit of the model from th0 by IRLS rounds of least_squares (Levenberg-Marquardt,
     MINPACK; the model clips theta into its admissible region: d >= 0, B >= 0, the tip mode in
-    its band). sigma: the scale (None: from the first round's residuals, 1.4826 MAD). Returns Fit."""
+    its band). sigma: the scale (None: from the first round's residuals, 1.4826 MAD). The scales
+    of a switch window follow the fitted jump, so a round need not lower the objective: the best
+    of the start and every round is returned. Returns Fit."""
     th = np.array(th0, float)
     ev = m.evaluate(th)
     if m.terms.ring:
         m.slope = m.G_slope(ev)
     sig = sigma if sigma is not None else robust_sigma(ev.resid)
     nfev = 0
+    tried = [th.copy()]
     for rnd in range(rounds):
         m.w = m.weights(ev, sig)
         fun = _residual_fn(m, sig)
@@ -767,17 +784,16 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
         res = least_squares(f_free, th[free], jac=j_free, method="lm", max_nfev=max_nfev, xtol=1e-6, ftol=1e-8)
         th[free] = res.x
         nfev += res.nfev
+        tried.append(th.copy())
         ev = m.evaluate(th)
         if m.terms.ring:
             m.slope = m.G_slope(ev)
             ev = m.evaluate(th)
         if sigma is None and rnd == 0:
             sig = robust_sigma(ev.resid)
-    m.w = m.weights(ev, sig)
-    ev = m.evaluate(th)
-    cost = 0.5 * m.objective(ev, sig)
-    if m.prior is not None and m.d_fixed is None:
-        cost += 0.5 * float(((th[0] - m.prior[0]) / m.prior[1]) ** 2)
+    costs = [_settle(m, t, sig)[1] for t in tried]
+    th = tried[int(np.argmin(costs))]
+    ev, cost = _settle(m, th, sig)
     f = Fit(m, th, ev, sig, cost, info={"nfev": nfev})
     f.jac = m.jacobian(th, ev, sig)
     return f
@@ -909,7 +925,7 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
         if c_bic >= bic:
             break
         terms, m = terms.with_(name), f.model
-        fit = fit_model(m, f.theta, sigma=sigma)
+        fit = fit_model(m, f.theta, sigma=sigma)  # from the trial, so at worst the trial again
         bic = fit.bic(sigma)
         log.append({"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])})
     return fit, {"steps": log, "sigma_px": sigma, "n_b": n_b, "n_g": n_g, "width_at": width_at}
