@@ -141,8 +141,13 @@ def make_record(t_enc, q, rt, rq, t_f, obs, fps: float, centre_px=None, focal_px
     t = np.arange(t_enc[0], t_enc[-1], 1.0 / rate)
     qg = np.interp(t, t_enc, q)
     i1 = np.clip(np.searchsorted(t, rt), 1, t.size - 2)
-    s_new = -np.sign(rq - np.interp(rt - 0.05, t_enc, q))
-    s_new[s_new == 0] = 1.0
+    # the new direction: towards the next reversal's extreme (reversals alternate); not from q
+    # just before the reversal, which a motor dwelling at its extreme holds level
+    s_new = np.sign(np.diff(rq))
+    s_new = np.r_[s_new, -s_new[-1:]]
+    for k in range(s_new.size):  # a level pair of extremes (a repeated reversal): the other's opposite
+        if s_new[k] == 0:
+            s_new[k] = -s_new[k - 1] if k else 1.0
     o = np.asarray(obs, float)[ok]
     if centre_px is None:
         centre_px = 0.5 * (o.min(axis=0) + o.max(axis=0))
