@@ -215,3 +215,20 @@ def image_onset_settings(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, re
     T = max(k * sig, 2.0 / native.Q16_ONE)
     doc["threshold_px"] = T
     return {"threshold": T}, doc
+
+
+def board_onsets(t_enc: np.ndarray, q: np.ndarray, rt: np.ndarray, rq: np.ndarray, t_f: np.ndarray,
+                 obs: np.ndarray, fps: float, t_delay_s: float, onset_cfg: dict | None) -> tuple[Onsets, dict]:
+    """The board's plain eq. 1 onsets of an image record at the delay t_delay_s (s): the C
+    detector with its threshold from this record's still noise and false-alarm rate
+    (onset_settings.image_onset_settings; not the detector's automatic k = 3 with its constant
+    0.05 / 1 px floor and ceiling) unless onset_cfg gives one. Shapes as in run_onsets. Returns
+    (Onsets, the threshold's rule as a JSON-ready dict)."""
+    over = dict(onset_cfg or {})
+    if "threshold" not in over:
+        auto, rule = image_onset_settings(t_enc, q, rt, rq, t_f, obs, t_delay_s, fps)
+        over.update(auto)
+    else:
+        rule = {"rule": "given", "threshold_px": float(over["threshold"])}
+    cfg = OnsetConfig(t_delay_s=t_delay_s, fps=fps, **over)
+    return run_onsets(t_enc, q, rt, rq, t_f, obs, "image", cfg), rule

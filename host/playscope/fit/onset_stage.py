@@ -19,7 +19,8 @@ import numpy as np
 
 from . import onset_model as OM
 from .delay_guess import coarse_delay, motor_stop_times
-from .onsets import Onsets, RobustOnsets, board_onsets
+from .onset_settings import board_onsets
+from .onsets import Onsets, RobustOnsets
 from .pacing import pacing
 
 DELAY_DISAGREE_Z = 3.0  # a configured delay this many combined standard errors from the record's is reported

@@ -94,11 +94,12 @@ def test_generator_imports_no_diagnosis_or_effect_forms():
     bad = sorted(m for m in mods if m.startswith(forbidden))
     assert not bad, f"the withheld-effect generator imports fitted forms: {bad}"
     # What it may use: the session container and the excitation trajectory (no model form).
-    # playscope.base.native and playscope.io.inputfile come in through the session container's loader
+    # playscope.base.native, playscope.io.inputfile and playscope.io.csvtable (its CSV reader) come in
+    # through the session container's loader
     # (the Q format's |q| limit, regular-file checks): never called while a record is generated,
     # which test_generators_never_run_the_native_core checks at run time.
     assert mods <= {"playscope", "playscope.base", "playscope.io", "playscope.io.session", "playscope.base.atomic", "playscope.base.errors", "playscope.sim",
-                    "playscope.base.native", "playscope.io.inputfile",
+                    "playscope.base.native", "playscope.io.inputfile", "playscope.io.csvtable",
                     "playscope.sim.withheld", "playscope.sim.withheld.hidden_plant",
                     "playscope.sim.withheld.variants", "playscope.sim.withheld.oracle",
                     "playscope.sim.withheld.recover"}, mods
@@ -132,7 +133,7 @@ def test_second_generator_shares_no_code_with_the_first_or_the_fitter():
     assert "sim/withheld_b/generator.py" in SECOND
     mods = _closure(SECOND)
     assert mods <= {"playscope", "playscope.base", "playscope.io", "playscope.io.session", "playscope.base.atomic", "playscope.base.errors", "playscope.sim",
-                    "playscope.base.native", "playscope.io.inputfile",  # the session loader's, see above
+                    "playscope.base.native", "playscope.io.inputfile", "playscope.io.csvtable",  # the session loader's, see above
                     "playscope.sim.withheld_b", "playscope.sim.withheld_b.generator"}, mods
     common = (_defined(SECOND) & (_defined(FORMS) | _defined(GENERATOR))) - {"__all__"}
     assert not common, f"defined in the second generator and elsewhere: {sorted(common)}"
