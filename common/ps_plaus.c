@@ -63,11 +63,22 @@ static pst_rule_t check_travel(const pst_header_t *hd, const pst_instrument_t *i
     return PST_RULE_OK;
 }
 
+/* The largest |df/dq| f may have for this travel and angle range (Q16.16 deg per unit). */
+static int64_t f_slope_limit(int64_t travel, const pst_instrument_t *inst)
+{
+    int64_t c_span = (int64_t)inst->c_max_q16 - inst->c_min_q16;
+    int64_t lim = travel > 0 ? ((int64_t)PST_PLAUS_F_GAIN * c_span << 16) / travel : 0;
+    return lim < ((int64_t)PST_PLAUS_F_SLOPE_MAX << 16) ? lim : (int64_t)PST_PLAUS_F_SLOPE_MAX << 16;
+}
+
 /* The largest |dq/dc| f^-1 may have for this travel and angle range (Q16.16 units per deg). */
 static int64_t f_inv_slope_limit(int64_t travel, const pst_instrument_t *inst)
 {
     int64_t c_span = (int64_t)inst->c_max_q16 - inst->c_min_q16;
-    return c_span > 0 ? ((int64_t)PST_PLAUS_F_INV_GAIN * travel << 16) / c_span : 0;
+    if (c_span <= 0)
+        return 0;
+    int64_t mean = (travel << 16) / c_span; /* travel < 2^33: below 2^49 */
+    return mean > INT32_MAX / PST_PLAUS_F_INV_GAIN ? INT32_MAX : mean * PST_PLAUS_F_INV_GAIN;
 }
 
 /* v5: the instrument block's own fields, then the entries against them. */
@@ -89,7 +100,7 @@ static pst_rule_t check_instrument(const pst_header_t *hd, const pst_instrument_
     const int64_t b_lim = travel / PST_PLAUS_B_TRAVEL_DIV;
     if (inst->b_max_q16 <= 0 || inst->b_max_q16 > b_lim)
         return broke(rep, PST_RULE_INST_B_MAX, -1, inst->b_max_q16, b_lim);
-    const int64_t s_lim = (int64_t)PST_PLAUS_F_SLOPE_MAX << 16;
+    const int64_t s_lim = f_slope_limit(travel, inst);
     if (inst->f_slope_max_q16 <= 0 || inst->f_slope_max_q16 > s_lim)
         return broke(rep, PST_RULE_INST_F_SLOPE, -1, inst->f_slope_max_q16, s_lim);
     const int64_t i_lim = f_inv_slope_limit(travel, inst);
@@ -176,15 +187,16 @@ void pst_instrument_derive(const pst_header_t *hd, const int32_t *b_q16, const i
     int64_t b_max = 2 * b_hi, b_lim = travel / PST_PLAUS_B_TRAVEL_DIV;
     b_max = b_max > b_lim ? (b_hi > b_lim ? b_hi : b_lim) : b_max;
     const int64_t step = hd->f.step_q16 > 0 ? hd->f.step_q16 : 1;
-    int64_t s_act = (d_hi << 16) / step, s_lim = (int64_t)PST_PLAUS_F_SLOPE_MAX << 16;
+    int64_t s_act = (d_hi << 16) / step;
     if ((s_act * step) < (d_hi << 16))
         s_act++; /* rounded up: the largest segment passes its own figure */
-    int64_t s_max = 2 * s_act > s_lim ? (s_act > s_lim ? s_act : s_lim) : 2 * s_act;
     int64_t i_act = d_lo > 0 && d_lo != INT64_MAX ? ((step << 16) + d_lo - 1) / d_lo : INT32_MAX;
     out->id = id;
     out->c_min_q16 = sat32(c_lo);
     out->c_max_q16 = sat32(c_hi);
     out->b_max_q16 = sat32(b_max > 0 ? b_max : 1);
+    int64_t s_lim = f_slope_limit(travel, out);
+    int64_t s_max = 2 * s_act > s_lim ? (s_act > s_lim ? s_act : s_lim) : 2 * s_act;
     out->f_slope_max_q16 = sat32(s_max > 0 ? s_max : 1);
     int64_t i_lim = f_inv_slope_limit(travel, out);
     int64_t i_max = 2 * i_act > i_lim ? (i_act > i_lim ? i_act : i_lim) : 2 * i_act;
@@ -209,8 +221,8 @@ const char *pst_rule_str(pst_rule_t rule)
     case PST_RULE_TRAVEL_UNIT: return "travel beyond any instrument in its unit (200 mm, 7200 deg): a unit mistake";
     case PST_RULE_INST_C_RANGE: return "instrument angle range empty, beyond +-360 deg or wider than one turn";
     case PST_RULE_INST_B_MAX: return "instrument's largest play not within (0, travel / 2]";
-    case PST_RULE_INST_F_SLOPE: return "instrument's largest slope of f not within (0, 360] deg per unit";
-    case PST_RULE_INST_F_INV_SLOPE: return "instrument's largest slope of f^-1 not within (0, 16 x travel / angle range]";
+    case PST_RULE_INST_F_SLOPE: return "instrument's largest slope of f not within (0, min(360 deg per unit, 16 x angle range / travel)]";
+    case PST_RULE_INST_F_INV_SLOPE: return "instrument's largest slope of f^-1 not within (0, 65536 x travel / angle range]";
     case PST_RULE_B_INST: return "backlash width B above the instrument's largest play";
     case PST_RULE_C_INST: return "bending angle f outside the instrument's angle range";
     case PST_RULE_F_SLOPE_INST: return "f steeper than the instrument's largest slope";

@@ -27,7 +27,7 @@ typedef enum {
     PST_RULE_TRAVEL_UNIT,        /* travel above what any instrument in its unit has (200 mm, 7200 deg): a unit mistake */
     PST_RULE_INST_C_RANGE,       /* c_min >= c_max, beyond +-360 deg, or wider than 360 deg (one turn) */
     PST_RULE_INST_B_MAX,         /* b_max <= 0 or above travel / PST_PLAUS_B_TRAVEL_DIV (value: b_max, limit) */
-    PST_RULE_INST_F_SLOPE,       /* f_slope_max <= 0 or above PST_PLAUS_F_SLOPE_MAX deg/unit */
+    PST_RULE_INST_F_SLOPE,       /* f_slope_max <= 0, above PST_PLAUS_F_SLOPE_MAX deg/unit or PST_PLAUS_F_GAIN x (c_max - c_min) / travel */
     PST_RULE_INST_F_INV_SLOPE,   /* f_inv_slope_max <= 0 or above PST_PLAUS_F_INV_GAIN x travel / (c_max - c_min) */
     PST_RULE_B_INST,             /* a B entry above the instrument's b_max */
     PST_RULE_C_INST,             /* an f entry outside the instrument's [c_min, c_max] */

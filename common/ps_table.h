@@ -207,9 +207,12 @@ enum {
  *  - c_min < c_max within +-PST_PLAUS_C_ABS_MAX_Q16, at most one turn apart, and f spans at least
  *    PST_PLAUS_C_SPAN_MIN_INST_Q16 (5 deg) over its grid: a bending DOF that moves less is no DOF;
  *  - 0 < b_max <= travel / PST_PLAUS_B_TRAVEL_DIV: a play of half the travel leaves no motion;
- *  - 0 < f_slope_max <= PST_PLAUS_F_SLOPE_MAX deg per unit;
- *  - 0 < f_inv_slope_max <= PST_PLAUS_F_INV_GAIN x travel / (c_max - c_min): f^-1 may be at most
- *    16 times steeper than its mean, i.e. f may not go flat over a stretch (a jump elsewhere);
+ *  - 0 < f_slope_max <= PST_PLAUS_F_SLOPE_MAX deg per unit and <= PST_PLAUS_F_GAIN x
+ *    (c_max - c_min) / travel: f may be at most 16 times steeper than its mean over the
+ *    instrument's range (a step of f inside one grid segment is no bending);
+ *  - 0 < f_inv_slope_max <= PST_PLAUS_F_INV_GAIN x travel / (c_max - c_min): a bound on the
+ *    field itself, wide (real f_remain flatten to 1/500 of their mean slope and less near
+ *    straight; how flat f may be is the precision ceiling's business, CALIB_ERR_PRECISION);
  *  - every B entry <= b_max, every f entry in [c_min, c_max], every f segment's slope within
  *    [1 / f_inv_slope_max, f_slope_max]. */
 enum {
@@ -217,7 +220,8 @@ enum {
     PST_PLAUS_TRAVEL_MAX_DEG_Q16 = 7200 << 16,
     PST_PLAUS_C_SPAN_MIN_INST_Q16 = 5 << 16,
     PST_PLAUS_B_TRAVEL_DIV = 2,
-    PST_PLAUS_F_INV_GAIN = 16,
+    PST_PLAUS_F_GAIN = 16,
+    PST_PLAUS_F_INV_GAIN = 65536,
 };
 
 /* Largest table the layout allows, in bytes: a v5 header, three full grids and a full

@@ -136,7 +136,7 @@ static void test_f_against_the_instrument(void **state)
     r = expect(build_v5(&GRID, &s), NULL, CALIB_ERR_C_SPAN);
     assert_int_equal(r.limit, PST_PLAUS_C_SPAN_MIN_INST_Q16);
     /* A 359 deg step inside f_remain on a motor in deg, 1 deg grid step (359 deg/deg passes the
-     * slope rule): f then is flat elsewhere, its inverse 16 x steeper than its mean. */
+     * absolute slope rule): one segment 64 times steeper than f's mean over the range. */
     fixture_grid_t g = grid(0.0, 64.0, 16, 65);
     s = (shape_t){.b_scale = 1.0, .f_lin = 0.01, .f_jump = 359.0, .f_jump_at = 32.0};
     size_t n = fixture_build(&blob, &g, b_fn, &s, f_fn, &s);
@@ -148,7 +148,7 @@ static void test_f_against_the_instrument(void **state)
     calib_status_t v2 = calib_load(&cal, blob.bytes, n); /* a v2 table: no plausibility rule refuses it */
     assert_true(v2 == CALIB_OK || v2 < CALIB_ERR_TRAVEL);
     n = fixture_with_instrument(&blob, PST_INSTRUMENT_DEFAULT, NULL);
-    r = expect(n, NULL, CALIB_ERR_INST_F_INV_SLOPE);
+    r = expect(n, NULL, CALIB_ERR_INST_F_SLOPE);
     assert_true(r.value > r.limit);
     /* f scaled by 3 with the honest header kept: beyond the instrument's angle range. */
     n = build_v5(&GRID, &GOOD);

@@ -85,7 +85,7 @@ def _plausible(q_min, q_max, step_q16, b, f, inst=None) -> bool:
     c_min, c_max, b_max, s_max, i_max = inst
     if travel > 200 or c_max - c_min > 360 or not 0 < b_max <= travel / 2:
         return False
-    if not 0 < i_max <= 16 * travel / (c_max - c_min):
+    if not 0 < s_max <= min(360, 16 * (c_max - c_min) / travel) or not 0 < i_max <= 65536 * travel / (c_max - c_min):
         return False
     if np.max(b) / Q > b_max or np.min(fd) < c_min or np.max(fd) > c_max:
         return False
