@@ -132,3 +132,13 @@ def test_random_valid_crc_tables_pass_only_within_the_rules(good, data):
         assert ok, (q_range, b_level, f_scale, f_shape)
     if not ok:
         assert st_ != lib.CALIB_OK
+
+
+def test_micrometres_calibrated_as_millimetres_refused_by_tables():
+    """A session in micrometres read as millimetres: a 6000 "mm" travel and a 500 "mm" play. The
+    table is built (valid CRC, valid structure) and refused by the loader `tables` runs, naming
+    the rule and its numbers."""
+    from playscope.fit.table_build import TableError, build_table
+
+    with pytest.raises(TableError, match=r"CALIB_ERR_TRAVEL_UNIT: .*6000 mm against the limit 200 mm"):
+        build_table(lambda q: np.full(np.shape(q), 500.0), lambda q: 0.01 * np.asarray(q), -3000.0, 3000.0, "mm")
