@@ -235,10 +235,11 @@ def open_board(device: str = "virtual", flash_file=None, elf=None, address=None,
 
 def device_info(device: str = "virtual", flash_file=None, elf=None, address=None) -> dict:
     """The board's identification and table state (board.link.Link.info: firmware and protocol
-    versions, active generation and slot, table CRC...), as the board reports it."""
+    versions, active generation and slot, table CRC...) and its own limits (Link.limits_info:
+    instrument, unit, travel, angle range, largest play), as the board reports them."""
     link = open_board(device, flash_file, elf, address)
     try:
-        return link.info()
+        return {**link.info(), **link.limits_info()}
     finally:
         link.close()
 

@@ -152,6 +152,19 @@ class Link:
         self.ffi.memmove(lim, pl, min(len(pl), self.ffi.sizeof("pst_limits_t")))
         return lim
 
+    def limits_info(self) -> dict:
+        """board_limits() as printable fields ({} for a board without the request): instrument,
+        unit, travel and angle range ("[lo, hi]", actuator units and deg), largest play."""
+        lim = self.board_limits()
+        if lim is None:
+            return {}
+        one = float(self.lib.PS_Q16_ONE)
+        unit = {self.lib.PST_Q_UNIT_MM: "mm", self.lib.PST_Q_UNIT_DEG: "deg"}.get(lim.q_unit, str(lim.q_unit))
+        return {"instrument": int(lim.instrument_id), "unit": unit,
+                "travel": f"[{lim.q_min_q16 / one:g}, {lim.q_max_q16 / one:g}] {unit}",
+                "angle_range_deg": f"[{lim.c_min_q16 / one:g}, {lim.c_max_q16 / one:g}]",
+                "b_max": f"{lim.b_max_q16 / one:g} {unit}"}
+
     def info(self) -> dict:
         # INFO is answered whatever its seq; use the next one so answers stay distinct.
         s = (self.seq + 1) & 0xFFFF or 1
