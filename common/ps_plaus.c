@@ -103,8 +103,11 @@ static pst_rule_t check_instrument(const pst_header_t *hd, const pst_instrument_
     const int64_t s_lim = f_slope_limit(travel, inst);
     if (inst->f_slope_max_q16 <= 0 || inst->f_slope_max_q16 > s_lim)
         return broke(rep, PST_RULE_INST_F_SLOPE, -1, inst->f_slope_max_q16, s_lim);
+    /* INT32_MAX: f^-1 steeper somewhere than Q16.16 holds (a segment rising by a few raw over a
+     * whole unit): no bound on it here; the precision ceiling judges so flat an f (calib_load). */
+    const bool inv_unbounded = inst->f_inv_slope_max_q16 == INT32_MAX;
     const int64_t i_lim = f_inv_slope_limit(travel, inst);
-    if (inst->f_inv_slope_max_q16 <= 0 || inst->f_inv_slope_max_q16 > i_lim)
+    if (inst->f_inv_slope_max_q16 <= 0 || (!inv_unbounded && inst->f_inv_slope_max_q16 > i_lim))
         return broke(rep, PST_RULE_INST_F_INV_SLOPE, -1, inst->f_inv_slope_max_q16, i_lim);
     for (uint16_t i = 0; i < hd->b.n; i++)
         if (b[i] > inst->b_max_q16)
@@ -122,7 +125,7 @@ static pst_rule_t check_instrument(const pst_header_t *hd, const pst_instrument_
         if ((d << 16) > (int64_t)inst->f_slope_max_q16 * step)
             return broke(rep, PST_RULE_F_SLOPE_INST, i, (d << 16) / step, inst->f_slope_max_q16);
         /* step / |d| > f_inv_slope_max: step 2^16 > f_inv_slope_max |d| (below 2^63). */
-        if ((step << 16) > (int64_t)inst->f_inv_slope_max_q16 * d)
+        if (!inv_unbounded && (step << 16) > (int64_t)inst->f_inv_slope_max_q16 * d)
             return broke(rep, PST_RULE_F_INV_SLOPE_INST, i, d ? (step << 16) / d : INT64_MAX, inst->f_inv_slope_max_q16);
     }
     return PST_RULE_OK;
@@ -200,6 +203,8 @@ void pst_instrument_derive(const pst_header_t *hd, const int32_t *b_q16, const i
     out->f_slope_max_q16 = sat32(s_max > 0 ? s_max : 1);
     int64_t i_lim = f_inv_slope_limit(travel, out);
     int64_t i_max = 2 * i_act > i_lim ? (i_act > i_lim ? i_act : i_lim) : 2 * i_act;
+    if (i_act >= INT32_MAX)
+        i_max = INT32_MAX; /* beyond Q16.16: the unbounded mark, not a bound the entries break */
     out->f_inv_slope_max_q16 = sat32(i_max > 0 ? i_max : 1);
 }
 

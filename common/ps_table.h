@@ -145,7 +145,8 @@ typedef struct PS_PACKED pst_instrument {
     int32_t c_max_q16;
     int32_t b_max_q16;           /* largest play it can have, actuator units: every B entry lies below */
     int32_t f_slope_max_q16;     /* largest |df/dq|, deg per actuator unit, over every f segment */
-    int32_t f_inv_slope_max_q16; /* largest |dq/dc| (slope of f^-1), actuator units per deg */
+    int32_t f_inv_slope_max_q16; /* largest |dq/dc| (slope of f^-1), actuator units per deg; INT32_MAX: beyond
+                                    Q16.16 (f rises a few raw over a unit somewhere), not bounded here */
 } pst_instrument_t;
 PS_STATIC_ASSERT(sizeof(pst_instrument_t) == 24, "pst_instrument_t must be 24 bytes");
 

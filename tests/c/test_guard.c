@@ -211,6 +211,38 @@ static void test_board_binding_and_limits(void **state)
     assert_memory_equal(&cal, &snap, sizeof cal);
 }
 
+/* An f that rises by 1 raw over a whole unit somewhere (f^-1 steeper than Q16.16 holds): the
+ * derived block marks its inverse slope unbounded (INT32_MAX) and the rules pass it; how flat f may
+ * be is then the precision ceiling's to judge, as before the instrument block. */
+static void test_inverse_slope_beyond_q16(void **state)
+{
+    (void)state;
+    enum { N = 9 };
+    int32_t b[N], f[N];
+    for (int i = 0; i < N; i++) {
+        b[i] = 65536 / 2;
+        f[i] = i < 4 ? i * 10 * 65536 : (i == 4 ? 30 * 65536 + 1 : 31 * 65536 + (i - 5) * 10 * 65536);
+    }
+    pst_header_t hd;
+    memset(&hd, 0, sizeof hd);
+    hd.layout_version = 5;
+    hd.q_unit = PST_Q_UNIT_DEG;
+    hd.q_min_q16 = 0;
+    hd.q_max_q16 = 8 * 65536;
+    hd.b = (pst_grid_t){.x0_q16 = 0, .step_q16 = 65536, .n = N};
+    hd.f = hd.b;
+    f[4] = f[3] + 1;
+    pst_instrument_t in;
+    pst_instrument_derive(&hd, b, f, PST_INSTRUMENT_DEFAULT, &in);
+    assert_int_equal(in.f_inv_slope_max_q16, INT32_MAX);
+    pst_plaus_report_t rep;
+    assert_int_equal(pst_plaus_check(&hd, &in, b, f, NULL, &rep), PST_RULE_OK);
+    /* A bounded block is held to it: the flat segment breaks a finite bound. */
+    in.f_inv_slope_max_q16 = 65536;
+    assert_int_equal(pst_plaus_check(&hd, &in, b, f, NULL, &rep), PST_RULE_F_INV_SLOPE_INST);
+    assert_int_equal(rep.index, 3);
+}
+
 static void test_generation_steps(void **state)
 {
     (void)state;
@@ -247,6 +279,7 @@ int main(void)
         cmocka_unit_test(test_f_against_the_instrument),
         cmocka_unit_test(test_unit_mistake),
         cmocka_unit_test(test_board_binding_and_limits),
+        cmocka_unit_test(test_inverse_slope_beyond_q16),
         cmocka_unit_test(test_generation_steps),
         cmocka_unit_test(test_rule_names_and_codes),
     };

@@ -85,11 +85,13 @@ def _plausible(q_min, q_max, step_q16, b, f, inst=None) -> bool:
     c_min, c_max, b_max, s_max, i_max = inst
     if travel > 200 or c_max - c_min > 360 or not 0 < b_max <= travel / 2:
         return False
-    if not 0 < s_max <= min(360, 16 * (c_max - c_min) / travel) or not 0 < i_max <= 65536 * travel / (c_max - c_min):
+    unbounded = i_max == (2**31 - 1) / Q  # f^-1 beyond Q16.16: not bounded by the block
+    if not 0 < s_max <= min(360, 16 * (c_max - c_min) / travel) or \
+            not (0 < i_max <= 65536 * travel / (c_max - c_min) or unbounded):
         return False
     if np.max(b) / Q > b_max or np.min(fd) < c_min or np.max(fd) > c_max:
         return False
-    return bool(np.max(slopes) <= s_max and np.min(slopes) * i_max >= 1)
+    return bool(np.max(slopes) <= s_max and (unbounded or np.min(slopes) * i_max >= 1))
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow,
