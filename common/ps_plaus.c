@@ -3,7 +3,9 @@
 
 #include <stddef.h>
 
-static pst_rule_t broke(pst_plaus_report_t *rep, pst_rule_t rule, int32_t index, int64_t value, int64_t limit)
+/* Out of line: one call per rule instead of the report stores at each (-Os inlined them all). */
+__attribute__((noinline)) static pst_rule_t broke(pst_plaus_report_t *rep, pst_rule_t rule, int32_t index,
+                                                  int64_t value, int64_t limit)
 {
     if (rep != NULL) {
         rep->rule = (int32_t)rule;
