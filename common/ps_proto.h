@@ -26,6 +26,7 @@ enum {
 enum psp_msg_type {
     PSP_MSG_INFO = 0x01,         /* H->B empty; B->H psp_info_t */
     PSP_MSG_SET_MODE = 0x02,     /* H->B psp_set_mode_t; B->H empty */
+    PSP_MSG_BOARD = 0x03,        /* H->B empty; B->H pst_limits_t (ps_table.h, 28 B): the board's own limits; read-only */
     PSP_MSG_TABLE_BEGIN = 0x10,  /* H->B psp_table_begin_t; B->H psp_table_session_t (the upload's owner token) */
     PSP_MSG_TABLE_CHUNK = 0x11,  /* H->B psp_table_chunk_t (with the session); B->H empty */
     PSP_MSG_TABLE_COMMIT = 0x12, /* H->B psp_table_commit_t (with the session); B->H psp_info_t (new state) */

@@ -1,8 +1,9 @@
-/* Calibration-table binary layout (v4): one header and int32 Q16.16 entry arrays.
+/* Calibration-table binary layout (v5): one header and int32 Q16.16 entry arrays.
  *
  * Little-endian, packed. A v1/v2 table is  [pst_header_t][b entries][f entries][r[n]][w[n]],
  * a v3 table  [pst_header_v3_t][b entries][f entries][r[n]][w[n]][g entries],
  * a v4 table  [pst_header_v4_t][b entries][f entries][r[n]][w[n]][g entries],
+ * a v5 table  [pst_header_v5_t][b entries][f entries][r[n]][w[n]][g entries],
  * and is self-describing: each grid and the operator block give their own byte offset.
  * The CRC-32 covers all total_size bytes with the crc32 field taken as zero, seeded with
  * the table's own layout_version (ps_crc32_update(layout_version, ...)), so a table whose
@@ -28,6 +29,15 @@
  * relaxation acts on the transition's output y before f: c = f(R[y]). table_write_relax()
  * writes v4 only for a table with a relaxation (kappa != 0), so every other table and its CRC
  * is the v2 or v3 one.
+ *
+ * Version 5 binds the table to its instrument (docs/robustness.md, "The board guards its
+ * instrument"): pst_instrument_t after the v4 header (header_size 104) names the instrument
+ * (an id) and carries the figures a board needs to judge the table against it (the angle
+ * range it can reach, the largest play it can have, the largest slope of f and of f^-1);
+ * the unit it was calibrated in is the base header's q_unit. The host writes v5 only;
+ * calib_load still reads v1..v4 (their own rules), and a board (calib_load_guarded with its
+ * pst_limits_t) takes v5 only, for its own instrument and unit, inside its own limits.
+ * The rules, one definition for board and host: common/ps_plaus.h.
  * Used by: firmware/core/calib.c (loader), host (writer, through cffi). */
 #ifndef PS_TABLE_H
 #define PS_TABLE_H
@@ -38,7 +48,8 @@
 
 enum {
     PST_MAGIC = 0x42545350,      /* bytes "PSTB" */
-    PST_LAYOUT_VERSION = 4,      /* highest loaded; written: 4 with a relaxation, else 3 with a threshold map, else 2; 1 still loads */
+    PST_LAYOUT_VERSION = 5,      /* highest loaded; the host writes 5 (table_write_inst); table_write(): 4 with a
+                                    relaxation, else 3 with a threshold map, else 2; 1 still loads */
     PST_LAYOUT_VERSION_NO_MAP = 2, /* what table_write() writes for a table without a threshold map */
     PST_MAX_ENTRIES = 256,       /* per grid; bounds the loader's RAM */
     PST_MIN_ENTRIES = 2,
@@ -127,6 +138,46 @@ typedef struct PS_PACKED pst_header_v4 {
 PS_STATIC_ASSERT(sizeof(pst_header_v4_t) == 80, "pst_header_v4_t must be 80 bytes");
 PS_STATIC_ASSERT(offsetof(pst_header_v4_t, relax) == 72, "the relaxation follows the v3 header");
 
+/* The instrument a v5 table was calibrated on, and what it can physically do (Q16.16). */
+typedef struct PS_PACKED pst_instrument {
+    uint32_t id;                 /* instrument id; a board takes only its own (pst_limits_t.instrument_id) */
+    int32_t c_min_q16;           /* angle range the instrument can reach, deg: every f entry lies inside */
+    int32_t c_max_q16;
+    int32_t b_max_q16;           /* largest play it can have, actuator units: every B entry lies below */
+    int32_t f_slope_max_q16;     /* largest |df/dq|, deg per actuator unit, over every f segment */
+    int32_t f_inv_slope_max_q16; /* largest |dq/dc| (slope of f^-1), actuator units per deg; INT32_MAX: beyond
+                                    Q16.16 (f rises a few raw over a unit somewhere), not bounded here */
+} pst_instrument_t;
+PS_STATIC_ASSERT(sizeof(pst_instrument_t) == 24, "pst_instrument_t must be 24 bytes");
+
+/* The v5 header: the v4 header, then the instrument. */
+typedef struct PS_PACKED pst_header_v5 {
+    pst_header_v4_t v4;          /* v4.v3.base.layout_version = 5, header_size = 104 */
+    pst_instrument_t inst;
+} pst_header_v5_t;
+PS_STATIC_ASSERT(sizeof(pst_header_v5_t) == 104, "pst_header_v5_t must be 104 bytes");
+PS_STATIC_ASSERT(offsetof(pst_header_v5_t, inst) == 80, "the instrument follows the v4 header");
+
+/* A board's own limits (firmware/boards/<board>/psb_config.h), independent of any table: the
+ * instrument it drives, the unit of its actuator, the travel and angle it may command and the
+ * largest play its instrument can have. No table may widen them. Also the answer of
+ * PSP_MSG_BOARD (common/ps_proto.h), so a host checks a table against them before sending it. */
+typedef struct PS_PACKED pst_limits {
+    uint32_t instrument_id;      /* pst_instrument_t.id a table must carry */
+    uint8_t q_unit;              /* enum pst_q_unit a table must be in */
+    uint8_t reserved[3];         /* 0 */
+    int32_t q_min_q16;           /* a table's travel [q_min, q_max] must lie inside */
+    int32_t q_max_q16;
+    int32_t c_min_q16;           /* a table's angle range [c_min, c_max] (deg) must lie inside */
+    int32_t c_max_q16;
+    int32_t b_max_q16;           /* a table's largest play must not exceed it */
+} pst_limits_t;
+PS_STATIC_ASSERT(sizeof(pst_limits_t) == 28, "pst_limits_t must be 28 bytes");
+
+enum {
+    PST_INSTRUMENT_DEFAULT = 1,  /* the id `playscope tables` writes and a board takes unless configured otherwise */
+};
+
 /* Physical plausibility (calib_load, CALIB_ERR_TRAVEL .. CALIB_ERR_F_SLOPE): a table passes
  * these from the fields it already has (q range, grids, B and f entries), so a table
  * with a valid CRC but nonsense physics (a play wider than the travel, a bending angle of
@@ -150,8 +201,32 @@ enum {
     PST_PLAUS_F_SLOPE_MAX = 360,
 };
 
-/* Largest table the layout allows, in bytes: a v4 header, three full grids and a full
+/* v5: the rules against the instrument block (common/ps_plaus.h, PST_RULE_INST_* and after).
+ *  - travel <= PST_PLAUS_TRAVEL_MAX_MM_Q16 (mm) or _DEG_Q16 (deg of motor): a tendon stroke of
+ *    more than 200 mm, or a motor of more than 20 turns, is a unit mistake (a session in um
+ *    calibrated as mm), not an instrument;
+ *  - c_min < c_max within +-PST_PLAUS_C_ABS_MAX_Q16, at most one turn apart, and f spans at least
+ *    PST_PLAUS_C_SPAN_MIN_INST_Q16 (5 deg) over its grid: a bending DOF that moves less is no DOF;
+ *  - 0 < b_max <= travel / PST_PLAUS_B_TRAVEL_DIV: a play of half the travel leaves no motion;
+ *  - 0 < f_slope_max <= PST_PLAUS_F_SLOPE_MAX deg per unit and <= PST_PLAUS_F_GAIN x
+ *    (c_max - c_min) / travel: f may be at most 16 times steeper than its mean over the
+ *    instrument's range (a step of f inside one grid segment is no bending);
+ *  - 0 < f_inv_slope_max <= PST_PLAUS_F_INV_GAIN x travel / (c_max - c_min): a bound on the
+ *    field itself, wide (real f_remain flatten to 1/500 of their mean slope and less near
+ *    straight; how flat f may be is the precision ceiling's business, CALIB_ERR_PRECISION);
+ *  - every B entry <= b_max, every f entry in [c_min, c_max], every f segment's slope within
+ *    [1 / f_inv_slope_max, f_slope_max]. */
+enum {
+    PST_PLAUS_TRAVEL_MAX_MM_Q16 = 200 << 16,
+    PST_PLAUS_TRAVEL_MAX_DEG_Q16 = 7200 << 16,
+    PST_PLAUS_C_SPAN_MIN_INST_Q16 = 5 << 16,
+    PST_PLAUS_B_TRAVEL_DIV = 2,
+    PST_PLAUS_F_GAIN = 16,
+    PST_PLAUS_F_INV_GAIN = 65536,
+};
+
+/* Largest table the layout allows, in bytes: a v5 header, three full grids and a full
  * operator block. */
-enum { PST_MAX_TABLE_SIZE = 80 + 3 * 4 * PST_MAX_ENTRIES + 2 * 4 * PST_MAX_OPS };
+enum { PST_MAX_TABLE_SIZE = 104 + 3 * 4 * PST_MAX_ENTRIES + 2 * 4 * PST_MAX_OPS };
 
 #endif /* PS_TABLE_H */

@@ -1,4 +1,4 @@
-/* libFuzzer target: arbitrary bytes as a calibration table into calib_load (the upload's final check). */
+/* libFuzzer target: arbitrary bytes as a calibration table into calib_load and a board's calib_load_guarded. */
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
@@ -12,6 +12,10 @@ static calib_t cal;
 static playop_t play;
 static comp_t comp;
 static uint32_t blob[(PST_MAX_TABLE_SIZE + 3) / 4 + 1];
+/* A board's own limits (the virtual board's defaults): the binding and limit rules run too. */
+static const pst_limits_t board = {.instrument_id = PST_INSTRUMENT_DEFAULT, .q_unit = PST_Q_UNIT_MM,
+                                   .q_min_q16 = -100 * 65536, .q_max_q16 = 100 * 65536, .c_min_q16 = -180 * 65536,
+                                   .c_max_q16 = 180 * 65536, .b_max_q16 = 10 * 65536};
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -31,6 +35,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             memcpy(b + 12, &crc, 4);
         }
     }
+    pst_plaus_report_t rep;
+    calib_status_t on_board = calib_load_guarded(&cal, b, size, &board, &rep);
+    /* What a board takes, the host's loader takes too (the board's rules only add to it). */
+    if (calib_load(&cal, b, size) != CALIB_OK && on_board == CALIB_OK)
+        __builtin_trap();
     if (calib_load(&cal, b, size) == CALIB_OK) {
         /* An accepted table must evaluate anywhere without faults. */
         for (int32_t x = -(1 << 30); x < (1 << 30); x += 1 << 26) {

@@ -170,29 +170,14 @@ static calib_status_t load_tmap(const uint8_t *blob, const pst_header_t *hd, con
     return CALIB_OK;
 }
 
-/* Physical plausibility of B and f against the travel (ps_table.h, PST_PLAUS_*), on grids
- * already checked by grid_lut. 64-bit sums: no entry value can overflow them. */
-static calib_status_t check_plausible(const pst_header_t *hd, const lut_t *b, const lut_t *f)
+PS_STATIC_ASSERT(CALIB_ERR_BOARD_B - CALIB_ERR_TRAVEL == PST_RULE_BOARD_B - PST_RULE_TRAVEL,
+                 "one calib_status_t per plausibility rule, in pst_rule_t's order");
+
+calib_status_t calib_status_of_rule(pst_rule_t rule)
 {
-    const int64_t travel = (int64_t)hd->q_max_q16 - hd->q_min_q16;
-    if (travel < PST_PLAUS_TRAVEL_MIN_Q16)
-        return CALIB_ERR_TRAVEL;
-    for (uint16_t i = 0; i < b->n; i++)
-        if (b->y_q16[i] > travel)
-            return CALIB_ERR_B_TRAVEL;
-    for (uint16_t i = 0; i < f->n; i++)
-        if (f->y_q16[i] > PST_PLAUS_C_ABS_MAX_Q16 || f->y_q16[i] < -PST_PLAUS_C_ABS_MAX_Q16)
-            return CALIB_ERR_C_RANGE;
-    int64_t span = (int64_t)f->y_q16[f->n - 1] - f->y_q16[0];
-    if (span < PST_PLAUS_C_SPAN_MIN_Q16 && span > -PST_PLAUS_C_SPAN_MIN_Q16)
-        return CALIB_ERR_C_SPAN;
-    const int64_t dmax = (int64_t)PST_PLAUS_F_SLOPE_MAX << f->step_log2;
-    for (uint16_t i = 0; i + 1 < f->n; i++) {
-        int64_t d = (int64_t)f->y_q16[i + 1] - f->y_q16[i];
-        if (d > dmax || d < -dmax)
-            return CALIB_ERR_F_SLOPE;
-    }
-    return CALIB_OK;
+    if (rule <= PST_RULE_OK || rule >= PST_RULE_COUNT)
+        return CALIB_OK;
+    return (calib_status_t)((int)CALIB_ERR_TRAVEL + ((int)rule - (int)PST_RULE_TRAVEL));
 }
 
 /* ceil(a * b / 2^sh), a, b >= 0, saturated at INT32_MAX. */
@@ -206,15 +191,24 @@ static int32_t mul_shift_up_sat(int64_t a, int64_t b, unsigned sh)
 
 calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
 {
+    return calib_load_guarded(out, blob, len, NULL, NULL);
+}
+
+calib_status_t calib_load_guarded(calib_t *out, const uint8_t *blob, size_t len, const pst_limits_t *board,
+                                  pst_plaus_report_t *rep)
+{
     pst_header_t hd;
+    if (rep != NULL)
+        *rep = (pst_plaus_report_t){.rule = PST_RULE_OK, .index = -1, .value = 0, .limit = 0};
     if (blob == NULL || len < sizeof hd)
         return CALIB_ERR_SIZE;
     memcpy(&hd, blob, sizeof hd);
     if (hd.magic != PST_MAGIC)
         return CALIB_ERR_MAGIC;
     /* v1, v2: the 60-byte header; v3: the 72-byte one (the map's grid after it); v4: 80 bytes
-     * (the relaxation's fields after that). */
-    const size_t hsize = hd.layout_version >= 4 ? sizeof(pst_header_v4_t)
+     * (the relaxation's fields after that); v5: 104 (the instrument after that). */
+    const size_t hsize = hd.layout_version >= 5   ? sizeof(pst_header_v5_t)
+                         : hd.layout_version == 4 ? sizeof(pst_header_v4_t)
                          : hd.layout_version == 3 ? sizeof(pst_header_v3_t) : sizeof hd;
     if (hd.layout_version < 1 || hd.layout_version > PST_LAYOUT_VERSION || hd.header_size != hsize)
         return CALIB_ERR_VERSION;
@@ -227,6 +221,9 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     pst_relax_t relax_f = {0, 0};
     if (hd.layout_version >= 4)
         memcpy(&relax_f, blob + offsetof(pst_header_v4_t, relax), sizeof relax_f);
+    pst_instrument_t inst;
+    if (hd.layout_version >= 5)
+        memcpy(&inst, blob + offsetof(pst_header_v5_t, inst), sizeof inst);
     if (calib_table_crc(blob, hd.total_size) != hd.crc32)
         return CALIB_ERR_CRC;
     if (hd.q_frac_bits != PS_FRAC_BITS || hd.c_frac_bits != PS_FRAC_BITS ||
@@ -260,7 +257,8 @@ calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len)
     int32_t e_f_inv;
     if (lut_inverse_error(&f, CALIB_DERIVED_MAX, &e_f_inv) != LUT_OK)
         return CALIB_ERR_F_NOT_MONOTONE;
-    if ((st = check_plausible(&hd, &b, &f)) != CALIB_OK)
+    if ((st = calib_status_of_rule(pst_plaus_check(&hd, hd.layout_version >= 5 ? &inst : NULL, b.y_q16, f.y_q16,
+                                                    board, rep))) != CALIB_OK)
         return st;
     /* q* = f^-1(c*) +- B/2 must fit int32 so that comp_step adds in 32 bits. */
     int32_t b_max = 0;
@@ -384,11 +382,9 @@ const char *calib_status_str(calib_status_t st)
     case CALIB_ERR_TMAP_MONOTONE: return "threshold map not strictly increasing";
     case CALIB_ERR_TMAP_RANGE: return "threshold map values or range beyond the fixed-point headroom";
     case CALIB_ERR_RELAX: return "relaxation fields invalid (kappa outside 0..0.9, lambda below 1 raw, or input range)";
-    case CALIB_ERR_TRAVEL: return "actuator travel q_max - q_min below 1/16 unit (a damaged q range)";
-    case CALIB_ERR_B_TRAVEL: return "backlash width B wider than the actuator travel q_max - q_min";
-    case CALIB_ERR_C_RANGE: return "bending angle f beyond +-360 deg";
-    case CALIB_ERR_C_SPAN: return "bending angle f spans less than 1 deg over its grid";
-    case CALIB_ERR_F_SLOPE: return "bending angle f steeper than 360 deg per actuator unit";
+    default: break;
     }
+    if (st >= CALIB_ERR_TRAVEL && st <= CALIB_ERR_BOARD_B)
+        return pst_rule_str((pst_rule_t)((int)PST_RULE_TRAVEL + ((int)st - (int)CALIB_ERR_TRAVEL)));
     return "unknown";
 }

@@ -7,6 +7,7 @@
 #include "lut.h"
 #include "pi.h"
 #include "relax.h"
+#include "ps_plaus.h"
 #include "ps_table.h"
 
 #ifndef CALIB_DERIVED_MAX
@@ -52,6 +53,23 @@ typedef enum {
     CALIB_ERR_C_RANGE,           /* an f entry beyond +-PST_PLAUS_C_ABS_MAX_Q16 (360 deg) */
     CALIB_ERR_C_SPAN,            /* f moves less than PST_PLAUS_C_SPAN_MIN_Q16 (1 deg) over its grid */
     CALIB_ERR_F_SLOPE,           /* |df/dq| above PST_PLAUS_F_SLOPE_MAX deg per actuator unit on a segment */
+    /* v5 instrument block (pst_instrument_t), then a board's own limits (pst_limits_t,
+     * calib_load_guarded): CALIB_ERR_TRAVEL - PST_RULE_TRAVEL + rule, one code per pst_rule_t. */
+    CALIB_ERR_TRAVEL_UNIT,       /* travel above any instrument in its unit: a unit mistake */
+    CALIB_ERR_INST_C_RANGE,      /* instrument angle range empty or beyond +-360 deg */
+    CALIB_ERR_INST_B_MAX,        /* instrument's largest play not within (0, travel / 2] */
+    CALIB_ERR_INST_F_SLOPE,      /* instrument's largest slope of f not within (0, 360] deg/unit */
+    CALIB_ERR_INST_F_INV_SLOPE,  /* instrument's largest slope of f^-1 not within (0, 16 travel / angle range] */
+    CALIB_ERR_B_INST,            /* a B entry above the instrument's largest play */
+    CALIB_ERR_C_INST,            /* an f entry outside the instrument's angle range */
+    CALIB_ERR_F_SLOPE_INST,      /* a segment of f steeper than the instrument's largest slope */
+    CALIB_ERR_F_INV_SLOPE_INST,  /* a segment of f flatter than 1 / the instrument's largest slope of f^-1 */
+    CALIB_ERR_UNBOUND,           /* board: a table of layout < 5 names no instrument */
+    CALIB_ERR_BOARD_INSTRUMENT,  /* board: calibrated for another instrument */
+    CALIB_ERR_BOARD_UNIT,        /* board: another actuator unit */
+    CALIB_ERR_BOARD_TRAVEL,      /* board: travel beyond the board's own limits */
+    CALIB_ERR_BOARD_ANGLE,       /* board: angle range beyond the board's own limits */
+    CALIB_ERR_BOARD_B,           /* board: largest play above the board's own limit */
 } calib_status_t;
 
 /* Precision ceiling (docs/firmware.md, "Precision ceiling"): a table's own arithmetic may add
@@ -124,6 +142,17 @@ uint32_t calib_table_crc(const uint8_t *blob, uint32_t total_size);
  * *out is in use (the operator block is copied). On any error *out is left unchanged, so
  * a running calibration survives a bad upload. Not per tick: O(n) with 64-bit divides. */
 calib_status_t calib_load(calib_t *out, const uint8_t *blob, size_t len);
+
+/* calib_load, then the board's own binding and limits (board != NULL: the table must be v5, for
+ * board->instrument_id in board->q_unit, its travel, angle range and largest play inside the
+ * board's). rep (may be NULL) receives the numbers of a plausibility refusal (common/ps_plaus.h;
+ * rule PST_RULE_OK for any other outcome). calib_load(out, blob, len) is
+ * calib_load_guarded(out, blob, len, NULL, NULL). */
+calib_status_t calib_load_guarded(calib_t *out, const uint8_t *blob, size_t len, const pst_limits_t *board,
+                                  pst_plaus_report_t *rep);
+
+/* The calib_status_t of a plausibility rule (CALIB_OK for PST_RULE_OK). */
+calib_status_t calib_status_of_rule(pst_rule_t rule);
 
 /* A short English name for a status, for logs and error frames. */
 const char *calib_status_str(calib_status_t st);

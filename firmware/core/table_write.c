@@ -22,6 +22,16 @@ size_t table_write_relax(uint8_t *buf, size_t cap, const pst_header_t *hd_in, co
                          const int32_t *f_q16, const int32_t *pi_r_q16, const int32_t *pi_w_q16,
                          const pst_grid_t *tmap, const int32_t *tmap_q16, const pst_relax_t *relax)
 {
+    return table_write_inst(buf, cap, hd_in, b_q16, f_q16, pi_r_q16, pi_w_q16, tmap, tmap_q16, relax, NULL);
+}
+
+size_t table_write_inst(uint8_t *buf, size_t cap, const pst_header_t *hd_in, const int32_t *b_q16,
+                        const int32_t *f_q16, const int32_t *pi_r_q16, const int32_t *pi_w_q16,
+                        const pst_grid_t *tmap, const int32_t *tmap_q16, const pst_relax_t *relax,
+                        const pst_instrument_t *inst)
+{
+    pst_header_v5_t h5;
+    memset(&h5, 0, sizeof h5);
     pst_header_v4_t h4;
     memset(&h4, 0, sizeof h4);
     h4.v3.base = *hd_in;
@@ -30,15 +40,16 @@ size_t table_write_relax(uint8_t *buf, size_t cap, const pst_header_t *hd_in, co
     const int has_relax = relax != NULL && relax->kappa_q16 != 0;
     uint16_t version = hd->layout_version;
     if (version == 0)
-        version = has_relax ? 4u : has_map ? 3u : (uint16_t)PST_LAYOUT_VERSION_NO_MAP;
+        version = inst ? 5u : has_relax ? 4u : has_map ? 3u : (uint16_t)PST_LAYOUT_VERSION_NO_MAP;
     const uint16_t n_ops = hd->pi.n;
     if (hd->b.n > PST_MAX_ENTRIES || hd->f.n > PST_MAX_ENTRIES || n_ops > PST_MAX_OPS ||
         version > PST_LAYOUT_VERSION || (version == 1 && n_ops != 0) ||
         (n_ops != 0 && (pi_r_q16 == NULL || pi_w_q16 == NULL)) ||
         (has_map && (version < 3 || tmap->n > PST_MAX_ENTRIES || tmap_q16 == NULL)) ||
-        (has_relax && version != 4))
+        (has_relax && version < 4) || ((inst != NULL) != (version == 5)))
         return 0;
-    const size_t hsize = version >= 4 ? sizeof(pst_header_v4_t)
+    const size_t hsize = version >= 5   ? sizeof(pst_header_v5_t)
+                         : version == 4 ? sizeof(pst_header_v4_t)
                          : version == 3 ? sizeof(pst_header_v3_t) : sizeof(pst_header_t);
     const uint16_t n_map = has_map ? tmap->n : 0;
     size_t total = hsize + 4u * hd->b.n + 4u * hd->f.n + 8u * n_ops + 4u * n_map;
@@ -61,7 +72,10 @@ size_t table_write_relax(uint8_t *buf, size_t cap, const pst_header_t *hd_in, co
     if (has_relax)
         h4.relax = *relax;
     hd->crc32 = 0;
-    memcpy(buf, &h4, hsize);
+    h5.v4 = h4;
+    if (inst != NULL)
+        h5.inst = *inst;
+    memcpy(buf, &h5, hsize);
     memcpy(buf + hd->b.offset, b_q16, 4u * hd->b.n); /* little-endian targets only, as the layout */
     memcpy(buf + hd->f.offset, f_q16, 4u * hd->f.n);
     if (n_ops) {

@@ -37,4 +37,14 @@ size_t table_write_relax(uint8_t *buf, size_t cap, const pst_header_t *hd, const
                          const int32_t *f_q16, const int32_t *pi_r_q16, const int32_t *pi_w_q16,
                          const pst_grid_t *tmap, const int32_t *tmap_q16, const pst_relax_t *relax);
 
+/* table_write_relax() bound to an instrument: layout v5 (pst_header_v5_t, 104 bytes) with
+ * *inst after the v4 fields (map and relaxation optional, as in v4). inst NULL: exactly
+ * table_write_relax(). With an instrument layout_version must be 0 or 5. What `playscope
+ * tables` writes (inst from pst_instrument_derive, or the instrument's own figures). Returns
+ * the size, or 0 as table_write(). */
+size_t table_write_inst(uint8_t *buf, size_t cap, const pst_header_t *hd, const int32_t *b_q16,
+                        const int32_t *f_q16, const int32_t *pi_r_q16, const int32_t *pi_w_q16,
+                        const pst_grid_t *tmap, const int32_t *tmap_q16, const pst_relax_t *relax,
+                        const pst_instrument_t *inst);
+
 #endif /* TABLE_WRITE_H */

@@ -29,6 +29,11 @@ psl_config_t psl_default_config(uint32_t tick_hz)
     c.pace.tick_hz = tick_hz ? tick_hz : 1000u;
     c.onset = onset_default_config();
     c.upload_timeout_us = PSL_UPLOAD_TIMEOUT_US;
+    c.limits = (pst_limits_t){.instrument_id = PST_INSTRUMENT_DEFAULT, .q_unit = PST_Q_UNIT_MM,
+                              .q_min_q16 = -PSL_LIMIT_Q_ABS_Q16, .q_max_q16 = PSL_LIMIT_Q_ABS_Q16,
+                              .c_min_q16 = -PSL_LIMIT_C_ABS_Q16, .c_max_q16 = PSL_LIMIT_C_ABS_Q16,
+                              .b_max_q16 = PSL_LIMIT_B_MAX_Q16};
+    c.recover = false;
     return c;
 }
 
@@ -73,7 +78,7 @@ static bool load_slot(psl_t *l, uint8_t slot, uint8_t buf)
         return false;
     if (pss_read_slot(&l->store, slot, 0, (uint8_t *)l->tables[buf], size) != PSS_OK)
         return false;
-    return calib_load(&l->cal[buf], psl_table_bytes(l, buf), size) == CALIB_OK;
+    return calib_load_guarded(&l->cal[buf], psl_table_bytes(l, buf), size, &l->cfg.limits, NULL) == CALIB_OK;
 }
 
 void psl_init(psl_t *l, const psl_config_t *cfg, const pss_flash_t *flash, psl_write_fn write,
@@ -88,6 +93,12 @@ void psl_init(psl_t *l, const psl_config_t *cfg, const pss_flash_t *flash, psl_w
     psa_init(&l->loop, &lc);
     l->mode = PSP_MODE_IDLE;
     l->active_buf = PSS_NO_SLOT;
+    if (l->cfg.recover) {
+        /* Physical presence (docs/robustness.md): both slots erased, the generation counter
+         * starts again; the board runs without a table until one is flashed. */
+        (void)flash->erase(flash->ctx, 0);
+        (void)flash->erase(flash->ctx, 1);
+    }
     pss_mount(&l->store, flash);
     if (l->store.active != PSS_NO_SLOT) {
         uint8_t first = l->store.active;
@@ -111,6 +122,7 @@ static int expected_len(uint8_t type)
     switch (type) {
     case PSP_MSG_INFO: return 0;
     case PSP_MSG_SET_MODE: return (int)sizeof(psp_set_mode_t);
+    case PSP_MSG_BOARD: return 0;
     case PSP_MSG_TABLE_BEGIN: return (int)sizeof(psp_table_begin_t);
     case PSP_MSG_TABLE_CHUNK: return -2;
     case PSP_MSG_TABLE_COMMIT: return (int)sizeof(psp_table_commit_t);
@@ -297,6 +309,11 @@ void psl_handle(psl_t *l, const psp_frame_header_t *hdr, const uint8_t *payload)
     }
     if (want >= 0 && hdr->len != (uint16_t)want) {
         send_error(l, seq, type, PSP_ERR_LENGTH, 0);
+        return;
+    }
+    if (type == PSP_MSG_BOARD) {
+        /* Read-only, like INFO: the board's own limits, for a host to check a table first. */
+        psl_send(l, PSP_MSG_BOARD | PSP_RESPONSE, seq, &l->cfg.limits, sizeof(l->cfg.limits));
         return;
     }
     if (type == PSP_MSG_INFO) {

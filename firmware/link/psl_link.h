@@ -13,7 +13,8 @@
 #include "storage/pss_store.h"
 
 /* psp_error_t.detail for PSP_ERR_TABLE when calib_load accepted the table but its
- * generation is not newer than the running one (calib_status_t values stay below it). */
+ * generation is not one the board takes next (pst_generation_ok: above the running one by 1 to
+ * PST_GENERATION_STEP_MAX; calib_status_t values stay below it). */
 enum { PSL_DETAIL_GENERATION = 0x80 };
 
 /* psp_error_t.detail for PSP_ERR_FLASH when the slot was written and verified by the store
@@ -33,7 +34,24 @@ typedef struct {
                                   * both set at run time by PSP_MSG_EXC_CONFIG */
     onset_config_t onset;        /* on-board onset detector */
     uint32_t upload_timeout_us;  /* an upload session with no request for this long is free again (board clock) */
+    pst_limits_t limits;         /* the board's own instrument, unit, travel, angle and play limits
+                                  * (firmware/boards/<board>/psb_config.h): every table is held to them */
+    bool recover;                /* physical presence at boot (a pin, a flag): psl_init erases both table
+                                  * slots first, the one way out of an exhausted generation counter */
 } psl_config_t;
+
+#ifndef PSL_LIMIT_Q_ABS_Q16
+/* PSL_LIMIT_Q_ABS_Q16: psl_default_config's travel limit +-this (Q16.16 actuator units). Default 100 units. */
+#define PSL_LIMIT_Q_ABS_Q16 (100 * 65536)
+#endif
+#ifndef PSL_LIMIT_C_ABS_Q16
+/* PSL_LIMIT_C_ABS_Q16: psl_default_config's angle limit +-this (Q16.16 deg). Default 180 deg. */
+#define PSL_LIMIT_C_ABS_Q16 (180 * 65536)
+#endif
+#ifndef PSL_LIMIT_B_MAX_Q16
+/* PSL_LIMIT_B_MAX_Q16: psl_default_config's largest play (Q16.16 actuator units). Default 10 units. */
+#define PSL_LIMIT_B_MAX_Q16 (10 * 65536)
+#endif
 
 #ifndef PSL_UPLOAD_TIMEOUT_US
 /* PSL_UPLOAD_TIMEOUT_US: default psl_config_t.upload_timeout_us. Default 5 s: longer than a
@@ -87,7 +105,9 @@ typedef struct {
     uint8_t tx[PSF_MAX_FRAME];
 } psl_t;
 
-/* Defaults: version 0.1.0, board id 0, onset_default_config(), an excitation over
+/* Defaults: version 0.1.0, board id 0, limits for instrument PST_INSTRUMENT_DEFAULT in mm within
+ * PSL_LIMIT_* (a board's main replaces them with its psb_config.h's), no recovery,
+ * onset_default_config(), an excitation over
  * [0, 10] actuator units with amplitude 1 and advance 0.25 at 10 units/s for tick_hz (pacing
  * off, pace.tick_hz = tick_hz),
  * upload sessions expiring after PSL_UPLOAD_TIMEOUT_US. */

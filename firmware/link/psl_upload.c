@@ -131,13 +131,15 @@ uint16_t psl_do_table_commit(psl_t *l, uint16_t seq, const uint8_t *pl, uint8_t 
     const uint8_t *blob = psl_table_bytes(l, nb);
     if (c.crc32 != l->up_crc32 || calib_table_crc(blob, l->up_size) != l->up_crc32)
         return PSP_ERR_CRC;
-    calib_status_t st = calib_load(&l->cal[nb], blob, l->up_size);
+    /* The board's own limits bind every table (psl_config_t.limits): its instrument, unit,
+     * travel, angle range and largest play, whatever the table says. */
+    calib_status_t st = calib_load_guarded(&l->cal[nb], blob, l->up_size, &l->cfg.limits, NULL);
     if (st != CALIB_OK) {
         *detail = (uint8_t)st;
         return PSP_ERR_TABLE;
     }
     uint32_t gen = l->cal[nb].generation;
-    if (psl_have_table(l) && gen <= l->cal[l->active_buf].generation) {
+    if (!pst_generation_ok(psl_have_table(l), psl_have_table(l) ? l->cal[l->active_buf].generation : 0u, gen)) {
         *detail = PSL_DETAIL_GENERATION;
         return PSP_ERR_TABLE;
     }

@@ -127,10 +127,11 @@ class TableWritten:
 
 
 def write_tables(cal_path, out, entries: int | None = None, generation: int = 1,
-                 f_coarse: bool = False) -> TableWritten:
+                 f_coarse: bool = False, instrument: int | None = None) -> TableWritten:
     """Calibration file -> Q16.16 table blob at out (common/ps_table.h, laid out by the firmware's
     table_write()), loaded back with calib_load() and measured against the float model.
-    f_coarse: store f_coarse (eq. 5) instead of f_remain (eq. 9). A table that misses the
+    f_coarse: store f_coarse (eq. 5) instead of f_remain (eq. 9); instrument: the id the table is
+    bound to (layout 5; None: PST_INSTRUMENT_DEFAULT). A table that misses the
     precision ceiling (CALIB_ERR_PRECISION, or check_precision) is tried again on denser grids,
     up to PST_MAX_ENTRIES per grid (the only layout setting the board leaves free: the header's
     units and the weights' Q format are fixed by common/ps_table.h); what was changed is in
@@ -158,7 +159,7 @@ def write_tables(cal_path, out, entries: int | None = None, generation: int = 1,
         try:
             check_physical(B, f, q_min, q_max, source=cal_path)
             tab = build_table(B, f, q_min, q_max, cal.actuator_unit, "coarse" if f_coarse else "remain",
-                              generation, n, source=cal_path, transition=tr, relax=rl)
+                              generation, n, source=cal_path, transition=tr, relax=rl, instrument=instrument)
             err = table_errors(tab, B, f, q_min, q_max, tr, rl)
             check_precision(tab, err, f, q_min, q_max, source=cal_path)
         except TableError as e:
@@ -233,10 +234,11 @@ def open_board(device: str = "virtual", flash_file=None, elf=None, address=None,
 
 def device_info(device: str = "virtual", flash_file=None, elf=None, address=None) -> dict:
     """The board's identification and table state (board.link.Link.info: firmware and protocol
-    versions, active generation and slot, table CRC...), as the board reports it."""
+    versions, active generation and slot, table CRC...) and its own limits (Link.limits_info:
+    instrument, unit, travel, angle range, largest play), as the board reports them."""
     link = open_board(device, flash_file, elf, address)
     try:
-        return link.info()
+        return {**link.info(), **link.limits_info()}
     finally:
         link.close()
 

@@ -136,7 +136,11 @@ static size_t make_table(uint32_t gen, fixture_fn f)
 {
     fixture_grid_t g = {.q0 = -4.0, .step_log2 = 13, .n = 65, .q_min = -4.0, .q_max = 4.0,
                         .f_kind = PST_F_REMAIN, .generation = gen};
-    return fixture_build(&blob, &g, b_fn, NULL, f, NULL);
+    size_t n = fixture_build(&blob, &g, b_fn, NULL, f, NULL);
+    /* Bound to the board's instrument (layout v5), as `playscope tables` writes it; a table the
+     * loader refuses anyway (f_bad) is sent as built. */
+    size_t n5 = fixture_with_instrument(&blob, PST_INSTRUMENT_DEFAULT, NULL);
+    return n5 ? n5 : n;
 }
 
 static uint16_t up_session; /* token of the last BEGIN this test's host opened */
@@ -654,7 +658,9 @@ static void test_power_cut_via_handler(void **state)
     memcpy(&new_t, &blob, sizeof blob);
     int n_old = 0, n_new = 0;
     const int64_t total = SLOT + (int64_t)nn + 24;
-    for (int64_t cut = 0; cut <= total; cut += (cut < 40 || cut > total - 40) ? 1 : 97) {
+    /* Every byte near both ends, every 97th between (clamped so the last 40 are all cut). */
+    for (int64_t cut = 0; cut <= total;
+         cut = (cut < 40 || cut >= total - 40) ? cut + 1 : (cut + 97 < total - 40 ? cut + 97 : total - 40)) {
         memcpy(mem, base, sizeof mem);
         pss_sim_init(&sim, mem, SLOT, 0);
         boot();
@@ -776,6 +782,95 @@ static void test_readback_mismatch_keeps_previous(void **state)
     assert_int_equal(info().active_generation, 2);
 }
 
+/* The board guards its instrument: it answers its own limits (BOARD), refuses a table for
+ * another instrument, in another unit, beyond its travel, or naming no instrument, and keeps
+ * the running table. */
+static void test_board_guards_its_instrument(void **state)
+{
+    (void)state;
+    resp_t r = req_seq(PSP_MSG_BOARD, 0, NULL, 0);
+    expect_ok(r, PSP_MSG_BOARD);
+    assert_int_equal(r.len, sizeof(pst_limits_t));
+    pst_limits_t lim;
+    memcpy(&lim, r.pl, sizeof lim);
+    assert_memory_equal(&lim, &L.cfg.limits, sizeof lim);
+    size_t n = make_table(1, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    psp_info_t before = info();
+    /* Another instrument. */
+    n = make_table(2, f_fn);
+    n = fixture_with_instrument(&blob, PST_INSTRUMENT_DEFAULT + 1, NULL);
+    r = upload(blob.bytes, n);
+    expect_err(r, PSP_ERR_TABLE);
+    assert_int_equal(r.pl[3], CALIB_ERR_BOARD_INSTRUMENT);
+    /* A table naming no instrument (layout 2). */
+    fixture_grid_t g = {.q0 = -4.0, .step_log2 = 13, .n = 65, .q_min = -4.0, .q_max = 4.0,
+                        .f_kind = PST_F_REMAIN, .generation = 2};
+    n = fixture_build(&blob, &g, b_fn, NULL, f_fn, NULL);
+    r = upload(blob.bytes, n);
+    expect_err(r, PSP_ERR_TABLE);
+    assert_int_equal(r.pl[3], CALIB_ERR_UNBOUND);
+    /* Beyond the board's own travel, though plausible in itself. */
+    boot();
+    L.cfg.limits.q_max_q16 = 3 * PS_Q16_ONE;
+    n = make_table(2, f_fn);
+    r = upload(blob.bytes, n);
+    expect_err(r, PSP_ERR_TABLE);
+    assert_int_equal(r.pl[3], CALIB_ERR_BOARD_TRAVEL);
+    psp_info_t after = info();
+    assert_int_equal(after.active_generation, before.active_generation);
+    assert_int_equal(after.active_crc32, before.active_crc32);
+    /* A board configured for another instrument does not boot the table either. */
+    psl_config_t cfg = psl_default_config(1000);
+    cfg.limits.instrument_id = 9;
+    psl_init(&L, &cfg, &sim.port, wr, NULL);
+    out_n = 0;
+    assert_int_equal(info().active_slot, PSS_NO_SLOT);
+}
+
+/* The generation counter: a commit may step it by 1..PST_GENERATION_STEP_MAX, so 0xFFFFFFFF sent
+ * by a host is refused; a store an older firmware left at 0xFFFFFFFF takes no commit, and only
+ * the physical path (psl_config_t.recover: the pin at boot) frees it. */
+static void test_exhausted_generation_recovers_only_by_presence(void **state)
+{
+    (void)state;
+    size_t n = make_table(1, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    n = make_table(0xFFFFFFFFu, f_fn);
+    resp_t r = upload(blob.bytes, n);
+    expect_err(r, PSP_ERR_TABLE);
+    assert_int_equal(r.pl[3], PSL_DETAIL_GENERATION);
+    n = make_table(1 + PST_GENERATION_STEP_MAX + 1, f_fn);
+    expect_err(upload(blob.bytes, n), PSP_ERR_TABLE);
+    n = make_table(1 + PST_GENERATION_STEP_MAX, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    /* What an older firmware let a host do: the store at the last generation. */
+    n = make_table(0xFFFFFFFFu, f_fn);
+    assert_int_equal(pss_commit(&L.store, 0xFFFFFFFFu, blob.bytes, (uint32_t)n), PSS_OK);
+    boot();
+    assert_int_equal(info().active_generation, 0xFFFFFFFFu);
+    for (uint32_t gen = 0; gen < 4; gen++) { /* nothing follows it, wrapped or not */
+        n = make_table(gen, f_fn);
+        r = upload(blob.bytes, n);
+        expect_err(r, PSP_ERR_TABLE);
+        assert_int_equal(r.pl[3], PSL_DETAIL_GENERATION);
+    }
+    boot(); /* a reset alone changes nothing */
+    assert_int_equal(info().active_generation, 0xFFFFFFFFu);
+    psl_config_t cfg = psl_default_config(1000);
+    cfg.recover = true; /* the recovery pin held at reset */
+    psl_init(&L, &cfg, &sim.port, wr, NULL);
+    out_n = 0;
+    seq = info().last_seq;
+    psp_info_t i = info();
+    assert_int_equal(i.active_slot, PSS_NO_SLOT);
+    assert_int_equal(i.active_generation, 0);
+    n = make_table(1, f_fn);
+    expect_ok(upload(blob.bytes, n), PSP_MSG_TABLE_COMMIT);
+    boot();
+    assert_int_equal(info().active_generation, 1);
+}
+
 static resp_t exc_config(psp_exc_config_t *m)
 {
     return req(PSP_MSG_EXC_CONFIG, m, sizeof *m);
@@ -867,6 +962,8 @@ int main(void)
         cmocka_unit_test_setup(test_readback_mismatch_keeps_previous, setup),
         cmocka_unit_test_setup(test_upload_session_one_owner, setup),
         cmocka_unit_test_setup(test_exc_config_paces_the_excitation, setup),
+        cmocka_unit_test_setup(test_board_guards_its_instrument, setup),
+        cmocka_unit_test_setup(test_exhausted_generation_recovers_only_by_presence, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

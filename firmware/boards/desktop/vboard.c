@@ -15,6 +15,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "psb_config.h"
 #include "storage/pss_flash_file.h"
 #include "storage/pss_flash_sim.h"
 #include "link/psl_link.h"
@@ -145,7 +146,16 @@ static void usage(void)
             "                 (actuator units) and speed (units/s); default 0:10:1:0.25:10; without V, --pace\n"
             "  --pace BLO:BHI:FRAME_US  pace the excitation to the camera: speed BLO / (4 frame periods),\n"
             "                 BLO..BHI the expected play (units), FRAME_US the camera period (also the onset\n"
-            "                 detector's); overrides V\n");
+            "                 detector's); overrides V\n"
+            "  --instrument ID  the instrument this board drives (uint32); a table for another is\n"
+            "                 refused; default PSB_INSTRUMENT_ID (psb_config.h)\n"
+            "  --unit mm|deg  the actuator's unit; a table in the other is refused; default mm\n"
+            "  --q-limit Q    the board commands q within +-Q units (its own travel limit), default 100\n"
+            "  --c-limit C    the instrument bends within +-C deg (its own angle limit), default 180\n"
+            "  --b-max B      largest play the instrument can have, units, default 10\n"
+            "  --recover      stands for the STM32 board's recovery pin held at boot: both table slots\n"
+            "                 are erased before the board starts (the way out of an exhausted\n"
+            "                 generation counter; docs/robustness.md)\n");
 }
 
 /* Serve one connection until EOF: frames in, answers and unsolicited frames out, ticks
@@ -238,7 +248,9 @@ int main(int argc, char **argv)
     unsigned long lockstep_ms = 0;
     unsigned long upload_timeout_ms = PSL_UPLOAD_TIMEOUT_US / 1000u;
     double exc[5] = {0}, pace[3];
-    int have_exc = 0, have_pace = 0;
+    int have_exc = 0, have_pace = 0, recover = 0;
+    pst_limits_t limits = psb_limits();
+    double lim_v;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--flash") && i + 1 < argc)
             flash_path = argv[++i];
@@ -248,6 +260,18 @@ int main(int argc, char **argv)
             use_pty = 1;
         else if (!strcmp(argv[i], "--stdio"))
             ;
+        else if (!strcmp(argv[i], "--recover"))
+            recover = 1;
+        else if (!strcmp(argv[i], "--instrument") && i + 1 < argc)
+            limits.instrument_id = (uint32_t)strtoul(argv[++i], NULL, 0);
+        else if (!strcmp(argv[i], "--unit") && i + 1 < argc && (!strcmp(argv[i + 1], "mm") || !strcmp(argv[i + 1], "deg")))
+            limits.q_unit = !strcmp(argv[++i], "mm") ? PST_Q_UNIT_MM : PST_Q_UNIT_DEG;
+        else if (!strcmp(argv[i], "--q-limit") && i + 1 < argc && (lim_v = strtod(argv[++i], NULL)) > 0 && lim_v < 32768)
+            limits.q_max_q16 = -(limits.q_min_q16 = -(int32_t)(lim_v * 65536.0));
+        else if (!strcmp(argv[i], "--c-limit") && i + 1 < argc && (lim_v = strtod(argv[++i], NULL)) > 0 && lim_v <= 360)
+            limits.c_max_q16 = -(limits.c_min_q16 = -(int32_t)(lim_v * 65536.0));
+        else if (!strcmp(argv[i], "--b-max") && i + 1 < argc && (lim_v = strtod(argv[++i], NULL)) > 0 && lim_v < 32768)
+            limits.b_max_q16 = (int32_t)(lim_v * 65536.0);
         else if (!strcmp(argv[i], "--upload-timeout-ms") && i + 1 < argc)
             upload_timeout_ms = strtoul(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--tick-hz") && i + 1 < argc)
@@ -310,6 +334,8 @@ int main(int argc, char **argv)
     cfg.board_id[0] = 0x56495254; /* "VIRT" */
     cfg.board_id[2] = (uint32_t)getpid();
     cfg.upload_timeout_us = (uint32_t)(upload_timeout_ms * 1000u);
+    cfg.limits = limits;
+    cfg.recover = recover != 0;
     if (have_exc >= 4) {
         cfg.exc.q_start_q16 = (int32_t)(exc[0] * 65536.0);
         cfg.exc.q_end_q16 = (int32_t)(exc[1] * 65536.0);

@@ -3,6 +3,7 @@
 #include <stdint.h>
 
 #include "port_board.h"
+#include "psb_config.h"
 #include "link/psl_link.h"
 #if PSL_FLASH_HW
 #include "pss_flash_stm32f4.h"
@@ -50,6 +51,10 @@ int main(void)
     port_tick_start(PSL_TICK_HZ, NULL);
     psl_config_t cfg = psl_default_config(PSL_TICK_HZ);
     read_uid(cfg.board_id);
+    cfg.limits = psb_limits();
+#if PSL_FLASH_HW
+    cfg.recover = psb_recovery_requested(); /* the recovery pin held at reset: slots erased */
+#endif
 #if PSL_FLASH_HW
     const pss_flash_t *flash = pss_stm32f4_flash();
 #else

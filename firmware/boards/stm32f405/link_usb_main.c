@@ -2,6 +2,7 @@
 #include <stdint.h>
 
 #include "port_board.h"
+#include "psb_config.h"
 #include "link/psl_link.h"
 #include "pss_flash_stm32f4.h"
 #include "link/usb/psu_dcd.h"
@@ -30,6 +31,8 @@ int main(void)
     const volatile uint32_t *uid = (const volatile uint32_t *)0x1FFF7A10u; /* RM0090 39.1 */
     for (int i = 0; i < 3; i++)
         cfg.board_id[i] = uid[i];
+    cfg.limits = psb_limits();
+    cfg.recover = psb_recovery_requested(); /* the recovery pin held at reset: slots erased */
     psu_config_t ucfg = {.board_id = {cfg.board_id[0], cfg.board_id[1], cfg.board_id[2]},
                          .bcd_device = (uint16_t)(cfg.fw_version >> 8), .rx = usb_rx, .rx_ctx = &link};
     psu_init(&usb, &ucfg);

@@ -92,6 +92,7 @@ void flash_write8(uintptr_t addr, uint8_t v);
 #define GPIOA_MODER REG32(GPIOA_BASE + 0x00u)
 #define GPIOA_OSPEEDR REG32(GPIOA_BASE + 0x08u)
 #define GPIOA_PUPDR REG32(GPIOA_BASE + 0x0Cu)
+#define GPIOA_IDR REG32(GPIOA_BASE + 0x10u)
 #define GPIOA_AFRH REG32(GPIOA_BASE + 0x24u)
 
 /* USART1 on APB2. */

@@ -38,7 +38,7 @@ from pathlib import Path
 REPO = Path(os.environ.get("PLAYSCOPE_SRC", Path(__file__).resolve().parents[3]))
 COMMON = REPO / "common"
 CORE = REPO / "firmware" / "core"
-CDEF_HEADERS = [COMMON / n for n in ("ps_fixed.h", "ps_table.h", "ps_proto.h", "ps_frame.h")] + [
+CDEF_HEADERS = [COMMON / n for n in ("ps_fixed.h", "ps_table.h", "ps_proto.h", "ps_frame.h", "ps_plaus.h")] + [
     CORE / f"{n}.h" for n in ("lut", "calib", "playop", "comp", "enc_hist", "onset", "exc", "table_write", "b_online", "f_online")]
 # The USB ids live with the USB device core (firmware/link/usb); only these names are taken from it
 # (its functions belong to the board, not to the host's module). A name cdef'd as "#define NAME ..."
@@ -63,7 +63,7 @@ CONSTANTS = {
     "USB_EP_IN": "PSU_EP_IN",
 }
 # Headers whose structs are runtime state, not wire or table layout: cdef'd unpacked.
-UNPACKED_COMMON = {"ps_frame.h"}
+UNPACKED_COMMON = {"ps_frame.h", "ps_plaus.h"}
 MODULE = "_playscope_native"
 # Environment overrides for the desktop programs (a build elsewhere, a sanitizer build, ...).
 EXE_ENV = {"ps_vboard": "PLAYSCOPE_VBOARD", "ps_usbemu": "PLAYSCOPE_USBEMU"}

@@ -15,10 +15,15 @@ def flash(link, blob: bytes, n_vectors: int = 200, log=print) -> dict:
     from ..fit.table_build import CalibTable, set_generation, test_vector
 
     check_blob(blob)  # names the damaged field; nothing is sent, nothing resealed
+    # The board's own limits (instrument, unit, travel, angle, play), checked here by the same C
+    # the board runs, so a refusal names its numbers and nothing is sent.
+    check_blob(blob, limits=link.board_limits())
     before = link.info()
     if before["active_generation"] >= 0xFFFFFFFF:  # pst_header_t.generation is a uint32
-        raise RuntimeError("the board's table generation counter is at its maximum (2^32 - 1): no newer "
-                           "table can be committed; erase the board's table store first")
+        raise RuntimeError("the board's table generation counter is at its end (2^32 - 1): it takes no table "
+                           "until recovered by its physical path (STM32: hold the recovery pin PA0 high at reset; "
+                           "virtual board: --recover; or erase sectors 10-11 on the programming port; "
+                           "docs/robustness.md), which erases its tables")
     blob = set_generation(blob, before["active_generation"] + 1)
     host = CalibTable(blob)  # refuses a bad table before anything is sent
     t0 = time.perf_counter()

@@ -19,6 +19,17 @@ def mode_names() -> dict[int, str]:
     return enum_names("enum psp_mode", "PSP_MODE_")
 
 
+def table_refusal(detail: int) -> str:
+    """What psp_error_t.detail of a TABLE refusal means: a calib_status_t (its name and the
+    loader's reason, read from the C), or the link's own PSL_DETAIL_GENERATION."""
+    ffi, lib = frame_codec()
+    if detail == 0x80:  # PSL_DETAIL_GENERATION (firmware/link/psl_link.h, not in the host's headers)
+        return ("generation not the next one (1..PST_GENERATION_STEP_MAX above the running table's); a board at "
+                "generation 0xFFFFFFFF takes no table until recovered by its physical path (docs/robustness.md)")
+    name = enum_names("calib_status_t", "", lower=False).get(detail)
+    return f"{name}: {ffi.string(lib.calib_status_str(detail)).decode()}" if name else f"detail {detail}"
+
+
 class DeviceError(RuntimeError):
     """The board refused a request (PSP_MSG_ERROR); code/detail as in ps_proto.h."""
 
@@ -29,6 +40,8 @@ class DeviceError(RuntimeError):
                    f"aborts, or after {detail} s without a request); try again then")
         else:
             msg = f"board refused request 0x{ref_type:02x}: {error_name(code)} (detail {detail})"
+            if error_name(code) == "TABLE":
+                msg += f": {table_refusal(detail)}"
         super().__init__(msg)
 
     @property
@@ -123,6 +136,34 @@ class Link:
                 "active_generation": i.active_generation, "active_crc32": i.active_crc32,
                 "mode": mode_names().get(i.mode, str(i.mode)),
                 "active_slot": {0: "A", 1: "B"}.get(i.active_slot, "none"), "last_seq": i.last_seq}
+
+    def board_limits(self):
+        """PSP_MSG_BOARD: the board's own limits (a cffi ``pst_limits_t *``: instrument id, unit,
+        travel, angle range, largest play), or None for a board whose firmware predates the
+        request (answered TYPE). Read-only, answered whatever its seq, like INFO."""
+        s = (self.seq + 1) & 0xFFFF or 1
+        try:
+            pl = self.request(self.lib.PSP_MSG_BOARD, seq=s)
+        except DeviceError as e:
+            if error_name(e.code) == "TYPE":
+                return None
+            raise
+        lim = self.ffi.new("pst_limits_t *")
+        self.ffi.memmove(lim, pl, min(len(pl), self.ffi.sizeof("pst_limits_t")))
+        return lim
+
+    def limits_info(self) -> dict:
+        """board_limits() as printable fields ({} for a board without the request): instrument,
+        unit, travel and angle range ("[lo, hi]", actuator units and deg), largest play."""
+        lim = self.board_limits()
+        if lim is None:
+            return {}
+        one = float(self.lib.PS_Q16_ONE)
+        unit = {self.lib.PST_Q_UNIT_MM: "mm", self.lib.PST_Q_UNIT_DEG: "deg"}.get(lim.q_unit, str(lim.q_unit))
+        return {"instrument": int(lim.instrument_id), "unit": unit,
+                "travel": f"[{lim.q_min_q16 / one:g}, {lim.q_max_q16 / one:g}] {unit}",
+                "angle_range_deg": f"[{lim.c_min_q16 / one:g}, {lim.c_max_q16 / one:g}]",
+                "b_max": f"{lim.b_max_q16 / one:g} {unit}"}
 
     def info(self) -> dict:
         # INFO is answered whatever its seq; use the next one so answers stay distinct.

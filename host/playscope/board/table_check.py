@@ -4,7 +4,9 @@
 first field that disagrees: size, magic, layout_version, header_size, total_size, the Q
 formats, the actuator range q_min/q_max (against the grids, so one flipped bit in q_max is
 named even when the CRC was left stale), the grids, then the CRC-32 (calib_table_crc, the
-board's own function), and last the firmware loader calib_load() for the physical rules.
+board's own function), and last the firmware loader calib_load_guarded() for the physical
+rules (common/ps_plaus.h) and, given a board's limits (PSP_MSG_BOARD), the board's own: the
+same C the board runs, the refusal worded with its numbers (table_build.refusal).
 A table that fails is never resealed or sent: `flash` calls this first.
 """
 
@@ -30,10 +32,11 @@ def _grid_end(g) -> int:
     return g.x0_q16 + (g.n - 1) * g.step_q16
 
 
-def check_blob(blob: bytes, source=None):
+def check_blob(blob: bytes, source=None, limits=None):
     """Check a table blob as a file on disk must be before it goes to a board.
 
-    blob: the file's bytes; source: its path, for the message. Returns the header (a cffi
+    blob: the file's bytes; source: its path, for the message; limits: the board's pst_limits_t
+    (a cffi pointer, Link.board_limits()) to hold the table to, or None. Returns the header (a cffi
     ``pst_header_t *`` copy). Errors: TableFileError (an InputError, one line naming the
     file and the field). Order: structural fields, q range, grids, CRC, then calib_load."""
     ffi, lib = core()
@@ -47,8 +50,8 @@ def check_blob(blob: bytes, source=None):
     if not 1 <= hd.layout_version <= lib.PST_LAYOUT_VERSION:
         raise TableFileError(source, "layout_version",
                              f"{hd.layout_version}, this host reads 1..{lib.PST_LAYOUT_VERSION}")
-    if hd.layout_version >= 3:  # v3: the threshold map's grid follows (pst_header_v3_t); v4: the relaxation
-        hsize = ffi.sizeof("pst_header_v4_t" if hd.layout_version >= 4 else "pst_header_v3_t")
+    if hd.layout_version >= 3:  # v3: the map's grid follows (pst_header_v3_t); v4: the relaxation; v5: the instrument
+        hsize = ffi.sizeof({3: "pst_header_v3_t", 4: "pst_header_v4_t"}.get(hd.layout_version, "pst_header_v5_t"))
         if len(blob) < hsize:
             raise TableFileError(source, "size", f"{len(blob)} bytes, shorter than the {hsize}-byte "
                                  f"v{hd.layout_version} header")
@@ -100,10 +103,14 @@ def check_blob(blob: bytes, source=None):
     buf = ffi.new("uint32_t[]", (len(blob) + 3) // 4)  # calib_load reads entries in place, 4-aligned
     ffi.memmove(buf, blob, len(blob))
     cal = ffi.new("calib_t *")
-    st = lib.calib_load(cal, ffi.cast("uint8_t *", buf), len(blob))
+    rep = ffi.new("pst_plaus_report_t *")
+    st = lib.calib_load_guarded(cal, ffi.cast("uint8_t *", buf), len(blob), limits if limits is not None else ffi.NULL, rep)
     if st != lib.CALIB_OK:
-        raise TableFileError(source, "contents", "refused by the firmware loader calib_load: "
-                             + ffi.string(lib.calib_status_str(st)).decode())
+        from ..fit.table_build import refusal
+
+        who = "the board's limits" if limits is not None and lib.calib_status_of_rule(rep.rule) == st \
+            and rep.rule >= lib.PST_RULE_UNBOUND else "the firmware loader calib_load"
+        raise TableFileError(source, "contents", f"refused by {who}: {refusal(st, rep, blob)}")
     return hd
 
 

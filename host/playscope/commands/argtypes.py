@@ -135,6 +135,7 @@ CONTROL_POINTS = int_range(4, 64)          # cubic B-spline control points: >= 4
 VECTORS = int_range(1, 100_000)            # compensator test steps after a flash
 SEED = int_range(0, 2**32 - 1)
 GENERATION = int_range(1, 2**32 - 1)       # pst_header_t.generation (uint32; 0 = "no table")
+INSTRUMENT = int_range(0, 2**32 - 1)       # pst_instrument_t.id (uint32)
 FPS = float_range(0.5, 10_000.0)           # Hz: a frame rate for a sensor log
 T_DELAY_S = float_range(0.0, 10.0)         # s: image acquisition delay
 THRESHOLD = float_range(0.0, 10_000.0, lo_open=True)   # px or deg per frame (Q16.16 on the board)

@@ -10,7 +10,9 @@ from .common import add_command, add_json_arg, emit
 DESCRIPTION = """\
 Sample B(q) and f_remain on power-of-two grids (Q16.16), add the transition operators (r, w)
 when the calibration has them, write the table (common/ps_table.h) with the firmware's
-table_write(), load it back with the firmware's calib_load(), and report the measured worst-case
+table_write_inst() (layout 5: bound to the instrument, with the angle range, largest play and
+slopes it can have), load it back with the firmware's calib_load() (the board's physical
+plausibility rules, common/ps_plaus.h; a refusal names the rule and the numbers), and report the measured worst-case
 error of the fixed-point direct model and compensator against the float model; a table whose
 error is above the precision ceiling (1/16 of its largest play, docs/firmware.md) is refused, as
 the board's loader would.
@@ -37,9 +39,12 @@ def add_parser(sub) -> None:
                    "(default PST_MAX_ENTRIES, firmware common/ps_table.h)")
     p.add_argument("--generation", type=T.GENERATION, default=1, help="table generation number (default 1)")
     p.add_argument("--f-coarse", action="store_true", help="store f_coarse instead of f_remain (eq. 5 instead of 9)")
+    p.add_argument("--instrument", type=T.INSTRUMENT, help="id of the instrument the session was recorded on "
+                   "(table layout 5; a board configured for another refuses the table); default "
+                   "PST_INSTRUMENT_DEFAULT (1), what a board takes unless configured otherwise")
     add_json_arg(p, "table (path), bytes, crc32, entries, operators, errors {direct_c_deg_max, comp_q_max, f_inv_err, z_err}")
     p.set_defaults(func=run)
 
 
 def run(a) -> int:
-    return emit(a, write_tables(a.calibration, a.out, a.entries, a.generation, a.f_coarse))
+    return emit(a, write_tables(a.calibration, a.out, a.entries, a.generation, a.f_coarse, a.instrument))

@@ -368,6 +368,56 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     return BAndModel(alts[i][1], tr, f, sign, ch, rows, choices[i].data)
 
 
+# A calibration whose model explains less than this share of c's variance, and does no better
+# than NOISE_LINE_RATIO times the error of a memoryless line c = a + b q, describes no instrument.
+NOISE_R2_MIN = 0.5
+NOISE_LINE_RATIO = 0.9
+
+
+def check_not_noise(q_c: np.ndarray, c_c: np.ndarray, c_model: np.ndarray, source=None, splits=None,
+                    model_cv_rmse: float | None = None) -> None:
+    """Refuse a calibration fitted on noise: the play model's error on the angles c_c (deg) at the
+    characteristic's samples q_c is no better than NOISE_LINE_RATIO times a memoryless line's
+    (least squares c = a + b q) and explains less than NOISE_R2_MIN of their variance. With
+    splits (the rolling-origin folds, masks over the samples) and model_cv_rmse (f_remain's CV
+    error on them, choose_f_ctrl) both errors are held-out ones, the line fitted before and scored
+    on each next block as f is; else in-sample (c_model: the model's prediction). A real
+    instrument's c follows q (the line alone explains most of it) or follows it with a play (the
+    model beats the line); a drift that merely shares the record's slow ramp is fitted in-sample
+    but not forecast. Errors: InputError, one line with the figures."""
+    q_c, c_c, c_model = (np.asarray(a, float) for a in (q_c, c_c, c_model))
+    ok = np.isfinite(q_c) & np.isfinite(c_c) & np.isfinite(c_model)
+    if ok.sum() < 3 or float(np.var(c_c[ok])) <= 0:
+        return
+    var = float(np.var(c_c[ok]))
+
+    def line_fit(m):
+        A = np.column_stack([np.ones(int(m.sum())), q_c[m]])
+        return np.linalg.lstsq(A, c_c[m], rcond=None)[0]
+
+    held = splits is not None and model_cv_rmse is not None and np.isfinite(model_cv_rmse)
+    if held:
+        errs = []
+        for tr, te in splits:
+            tr, te = tr & ok, te & ok
+            if tr.sum() >= 3 and te.sum() >= 3:
+                a, b = line_fit(tr)
+                errs.append(float(np.mean((c_c[te] - a - b * q_c[te]) ** 2)))
+        held = bool(errs)
+    if held:
+        rmse_line, rmse_model, how = float(np.sqrt(np.mean(errs))), float(model_cv_rmse), "held-out "
+    else:
+        a, b = line_fit(ok)
+        rmse_line = float(np.sqrt(np.mean((c_c[ok] - a - b * q_c[ok]) ** 2)))
+        rmse_model, how = float(np.sqrt(np.mean((c_c[ok] - c_model[ok]) ** 2))), ""
+    r2 = 1.0 - rmse_model ** 2 / var
+    if r2 < NOISE_R2_MIN and rmse_model > NOISE_LINE_RATIO * rmse_line:
+        raise InputError(source, f"the fit is no better than a memoryless line ({how}RMSE {rmse_model:.3g} deg, "
+                         f"line {rmse_line:.3g} deg; the model explains {max(r2, 0.0):.0%} of the angle's variance): "
+                         "the angle does not follow the actuator (noise, or the wrong column or session); "
+                         "no calibration written")
+
+
 def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
               t_delay_s: float | None = None, hysteresis: float | None = None,
               onset_cfg: dict | None = None, source: str | None = None,
@@ -545,6 +595,9 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     if f_method not in fits:
         raise ValueError(f"f_method must be 'lsq' or 'morph', not {f_method!r}")
     f, sign = fits[f_method]
+    cv_rows = f_cv.get("candidates") or []
+    check_not_noise(q_c, c_c, fits["lsq"][0](z_c), src, T.rolling_origins(fit_data, T.KFOLD) if cv_rows else None,
+                    min((r["cv_rmse_deg"] for r in cv_rows), default=None))
     # The product's f must load on the board (loadable_f), for the pure play as for the PI below.
     refit_play = {"lsq": lambda ms: f_remain_lsq(q_c, c_c, B, f_n, z=z_c, min_slope=ms)[:2],
                   "morph": lambda ms: f_remain_morph(q_c, c_c, n_ctrl, min_slope=ms)[:2]}[f_method]

@@ -10,8 +10,12 @@ refusal is a ``TableError`` carrying the loader's reason (``calib_status_str``).
 Layout 2 carries the smooth transition (thresholds r, weights w of the PI operators,
 docs/method.md, "Transition model") after the B and f grids; a pure play (n = 1 or no transition) writes no operator.
 Layout 3 adds the threshold map u = g(z) (transition.ThresholdMap: thresholds proportional to
-B) on its own grid after the operators; it is written only for a transition with a map, so
-map-less tables stay layout 2 byte for byte (table_write_map, firmware/core/table_write.h).
+B) on its own grid after the operators, layout 4 the travel-domain relaxation. Every table the
+host writes is layout 5 (table_write_inst): the layout-4 content plus the instrument block
+(common/ps_table.h pst_instrument_t: the instrument's id, the angle range it can reach, its
+largest play, the largest slopes of f and f^-1), stamped by the C pst_instrument_derive, so a
+board refuses it for another instrument or beyond its own limits. The plausibility rules are
+the C ones (common/ps_plaus.h, through calib_load_guarded); ``refusal`` only words their numbers.
 """
 
 from __future__ import annotations
@@ -52,8 +56,8 @@ def grid_for(q_min: float, q_max: float, n_max: int) -> tuple[int, int, int]:
 def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: float, unit: str = "mm",
                f_kind: str = "remain", generation: int = 1, pi_r=None, pi_w=None, source=None,
                f_grid: tuple[int, int] | None = None, tmap: tuple[int, int, list] | None = None,
-               relax: tuple[int, int] | None = None) -> bytes:
-    """Lay out and seal one table by the C table_write() / table_write_map() (common/ps_table.h).
+               relax: tuple[int, int] | None = None, instrument: int | None = None) -> bytes:
+    """Lay out and seal one layout-5 table by the C table_write_inst() (common/ps_table.h).
 
     b_q16, f_q16: int Q16.16 entries on the grid x0 + i step (same grid for both unless f_grid =
     (x0_q16, step_q16) gives f its own); q_min, q_max: actuator travel (units); unit "mm" | "deg";
@@ -61,7 +65,8 @@ def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: fl
     (floats, n <= PST_MAX_OPS), or None for the pure play; tmap: (x0_q16, step_q16, u_q16) the
     threshold map's grid and entries (layout 3), or None (layout 2); relax: (kappa_q16,
     lambda_q16) of the travel-domain relaxation (layout 4; playscope.fit.relax.table_fields), or None
-    / kappa 0 for none. Returns the blob. Errors:
+    / kappa 0 for none; instrument: the id of the instrument calibrated (default PST_INSTRUMENT_DEFAULT),
+    its block's figures derived from the entries by the C pst_instrument_derive. Returns the blob. Errors:
     TableError when the writer refuses it (too many entries, operators or map entries)."""
     ffi, lib = core()
     b = [int(v) for v in b_q16]
@@ -77,23 +82,22 @@ def write_blob(x0_q16: int, step_q16: int, b_q16, f_q16, q_min: float, q_max: fl
     if f_grid is not None:
         hd.f.x0_q16, hd.f.step_q16 = f_grid
     n_map = 0 if tmap is None else len(tmap[2])
-    cap = ffi.sizeof("pst_header_v4_t") + 4 * (len(b) + len(f) + 2 * n_ops + n_map) + 16
-    buf = ffi.new("uint8_t[]", cap)
+    cap = ffi.sizeof("pst_header_v5_t") + 4 * (len(b) + len(f) + 2 * n_ops + n_map) + 16
     hd.pi.n = n_ops
     r = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_r)]) if n_ops else ffi.NULL
     w = ffi.new("int32_t[]", [int(v) for v in to_q16(pi_w)]) if n_ops else ffi.NULL
-    grid, g = ffi.NULL, ffi.NULL  # no map: table_write_map is table_write (layout 2, byte for byte)
+    grid, g = ffi.new("pst_grid_t *"), ffi.NULL  # grid n = 0: no map
     if tmap is not None:
-        grid = ffi.new("pst_grid_t *")
         grid.x0_q16, grid.step_q16, grid.n = int(tmap[0]), int(tmap[1]), n_map
         g = ffi.new("int32_t[]", [int(v) for v in tmap[2]])
-    rx = ffi.NULL
+    rx = ffi.new("pst_relax_t *")  # kappa 0: no relaxation
     if relax is not None and int(relax[0]) != 0:
-        rx = ffi.new("pst_relax_t *")
         rx.kappa_q16, rx.lambda_q16 = int(relax[0]), int(relax[1])
-        if tmap is None:
-            grid = ffi.new("pst_grid_t *")  # n = 0: no map in the v4 header
-    size = lib.table_write_relax(buf, cap, hd, ffi.new("int32_t[]", b), ffi.new("int32_t[]", f), r, w, grid, g, rx)
+    bq, fq = ffi.new("int32_t[]", b), ffi.new("int32_t[]", f)
+    inst = ffi.new("pst_instrument_t *")
+    lib.pst_instrument_derive(hd, bq, fq, lib.PST_INSTRUMENT_DEFAULT if instrument is None else int(instrument), inst)
+    buf = ffi.new("uint8_t[]", cap)
+    size = lib.table_write_inst(buf, cap, hd, bq, fq, r, w, grid, g, rx, inst)
     if size == 0:
         raise TableError(source, f"table_write refused the table ({len(b)} entries, {n_ops} operators, "
                          f"{n_map} map entries)")
@@ -130,6 +134,47 @@ def set_generation(blob: bytes, generation: int, source=None) -> bytes:
     return bytes(b)
 
 
+# --------------------------------------------------------------------------- refusals
+# How each plausibility rule's numbers read (common/ps_plaus.h): the quantity's unit, by the
+# rule's name; the rules themselves are only in C.
+_RULE_UNITS = {"TRAVEL": "q", "B_TRAVEL": "q", "C_RANGE": "deg", "C_SPAN": "deg", "F_SLOPE": "deg/q",
+               "TRAVEL_UNIT": "q", "INST_C_RANGE": "deg", "INST_B_MAX": "q", "INST_F_SLOPE": "deg/q",
+               "INST_F_INV_SLOPE": "q/deg", "B_INST": "q", "C_INST": "deg", "F_SLOPE_INST": "deg/q",
+               "F_INV_SLOPE_INST": "q/deg", "UNBOUND": "layout", "BOARD_INSTRUMENT": "id", "BOARD_UNIT": "unit",
+               "BOARD_TRAVEL": "q", "BOARD_ANGLE": "deg", "BOARD_B": "q"}
+
+
+def refusal(status: int, rep, blob: bytes | None = None) -> str:
+    """One line for calib_load_guarded's refusal `status` (calib_status_t) with its report `rep`
+    (pst_plaus_report_t *): the code's name, the loader's reason and, for a plausibility rule,
+    what the table has against what the rule allows, in the table's units (blob: the table,
+    for its unit and the entry's q)."""
+    ffi, lib = core()
+    names = native.enum_names("calib_status_t", "", lower=False)
+    name = names.get(int(status), str(int(status)))
+    msg = f"{name}: {ffi.string(lib.calib_status_str(status)).decode()}"
+    if rep is None or int(rep.rule) == lib.PST_RULE_OK:
+        return msg
+    rule = native.enum_names("pst_rule_t", "PST_RULE_", lower=False).get(int(rep.rule), "")
+    kind = _RULE_UNITS.get(rule, "")
+    hd = header(blob) if blob is not None and len(blob) >= ffi.sizeof("pst_header_t") else None
+    qu = ("deg" if hd is not None and hd.q_unit == lib.PST_Q_UNIT_DEG else "mm") if hd is not None else "units"
+    units = {v: k for k, v in {"mm": lib.PST_Q_UNIT_MM, "deg": lib.PST_Q_UNIT_DEG}.items()}
+    if kind in ("layout", "id"):
+        what = f"{int(rep.value)} (allowed: {int(rep.limit)})"
+    elif kind == "unit":
+        what = f"{units.get(int(rep.value), rep.value)} (the board's: {units.get(int(rep.limit), rep.limit)})"
+    else:
+        u = {"q": qu, "deg": "deg", "deg/q": f"deg/{qu}", "q/deg": f"{qu}/deg"}[kind]
+        what = f"{int(rep.value) / native.Q16_ONE:.6g} {u} against the limit {int(rep.limit) / native.Q16_ONE:.6g} {u}"
+    where = ""
+    if int(rep.index) >= 0 and hd is not None:
+        g = hd.b if rule in ("B_TRAVEL", "B_INST") else hd.f
+        seg = "segment" if "SLOPE" in rule else "entry"
+        where = f" at {seg} {int(rep.index)} (q = {(g.x0_q16 + int(rep.index) * g.step_q16) / native.Q16_ONE:.6g} {qu})"
+    return f"{msg}: {what}{where}"
+
+
 # --------------------------------------------------------------------------- loading and running
 class CalibTable:
     """A table blob and its loaded C calib_t (kept alive together: entries are read in place).
@@ -142,9 +187,10 @@ class CalibTable:
         self.blob = bytes(blob)
         self._buf = ffi.new("uint8_t[]", self.blob)  # malloc'd, so 4-aligned as calib_load needs
         self.cal = ffi.new("calib_t *")
-        st = lib.calib_load(self.cal, self._buf, len(self.blob))
+        rep = ffi.new("pst_plaus_report_t *")
+        st = lib.calib_load_guarded(self.cal, self._buf, len(self.blob), ffi.NULL, rep)
         if st != lib.CALIB_OK:
-            err = TableError(source, f"table refused by calib_load: {ffi.string(lib.calib_status_str(st)).decode()}")
+            err = TableError(source, f"table refused by calib_load: {refusal(st, rep, self.blob)}")
             err.status = int(st)  # calib_status_t, for callers that can mend one reason (calibration.loadable_f)
             raise err
 
@@ -190,7 +236,8 @@ class CalibTable:
 
 # --------------------------------------------------------------------------- building
 def build_table(B, f, q_min: float, q_max: float, unit: str, f_kind: str = "remain", generation: int = 1,
-                n_max: int | None = None, source=None, transition=None, relax=None) -> CalibTable:
+                n_max: int | None = None, source=None, transition=None, relax=None,
+                instrument: int | None = None) -> CalibTable:
     """Sample B and f on power-of-two grids over the travel and write a table by table_write().
 
     B: widths floored at 0; f made strictly monotone in raw units (a flat stretch of the
@@ -229,7 +276,8 @@ def build_table(B, f, q_min: float, q_max: float, unit: str, f_kind: str = "rema
     from .relax import table_fields
 
     blob = write_blob(x0, step, b_raw, f_raw, q_min, q_max, unit, f_kind, generation, r, w, source,
-                      f_grid=f_grid, tmap=tmap, relax=table_fields(relax) if relax is not None else None)
+                      f_grid=f_grid, tmap=tmap, relax=table_fields(relax) if relax is not None else None,
+                      instrument=instrument)
     return CalibTable(blob, source)
 
 

@@ -101,6 +101,38 @@ size_t fixture_with_relax(fixture_blob_t *blob, int32_t kappa_q16, int32_t lambd
                              hd.pi.n ? ww : NULL, &tm, tm.n ? gg : NULL, &rx);
 }
 
+size_t fixture_with_instrument(fixture_blob_t *blob, uint32_t id, const pst_instrument_t *inst)
+{
+    static int32_t bb[PST_MAX_ENTRIES], ff[PST_MAX_ENTRIES], rr[PST_MAX_OPS], ww[PST_MAX_OPS], gg[PST_MAX_ENTRIES];
+    pst_header_t hd;
+    memcpy(&hd, blob->bytes, sizeof hd);
+    pst_grid_t tm = {0, 0, 0, 0};
+    pst_relax_t rx = {0, 0};
+    if (hd.layout_version >= 3)
+        memcpy(&tm, blob->bytes + offsetof(pst_header_v3_t, tmap), sizeof tm);
+    if (hd.layout_version >= 4)
+        memcpy(&rx, blob->bytes + offsetof(pst_header_v4_t, relax), sizeof rx);
+    memcpy(bb, blob->bytes + hd.b.offset, 4u * hd.b.n);
+    memcpy(ff, blob->bytes + hd.f.offset, 4u * hd.f.n);
+    if (hd.pi.n) {
+        memcpy(rr, blob->bytes + hd.pi.offset, 4u * hd.pi.n);
+        memcpy(ww, blob->bytes + hd.pi.offset + 4u * hd.pi.n, 4u * hd.pi.n);
+    }
+    if (tm.n)
+        memcpy(gg, blob->bytes + tm.offset, 4u * tm.n);
+    pst_instrument_t in;
+    if (inst != NULL)
+        in = *inst;
+    else
+        pst_instrument_derive(&hd, bb, ff, id, &in);
+    in.id = id;
+    hd.layout_version = 5;
+    tm.offset = 0;
+    memset(blob, 0, sizeof *blob);
+    return table_write_inst(blob->bytes, sizeof blob->bytes, &hd, bb, ff, hd.pi.n ? rr : NULL, hd.pi.n ? ww : NULL,
+                            &tm, tm.n ? gg : NULL, &rx, &in);
+}
+
 void fixture_reseal(fixture_blob_t *blob)
 {
     pst_header_t hd;

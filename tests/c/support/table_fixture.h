@@ -51,6 +51,11 @@ size_t fixture_with_tmap(fixture_blob_t *blob, int32_t x0_q16, int32_t step_q16,
  * relaxation (kappa_q16, lambda_q16). Returns the new size, 0 if the writer refuses. */
 size_t fixture_with_relax(fixture_blob_t *blob, int32_t kappa_q16, int32_t lambda_q16);
 
+/* Rewrite the table in blob (v1-v4, its grids, operators, map and relaxation kept) as layout v5
+ * bound to instrument id, with the instrument block *inst, or (inst NULL) the one
+ * pst_instrument_derive gives its entries. Returns the new size, 0 if the writer refuses. */
+size_t fixture_with_instrument(fixture_blob_t *blob, uint32_t id, const pst_instrument_t *inst);
+
 /* Recompute the CRC after a test edited the blob on purpose. */
 void fixture_reseal(fixture_blob_t *blob);
 

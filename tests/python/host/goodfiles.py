@@ -145,6 +145,20 @@ def table_nonsense() -> list:
         ("f jumping 100 deg in one 0.25 mm step", "CALIB_ERR_F_SLOPE",
          edit(f=lambda bl: (np.arange(n(bl)) + np.where(np.arange(n(bl)) >= 16, 100 * Q, 0)
                             - 50 * Q).astype(np.int64))),
+        # The instrument block of a layout-5 table (its largest play 2 x the calibrated one, its
+        # angle range f's widened by 1/16, its slopes 2 x f's and f^-1's), CRC resealed:
+        ("B equal to the whole 8 mm travel", "CALIB_ERR_B_INST", edit(b=lambda bl: np.full(n(bl), 8 * Q))),
+        ("B at 95 % of the travel", "CALIB_ERR_B_INST", edit(b=lambda bl: np.full(n(bl), int(0.95 * 8 * Q)))),
+        ("B ten times the calibrated one", "CALIB_ERR_B_SLOPE", edit(b=lambda bl: entries(bl, "b") * 10)),
+        ("B three times the calibrated one", "CALIB_ERR_B_INST", edit(b=lambda bl: entries(bl, "b") * 3)),
+        ("f spanning 710 deg", "CALIB_ERR_C_INST",
+         edit(f=lambda bl: np.round(np.linspace(-355, 355, n(bl)) * Q).astype(np.int64))),
+        ("f spanning 1 deg over the travel", "CALIB_ERR_C_SPAN",
+         edit(f=lambda bl: np.round(np.linspace(-0.5, 0.5, n(bl)) * Q).astype(np.int64))),
+        ("a 359 deg step inside f", "CALIB_ERR_F_SLOPE",
+         edit(f=lambda bl: entries(bl, "f") // 10 + np.where(np.arange(n(bl)) >= 16, 359 * Q, 0) - 180 * Q)),
+        ("f ten times flatter (the instrument's f^-1 slope)", "CALIB_ERR_F_INV_SLOPE_INST",
+         edit(f=lambda bl: entries(bl, "f") // 10)),
         ("q_max = q_min + 1 raw", "CALIB_ERR_TRAVEL", edit(q_range=(0, 1))),
         ("travel 1/32 mm", "CALIB_ERR_TRAVEL", edit(q_range=(0, Q // 32))),
     ]

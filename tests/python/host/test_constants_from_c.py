@@ -88,7 +88,7 @@ PLANTED = {
                                      "# PST_MAX_OPS = 16"],
     "entries per grid (PST_MAX_ENTRIES)": ["n_max = 256", "p.add_argument('--entries', help='at most 256')"],
     "derived entries (CALIB_DERIVED_MAX)": ["CALIB_DERIVED_MAX = 512"],
-    "largest table (PST_MAX_TABLE_SIZE)": ["if len(blob) > 3280: pass"],
+    "largest table (PST_MAX_TABLE_SIZE)": ["if len(blob) > 3304: pass"],
     "table magic (PST_MAGIC)": ["MAGIC = 0x42545350", "ok = head[:4] == b'PSTB'"],
     "relaxation limit (PST_RELAX_KAPPA_MAX_Q16)": ["KAPPA_MAX_Q16 = 58982"],
     "USB vendor id (PSU_VID)": ["USB_VID = 0x1209", "vid = 4617", "# device 1209:0001"],

@@ -237,7 +237,7 @@ def test_chosen_relaxed_table_is_layout_4_bit_exact_and_follows_the_double_chain
 
     cal = relaxed_cal
     tab = build_table(cal.B_model, cal.f, *cal.q_range, "mm", transition=cal.transition, relax=cal.relax)
-    assert header(tab.blob).layout_version == 4
+    assert header(tab.blob).layout_version == 5 and tab.cal.relax.kappa_q16 != 0
     q = relaxed_record().encoder["q"]
     c_tab = tab.predict(q)
     np.testing.assert_array_equal(CalibTable(tab.blob).predict(q), c_tab)
@@ -453,7 +453,7 @@ def test_relaxed_calibration_through_playscope_tables(relaxed_cal, tmp_path):
     cal = relaxed_cal
     cal.save(tmp_path / "cal.json")
     w = pipeline.write_tables(tmp_path / "cal.json", tmp_path / "t.bin")
-    assert header(w.table.blob).layout_version == 4
+    assert header(w.table.blob).layout_version == 5 and w.table.cal.relax.kappa_q16 != 0
     assert w.table.blob == build_table(cal.B_model, cal.f, *cal.q_range, "mm", transition=cal.transition,
                                        relax=cal.relax).blob
     print("relaxed table errors", w.errors)

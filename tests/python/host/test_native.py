@@ -13,7 +13,9 @@ def test_layout_sizes_pinned_by_headers():
     assert ffi.sizeof("psp_frame_header_t") == 8
     assert ffi.sizeof("psp_table_chunk_t") == 236
     assert ffi.offsetof("pst_header_t", "pi") == 56 and ffi.sizeof("pst_pi_t") == 4  # layout v2
-    assert lib.PST_MAX_TABLE_SIZE == 80 + 3 * 4 * lib.PST_MAX_ENTRIES + 2 * 4 * lib.PST_MAX_OPS  # layout v4
+    assert lib.PST_MAX_TABLE_SIZE == 104 + 3 * 4 * lib.PST_MAX_ENTRIES + 2 * 4 * lib.PST_MAX_OPS  # layout v5
+    assert ffi.sizeof("pst_header_v5_t") == 104 and ffi.offsetof("pst_header_v5_t", "inst") == 80
+    assert ffi.sizeof("pst_instrument_t") == 24 and ffi.sizeof("pst_limits_t") == 28
 
 
 def test_crc_is_zlibs():

@@ -114,17 +114,17 @@ def relaxed():
     return tr, rl, TB.build_table(B, f, Q_MIN, Q_MAX, "mm", transition=tr, relax=rl)
 
 
-def test_table_is_layout_4(relaxed):
+def test_table_carries_the_relaxation(relaxed):
     tr, rl, tab = relaxed
     ffi, _ = core()
     hd = ffi.new("pst_header_v4_t *")
     ffi.memmove(hd, tab.blob, ffi.sizeof("pst_header_v4_t"))
-    assert hd.v3.base.layout_version == 4 and hd.v3.base.header_size == 80
+    assert hd.v3.base.layout_version == 5 and hd.v3.base.header_size == 104  # v4 fields, then the instrument
     assert (hd.relax.kappa_q16, hd.relax.lambda_q16) == R.table_fields(rl)
     assert tab.cal.relax.kappa_q16 == hd.relax.kappa_q16
-    # without a relaxation the same call writes the v2 table, byte for byte as before
+    # without a relaxation the same call writes kappa = 0: no relaxation stage
     plain = TB.build_table(B, f, Q_MIN, Q_MAX, "mm", transition=tr)
-    assert TB.header(plain.blob).layout_version == 2
+    assert TB.header(plain.blob).layout_version == 5 and plain.cal.relax.kappa_q16 == 0
 
 
 def test_fixed_point_against_the_double_chain(relaxed):

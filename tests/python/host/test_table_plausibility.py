@@ -2,7 +2,8 @@
 tables with a valid CRC and an intact structure but impossible physics are refused, by the
 host's check before a flash and by the board itself, each with its rule's reason code; and
 a random table with a valid CRC is accepted only when it obeys every rule, checked against
-a float64 re-statement of the rules written here from the header's documentation."""
+a float64 re-statement of the rules written here from the header's documentation (the good
+table is layout 5: its instrument block's rules apply too)."""
 
 from __future__ import annotations
 
@@ -55,17 +56,42 @@ def test_nonsense_refused_by_host_and_board(name, code, damage, good, tmp_path):
         link.close()
 
 
-def _plausible(q_min, q_max, step_q16, b, f) -> bool:
-    """The rules of ps_table.h in float64 units (mm or deg, deg)."""
+def _instrument(blob: bytes):
+    """The v5 header's instrument block (c_min, c_max, b_max, f_slope_max, f_inv_slope_max) as floats."""
+    ffi, _ = core()
+    h = ffi.new("pst_header_v5_t *")
+    ffi.memmove(h, blob[:ffi.sizeof("pst_header_v5_t")], ffi.sizeof("pst_header_v5_t"))
+    i = h.inst
+    return tuple(v / Q for v in (i.c_min_q16, i.c_max_q16, i.b_max_q16, i.f_slope_max_q16, i.f_inv_slope_max_q16))
+
+
+def _plausible(q_min, q_max, step_q16, b, f, inst=None) -> bool:
+    """The rules of ps_table.h in float64 units (mm or deg, deg); inst: a v5 table's instrument
+    block (_instrument), whose rules then apply too (the good table is in mm)."""
     travel = (q_max - q_min) / Q
     if travel < 1 / 16:
         return False
     if np.max(b) / Q > travel:
         return False
     fd = f / Q
-    if np.max(np.abs(fd)) > 360 or abs(fd[-1] - fd[0]) < 1:
+    step = step_q16 / Q
+    if np.max(np.abs(fd)) > 360 or abs(fd[-1] - fd[0]) < (1 if inst is None else 5):
         return False
-    return bool(np.max(np.abs(np.diff(fd))) / (step_q16 / Q) <= 360)
+    slopes = np.abs(np.diff(fd)) / step
+    if np.max(slopes) > 360:
+        return False
+    if inst is None:
+        return True
+    c_min, c_max, b_max, s_max, i_max = inst
+    if travel > 200 or c_max - c_min > 360 or not 0 < b_max <= travel / 2:
+        return False
+    unbounded = i_max == (2**31 - 1) / Q  # f^-1 beyond Q16.16: not bounded by the block
+    if not 0 < s_max <= min(360, 16 * (c_max - c_min) / travel) or \
+            not (0 < i_max <= 65536 * travel / (c_max - c_min) or unbounded):
+        return False
+    if np.max(b) / Q > b_max or np.min(fd) < c_min or np.max(fd) > c_max:
+        return False
+    return bool(np.max(slopes) <= s_max and (unbounded or np.min(slopes) * i_max >= 1))
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow,
@@ -102,9 +128,19 @@ def test_random_valid_crc_tables_pass_only_within_the_rules(good, data):
         return
     t = reseal(blob, q_range=q_range, b=b, f=f)
     st_ = _load(t)
-    ok = _plausible(*q_range, 0.25 * Q, b, f)
+    ok = _plausible(*q_range, 0.25 * Q, b, f, _instrument(blob))
     event(f"{'within' if ok else 'outside'} the rules, {'accepted' if st_ == lib.CALIB_OK else 'refused'}")
     if st_ == lib.CALIB_OK:
         assert ok, (q_range, b_level, f_scale, f_shape)
     if not ok:
         assert st_ != lib.CALIB_OK
+
+
+def test_micrometres_calibrated_as_millimetres_refused_by_tables():
+    """A session in micrometres read as millimetres: a 6000 "mm" travel and a 500 "mm" play. The
+    table is built (valid CRC, valid structure) and refused by the loader `tables` runs, naming
+    the rule and its numbers."""
+    from playscope.fit.table_build import TableError, build_table
+
+    with pytest.raises(TableError, match=r"CALIB_ERR_TRAVEL_UNIT: .*6000 mm against the limit 200 mm"):
+        build_table(lambda q: np.full(np.shape(q), 500.0), lambda q: 0.01 * np.asarray(q), -3000.0, 3000.0, "mm")

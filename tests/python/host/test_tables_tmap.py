@@ -37,12 +37,13 @@ def mapped():
     return tr, tab
 
 
-def test_map_is_written_as_layout_3(mapped):
+def test_map_is_written_in_the_header(mapped):
     tr, tab = mapped
     ffi, lib = core()
     hd = ffi.new("pst_header_v3_t *")
     ffi.memmove(hd, tab.blob, ffi.sizeof("pst_header_v3_t"))
-    assert hd.base.layout_version == 3 and hd.base.header_size == 72
+    # The host writes layout 5 (the instrument block after the v4 fields); the map sits where v3 put it.
+    assert hd.base.layout_version == 5 and hd.base.header_size == 104
     # As many entries as the other grids allow (PST_MAX_ENTRIES, power-of-two step).
     assert hd.base.b.n // 2 < hd.tmap.n <= lib.PST_MAX_ENTRIES and tab.has_map and tab.n_ops == tr.n
     # The map grid covers the play centre's range: the travel widened by max B / 2.
@@ -50,9 +51,9 @@ def test_map_is_written_as_layout_3(mapped):
     assert hd.tmap.x0_q16 + (hd.tmap.n - 1) * hd.tmap.step_q16 >= int((Q_MAX + 0.3) * 65536)
     # L = max dz/du = max B / b_ref (b_ref the median of B on the map's grid): about 4/3 here.
     assert 1.2 < tab.cal.tmap_inv_lip_q16 / 65536 < 1.5
-    # Without the map the same transition stays a layout-2 table.
+    # Without the map the same transition writes no map grid.
     tab2 = TB.build_table(B, f, Q_MIN, Q_MAX, "mm", transition=transition(with_map=False))
-    assert TB.header(tab2.blob).layout_version == 2 and not tab2.has_map
+    assert TB.header(tab2.blob).layout_version == 5 and not tab2.has_map
 
 
 def test_fixed_point_against_the_float_chain(mapped):

@@ -204,7 +204,7 @@ def test_v2_table_round_trip_through_the_c_loader():
     B, f, tr = _fixture_model()
     tab = TB.build_table(B, f, -3.0, 3.0, "mm", transition=tr)
     hd = TB.header(tab.blob)
-    assert hd.layout_version == 2 and hd.pi.n == tr.n == tab.n_ops
+    assert hd.layout_version == 5 and hd.pi.n == tr.n == tab.n_ops
     raw = np.frombuffer(tab.blob[hd.pi.offset:hd.pi.offset + 8 * tr.n], "<i4")
     assert np.array_equal(raw[:tr.n], to_q16(tr.r))
     assert raw[tr.n:].sum() == 65536 and np.max(np.abs(from_q16(raw[tr.n:]) - tr.w)) <= 2 / 65536

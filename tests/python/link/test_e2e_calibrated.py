@@ -123,7 +123,7 @@ def test_qemu_runs_a_layout_3_table_bit_for_bit(tmp_path):
     tr = Transition(thresholds(8, 0.8), np.r_[0.4, np.full(7, 0.6 / 7)], 1.0,
                     ThresholdMap.from_backlash(B, -5.3, 5.3))
     blob = T.build_table(B, f, -5.0, 5.0, "mm", transition=tr).blob
-    assert T.header(blob).layout_version == 3
+    assert T.header(blob).layout_version == 5 and T.CalibTable(blob).has_map
     sent, q_host = _host_run(blob)
     assert _qemu_flash_and_compensate(blob, sent) == q_host
 
@@ -140,6 +140,6 @@ def test_qemu_runs_a_layout_4_table_bit_for_bit(tmp_path):
     tr = Transition(thresholds(8, 0.8), np.r_[0.4, np.full(7, 0.6 / 7)], 1.0,
                     ThresholdMap.from_backlash(B, -5.3, 5.3))
     blob = T.build_table(B, f, -5.0, 5.0, "mm", transition=tr, relax=Relaxation(0.4, 0.3)).blob
-    assert T.header(blob).layout_version == 4
+    assert T.header(blob).layout_version == 5 and T.CalibTable(blob).cal.relax.kappa_q16 != 0
     sent, q_host = _host_run(blob)
     assert _qemu_flash_and_compensate(blob, sent) == q_host

@@ -134,15 +134,26 @@ def test_usb_emulated_nothing_sent(tmp_path):
 
 
 def test_generation_counter_at_maximum(tmp_path):
-    from playscope.board.link import Link as L
+    """The board refuses generation 0xFFFFFFFF (it steps by 1..16); a board an older firmware left
+    there is refused by the host before any upload request (test_board_guard.py: its recovery)."""
+    from playscope.board.link import DeviceError, Link as L
+
+    from .test_board_guard import _exhausted_image
 
     link = L(virtual_transport(tmp_path / "flash.bin"))
     try:
-        link.upload_table(builtin_table(generation=0xFFFFFFFF))
+        with pytest.raises(DeviceError, match="generation not the next one"):
+            link.upload_table(builtin_table(generation=0xFFFFFFFF))
+        assert link.info()["active_generation"] == 0
+    finally:
+        link.close()
+    _exhausted_image(tmp_path / "old.bin", builtin_table())
+    link = L(virtual_transport(tmp_path / "old.bin"))
+    try:
         n0 = link.n_requests
-        with pytest.raises(RuntimeError, match="generation counter is at its maximum"):
+        with pytest.raises(RuntimeError, match="generation counter is at its end"):
             flash(link, builtin_table(), 5, log=lambda *_: None)
-        assert link.n_requests == n0 + 1  # only the INFO that read the counter
+        assert link.n_requests == n0 + 2  # only the BOARD and INFO that read the limits and the counter
     finally:
         link.close()
 

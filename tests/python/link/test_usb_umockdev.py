@@ -45,7 +45,7 @@ def test_usb_emulated_flash_readback_compensator(tmp_path):
     assert out["info"]["proto_version"] == 1
     assert out["info"]["board_id"].startswith("56495254")  # the virtual board behind the USB device
     assert out["flash"]["generation"] == 1 and out["flash"]["slot"] == "A"
-    assert out["readback_identical"] and out["bytes"] == 2108
+    assert out["readback_identical"] and out["bytes"] == 2152  # the built-in table, layout 5
     assert out["comp_steps"] == 300 and out["comp_mismatches"] == 0
     assert out["replay_error"] == 4  # PSP_ERR_SEQ
     from playscope.fit.pacing import pace_v_q32
