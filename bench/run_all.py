@@ -492,6 +492,15 @@ def main(argv=None) -> int:
                       "mean <= 0.8 x, and every file <=, the constant play with the same learner",
                       f"constant play of data_2_1 + the same learner {per(ref_b)}; {ref_b[-2]} ({ref_b[-1]}) deg",
                       "bench/transfer_real.py"))
+        # Ours against the textbook peers calibrated on the same record and given the same learner (both catheter sets).
+        for cal_on, block in re.findall(r"\*\*Calibrated on (data_\d_\d), (.*?)(?=\n\*\*|\Z)", out, re.S):
+            m = re.search(r"Ours with the transition \+ the board's offset and gain learner: mean ([\d.]+) deg; best peer "
+                          r"given the same, (.*?): ([\d.]+) deg; ours <= every peer: (\w+)", block)
+            if m:
+                table.append((f"catheter calibrated on {cal_on}, run on the other records of its set: transition + the "
+                              "board's learner against every textbook peer (generalized / modified PI and their invertible "
+                              "forms) given the same learner, mean", f"{m.group(1)} deg (ours <= every peer: {m.group(4)})",
+                              "<= every peer", f"best peer, {m.group(2)}: {m.group(3)} deg", "bench/transfer_real.py"))
         pairs = re.search(r"transferred with transition \+ the board's offset and gain learner / in situ: (.*)", out)
         if pairs:
             table.append(("endoscope development pairs (calibrated in one sheath configuration, run in another): "
