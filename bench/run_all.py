@@ -138,6 +138,7 @@ PART_TIME = (
     ("real data", "~0.5 min"),
     ("in-situ real data", "~1.5-4 min (two instruments, four splits)"),
     ("memoryless term", "~2.5 min (development files, two splits)"),
+    ("choice across regimes", "~2 min (development files, two splits)"),
     ("on-line update", "~1.5 min (includes a second bench_firmware.sh)"),
     ("transfer", "~4 min (every endoscope pair, the ceilings of each learner)"),
     ("no regression with the learner on", "~1 min (reuses the main job's folder)"),
@@ -452,6 +453,23 @@ def main(argv=None) -> int:
                               "bench/memoryless_members.py --families"))
 
     part("memoryless term", memoryless)
+
+    # -- can a criterion on the calibration part see the judged part's winner (bench/choice_regimes.py; docs/method.md)
+    def regimes():
+        out = sh([PY, "bench/choice_regimes.py", "--splits", "0.5,0.75"])
+        for inst, fr, short, n, cv, last, ins, orc, ours in re.findall(
+                r"\n(\w+), split ([\d.]+): judged strokes all shorter than every calibration stroke on (\d+) of (\d+); the "
+                r"pick is the oracle's on (\d+) \(CV\), (\d+) \(last fold\), (\d+) \(in sample\) of \d+; oracle within "
+                r"1.1 x the best row on (\d+) of \d+, ours on (\d+) of \d+", out):
+            table.append((f"{inst} (development files), split {fr}: ours within 1.1 x the best row of its in-situ table; "
+                          "the oracle over the families (best judged family)",
+                          f"ours on {ours} of {n}; oracle on {orc} of {n}",
+                          "every file, or measured why no criterion on the calibration part gets there",
+                          f"criteria picking the oracle's family: CV {cv}, last fold {last}, in sample {ins} of {n}; "
+                          f"judged strokes all shorter than the calibration part's on {short} of {n}",
+                          "bench/choice_regimes.py"))
+
+    part("choice across regimes", regimes)
 
     # -- on-line update during use (bench/online_real.py; docs/online.md)
     def online_real():
