@@ -56,6 +56,7 @@ import numpy as np
 
 from .bspline import SplineFn, clamped_knots, robust_spline
 from .reversals import detect_reversals
+from . import model
 from . import transition as T
 
 RELAX_FIT_SAMPLES = 20000  # the relaxation's (kappa, lambda) search runs on at most this many path samples
@@ -65,7 +66,7 @@ MIN_TRAIN_FRAMES, MIN_TEST_FRAMES = 10, 3  # a fold with fewer is skipped (as tr
 SWING_HYSTERESIS = 0.01  # thin records' swings: reversals of q with this fraction of its span (as largest_excursion)
 MIN_SWING_FOLDS = 2  # a thin record with fewer swing folds (swing_splits) keeps const_play outright
 PI_FEW_OPS = 4  # pi_few's operators: a handful the two or three strokes of a thin record can tell apart
-VAR_PLAY_GRID, VAR_PLAY_LEVELS = 3, 3  # var_play's nested grids: 2 x 3 + 1 values a side per level
+VAR_PLAY_GRID, VAR_PLAY_LEVELS = 3, 2  # var_play's nested grids: 2 x 3 + 1 values a side per level
 
 
 @dataclass
@@ -276,8 +277,18 @@ def fit_var_play(ctx: Context, train=None) -> Member:
     span = float(qf.max() - qf.min())
     zsc, q0 = max(span, 1e-12), float(qf.min())
 
+    order, x = ctx.data._reduced()
+    n_f = ctx.data.t_frame.size
+
     def centre(b_lo, b_hi):
-        return ctx.data.with_B(linear_spline(b_lo, b_hi, lo, hi)).ops_at_frames(np.zeros(1))[:, 0]
+        # The play centre at the frames (as FitData.z_reduced, from q_enc[0] on the reduced path),
+        # its edges in closed form for B(z) = a + k z: z + B(z)/2 = q going up, z - B(z)/2 = q down.
+        k = (b_hi - b_lo) / max(hi - lo, 1e-12)
+        a = b_lo - k * lo
+        z = model.play_on_edges((x - 0.5 * a) / (1 + 0.5 * k), (x + 0.5 * a) / (1 - 0.5 * k), float(ctx.data.q_enc[0]))
+        out = np.empty_like(z)
+        out[order] = z
+        return out[z.size - n_f:]
 
     def cost(b_lo, b_hi):
         z = centre(b_lo, b_hi)[msk]
