@@ -278,9 +278,9 @@ def format_transfer(doc: dict) -> str:
     lines.append("")
     for u, ul in UPDATES:
         c = doc.get("peers_vs_ours", peer_comparison(doc))[u]
-        lines.append(f"Ours with the transition {ul}: mean {c['ours_mean']:.2f} deg; best peer given the same, "
+        lines.append(f"Ours with the transition {ul}: mean {c['ours_mean']:.3f} deg; best peer given the same, "
                      f"{doc['labels'][c['best_peer']].split(' of the calibration record')[0]}: "
-                     f"{c['peers'][c['best_peer']]:.2f} deg; ours <= every peer: {'yes' if c['ours_le_every_peer'] else 'NO'}")
+                     f"{c['peers'][c['best_peer']]:.3f} deg; ours <= every peer: {'yes' if c['ours_le_every_peer'] else 'NO'}")
     return "\n".join(lines + [""])
 
 

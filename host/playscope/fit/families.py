@@ -36,8 +36,10 @@ transition.choose_model). Thin records (fewer than MIN_REVERSALS_CHOICE directio
 the calibration part: the rolling origins would give one stroke or less per fold) are scored
 instead on swing folds (swing_splits: each half of every swing from the third on, forecast from
 the frames before it), and the one-SE rule starts from const_play, the model a user would fit
-by hand: another family is kept only when const_play's CV is more than one SE above the best;
-with fewer than MIN_SWING_FOLDS folds (no third swing yet) const_play is kept outright. On the
+by hand: another family is kept only when const_play's CV is more than one SE above the best,
+and then the one with the lowest swing CV (not the first by parameter count: the onset families'
+B rests on one to three onset samples there); with fewer than MIN_SWING_FOLDS folds (no third
+swing yet) const_play is kept outright. On the
 development endoscope records (2-3 reversals per calibration part, ~50 frames)
 leave-one-swing-out folds (train before and after the held-out swing) picked worse than this:
 with one branch direction missing from the training part, the PI forms extrapolate (30.txt at
@@ -626,6 +628,11 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
         best = min(scored, key=lambda r: r["cv_rmse_deg"])
         limit = best["cv_rmse_deg"] + best["cv_se_deg"]
         first = next(r for r in scored if r["cv_rmse_deg"] <= limit)
+        if thin and first["family"] != FALLBACK:
+            # Thin records: once the hand model is out, the lowest swing CV. The order by parameters
+            # fitted to c is no guide there: the onset families' B rests on one to three onset
+            # samples, no better known than a fitted width (docs/method.md, "Thin records").
+            first = best
         order = [first["family"]] + [r["family"] for r in sorted(scored, key=lambda r: r["cv_rmse_deg"]) if r is not first]
     if not order or (thin and len(splits) < MIN_SWING_FOLDS):
         order = [FALLBACK] + [n for n in order if n != FALLBACK]

@@ -488,3 +488,24 @@ def test_relaxed_calibration_through_playscope_tables(relaxed_cal, tmp_path):
     print("relaxed table errors", w.errors)
     # measured 2.9e-4 deg and 4.3e-5 mm (the compensator compared within a tick, tables.table_errors)
     assert w.errors["direct_c_deg_max"] < 3e-3 and w.errors["comp_q_max"] < 1e-3
+
+
+def test_thin_rule_takes_the_lowest_swing_cv_once_the_hand_model_is_out(pi_context, monkeypatch):
+    # The rule alone, on planted swing-CV rows (the conf0_60 endoscope record's at split 0.5, deg):
+    # the constant play is more than one SE above the best, and the onset play, first by parameter
+    # count, is within one SE of it but not the lowest. Thin: the lowest is kept; not thin: the
+    # one-SE rule's first by parameter count.
+    cv = {"onset_play": (1.868, 0.347), "const_play": (2.149, 0.294), "pi_const": (1.586, 0.360)}
+
+    def planted(ctx, fam, splits, source=None):
+        m, s = cv.get(fam.name, (None, None))
+        return {"family": fam.name, "label": fam.label, "cv_rmse_deg": m, "cv_se_deg": s, "folds": 4,
+                "refused": None if m is not None else "not planted"}
+
+    monkeypatch.setattr(FAM, "score", planted)
+    fams = [f for f in FAM.FAMILIES if f.name in cv]
+    assert FAM.choose(pi_context, 2, fams)[1]["family"] == "pi_const"
+    assert FAM.choose(pi_context, 10, fams)[1]["family"] == "onset_play"
+    # The hand model within one SE of the best stays, thin.
+    cv["const_play"] = (1.9, 0.3)
+    assert FAM.choose(pi_context, 2, fams)[1]["family"] == "const_play"
