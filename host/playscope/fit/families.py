@@ -22,6 +22,10 @@ monotone f (f table, eq. 9). They differ in what B is and in whether operators a
                     (playscope.fit.relax) on the transition's output before f (with_relaxation;
                     layout-4 tables), after every family without it in the rule's order
 
+  var_play, pi_few   thin records only (THIN_FAMILIES): a play whose width varies linearly over
+                    the travel + smooth monotone f (offered, THIN_OFFERED), and pi_const with
+                    PI_FEW_OPS operators (measured, not offered: docs/method.md, "Thin records")
+
 The registry FAMILIES is the single list the choice runs; one more family is one more entry
 (a name, a label and fit(ctx, train) -> Member).
 
@@ -271,7 +275,8 @@ def fit_var_play(ctx: Context, train=None) -> Member:
     q = z - a_down(z) are those of a play of width a_up + a_down about z' = z + (a_up - a_down)/2,
     and f absorbs z -> z'), so the table's symmetric B(q) carries it. (b_lo, b_hi) by nested
     grids about the constant play's width (VAR_PLAY_GRID points a side, VAR_PLAY_LEVELS levels);
-    the play runs on the record's reduced path from its start (FitData.ops_at_frames)."""
+    the play runs on the record's reduced path from its start (as FitData.z_reduced, its edges in
+    closed form for a linear B; test_families checks the member's table against its float model)."""
     msk = _all(ctx, train)
     qf, c = ctx.q_frames()[msk], ctx.data.c[msk]
     w0, _, _ = constant_play_lsq(qf, c)
