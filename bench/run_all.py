@@ -428,6 +428,15 @@ def main(argv=None) -> int:
             r = json.loads(Path(f"{tmp}/i.json").read_text())
         # ours / best peer per instrument and split, geometric mean beside the worst file
         table.extend(insitu_rows(r, printed))
+        for key, summ in r.get("summary", {}).items():  # the invertible peers and the best row, per split
+            dv = summ.get("development")
+            if dv and "ours_le_best_invertible_files" in dv:
+                inst, split = key.split("@")
+                table.append((f"in situ, {inst} (development files), split {split}: ours <= the best invertible peer; "
+                              "ours within 1.1 x the best row", f"{dv['ours_le_best_invertible_files']} of {dv['files']}; "
+                              f"{dv['ours_within_best_files']} of {dv['files']} files",
+                              "every file", f"ours <= constant play + poly5 on {dv['ours_le_const_play_files']} of "
+                              f"{dv['files']}", "bench/insitu_real.py"))
         c, acc = "bench/insitu_real.py", r["acceptance"]
         files = list(r["in_situ"])
         per_file = lambda m: " / ".join(f"{r['in_situ'][f][m]:.2f}" for f in files)
