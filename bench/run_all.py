@@ -138,6 +138,7 @@ PART_TIME = (
     ("real data", "~0.5 min"),
     ("in-situ real data", "~1.5-4 min (two instruments, four splits)"),
     ("memoryless term", "~2.5 min (development files, two splits)"),
+    ("choice across regimes", "~2 min (development files, two splits)"),
     ("on-line update", "~1.5 min (includes a second bench_firmware.sh)"),
     ("transfer", "~4 min (every endoscope pair, the ceilings of each learner)"),
     ("no regression with the learner on", "~1 min (reuses the main job's folder)"),
@@ -427,6 +428,15 @@ def main(argv=None) -> int:
             r = json.loads(Path(f"{tmp}/i.json").read_text())
         # ours / best peer per instrument and split, geometric mean beside the worst file
         table.extend(insitu_rows(r, printed))
+        for key, summ in r.get("summary", {}).items():  # the invertible peers and the best row, per split
+            dv = summ.get("development")
+            if dv and "ours_le_best_invertible_files" in dv:
+                inst, split = key.split("@")
+                table.append((f"in situ, {inst} (development files), split {split}: ours <= the best invertible peer; "
+                              "ours within 1.1 x the best row", f"{dv['ours_le_best_invertible_files']} of {dv['files']}; "
+                              f"{dv['ours_within_best_files']} of {dv['files']} files",
+                              "every file", f"ours <= constant play + poly5 on {dv['ours_le_const_play_files']} of "
+                              f"{dv['files']}", "bench/insitu_real.py"))
         c, acc = "bench/insitu_real.py", r["acceptance"]
         files = list(r["in_situ"])
         per_file = lambda m: " / ".join(f"{r['in_situ'][f][m]:.2f}" for f in files)
@@ -452,6 +462,23 @@ def main(argv=None) -> int:
                               "bench/memoryless_members.py --families"))
 
     part("memoryless term", memoryless)
+
+    # -- can a criterion on the calibration part see the judged part's winner (bench/choice_regimes.py; docs/method.md)
+    def regimes():
+        out = sh([PY, "bench/choice_regimes.py", "--splits", "0.5,0.75"])
+        for inst, fr, short, n, cv, last, ins, orc, ours in re.findall(
+                r"\n(\w+), split ([\d.]+): judged strokes all shorter than every calibration stroke on (\d+) of (\d+); the "
+                r"pick is the oracle's on (\d+) \(CV\), (\d+) \(last fold\), (\d+) \(in sample\) of \d+; oracle within "
+                r"1.1 x the best row on (\d+) of \d+, ours on (\d+) of \d+", out):
+            table.append((f"{inst} (development files), split {fr}: ours within 1.1 x the best row of its in-situ table; "
+                          "the oracle over the families (best judged family)",
+                          f"ours on {ours} of {n}; oracle on {orc} of {n}",
+                          "every file, or measured why no criterion on the calibration part gets there",
+                          f"criteria picking the oracle's family: CV {cv}, last fold {last}, in sample {ins} of {n}; "
+                          f"judged strokes all shorter than the calibration part's on {short} of {n}",
+                          "bench/choice_regimes.py"))
+
+    part("choice across regimes", regimes)
 
     # -- on-line update during use (bench/online_real.py; docs/online.md)
     def online_real():
@@ -492,6 +519,15 @@ def main(argv=None) -> int:
                       "mean <= 0.8 x, and every file <=, the constant play with the same learner",
                       f"constant play of data_2_1 + the same learner {per(ref_b)}; {ref_b[-2]} ({ref_b[-1]}) deg",
                       "bench/transfer_real.py"))
+        # Ours against the textbook peers calibrated on the same record and given the same learner (both catheter sets).
+        for cal_on, block in re.findall(r"\*\*Calibrated on (data_\d_\d), (.*?)(?=\n\*\*|\Z)", out, re.S):
+            m = re.search(r"Ours with the transition \+ the board's offset and gain learner: mean ([\d.]+) deg; best peer "
+                          r"given the same, (.*?): ([\d.]+) deg; ours <= every peer: (\w+)", block)
+            if m:
+                table.append((f"catheter calibrated on {cal_on}, run on the other records of its set: transition + the "
+                              "board's learner against every textbook peer (generalized / modified PI and their invertible "
+                              "forms) given the same learner, mean", f"{m.group(1)} deg (ours <= every peer: {m.group(4)})",
+                              "<= every peer", f"best peer, {m.group(2)}: {m.group(3)} deg", "bench/transfer_real.py"))
         pairs = re.search(r"transferred with transition \+ the board's offset and gain learner / in situ: (.*)", out)
         if pairs:
             table.append(("endoscope development pairs (calibrated in one sheath configuration, run in another): "

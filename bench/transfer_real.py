@@ -2,7 +2,10 @@
 prints the transfer tables and the table of what drifts (docs/online.md, "Calibrated once,
 used elsewhere").
 
-- Catheter: calibrated on data_2_1, run on data_2_2..5 (sessions).
+- Catheter: calibrated on data_2_1, run on data_2_2..5 (the zero-baseline set), and calibrated on
+  data_1_1, run on data_1_2 (the non-zero-baseline set): ours and the textbook peers (generalized
+  and modified PI and their invertible forms) calibrated on the same record, each as is and with
+  the same refresh and the same board learner.
 - Endoscope development files only (30, 60, 120 deg and conf0_60): calibrated on 60.txt (the
   middle of the short records' configurations), run on each other. The other endoscope files
   are set aside and never read here.
@@ -18,8 +21,8 @@ used elsewhere").
 - What drifts: every record calibrated in situ on its whole length, compared with the
   calibration record.
 
-Usage: .venv/bin/python bench/transfer_real.py [DATA_REAL] [--warmup F] [--json OUT] [--plot-dir DIR]
-(about 4 min)
+Usage: .venv/bin/python bench/transfer_real.py [DATA_REAL] [--warmup F] [--json OUT] [--plot-dir DIR] [--tables-only]
+(about 4 min; --tables-only: the three transfer tables alone, about 1 min)
 """
 
 from __future__ import annotations
@@ -44,7 +47,8 @@ def main(argv=None) -> int:
     p.add_argument("real", nargs="?", default=str(DEFAULT if DEFAULT.is_dir() else Path("/work/shared/data/real")))
     p.add_argument("--warmup", type=float, default=WARMUP, help=f"fraction before scoring (default {WARMUP})")
     p.add_argument("--json", help="also write every result here")
-    p.add_argument("--plot-dir", help="write transfer_catheter.png and transfer_endoscope.png here")
+    p.add_argument("--plot-dir", help="write transfer_catheter.png, transfer_catheter_1.png and transfer_endoscope.png here")
+    p.add_argument("--tables-only", action="store_true", help="only the transfer tables (catheter both sets, endoscope)")
     a = p.parse_args(argv)
     cath, endo = Path(a.real) / "catheter", Path(a.real) / "endoscope"
     if not cath.is_dir() or not endo.is_dir():
@@ -52,15 +56,25 @@ def main(argv=None) -> int:
         return 2
     t0 = time.perf_counter()
     cf = sorted(cath.glob("data_2_*.txt"))
+    cf1 = sorted(cath.glob("data_1_*.txt"))
     ef = [endo / f"{n}.txt" for n in ENDOSCOPE_DEV]
     ecal = endo / f"{ENDOSCOPE_CAL}.txt"
-    out = {"catheter": evaluate_transfer(cf[0], cf[1:], a.warmup),
-           "endoscope": evaluate_transfer(ecal, [f for f in ef if f != ecal], a.warmup)}
-    for k in ("catheter", "endoscope"):
+    out = {"catheter": evaluate_transfer(cf[0], cf[1:], a.warmup)}
+    if len(cf1) > 1:
+        out["catheter_1"] = evaluate_transfer(cf1[0], cf1[1:], a.warmup)
+    out["endoscope"] = evaluate_transfer(ecal, [f for f in ef if f != ecal], a.warmup)
+    for k in ("catheter", "catheter_1", "endoscope"):
+        if k not in out:
+            continue
         print(format_transfer(out[k]))
         if a.plot_dir:
             Path(a.plot_dir).mkdir(parents=True, exist_ok=True)
             plot_transfer(out[k], Path(a.plot_dir) / f"transfer_{k}.png")
+    if a.tables_only:
+        print(f"({time.perf_counter() - t0:.1f} s)")
+        if a.json:
+            Path(a.json).write_text(json.dumps(out, indent=1, default=float))
+        return 0
     # Every development configuration as the calibration one (the table above takes 60 deg).
     pairs = {c.stem: evaluate_transfer(c, [f for f in ef if f != c], a.warmup) for c in ef}
     out["endoscope_pairs"] = pairs

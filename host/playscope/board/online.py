@@ -345,12 +345,17 @@ def const_play_insitu(s, t_split: float) -> np.ndarray:
     return model.direct_model(q, Bc, fp)
 
 
-def const_play_ref(s_ref, fps: float):
-    """Constant play + poly5 fitted on the whole reference session (frames at fps, as the
-    chain's): (B, f) for model.direct_model."""
+def reference_frames(s_ref, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The (q, c) frames of the whole reference session the reference peers are fitted on: the
+    angle block-averaged at fps (the chain's frame rate), q at each frame's time."""
     t_f, c_f = frames_from_angle(s_ref.distal["t_s"], s_ref.distal["c_deg"], fps)
-    q_c, c_c = characteristic(s_ref.encoder["t_s"], s_ref.encoder["q"], t_f, c_f, 0.0)
-    _, fp, Bc = fit_constant_play(q_c, c_c)
+    return characteristic(s_ref.encoder["t_s"], s_ref.encoder["q"], t_f, c_f, 0.0)
+
+
+def const_play_ref(s_ref, fps: float):
+    """Constant play + poly5 fitted on the whole reference session (reference_frames): (B, f)
+    for model.direct_model."""
+    _, fp, Bc = fit_constant_play(*reference_frames(s_ref, fps))
     return Bc, fp
 
 

@@ -10,8 +10,10 @@ from .common import add_command, add_json_arg, dump_json, load_session_noted, pr
 DESCRIPTION = """\
 Fits, on the part of SESSION before the split only: linear, constant play + poly5, the paper's
 method (onset B + morphological f_remain), onset B + least-squares f_remain, generalized
-Prandtl-Ishlinskii (16 play operators, weights >= 0, + cubic in q), Bouc-Wen, and ours with the
-transition. Every model then runs over the whole record from its first sample (a board that has
+Prandtl-Ishlinskii (16 play operators, weights >= 0, + cubic in q) and the same with its cubic held
+increasing, Bouc-Wen, modified Prandtl-Ishlinskii (16 play operators + output spline) and the same
+with its output monotone (the two invertible forms), and ours (the model family chosen by
+cross-validation through the tables). Every model then runs over the whole record from its first sample (a board that has
 been running all along) and is scored on the part after the split: bending-angle RMSE and max
 (deg), one Markdown table. Rows the board runs go through the firmware's fixed-point tables.
 """

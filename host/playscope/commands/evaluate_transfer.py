@@ -12,7 +12,9 @@ Calibrates the pure play and ours with the transition on the whole of CAL, runs 
 them from its first sample and scores it after the warm-up: in situ (each record calibrated on its
 own warm-up part, the reference), transferred as is, transferred with each on-line update (the
 board's RLS on B, the host's offset refresh, both, the host's offset and gain refresh, the board's
-offset and gain learner), and a constant play + poly5 of CAL as is and with the same updates. Records: catheter CSV files (data_2_*.txt) or endoscope files (headerless,
+offset and gain learner), and the textbook peers fitted on CAL (constant play + poly5, generalized
+and modified Prandtl-Ishlinskii and their invertible forms) as is and with the same updates; the
+lines under the table say whether ours is at or below every peer given the same update. Records: catheter CSV files (data_2_*.txt) or endoscope files (headerless,
 q = commanded angle). One Markdown table (bending-angle RMSE, deg); --plot writes RMSE against the
 configuration angle. Default warm-up {WARMUP}: the first half, the only split leaving every endoscope
 record two reversals to calibrate on in situ.

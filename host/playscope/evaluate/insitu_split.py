@@ -16,6 +16,9 @@ through Session.slice_time) and scored on exactly the same test part (t >= t_spl
   bouc_wen    Bouc-Wen, n = 1, scipy.optimize.least_squares (playscope.fit.peers.BoucWen), double
   mpi         modified Prandtl-Ishlinskii: 16 play operators (w >= 0) then a monotone-free output
               spline, by variable projection (playscope.fit.peers.ModifiedPI), double precision
+  gpi_inc     the generalized PI with its cubic held increasing (peers.IncreasingGPI): invertible
+  mpi_inc     the modified PI with its output spline monotone (ModifiedPI(monotone=True)): invertible,
+              the pi_const family in double precision
   ours        the model family chosen inside the calibration part (playscope.fit.families: onset play,
               onset B + transition, generalized PI made invertible, constant play + poly5, by
               rolling-origin CV through the tables), fixed-point tables
@@ -39,11 +42,13 @@ from ..fit.reversals import frames_from_angle
 from ..fit import model
 from ..fit.calibration import calibrate
 from ..base.errors import InputError
-from ..fit.peers import BoucWen, GeneralizedPI, ModifiedPI
+from ..fit.peers import BoucWen, GeneralizedPI, IncreasingGPI, ModifiedPI
 from ..io.session import Session
 
 FORMAT = "playscope-insitu/1"
-ROWS = ["linear", "const_play", "paper", "onset_lsq", "gpi", "bouc_wen", "mpi", "ours"]
+ROWS = ["linear", "const_play", "paper", "onset_lsq", "gpi", "gpi_inc", "bouc_wen", "mpi", "mpi_inc", "ours"]
+# The rows whose model has an inverse a compensator can run (the peers' invertible forms among them).
+INVERTIBLE = ("linear", "paper", "onset_lsq", "gpi_inc", "mpi_inc")
 LABELS = {
     "linear": "linear (c = a q + b)",
     "const_play": "constant play + poly5",
@@ -52,6 +57,8 @@ LABELS = {
     "gpi": "generalized PI: 16 plays (w >= 0) + cubic, lsq_linear",
     "bouc_wen": "Bouc-Wen (n = 1), least_squares",
     "mpi": "modified PI: 16 plays (w >= 0) + output spline",
+    "gpi_inc": "generalized PI, cubic held increasing (invertible)",
+    "mpi_inc": "modified PI, output monotone (invertible)",
     "ours": "ours: model family chosen by CV through the tables",
 }
 MIN_PART_S = 1.0  # a part shorter than this cannot hold a reversal cycle of any instrument
@@ -199,11 +206,18 @@ def fit_rows(s: Session, t_split: float, progress=lambda it, **kw: it, source: s
         m = ModifiedPI.fit(*state["qc"])
         rows["mpi"] = Row("mpi", False, m.predict, m.params())
 
+    def invertible():
+        m = IncreasingGPI.fit(*state["qc"])
+        rows["gpi_inc"] = Row("gpi_inc", False, m.predict, m.params())
+        m = ModifiedPI.fit(*state["qc"], monotone=True)
+        rows["mpi_inc"] = Row("mpi_inc", False, m.predict, m.params())
+
     def ours():
         rows["ours"] = fit_ours(cal_s, state["cal"], *state["qc"], source=src)
 
     steps = [("calibrate (onsets, B, transition choice, f_remain)", chain), ("linear, constant play", baselines),
              ("fixed-point tables", tables), ("generalized PI", gpi), ("Bouc-Wen", bouc_wen), ("modified PI", mpi),
+             ("the peers' invertible forms", invertible),
              ("ours: the chosen family", ours)]
     bar = progress(steps, desc="fit", total=len(steps))
     for label, fn in bar:

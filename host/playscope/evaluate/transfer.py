@@ -30,6 +30,12 @@ ceiling for the morphological f_remain, so the transfer protocol does not go thr
                      the board's offset and gain learner instead (firmware/core/f_online.c
                      through cffi, online.board_f_refreshed: fixed point, forgetting, a publish
                      every refresh period's worth of frames), settings by online.f_config_from
+  <peer>_ref, <peer>_ref_offset, <peer>_ref_affine, <peer>_ref_board
+                     each textbook peer of PEERS (generalized PI, the same with its cubic held
+                     increasing, modified PI, the same with its output monotone) fitted on the
+                     calibration record's frames (online.reference_frames, as const_play_ref),
+                     as is and with ours' three updates, same settings; peer_comparison puts
+                     ours (the transition rows) against them on the mean
 
 Drift measurement (`drift`): each record calibrated in situ on its whole length; its
 parameters compared with the calibration record's over the travel both saw.
@@ -57,12 +63,24 @@ from ..fit import transition as T
 from ..fit.calibration import calibrate
 from ..base.errors import InputError
 from ..io.importer import read_record
+from ..fit.peers import GeneralizedPI, IncreasingGPI, ModifiedPI
 from .insitu_split import calibration_frames
 
 FORMAT = "playscope-transfer/1"
+# Textbook peers calibrated on the same record (its frames, as const_play_ref) and given the same
+# updates as ours (transition_*): (key, label, fit(q, c) -> object with predict(q)).
+PEERS = [
+    ("gpi", "generalized PI (16 plays + cubic)", lambda q, c: GeneralizedPI.fit(q, c)),
+    ("gpi_inc", "generalized PI, cubic held increasing (invertible)", lambda q, c: IncreasingGPI.fit(q, c)),
+    ("mpi", "modified PI (16 plays + output spline)", lambda q, c: ModifiedPI.fit(q, c)),
+    ("mpi_inc", "modified PI, output monotone (invertible: pi_const)", lambda q, c: ModifiedPI.fit(q, c, monotone=True)),
+]
+UPDATES = [("", "as is"), ("_offset", "+ offset refresh"), ("_affine", "+ offset and gain refresh"),
+           ("_board", "+ the board's offset and gain learner")]
+PEER_ROWS = [f"{k}_ref{u}" for k, _, _ in PEERS for u, _ in UPDATES]
 ROWS = ["in_situ", "in_situ_affine", "in_situ_const_play", "static", "static_transition", "online_b_only", "online_offset_only",
         "online", "transition_offset", "const_play_ref", "const_play_ref_offset", "static_affine", "transition_affine",
-        "const_play_ref_affine", "in_situ_board", "static_board", "transition_board", "const_play_ref_board"]
+        "const_play_ref_affine", "in_situ_board", "static_board", "transition_board", "const_play_ref_board"] + PEER_ROWS
 LABELS = {
     "in_situ": "in situ: ours (transition) fitted on the record's own warm-up (reference)",
     "in_situ_affine": "in situ: the same + offset and gain refresh (no drift to learn)",
@@ -82,6 +100,7 @@ LABELS = {
     "static_board": "transferred + the board's offset and gain learner",
     "transition_board": "transferred with transition + the board's offset and gain learner",
     "const_play_ref_board": "constant play + poly5 of the calibration record + the board's offset and gain learner",
+    **{f"{k}_ref{u}": f"{lab} of the calibration record {ul}" for k, lab, _ in PEERS for u, ul in UPDATES},
 }
 GAIN_BOUNDS = (0.5, 2.0)  # the gain refresh's clamp: a factor 2 either way, far outside any record's fitted gain
 WARMUP = 0.5  # fraction of the duration; the only split giving every endoscope record >= 2 reversals before it
@@ -89,7 +108,8 @@ JSON_KEYS = ("format, calibration {file, reversals, b_samples}, settings {warmup
              "publish_every, prior_var_q16}}, order [row], labels {row: str}, files {name: {config_deg (sheath angle "
              "from the file name, null for the catheter), t_split_s, rmse_deg {row: float}, b_samples (learnt on "
              "line), board_f {publishes, a_deg, g} (the transition row's learner at the end)}}, mean {row: float}, "
-             "worst {row: float}")
+             "worst {row: float}, peers_vs_ours {update suffix: {ours, ours_mean, peers {row: mean}, best_peer, "
+             "ours_le_every_peer}}")
 
 # Endoscope files: column of the distal angle by file name (README of the data set).
 
@@ -164,6 +184,8 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
     cal = calibrate(s_ref, f_method="lsq", model_kind="play", source=str(cal_path))
     cal_tr = calibrate(s_ref, f_method="lsq", model_kind="auto", source=str(cal_path))
     ref_const = O.const_play_ref(s_ref, cal.fps_frames)
+    q_ref, c_ref = O.reference_frames(s_ref, cal.fps_frames)  # the frames const_play_ref is fitted on
+    peers = {k: fit(q_ref, c_ref) for k, _, fit in PEERS}
     prior_var = float(np.var(s_ref.distal["c_deg"]))
     fps = 1.0 / cal.onset_config["frame_period_s"]  # the board's detector frame rate, as online.evaluate_online
     f_cfg = O.f_config_from(s_ref, cal, refresh_s)
@@ -201,13 +223,42 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
                 board_f = end
         for k in ("static", "online_b_only", "online_offset_only", "online", "const_play_ref_offset"):
             r[k] = on["rmse_deg"][k]
+        for k, m in peers.items():  # each peer with ours' updates (settings of the calibration record)
+            c_p = m.predict(q)
+            r[f"{k}_ref"] = err(c_p)
+            r[f"{k}_ref_offset"] = err(_offset_refreshed(s, c_p, fps, refresh_s))
+            r[f"{k}_ref_affine"] = err(_affine_refreshed(s, c_p, fps, refresh_s, prior_var))
+            r[f"{k}_ref_board"] = err(O.board_f_refreshed(s, c_p, fps, f_cfg, f_range)[0])
         files[Path(p).stem] = {"config_deg": config_angle(p), "t_split_s": t_split,
                                "rmse_deg": {k: r[k] for k in ROWS}, "b_samples": on["b_samples"], "board_f": board_f}
-    return {"format": FORMAT, "calibration": {"file": str(cal_path), "reversals": int(cal.doc["reversals"]),
+    doc = {"format": FORMAT, "calibration": {"file": str(cal_path), "reversals": int(cal.doc["reversals"]),
                                               "b_samples": cal.n_b_samples},
             "settings": {"warmup": warmup, "refresh_s": refresh_s, "board_f": f_cfg}, "order": ROWS, "labels": LABELS, "files": files,
             "mean": {k: float(np.mean([f["rmse_deg"][k] for f in files.values()])) for k in ROWS},
             "worst": {k: float(np.max([f["rmse_deg"][k] for f in files.values()])) for k in ROWS}}
+    doc["peers_vs_ours"] = peer_comparison(doc)
+    return doc
+
+
+OURS_BY_UPDATE = {"": "static_transition", "_offset": "transition_offset", "_affine": "transition_affine",
+                  "_board": "transition_board"}  # ours (with the transition) with each update of UPDATES
+
+
+TIE_DEG = 1e-3  # ours <= a peer within this: where the family chosen is pi_const, ours is the mpi_inc peer itself
+
+
+def peer_comparison(doc: dict) -> dict:
+    """Ours against every peer given the same update, on the mean over the records: {update
+    suffix: {"ours": row, "ours_mean", "peers": {row: mean}, "best_peer", "ours_le_every_peer"
+    (within TIE_DEG)}}."""
+    out = {}
+    for u, _ in UPDATES:
+        ours = OURS_BY_UPDATE[u]
+        pm = {f"{k}_ref{u}": doc["mean"][f"{k}_ref{u}"] for k, _, _ in PEERS}
+        best = min(pm, key=pm.get)
+        out[u] = {"ours": ours, "ours_mean": doc["mean"][ours], "peers": pm, "best_peer": best,
+                  "ours_le_every_peer": bool(doc["mean"][ours] <= pm[best] + TIE_DEG)}
+    return out
 
 
 def format_transfer(doc: dict) -> str:
@@ -224,17 +275,25 @@ def format_transfer(doc: dict) -> str:
         lines.append(f"| {doc['labels'][k]} | " + " | ".join(f"{x:.2f}" for x in v) +
                      f" | {doc['mean'][k]:.2f} | {doc['worst'][k]:.2f} |")
     lines.append("| B samples learnt on line | " + " | ".join(str(doc["files"][n]["b_samples"]) for n in names) + " | | |")
+    lines.append("")
+    for u, ul in UPDATES:
+        c = doc.get("peers_vs_ours", peer_comparison(doc))[u]
+        lines.append(f"Ours with the transition {ul}: mean {c['ours_mean']:.3f} deg; best peer given the same, "
+                     f"{doc['labels'][c['best_peer']].split(' of the calibration record')[0]}: "
+                     f"{c['peers'][c['best_peer']]:.3f} deg; ours <= every peer: {'yes' if c['ours_le_every_peer'] else 'NO'}")
     return "\n".join(lines + [""])
 
 
 def plot_transfer(doc: dict, path, rows=("in_situ", "static", "online", "online_offset_only", "transition_offset", "transition_affine",
-                                         "const_play_ref_offset")) -> None:
+                                         "const_play_ref_offset", "transition_board", "const_play_ref_board",
+                                         "gpi_ref_board", "gpi_inc_ref_board", "mpi_ref_board", "mpi_inc_ref_board")) -> None:
     """PNG of the RMSE of rows against the configuration angle (or the record's index when the
     records carry none), the calibration record marked."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker  # noqa: F401  (the log axis' plain labels)
 
     names = list(doc["files"])
     x = [doc["files"][n]["config_deg"] for n in names]
@@ -242,9 +301,11 @@ def plot_transfer(doc: dict, path, rows=("in_situ", "static", "online", "online_
     if not angle:
         x = list(range(len(names)))
     order = np.argsort(x)
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    for k in rows:
-        ax.plot(np.asarray(x)[order], [doc["files"][names[i]]["rmse_deg"][k] for i in order], "o-", label=doc["labels"][k])
+    fig, ax = plt.subplots(figsize=(7.5, 6.5))
+    colours = plt.get_cmap("tab20")
+    for j, k in enumerate(rows):  # the textbook peers dashed, ours and the references solid
+        ax.plot(np.asarray(x)[order], [doc["files"][names[i]]["rmse_deg"][k] for i in order],
+                "s--" if k in PEER_ROWS else "o-", color=colours(j % 20), label=doc["labels"][k])
     cx = config_angle(doc["calibration"]["file"])
     if angle and cx is not None:
         ax.axvline(cx, color="0.6", ls="--", lw=1, label="calibration configuration")
@@ -254,7 +315,11 @@ def plot_transfer(doc: dict, path, rows=("in_situ", "static", "online", "online_
     ax.set_ylabel(f"RMSE after the first {doc['settings']['warmup']:.0%} (deg)")
     ax.set_title(f"calibrated on {Path(doc['calibration']['file']).stem}")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
+    ax.set_yscale("log")  # as-is rows are ten times the updated ones
+    ax.yaxis.set_major_locator(matplotlib.ticker.LogLocator(subs=(1.0, 2.0, 5.0)))
+    ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+    ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=1, frameon=False)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

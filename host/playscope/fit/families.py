@@ -22,6 +22,10 @@ monotone f (f table, eq. 9). They differ in what B is and in whether operators a
                     (playscope.fit.relax) on the transition's output before f (with_relaxation;
                     layout-4 tables), after every family without it in the rule's order
 
+  var_play, pi_few   thin records only (THIN_FAMILIES): a play whose width varies linearly over
+                    the travel + smooth monotone f (offered, THIN_OFFERED), and pi_const with
+                    PI_FEW_OPS operators (measured, not offered: docs/method.md, "Thin records")
+
 The registry FAMILIES is the single list the choice runs; one more family is one more entry
 (a name, a label and fit(ctx, train) -> Member).
 
@@ -36,8 +40,10 @@ transition.choose_model). Thin records (fewer than MIN_REVERSALS_CHOICE directio
 the calibration part: the rolling origins would give one stroke or less per fold) are scored
 instead on swing folds (swing_splits: each half of every swing from the third on, forecast from
 the frames before it), and the one-SE rule starts from const_play, the model a user would fit
-by hand: another family is kept only when const_play's CV is more than one SE above the best;
-with fewer than MIN_SWING_FOLDS folds (no third swing yet) const_play is kept outright. On the
+by hand: another family is kept only when const_play's CV is more than one SE above the best,
+and then the one with the lowest swing CV (not the first by parameter count: the onset families'
+B rests on one to three onset samples there); with fewer than MIN_SWING_FOLDS folds (no third
+swing yet) const_play is kept outright. On the
 development endoscope records (2-3 reversals per calibration part, ~50 frames)
 leave-one-swing-out folds (train before and after the held-out swing) picked worse than this:
 with one branch direction missing from the training part, the PI forms extrapolate (30.txt at
@@ -56,6 +62,7 @@ import numpy as np
 
 from .bspline import SplineFn, clamped_knots, robust_spline
 from .reversals import detect_reversals
+from . import model
 from . import transition as T
 
 RELAX_FIT_SAMPLES = 20000  # the relaxation's (kappa, lambda) search runs on at most this many path samples
@@ -64,6 +71,8 @@ MIN_REVERSALS_CHOICE = T.KFOLD  # below (2-3 reversals): const_play (thin record
 MIN_TRAIN_FRAMES, MIN_TEST_FRAMES = 10, 3  # a fold with fewer is skipped (as transition's CV)
 SWING_HYSTERESIS = 0.01  # thin records' swings: reversals of q with this fraction of its span (as largest_excursion)
 MIN_SWING_FOLDS = 2  # a thin record with fewer swing folds (swing_splits) keeps const_play outright
+PI_FEW_OPS = 4  # pi_few's operators: a handful the two or three strokes of a thin record can tell apart
+VAR_PLAY_GRID, VAR_PLAY_LEVELS = 3, 2  # var_play's nested grids: 2 x 3 + 1 values a side per level
 
 
 @dataclass
@@ -214,7 +223,7 @@ def fit_const_play(ctx: Context, train=None) -> Member:
                   lambda ms: monotone_spline_of(poly, lo, hi, sign, ms))
 
 
-def fit_pi_const(ctx: Context, train=None) -> Member:
+def fit_pi_const(ctx: Context, train=None, n_ops: int | None = None, name: str = "pi_const") -> Member:
     """The modified PI (peers.ModifiedPI: N_OPS plays on q at peers.gpi_thresholds, w >= 0,
     then a monotone output spline) in the board's layout: plays compose (F_a o F_b = F_{a+b},
     the semigroup property of the play), so the narrowest operator, of threshold r_0, is the
@@ -224,9 +233,10 @@ def fit_pi_const(ctx: Context, train=None) -> Member:
     (transition.fit_weights)."""
     from .peers import MPI_F_CTRL, gpi_thresholds
 
+    n_ops = T.N_OPS if n_ops is None else int(n_ops)
     m = _all(ctx, train)
     qf = ctx.q_frames()
-    r = gpi_thresholds(qf[m], T.N_OPS)
+    r = gpi_thresholds(qf[m], n_ops)
     B = _const_B(ctx, 2.0 * r[0])
     d = ctx.data.with_B(B)
     rz = r - r[0]
@@ -234,11 +244,85 @@ def fit_pi_const(ctx: Context, train=None) -> Member:
     # frames' q misses the peaks the lagging tip never reaches either (measured on the development
     # endoscope files: fitted on the full path, 30.txt at split 0.5 gave 1.18 deg against 0.71).
     P = T.play_ops(qf, r)
-    w, f, sign, _ = T.fit_weights(P[m], d.c[m], MPI_F_CTRL, v_max=T.v_max_for_table(d, 1.0, T.N_OPS))
+    w, f, sign, _ = T.fit_weights(P[m], d.c[m], MPI_F_CTRL, v_max=T.v_max_for_table(d, 1.0, n_ops))
     keep = (w > 0) | (np.arange(rz.size) == 0)
     y = P[m] @ w
-    return Member("pi_const", B, T.Transition(rz[keep], w[keep] / w[keep].sum()), f, sign,
+    return Member(name, B, T.Transition(rz[keep], w[keep] / w[keep].sum()), f, sign,
                   lambda ms: T.fit_f(y, d.c[m], MPI_F_CTRL, sign=sign, min_slope=ms), MPI_F_CTRL)
+
+
+def fit_pi_few(ctx: Context, train=None) -> Member:
+    """pi_const with PI_FEW_OPS operators (thin records: a handful of weights the few strokes can
+    tell apart; the output f monotone, so the board inverts it)."""
+    return fit_pi_const(ctx, train, PI_FEW_OPS, "pi_few")
+
+
+def linear_spline(b_lo: float, b_hi: float, lo: float, hi: float) -> SplineFn:
+    """B(q) linear from b_lo at q = lo to b_hi at q = hi, as the spline type the calibration file
+    stores (a clamped cubic of 4 evenly spaced control values is that straight line), held beyond."""
+    from scipy.interpolate import BSpline
+
+    hi = max(hi, lo + 1e-9)
+    return SplineFn(BSpline(clamped_knots(lo, hi, 4), np.linspace(b_lo, b_hi, 4), 3, extrapolate=False), lo, hi)
+
+
+def fit_var_play(ctx: Context, train=None) -> Member:
+    """A play whose width varies linearly over the travel, B(q) = b_lo .. b_hi, + degree-5
+    polynomial on its centre, both least squares on c (the constant play's model and criterion,
+    constant_play_lsq, with one parameter more), the polynomial carried as a monotone spline. A
+    play with different widths on its two sides that vary with q (an asymmetric variable-width
+    play) is this one after a change of variable of its centre (the two edges q = z + a_up(z),
+    q = z - a_down(z) are those of a play of width a_up + a_down about z' = z + (a_up - a_down)/2,
+    and f absorbs z -> z'), so the table's symmetric B(q) carries it. (b_lo, b_hi) by nested
+    grids about the constant play's width (VAR_PLAY_GRID points a side, VAR_PLAY_LEVELS levels);
+    the play runs on the record's reduced path from its start (as FitData.z_reduced, its edges in
+    closed form for a linear B; test_families checks the member's table against its float model)."""
+    msk = _all(ctx, train)
+    qf, c = ctx.q_frames()[msk], ctx.data.c[msk]
+    w0, _, _ = constant_play_lsq(qf, c)
+    lo, hi = ctx.q_range
+    span = float(qf.max() - qf.min())
+    zsc, q0 = max(span, 1e-12), float(qf.min())
+
+    order, x = ctx.data._reduced()
+    n_f = ctx.data.t_frame.size
+
+    def centre(b_lo, b_hi):
+        # The play centre at the frames (as FitData.z_reduced, from q_enc[0] on the reduced path),
+        # its edges in closed form for B(z) = a + k z: z + B(z)/2 = q going up, z - B(z)/2 = q down.
+        k = (b_hi - b_lo) / max(hi - lo, 1e-12)
+        a = b_lo - k * lo
+        z = model.play_on_edges((x - 0.5 * a) / (1 + 0.5 * k), (x + 0.5 * a) / (1 - 0.5 * k), float(ctx.data.q_enc[0]))
+        out = np.empty_like(z)
+        out[order] = z
+        return out[z.size - n_f:]
+
+    def cost(b_lo, b_hi):
+        z = centre(b_lo, b_hi)[msk]
+        V = np.vander((z - q0) / zsc, 6)
+        coef, *_ = np.linalg.lstsq(V, c, rcond=None)
+        return float(np.sum((V @ coef - c) ** 2)), coef, z
+
+    best = (cost(w0, w0), w0, w0)
+    step = 0.5 * max(w0, 0.02 * span)
+    for _ in range(VAR_PLAY_LEVELS):
+        g = np.linspace(-step, step, 2 * VAR_PLAY_GRID + 1)
+        c_lo, c_hi = best[1], best[2]
+        for a in c_lo + g:
+            for b in c_hi + g:
+                if a < 0 or b < 0 or max(a, b) > 0.5 * span:
+                    continue
+                cb = cost(a, b)
+                if cb[0] < best[0][0]:
+                    best = (cb, float(a), float(b))
+        step /= VAR_PLAY_GRID
+    (_, coef, z), b_lo, b_hi = best
+    poly = lambda x: np.polyval(coef, (np.asarray(x, float) - q0) / zsc)  # noqa: E731
+    sign = 1 if np.corrcoef(z, c)[0, 1] >= 0 else -1
+    zlo, zhi = float(z.min()), float(z.max())
+    f, sign = monotone_spline_of(poly, zlo, zhi, sign)
+    return Member("var_play", linear_spline(b_lo, b_hi, lo, hi), T.Transition.play(), f, sign,
+                  lambda ms: monotone_spline_of(poly, zlo, zhi, sign, ms))
 
 
 def _fast_f(n_ctrl: int, sign: int):
@@ -353,6 +437,16 @@ FAMILIES: list[Family] = [
            with_relaxation(fit_onset_transition, "onset_transition_relax")),
 ]
 FALLBACK = "const_play"  # thin records
+# Thin records only (fewer than MIN_REVERSALS_CHOICE reversals): invertible members with few
+# parameters fitted to c. THIN_OFFERED are offered after const_play in the swing folds' one-SE
+# order; pi_few is measured, not offered (docs/method.md, "Thin records": on the development
+# endoscope files its swing CV is the lowest on 4 of 8 file-splits where its judged error is the
+# worst of the invertible members).
+THIN_FAMILIES: list[Family] = [
+    Family("pi_few", f"modified PI with {PI_FEW_OPS} plays, strictly increasing (as pi_const)", fit_pi_few),
+    Family("var_play", "play of linearly varying width + smooth monotone f", fit_var_play),
+]
+THIN_OFFERED = ("var_play",)
 # Records without any motion onset (no B measured): only the families whose play is fitted on c.
 FAMILIES_FROM_C = [f for f in FAMILIES if f.name in ("const_play", "pi_const")]
 # Families that carry the onset-measured B (eq. 1) as their play (times the transition's b_scale).
@@ -475,8 +569,11 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
     when no family gives a loadable table."""
     from ..base.errors import InputError
 
-    fams = FAMILIES if families is None else families
     thin = reversals < MIN_REVERSALS_CHOICE
+    fams = FAMILIES if families is None else families
+    if thin:  # the few-parameter invertible members, right after const_play
+        i = next((k + 1 for k, f in enumerate(fams) if f.name == FALLBACK), len(fams))
+        fams = list(fams[:i]) + [f for f in THIN_FAMILIES if f.name in THIN_OFFERED] + list(fams[i:])
     splits = swing_splits(ctx) if thin else T.rolling_origins(ctx.data, T.KFOLD)
     # One BLAS thread: the fits are small (frames x 6..16), and threads spinning for a core the
     # other processes hold cost more than they give (as transition.fit_weights).
@@ -536,6 +633,11 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
         best = min(scored, key=lambda r: r["cv_rmse_deg"])
         limit = best["cv_rmse_deg"] + best["cv_se_deg"]
         first = next(r for r in scored if r["cv_rmse_deg"] <= limit)
+        if thin and first["family"] != FALLBACK:
+            # Thin records: once the hand model is out, the lowest swing CV. The order by parameters
+            # fitted to c is no guide there: the onset families' B rests on one to three onset
+            # samples, no better known than a fitted width (docs/method.md, "Thin records").
+            first = best
         order = [first["family"]] + [r["family"] for r in sorted(scored, key=lambda r: r["cv_rmse_deg"]) if r is not first]
     if not order or (thin and len(splits) < MIN_SWING_FOLDS):
         order = [FALLBACK] + [n for n in order if n != FALLBACK]

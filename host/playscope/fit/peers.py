@@ -102,6 +102,76 @@ class GeneralizedPI:
                 "active_operators": int(np.sum(self.w > 0))}
 
 
+# --------------------------------------------------------------------------- generalized PI, increasing
+GPI_INC_EPS = 1e-3  # m' floor: this fraction of c's half span per unit x (x spans 2)
+
+
+def _bernstein_int(x: np.ndarray) -> np.ndarray:
+    """(N, 3): integrals from -1 to x of the quadratic Bernstein basis on [-1, 1]; with
+    non-negative coefficients their sum is a cubic whose slope is >= 0 on [-1, 1]."""
+    t = (np.asarray(x, float) + 1.0) / 2.0
+    B3 = np.column_stack([t ** 3, 3 * t ** 2 * (1 - t), 3 * t * (1 - t) ** 2, (1 - t) ** 3][::-1])
+    return np.column_stack([2.0 / 3.0 * B3[:, k + 1:].sum(axis=1) for k in range(3)])
+
+
+@dataclass
+class IncreasingGPI:
+    """The generalized PI (GeneralizedPI) with its memoryless cubic held increasing, so that the
+    whole model is strictly increasing in q for every play state and has an inverse:
+
+        c = sum_i w_i F_{r_i}[q] + m(x),   w_i >= 0,   m(x) = a_0 + sum_k beta_k I_k(x),   beta_k >= eps,
+
+    I_k the integrals of the quadratic Bernstein basis on [-1, 1] (a sufficient condition for
+    m' > 0 there), m continued linearly with its end slopes beyond [-1, 1] (so it stays
+    increasing on a record with a wider travel). One bounded linear least squares (lsq_linear).
+    The fitted peer's cubic is not increasing on any development record (right after a
+    reversal every play of r > 0 is stuck and only the cubic moves), so the peer itself has no
+    inverse; this is its invertible form in its own structure. The board's table layout
+    (c = f(PI[play(q)])) cannot carry an additive m(q); its invertible form there is the
+    modified PI with a monotone output (ModifiedPI(monotone=True), the pi_const family)."""
+
+    r: np.ndarray
+    w: np.ndarray
+    m: np.ndarray  # (4,): a_0, beta_0..2 (deg)
+    q_mid: float
+    q_half: float
+
+    @classmethod
+    def fit(cls, q: np.ndarray, c: np.ndarray, n_ops: int = GPI_OPERATORS) -> "IncreasingGPI":
+        """Fit on one calibration path (q, c): (F,) each, in time order, finite."""
+        q, c = np.asarray(q, float), np.asarray(c, float)
+        q_mid, q_half = _norm(q)
+        r = gpi_thresholds(q, n_ops)
+        x = (q - q_mid) / q_half
+        P = (play_operators(q, r) - q_mid) / q_half
+        eps = GPI_INC_EPS * 0.5 * max(float(np.ptp(c)), 1e-12)
+        A = np.column_stack([P, np.ones_like(x), _bernstein_int(x)])
+        lb = np.r_[np.zeros(n_ops), -np.inf, np.full(3, eps)]
+        th = lsq_linear(A, c, bounds=(lb, np.inf), method="bvls").x
+        w = np.maximum(th[:n_ops], 0.0) / q_half
+        m = th[n_ops:].copy()
+        m[0] -= float(np.sum(w * q_mid))
+        return cls(r, w, m, q_mid, q_half)
+
+    def memoryless(self, x: np.ndarray) -> np.ndarray:
+        """m(x) deg, linear with the end slopes beyond [-1, 1]."""
+        x = np.asarray(x, float)
+        xc = np.clip(x, -1.0, 1.0)
+        y = self.m[0] + _bernstein_int(xc) @ self.m[1:]
+        b = self.m[1:]
+        return y + np.where(x < -1, b[0] * (x + 1), 0.0) + np.where(x > 1, b[2] * (x - 1), 0.0)
+
+    def predict(self, q: np.ndarray) -> np.ndarray:
+        """c (N,) deg over the path q (N,), every operator centred at q[0]."""
+        q = np.asarray(q, float)
+        return play_operators(q, self.r) @ self.w + self.memoryless((q - self.q_mid) / self.q_half)
+
+    def params(self) -> dict:
+        return {"thresholds": self.r.tolist(), "weights_deg_per_unit": self.w.tolist(),
+                "m_bernstein_deg": self.m.tolist(), "m_variable": "x = (q - q_mid)/q_half",
+                "q_mid": self.q_mid, "q_half": self.q_half, "active_operators": int(np.sum(self.w > 0))}
+
+
 # --------------------------------------------------------------------------- modified PI
 MPI_F_CTRL = 8  # control points of the output nonlinearity (a continuous superposition of dead zones)
 
@@ -126,13 +196,16 @@ class ModifiedPI:
     g: object
 
     @classmethod
-    def fit(cls, q: np.ndarray, c: np.ndarray, n_ops: int = GPI_OPERATORS) -> "ModifiedPI":
-        """Fit on one calibration path (q, c): (F,) each, in time order, finite."""
+    def fit(cls, q: np.ndarray, c: np.ndarray, n_ops: int = GPI_OPERATORS, monotone: bool = False) -> "ModifiedPI":
+        """Fit on one calibration path (q, c): (F,) each, in time order, finite. monotone: g made
+        strictly monotone where the P-spline is not (transition.fit_weights' robust_f): with
+        w_0 > 0 the model is then invertible, the double-precision form of the pi_const family
+        (its narrowest play the table's constant B, the others on its centre)."""
         from .transition import fit_weights
 
         q, c = np.asarray(q, float), np.asarray(c, float)
         r = gpi_thresholds(q, n_ops)
-        w, g, _, _ = fit_weights(play_operators(q, r), c, MPI_F_CTRL, robust_f=False)
+        w, g, _, _ = fit_weights(play_operators(q, r), c, MPI_F_CTRL, robust_f=monotone)
         return cls(r, w, g)
 
     def predict(self, q: np.ndarray) -> np.ndarray:

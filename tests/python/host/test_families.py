@@ -263,7 +263,7 @@ def pi_context(auto_cal):
     return auto_cal(pi_record)[1]
 
 
-@pytest.mark.parametrize("fam", FAM.FAMILIES, ids=lambda f: f.name)
+@pytest.mark.parametrize("fam", FAM.FAMILIES + FAM.THIN_FAMILIES, ids=lambda f: f.name)
 def test_each_family_table_loads_bit_exact_and_follows_its_float_model(pi_context, fam):
     ctx = pi_context
     m = fam.fit(ctx, None)
@@ -291,6 +291,36 @@ def test_each_family_table_loads_bit_exact_and_follows_its_float_model(pi_contex
 
 
 # --------------------------------------------------------------------------- thin records
+def var_play_loop(q, b_lo, b_hi, lo, hi):
+    """Play of width B(z) = b_lo .. b_hi linear in the centre z over [lo, hi] (edges z + B(z)/2 = q
+    going up, z - B(z)/2 = q going down, solved in closed form), state centred at q[0]."""
+    k = (b_hi - b_lo) / (hi - lo)
+    a = b_lo - k * lo  # B(z) = a + k z
+    out, z = [], q[0]
+    for x in q:
+        up = (x - a / 2) / (1 + k / 2)
+        down = (x + a / 2) / (1 - k / 2)
+        z = min(down, max(up, z))
+        out.append(z)
+    return np.array(out)
+
+
+def test_var_play_recovers_a_planted_linearly_varying_width(monkeypatch):
+    # Two cycles over q in [-3, 4] (a thin record: 3 reversals): wide enough strokes that both
+    # ends of the travel show their own width; f smooth and increasing.
+    q = strokes([4.0, 4.0], [-3.0, -3.0], per_stroke=1500)
+    z = var_play_loop(q, 0.4, 1.4, -3.0, 4.0)
+    seen = spy_context(monkeypatch)
+    calibrate(session_of(q, 9.0 * z + 3.0 * np.tanh(0.6 * z)), model_kind="auto")
+    ctx = seen["ctx"]
+    m = FAM.fit_var_play(ctx, None)
+    # Measured: 0.41 / 1.37 mm at the ends of the travel; in-sample 0.036 deg against the constant play's 0.94.
+    np.testing.assert_allclose(m.B(np.array([-3.0, 4.0])), [0.4, 1.4], atol=0.1)
+    const = FAM.fit_const_play(ctx, None)
+    rms = lambda mm: float(np.sqrt(np.mean((FAM.predict_frames(ctx, FAM.table_of(ctx, mm)) - ctx.data.c) ** 2)))  # noqa: E731
+    assert rms(m) < 0.5 * rms(const)
+
+
 def thin_record(seed=0):
     """2 cycles (4 reversals in the whole record, 2 in each half): play + a creep after it."""
     q = strokes([4.0, 4.0], [-3.0, 0.0], per_stroke=2500)
@@ -459,3 +489,24 @@ def test_relaxed_calibration_through_playscope_tables(relaxed_cal, tmp_path):
     print("relaxed table errors", w.errors)
     # measured 2.9e-4 deg and 4.3e-5 mm (the compensator compared within a tick, tables.table_errors)
     assert w.errors["direct_c_deg_max"] < 3e-3 and w.errors["comp_q_max"] < 1e-3
+
+
+def test_thin_rule_takes_the_lowest_swing_cv_once_the_hand_model_is_out(pi_context, monkeypatch):
+    # The rule alone, on planted swing-CV rows (the conf0_60 endoscope record's at split 0.5, deg):
+    # the constant play is more than one SE above the best, and the onset play, first by parameter
+    # count, is within one SE of it but not the lowest. Thin: the lowest is kept; not thin: the
+    # one-SE rule's first by parameter count.
+    cv = {"onset_play": (1.868, 0.347), "const_play": (2.149, 0.294), "pi_const": (1.586, 0.360)}
+
+    def planted(ctx, fam, splits, source=None):
+        m, s = cv.get(fam.name, (None, None))
+        return {"family": fam.name, "label": fam.label, "cv_rmse_deg": m, "cv_se_deg": s, "folds": 4,
+                "refused": None if m is not None else "not planted"}
+
+    monkeypatch.setattr(FAM, "score", planted)
+    fams = [f for f in FAM.FAMILIES if f.name in cv]
+    assert FAM.choose(pi_context, 2, fams)[1]["family"] == "pi_const"
+    assert FAM.choose(pi_context, 10, fams)[1]["family"] == "onset_play"
+    # The hand model within one SE of the best stays, thin.
+    cv["const_play"] = (1.9, 0.3)
+    assert FAM.choose(pi_context, 2, fams)[1]["family"] == "const_play"

@@ -305,3 +305,34 @@ def test_shape_noregress_runs_the_learners_on_the_in_situ_model(transfer_30_60):
     assert f["board"] == pytest.approx(tr["in_situ_board"], rel=1e-9)
     for k in ("shape_4", "branch_4", "weights", "wbranch_4"):
         assert f[f"{k}_oracle"] <= min(f[f"{k}_warmup"], f["in_situ"]) + 1e-12
+
+
+def test_transfer_peers_are_fitted_on_the_reference_frames_and_given_ours_updates(catheter_transfer):
+    """The peer rows (generalized and modified PI and their invertible forms) are the peers fitted
+    on the calibration record's frames (those const_play_ref is fitted on), run from the record's
+    first sample, with the same offset refresh and board learner (same settings) as ours: one row
+    recomputed here by hand, and the comparison with ours read from the rows."""
+    from playscope.evaluate.transfer import PEER_ROWS, UPDATES, _offset_refreshed
+    from playscope.fit.calibration import calibrate
+    from playscope.fit.peers import IncreasingGPI
+
+    folder, doc = catheter_transfer
+    r = doc["files"]["data_2_5"]["rmse_deg"]
+    assert set(PEER_ROWS) <= set(r) and all(np.isfinite(r[k]) for k in PEER_ROWS)
+    s_ref, s = read_record(folder / "data_2_1.txt"), read_record(folder / "data_2_5.txt")
+    cal = calibrate(s_ref, f_method="lsq", model_kind="play", source="data_2_1")
+    m = IncreasingGPI.fit(*O.reference_frames(s_ref, cal.fps_frames))
+    t, q = s.encoder["t_s"], s.encoder["q"]
+    mask = t >= doc["files"]["data_2_5"]["t_split_s"]
+    c_true = np.interp(t, s.distal["t_s"], s.distal["c_deg"])
+    fps = 1.0 / cal.onset_config["frame_period_s"]
+    c_hat = m.predict(q)
+    assert r["gpi_inc_ref"] == pytest.approx(O.rmse((c_hat - c_true)[mask]), rel=1e-9)
+    assert r["gpi_inc_ref_offset"] == pytest.approx(O.rmse((_offset_refreshed(s, c_hat, fps, 1.0) - c_true)[mask]),
+                                                    rel=1e-9)
+    f_range = (float(np.nanmin(s_ref.distal["c_deg"])), float(np.nanmax(s_ref.distal["c_deg"])))
+    c_b, _ = O.board_f_refreshed(s, c_hat, fps, doc["settings"]["board_f"], f_range)
+    assert r["gpi_inc_ref_board"] == pytest.approx(O.rmse((c_b - c_true)[mask]), rel=1e-9)
+    cmp = doc["peers_vs_ours"]
+    assert set(cmp) == {u for u, _ in UPDATES} and cmp["_board"]["ours"] == "transition_board"
+    assert cmp["_board"]["ours_le_every_peer"] == (doc["mean"]["transition_board"] <= min(cmp["_board"]["peers"].values()) + 1e-3)

@@ -1,0 +1,166 @@
+#!/usr/bin/env python3
+"""Can any criterion on the calibration part see which family wins on the judged part?
+
+On the development recordings (catheter data_2_1..5 and data_1_1..2, endoscope 30, 60, 120,
+conf0_60), at each split, the protocol of playscope.evaluate.insitu_split (calibrate on t < t_split
+only, run from the record's first sample, judge t >= t_split against the angle sensor): every
+family the choice scores (families.FAMILIES without the relaxed ones, and on thin records
+families.THIN_FAMILIES, offered or not) is fitted on the calibration part, written to its table
+and judged; beside that, on the calibration part only, the choice's own folds (rolling origins, or
+swing folds on thin records) per family, and three criteria read from them: the CV RMSE over the
+folds (the product's, before the one-SE rule), the last fold alone (the regime closest to what
+follows), and the in-sample error on every calibration frame. Per file-split: the strokes of q (the
+travel between reversals) of each part, the family chosen, each family's judged error and CV, each
+criterion's pick among the families the choice offers, and the oracle (the family with the lowest judged error: no rule can pick it, it
+is what any rule over these families could reach) against the best row of evaluate-insitu's table.
+
+Development files only (the endoscope's set-aside files are never read here).
+
+Usage: PYTHONPATH=host .venv/bin/python bench/choice_regimes.py [--splits 0.5,0.75] [--instruments catheter,endoscope]
+       [--json PATH]       (~2 min)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from playscope.evaluate import insitu_split as IS
+from playscope.fit import families as FAM
+from playscope.fit import transition as T
+from playscope.fit.reversals import detect_reversals
+from playscope.io.importer import import_catheter, import_endoscope
+
+ROOT = Path(__file__).resolve().parent.parent
+REAL = Path(os.environ.get("PLAYSCOPE_REAL_DATA", ROOT.parent / "shared" / "data" / "real"))
+INSTRUMENTS = {"catheter": (import_catheter, [f"data_2_{i}" for i in range(1, 6)] + ["data_1_1", "data_1_2"]),
+               "endoscope": (import_endoscope, ["30", "60", "120", "conf0_60"])}
+BASE = ("onset_play", "const_play", "onset_transition", "pi_const")
+
+
+def strokes(t, q, t_split):
+    """(shortest stroke ending before t_split, longest stroke starting after it): travel of q
+    between reversals (hysteresis 1 % of its span, the first and last samples as turning points)."""
+    rt, qr, _ = detect_reversals(t, q, 0.01 * float(np.ptp(q)))
+    tt, qq = np.r_[t[0], rt, t[-1]], np.r_[q[0], qr, q[-1]]
+    amp = np.abs(np.diff(qq))
+    cal, test = amp[tt[1:] <= t_split], amp[tt[:-1] >= t_split]
+    return (float(cal.min()) if cal.size else float("nan")), (float(test.max()) if test.size else float("nan"))
+
+
+def run(reader, path: Path, split: float) -> dict:
+    s = reader(path)
+    t, q = s.encoder["t_s"], s.encoder["q"]
+    ts = IS.split_time(t, split)
+    grab = {}
+    orig = FAM.choose
+
+    def spy(ctx, reversals, *a, **k):
+        grab["ctx"], grab["reversals"] = ctx, int(reversals)
+        grab["out"] = orig(ctx, reversals, *a, **k)
+        return grab["out"]
+
+    FAM.choose = spy
+    try:
+        rows = IS.fit_rows(s, ts, source=str(path))
+    finally:
+        FAM.choose = orig
+    td = float(s.t_delay_s) if s.t_delay_s is not None else float(rows["onset_lsq"].params["t_delay_s"])
+    rm, _, _, _, _ = IS.score_rows(rows, s, ts, td)
+    ctx, rev = grab["ctx"], grab["reversals"]
+    thin = rev < FAM.MIN_REVERSALS_CHOICE
+    folds = FAM.swing_splits(ctx) if thin else T.rolling_origins(ctx.data, T.KFOLD)
+    folds = [(a, b) for a, b in folds if b.sum() >= FAM.MIN_TEST_FRAMES and a.sum() >= FAM.MIN_TRAIN_FRAMES]
+    tm, cm, _ = IS.judged_samples(s, ts, td)
+    fams = [f for f in FAM.FAMILIES if f.name in BASE] + (FAM.THIN_FAMILIES if thin else [])
+    out = {}
+    for fam in fams:
+        try:
+            errs = []
+            for tr_m, te_m in folds:
+                c_hat = FAM.predict_frames(ctx, FAM.table_of(ctx, fam.fit(ctx, tr_m)))
+                errs.append(float(np.sqrt(np.mean((c_hat[te_m] - ctx.data.c[te_m]) ** 2))))
+            tab = FAM.table_of(ctx, fam.fit(ctx, None))
+            judged = float(np.sqrt(np.mean((np.interp(tm, t, tab.predict(q)) - cm) ** 2)))
+            ins = float(np.sqrt(np.mean((FAM.predict_frames(ctx, tab) - ctx.data.c) ** 2)))
+        except Exception as e:  # a refused table or a failed fit: that family is out of this file-split
+            out[fam.name] = {"error": str(getattr(e, "message", e))}
+            continue
+        out[fam.name] = {"folds": errs, "cv": float(np.sqrt(np.mean(np.square(errs)))) if errs else float("nan"),
+                         "last": errs[-1] if errs else float("nan"), "in_sample": ins, "judged": judged}
+    # The criteria and the oracle range over the families the choice offers (a thin family not in
+    # THIN_OFFERED is shown, not picked).
+    ok = {k: v for k, v in out.items() if "error" not in v and (k in BASE or k in FAM.THIN_OFFERED)}
+    pick = lambda key: min(ok, key=lambda k: ok[k][key])  # noqa: E731
+    best_row = min(v for v in rm.values() if v is not None)
+    cal_min, test_max = strokes(t, q, ts)
+    return {"reversals": rev, "thin": thin, "chosen": rows["ours"].params.get("family"), "ours": rm["ours"],
+            "best_row": best_row, "best_row_name": min((k for k in rm if rm[k] is not None), key=lambda k: rm[k]),
+            "strokes_cal_min": cal_min, "strokes_test_max": test_max, "families": out,
+            "pick": {"cv": pick("cv"), "last_fold": pick("last"), "in_sample": pick("in_sample"), "oracle": pick("judged")}}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--splits", default="0.5,0.75")
+    ap.add_argument("--instruments", default="catheter,endoscope")
+    ap.add_argument("--json")
+    a = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    res = {}
+    for inst in a.instruments.split(","):
+        reader, stems = INSTRUMENTS[inst]
+        for fr in (float(v) for v in a.splits.split(",")):
+            print(f"**{inst}, split {fr:g}: each family judged (its CV on the calibration part's folds); each criterion's "
+                  "pick; the oracle over the families against the best row of evaluate-insitu's table**\n")
+            names = None
+            lines = []
+            picks = {"cv": 0, "last_fold": 0, "in_sample": 0}
+            n = shorter = oracle_within = ours_within = 0
+            for stem in stems:
+                r = run(reader, REAL / inst / f"{stem}.txt", fr)
+                res[f"{inst}/{stem}@{fr:g}"] = r
+                fams = list(r["families"])
+                if names is None or len(fams) > len(names):
+                    names = fams
+                cells = []
+                for k in fams:
+                    v = r["families"][k]
+                    cells.append("refused" if "error" in v else f"{v['judged']:.3f} ({v['cv']:.3f})")
+                o = r["pick"]["oracle"]
+                orc = r["families"][o]["judged"]
+                lines.append((stem, fams, cells, r, o, orc))
+                n += 1
+                shorter += r["strokes_test_max"] < r["strokes_cal_min"]
+                oracle_within += orc <= 1.1 * r["best_row"]
+                ours_within += r["ours"] <= 1.1 * r["best_row"]
+                for c in picks:
+                    picks[c] += r["pick"][c] == o
+            print("| file | reversals | strokes: shortest before / longest after the split | chosen | " +
+                  " | ".join(f"{k} judged (CV)" for k in names) +
+                  " | CV picks | last fold picks | in-sample picks | oracle | oracle / best row | ours / best row |")
+            print("|---" * (len(names) + 10) + "|")
+            for stem, fams, cells, r, o, orc in lines:
+                cd = dict(zip(fams, cells))
+                print(f"| {stem} | {r['reversals']} | {r['strokes_cal_min']:.2f} / {r['strokes_test_max']:.2f} | {r['chosen']} | " +
+                      " | ".join(cd.get(k, "-") for k in names) +
+                      f" | {r['pick']['cv']} | {r['pick']['last_fold']} | {r['pick']['in_sample']} | {o} | "
+                      f"{orc / r['best_row']:.2f} ({r['best_row_name']}) | {r['ours'] / r['best_row']:.2f} |")
+            print(f"\n{inst}, split {fr:g}: judged strokes all shorter than every calibration stroke on {shorter} of {n}; "
+                  f"the pick is the oracle's on {picks['cv']} (CV), {picks['last_fold']} (last fold), "
+                  f"{picks['in_sample']} (in sample) of {n}; oracle within 1.1 x the best row on {oracle_within} of {n}, "
+                  f"ours on {ours_within} of {n}\n", flush=True)
+    print(f"({time.perf_counter() - t0:.0f} s)")
+    if a.json:
+        Path(a.json).write_text(json.dumps(res, indent=1, default=float) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
