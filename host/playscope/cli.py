@@ -23,6 +23,7 @@ import sys
 from . import __version__
 from .base.atomic import check_flash_file, check_output, output_guard
 from .base.errors import InputError
+from .io.inputfile import check_input_file
 
 # Argument dests that name what a command writes; every other path-valued argument that
 # exists is an input the output guard protects (atomic.output_guard). Not inputs either:
@@ -33,6 +34,9 @@ NOT_INPUT_ARGS = frozenset(OUTPUT_ARGS + ("flash_file", "elf", "address", "devic
 # Per command, arguments naming a work folder or file the command manages itself (reuses or
 # replaces by design): neither an input nor an output the guard checks.
 WORK_ARGS = {"evaluate-real": ("reimage",), "demo": ("out", "json")}
+# Per command, inputs that may be a device (a camera): every other input must be a regular
+# file or a folder (io.inputfile.check_input_file).
+DEVICE_ARGS = {"run-insitu": ("video",)}
 
 # Command modules in help order (all in playscope.commands, the one command-line home), each
 # with the subpackage it needs: a command whose package is absent from an install is skipped.
@@ -183,20 +187,39 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         ins, outs = _paths(args)
+        live = [getattr(args, k, None) for k in DEVICE_ARGS.get(args.command, ())]
+        for x in ins:  # a pipe or a device named as an input is refused before anything opens it
+            if not os.path.isdir(x) and x not in live:
+                check_input_file(x, "regular file")
         force = bool(getattr(args, "force", False))
+        _sigterm_as_interrupt()
         with output_guard(ins, force):
             for o in outs:  # before any work: a refused output costs nothing
                 check_output(o)
             check_flash_file(getattr(args, "flash_file", None))
             return _run_command(args)
     except KeyboardInterrupt:
-        print("playscope: interrupted", file=sys.stderr)
+        print("playscope: interrupted (nothing half-written is left under an output's name)", file=sys.stderr)
         return 130
     except (InputError, OSError, ValueError, OverflowError, RecursionError) as e:
         if os.environ.get("PLAYSCOPE_DEBUG"):
             raise
         print(f"playscope: error: {_one_line(e, args)}", file=sys.stderr)
         return 2
+
+
+def _sigterm_as_interrupt():
+    """SIGTERM raises KeyboardInterrupt, as SIGINT does, so a killed command removes its
+    temporaries (atomic.atomic_path, io.videofile) instead of leaving a partial output."""
+    import signal
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        return signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread (a library caller): leave the process's handler alone
+        return None
 
 
 def _run_command(args) -> int:

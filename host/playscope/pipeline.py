@@ -510,7 +510,8 @@ def run_insitu(link, src: InsituSource, seconds=None, n_ctrl: int = 14, out=None
     run, RuntimeError for a failed flash (nothing of out is lost)."""
     import json
 
-    from .base.atomic import write_bytes_atomic, write_text_atomic
+    from .base.atomic import write_bytes_atomic
+    from .base.jsonio import write_json
     from .board.flash import flash
     from .board.insitu_run import (VideoSource, calibrate_run, exc_duration_s, read_geometry, run_loop,
                                    session_of, write_samples_csv)
@@ -577,7 +578,7 @@ def run_insitu(link, src: InsituSource, seconds=None, n_ctrl: int = 14, out=None
         except (RuntimeError, ValueError) as e:
             raise RuntimeError(f"flash failed: {e}") from None
     if out:
-        write_text_atomic(out / "result.json", json.dumps(res.to_json(), indent=1) + "\n")
+        write_json(out / "result.json", res.to_json(), indent=1)
     return res
 
 

@@ -280,7 +280,10 @@ def track_video(video: Path, frames_csv: Path, cfg: TrackConfig | None = None, p
     frames than frames.csv lists by that much; no frame decoded at all.
     progress: a tqdm-like factory progress(total=..., desc=...) or None.
     """
+    from .inputfile import check_input_file
+
     video, frames_csv = Path(video), Path(frames_csv)
+    check_input_file(video, "video")  # a pipe or a device would block or never end
     fr, t = read_frames_csv(frames_csv)
     cap = cv2.VideoCapture(str(video))
     if not cap.isOpened():

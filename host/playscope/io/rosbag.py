@@ -295,10 +295,9 @@ def import_bag(path, q: str, c: str | None = None, image: str | None = None, geo
 def write_bag_session(s, frames, folder, overwrite: bool = False) -> Path:
     """Write the session and, for an image session, its frames as video.avi (MJPG) + frames.csv,
     atomically (the folder appears complete or not at all)."""
-    import cv2
-
     from ..base.atomic import atomic_path
     from .session import write_csv, write_session
+    from .videofile import video_writer
 
     folder = Path(folder)
     if folder.exists() and not overwrite:
@@ -312,15 +311,12 @@ def write_bag_session(s, frames, folder, overwrite: bool = False) -> Path:
         imgs = frames[1]
         h, w = imgs[0].shape[:2]
         fps = s.camera.fps if s.camera is not None else 25.0
-        vw = cv2.VideoWriter(str(tmp / "video.avi"), cv2.VideoWriter_fourcc(*"MJPG"), float(fps), (w, h))
-        if not vw.isOpened():
-            raise OSError(f"{folder}: OpenCV cannot write an MJPG video here")
-        for img in imgs:
-            if img.shape[:2] != (h, w):
-                raise InputError(s.meta["source"]["bag"], f"frame size changes within the image topic "
-                                 f"({img.shape[1]}x{img.shape[0]} after {w}x{h})")
-            vw.write(img)
-        vw.release()
+        with video_writer(tmp / "video.avi", fps, (w, h)) as vw:
+            for img in imgs:
+                if img.shape[:2] != (h, w):
+                    raise InputError(s.meta["source"]["bag"], f"frame size changes within the image topic "
+                                     f"({img.shape[1]}x{img.shape[0]} after {w}x{h})")
+                vw.write(img)
         write_csv(tmp / "frames.csv", s.frames, {"frame": "{:.0f}"})
     return folder
 

@@ -144,7 +144,7 @@ def render_excitation_video(path, exc: str, cfg: SimPlantConfig | None = None, l
     (the tip as it was t_delay earlier, eq. 1's delay), preceded by lead_s of the tip at rest.
     What `playscope run-insitu --video FILE` then reads as if it were a camera. Returns
     {"frames", "duration_s", "plant"} (the plant holds the truth, plant.truth_B)."""
-    import cv2
+    from ..io.videofile import video_writer
 
     plant = SimPlant(cfg)
     t_us, q = excitation_q(exc)
@@ -156,16 +156,13 @@ def render_excitation_video(path, exc: str, cfg: SimPlantConfig | None = None, l
     n_lead = int(round(lead_s * fps))
     n = int(t_end / 1e6 * fps) + 1
     W, H = plant.sim.width, plant.sim.height
-    vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), float(fps), (W, H))
-    if not vw.isOpened():
-        raise OSError(f"{path}: OpenCV cannot write an MJPG video")
-    u0, v0 = plant.tip_px(0)
-    for _ in range(n_lead):
-        vw.write(plant.render(u0, v0))
-    for k in range(n):
-        ta = k * 1e6 / fps - plant.delay_us
-        vw.write(plant.render(*plant.tip_px(max(ta, 0.0))))
-    vw.release()
+    with video_writer(path, fps, (W, H)) as vw:
+        u0, v0 = plant.tip_px(0)
+        for _ in range(n_lead):
+            vw.write(plant.render(u0, v0))
+        for k in range(n):
+            ta = k * 1e6 / fps - plant.delay_us
+            vw.write(plant.render(*plant.tip_px(max(ta, 0.0))))
     return {"frames": n_lead + n, "duration_s": (n_lead + n) / fps, "plant": plant}
 
 
