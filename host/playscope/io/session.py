@@ -310,17 +310,17 @@ def format_us(u: int) -> str:
 
 
 def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str] | None = None,
-              t_origin_us: int = 0) -> None:
+              t_origin_us: int = 0, t_text: list[str] | None = None) -> None:
     """Write equal-length 1-D arrays as a CSV with a header; NaN becomes an empty field.
     The time column t_s is written to the microsecond, exactly (t_origin_us added back:
     Session.t_origin_us), whatever its magnitude: %.9g would keep whole seconds of an epoch
-    stamp."""
+    stamp; or, with t_text, as those strings (another file's stamps, digit for digit)."""
     from .csvtable import CHUNK_ROWS
 
     names = list(columns)
     arrays = [np.asarray(columns[n], float) for n in names]
     n = len(arrays[0]) if arrays else 0
-    if any(len(a) != n for a in arrays):  # zip would cut the longer ones without a word
+    if any(len(a) != n for a in arrays) or (t_text is not None and len(t_text) != n):  # zip would cut without a word
         raise ValueError(f"{path.name}: columns of unequal length " + ", ".join(f"{nm} {len(a)}" for nm, a in zip(names, arrays)))
     formats = formats or {}
     fmts = [formats.get(nm, "{:.9g}") for nm in names]
@@ -332,7 +332,9 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str
             cols = []
             for a, f, ex in zip(arrays, fmts, exact_t):
                 part = a[i0:i0 + CHUNK_ROWS]
-                if ex:
+                if ex and t_text is not None:
+                    cols.append(t_text[i0:i0 + CHUNK_ROWS])
+                elif ex:
                     cols.append([format_us(u) for u in (time_us(part) + int(t_origin_us)).tolist()])
                 else:
                     cols.append(["" if not math.isfinite(x) else f.format(x) for x in part.tolist()])
