@@ -367,6 +367,27 @@ def _warn_repairs(s) -> None:
         print(f"playscope: warning: {line}", file=sys.stderr)
 
 
+def table_mismatch(tab, cal, table_path, cal_path) -> str | None:
+    """One line when the table tab is not this calibration's: its fixed-point model, run over
+    the calibration's travel, misses the float model (f_remain with its transition, or
+    f_coarse for a `tables --f-coarse` table) by more than the precision ceiling every table
+    `tables` writes meets (table_build.check_precision); None when it matches."""
+    from .fit.table_build import TableError, check_precision, table_errors
+
+    q_min, q_max = cal.q_range
+    why = None
+    for B, f, tr, rl in ((cal.B_model, cal.f, cal.transition, cal.relax), (cal.B, cal.f_coarse, None, None)):
+        try:
+            check_precision(tab, table_errors(tab, B, f, q_min, q_max, tr, rl), f, q_min, q_max, source=table_path)
+            return None
+        except TableError as e:
+            why = why or e.message.split(";")[0]
+        except (ValueError, OverflowError) as e:
+            why = why or str(e)
+    return (f"{table_path}: does not match the calibration {cal_path} ({why}): a table of another calibration? "
+            "the fixed-point rows score that table, not this calibration; rebuild it with playscope tables")
+
+
 def evaluate_session(session_dir, cal_path, table_path=None, comp_duration_s: float = 60.0) -> Evaluated:
     """Table I and the compensation test (evaluate.evaluate) of the calibration at cal_path on
     the test session folder; table_path: a blob from write_tables for the fixed-point rows
@@ -386,6 +407,9 @@ def evaluate_session(session_dir, cal_path, table_path=None, comp_duration_s: fl
         if not path.is_file():
             raise InputError(path, "file not found")
         tab = CalibTable(path.read_bytes(), source=path)
+        line = table_mismatch(tab, cal, path, cal_path)
+        if line:
+            print(f"playscope: warning: {line}", file=sys.stderr)
     from .sim.plant import session_plant  # the simulator stays behind the plant interface
 
     plant, plant_note = session_plant(s)

@@ -590,7 +590,38 @@ def load_session(folder: str | os.PathLike, progress=None) -> Session:
                       ("frames.csv", s.frames)):
         if tab is not None:
             check_span(tab, folder / name, notes)
+    check_image_size(s, folder, notes)
     return thin_record(s, folder / "encoder.csv")
+
+
+def check_image_size(s: Session, folder: Path, notes: list[str]) -> None:
+    """Note (a warning line) frames of another size than session.json's camera: the video's
+    own size (its header, no frame decoded), and marker.csv positions outside the camera's
+    image. K and the distortion are stated for camera.width x camera.height, so such a
+    marker is calibrated in another camera's pixels."""
+    if s.camera is None:
+        return
+    W, H = s.camera.width, s.camera.height
+    if s.video is not None and s.video.is_file():
+        import cv2
+
+        cap = cv2.VideoCapture(str(s.video))
+        try:
+            vw, vh = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        finally:
+            cap.release()
+        if vw > 0 and vh > 0 and (vw, vh) != (W, H):
+            notes.append(f"{s.video}: frames are {vw}x{vh} px but session.json says camera {W}x{H}: the marker is "
+                         "calibrated in another camera's pixels; fix camera.width/height (and K) or the video")
+            return
+    if s.marker is not None:
+        u, v = s.marker["u_px"], s.marker["v_px"]
+        out = np.isfinite(u) & ((u < -0.5) | (u > W - 0.5) | (v < -0.5) | (v > H - 0.5))
+        if out.any():
+            k = int(np.nonzero(out)[0][0])
+            notes.append(f"{folder / 'marker.csv'}: {int(out.sum())} marker position(s) outside the {W}x{H} px image "
+                         f"session.json's camera has, the first ({u[k]:.1f}, {v[k]:.1f}) px at t = {s.marker['t_s'][k]:.3f} s: "
+                         "tracked in frames of another size? fix camera.width/height (and K)")
 
 
 def thin_record(s: Session, enc_path) -> Session:
