@@ -201,7 +201,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("playscope: interrupted (nothing half-written is left under an output's name)", file=sys.stderr)
         return 130
-    except (InputError, OSError, ValueError, OverflowError, RecursionError) as e:
+    except (InputError, OSError, ValueError, OverflowError, RecursionError,
+            KeyError, TypeError, AttributeError, IndexError) as e:
+        # The last four: a malformed field of a file no loader check caught (a missing key, a
+        # value of another type); still one line, never a traceback.
         if os.environ.get("PLAYSCOPE_DEBUG"):
             raise
         print(f"playscope: error: {_one_line(e, args)}", file=sys.stderr)
@@ -253,6 +256,11 @@ def _one_line(e: BaseException, args) -> str:
         msg = f"{e.filename}: {e.strerror or e}; check the path and its permissions"
     elif isinstance(e, OSError):
         msg = f"{e}"  # a board or transport failure (TransportError) says what and where itself
+    elif isinstance(e, (KeyError, TypeError, AttributeError, IndexError)):
+        cmd = " ".join(x for x in (getattr(args, "command", None), getattr(args, "device_command", None)) if x)
+        what = f"key {e.args[0]!r} missing" if isinstance(e, KeyError) and e.args else str(e)
+        msg = (f"{cmd or 'playscope'}: a malformed field in an input file ({type(e).__name__}: {what}); check the "
+               "files against docs/session-format.md and docs/calibration-format.md (PLAYSCOPE_DEBUG=1 for details)")
     else:
         cmd = " ".join(x for x in (getattr(args, "command", None), getattr(args, "device_command", None)) if x)
         msg = f"{cmd or 'playscope'}: {e}; check the inputs and options (PLAYSCOPE_DEBUG=1 for details)"

@@ -177,9 +177,20 @@ def session_plant(s):
     from .core import SimConfig, transmission
     from .effects import EffectSet
 
+    from ..base.errors import InputError
+    from .record import check_config
+
     cfg_d = s.meta.get("simulator") if s.meta else None
     if not cfg_d:
         return None, NO_PLANT
+    where = (s.path / "session.json") if s.path is not None else "session.json"
+    if not isinstance(cfg_d, dict):
+        raise InputError(where, f"key simulator: expected an object (the simulator's parameters), got "
+                         f"{type(cfg_d).__name__}")
+    try:  # the same check as simulate --config's: each key named with what it must be
+        check_config(cfg_d, where)
+    except InputError as e:
+        raise InputError(where, e.message.replace("key ", "key simulator.", 1)) from None
     cfg = SimConfig.from_json(cfg_d)
     blind = "effects" not in cfg_d
     eff = EffectSet({k: dict(v) for k, v in cfg.effects.items()})

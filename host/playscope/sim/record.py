@@ -204,7 +204,7 @@ def check_config(d: dict, path) -> None:
     tr = d.get("trajectory")
     if not isinstance(tr, dict):
         bad("trajectory", "an object with a \"kind\"", tr)
-    if tr.get("kind") not in _TRAJ_KEYS:
+    if not isinstance(tr.get("kind"), str) or tr.get("kind") not in _TRAJ_KEYS:
         bad("trajectory.kind", " or ".join(f'"{k}"' for k in _TRAJ_KEYS), tr.get("kind"),
             missing="kind" not in tr)
     need, may = _TRAJ_KEYS[tr["kind"]]
@@ -238,8 +238,13 @@ def check_config(d: dict, path) -> None:
                 unknown(f"effects.{name}.{pn}", f"parameter of {name}", known)
             if not _num(v):
                 bad(f"effects.{name}.{pn}", "a number", v)
-    R = np.asarray(d["R"], float)
-    if not (np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0):
+    if "R" not in d:
+        bad("R", "a rotation matrix (R R^T = I, det +1)", missing=True)
+    try:
+        R = np.asarray(d["R"], float)
+    except (TypeError, ValueError):
+        bad("R", "a 3x3 rotation matrix of numbers", d["R"])
+    if R.shape != (3, 3) or not (np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0):
         bad("R", "a rotation matrix (R R^T = I, det +1)", d["R"])
 
 
