@@ -316,7 +316,7 @@ def pace_excitation(exc: str, fps: float | None = None, b_range: str | None = No
 
         b_low, b_high = play_range(SimPlant(SimPlantConfig(seed=seed)).sim)
     else:
-        raise InputError("--exc", "without a speed, the swing is paced the swing to the camera and needs the expected play, "
+        raise InputError("--exc", "without a speed, the swing is paced to the camera and needs the expected play, "
                          "--b-range LO:HI (or give the speed as --exc Q0:Q1:AMP:ADV:V)")
     if fps is None:
         fps = 25.0

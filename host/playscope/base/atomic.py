@@ -135,6 +135,9 @@ MANIFEST = ".playscope"
 # by their exact header line; ".tracked" by its exact text (evaluate-real).
 OWNED_CSV_HEADERS = frozenset({"t_s,u_px,v_px", "reason,reason_code,t1_s,t2_s,q1,q2,q_mean,b"})
 TRACKED_TEXT = b"marker.csv comes from tracking video.avi\n"
+# A PNG playscope writes carries this text chunk (matplotlib's savefig metadata=).
+PNG_METADATA = {"Software": "playscope"}
+_PNG_MARK = b"Software\0playscope"
 _OWNED_JSON_FORMATS = ("playscope-calibration/",)
 _MAX_OWNED_JSON = 256 << 20
 
@@ -220,6 +223,8 @@ def owned_file(path: str | os.PathLike) -> bool:
     if len(head) >= 4 and int.from_bytes(head[:4], "little") == _table_magic():
         return True
     if head == TRACKED_TEXT:
+        return True
+    if head.startswith(b"\x89PNG") and _PNG_MARK in head:
         return True
     text = head.decode("utf-8", "ignore")
     if text.lstrip().startswith("{"):

@@ -263,7 +263,10 @@ def plot_transfer(doc: dict, path, rows=("in_situ", "static", "online", "online_
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    from ..base.atomic import PNG_METADATA, atomic_path
+
+    with atomic_path(path) as tmp:  # through the output guard, renamed into place
+        fig.savefig(tmp, dpi=110, format="png", metadata=PNG_METADATA)
     plt.close(fig)
 
 

@@ -72,7 +72,7 @@ def test_malformed_simulator_field(key, value, expect, sim_session, tmp_path, go
     else:
         x[key[-1]] = value
     (s / "session.json").write_text(json.dumps(d))
-    assert main(["evaluate", str(s), str(good["cal"]), "--comp-duration", "1"]) == 2
+    assert main(["evaluate", str(s), str(good["cal"]), "--comp-duration", "2"]) == 2
     err = _one_line(capsys)
     assert str(s / "session.json") in err and expect in err, err
 

@@ -26,7 +26,7 @@ def test_evaluate_warns_about_another_calibrations_table(tmp_path, good, capsys)
     from playscope.fit.table_build import build_table
 
     g = copy_good(good, tmp_path)
-    argv = ["evaluate", str(g["session"]), str(g["cal"]), "--comp-duration", "1"]
+    argv = ["evaluate", str(g["session"]), str(g["cal"]), "--comp-duration", "2"]
     assert main(argv + ["--table", str(g["table"])]) == 0
     assert not [w for w in _warnings(capsys.readouterr().err) if "does not match" in w]
     cal = load_calibration(g["cal"])
@@ -78,3 +78,12 @@ def test_marker_outside_the_image_is_noted(tmp_path):
     _resize_camera(s, int(np.nanmax(m["u_px"]) // 2), int(np.nanmax(m["v_px"]) // 2))
     notes = [n for n in load_session(s).notes if "outside the" in n]
     assert len(notes) == 1 and "marker.csv" in notes[0], notes
+
+
+def test_compensation_reference_shorter_than_its_unscored_second_is_refused(tmp_path, good, capsys):
+    """--comp-duration 1 left nothing to score after the reference's first (unscored) second:
+    a numpy error as the one line; now refused as an option value."""
+    g = copy_good(good, tmp_path)
+    assert main(["evaluate", str(g["session"]), str(g["cal"]), "--comp-duration", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--comp-duration" in err and "\n" not in err, err
