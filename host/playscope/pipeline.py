@@ -403,10 +403,12 @@ def evaluate_session(session_dir, cal_path, table_path=None, comp_duration_s: fl
     if table_path:
         from .fit.table_build import CalibTable
 
+        from .board.table_check import read_table_file
+
         path = Path(table_path)
-        if not path.is_file():
-            raise InputError(path, "file not found")
-        tab = CalibTable(path.read_bytes(), source=path)
+        # The checks `flash` makes (size, magic, CRC, the loader's rules): a table the board
+        # would refuse is not scored as if it had been flashed.
+        tab = CalibTable(read_table_file(path), source=path)
         line = table_mismatch(tab, cal, path, cal_path)
         if line:
             print(f"playscope: warning: {line}", file=sys.stderr)

@@ -124,7 +124,7 @@ def import_csv(path, t_col=None, q_col=None, c_col=None, time_scale: float = 1.0
                             q_source=q_source,
                             meta={"source": {"file": str(path), "columns": cols, "header": has_header,
                                              "time_scale": time_scale, "q_scale": q_scale, "c_scale": c_scale}}),
-                       {"encoder": text, "distal": text})
+                    {"encoder": text, "distal": text})
     if s.encoder["t_s"].size < 2:  # the stamps, scaled, fell into one microsecond
         raise InputError(path, f"{n} rows with distinct stamps, but {s.encoder['t_s'].size} after scaling them by "
                          f"{time_scale:g} to seconds and rounding to the microsecond (the session's resolution): "

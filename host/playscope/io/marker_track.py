@@ -447,8 +447,11 @@ def check_frame_size(folder: Path, video: Path, size) -> None:
     session.json gives no usable size (its loader names that)."""
     from .session import read_json
 
-    if size is None or not (folder / "session.json").is_file():
+    from .inputfile import check_input_file
+
+    if size is None or not os.path.lexists(folder / "session.json"):
         return
+    check_input_file(folder / "session.json", "session.json")  # a pipe or a device: refused, never opened
     try:
         cam = read_json(folder / "session.json", "session.json").get("camera") or {}
         w, h = int(cam["width"]), int(cam["height"])

@@ -183,15 +183,16 @@ def test_force_never_writes_through_a_link(tmp_path, good, capsys):
 
 
 # --------------------------------------------------------------------------- pipes: refused, never opened
-@pytest.mark.parametrize("case", ["track-video", "tables-out", "tables-out-force", "insitu-json", "cal-input"])
+@pytest.mark.parametrize("case", ["track-video", "track-session-json", "tables-out", "tables-out-force", "insitu-json", "cal-input"])
 def test_a_fifo_is_refused_not_opened(case, tmp_path, good):
     g = copy_good(good, tmp_path)
     fifo = tmp_path / "pipe"
-    if case == "track-video":
+    if case.startswith("track"):
         s = tmp_path / "S"
         assert _run(["simulate", s, "--duration", "3", "--video", "-q"]).returncode == 0
-        (s / "video.avi").unlink()
-        os.mkfifo(s / "video.avi")
+        name = "video.avi" if case == "track-video" else "session.json"
+        (s / name).unlink()
+        os.mkfifo(s / name)
         argv = ["track", s, "--force"]
     else:
         os.mkfifo(fifo)

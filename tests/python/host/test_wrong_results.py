@@ -87,3 +87,14 @@ def test_compensation_reference_shorter_than_its_unscored_second_is_refused(tmp_
     assert main(["evaluate", str(g["session"]), str(g["cal"]), "--comp-duration", "1"]) == 2
     err = capsys.readouterr().err.strip()
     assert "--comp-duration" in err and "\n" not in err, err
+
+
+def test_evaluate_table_is_checked_as_flash_checks_it(tmp_path, good, capsys):
+    """A table with bytes appended (its total_size no longer the file's length) was scored as
+    if flashed; now refused as `flash` refuses it, naming the field."""
+    g = copy_good(good, tmp_path)
+    bad = tmp_path / "bad.pstb"
+    bad.write_bytes(g["table"].read_bytes() + b"\0" * 64)
+    assert main(["evaluate", str(g["session"]), str(g["cal"]), "--table", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"playscope: error: {bad}") and "\n" not in err, err
