@@ -390,12 +390,13 @@ def link_cases(work: Path) -> list[Result]:
 
     results = []
     flash_file = work / "link.flash"
+    flash_file.unlink(missing_ok=True)  # a fresh board: its first table is generation 1
     base = work / "base"
     tr = virtual_transport(flash_file)
     lk = Link(tr, timeout_s=3.0)
     blob = (base / "t.pstb").read_bytes()
     lk.upload_table(blob)
-    active = lk.read_table()
+    state = {"active": lk.read_table()}
     lib, ffi = lk.lib, lk.ffi
     mtypes = sorted({getattr(lib, n) for n in dir(lib) if n.startswith("PSP_MSG_") and isinstance(getattr(lib, n), int)
                      and getattr(lib, n) < 0x80})
@@ -421,8 +422,10 @@ def link_cases(work: Path) -> list[Result]:
             why = (why + "; " if why else "") + "board no longer answers"
         elif must_keep:
             try:
-                if lk.read_table() != active:
+                now = lk.read_table()
+                if now != state["active"]:
                     why = (why + "; " if why else "") + "active table changed"
+                    state["active"] = now  # judged once: the next cases compare with what is active now
             except (DeviceError, TransportError) as e:
                 why = (why + "; " if why else "") + f"cannot read the table back: {e}"
         results.append(Result(name, not why, "-", time.monotonic() - t0, why))
@@ -443,6 +446,56 @@ def link_cases(work: Path) -> list[Result]:
                        ("truncated", lambda b: b[:len(b) // 2]),
                        ("q_max flipped", lambda b: b[:24] + bytes([b[24] ^ 4]) + b[25:])):
         record(f"link: upload table {label}", lambda dmg=dmg: lk.upload_table(dmg(blob)))
+    # Tables with a valid CRC and an intact structure whose physics no instrument has: refused
+    # by the board's loader (ps_table.h PST_PLAUS_*), the active table kept.
+    import numpy as np
+
+    from playscope.fit.table_build import set_generation
+
+    hd = ffi.new("pst_header_t *")
+    ffi.memmove(hd, blob[:ffi.sizeof("pst_header_t")], ffi.sizeof("pst_header_t"))
+    travel = hd.q_max_q16 - hd.q_min_q16
+    b0 = np.frombuffer(blob[hd.b.offset:hd.b.offset + 4 * hd.b.n], "<i4").astype(np.int64)
+    f0 = np.frombuffer(blob[hd.f.offset:hd.f.offset + 4 * hd.f.n], "<i4").astype(np.int64)
+
+    def reseal(q_range=None, b=None, f=None, gen=None) -> bytes:
+        out = bytearray(blob)
+        if q_range is not None:
+            at = ffi.offsetof("pst_header_t", "q_min_q16")
+            out[at:at + 8] = np.array(q_range, "<i4").tobytes()
+        for grid, v in ((hd.b, b), (hd.f, f)):
+            if v is not None:
+                out[grid.offset:grid.offset + 4 * grid.n] = np.clip(v, -2**31, 2**31 - 1).astype("<i4").tobytes()
+        if gen is not None:
+            at = ffi.offsetof("pst_header_t", "generation")
+            out[at:at + 4] = int(gen).to_bytes(4, "little")
+        crc = lib.calib_table_crc(ffi.from_buffer(out), hd.total_size)
+        at = ffi.offsetof("pst_header_t", "crc32")
+        out[at:at + 4] = int(crc).to_bytes(4, "little")
+        return bytes(out)
+
+    gen = [hd.generation + 10]
+
+    def newer(**kw) -> bytes:
+        gen[0] += 1
+        return reseal(gen=gen[0], **kw)
+
+    for label, kw in (("B twice the travel", {"b": np.full_like(b0, 2 * travel)}),
+                      ("B the whole travel", {"b": np.full_like(b0, travel)}),
+                      ("f scaled x100", {"f": f0 * 100}),
+                      ("f flat", {"f": np.full_like(f0, int(f0[0])) + np.arange(f0.size)}),
+                      ("travel of 1 raw", {"q_range": [hd.q_min_q16, hd.q_min_q16 + 1]}),
+                      ("negative B", {"b": -b0})):
+        record(f"link: implausible table, valid CRC: {label}", lambda kw=kw: lk.upload_table(newer(**kw)))
+    record("link: the active table again (same generation)", lambda: lk.upload_table(state["active"]))
+    record("link: an older generation", lambda: lk.upload_table(reseal(gen=max(hd.generation - 1, 0))))
+
+    def take_newer():  # the control: a valid table of a newer generation is taken
+        lk.upload_table(set_generation(blob, gen[0] + 1))
+        if lk.read_table() == state["active"]:
+            raise RuntimeError("a valid newer table was not taken")
+        state["active"] = lk.read_table()
+    record("link: control, a valid newer table is taken", take_newer, must_keep=False)
     record("link: begin upload, never commit", lambda: lk.begin_upload(len(blob), 0x1234))
     lk.close()
     tr.close()
