@@ -253,3 +253,15 @@ def test_video_written_whole(tmp_path):
     assert not [n for n in os.listdir(s) if n.startswith(".") and n != ".playscope"]
     assert atomic.folder_not_owned(s) is None
     assert atomic.owned_file(Path(s) / "marker.csv")
+
+
+def test_main_job_keeps_its_session_folder_its_own(tmp_path):
+    """The main job rewrites its excitation session's hand-eye after writing it; the folder's
+    manifest follows, so the job's next run may replace the folder (--force semantics)."""
+    from playscope.mainjob import declare_registration_error
+    from playscope.sim.record import sim_config, write_simulated
+
+    s = tmp_path / "S"
+    write_simulated(sim_config("stras", trajectory="excitation", duration_s=2.0, seed=1), s)
+    declare_registration_error(s, 2.0)
+    assert atomic.folder_not_owned(s) is None
