@@ -291,12 +291,13 @@ def folder_not_owned(folder: str | os.PathLike, _manifest: dict | None = None, _
             continue
         if not stat.S_ISREG(st.st_mode):
             return f"holds {n!r}, {_kind_of_mode(st.st_mode)}"
+        if owned_file(p):  # playscope's by its content (marker.csv that `track` rewrote, a table, ...)
+            continue
         if man is not None and rel in man:
             if man[rel] == _sha256(p):
                 continue
             return f"holds {rel!r}, changed since playscope wrote it"
-        if not owned_file(p):
-            return f"holds {rel!r}, not a file playscope wrote"
+        return f"holds {rel!r}, not a file playscope wrote"
     return None
 
 

@@ -265,3 +265,13 @@ def test_main_job_keeps_its_session_folder_its_own(tmp_path):
     write_simulated(sim_config("stras", trajectory="excitation", duration_s=2.0, seed=1), s)
     declare_registration_error(s, 2.0)
     assert atomic.folder_not_owned(s) is None
+
+
+def test_a_session_track_rewrote_is_still_playscopes(tmp_path, capsys):
+    """simulate S --video, track S --force (marker.csv rewritten: its hash no longer the
+    manifest's), then simulate S --overwrite: replaced, marker.csv being playscope's by its
+    header (the main job's second run failed on this)."""
+    s = tmp_path / "S"
+    assert main(["simulate", str(s), "--duration", "3", "--video", "-q"]) == 0
+    assert main(["track", str(s), "--force", "-q"]) == 0
+    assert main(["simulate", str(s), "--duration", "3", "--video", "--overwrite", "-q"]) == 0
