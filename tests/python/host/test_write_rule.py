@@ -275,3 +275,19 @@ def test_a_session_track_rewrote_is_still_playscopes(tmp_path, capsys):
     assert main(["simulate", str(s), "--duration", "3", "--video", "-q"]) == 0
     assert main(["track", str(s), "--force", "-q"]) == 0
     assert main(["simulate", str(s), "--duration", "3", "--video", "--overwrite", "-q"]) == 0
+
+
+def test_the_board_itself_never_opens_its_flash_file_through_a_link(tmp_path, good):
+    """The host refuses a link as --flash-file; the board does too on its own (O_NOFOLLOW), so a
+    link swapped in after the host's check is not written through: the target is unchanged."""
+    from playscope.base.native import executable
+
+    target = tmp_path / "target.flash"
+    target.write_bytes(b"\xff" * FLASH_IMAGE_BYTES)  # an erased image: the board would take it
+    link = tmp_path / "link.flash"
+    link.symlink_to(target)
+    before = _state(tmp_path)
+    r = subprocess.run([str(executable("ps_vboard")), "--stdio", "--flash", str(link)], input=b"",
+                       capture_output=True, timeout=30)
+    assert r.returncode != 0 and b"link" in r.stderr.lower(), r.stderr
+    assert _state(tmp_path) == before
