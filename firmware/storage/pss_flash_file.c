@@ -60,8 +60,9 @@ int pss_file_open(pss_file_t *ff, const char *path, uint32_t slot_size)
     memset(ff, 0, sizeof(*ff));
     ff->slot_size = slot_size;
     /* Open without truncating or creating first: the lock and the size are checked before a
-     * single byte is written. */
-    int fd = open(path, O_RDWR | O_CREAT, 0644);
+     * single byte is written. Never through a symbolic link (O_NOFOLLOW): the image is written
+     * in place, and a link would aim those writes at whatever it names. */
+    int fd = open(path, O_RDWR | O_CREAT | O_NOFOLLOW, 0644);
     if (fd < 0)
         return PSS_FILE_ERR_OPEN;
     if (flock(fd, LOCK_EX | LOCK_NB) != 0) {

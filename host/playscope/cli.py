@@ -23,6 +23,7 @@ import sys
 from . import __version__
 from .base.atomic import check_flash_file, check_output, output_guard
 from .base.errors import InputError
+from .io.inputfile import check_input_file
 
 # Argument dests that name what a command writes; every other path-valued argument that
 # exists is an input the output guard protects (atomic.output_guard). Not inputs either:
@@ -33,6 +34,9 @@ NOT_INPUT_ARGS = frozenset(OUTPUT_ARGS + ("flash_file", "elf", "address", "devic
 # Per command, arguments naming a work folder or file the command manages itself (reuses or
 # replaces by design): neither an input nor an output the guard checks.
 WORK_ARGS = {"evaluate-real": ("reimage",), "demo": ("out", "json")}
+# Per command, inputs that may be a device (a camera): every other input must be a regular
+# file or a folder (io.inputfile.check_input_file).
+DEVICE_ARGS = {"run-insitu": ("video",)}
 
 # Command modules in help order (all in playscope.commands, the one command-line home), each
 # with the subpackage it needs: a command whose package is absent from an install is skipped.
@@ -183,20 +187,42 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         ins, outs = _paths(args)
+        live = [getattr(args, k, None) for k in DEVICE_ARGS.get(args.command, ())]
+        for x in ins:  # a pipe or a device named as an input is refused before anything opens it
+            if not os.path.isdir(x) and x not in live:
+                check_input_file(x, "regular file")
         force = bool(getattr(args, "force", False))
+        _sigterm_as_interrupt()
         with output_guard(ins, force):
             for o in outs:  # before any work: a refused output costs nothing
                 check_output(o)
             check_flash_file(getattr(args, "flash_file", None))
             return _run_command(args)
     except KeyboardInterrupt:
-        print("playscope: interrupted", file=sys.stderr)
+        print("playscope: interrupted (nothing half-written is left under an output's name)", file=sys.stderr)
         return 130
-    except (InputError, OSError, ValueError, OverflowError, RecursionError) as e:
+    except (InputError, OSError, ValueError, OverflowError, RecursionError,
+            KeyError, TypeError, AttributeError, IndexError) as e:
+        # The last four: a malformed field of a file no loader check caught (a missing key, a
+        # value of another type); still one line, never a traceback.
         if os.environ.get("PLAYSCOPE_DEBUG"):
             raise
         print(f"playscope: error: {_one_line(e, args)}", file=sys.stderr)
         return 2
+
+
+def _sigterm_as_interrupt():
+    """SIGTERM raises KeyboardInterrupt, as SIGINT does, so a killed command removes its
+    temporaries (atomic.atomic_path, io.videofile) instead of leaving a partial output."""
+    import signal
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        return signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread (a library caller): leave the process's handler alone
+        return None
 
 
 def _run_command(args) -> int:
@@ -230,6 +256,11 @@ def _one_line(e: BaseException, args) -> str:
         msg = f"{e.filename}: {e.strerror or e}; check the path and its permissions"
     elif isinstance(e, OSError):
         msg = f"{e}"  # a board or transport failure (TransportError) says what and where itself
+    elif isinstance(e, (KeyError, TypeError, AttributeError, IndexError)):
+        cmd = " ".join(x for x in (getattr(args, "command", None), getattr(args, "device_command", None)) if x)
+        what = f"key {e.args[0]!r} missing" if isinstance(e, KeyError) and e.args else str(e)
+        msg = (f"{cmd or 'playscope'}: a malformed field in an input file ({type(e).__name__}: {what}); check the "
+               "files against docs/session-format.md and docs/calibration-format.md (PLAYSCOPE_DEBUG=1 for details)")
     else:
         cmd = " ".join(x for x in (getattr(args, "command", None), getattr(args, "device_command", None)) if x)
         msg = f"{cmd or 'playscope'}: {e}; check the inputs and options (PLAYSCOPE_DEBUG=1 for details)"

@@ -20,6 +20,7 @@ registration error of section V-B belongs to the Fig. 7 replica (bench/fig7_repl
 from __future__ import annotations
 
 import json
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -27,12 +28,16 @@ from pathlib import Path
 import numpy as np
 
 from . import pipeline as P
-from .base.atomic import output_guard
+from .base.atomic import MANIFEST, output_guard, write_manifest
 from .fit.calibration import Calibration
 from .base.errors import InputError
 from .base.jsonio import plain_json
 from .sim.record import sim_config, write_simulated
 from .fit.transition import picked_candidate
+
+# What this job wrote into its session folders before they carried a manifest (atomic.MANIFEST).
+LEGACY_SESSION_FILES = frozenset({"session.json", "encoder.csv", "marker.csv", "truth.csv", "frames.csv",
+                                  "video.avi", ".tracked"})
 
 DEFAULT_OUT = "out/main"
 REGISTRATION_QY_DEG = 2.0  # Table I conditions: registration error about the camera x axis (acts on Qy)
@@ -50,6 +55,8 @@ def declare_registration_error(session_dir: Path, rx_deg: float) -> None:
     d["hand_eye"] = {"R": (Rx @ np.array(d["hand_eye"]["R"], float)).tolist(),
                      "t_mm": (Rx @ np.array(d["hand_eye"]["t_mm"], float)).tolist()}
     path.write_text(json.dumps(d, indent=1) + "\n")
+    if (Path(session_dir) / MANIFEST).is_file():  # still the job's own folder for its next run's --force
+        write_manifest(Path(session_dir))
 
 
 def b_error_vs_truth(cal_path: Path, session_dir: Path) -> dict:
@@ -97,6 +104,10 @@ def run(out: Path, duration_s: float = 90.0, seed: int = 1, device: str = "usb",
     # to overwrite on their own; the session folders are rewritten with overwrite).
     for f in (cal_json, table, ev_json, report, out / "board.flash", out / "summary.json"):
         f.unlink(missing_ok=True)
+    for d in (cal_s, test_s):  # this job's session folders from a run before they carried a manifest
+        if d.is_dir() and not d.is_symlink() and not (d / MANIFEST).exists() \
+                and {p.name for p in d.iterdir()} <= LEGACY_SESSION_FILES and not any(p.is_dir() for p in d.iterdir()):
+            shutil.rmtree(d)
     # The job owns out/: its steps replace their outputs (as `--overwrite` / `--force` would)
     # in an output guard of its own, armed inside the `demo` command's.
     with output_guard((), force=True):

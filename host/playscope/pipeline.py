@@ -317,7 +317,7 @@ def pace_excitation(exc: str, fps: float | None = None, b_range: str | None = No
 
         b_low, b_high = play_range(SimPlant(SimPlantConfig(seed=seed)).sim)
     else:
-        raise InputError("--exc", "without a speed, the swing is paced the swing to the camera and needs the expected play, "
+        raise InputError("--exc", "without a speed, the swing is paced to the camera and needs the expected play, "
                          "--b-range LO:HI (or give the speed as --exc Q0:Q1:AMP:ADV:V)")
     if fps is None:
         fps = 25.0
@@ -368,6 +368,27 @@ def _warn_repairs(s) -> None:
         print(f"playscope: warning: {line}", file=sys.stderr)
 
 
+def table_mismatch(tab, cal, table_path, cal_path) -> str | None:
+    """One line when the table tab is not this calibration's: its fixed-point model, run over
+    the calibration's travel, misses the float model (f_remain with its transition, or
+    f_coarse for a `tables --f-coarse` table) by more than the precision ceiling every table
+    `tables` writes meets (table_build.check_precision); None when it matches."""
+    from .fit.table_build import TableError, check_precision, table_errors
+
+    q_min, q_max = cal.q_range
+    why = None
+    for B, f, tr, rl in ((cal.B_model, cal.f, cal.transition, cal.relax), (cal.B, cal.f_coarse, None, None)):
+        try:
+            check_precision(tab, table_errors(tab, B, f, q_min, q_max, tr, rl), f, q_min, q_max, source=table_path)
+            return None
+        except TableError as e:
+            why = why or e.message.split(";")[0]
+        except (ValueError, OverflowError) as e:
+            why = why or str(e)
+    return (f"{table_path}: does not match the calibration {cal_path} ({why}): a table of another calibration? "
+            "the fixed-point rows score that table, not this calibration; rebuild it with playscope tables")
+
+
 def evaluate_session(session_dir, cal_path, table_path=None, comp_duration_s: float = 60.0) -> Evaluated:
     """Table I and the compensation test (evaluate.evaluate) of the calibration at cal_path on
     the test session folder; table_path: a blob from write_tables for the fixed-point rows
@@ -383,10 +404,15 @@ def evaluate_session(session_dir, cal_path, table_path=None, comp_duration_s: fl
     if table_path:
         from .fit.table_build import CalibTable
 
+        from .board.table_check import read_table_file
+
         path = Path(table_path)
-        if not path.is_file():
-            raise InputError(path, "file not found")
-        tab = CalibTable(path.read_bytes(), source=path)
+        # The checks `flash` makes (size, magic, CRC, the loader's rules): a table the board
+        # would refuse is not scored as if it had been flashed.
+        tab = CalibTable(read_table_file(path), source=path)
+        line = table_mismatch(tab, cal, path, cal_path)
+        if line:
+            print(f"playscope: warning: {line}", file=sys.stderr)
     from .sim.plant import session_plant  # the simulator stays behind the plant interface
 
     plant, plant_note = session_plant(s)
@@ -511,7 +537,8 @@ def run_insitu(link, src: InsituSource, seconds=None, n_ctrl: int = 14, out=None
     run, RuntimeError for a failed flash (nothing of out is lost)."""
     import json
 
-    from .base.atomic import write_bytes_atomic, write_text_atomic
+    from .base.atomic import write_bytes_atomic
+    from .base.jsonio import write_json
     from .board.flash import flash
     from .board.insitu_run import (VideoSource, calibrate_run, exc_duration_s, read_geometry, run_loop,
                                    session_of, write_samples_csv)
@@ -578,7 +605,7 @@ def run_insitu(link, src: InsituSource, seconds=None, n_ctrl: int = 14, out=None
         except (RuntimeError, ValueError) as e:
             raise RuntimeError(f"flash failed: {e}") from None
     if out:
-        write_text_atomic(out / "result.json", json.dumps(res.to_json(), indent=1) + "\n")
+        write_json(out / "result.json", res.to_json(), indent=1)
     return res
 
 

@@ -30,13 +30,20 @@ STDOUT: list = []
 
 def write_json(path, obj, indent: int = 2) -> None:
     """Write obj (plain_json) to the file path atomically, or to stdout when path is "-" (the
-    common meaning of `--json PATH`, docs/host.md); no-op when path is None or empty."""
+    common meaning of `--json PATH`, docs/host.md); no-op when path is None or empty. A dict
+    written to a file starts with "written_by": "playscope", so a later --force knows the file
+    is playscope's (atomic.owned_file)."""
     import json
     import sys
 
     if not path:
         return
-    text = json.dumps(plain_json(obj), indent=indent) + "\n"
+    obj = plain_json(obj)
+    if path != "-" and isinstance(obj, dict):  # the mark --force checks (atomic.owned_file)
+        from .atomic import WRITTEN_BY
+
+        obj = {"written_by": WRITTEN_BY, **obj}
+    text = json.dumps(obj, indent=indent) + "\n"
     if path == "-":
         out = STDOUT[-1] if STDOUT else sys.stdout
         out.write(text)

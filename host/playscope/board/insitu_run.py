@@ -283,12 +283,15 @@ def write_samples_csv(path, samples: list) -> None:
 def read_geometry(path: str):
     """Robot, camera, hand-eye and t_delay from a session.json (playscope-session/1)."""
     from ..base.errors import InputError
-    from ..io.session import parse_meta
+    from ..io.session import parse_meta, read_json
 
     p = Path(path)
     if not p.is_file():
         raise InputError(p, "no such session.json")
-    m = parse_meta(json.loads(p.read_text()), p)
+    d = read_json(p, "session.json")
+    if not isinstance(d, dict):
+        raise InputError(p, "a session.json is a JSON object (robot, camera, hand_eye)")
+    m = parse_meta(d, p)
     if m.get("camera") is None or m.get("hand_eye") is None:
         raise InputError(p, "needs camera and hand_eye to estimate c from the marker (eqs. 6-8)")
     return m["robot"], m["camera"], m["hand_eye"], m.get("t_delay_s") or 0.08

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import os
 import sys
 
 from .common import add_command, add_json_arg, dump_json, progress
@@ -45,7 +46,7 @@ def cmd_flash(args) -> int:
     except (DeviceError, RuntimeError, ValueError) as e:
         if isinstance(e, InputError):  # a bad table file: the CLI's one-line error naming it
             raise
-        print(f"playscope: flash failed: {e}", file=sys.stderr)
+        print(f"playscope: error: flash failed: {' '.join(str(e).split())}", file=sys.stderr)
         return 1
     print(r.line())
     dump_json(args.json, r.to_json())
@@ -57,22 +58,28 @@ def cmd_run_insitu(args) -> int:
     from ..pipeline import pace_excitation
 
     vb = []
+    if args.out is not None and os.path.lexists(args.out) and not os.path.isdir(args.out):
+        raise InputError(args.out, "is a file; run-insitu -o takes a folder (its files: b_samples.csv, session/, "
+                         "calibration.json, table.bin, result.json)")
+    if not args.sim_plant:  # what the run needs, checked before the board is opened
+        if args.video is None:
+            raise InputError(None, "run-insitu needs --video FILE, a camera index, or --sim-plant")
+        if args.geometry is None:
+            raise InputError(None, "run-insitu needs --geometry session.json (robot, camera, hand-eye) to fit f")
+        from ..board.insitu_run import read_geometry
+
+        read_geometry(args.geometry)
     if args.sim_plant:
         if args.device != "virtual":
-            print("playscope: --sim-plant needs --device virtual (the simulated instrument follows "
-                  "the virtual board's clock)", file=sys.stderr)
-            return 2
+            raise InputError(None, "--sim-plant needs --device virtual (the simulated instrument follows "
+                             "the virtual board's clock)")
         from ..board.insitu_run import sim_vboard_args
 
         vb = sim_vboard_args(args.time_scale)
     args.pace = None
     if args.sim_plant or args.video is not None:  # no source: said below
         exc4 = args.exc
-        try:
-            paced = pace_excitation(args.exc, args.fps, args.b_range, args.sim_plant, args.seed, args.video)
-        except InputError as e:
-            print(f"playscope: run-insitu: {e}", file=sys.stderr)
-            return 2
+        paced = pace_excitation(args.exc, args.fps, args.b_range, args.sim_plant, args.seed, args.video)
         if paced.fps is not None:
             print(paced.line(), file=sys.stderr)
             args.pace = (paced.b_low_mm, paced.b_high_mm, paced.fps)
@@ -88,14 +95,6 @@ def _run_insitu(link, args) -> int:
     from ..base.errors import InputError
     from ..pipeline import InsituSource, run_insitu
 
-    if not args.sim_plant:
-        if args.video is None:
-            print("playscope: run-insitu needs --video FILE, a camera index, or --sim-plant", file=sys.stderr)
-            return 2
-        if args.geometry is None:
-            print("playscope: run-insitu needs --geometry session.json (robot, camera, hand-eye) to fit f",
-                  file=sys.stderr)
-            return 2
     src = InsituSource(video=args.video, geometry=args.geometry, sim_plant=args.sim_plant, seed=args.seed,
                        time_scale=args.time_scale, exc=args.exc, pace=args.pace)
     if args.sim_plant:
@@ -117,11 +116,8 @@ def _run_insitu(link, args) -> int:
     try:
         res = run_insitu(link, src, args.seconds, args.control_points, args.out, flash_after=not args.no_flash,
                          n_vectors=args.vectors, progress=bar_at, ran=ran)
-    except OSError as e:
-        print(f"playscope: {e}", file=sys.stderr)
-        return 2
     except (InputError, RuntimeError) as e:  # the fit refused the run, or the flash failed
-        print(f"playscope: run-insitu: {e}", file=sys.stderr)
+        print(f"playscope: error: run-insitu: {' '.join(str(e).split())}", file=sys.stderr)
         return 1
     finally:
         if bars:

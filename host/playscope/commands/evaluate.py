@@ -24,7 +24,9 @@ def add_parser(sub) -> None:
     p.add_argument("calibration", help="calibration JSON from `playscope calibrate`")
     p.add_argument("--table", type=T.existing_file, help="table blob from `playscope tables` for the fixed-point rows "
                    "(default: built from the calibration)")
-    p.add_argument("--comp-duration", type=T.float_range(0.1, 3600.0), default=60.0, help="length of the compensation reference, s (default 60)")
+    # At least 2 s: the reference's first second is not scored (the plant's play starts centred).
+    p.add_argument("--comp-duration", type=T.float_range(2.0, 3600.0), default=60.0,
+                   help="length of the compensation reference, s, 2..3600 (default 60; its first second is not scored)")
     add_json_arg(p, "format, session, calibration, distal_kind, t_delay_s, frames_scored, table, "
                  "prediction {model: {Qx_px|Qy_px|dist_px|c_deg: {mean,std,max}, c_rmse_deg, c_rmse_truth_deg}}, "
                  "compensation {plant, note, reference {duration_s, rate_hz, c_min_deg, c_max_deg}, "

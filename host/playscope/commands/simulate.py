@@ -36,7 +36,8 @@ def add_parser(sub) -> None:
                    help=f"switch an effect on (repeatable). Known: {eff_help}")
     p.add_argument("--no-preset-effects", action="store_true", help="drop the preset's own effects")
     p.add_argument("--trajectory", choices=list(TRAJ_DEFAULTS), help="trajectory kind")
-    p.add_argument("--duration", type=argtypes.float_range(0.0, 86_400.0, lo_open=True), help="duration in s")
+    # At least 0.1 s: a shorter record has fewer than the two encoder samples a session needs.
+    p.add_argument("--duration", type=argtypes.float_range(0.1, 86_400.0), help="duration in s, 0.1..86400")
     p.add_argument("--seed", type=argtypes.SEED, help="random seed")
     p.add_argument("--kind", choices=["image", "angle"], help="distal measurement (default image)")
     p.add_argument("--video", action="store_true", help="also render video.avi (MJPG) + frames.csv")

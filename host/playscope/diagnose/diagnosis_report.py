@@ -9,6 +9,8 @@ import io
 
 import numpy as np
 
+from ..base.atomic import HTML_GENERATOR
+
 
 def _png(fig) -> str:
     buf = io.BytesIO()
@@ -100,7 +102,7 @@ def html_page(title: str, summary: dict, figs: list[tuple[str, str]]) -> str:
                     f"<td>{r['base']['rmse_heldout_deg']:.3f}</td><td>{r['final']['rmse_heldout_deg']:.3f}</td>"
                     f"<td><b>{html.escape(r['verdict'])}</b></td><td>{kept}</td></tr>")
     body = "".join(f"<h2>{html.escape(t)}</h2>{img}" for t, img in figs)
-    return f"""<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>
+    return f"""<!doctype html><html><head><meta charset='utf-8'>{HTML_GENERATOR}<title>{html.escape(title)}</title>
 <style>body{{font-family:sans-serif;margin:2em}} table{{border-collapse:collapse}} td,th{{border:1px solid #aaa;padding:4px 8px;vertical-align:top}}</style>
 </head><body><h1>{html.escape(title)}</h1>
 <table><tr><th>session</th><th>noise floor [deg]</th><th>held-out RMSE, base [deg]</th><th>with kept effects [deg]</th><th>verdict</th><th>kept effects</th></tr>

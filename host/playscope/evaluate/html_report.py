@@ -16,7 +16,7 @@ import io
 import numpy as np
 
 from ..fit import model
-from ..base.atomic import write_text_atomic
+from ..base.atomic import HTML_GENERATOR, write_text_atomic
 from ..fit.calibration import Calibration
 from .prediction import Evaluation
 
@@ -150,7 +150,7 @@ def write_report(path, cal: Calibration, ev: Evaluation, table_md: str, title: s
             "<h2>Table I: prediction errors</h2>", _md_table_to_html(table_md)]
     for k, cap in caps.items():
         body.append(f"<h2>{html.escape(cap)}</h2><img alt=\"{k}\" src=\"data:image/png;base64,{figs[k]}\">")
-    doc = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>" + html.escape(title) +
+    doc = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">" + HTML_GENERATOR + "<title>" + html.escape(title) +
            "</title><style>body{font-family:sans-serif;max-width:1000px;margin:auto}"
            "table{border-collapse:collapse}td,th{border:1px solid #999;padding:2px 6px}"
            "img{max-width:100%}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")

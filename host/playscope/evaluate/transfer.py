@@ -181,6 +181,13 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
     if not 0.0 < warmup < 1.0:
         raise InputError(None, f"--warmup {warmup} outside (0, 1)")
     s_ref = read_record(cal_path)
+    records = {}
+    for p in paths:  # every record read first: one in another unit is refused before any work
+        records[p] = read_record(p)
+        if records[p].actuator_unit != s_ref.actuator_unit:
+            raise InputError(p, f"q is in {records[p].actuator_unit} but the calibration record {cal_path} is in "
+                             f"{s_ref.actuator_unit}: a calibration runs only on records of its own actuator unit "
+                             "(mm of cable or deg of motor); transfer between records of one kind")
     cal = calibrate(s_ref, f_method="lsq", model_kind="play", source=str(cal_path))
     cal_tr = calibrate(s_ref, f_method="lsq", model_kind="auto", source=str(cal_path))
     ref_const = O.const_play_ref(s_ref, cal.fps_frames)
@@ -193,7 +200,7 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
     st = O.OnlineSettings(refresh_s=refresh_s, score_after=warmup)
     files = {}
     for p in progress(list(paths), desc="transfer"):
-        s = read_record(p)
+        s = records[p]
         t, q = s.encoder["t_s"], s.encoder["q"]
         on = O.evaluate_online(cal, s, st, ref_const=ref_const)
         t_split = on["t_split_s"]
@@ -321,7 +328,10 @@ def plot_transfer(doc: dict, path, rows=("in_situ", "static", "online", "online_
     ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=1, frameon=False)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    from ..base.atomic import PNG_METADATA, atomic_path
+
+    with atomic_path(path) as tmp:  # through the output guard, renamed into place
+        fig.savefig(tmp, dpi=110, format="png", metadata=PNG_METADATA)
     plt.close(fig)
 
 
@@ -564,6 +574,13 @@ def shape_ceiling(cal_path, paths, warmup: float = WARMUP, refresh_s: float = 1.
     <kind>_rls with kind shape_<n>, branch_<n>, weights or wbranch_<n>.
     Returns {"calibration", "warmup", "settings", "files": {name: {"in_situ", row: rmse}}} (deg)."""
     s_ref = read_record(cal_path)
+    records = {}
+    for p in paths:  # every record read first: one in another unit is refused before any work
+        records[p] = read_record(p)
+        if records[p].actuator_unit != s_ref.actuator_unit:
+            raise InputError(p, f"q is in {records[p].actuator_unit} but the calibration record {cal_path} is in "
+                             f"{s_ref.actuator_unit}: a calibration runs only on records of its own actuator unit "
+                             "(mm of cable or deg of motor); transfer between records of one kind")
     cal = calibrate(s_ref, f_method="lsq", model_kind="play", source=str(cal_path))
     cal_tr = calibrate(s_ref, f_method="lsq", model_kind="auto", source=str(cal_path))
     learn = _Learners(s_ref, cal, cal_tr, refresh_s, nodes)

@@ -45,7 +45,53 @@ def load_calibration(path):
     qpr = (d.get("f_coarse") or {}).get("q_per_rad") if isinstance(d.get("f_coarse"), dict) else None
     if not _finite(qpr) or qpr == 0:
         raise InputError(path, f"f_coarse.q_per_rad must be a finite non-zero number, got {qpr!r}")
+    _check_optional_fields(d, path)
     return Calibration.load(path)
+
+
+def _what(v) -> str:
+    """A JSON value's type as the messages name it ("a string \"x\"", "a list", "null")."""
+    import json
+
+    kind = {bool: "a boolean", str: "a string", list: "a list", dict: "an object", int: "a number",
+            float: "a number", type(None): "null"}.get(type(v), type(v).__name__)
+    text = json.dumps(v)
+    return f"{kind} {text}" if len(text) <= 40 and not isinstance(v, (list, dict)) else kind
+
+
+def _check_optional_fields(d: dict, path) -> None:
+    """The calibration's optional parts, each null/absent or of the type the loader reads: one
+    InputError naming the file, the key, what it must be and what it is."""
+    from ..base.errors import InputError
+
+    def refuse(key, must, v):
+        raise InputError(path, f"key {key}: expected {must}, got {_what(v)}; make the file with `playscope calibrate`")
+
+    for key in ("B", "f_remain"):
+        fl = d[key].get("floor")
+        if fl is not None and not _finite(fl):
+            refuse(f"{key}.floor", "a finite number or null", fl)
+    for key in ("transition", "model_family"):
+        if d.get(key) is not None and not isinstance(d[key], dict):
+            refuse(key, "an object or null", d[key])
+    tr = d.get("transition") or {}
+    if tr.get("f_remain_play"):
+        _check_spline(tr["f_remain_play"], "transition.f_remain_play", path)
+        if tr["f_remain_play"].get("sign") not in (-1, 1):
+            refuse("transition.f_remain_play.sign", "1 or -1", tr["f_remain_play"].get("sign"))
+    fam = d.get("model_family") or {}
+    if fam.get("B"):
+        _check_spline(fam["B"], "model_family.B", path)
+    ch = fam.get("choice")
+    if ch is not None and not isinstance(ch, dict):
+        refuse("model_family.choice", "an object or null", ch)
+    rl = (ch or {}).get("relax")
+    if rl:
+        if not isinstance(rl, dict):
+            refuse("model_family.choice.relax", "an object {kappa, lambda} or null", rl)
+        for k in ("kappa", "lambda"):
+            if not _finite(rl.get(k)):
+                refuse(f"model_family.choice.relax.{k}", "a finite number", rl.get(k))
 
 
 def _finite(x) -> bool:

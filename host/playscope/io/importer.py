@@ -118,13 +118,18 @@ def import_csv(path, t_col=None, q_col=None, c_col=None, time_scale: float = 1.0
     if q_per_rad is None:
         q_per_rad = CATHETER_Q_PER_RAD if unit == "mm" else 180.0 / math.pi
     text = dataclasses.replace(tt[0], scale=float(time_scale))
-    return time_origin(Session(notes=notes, actuator_unit=unit, distal_kind="angle",
-                               robot=Robot("constant_curvature", bend_length_mm, tip_length_mm, q_per_rad),
-                               encoder=enc, distal=dist, t_delay_s=0.0 if t_delay_s is None else float(t_delay_s),
-                               q_source=q_source,
-                               meta={"source": {"file": str(path), "columns": cols, "header": has_header,
-                                                "time_scale": time_scale, "q_scale": q_scale, "c_scale": c_scale}}),
-                       {"encoder": text, "distal": text})
+    s = time_origin(Session(notes=notes, actuator_unit=unit, distal_kind="angle",
+                            robot=Robot("constant_curvature", bend_length_mm, tip_length_mm, q_per_rad),
+                            encoder=enc, distal=dist, t_delay_s=0.0 if t_delay_s is None else float(t_delay_s),
+                            q_source=q_source,
+                            meta={"source": {"file": str(path), "columns": cols, "header": has_header,
+                                             "time_scale": time_scale, "q_scale": q_scale, "c_scale": c_scale}}),
+                    {"encoder": text, "distal": text})
+    if s.encoder["t_s"].size < 2:  # the stamps, scaled, fell into one microsecond
+        raise InputError(path, f"{n} rows with distinct stamps, but {s.encoder['t_s'].size} after scaling them by "
+                         f"{time_scale:g} to seconds and rounding to the microsecond (the session's resolution): "
+                         "check --time-scale / --time-unit")
+    return s
 
 
 def _is_number(x: str) -> bool:

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..base.atomic import atomic_path
 from ..base.errors import InputError
-from .session import VIDEO_SUFFIXES, read_csv, write_csv
+from .session import VIDEO_SUFFIXES, format_us, read_csv, time_us, write_csv
 
 # Hue presets in OpenCV units (0-179 = 0-358 deg).
 HUE_PRESETS = {"green": (40, 85), "blue": (95, 130), "red": (170, 10), "yellow": (20, 35)}
@@ -237,6 +237,8 @@ class TrackResult:
     seconds: float
     reasons: dict = field(default_factory=dict)
     warning: str | None = None
+    t_text: list | None = None  # frames.csv's own text of each t_s (marker.csv repeats it)
+    frame_size: tuple | None = None  # (width, height) px of the decoded frames
 
     def summary(self) -> dict:
         n = int(self.t_s.size)
@@ -255,10 +257,20 @@ def find_video(folder: Path) -> Path:
     return vids[0]
 
 
-def read_frames_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """frames.csv -> (frame (N,) int64, t_s (N,) s). Errors: InputError naming the row for a
-    non-integer, negative or non-increasing frame number (time order is checked by read_csv)."""
-    d = read_csv(path, ["frame", "t_s"])
+def read_frames_csv(path: Path, texts: list | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """frames.csv -> (frame (N,) int64, t_s (N,) s). texts: a list to which the stamps' own
+    text is appended, one str per row (the decimal digits as written). Errors: InputError
+    naming the row for a non-integer, negative or non-increasing frame number (time order is
+    checked by read_csv)."""
+    tt: list = []
+    d = read_csv(path, ["frame", "t_s"], time_text=tt)
+    if texts is not None:
+        got = tt[0].ticks() if tt else None
+        if got is None:  # not decimal text (cannot happen after read_csv): the parsed floats, to the us
+            texts.extend(format_us(int(x)) for x in time_us(d["t_s"]).tolist())
+        else:
+            tk, dec = got
+            texts.extend(_ticks_text(int(x), dec) for x in tk[d["_row"]].tolist())
     fr = d["frame"]
     bad = np.nonzero((fr != np.round(fr)) | (fr < 0))[0]
     if bad.size:
@@ -267,6 +279,13 @@ def read_frames_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
     if bad.size:
         raise InputError(path, "frame numbers must increase", int(bad[0]) + 3)
     return fr.astype(np.int64), d["t_s"]
+
+
+def _ticks_text(tick: int, dec: int) -> str:
+    """tick / 10^dec as decimal text, trailing zeros dropped."""
+    sign, tick = ("-", -tick) if tick < 0 else ("", tick)
+    q, r = divmod(tick, 10 ** dec)
+    return f"{sign}{q}" if r == 0 else f"{sign}{q}.{r:0{dec}d}".rstrip("0")
 
 
 def track_video(video: Path, frames_csv: Path, cfg: TrackConfig | None = None, progress=None,
@@ -280,8 +299,12 @@ def track_video(video: Path, frames_csv: Path, cfg: TrackConfig | None = None, p
     frames than frames.csv lists by that much; no frame decoded at all.
     progress: a tqdm-like factory progress(total=..., desc=...) or None.
     """
+    from .inputfile import check_input_file
+
     video, frames_csv = Path(video), Path(frames_csv)
-    fr, t = read_frames_csv(frames_csv)
+    check_input_file(video, "video")  # a pipe or a device would block or never end
+    texts: list[str] = []
+    fr, t = read_frames_csv(frames_csv, texts)
     cap = cv2.VideoCapture(str(video))
     if not cap.isOpened():
         raise InputError(video, "cannot open the video (unknown codec or not a video)")
@@ -301,12 +324,15 @@ def track_video(video: Path, frames_csv: Path, cfg: TrackConfig | None = None, p
     reasons: dict[str, int] = {}
     bar = progress(total=n_list, desc=f"track {video.name}", unit="frame") if progress else None
     k = 0
+    size = None
     t0 = time.perf_counter()
     try:
         while True:
             ok, img = cap.read()
             if not ok or img is None:
                 break
+            if size is None:
+                size = (int(img.shape[1]), int(img.shape[0]))
             i = row_of.get(k)
             if i is not None:
                 d = tr.track(img)
@@ -340,7 +366,32 @@ def track_video(video: Path, frames_csv: Path, cfg: TrackConfig | None = None, p
         lost_line = (f"{video}: the marker was lost in {n_lost} of {n_kept} frames (most often: {most}); "
                      f"check --marker / --hue ({c.hue_lo}..{c.hue_hi}), --s-min, --v-min, --area against the video")
         warn = lost_line if warn is None else f"{warn}; {lost_line}"
-    return TrackResult(t[keep], u[keep], v[keep], int(fr.size), k, truncated, secs, reasons, warn)
+    jump_line = jump_warning(video, fr[keep], t[keep], u[keep], v[keep], (cfg or TrackConfig()).roi_half)
+    if jump_line:
+        warn = jump_line if warn is None else f"{warn}; {jump_line}"
+    return TrackResult(t[keep], u[keep], v[keep], int(fr.size), k, truncated, secs, reasons, warn,
+                       [x for x, kp in zip(texts, keep) if kp], size)
+
+
+def jump_warning(video, fr, t, u, v, roi_half: float) -> str | None:
+    """One line when the tracked marker jumps between consecutive frames by more than the
+    tracker's own search window (roi_half px per frame): the instrument's tip moves a few px
+    per frame in an excitation (its swings are slow so the play can be seen), so such a jump
+    means the tracker lost the marker and found something else of its colour (tissue, a
+    reflection), which would be calibrated as the tip's motion. None when there is none."""
+    ok = np.isfinite(u) & np.isfinite(v)
+    idx = np.nonzero(ok)[0]
+    if idx.size < 2:
+        return None
+    gap = np.diff(fr[idx]).astype(float)
+    step = np.hypot(np.diff(u[idx]), np.diff(v[idx]))
+    jump = step > roi_half * np.maximum(gap, 1.0)
+    if not jump.any():
+        return None
+    j = int(np.argmax(np.where(jump, step, -1.0)))
+    return (f"{video}: the marker jumps {int(jump.sum())} time(s) by more than the {roi_half:.0f} px a frame the tip "
+            f"can move (largest {step[j]:.0f} px, at frame {int(fr[idx[j + 1]])}, t = {t[idx[j + 1]]:.3f} s): "
+            "the tracker followed something else of the marker's colour there; check --marker / --hue against the video")
 
 
 # Above this fraction of lost frames, `track` warns: a marker.csv that is mostly empty is an
@@ -349,10 +400,13 @@ LOST_WARN_FRACTION = 0.5
 
 
 def write_marker_csv(path: Path, res: TrackResult) -> None:
-    """marker.csv (t_s,u_px,v_px; empty u/v when lost), atomically (temp file + rename)."""
+    """marker.csv (t_s,u_px,v_px; empty u/v when lost), atomically (temp file + rename). Each
+    t_s is its frame's stamp as frames.csv writes it (res.t_text), digit for digit: loaded,
+    both are rebased from the same text to the record's origin (session.time_origin), so a
+    marker row's time is its frame's time to the last bit, whatever the clock."""
     with atomic_path(path) as tmp:
         write_csv(tmp, {"t_s": res.t_s, "u_px": res.u_px, "v_px": res.v_px},
-                  {"u_px": "{:.4f}", "v_px": "{:.4f}"})
+                  {"u_px": "{:.4f}", "v_px": "{:.4f}"}, t_text=res.t_text)
 
 
 def single_thread() -> None:
@@ -386,6 +440,29 @@ class Tracked:
         return {"marker_csv": str(self.marker_csv), "video": str(self.video), **self.summary}
 
 
+def check_frame_size(folder: Path, video: Path, size) -> None:
+    """Refuse (InputError naming the video) frames of another size than session.json's
+    camera.width x camera.height: K, the distortion and the image bounds are stated for that
+    size, so the marker's pixels would be calibrated in the wrong camera. No-op when the
+    session.json gives no usable size (its loader names that)."""
+    from .session import read_json
+
+    from .inputfile import check_input_file
+
+    if size is None or not os.path.lexists(folder / "session.json"):
+        return
+    check_input_file(folder / "session.json", "session.json")  # a pipe or a device: refused, never opened
+    try:
+        cam = read_json(folder / "session.json", "session.json").get("camera") or {}
+        w, h = int(cam["width"]), int(cam["height"])
+    except (InputError, AttributeError, KeyError, TypeError, ValueError):
+        return
+    if (w, h) != tuple(size):
+        raise InputError(video, f"frames are {size[0]}x{size[1]} px but session.json says camera {w}x{h}: the "
+                         "marker would be calibrated in another camera's pixels; fix camera.width/height (and K) "
+                         "or give the session its own video")
+
+
 def track_session(session_dir, out=None, cfg=None, overwrite: bool = False, progress=None) -> Tracked:
     """Find the marker in session_dir's video.* (frames.csv gives the times) and write
     marker.csv (default session_dir/marker.csv). cfg: TrackConfig (default: green).
@@ -404,5 +481,6 @@ def track_session(session_dir, out=None, cfg=None, overwrite: bool = False, prog
         raise InputError(None, f"track options: {e}") from None
     single_thread()
     res = track_video(video, folder / "frames.csv", cfg, progress=progress)
+    check_frame_size(folder, video, res.frame_size)
     write_marker_csv(out, res)
     return Tracked(out, video, res.summary())

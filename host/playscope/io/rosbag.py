@@ -245,7 +245,7 @@ def import_bag(path, q: str, c: str | None = None, image: str | None = None, geo
     of c and image. q_scale / c_scale multiply the raw values (e.g. 1e3 for m -> mm,
     180/pi for rad -> deg). frames: (t_ns, images) to be written as video.avi + frames.csv.
     Errors: InputError naming the bag or the geometry file; ValueError for a malformed spec."""
-    from .session import Robot, Session, parse_meta
+    from .session import Robot, Session, parse_meta, time_origin
 
     path = Path(path)
     if (c is None) == (image is None):
@@ -263,6 +263,12 @@ def import_bag(path, q: str, c: str | None = None, image: str | None = None, geo
     t0 = min(v[0][0] for v in series.values())
     if frames is not None:
         t0 = min(t0, frames[0][0])
+    # Stamps relative to the first sample in integer ns (exact), the origin kept in whole us
+    # (Session.t_origin_us: written back into the files, recorded by calibrate as t_origin_s),
+    # as a CSV import keeps it (session.time_origin); t0 is rounded down to the microsecond so
+    # relative + origin gives the bag's stamps to the microsecond.
+    origin_us = int(t0) // 1000
+    t0 = origin_us * 1000
     sec = lambda t_ns: (np.asarray(t_ns, np.int64) - t0) / 1e9  # noqa: E731
     t_q, v_q = series["encoder"]
     enc = {"t_s": sec(t_q), "q": v_q * q_scale}
@@ -271,8 +277,8 @@ def import_bag(path, q: str, c: str | None = None, image: str | None = None, geo
         t_c, v_c = series["distal"]
         s = Session(actuator_unit=unit, distal_kind="angle", robot=Robot("constant_curvature", 30.0, 0.0, q_per_rad),
                     encoder=enc, distal={"t_s": sec(t_c), "c_deg": v_c * c_scale}, t_delay_s=t_delay_s or 0.0,
-                    meta=meta)
-        return s, report, None
+                    meta=meta, t_origin_us=origin_us)
+        return time_origin(s), report, None
     gpath = Path(geometry)
     try:
         d = json.loads(gpath.read_text())
@@ -288,17 +294,17 @@ def import_bag(path, q: str, c: str | None = None, image: str | None = None, geo
     if t_delay_s is not None:
         kw["t_delay_s"] = t_delay_s
     t_f = sec(frames[0])
-    s = Session(encoder=enc, frames={"frame": np.arange(t_f.size, dtype=float), "t_s": t_f}, meta=meta, **kw)
-    return s, report, frames
+    s = Session(encoder=enc, frames={"frame": np.arange(t_f.size, dtype=float), "t_s": t_f}, meta=meta,
+                t_origin_us=origin_us, **kw)
+    return time_origin(s), report, frames
 
 
 def write_bag_session(s, frames, folder, overwrite: bool = False) -> Path:
     """Write the session and, for an image session, its frames as video.avi (MJPG) + frames.csv,
     atomically (the folder appears complete or not at all)."""
-    import cv2
-
     from ..base.atomic import atomic_path
     from .session import write_csv, write_session
+    from .videofile import video_writer
 
     folder = Path(folder)
     if folder.exists() and not overwrite:
@@ -312,16 +318,13 @@ def write_bag_session(s, frames, folder, overwrite: bool = False) -> Path:
         imgs = frames[1]
         h, w = imgs[0].shape[:2]
         fps = s.camera.fps if s.camera is not None else 25.0
-        vw = cv2.VideoWriter(str(tmp / "video.avi"), cv2.VideoWriter_fourcc(*"MJPG"), float(fps), (w, h))
-        if not vw.isOpened():
-            raise OSError(f"{folder}: OpenCV cannot write an MJPG video here")
-        for img in imgs:
-            if img.shape[:2] != (h, w):
-                raise InputError(s.meta["source"]["bag"], f"frame size changes within the image topic "
-                                 f"({img.shape[1]}x{img.shape[0]} after {w}x{h})")
-            vw.write(img)
-        vw.release()
-        write_csv(tmp / "frames.csv", s.frames, {"frame": "{:.0f}"})
+        with video_writer(tmp / "video.avi", fps, (w, h)) as vw:
+            for img in imgs:
+                if img.shape[:2] != (h, w):
+                    raise InputError(s.meta["source"]["bag"], f"frame size changes within the image topic "
+                                     f"({img.shape[1]}x{img.shape[0]} after {w}x{h})")
+                vw.write(img)
+        write_csv(tmp / "frames.csv", s.frames, {"frame": "{:.0f}"}, t_origin_us=s.t_origin_us)
     return folder
 
 

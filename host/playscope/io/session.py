@@ -310,17 +310,17 @@ def format_us(u: int) -> str:
 
 
 def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str] | None = None,
-              t_origin_us: int = 0) -> None:
+              t_origin_us: int = 0, t_text: list[str] | None = None) -> None:
     """Write equal-length 1-D arrays as a CSV with a header; NaN becomes an empty field.
     The time column t_s is written to the microsecond, exactly (t_origin_us added back:
     Session.t_origin_us), whatever its magnitude: %.9g would keep whole seconds of an epoch
-    stamp."""
+    stamp; or, with t_text, as those strings (another file's stamps, digit for digit)."""
     from .csvtable import CHUNK_ROWS
 
     names = list(columns)
     arrays = [np.asarray(columns[n], float) for n in names]
     n = len(arrays[0]) if arrays else 0
-    if any(len(a) != n for a in arrays):  # zip would cut the longer ones without a word
+    if any(len(a) != n for a in arrays) or (t_text is not None and len(t_text) != n):  # zip would cut without a word
         raise ValueError(f"{path.name}: columns of unequal length " + ", ".join(f"{nm} {len(a)}" for nm, a in zip(names, arrays)))
     formats = formats or {}
     fmts = [formats.get(nm, "{:.9g}") for nm in names]
@@ -332,7 +332,9 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], formats: dict[str, str
             cols = []
             for a, f, ex in zip(arrays, fmts, exact_t):
                 part = a[i0:i0 + CHUNK_ROWS]
-                if ex:
+                if ex and t_text is not None:
+                    cols.append(t_text[i0:i0 + CHUNK_ROWS])
+                elif ex:
                     cols.append([format_us(u) for u in (time_us(part) + int(t_origin_us)).tolist()])
                 else:
                     cols.append(["" if not math.isfinite(x) else f.format(x) for x in part.tolist()])
@@ -588,7 +590,38 @@ def load_session(folder: str | os.PathLike, progress=None) -> Session:
                       ("frames.csv", s.frames)):
         if tab is not None:
             check_span(tab, folder / name, notes)
+    check_image_size(s, folder, notes)
     return thin_record(s, folder / "encoder.csv")
+
+
+def check_image_size(s: Session, folder: Path, notes: list[str]) -> None:
+    """Note (a warning line) frames of another size than session.json's camera: the video's
+    own size (its header, no frame decoded), and marker.csv positions outside the camera's
+    image. K and the distortion are stated for camera.width x camera.height, so such a
+    marker is calibrated in another camera's pixels."""
+    if s.camera is None:
+        return
+    W, H = s.camera.width, s.camera.height
+    if s.video is not None and s.video.is_file():
+        import cv2
+
+        cap = cv2.VideoCapture(str(s.video))
+        try:
+            vw, vh = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        finally:
+            cap.release()
+        if vw > 0 and vh > 0 and (vw, vh) != (W, H):
+            notes.append(f"{s.video}: frames are {vw}x{vh} px but session.json says camera {W}x{H}: the marker is "
+                         "calibrated in another camera's pixels; fix camera.width/height (and K) or the video")
+            return
+    if s.marker is not None:
+        u, v = s.marker["u_px"], s.marker["v_px"]
+        out = np.isfinite(u) & ((u < -0.5) | (u > W - 0.5) | (v < -0.5) | (v > H - 0.5))
+        if out.any():
+            k = int(np.nonzero(out)[0][0])
+            notes.append(f"{folder / 'marker.csv'}: {int(out.sum())} marker position(s) outside the {W}x{H} px image "
+                         f"session.json's camera has, the first ({u[k]:.1f}, {v[k]:.1f}) px at t = {s.marker['t_s'][k]:.3f} s: "
+                         "tracked in frames of another size? fix camera.width/height (and K)")
 
 
 def thin_record(s: Session, enc_path) -> Session:

@@ -144,7 +144,7 @@ def render_excitation_video(path, exc: str, cfg: SimPlantConfig | None = None, l
     (the tip as it was t_delay earlier, eq. 1's delay), preceded by lead_s of the tip at rest.
     What `playscope run-insitu --video FILE` then reads as if it were a camera. Returns
     {"frames", "duration_s", "plant"} (the plant holds the truth, plant.truth_B)."""
-    import cv2
+    from ..io.videofile import video_writer
 
     plant = SimPlant(cfg)
     t_us, q = excitation_q(exc)
@@ -156,16 +156,13 @@ def render_excitation_video(path, exc: str, cfg: SimPlantConfig | None = None, l
     n_lead = int(round(lead_s * fps))
     n = int(t_end / 1e6 * fps) + 1
     W, H = plant.sim.width, plant.sim.height
-    vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), float(fps), (W, H))
-    if not vw.isOpened():
-        raise OSError(f"{path}: OpenCV cannot write an MJPG video")
-    u0, v0 = plant.tip_px(0)
-    for _ in range(n_lead):
-        vw.write(plant.render(u0, v0))
-    for k in range(n):
-        ta = k * 1e6 / fps - plant.delay_us
-        vw.write(plant.render(*plant.tip_px(max(ta, 0.0))))
-    vw.release()
+    with video_writer(path, fps, (W, H)) as vw:
+        u0, v0 = plant.tip_px(0)
+        for _ in range(n_lead):
+            vw.write(plant.render(u0, v0))
+        for k in range(n):
+            ta = k * 1e6 / fps - plant.delay_us
+            vw.write(plant.render(*plant.tip_px(max(ta, 0.0))))
     return {"frames": n_lead + n, "duration_s": (n_lead + n) / fps, "plant": plant}
 
 
@@ -180,9 +177,20 @@ def session_plant(s):
     from .core import SimConfig, transmission
     from .effects import EffectSet
 
+    from ..base.errors import InputError
+    from .record import check_config
+
     cfg_d = s.meta.get("simulator") if s.meta else None
     if not cfg_d:
         return None, NO_PLANT
+    where = (s.path / "session.json") if s.path is not None else "session.json"
+    if not isinstance(cfg_d, dict):
+        raise InputError(where, f"key simulator: expected an object (the simulator's parameters), got "
+                         f"{type(cfg_d).__name__}")
+    try:  # the same check as simulate --config's: each key named with what it must be
+        check_config(cfg_d, where)
+    except InputError as e:
+        raise InputError(where, e.message.replace("key ", "key simulator.", 1)) from None
     cfg = SimConfig.from_json(cfg_d)
     blind = "effects" not in cfg_d
     eff = EffectSet({k: dict(v) for k, v in cfg.effects.items()})

@@ -204,7 +204,7 @@ def check_config(d: dict, path) -> None:
     tr = d.get("trajectory")
     if not isinstance(tr, dict):
         bad("trajectory", "an object with a \"kind\"", tr)
-    if tr.get("kind") not in _TRAJ_KEYS:
+    if not isinstance(tr.get("kind"), str) or tr.get("kind") not in _TRAJ_KEYS:
         bad("trajectory.kind", " or ".join(f'"{k}"' for k in _TRAJ_KEYS), tr.get("kind"),
             missing="kind" not in tr)
     need, may = _TRAJ_KEYS[tr["kind"]]
@@ -238,8 +238,13 @@ def check_config(d: dict, path) -> None:
                 unknown(f"effects.{name}.{pn}", f"parameter of {name}", known)
             if not _num(v):
                 bad(f"effects.{name}.{pn}", "a number", v)
-    R = np.asarray(d["R"], float)
-    if not (np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0):
+    if "R" not in d:
+        bad("R", "a rotation matrix (R R^T = I, det +1)", missing=True)
+    try:
+        R = np.asarray(d["R"], float)
+    except (TypeError, ValueError):
+        bad("R", "a 3x3 rotation matrix of numbers", d["R"])
+    if R.shape != (3, 3) or not (np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0):
         bad("R", "a rotation matrix (R R^T = I, det +1)", d["R"])
 
 
@@ -299,6 +304,7 @@ def write_simulated(cfg, out, video: bool = False, blind: bool = False, reimage_
     """Simulate cfg (or re-image reimage_src through cfg's camera) into the session folder out,
     with video.avi + frames.csv when video. blind leaves the effect list out of session.json.
     Errors: FileExistsError for an existing folder without overwrite; see reimage()."""
+    from ..base.atomic import atomic_path
     from ..io.session import write_session
     from .core import observe_image, simulate
     from .effects import EffectSet
@@ -308,17 +314,21 @@ def write_simulated(cfg, out, video: bool = False, blind: bool = False, reimage_
         s, c_frames, t_frames = reimage(reimage_src, cfg, cfg.seed)
     else:
         s = simulate(cfg, blind=blind)
-    write_session(s, out, overwrite=overwrite)
+    if out.exists() and not overwrite:
+        raise FileExistsError(f"{out}: exists (use overwrite)")
     v = None
-    if video:
-        from .render import write_video
-        if not reimage_src:
-            obs = observe_image(cfg, s.truth, EffectSet(dict(cfg.effects)), np.random.default_rng(cfg.seed), with_noise=False)
-            c_frames, t_frames = obs["c_deg"], obs["t_s"]
-            cap = obs["t_capture_s"]
-        else:
-            cap = t_frames - cfg.t_delay_s
-        dirs = np.interp(cap, s.truth["t_s"], s.truth["dir"]) if "dir" in s.truth else None
-        tr = np.interp(cap, s.truth["t_s"], s.truth["translation_mm"]) if "translation_mm" in s.truth else None
-        v = write_video(cfg, c_frames, t_frames, out, dirs, tr, cfg.effects)
+    with atomic_path(out) as tmp:  # the session and its video appear together, or not at all
+        write_session(s, tmp)
+        if video:
+            from .render import write_video
+            if not reimage_src:
+                obs = observe_image(cfg, s.truth, EffectSet(dict(cfg.effects)), np.random.default_rng(cfg.seed),
+                                    with_noise=False)
+                c_frames, t_frames = obs["c_deg"], obs["t_s"]
+                cap = obs["t_capture_s"]
+            else:
+                cap = t_frames - cfg.t_delay_s
+            dirs = np.interp(cap, s.truth["t_s"], s.truth["dir"]) if "dir" in s.truth else None
+            tr = np.interp(cap, s.truth["t_s"], s.truth["translation_mm"]) if "translation_mm" in s.truth else None
+            v = out / write_video(cfg, c_frames, t_frames, tmp, dirs, tr, cfg.effects).name
     return SimulatedSession(out, int(s.encoder["t_s"].size), None if s.marker is None else int(s.marker["t_s"].size), v)

@@ -2,7 +2,7 @@
 
 Frames: a reddish mucosa-like texture (low-pass noise), vignetting, a few specular highlights,
 the grey instrument (the projected bending section) and a green tip marker (playscope.io.marker_track's
-default hue). Written with OpenCV's VideoWriter (MJPG .avi) plus frames.csv (frame, t_s).
+default hue). Written with OpenCV's VideoWriter (MJPG .avi, whole or absent: io.videofile) plus frames.csv (frame, t_s).
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import numpy as np
 
 from ..fit import model as M
 from ..io.session import write_csv
+from ..io.videofile import video_writer
 from .core import SimConfig, rot_y, tip_position
 
 
@@ -67,7 +68,14 @@ def write_video(cfg: SimConfig, c_frames: np.ndarray, t_frames: np.ndarray, fold
     K, R, t = np.array(cfg.K, float), np.array(cfg.R, float), np.array(cfg.t_mm, float)
     bg = background(cfg.width, cfg.height, cfg.seed)
     path = Path(folder) / "video.avi"
-    vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), cfg.fps, (cfg.width, cfg.height))
+    with video_writer(path, cfg.fps, (cfg.width, cfg.height)) as vw:
+        _render_frames(vw, cfg, c_frames, bg, K, R, t, dist, gamma, delta, dir_frames, translation, marker_mm)
+    write_csv(Path(folder) / "frames.csv", {"frame": np.arange(len(t_frames)), "t_s": t_frames}, {"frame": "{:.0f}"})
+    return path
+
+
+def _render_frames(vw, cfg, c_frames, bg, K, R, t, dist, gamma, delta, dir_frames, translation, marker_mm) -> None:
+    """write_video's frames, one per c_frames entry (deg), onto the writer vw."""
     s_arc = np.linspace(0, 1, 24)
     for k, c in enumerate(c_frames):
         # Points along the arc: the same section with a fraction of the bend and of the length.
@@ -82,6 +90,3 @@ def write_video(cfg: SimConfig, c_frames: np.ndarray, t_frames: np.ndarray, fold
         depth = max(Pc[-1, 2], 1.0)
         img = render_frame(bg, uv, uv[-1], K[0, 0] * marker_mm / depth, K[0, 0] * 1.5 / depth)
         vw.write(img)
-    vw.release()
-    write_csv(Path(folder) / "frames.csv", {"frame": np.arange(len(t_frames)), "t_s": t_frames}, {"frame": "{:.0f}"})
-    return path

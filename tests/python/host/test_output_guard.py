@@ -182,11 +182,17 @@ def test_replacing_a_folder_keeps_unrelated_files(opt, tmp_path, good, capsys):
 
 
 def test_force_replaces_only_the_same_kind(tmp_path, good, capsys):
+    """A playscope calibration is not replaced by a table, nor a user's JSON by anything."""
     g = copy_good(good, tmp_path)
     other = tmp_path / "other.json"
     other.write_text('{"mine": 1}\n')
     before = _digest(tmp_path)
     assert main(["tables", str(g["cal"]), "-o", str(other), "--force"]) == 2
+    assert "playscope did not write" in capsys.readouterr().err
+    cal2 = tmp_path / "cal2.json"
+    cal2.write_bytes(g["cal"].read_bytes())
+    before = _digest(tmp_path)
+    assert main(["tables", str(g["cal"]), "-o", str(cal2), "--force"]) == 2
     assert "holds JSON and this command writes a table" in capsys.readouterr().err
     assert _digest(tmp_path) == before
 

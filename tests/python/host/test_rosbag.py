@@ -164,3 +164,19 @@ def test_image_topic_becomes_a_trackable_video(tmp_path, capsys):
     # MJPG and the tracker together: measured worst error 0.09 px here; bound about 3x that.
     np.testing.assert_allclose(m["u_px"], us.astype(int), atol=0.3)
     np.testing.assert_allclose(m["v_px"], H // 2, atol=0.3)
+
+
+def test_bag_records_its_time_origin(tmp_path, capsys):
+    """The bag's epoch stamps are kept as the session's origin (Session.t_origin_us, written back
+    into the files; calibrate records it as t_origin_s), as a CSV import keeps it: before, the
+    stamps started at 0 and the origin was lost."""
+    t_ns, q, c = _signals(50)
+    t_ns = t_ns + 123_456_789  # not a whole microsecond: the origin is kept to the us
+    write_ros2(tmp_path / "b", StoragePlugin.SQLITE3, t_ns, q, c)
+    assert main(["import", str(tmp_path / "b"), "--q-topic", "/joint_states:position[1]", "--c-topic",
+                 "/tip/angle:data", "-o", str(tmp_path / "s")]) == 0
+    s = load_session(tmp_path / "s")
+    assert s.t_origin_us == (int(t_ns[0]) + 500) // 1000  # to the nearest microsecond
+    np.testing.assert_allclose(s.encoder["t_s"], (t_ns - t_ns[0]) / 1e9, atol=1e-6)
+    first = (tmp_path / "s" / "encoder.csv").read_text().splitlines()[1].split(",")[0]
+    assert first == "1700000000.123457"
