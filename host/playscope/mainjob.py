@@ -29,6 +29,7 @@ import numpy as np
 
 from . import pipeline as P
 from .base.atomic import MANIFEST, output_guard, write_manifest
+from .base.jsonio import write_json
 from .fit.calibration import Calibration
 from .base.errors import InputError
 from .base.jsonio import plain_json
@@ -171,7 +172,7 @@ def _run(out: Path, duration_s: float, seed: int, device: str, log) -> dict:
         "steps_s": {name: round(t, 2) for name, t in steps},
         "total_s": round(time.perf_counter() - t_all, 2),
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    write_json(out / "summary.json", summary, indent=1)  # marked as playscope's, like --json's copy
     return summary
 
 

@@ -139,7 +139,7 @@ TRACKED_TEXT = b"marker.csv comes from tracking video.avi\n"
 PNG_METADATA = {"Software": "playscope"}
 _PNG_MARK = b"Software\0playscope"
 _OWNED_JSON_FORMATS = ("playscope-calibration/",)
-_MAX_OWNED_JSON = 256 << 20
+_MAX_OWNED_JSON = 1 << 28
 
 
 def _kind_of_mode(m: int) -> str:

@@ -73,8 +73,8 @@ def transition_angle_session():
     traj = {"kind": "excitation", "q_lo": -3.0, "q_hi": 3.0, "amp": 1.4, "speed": 0.8, "duration_s": 60.0,
             "cycles": 1}
     s = simulate(preset("stras", distal_kind="angle", seed=3, trajectory=traj))
-    test = simulate(preset("stras", distal_kind="angle", seed=4, trajectory={**traj, "kind": "test",
-                                                                              "duration_s": 40.0}))
+    test_traj = {**{k: v for k, v in traj.items() if k != "cycles"}, "kind": "test", "duration_s": 40.0}  # no cycles
+    test = simulate(preset("stras", distal_kind="angle", seed=4, trajectory=test_traj))
     return s, test
 
 

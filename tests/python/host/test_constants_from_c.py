@@ -40,7 +40,7 @@ def patterns() -> dict[str, re.Pattern]:
         "Q16.16 scale (PS_Q16_ONE)": rf"\b{one}(?:\.0*)?\b|\b{one:#x}\b|\b\d+\s*<<\s*{bits}\b"
                                      rf"|\b2(?:\.0)?\s*\*\*\s*\(?\s*-?\s*{bits}\b|{re.escape(repr(1.0 / one))}",
         "operator count (PST_MAX_OPS)": _assign(r"\w*ops", str(ops)),
-        "entries per grid (PST_MAX_ENTRIES)": rf"\b{n_max}\b",
+        "entries per grid (PST_MAX_ENTRIES)": rf"(?<!SHA-)\b{n_max}\b",  # SHA-256 names a hash
         "derived entries (CALIB_DERIVED_MAX)": _assign(r"\w*derived\w*", str(derived)),
         "largest table (PST_MAX_TABLE_SIZE)": rf"\b{c('PST_MAX_TABLE_SIZE')}\b",
         "table magic (PST_MAGIC)": rf"(?i)\b{c('PST_MAGIC'):#x}\b|\bb[\"']"

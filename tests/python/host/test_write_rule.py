@@ -229,8 +229,12 @@ def test_video_interrupted_leaves_nothing(sig, tmp_path):
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     t0 = time.monotonic()
     while time.monotonic() - t0 < 60:  # the video's temporary name appears inside the temporary folder
-        if any(n.endswith(".tmp.avi") for _, _, ns in os.walk(tmp_path) for n in ns):
-            break
+        tmp = [os.path.join(d, n) for d, _, ns in os.walk(tmp_path) for n in ns if n.endswith(".tmp.avi")]
+        try:
+            if tmp and os.path.getsize(tmp[0]) > 0:  # frames are being written (not yet counted or renamed)
+                break
+        except OSError:  # renamed between the walk and the look
+            pass
         time.sleep(0.02)
     else:
         p.kill()

@@ -88,8 +88,15 @@ def test_paced_exc_checks_the_leg():
         pacing.paced_exc("-3:3:1.6:0.4", 0.35, 1.3, 25.0)
 
 
-def test_run_insitu_refuses_a_bad_play_range(capsys):
+def test_run_insitu_refuses_a_bad_play_range(capsys, tmp_path):
     assert main(["run-insitu", "--device", "virtual", "--sim-plant", "--b-range", "0.5:0.1"]) == 2
     assert "b_low <= b_high" in capsys.readouterr().err
-    assert main(["run-insitu", "--device", "virtual", "--video", "nofile.avi", "--geometry", __file__]) == 2
+    # a video source needs the play's range to pace the swings (the geometry, checked first, is
+    # a valid session.json: a 2-s simulated session's)
+    from playscope.io.session import write_session
+    from playscope.sim.core import preset, simulate
+
+    write_session(simulate(preset("ideal", trajectory={"kind": "excitation", "q_lo": -1.0, "q_hi": 1.0, "amp": 0.5, "speed": 0.8, "duration_s": 2.0})), tmp_path / "s")
+    geometry = str(tmp_path / "s" / "session.json")
+    assert main(["run-insitu", "--device", "virtual", "--video", "nofile.avi", "--geometry", geometry]) == 2
     assert "--b-range" in capsys.readouterr().err
