@@ -725,9 +725,16 @@ def _residual_fn(m: RecordModel, sigma: float):
             if m.prior is not None and m.d_fixed is None:
                 r = np.r_[r, (th[0] - m.prior[0]) / m.prior[1]]
             cache.clear()
-            cache[key] = r
-        return cache[key]
+            cache[key] = (r, ev)
+        return cache[key][0]
 
+    def evaluation(th):
+        """The model's evaluation at th: the last one fun made when at th (the model's linear
+        solve is still that one's, as the Jacobian needs), else a new one."""
+        hit = cache.get(th.tobytes())
+        return hit[1] if hit is not None else m.evaluate(th)
+
+    fun.evaluation = evaluation
     return fun
 
 
@@ -782,9 +789,9 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
             full[free] = x
             return fun(full)
 
-        def j_free(x, full=full, free=free, sig=sig):
+        def j_free(x, full=full, free=free, sig=sig, fun=fun):
             full[free] = x
-            return m.jacobian(full, m.evaluate(full), sig)[:, free]
+            return m.jacobian(full, fun.evaluation(full), sig)[:, free]
 
         res = least_squares(f_free, th[free], jac=j_free, method="lm", max_nfev=max_nfev, xtol=1e-6, ftol=1e-8)
         th[free] = res.x
