@@ -41,7 +41,7 @@ from playscope.base.native import core  # noqa: E402
 from playscope.fit.backlash import fit_backlash_samples  # noqa: E402
 from playscope.fit.onsets import OnsetConfig, run_onsets  # noqa: E402
 from playscope.fit.reversals import detect_reversals  # noqa: E402
-from playscope.fit.table_build import build_table  # noqa: E402
+from playscope.fit.table_build import build_table, header  # noqa: E402
 
 PAPER = "0.7 deg (4.7 %)"
 STRAS = {"B_kind": "stras", "speed": 0.5}
@@ -87,8 +87,8 @@ def run_case(kw: dict, seed: int) -> dict:
     raw = cal.B.spl(np.clip(g, cal.B.lo, np.nextafter(cal.B.hi, -np.inf)))
     q0, q1 = cal.q_range
     tab = build_table(cal.B, cal.f, q0, q1, "mm")
-    h = core()[0].sizeof("pst_header_t")
-    n = (len(tab.blob) - h) // 8  # [header][n B entries][n f entries], int32 Q16.16
+    hd = header(tab.blob)
+    h, n = hd.b.offset, hd.b.n  # B's n entries at their offset in the table, int32 Q16.16
     tab_min = float(np.frombuffer(tab.blob[h:h + 4 * n], np.int32).min()) / core()[1].PS_Q16_ONE
     ring = cal.onset_refine["ringing"]
     return {"board_pct": board_only(s, sc, g), "err_deg": float(np.degrees(res["err_mm"] / sc.q_per_rad)),
