@@ -225,8 +225,11 @@ def test_video_under_a_file_size_limit_is_not_reported_written(tmp_path):
 def test_video_interrupted_leaves_nothing(sig, tmp_path):
     """SIGINT / SIGTERM while the video is written: neither a partial video nor a session
     without frames.csv is left (the temporary folder is removed)."""
+    # SIGINT as a shell's foreground job has it: a test runner's worker may ignore SIGINT, and a
+    # child inherits that (Python then installs no KeyboardInterrupt handler, as for a background job)
     p = subprocess.Popen(PLAYSCOPE + ["simulate", str(tmp_path / "S"), "--duration", "60", "--video"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     t0 = time.monotonic()
     while time.monotonic() - t0 < 60:  # the video's temporary name appears inside the temporary folder
         tmp = [os.path.join(d, n) for d, _, ns in os.walk(tmp_path) for n in ns if n.endswith(".tmp.avi")]
