@@ -114,6 +114,20 @@ JSON_KEYS = ("format, calibration {file, reversals, b_samples}, settings {warmup
 # Endoscope files: column of the distal angle by file name (README of the data set).
 
 
+
+def _read_records(cal_path, paths) -> tuple:
+    """(the calibration record, {path: record}) read with read_record, every one before any work;
+    InputError naming the file for a record in another actuator unit than the calibration's."""
+    s_ref = read_record(cal_path)
+    records = {}
+    for p in paths:
+        records[p] = read_record(p)
+        if records[p].actuator_unit != s_ref.actuator_unit:
+            raise InputError(p, f"q is in {records[p].actuator_unit} but the calibration record {cal_path} is in "
+                             f"{s_ref.actuator_unit}: a calibration runs only on records of its own actuator unit "
+                             "(mm of cable or deg of motor); transfer between records of one kind")
+    return s_ref, records
+
 def config_angle(path) -> float | None:
     """Sheath configuration angle (deg) from an endoscope file name ("120.txt" -> 120,
     "conf0_60.txt" -> 0); None for any other file (e.g. the catheter's data_2_3)."""
@@ -180,14 +194,7 @@ def evaluate_transfer(cal_path, paths, warmup: float = WARMUP, refresh_s: float 
     record, or a record the chain cannot calibrate (naming the file)."""
     if not 0.0 < warmup < 1.0:
         raise InputError(None, f"--warmup {warmup} outside (0, 1)")
-    s_ref = read_record(cal_path)
-    records = {}
-    for p in paths:  # every record read first: one in another unit is refused before any work
-        records[p] = read_record(p)
-        if records[p].actuator_unit != s_ref.actuator_unit:
-            raise InputError(p, f"q is in {records[p].actuator_unit} but the calibration record {cal_path} is in "
-                             f"{s_ref.actuator_unit}: a calibration runs only on records of its own actuator unit "
-                             "(mm of cable or deg of motor); transfer between records of one kind")
+    s_ref, records = _read_records(cal_path, paths)
     cal = calibrate(s_ref, f_method="lsq", model_kind="play", source=str(cal_path))
     cal_tr = calibrate(s_ref, f_method="lsq", model_kind="auto", source=str(cal_path))
     ref_const = O.const_play_ref(s_ref, cal.fps_frames)
@@ -573,14 +580,7 @@ def shape_ceiling(cal_path, paths, warmup: float = WARMUP, refresh_s: float = 1.
     (the weights' columns beside the per-branch hats). Row names: <kind>_oracle, <kind>_warmup,
     <kind>_rls with kind shape_<n>, branch_<n>, weights or wbranch_<n>.
     Returns {"calibration", "warmup", "settings", "files": {name: {"in_situ", row: rmse}}} (deg)."""
-    s_ref = read_record(cal_path)
-    records = {}
-    for p in paths:  # every record read first: one in another unit is refused before any work
-        records[p] = read_record(p)
-        if records[p].actuator_unit != s_ref.actuator_unit:
-            raise InputError(p, f"q is in {records[p].actuator_unit} but the calibration record {cal_path} is in "
-                             f"{s_ref.actuator_unit}: a calibration runs only on records of its own actuator unit "
-                             "(mm of cable or deg of motor); transfer between records of one kind")
+    s_ref, records = _read_records(cal_path, paths)
     cal = calibrate(s_ref, f_method="lsq", model_kind="play", source=str(cal_path))
     cal_tr = calibrate(s_ref, f_method="lsq", model_kind="auto", source=str(cal_path))
     learn = _Learners(s_ref, cal, cal_tr, refresh_s, nodes)
