@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
-import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_large_log import run  # noqa: E402  (one command under GNU time: wall s, peak RSS MiB, exit status)
 
 ROOT = Path(__file__).resolve().parents[1]
 CATHETER_HEADER = "Time,Tendon Disp.,Motor Curr.,Pos x,Pos y,Pos z,Angle x,Angle y,Angle z"
@@ -68,19 +69,6 @@ def write_log(path: Path, minutes: float, hz: float, layout: str, seed: int = 0)
             np.savetxt(fh, np.column_stack([x[i:i + step] for x in cols]), fmt=fmt, delimiter=",")
     tmp.rename(path)
     return path
-
-
-def run(argv: list[str], env: dict) -> tuple[float, float, int]:
-    """(wall s, peak RSS MiB, exit status) of one playscope command in a fresh process."""
-    t0 = time.perf_counter()
-    r = subprocess.run(["/usr/bin/time", "-f", "@@%M", sys.executable, "-m", "playscope.cli", *argv], env=env,
-                       capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    lines = r.stderr.strip().splitlines()
-    peak_kb = float(lines[-1][2:]) if lines and lines[-1].startswith("@@") else float("nan")
-    if r.returncode:
-        print("\n".join(lines[-5:]), file=sys.stderr)
-    return wall, peak_kb / 1024.0, r.returncode
 
 
 def main() -> int:
