@@ -58,79 +58,69 @@ size_t fixture_with_ops(fixture_blob_t *blob, uint16_t version, uint16_t n_ops, 
     return table_write(blob->bytes, sizeof blob->bytes, &hd, bb, ff, r_q16, w_q16);
 }
 
+/* A table's parts copied out of its blob, to be written again in another layout. */
+typedef struct {
+    pst_header_t hd;
+    pst_grid_t tm;                      /* the threshold map's grid (n = 0: none) */
+    pst_relax_t rx;                     /* the relaxation (0, 0: none) */
+    int32_t bb[PST_MAX_ENTRIES], ff[PST_MAX_ENTRIES], rr[PST_MAX_OPS], ww[PST_MAX_OPS], gg[PST_MAX_ENTRIES];
+} parts_t;
+
+static parts_t *unpack(const fixture_blob_t *blob)
+{
+    static parts_t u;                   /* one at a time: the fixtures are single-threaded */
+    memset(&u, 0, sizeof u);
+    memcpy(&u.hd, blob->bytes, sizeof u.hd);
+    if (u.hd.layout_version >= 3)
+        memcpy(&u.tm, blob->bytes + offsetof(pst_header_v3_t, tmap), sizeof u.tm);
+    if (u.hd.layout_version >= 4)
+        memcpy(&u.rx, blob->bytes + offsetof(pst_header_v4_t, relax), sizeof u.rx);
+    memcpy(u.bb, blob->bytes + u.hd.b.offset, 4u * u.hd.b.n);
+    memcpy(u.ff, blob->bytes + u.hd.f.offset, 4u * u.hd.f.n);
+    if (u.hd.pi.n) {
+        memcpy(u.rr, blob->bytes + u.hd.pi.offset, 4u * u.hd.pi.n);
+        memcpy(u.ww, blob->bytes + u.hd.pi.offset + 4u * u.hd.pi.n, 4u * u.hd.pi.n);
+    }
+    if (u.tm.n)
+        memcpy(u.gg, blob->bytes + u.tm.offset, 4u * u.tm.n);
+    u.tm.offset = 0;                    /* the writer places it again */
+    return &u;
+}
+
 size_t fixture_with_tmap(fixture_blob_t *blob, int32_t x0_q16, int32_t step_q16, uint16_t n,
                          const int32_t *u_q16)
 {
-    static int32_t bb[PST_MAX_ENTRIES], ff[PST_MAX_ENTRIES], rr[PST_MAX_OPS], ww[PST_MAX_OPS];
-    pst_header_t hd;
-    memcpy(&hd, blob->bytes, sizeof hd);
-    memcpy(bb, blob->bytes + hd.b.offset, 4u * hd.b.n);
-    memcpy(ff, blob->bytes + hd.f.offset, 4u * hd.f.n);
-    if (hd.pi.n) {
-        memcpy(rr, blob->bytes + hd.pi.offset, 4u * hd.pi.n);
-        memcpy(ww, blob->bytes + hd.pi.offset + 4u * hd.pi.n, 4u * hd.pi.n);
-    }
-    hd.layout_version = 3;
+    parts_t *u = unpack(blob);
+    u->hd.layout_version = 3;
     pst_grid_t tm = {.x0_q16 = x0_q16, .step_q16 = step_q16, .n = n, .offset = 0};
     memset(blob, 0, sizeof *blob);
-    return table_write_map(blob->bytes, sizeof blob->bytes, &hd, bb, ff, hd.pi.n ? rr : NULL,
-                           hd.pi.n ? ww : NULL, &tm, u_q16);
+    return table_write_map(blob->bytes, sizeof blob->bytes, &u->hd, u->bb, u->ff, u->hd.pi.n ? u->rr : NULL,
+                           u->hd.pi.n ? u->ww : NULL, &tm, u_q16);
 }
 
 size_t fixture_with_relax(fixture_blob_t *blob, int32_t kappa_q16, int32_t lambda_q16)
 {
-    static int32_t bb[PST_MAX_ENTRIES], ff[PST_MAX_ENTRIES], rr[PST_MAX_OPS], ww[PST_MAX_OPS], gg[PST_MAX_ENTRIES];
-    pst_header_t hd;
-    memcpy(&hd, blob->bytes, sizeof hd);
-    pst_grid_t tm = {0, 0, 0, 0};
-    if (hd.layout_version >= 3)
-        memcpy(&tm, blob->bytes + offsetof(pst_header_v3_t, tmap), sizeof tm);
-    memcpy(bb, blob->bytes + hd.b.offset, 4u * hd.b.n);
-    memcpy(ff, blob->bytes + hd.f.offset, 4u * hd.f.n);
-    if (hd.pi.n) {
-        memcpy(rr, blob->bytes + hd.pi.offset, 4u * hd.pi.n);
-        memcpy(ww, blob->bytes + hd.pi.offset + 4u * hd.pi.n, 4u * hd.pi.n);
-    }
-    if (tm.n)
-        memcpy(gg, blob->bytes + tm.offset, 4u * tm.n);
-    hd.layout_version = 4;
-    tm.offset = 0;
+    parts_t *u = unpack(blob);
+    u->hd.layout_version = 4;
     pst_relax_t rx = {.kappa_q16 = kappa_q16, .lambda_q16 = lambda_q16};
     memset(blob, 0, sizeof *blob);
-    return table_write_relax(blob->bytes, sizeof blob->bytes, &hd, bb, ff, hd.pi.n ? rr : NULL,
-                             hd.pi.n ? ww : NULL, &tm, tm.n ? gg : NULL, &rx);
+    return table_write_relax(blob->bytes, sizeof blob->bytes, &u->hd, u->bb, u->ff, u->hd.pi.n ? u->rr : NULL,
+                             u->hd.pi.n ? u->ww : NULL, &u->tm, u->tm.n ? u->gg : NULL, &rx);
 }
 
 size_t fixture_with_instrument(fixture_blob_t *blob, uint32_t id, const pst_instrument_t *inst)
 {
-    static int32_t bb[PST_MAX_ENTRIES], ff[PST_MAX_ENTRIES], rr[PST_MAX_OPS], ww[PST_MAX_OPS], gg[PST_MAX_ENTRIES];
-    pst_header_t hd;
-    memcpy(&hd, blob->bytes, sizeof hd);
-    pst_grid_t tm = {0, 0, 0, 0};
-    pst_relax_t rx = {0, 0};
-    if (hd.layout_version >= 3)
-        memcpy(&tm, blob->bytes + offsetof(pst_header_v3_t, tmap), sizeof tm);
-    if (hd.layout_version >= 4)
-        memcpy(&rx, blob->bytes + offsetof(pst_header_v4_t, relax), sizeof rx);
-    memcpy(bb, blob->bytes + hd.b.offset, 4u * hd.b.n);
-    memcpy(ff, blob->bytes + hd.f.offset, 4u * hd.f.n);
-    if (hd.pi.n) {
-        memcpy(rr, blob->bytes + hd.pi.offset, 4u * hd.pi.n);
-        memcpy(ww, blob->bytes + hd.pi.offset + 4u * hd.pi.n, 4u * hd.pi.n);
-    }
-    if (tm.n)
-        memcpy(gg, blob->bytes + tm.offset, 4u * tm.n);
+    parts_t *u = unpack(blob);
     pst_instrument_t in;
     if (inst != NULL)
         in = *inst;
     else
-        pst_instrument_derive(&hd, bb, ff, id, &in);
+        pst_instrument_derive(&u->hd, u->bb, u->ff, id, &in);
     in.id = id;
-    hd.layout_version = 5;
-    tm.offset = 0;
+    u->hd.layout_version = 5;
     memset(blob, 0, sizeof *blob);
-    return table_write_inst(blob->bytes, sizeof blob->bytes, &hd, bb, ff, hd.pi.n ? rr : NULL, hd.pi.n ? ww : NULL,
-                            &tm, tm.n ? gg : NULL, &rx, &in);
+    return table_write_inst(blob->bytes, sizeof blob->bytes, &u->hd, u->bb, u->ff, u->hd.pi.n ? u->rr : NULL,
+                            u->hd.pi.n ? u->ww : NULL, &u->tm, u->tm.n ? u->gg : NULL, &u->rx, &in);
 }
 
 void fixture_reseal(fixture_blob_t *blob)
