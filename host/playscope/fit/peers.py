@@ -48,6 +48,16 @@ def _norm(q_cal: np.ndarray) -> tuple[float, float]:
 
 
 # --------------------------------------------------------------------------- generalized PI
+def _gpi_columns(q: np.ndarray, n_ops: int):
+    """What both generalized PI fits regress on, for a path q (F,) in actuator units: (q_mid,
+    q_half (the path's centre and half span), r (n_ops,) thresholds (gpi_thresholds), P (F, n_ops)
+    the play operators' outputs centred and scaled by the half span, so their weights come out
+    in deg per half span, x (F,) = (q - q_mid) / q_half)."""
+    q_mid, q_half = _norm(q)
+    r = gpi_thresholds(q, n_ops)
+    return q_mid, q_half, r, (play_operators(q, r) - q_mid) / q_half, (q - q_mid) / q_half
+
+
 @dataclass
 class GeneralizedPI:
     """Generalized Prandtl-Ishlinskii model with a polynomial input function:
@@ -76,10 +86,7 @@ class GeneralizedPI:
     def fit(cls, q: np.ndarray, c: np.ndarray, n_ops: int = GPI_OPERATORS) -> "GeneralizedPI":
         """Fit on one calibration path (q, c): (F,) each, in time order, finite."""
         q, c = np.asarray(q, float), np.asarray(c, float)
-        q_mid, q_half = _norm(q)
-        r = gpi_thresholds(q, n_ops)
-        P = (play_operators(q, r) - q_mid) / q_half  # columns O(1): weights in deg per half-span
-        x = (q - q_mid) / q_half
+        q_mid, q_half, r, P, x = _gpi_columns(q, n_ops)
         A = np.column_stack([P, np.vander(x, GPI_POLY_DEGREE + 1, increasing=True)])
         lb = np.r_[np.zeros(n_ops), np.full(GPI_POLY_DEGREE + 1, -np.inf)]
         sol = lsq_linear(A, c, bounds=(lb, np.inf), method="bvls")
@@ -140,10 +147,7 @@ class IncreasingGPI:
     def fit(cls, q: np.ndarray, c: np.ndarray, n_ops: int = GPI_OPERATORS) -> "IncreasingGPI":
         """Fit on one calibration path (q, c): (F,) each, in time order, finite."""
         q, c = np.asarray(q, float), np.asarray(c, float)
-        q_mid, q_half = _norm(q)
-        r = gpi_thresholds(q, n_ops)
-        x = (q - q_mid) / q_half
-        P = (play_operators(q, r) - q_mid) / q_half
+        q_mid, q_half, r, P, x = _gpi_columns(q, n_ops)
         eps = GPI_INC_EPS * 0.5 * max(float(np.ptp(c)), 1e-12)
         A = np.column_stack([P, np.ones_like(x), _bernstein_int(x)])
         lb = np.r_[np.zeros(n_ops), -np.inf, np.full(3, eps)]
