@@ -370,8 +370,8 @@ class RecordModel:
         if self.width_at == "input":
             phi = self.Phi_B[k].toarray() if self.Phi_B is not None else np.ones((k.size, 1))
             return phi * side[:, None]
-        if self.n_b == 1:
-            return (side / 1.0)[:, None] * np.ones((k.size, 1))
+        if self.n_b == 1:  # a constant width: B' = 0, phi = 1
+            return side[:, None].astype(float)
         phi = _basis(z, self.q_lo, self.q_hi, self.n_b)
         dB = _dbasis(z, self.q_lo, self.q_hi, self.n_b) @ cB
         return phi * (side / np.maximum(1.0 - side * dB, 0.05))[:, None]
