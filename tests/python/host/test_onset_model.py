@@ -177,3 +177,13 @@ def test_the_renderers_that_judge_the_onset_stage_import_numpy_and_the_standard_
     mods |= {n.module.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
     assert mods <= {"numpy", "json", "dataclasses", "pathlib", "__future__", "math"} | set(sys.stdlib_module_names)
     assert "playscope" not in mods
+
+
+def test_the_noise_scale_comes_from_the_fit_when_the_motion_turns_within_a_few_frames():
+    # A 25 fps triangle whose legs last 0.13 s (3 frames): the frames' second differences see
+    # the motion's own turns (about 2.6 px here against the renderer's 0.2), so the search runs
+    # again at the fitted residuals' scale (SIGMA_RERUN); measured 0.32 px.
+    r, d, t, q, rt, rq, obs, hyst = _record(shape="triangle", swing_s=0.13, fps=25.0, noise_px=0.2, duration_s=30.0)
+    assert OM.noise_sigma(obs) > 5 * r.noise_px  # the record shows the case
+    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
+    assert rob.report["terms"]["noise_px"] < 2 * r.noise_px
