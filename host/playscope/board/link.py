@@ -234,6 +234,8 @@ class Link:
         return self._info_from(pl)
 
     def read_table(self) -> bytes:
+        """The board's active table, read back in PSP_CHUNK_MAX chunks, each checked by its CRC32 and
+        offset. Errors: TransportError on a chunk that fails them, and what `request` raises."""
         ffi, lib = self.ffi, self.lib
         out = bytearray()
         while True:

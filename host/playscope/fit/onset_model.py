@@ -281,6 +281,7 @@ class RecordModel:
     ZETA_LO, ZETA_HI = 0.005, 0.7
 
     def ring_band(self) -> tuple[float, float]:
+        """The tip mode's search band (low, high) Hz: RING_HZ_LO to RING_NYQUIST of the frame rate."""
         return RING_HZ_LO, RING_NYQUIST / self.rec.period_s
 
     def ring_theta(self, f_hz: float, zeta: float) -> np.ndarray:

@@ -103,6 +103,8 @@ class GeneralizedPI:
         return play_operators(q, self.r) @ self.w + np.vander(x, GPI_POLY_DEGREE + 1, increasing=True) @ self.poly
 
     def params(self) -> dict:
+        """The fitted parameters as a JSON-ready dict (thresholds in actuator units, weights and
+        coefficients in deg)."""
         return {"thresholds": self.r.tolist(), "weights_deg_per_unit": self.w.tolist(),
                 "poly_deg": self.poly.tolist(), "poly_variable": "x = (q - q_mid)/q_half",
                 "q_mid": self.q_mid, "q_half": self.q_half,
@@ -171,6 +173,8 @@ class IncreasingGPI:
         return play_operators(q, self.r) @ self.w + self.memoryless((q - self.q_mid) / self.q_half)
 
     def params(self) -> dict:
+        """The fitted parameters as a JSON-ready dict (thresholds in actuator units, weights and
+        coefficients in deg)."""
         return {"thresholds": self.r.tolist(), "weights_deg_per_unit": self.w.tolist(),
                 "m_bernstein_deg": self.m.tolist(), "m_variable": "x = (q - q_mid)/q_half",
                 "q_mid": self.q_mid, "q_half": self.q_half, "active_operators": int(np.sum(self.w > 0))}
@@ -217,6 +221,8 @@ class ModifiedPI:
         return self.g(play_operators(np.asarray(q, float), self.r) @ self.w)
 
     def params(self) -> dict:
+        """The fitted parameters as a JSON-ready dict (thresholds in actuator units, the operators'
+        weights in actuator units per actuator unit before the output spline g, g's size)."""
         return {"thresholds": self.r.tolist(), "weights": self.w.tolist(), "g_ctrl": MPI_F_CTRL,
                 "active_operators": int(np.sum(self.w > 0))}
 

@@ -27,6 +27,7 @@ class CountingWriter:
             raise OSError(f"{path}: OpenCV cannot write an MJPG video here")
 
     def write(self, img) -> None:
+        """Append one frame img (H, W, 3) uint8 BGR at the writer's size; counted in `written`."""
         self.vw.write(img)
         self.written += 1
 
