@@ -326,6 +326,11 @@ def simulate(cfg: SimConfig, blind: bool = False) -> Session:
     centre, eq. 3), B_mm (true width at q), dir (distal motion direction), c_elastic_deg (before
     stick-slip). blind=True leaves the effect list out of session.json (blind self-test).
     """
+    from .config_check import check_config
+
+    # the parameters session.json will record, checked as `evaluate` will read them back (a key
+    # the simulator would ignore, such as a test trajectory's cycles, is refused here, not there)
+    check_config(cfg.to_json(), "the simulator's configuration")
     rng = np.random.default_rng(cfg.seed)
     eff = EffectSet({k: dict(v) for k, v in cfg.effects.items()})
     for name in eff.on:

@@ -178,7 +178,7 @@ def session_plant(s):
     from .effects import EffectSet
 
     from ..base.errors import InputError
-    from .record import check_config
+    from .config_check import check_config
 
     cfg_d = s.meta.get("simulator") if s.meta else None
     if not cfg_d:

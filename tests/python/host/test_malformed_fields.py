@@ -1,6 +1,6 @@
 """A malformed `simulate --config` or session.json field ends in one line naming the file, the
 key (dotted for nested keys) and what it must be, exit status 2, no traceback
-(sim.record.check_config, session.parse_meta)."""
+(sim.config_check.check_config, session.parse_meta)."""
 
 from __future__ import annotations
 
