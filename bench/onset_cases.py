@@ -38,6 +38,10 @@ SEEDS = {"marker": (48101, 480001), "swing": (48202, 480201), "render_c": (48303
 # second round of terms; FRESH_300 was run once and is development data from then on).
 SEEDS_2 = {"marker": (49101, 490001), "swing": (49202, 490201), "render_c": (49303, 490401)}
 
+# The third set-aside group, LOCKBOX_300 (drawn and committed 2026-11-25 before any code of
+# stop 55; SETASIDE_150 was run once at stop 54 and is development data from then on).
+SEEDS_3 = {"marker": (55101, 550001), "swing": (55202, 550201), "render_c": (55303, 550401)}
+
 # 100 rows per renderer: (category, limit %, delay status) x count.
 PLAN = ([("none", 5.0, "right")] * 25 + [("registration", 5.0, "right")] * 25
         + [("delay", 10.0, "wrong")] * 15 + [("delay", 10.0, "absent")] * 10
@@ -135,6 +139,8 @@ def _rows(renderer: str, seeds: dict = SEEDS, plan: list = PLAN, tag: str = "") 
 FRESH_300 = _rows("marker") + _rows("swing") + _rows("render_c")
 # The 150 rows of the second set-aside group, named "s2-...".
 SETASIDE_150 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_2, PLAN_2, "s2-")]
+# The 300 rows of the third set-aside group, named "s3-...", in FRESH_300's proportions.
+LOCKBOX_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_3, PLAN, "s3-")]
 
 
 def make(row):

@@ -11,7 +11,9 @@ Groups:
                1/8 frame, or a refusal. Run once (stop 47); development data since.
   setaside     bench/onset_cases.py SETASIDE_150: 50 more renderings from each renderer (new
                seeds), drawn and committed before the record model's second round of terms,
-               judged as fresh.
+               judged as fresh. Run once (stop 54); development data since.
+  lockbox      bench/onset_cases.py LOCKBOX_300: 100 more renderings from each renderer (new
+               seeds), drawn and committed at stop 55 before any of its code, judged as fresh.
   development  every group of bench/swing_cases.py (208 renderings of swing_render, the rules of
                the old onset stage were settled on them): judged as bench/swing_bench.py did
                (B over its limit, |t_delay error| over 1/8 frame on every row, or a refusal).
@@ -22,7 +24,7 @@ as it finishes (a rerun skips rows already there; --fresh-start removes them), t
 per category and per renderer, failures / n, the rate and its interval, the median and 95th
 percentile of the B error, the worst row.
 
-Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group fresh|setaside|development
+Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group fresh|setaside|lockbox|development
        [--jobs 2] [--only NAME ...] [--fresh-start] [--markdown FILE]
 """
 
@@ -42,12 +44,17 @@ sys.path.insert(0, str(HERE))
 OUT = HERE.parent / "build" / "onset_scoreboard"
 
 
+# The groups drawn in bench/onset_cases.py, judged alike.
+FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_150,
+              "lockbox": lambda c: c.LOCKBOX_300}
+
+
 def _rows(group: str) -> list:
     """(renderer, name, category, limit %, delay status, params or Rendering) for the group."""
-    if group in ("fresh", "setaside"):
+    if group in FROM_CASES:
         import onset_cases
 
-        return list(onset_cases.FRESH_300 if group == "fresh" else onset_cases.SETASIDE_150)
+        return list(FROM_CASES[group](onset_cases))
     import swing_cases
 
     out = []
@@ -64,7 +71,7 @@ def run_row(args) -> dict:
     import b_score
 
     renderer, name, cat, limit, status, kw = row
-    if group in ("fresh", "setaside"):
+    if group in FROM_CASES:
         import onset_cases
 
         obj, write, true_B, d_true, d_cfg = onset_cases.make(row)
@@ -83,7 +90,7 @@ def run_row(args) -> dict:
         cal = sc["cal"]
         td_err = (cal.t_delay_s - d_true) * fps
         ref = cal.onset_refine or {}
-        check_td = status == "right" if group in ("fresh", "setaside") else True
+        check_td = status == "right" if group in FROM_CASES else True
         fail = bool(sc["err_pct"] > limit or (check_td and abs(td_err) > 0.125))
         out.update(err_pct=sc["err_pct"], t_delay_s=cal.t_delay_s, td_err_frames=td_err, td_checked=check_td,
                    samples=cal.n_b_samples, reversals=cal.reversals, calibrate_s=sc["wall_s"],
@@ -121,7 +128,7 @@ def table(res: list[dict], key: str) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--group", choices=("fresh", "setaside", "development"), default="development")
+    ap.add_argument("--group", choices=("fresh", "setaside", "lockbox", "development"), default="development")
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--only", nargs="*", help="row names to run (default: all of the group)")
     ap.add_argument("--fresh-start", action="store_true", help="forget the rows already run")
