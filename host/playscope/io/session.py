@@ -634,29 +634,61 @@ def thin_record(s: Session, enc_path) -> Session:
     return s
 
 
-# Encoder logs denser than this are thinned at load (thin_encoder). 500 Hz is the rate the
-# method is validated at (the simulator's default; the catheter logs are ~300 Hz): 2 ms is
-# 1/20 of a frame of a 25 fps camera and 1/5 of a 100 Hz angle sensor, the rates the onsets
-# are seen at, and q moves about 2 um in 2 ms at the excitation's speed. A denser log only
-# costs memory: the calibration holds about 2.3 kB per encoder sample (a 27-minute log with
-# encoder noise: 3.7 GB at 1 kHz; bench/bench_large_log.py).
-ENCODER_MAX_HZ = 500.0
+# Encoder logs are thinned at load by motor travel (thin_encoder), not by time: the model is
+# rate-independent (the play, the PI operators and the relaxation see only q's path), so what a
+# log must keep is the path, and a dense log's cost is its samples (the calibration holds a few
+# kB per encoder sample, and a real encoder's noise makes nearly every sample a turning point of
+# the transition fit's reduced path: a 1-hour 1 kHz log kept at 500 Hz took 269 s and 4.2 GB,
+# bench/bench_long_log.py). THIN_TRAVEL_FRAC, of q's travel span, is the path's resolution
+# delta: a fifth of the reversal detection's default hysteresis (calibration.calibrate: 1 % of
+# the travel; a turn smaller than that is no reversal to the chain) and a few encoder counts on
+# the instruments here (5.5 mm catheter travel: 11 um, 2-4 % of its play; the endoscope's
+# +-60 deg command: 0.24 deg, about 1 % of its play). A log that already holds fewer than
+# THIN_MIN_GAIN times the samples the rule keeps is left whole (nothing to gain).
+THIN_TRAVEL_FRAC = 0.002
+THIN_MIN_GAIN = 2.0
 
 
-def thin_encoder(enc: dict, path, max_hz: float = ENCODER_MAX_HZ) -> tuple[dict, str | None]:
-    """Keep the first sample of each 1/max_hz bin of time (from the session's first stamp)
-    when the log's median rate is above max_hz; else enc unchanged. Returns (table, note)."""
-    t = enc["t_s"]
-    if t.size < 3:
+def thin_encoder(enc: dict, path, frac: float = THIN_TRAVEL_FRAC) -> tuple[dict, str | None]:
+    """Keep the samples of an encoder log that its path needs at resolution delta = frac x q's
+    travel span: z, the play of half-width delta of q (model.play_on_edges: the band encoder
+    noise below delta stays inside, so it moves z not at all), and kept are the first and last
+    samples, every turning point of z (the extremum of q on each turn beyond 2 delta, the sample
+    itself and, when q holds it, the hold's last sample: reversals keep their t1 and q1 exactly,
+    fit.reversals.detect_reversals) and the first sample in each new delta cell of z
+    (one sample per delta of travel while q moves). Between kept samples q stays within 3 delta
+    of the line through them (within delta plus the noise while it moves steadily), and a hold
+    keeps no sample. A log the rule would shorten by less than THIN_MIN_GAIN is returned
+    unchanged (as are logs of fewer than 3 samples or without travel). Every column of enc is
+    kept at the same rows. Returns (table, note naming path, or None)."""
+    from ..fit.model import play_on_edges
+
+    q = np.asarray(enc["q"], float)
+    n = q.size
+    span = float(np.ptp(q)) if n else 0.0
+    if n < 3 or not span > 0:
         return enc, None
-    dt = float(np.median(np.diff(t)))
-    if dt <= 0 or 1.0 / dt <= max_hz * 1.01:
+    d = frac * span
+    z = play_on_edges(q - d, q + d, float(q[0]))
+    keep = np.zeros(n, bool)
+    keep[0] = keep[-1] = True
+    cell = np.floor((z - z[0]) / d)
+    keep[1:] |= cell[1:] != cell[:-1]
+    dz = np.diff(z)
+    moved = np.flatnonzero(dz)
+    if moved.size > 1:
+        sgn = np.sign(dz[moved])
+        i = np.flatnonzero(sgn[1:] != sgn[:-1])
+        for a, b in zip((moved[i] + 1).tolist(), (moved[i + 1] + 1).tolist()):
+            # z turns at a and moves again after b - 1: q's extremum of the turn is q[a]; keep
+            # its last sample in [a, b) too, as detect_reversals takes it (a held extremum's end).
+            keep[a] = keep[a + int(np.flatnonzero(q[a:b] == q[a])[-1])] = True
+    kept = int(keep.sum())
+    if kept * THIN_MIN_GAIN > n:
         return enc, None
-    bins = np.floor(t * max_hz).astype(np.int64)
-    keep = np.r_[True, bins[1:] != bins[:-1]]
-    note = (f"{path}: a {1 / dt:.0f} Hz log, thinned to {max_hz:.0f} Hz at load (the first sample of each "
-            f"{1000 / max_hz:g} ms: {int(keep.sum())} of {t.size} rows kept)")
-    return {k: v[keep] for k, v in enc.items()}, note
+    note = (f"{path}: encoder log thinned by travel at load: one sample per {d:.3g} of q ({frac:.1%} of its "
+            f"{span:.4g} travel) and every turn, {kept} of {n} rows kept (session.thin_encoder)")
+    return {k: np.asarray(v)[keep] for k, v in enc.items()}, note
 
 
 # Time units of stamps: seconds per unit (import --time-unit; session files hold seconds).
