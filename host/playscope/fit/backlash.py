@@ -124,6 +124,20 @@ def _cv_folds(q: np.ndarray, k: int) -> np.ndarray:
     return f
 
 
+def _cv_predictions(q, b, sm, folds, k, n_ctrl, lo, hi, sigma) -> np.ndarray:
+    """Held-out predictions (M,) of one choose_stiffness candidate (sm None: the constant B)."""
+    pred = np.empty(b.size)
+    for j in range(k):
+        tr, te = folds != j, folds == j
+        sg = None if sigma is None else np.asarray(sigma, float)[tr]
+        if sm is None or tr.sum() < MIN_SPLINE_SAMPLES:
+            pred[te] = constant_backlash(b[tr], sg)[0]
+        else:
+            spl, _ = robust_spline(q[tr], b[tr], n_ctrl, lo, hi, sm, sigma=sg)
+            pred[te] = spl(np.clip(q[te], lo, np.nextafter(hi, -np.inf)))
+    return pred
+
+
 SMOOTH_GRID = tuple(10.0 ** np.arange(-4, 3))  # penalty weights tried, relative to the data term
 
 
@@ -150,17 +164,14 @@ def choose_stiffness(q: np.ndarray, b: np.ndarray, n_ctrl: int, lo: float, hi: f
     wt = wt / wt.mean()
     cands = [None] + [float(g) for g in grid]
     preds = []
-    for sm in cands:
-        pred = np.empty(m)
-        for j in range(k):
-            tr, te = folds != j, folds == j
-            sg = None if sigma is None else np.asarray(sigma, float)[tr]
-            if sm is None or tr.sum() < MIN_SPLINE_SAMPLES:
-                pred[te] = constant_backlash(b[tr], sg)[0]
-            else:
-                spl, _ = robust_spline(q[tr], b[tr], n_ctrl, lo, hi, sm, sigma=sg)
-                pred[te] = spl(np.clip(q[te], lo, np.nextafter(hi, -np.inf)))
-        preds.append(pred)
+    # One BLAS thread for the (k folds x 8 candidates x 15 reweightings) small least-squares solves,
+    # as transition.fit_weights: threaded, each (M x n_ctrl) solve cost ~10 ms instead of ~0.3 with
+    # both cores busy (9.8 s of a 1-hour log's calibrate, 1 500 B samples).
+    from .transition import _blas_controller
+
+    with _blas_controller().limit(limits=1, user_api="blas"):
+        for sm in cands:
+            preds.append(_cv_predictions(q, b, sm, folds, k, n_ctrl, lo, hi, sigma))
     # The clip: 3 robust sds of the held-out residuals of the candidate they scatter least about
     # (MAD), where that is below B's own spread s. Clipped at B's spread, one false onset among
     # many still chose the model alone: a sample 0.14 mm off among 83 (twelfth-ringing-sine60-noisy,
