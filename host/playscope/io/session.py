@@ -634,25 +634,29 @@ def thin_record(s: Session, enc_path) -> Session:
     return s
 
 
-# Encoder logs are thinned at load by motor travel (thin_encoder), not by time: the model is
-# rate-independent (the play, the PI operators and the relaxation see only q's path), so what a
-# log must keep is the path, and a dense log's cost is its samples (the calibration holds a few
-# kB per encoder sample, and a real encoder's noise makes nearly every sample a turning point of
-# the transition fit's reduced path: a 1-hour 1 kHz log kept at 500 Hz took 269 s and 4.2 GB,
-# bench/bench_long_log.py). THIN_TRAVEL_FRAC, of q's travel span, is the path's resolution
-# delta: a fifth of the reversal detection's default hysteresis (calibration.calibrate: 1 % of
-# the travel; a turn smaller than that is no reversal to the chain) and a few encoder counts on
-# the instruments here (5.5 mm catheter travel: 11 um, 2-4 % of its play; the endoscope's
-# +-60 deg command: 0.24 deg, about 1 % of its play). A log that already holds fewer than
-# THIN_MIN_GAIN times the samples the rule keeps is left whole (nothing to gain).
+# Encoder logs denser than ENCODER_MAX_HZ are thinned at load by motor travel (thin_encoder), not
+# by time: the model is rate-independent (the play, the PI operators and the relaxation see only
+# q's path), so what a log must keep is the path, and a dense log's cost is its samples (the
+# calibration holds a few kB per encoder sample, and a real encoder's noise makes nearly every
+# sample a turning point of the transition fit's reduced path: a 1-hour 1 kHz log kept at 500 Hz
+# took 269 s and 4.2 GB, bench/bench_long_log.py). ENCODER_MAX_HZ, the trigger, is the rate the
+# method is validated at (the simulator's default; the catheter logs are ~500 Hz): logs at or
+# below it are read whole, as before. THIN_TRAVEL_FRAC, of q's travel span, is the path's
+# resolution delta: a fifth of the reversal detection's default hysteresis (calibration.calibrate:
+# 1 % of the travel; a turn smaller than that is no reversal to the chain) and a few encoder
+# counts on the instruments here (5.5 mm catheter travel: 11 um, 2-4 % of its play; the
+# endoscope's +-60 deg command: 0.24 deg, about 1 % of its play). A log the rule would not
+# shorten by THIN_MIN_GAIN is left whole (nothing to gain).
+ENCODER_MAX_HZ = 500.0
 THIN_TRAVEL_FRAC = 0.002
 THIN_MIN_GAIN = 2.0
 
 
-def thin_encoder(enc: dict, path, frac: float = THIN_TRAVEL_FRAC) -> tuple[dict, str | None]:
-    """Keep the samples of an encoder log that its path needs at resolution delta = frac x q's
-    travel span: z, the play of half-width delta of q (model.play_on_edges: the band encoder
-    noise below delta stays inside, so it moves z not at all), and kept are the first and last
+def thin_encoder(enc: dict, path, frac: float = THIN_TRAVEL_FRAC,
+                 max_hz: float = ENCODER_MAX_HZ) -> tuple[dict, str | None]:
+    """When the log's median rate is above max_hz, keep the samples its path needs at resolution
+    delta = frac x q's travel span: z, q through a dead band of half-width delta (_band: encoder
+    noise below delta stays inside it and moves z not at all), and kept are the first and last
     samples, every turning point of z (the extremum of q on each turn beyond 2 delta, the sample
     itself and, when q holds it, the hold's last sample: reversals keep their t1 and q1 exactly,
     fit.reversals.detect_reversals) and the first sample in each new delta cell of z
@@ -661,15 +665,16 @@ def thin_encoder(enc: dict, path, frac: float = THIN_TRAVEL_FRAC) -> tuple[dict,
     keeps no sample. A log the rule would shorten by less than THIN_MIN_GAIN is returned
     unchanged (as are logs of fewer than 3 samples or without travel). Every column of enc is
     kept at the same rows. Returns (table, note naming path, or None)."""
-    from ..fit.model import play_on_edges
-
-    q = np.asarray(enc["q"], float)
+    q, t = np.asarray(enc["q"], float), np.asarray(enc["t_s"], float)
     n = q.size
     span = float(np.ptp(q)) if n else 0.0
     if n < 3 or not span > 0:
         return enc, None
+    dt = float(np.median(np.diff(t)))
+    if dt <= 0 or 1.0 / dt <= max_hz * 1.01:
+        return enc, None
     d = frac * span
-    z = play_on_edges(q - d, q + d, float(q[0]))
+    z = _band(q, d)
     keep = np.zeros(n, bool)
     keep[0] = keep[-1] = True
     cell = np.floor((z - z[0]) / d)
@@ -686,9 +691,21 @@ def thin_encoder(enc: dict, path, frac: float = THIN_TRAVEL_FRAC) -> tuple[dict,
     kept = int(keep.sum())
     if kept * THIN_MIN_GAIN > n:
         return enc, None
-    note = (f"{path}: encoder log thinned by travel at load: one sample per {d:.3g} of q ({frac:.1%} of its "
+    note = (f"{path}: a {1 / dt:.0f} Hz encoder log, thinned by travel at load: one sample per {d:.3g} of q ({frac:.1%} of its "
             f"{span:.4g} travel) and every turn, {kept} of {n} rows kept (session.thin_encoder)")
     return {k: np.asarray(v)[keep] for k, v in enc.items()}, note
+
+
+def _band(q: np.ndarray, d: float) -> np.ndarray:
+    """q through a dead band of half-width d from q[0]: z[k] = min(q[k] + d, max(q[k] - d, z[k-1]))
+    (a play operator of width 2 d; written here, not imported from fit.model or base.kernels,
+    because the readers, the simulator's generators among them, share no code with the fitter).
+    Sequential; Python floats (~1 s for 3.6 M samples)."""
+    out, p = [0.0] * q.size, float(q[0])
+    for k, x in enumerate(q.tolist()):
+        p = min(x + d, max(x - d, p))
+        out[k] = p
+    return np.asarray(out)
 
 
 # Time units of stamps: seconds per unit (import --time-unit; session files hold seconds).

@@ -1,4 +1,5 @@
-"""Bounded resources for long, dense logs: session.thin_encoder keeps an encoder log's path at
+"""Bounded resources for long, dense logs: session.thin_encoder keeps an encoder log denser than
+ENCODER_MAX_HZ as its path at
 the resolution THIN_TRAVEL_FRAC of its travel (one sample per delta of travel, every turn and
 its held extremum), whatever the log's rate, and leaves a log it would not halve alone
 (bench/bench_long_log.py times import, calibrate and evaluate-insitu on a 1-hour 1 kHz log)."""
