@@ -1,7 +1,7 @@
 """Peak memory and time of `playscope calibrate` on a long high-rate encoder log: a simulated
 angle session (preset stras, excitation trajectory) with its encoder at 5 kHz for 27 minutes
 (8.1 million rows, about 240 MB of CSV), as a user's long bench recording would be. The
-session loader thins encoder logs above session.ENCODER_MAX_HZ (1 kHz) at load; this bench
+session loader thins encoder logs above session.ENCODER_MAX_HZ (500 Hz) by travel at load; this bench
 prints one row per command: wall time and peak RSS (the child's ru_maxrss).
 
     PYTHONPATH=host python bench/bench_large_log.py [WORKDIR] [--minutes 27] [--hz 5000]
