@@ -627,8 +627,14 @@ def check_image_size(s: Session, folder: Path, notes: list[str]) -> None:
 def thin_record(s: Session, enc_path) -> Session:
     """The one thinning of every record read (a session folder, a recording file read in place):
     s.encoder by thin_encoder, in place, its note appended to s.notes. enc_path names the
-    encoder log in the note. Returns s."""
-    s.encoder, note = thin_encoder(s.encoder, enc_path)
+    encoder log in the note. An image session's log is thinned by time, to ENCODER_MAX_HZ
+    (thin_encoder_by_time): its onsets are timed against the frames (eq. 1 reads q at t2 - t_delay,
+    and the record model runs the play on a grid at the log's median rate), so its samples must
+    stay uniform in time; the rest by travel. Returns s."""
+    if s.distal_kind == "image":
+        s.encoder, note = thin_encoder_by_time(s.encoder, enc_path)
+    else:
+        s.encoder, note = thin_encoder(s.encoder, enc_path)
     if note:
         s.notes.append(note)
     return s
@@ -694,6 +700,23 @@ def thin_encoder(enc: dict, path, frac: float = THIN_TRAVEL_FRAC,
     note = (f"{path}: a {1 / dt:.0f} Hz encoder log, thinned by travel at load: one sample per {d:.3g} of q ({frac:.1%} of its "
             f"{span:.4g} travel) and every turn, {kept} of {n} rows kept (session.thin_encoder)")
     return {k: np.asarray(v)[keep] for k, v in enc.items()}, note
+
+
+def thin_encoder_by_time(enc: dict, path, max_hz: float = ENCODER_MAX_HZ) -> tuple[dict, str | None]:
+    """Keep the first sample of each 1/max_hz bin of time (from the session's first stamp)
+    when the log's median rate is above max_hz; else enc unchanged. Returns (table, note).
+    2 ms at 500 Hz is 1/20 of a 25 fps frame, the resolution the onsets are seen at."""
+    t = enc["t_s"]
+    if t.size < 3:
+        return enc, None
+    dt = float(np.median(np.diff(t)))
+    if dt <= 0 or 1.0 / dt <= max_hz * 1.01:
+        return enc, None
+    bins = np.floor(t * max_hz).astype(np.int64)
+    keep = np.r_[True, bins[1:] != bins[:-1]]
+    note = (f"{path}: a {1 / dt:.0f} Hz log, thinned to {max_hz:.0f} Hz at load (the first sample of each "
+            f"{1000 / max_hz:g} ms: {int(keep.sum())} of {t.size} rows kept)")
+    return {k: v[keep] for k, v in enc.items()}, note
 
 
 def _band(q: np.ndarray, d: float) -> np.ndarray:

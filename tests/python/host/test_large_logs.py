@@ -81,3 +81,25 @@ def test_thinned_log_calibrates_as_the_full_one():
     assert np.max(np.abs(cal.B(g) - full.B(g))) < 0.012
     best = [min(c["cv_rmse_deg"] for c in x.doc["f_fit"]["candidates"]) for x in (full, cal)]
     assert abs(best[0] - best[1]) < 0.06
+
+
+def test_an_image_sessions_dense_log_is_thinned_by_time_not_travel(tmp_path):
+    # Its onsets are timed against the frames (eq. 1 at t2 - t_delay): a 2 kHz log keeps one
+    # sample per 2 ms, uniform in time, where travel thinning would leave one per 40 ms of slow motion.
+    from playscope.fit import model
+    from playscope.io.session import Session
+
+    from .synth import ROBOT, excitation, image_model_parts, true_B, true_f
+
+    t, q, _ = excitation(v=0.4, rate_hz=2000.0)
+    t, q = t[t < 30.0], q[t < 30.0]
+    cam, he = image_model_parts()
+    tf = np.arange(0.0, t[-1], 1 / 25.0)
+    Q = model.ImageModel(ROBOT, cam, he)(np.interp(tf - 0.08, t, model.direct_model(q, true_B, true_f)))
+    s = Session("mm", "image", ROBOT, {"t_s": t, "q": q}, cam, he, 0.08,
+                marker={"t_s": tf, "u_px": Q[:, 0], "v_px": Q[:, 1]})
+    write_session(s, tmp_path / "s")
+    a = load_session(tmp_path / "s")
+    dt = np.diff(a.encoder["t_s"])
+    assert abs(np.median(dt) - 2e-3) < 1e-6 and dt.max() < 3e-3
+    assert any("thinned to 500 Hz" in n for n in a.notes)
