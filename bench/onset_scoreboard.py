@@ -14,6 +14,7 @@ Groups:
                judged as fresh. Run once (stop 54); development data since.
   lockbox      bench/onset_cases.py LOCKBOX_300: 100 more renderings from each renderer (new
                seeds), drawn and committed at stop 55 before any of its code, judged as fresh.
+  lockbox_a    its every third row (100), the part stop 55 runs; the other 200 stay sealed.
   development  every group of bench/swing_cases.py (208 renderings of swing_render, the rules of
                the old onset stage were settled on them): judged as bench/swing_bench.py did
                (B over its limit, |t_delay error| over 1/8 frame on every row, or a refusal).
@@ -46,7 +47,8 @@ OUT = HERE.parent / "build" / "onset_scoreboard"
 
 # The groups drawn in bench/onset_cases.py, judged alike.
 FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_150,
-              "lockbox": lambda c: c.LOCKBOX_300}
+              "lockbox": lambda c: c.LOCKBOX_300,
+              "lockbox_a": lambda c: c.LOCKBOX_A}
 
 
 def _rows(group: str) -> list:
@@ -128,7 +130,7 @@ def table(res: list[dict], key: str) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--group", choices=("fresh", "setaside", "lockbox", "development"), default="development")
+    ap.add_argument("--group", choices=("fresh", "setaside", "lockbox", "lockbox_a", "development"), default="development")
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--only", nargs="*", help="row names to run (default: all of the group)")
     ap.add_argument("--fresh-start", action="store_true", help="forget the rows already run")
