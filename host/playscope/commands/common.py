@@ -65,8 +65,8 @@ def emit(a, res) -> int:
 def busy(desc: str):
     """A tqdm line on stderr with the elapsed time while a step without progress of its own
     runs (cli.main wraps every command that sets no own_progress in it), refreshed twice a
-    second by a thread; silent when stderr is not a terminal. Yields the bar (bar.write prints
-    above it)."""
+    second by a thread, naming the step the computation reports (base.stage); silent when
+    stderr is not a terminal. Yields the bar (bar.write prints above it)."""
     import threading
 
     bar = progress(total=None, desc=desc, bar_format="{desc}: {elapsed}")
@@ -78,8 +78,11 @@ def busy(desc: str):
                 bar.refresh()
         th = threading.Thread(target=tick, daemon=True)
         th.start()
+    from ..base.stage import stage_sink
+
     try:
-        yield bar
+        with stage_sink(lambda name: bar.set_description_str(f"{desc}: {name}", refresh=False)):
+            yield bar
     finally:
         stop.set()
         if th is not None:

@@ -28,6 +28,7 @@ from . import model
 from . import transition as T
 from ..base.atomic import write_text_atomic
 from ..base.errors import InputError
+from ..base.stage import stage
 from ..io.session import Session
 from .table_build import F_SLOPE_FLOORS
 
@@ -521,6 +522,7 @@ def _calibrate(s: Session, n_ctrl, f_method, fps, t_delay_s, hysteresis, onset_c
         from .onset_stage import record_samples
 
         cfg_td = t_delay_s if t_delay_s is not None else s.t_delay_s
+        stage("onsets: the record model (eq. 1)")
         rob = record_samples(t_enc, q, q_rev, rt, rq, t_f, obs, fr, cfg_td, t_delay_from, onsets, onset_cfg, hyst,
                              camera_K=s.camera.K)
         td, refine_doc = rob.t_delay_s, rob.report
@@ -560,6 +562,7 @@ def _calibrate(s: Session, n_ctrl, f_method, fps, t_delay_s, hysteresis, onset_c
                         f"(|z| > {Z_INCONSISTENT}): listed in b_inconsistent, down-weighted, not averaged in")
 
     # c per frame: the sensor, or LM pose estimation through h(g(c)) (eqs. 6-8).
+    stage("c per frame (eqs. 6-8)" if s.distal_kind == "image" else "c per frame")
     if s.distal_kind == "angle":
         c_f = obs[:, 0]
         lm = None
@@ -587,6 +590,7 @@ def _calibrate(s: Session, n_ctrl, f_method, fps, t_delay_s, hysteresis, onset_c
     if model_kind != "play" and rt.size >= MIN_REVERSALS_TRANSITION:
         # B(q)'s stiffness by the model's own cross-validation on c (see choose_b_and_model).
         jump = ((refine_doc or {}).get("registration") or {}).get("found", False)
+        stage("B(q) and the model by cross-validation")
         joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src, c_confounded=jump)
         bfit, model_cv, fit_data = joint.bfit, joint.rows, joint.data
         B, w = bfit.B, bfit.weight
@@ -650,6 +654,7 @@ def _calibrate(s: Session, n_ctrl, f_method, fps, t_delay_s, hysteresis, onset_c
         play_f, play_sign = (f, sign) if tr.is_play else (f_play, int(play_doc["sign"]))
         ctx = FAM.Context(fit_data, choice, tr, f, sign, play_f, play_sign,
                           int(f_n), q_rng, s.actuator_unit)
+        stage("the model family")
         member, fam_choice = FAM.choose(ctx, int(rt.size), FAM.FAMILIES_FROM_C if no_onset else None, source=src)
         if fam_choice["rule"].startswith("thin"):
             warnings.append(f"model {member.family}: {fam_choice['rule']}")
