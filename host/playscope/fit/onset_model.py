@@ -55,11 +55,7 @@ play width that fits best; the board's plain eq. 1 samples are a third start whe
 Terms by evidence: the tip mode and each registration term enter when they lower the record's
 BIC (Schwarz 1978) on the robust objective (2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma),
 the Gaussian's normalisation for the inflated scales), the same criterion for each; the search
-adds the best term, refits, and tries the rest again. B's size and where it is read are chosen by
-the same BIC. The search runs in two orders, B's size first and the terms first, and keeps the
-lower BIC; in the terms-first order each fit is refined from every leg's own width, a
-one-dimensional search per leg (_polish), since B's level and a registration's switch trade off
-along one direction of theta with basins the local fit does not cross.
+adds the best term, refits, and tries the rest again.
 
 Eq. 1's samples are then read off the fitted model: after each reversal (t1, q1), the instant t2
 the play output starts to move, b = |q(t2) - q1|, with its standard error from the fit's
@@ -93,11 +89,6 @@ SIGMA_RERUN = 0.7      # the search runs again at the fit's residual scale when 
 TERMS = ("ring", "reg_tip", "reg_motor")
 WIDTH_AT = ("input", "output")  # where the play's width is read: B(q) or B(z) (module doc)
 Z_GRID = 4001          # points of the output grid the band's edges are inverted on (B at the output)
-LEG_WIDTHS = 48        # constant widths each leg's profile tries (_leg_start): log-spaced over 2-100 % of the
-                       # median swing, 8.7 % apart (the fit refines; a 1-D search needs only the basin)
-KAPPAS = (1.0, 0.5, 0.0)  # the registration's share held in a leg profile (_polish): all, half, none (the
-                       # confounded direction, B's level against the switch, sampled at its ends and middle)
-LEG_ROUNDS = 3         # leg profiles and refits while the BIC falls (the second rarely moves; a cap)
 N_REG = 3              # the registration's rotation (rad) about the camera's x, y and optical axes (module doc: R)
 
 
@@ -878,88 +869,6 @@ def _ring_start(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
     return m.theta({**parts, "ring": m.ring_theta(fs[int(np.argmin(costs))], 0.1)})
 
 
-def _predict(m: RecordModel, cols: dict, beta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The model's image prediction (u, v) (F,) px from columns and given linear parameters."""
-    p = m.n_g
-    sh = m.shared_columns(cols)
-    fu = cols["G"] @ beta[:p] + sum(b * r[0] for b, r in zip(beta[2 * p:], sh))
-    fv = cols["G"] @ beta[p:2 * p] + sum(b * r[1] for b, r in zip(beta[2 * p:], sh))
-    return fu, fv
-
-
-def _leg_start(fit: Fit, kappa: float = 1.0) -> np.ndarray | None:
-    """A start for fit's model from each leg's own width (theta, or None when fewer legs than B's
-    coefficients give one). With the fit's delay, terms and linear parts (G, gains, registration)
-    held, the robust cost of each leg (the frames whose scene time lies between a reversal and the
-    next) for a constant width on LEG_WIDTHS; each leg's best width b_k, kept where the play is
-    taken up within the leg and the best is inside the grid, placed at q_mean = q1 + s b_k / 2
-    (eq. 1), and B's coefficients fitted to them by Huber least squares with a weak pull to their
-    median (a coefficient no leg reaches).
-    Why: B's level and the registration's switch trade off along one direction of theta (a
-    registration offset along the path is a change of B at the image's level; module doc), with
-    basins LM does not cross (render_c-047 of FRESH_300: the fit at 46 % B error and BIC 5292, a
-    fit from the true B at 1.4 % and 3996). A leg's width is a one-dimensional search, done whole."""
-    m, th, ev = fit.model, fit.theta, fit.ev
-    rec = m.rec
-    swing = float(np.median(np.abs(np.diff(rec.rq)))) if rec.rq.size > 1 else float(np.ptp(rec.q))
-    widths = swing * np.geomspace(0.02, 1.0, LEG_WIDTHS)
-    mc = RecordModel(rec, 1, m.n_g, m.terms, m.prior, m.d_fixed, "input")
-    mc.slope = m.slope
-    parts = m.parts(th)
-    leg = np.searchsorted(rec.rt, rec.t_f - m.unpack(th)[0], side="right") - 1
-    inside = leg >= 0
-    M = rec.rt.size
-    beta = ev.beta.copy()
-    k_reg = 2 * m.n_g + 2 * m.terms.ring
-    beta[k_reg:] *= kappa
-    cost = np.full((LEG_WIDTHS, M), np.inf)
-    for j, b in enumerate(widths):
-        cols, t_on = mc.columns(mc.theta({**parts, "B": np.array([b])}))[:2]
-        fu, fv = _predict(mc, cols, beta)
-        rho = huber_rho(rec.obs[:, 0] - fu, fit.sigma) + huber_rho(rec.obs[:, 1] - fv, fit.sigma)
-        cost[j] = np.where(np.isfinite(t_on), np.bincount(leg[inside], rho[inside], minlength=M), np.inf)
-    jb = np.argmin(cost, axis=0)
-    good = np.isfinite(cost[jb, np.arange(M)]) & (jb > 0) & (jb < LEG_WIDTHS - 1)
-    if good.sum() < max(m.n_b, 2):
-        return None
-    b = widths[jb[good]]
-    qm = rec.rq[good] + 0.5 * rec.s_new[good] * b
-    med = float(np.median(b))
-    if m.n_b == 1:
-        return m.theta({**parts, "B": np.array([med])})
-    Phi = _basis(qm, m.q_lo, m.q_hi, m.n_b)
-    pull = 0.1 / np.sqrt(m.n_b)  # a tenth of one leg's weight over all coefficients: only where no leg is
-
-    def res(c):
-        return np.r_[Phi @ c - b, pull * (c - med)]
-
-    c = least_squares(res, np.full(m.n_b, med), loss="huber", f_scale=0.05 * med).x
-    return m.theta({**parts, "B": np.maximum(c, 0.0)})
-
-
-def _polish(fit: Fit, sigma: float) -> Fit:
-    """fit, or a refit from its legs' own widths (_leg_start) while that lowers the BIC (at most
-    LEG_ROUNDS times). With a registration term, the legs are profiled with its switch held at
-    each share of KAPPAS: held whole, the switch the fit found keeps the widths that made it (a
-    registration twice its size and B 45 % wide are a fixed point of the profile); held at half
-    or none, the legs' widths come from the play's own motion."""
-    for _ in range(LEG_ROUNDS):
-        best = fit
-        for kappa in (KAPPAS if (fit.model.terms.reg_tip or fit.model.terms.reg_motor) else (1.0,)):
-            th0 = _leg_start(fit, kappa)
-            if th0 is None:
-                continue
-            m = fit.model
-            m.w = m.weights(m.evaluate(th0), sigma)
-            f = fit_model(m, th0, sigma=sigma)
-            if f.bic(sigma) < best.bic(sigma):
-                best = f
-        if best is fit:
-            return fit
-        fit = best
-    return fit
-
-
 def fit_record(rec: Record, t_delay_cfg: float | None, t_delay_from: str, d_coarse: float,
                board_b: np.ndarray | None = None, prior_sd_s: float | None = None) -> tuple[Fit, dict]:
     """The record's model with its terms chosen by BIC (module doc). Returns (the final Fit,
@@ -994,81 +903,21 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
 
 
 def _search(rec, starts, prior, d_fixed, board_b, sigma):
-    """The start, then B's size, where it is read and the terms, all by BIC at the scale sigma
-    (px), along both orders (_search_order), the lower BIC kept: (the final Fit, the search's
-    JSON-ready log). Two orders, because each finds basins the other misses: B's size chosen on
-    the plain model reads a registration the model lacks as B (its switch is a change of B at the
-    image's level; render_c-041 of FRESH_300: 146 % B error, 6 % the other way), while the terms
-    searched at one size first can settle a swing's registration in a basin of higher BIC
-    (swing-033: BIC 11014 against 10232)."""
+    """The start, B's size and where it is read, then the terms by BIC, all at the scale sigma
+    (px): (the final Fit, the search's JSON-ready log)."""
     st, n_g = _start(rec, starts, prior, d_fixed, board_b, sigma)
-    runs = _both_orders([(rec, starts, prior, d_fixed, st, n_g, sigma, sizes_first) for sizes_first in (True, False)])
-    fit, log = min(runs, key=lambda r: r[0].bic(sigma))
-    m = fit.model
-    return fit, {"steps": log, "orders_bic": {"sizes_first": runs[0][0].bic(sigma), "terms_first": runs[1][0].bic(sigma)},
-                 "sigma_px": sigma, "n_b": m.n_b, "n_g": n_g, "width_at": m.width_at}
-
-
-def _can_fork() -> bool:
-    """Whether the two orders may run in a forked child beside this process: on Linux, with two
-    or more cores to run on, and not from a daemonic worker (which may have no children)."""
-    import multiprocessing
-    import os
-    import sys
-
-    if not sys.platform.startswith("linux") or multiprocessing.current_process().daemon:
-        return False
-    return len(os.sched_getaffinity(0)) >= 2
-
-
-def _order_in_child(args):
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(1):
-        return _search_order(*args)
-
-
-def _both_orders(arg_list: list) -> list:
-    """_search_order for each argument tuple: the first in a forked child and the second here at
-    the same time when the machine allows it (_can_fork), else one after the other. Each order is
-    deterministic, so the result is the same either way; the parallel form halves the search's
-    wall time on two cores."""
-    if not _can_fork():
-        return [_search_order(*a) for a in arg_list]
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as ex:
-        child = ex.submit(_order_in_child, arg_list[0])
-        rest = [_search_order(*a) for a in arg_list[1:]]
-        return [child.result()] + rest
-
-
-def _search_order(rec, starts, prior, d_fixed, st, n_g, sigma, sizes_first: bool):
-    """One order of the search (_search): sizes_first, B's size and where it is read on the plain
-    model, then the terms; else the terms at the ladder's middle size read at the input, each fit
-    refined from its legs' own widths (_polish), then B's size and where it is read with the
-    terms. Returns (Fit, log)."""
     d0, b0 = min(st.items(), key=lambda kv: len(kv[0]))[1]  # the base model's own start
     terms = Terms()
-    ladder = _n_b_ladder(rec.rt.size)
-    if sizes_first:
-        fits = []
-        for n_b in ladder:
-            for width_at in (WIDTH_AT if n_b > 1 else WIDTH_AT[:1]):  # a constant width is read nowhere
-                m = RecordModel(rec, n_b, n_g, terms, prior, d_fixed, width_at)
-                f = fit_model(m, m.theta({"d": np.array([d0]), "B": np.full(n_b, b0)}), sigma=sigma)
-                fits.append((f.bic(sigma), n_b, width_at, f))
-        fit = min(fits, key=lambda x: x[0])[3]
-    else:
-        n_b, width_at = ladder[(len(ladder) - 1) // 2], WIDTH_AT[0]
-        m = RecordModel(rec, n_b, n_g, terms, prior, d_fixed, width_at)
-        fit = _polish(fit_model(m, m.theta({"d": np.array([d0]), "B": np.full(n_b, b0)}), sigma=sigma), sigma)
-    n_b, width_at = fit.model.n_b, fit.model.width_at
-    polish = (lambda f: f) if sizes_first else (lambda f: _polish(f, sigma))
-    bic = fit.bic(sigma)
+    fits = []
+    for n_b in _n_b_ladder(rec.rt.size):  # B's size and where it is read, by the same criterion as the terms
+        for width_at in (WIDTH_AT if n_b > 1 else WIDTH_AT[:1]):  # a constant width is read nowhere
+            m = RecordModel(rec, n_b, n_g, terms, prior, d_fixed, width_at)
+            f = fit_model(m, m.theta({"d": np.array([d0]), "B": np.full(n_b, b0)}), sigma=sigma)
+            fits.append((f.bic(sigma), n_b, width_at, f))
+    bic, n_b, width_at, fit = min(fits, key=lambda x: x[0])
     m = fit.model
-    log = [{"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])}]
+    log = [{"B_ctrl": {f"{n} {w}": b for b, n, w, _ in fits}},
+           {"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])}]
     while True:
         cands = []
         for name in (n for n in TERMS if not getattr(terms, n)):
@@ -1097,31 +946,10 @@ def _search_order(rec, starts, prior, d_fixed, st, n_g, sigma, sizes_first: bool
         if c_bic >= bic:
             break
         terms, m = terms.with_(name), f.model
-        fit = polish(fit_model(m, f.theta, sigma=sigma))  # from the trial, so at worst the trial again
+        fit = fit_model(m, f.theta, sigma=sigma)  # from the trial, so at worst the trial again
         bic = fit.bic(sigma)
         log.append({"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])})
-    if not sizes_first:  # B's size and where it is read, by the same criterion as the terms, with them
-        fits = [(bic, fit.model.n_b, fit.model.width_at, fit)]
-        qq = np.linspace(m.q_lo, m.q_hi, 200)
-        B_now = m.B_of(m.unpack(fit.theta)[1], qq)
-        for n_b2 in _n_b_ladder(rec.rt.size):
-            for w2 in (WIDTH_AT if n_b2 > 1 else WIDTH_AT[:1]):
-                if (n_b2, w2) == (fit.model.n_b, fit.model.width_at):
-                    continue
-                m2 = RecordModel(rec, n_b2, n_g, terms, prior, d_fixed, w2)
-                m2.slope = m.slope
-                c2 = np.linalg.lstsq(_basis(qq, m2.q_lo, m2.q_hi, n_b2), B_now, rcond=None)[0] if n_b2 > 1 else np.array([B_now.mean()])
-                th2 = m2.theta({**m.parts(fit.theta), "B": c2})
-                m2.w = m2.weights(m2.evaluate(th2), sigma)
-                f2 = fit_model(m2, th2, sigma=sigma)
-                fits.append((f2.bic(sigma), n_b2, w2, f2))
-        bic, n_b, width_at, fit = min(fits, key=lambda x: x[0])
-        fit = _polish(fit, sigma)
-        bic = fit.bic(sigma)
-        log.append({"B_ctrl": {f"{n} {w}": b for b, n, w, _ in fits}, "bic": bic})
-    else:
-        log.insert(0, {"B_ctrl": {f"{n} {w}": b for b, n, w, _ in fits}})
-    return fit, log
+    return fit, {"steps": log, "sigma_px": sigma, "n_b": n_b, "n_g": n_g, "width_at": width_at}
 
 
 # --------------------------------------------------------------------------- samples
