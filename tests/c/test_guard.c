@@ -61,6 +61,21 @@ static size_t build_v5(const fixture_grid_t *g, const shape_t *s)
     return n;
 }
 
+/* Multiply every entry of the blob's grid at header offset grid_at (offsetof(pst_header_t, b) or
+ * f) by k and reseal the CRC: a forged table whose header stays honest. */
+static void scale_entries(size_t grid_at, int32_t k)
+{
+    pst_grid_t gr;
+    memcpy(&gr, blob.bytes + grid_at, sizeof gr);
+    for (int i = 0; i < gr.n; i++) {
+        int32_t v;
+        memcpy(&v, blob.bytes + gr.offset + 4 * i, 4);
+        v *= k;
+        memcpy(blob.bytes + gr.offset + 4 * i, &v, 4);
+    }
+    fixture_reseal(&blob);
+}
+
 /* calib_load_guarded refuses with st (the same on the host: no board) and reports rule. */
 static pst_plaus_report_t expect(size_t n, const pst_limits_t *board, calib_status_t st)
 {
@@ -108,17 +123,9 @@ static void test_b_against_travel(void **state)
     s = (shape_t){.b_const = 9.0, .f_scale = 1.0, .f_jump_at = 1e9};
     expect(build_v5(&GRID, &s), NULL, CALIB_ERR_B_TRAVEL);
     size_t n = build_v5(&GRID, &GOOD);
-    pst_header_t hd;
-    memcpy(&hd, blob.bytes, sizeof hd);
     /* Four times with the honest header kept (only the entries forged; 3.6 mm, within the travel
      * rules): the instrument's largest play is 1.8 mm. */
-    for (int i = 0; i < hd.b.n; i++) {
-        int32_t v;
-        memcpy(&v, blob.bytes + hd.b.offset + 4 * i, 4);
-        v *= 4;
-        memcpy(blob.bytes + hd.b.offset + 4 * i, &v, 4);
-    }
-    fixture_reseal(&blob);
+    scale_entries(offsetof(pst_header_t, b), 4);
     r = expect(n, NULL, CALIB_ERR_B_INST);
     assert_int_equal(r.index, 15); /* the first entry above 1.8 mm, q = -2.125 mm */
     assert_true(r.value > r.limit);
@@ -152,14 +159,7 @@ static void test_f_against_the_instrument(void **state)
     assert_true(r.value > r.limit);
     /* f scaled by 3 with the honest header kept: beyond the instrument's angle range. */
     n = build_v5(&GRID, &GOOD);
-    memcpy(&hd, blob.bytes, sizeof hd);
-    for (int i = 0; i < hd.f.n; i++) {
-        int32_t v;
-        memcpy(&v, blob.bytes + hd.f.offset + 4 * i, 4);
-        v *= 3;
-        memcpy(blob.bytes + hd.f.offset + 4 * i, &v, 4);
-    }
-    fixture_reseal(&blob);
+    scale_entries(offsetof(pst_header_t, f), 3);
     expect(n, NULL, CALIB_ERR_C_INST);
 }
 

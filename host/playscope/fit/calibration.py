@@ -419,6 +419,21 @@ def check_not_noise(q_c: np.ndarray, c_c: np.ndarray, c_model: np.ndarray, sourc
                          "no calibration written")
 
 
+def _one_blas_thread(fn):
+    """fn run on one BLAS thread. The chain's linear algebra is small (frames x tens of columns),
+    where threads cost more than they give: transition.fit_weights measured a solve ~30x slower
+    threaded on a busy 2-core machine."""
+    @functools.wraps(fn)
+    def run(*args, **kw):
+        from .transition import _blas_controller
+
+        with _blas_controller().limit(limits=1, user_api="blas"):
+            return fn(*args, **kw)
+
+    return run
+
+
+@_one_blas_thread
 def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
               t_delay_s: float | None = None, hysteresis: float | None = None,
               onset_cfg: dict | None = None, source: str | None = None,
@@ -455,19 +470,6 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     Errors: InputError (naming the file) when q never reverses, when no reversal gives an onset,
       or for lost markers.
     """
-    from .transition import _blas_controller
-
-    # The chain's linear algebra is small (frames x tens of columns): threaded BLAS costs more
-    # than it gives, ~30x per solve on a busy 2-core machine (a 1-hour log: 70 s against 35 s
-    # on one thread; bench/bench_long_log.py).
-    with _blas_controller().limit(limits=1, user_api="blas"):
-        return _calibrate(s, n_ctrl, f_method, fps, t_delay_s, hysteresis, onset_cfg, source, onsets,
-                          t_delay_from, model_kind, f_ctrl)
-
-
-def _calibrate(s: Session, n_ctrl, f_method, fps, t_delay_s, hysteresis, onset_cfg, source, onsets,
-               t_delay_from, model_kind, f_ctrl) -> Calibration:
-    """calibrate's chain (its doc), on the caller's BLAS threads."""
     src = source or (str(s.path) if s.path else None)
     across_families = model_kind == "auto"
     t_enc, q = s.encoder["t_s"], s.encoder["q"]

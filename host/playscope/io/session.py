@@ -658,6 +658,15 @@ THIN_TRAVEL_FRAC = 0.002
 THIN_MIN_GAIN = 2.0
 
 
+def _median_dt_above(t: np.ndarray, max_hz: float) -> float | None:
+    """The log's median sample period (s) when its rate is above max_hz (1 % margin) and it has
+    3 samples or more; else None (a log thin_encoder and thin_encoder_by_time leave whole)."""
+    if t.size < 3:
+        return None
+    dt = float(np.median(np.diff(t)))
+    return dt if dt > 0 and 1.0 / dt > max_hz * 1.01 else None
+
+
 def thin_encoder(enc: dict, path, frac: float = THIN_TRAVEL_FRAC,
                  max_hz: float = ENCODER_MAX_HZ) -> tuple[dict, str | None]:
     """When the log's median rate is above max_hz, keep the samples its path needs at resolution
@@ -674,10 +683,8 @@ def thin_encoder(enc: dict, path, frac: float = THIN_TRAVEL_FRAC,
     q, t = np.asarray(enc["q"], float), np.asarray(enc["t_s"], float)
     n = q.size
     span = float(np.ptp(q)) if n else 0.0
-    if n < 3 or not span > 0:
-        return enc, None
-    dt = float(np.median(np.diff(t)))
-    if dt <= 0 or 1.0 / dt <= max_hz * 1.01:
+    dt = _median_dt_above(t, max_hz)
+    if dt is None or not span > 0:
         return enc, None
     d = frac * span
     z = _band(q, d)
@@ -707,10 +714,8 @@ def thin_encoder_by_time(enc: dict, path, max_hz: float = ENCODER_MAX_HZ) -> tup
     when the log's median rate is above max_hz; else enc unchanged. Returns (table, note).
     2 ms at 500 Hz is 1/20 of a 25 fps frame, the resolution the onsets are seen at."""
     t = enc["t_s"]
-    if t.size < 3:
-        return enc, None
-    dt = float(np.median(np.diff(t)))
-    if dt <= 0 or 1.0 / dt <= max_hz * 1.01:
+    dt = _median_dt_above(t, max_hz)
+    if dt is None:
         return enc, None
     bins = np.floor(t * max_hz).astype(np.int64)
     keep = np.r_[True, bins[1:] != bins[:-1]]
