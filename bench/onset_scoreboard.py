@@ -96,6 +96,14 @@ def run_row(args) -> dict:
         ref = cal.onset_refine or {}
         check_td = status == "right" if group in FROM_CASES else True
         fail = bool(sc["err_pct"] > limit or (check_td and abs(td_err) > 0.125))
+        # The image's mean lag behind the encoder, against the renderer's: marker_render averages each
+        # frame over the exposure that ends at its capture instant (so its delay is to the exposure's
+        # end, the mean lag e/2 longer); swing_render and render_c centre the exposure on it. Not a
+        # failure criterion (fixed before): with a right configured delay, t_delay is the configured
+        # one wherever the record's mean lag allows it, so this column is what the record measured.
+        lag_true = d_true + (0.5 * obj.exposure if renderer == "marker" else 0.0)
+        lag = ref.get("image_mean_lag_s")
+        out.update(lag_err_frames=None if lag is None else (lag - lag_true) * fps)
         out.update(err_pct=sc["err_pct"], t_delay_s=cal.t_delay_s, td_err_frames=td_err, td_checked=check_td,
                    samples=cal.n_b_samples, reversals=cal.reversals, calibrate_s=sc["wall_s"],
                    terms=(ref.get("terms") or {}).get("chosen"), fail=fail)
@@ -174,6 +182,10 @@ def main(argv=None) -> int:
             f"B {r['err_pct']:.2f} % (limit {r['limit_pct']:g}), t_delay error {r['td_err_frames']:+.3f} frame" \
             f"{'' if r['td_checked'] else ' (not judged)'}, terms {r['terms']}"
         out.append(f"- {r['name']} ({r['category']}, delay {r['delay_status']}, {r['fps']:g} fps): {fig}")
+    lag = np.array([abs(r["lag_err_frames"]) for r in res if r.get("lag_err_frames") is not None])
+    if lag.size:
+        out.append(f"\nThe image's mean lag against the renderer's ({lag.size} rows), |error| in frames: median "
+                   f"{np.median(lag):.3f}, P95 {np.percentile(lag, 95):.3f}, worst {lag.max():.3f}")
     cs = np.array([r["calibrate_s"] for r in res if "calibrate_s" in r])
     if cs.size:
         out.append(f"\n`calibrate` wall time over the rows (two processes on a 2-core machine): median {np.median(cs):.1f} s, "

@@ -49,7 +49,22 @@ linear and solved exactly for each value of the nonlinear parameters theta = (t_
 coefficients[, log f, zeta]), which scipy.optimize.least_squares fits (trust-region reflective,
 forward-difference Jacobian). The configured delay enters as a Gaussian prior of sd one frame
 period / sqrt(12) (a delay measured in whole frames is known to that), not as a value a rule
-overrides. Start: the coarse delay (delay_guess) and the configured one, each with the constant
+overrides.
+
+The exposure. A camera integrates the scene over its exposure e (0 <= e <= T, the frame period),
+so the image's mean lag behind the encoder, the t_delay of the model above, is the delay to the
+exposure's end plus e / 2 (the mean of a motion over the window is its value at the window's
+middle; the corner of an onset is rounded besides, a second-order signal the fit does not use:
+tried, the other terms' misfits drew e to a whole frame on 3 of 50 development rows). Eq. 1's
+t2 - t_delay is the instant a motion starts, and the first frame to show it is the first whose
+exposure ends after it, so the delay a user configures and the board's detector uses is the one
+to the exposure's end, d_end = t_delay - e / 2. The record cannot tell d_end and e apart, so the
+configured delay is compared with d_end, e unknown in [0, T]: the prior's residual is the
+distance of t_delay from [d_cfg, d_cfg + T / 2] (the Gaussian prior on d_end with e profiled out)
+and the delay reported is the d_end nearest d_cfg, clip(d_cfg, t_delay - T / 2, t_delay), its
+exposure 2 (t_delay - d_end). Without a configured delay, or with one the record contradicts
+(DELAY_DISAGREE_Z: wrong, so silent on the exposure), nothing splits them: the mean lag is
+reported (the exposure's end is up to T / 2 earlier). Start: the coarse delay (delay_guess) and the configured one, each with the constant
 play width that fits best; the board's plain eq. 1 samples are a third start when given.
 
 Terms by evidence: the tip mode and each registration term enter when they lower the record's
@@ -88,6 +103,8 @@ SIGMA_RERUN = 0.7      # the search runs again at the fit's residual scale when 
                        # itself good to a few %)
 TERMS = ("ring", "reg_tip", "reg_motor")
 WIDTH_AT = ("input", "output")  # where the play's width is read: B(q) or B(z) (module doc)
+DELAY_DISAGREE_Z = 3.0  # a configured delay this many combined standard errors from the record's disagrees
+                       # with it (a two-sided 0.3 % test: on a right one, a false alarm in 370 records)
 Z_GRID = 4001          # points of the output grid the band's edges are inverted on (B at the output)
 N_REG = 3              # the registration's rotation (rad) about the camera's x, y and optical axes (module doc: R)
 
@@ -337,6 +354,29 @@ class RecordModel:
             ring = (float(np.exp(lo + (hi - lo) * a)), float(self.ZETA_LO + (self.ZETA_HI - self.ZETA_LO) * b))
         lags = {n: self.lag_map(th[lay["lag_" + n]][0])[0] for n in ("tip", "motor") if "lag_" + n in lay}
         return float(d), cB, ring, lags
+
+    def prior_residual(self, lag: float) -> tuple[float, float]:
+        """The configured delay's prior residual (sigma units) at the image's mean lag lag s, and
+        its slope over lag (module doc, the exposure): the distance of lag from
+        [d_cfg, d_cfg + T / 2] in prior sds. (0, 0) without a prior or with the delay held."""
+        if self.prior is None or self.d_fixed is not None:
+            return 0.0, 0.0
+        gap = lag - self.prior[0]
+        gap = min(gap, 0.0) + max(gap - 0.5 * self.rec.period_s, 0.0)
+        return gap / self.prior[1], (1.0 / self.prior[1] if gap != 0.0 else 0.0)
+
+    def exposure_end(self, lag: float, se: float) -> tuple[float, float | None]:
+        """(d_end s, e s): the delay to the exposure's end and the exposure for the image's mean lag
+        lag s, of standard error se s (module doc, the exposure). e None where nothing splits
+        them, d_end then the lag: no configured delay, the delay held, or a configured delay the
+        record contradicts (more than DELAY_DISAGREE_Z combined standard errors from every d_end
+        the record allows: it is then wrong, and says nothing of the exposure)."""
+        if self.prior is None or self.d_fixed is not None:
+            return float(lag), None
+        d_end = float(np.clip(self.prior[0], lag - 0.5 * self.rec.period_s, lag))
+        if abs(d_end - self.prior[0]) > DELAY_DISAGREE_Z * np.hypot(se, self.prior[1]):
+            return float(lag), None
+        return d_end, 2.0 * (lag - d_end)
 
     def B_of(self, cB: np.ndarray, q: np.ndarray) -> np.ndarray:
         if self.n_b == 1:
@@ -632,7 +672,7 @@ class RecordModel:
         J = -sw[:, None] * np.vstack([Pu, Pv]) / sigma
         if self.prior is not None and self.d_fixed is None:
             prow = np.zeros((1, th.size))
-            prow[0, 0] = 1.0 / self.prior[1]
+            prow[0, 0] = self.prior_residual(d)[1]
             J = np.vstack([J, prow])
         return J
 
@@ -724,7 +764,7 @@ def _residual_fn(m: RecordModel, sigma: float):
             ev = m.evaluate(th)
             r = sw * ev.resid / sigma
             if m.prior is not None and m.d_fixed is None:
-                r = np.r_[r, (th[0] - m.prior[0]) / m.prior[1]]
+                r = np.r_[r, m.prior_residual(m.unpack(th)[0])[0]]
             cache.clear()
             cache[key] = (r, ev)
         return cache[key][0]
@@ -761,8 +801,7 @@ def _settle(m: RecordModel, th: np.ndarray, sig: float) -> tuple[Eval, float]:
     m.w = m.weights(ev, sig)
     ev = m.evaluate(th)
     cost = 0.5 * m.objective(ev, sig)
-    if m.prior is not None and m.d_fixed is None:
-        cost += 0.5 * float(((th[0] - m.prior[0]) / m.prior[1]) ** 2)
+    cost += 0.5 * m.prior_residual(m.unpack(th)[0])[0] ** 2
     return ev, cost
 
 
@@ -1000,9 +1039,11 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
 @dataclass
 class ModelSamples:
     """Eq. 1's samples read off a fitted model (arrays (K,), one per reversal whose play was
-    taken up within the record's frames): t1_s (scene), t2_s (image clock = scene + t_delay),
-    q1, q2, q_mean, b (actuator units), sigma_b; t_delay_s and its standard error; rev (K,) the
-    reversal indices."""
+    taken up within the record's frames): t1_s (scene), t2_s (image clock = scene + t_delay: the
+    stamp of a frame whose exposure ends at the onset), q1, q2, q_mean, b (actuator units), sigma_b;
+    t_delay_s, the delay to the exposure's end, and its standard error (the mean lag's); rev (K,)
+    the reversal indices; exposure_s the exposure that splits the mean lag (None: nothing split it;
+    module doc, the exposure)."""
 
     t1_s: np.ndarray
     t2_s: np.ndarray
@@ -1014,6 +1055,7 @@ class ModelSamples:
     rev: np.ndarray
     t_delay_s: float
     t_delay_se_s: float
+    exposure_s: float | None = None
 
 
 def samples(fit: Fit) -> ModelSamples:
@@ -1041,5 +1083,6 @@ def samples(fit: Fit) -> ModelSamples:
     # the onset must fall within the frames' span (a model extrapolated past the video says nothing)
     ok = np.isfinite(t_on) & (t_on + d > rec.t_f[0] + rec.period_s) & (t_on + d < rec.t_f[-1] - rec.period_s)
     q2 = q_on[ok]
-    return ModelSamples(rec.rt[ok], t_on[ok] + d, rec.rq[ok], q2, 0.5 * (rec.rq[ok] + q2), np.abs(q2 - rec.rq[ok]),
-                        np.sqrt(np.maximum(var_b[ok], 0.0)), np.flatnonzero(ok), float(d), se_d)
+    d_end, e = m.exposure_end(d, se_d)
+    return ModelSamples(rec.rt[ok], t_on[ok] + d_end, rec.rq[ok], q2, 0.5 * (rec.rq[ok] + q2), np.abs(q2 - rec.rq[ok]),
+                        np.sqrt(np.maximum(var_b[ok], 0.0)), np.flatnonzero(ok), d_end, se_d, e)

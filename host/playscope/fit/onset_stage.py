@@ -23,7 +23,6 @@ from .onset_settings import board_onsets
 from .onsets import Onsets, RobustOnsets
 from .pacing import pacing
 
-DELAY_DISAGREE_Z = 3.0  # a configured delay this many combined standard errors from the record's is reported
 
 
 def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.ndarray, rq: np.ndarray,
@@ -63,7 +62,8 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     fit, search = OM.fit_record(rec, t_delay_cfg, t_delay_from, d0, board.b if board.b.size else None, t_delay_sd_s)
     sm = OM.samples(fit)
     m = fit.model
-    d, _, ring, lags = m.unpack(fit.theta)
+    lag, _, ring, lags = m.unpack(fit.theta)
+    d = sm.t_delay_s  # the delay to the exposure's end (onset_model's doc: the exposure)
     held = m.d_fixed is not None
     se = sm.t_delay_se_s
     if held:
@@ -75,7 +75,7 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     agree = None
     if t_delay_cfg is not None and not held:
         sd = m.prior[1]
-        agree = bool(abs(d - t_delay_cfg) <= DELAY_DISAGREE_Z * np.hypot(se, sd))
+        agree = bool(abs(d - t_delay_cfg) <= OM.DELAY_DISAGREE_Z * np.hypot(se, sd))
         if not agree:
             warnings.append(f"t_delay: the record gives {d:.4f} s (95 % {d - 1.96 * se:.4f}..{d + 1.96 * se:.4f} s) "
                             f"against the configured {t_delay_cfg:.4f} s; using the record's (--t-delay-from config "
@@ -115,6 +115,7 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                     "damping_ratio": ring[1] if ring else None,
                     "gains": [float(g) for g in beta[2 * m.n_g:2 * m.n_g + 2]] if ring else None},
         "registration": {"found": bool(reg), **reg},
+        "exposure_s": sm.exposure_s, "image_mean_lag_s": lag,
         "pacing": pace,
         "sigma_b_median": float(np.median(sm.sigma_b)) if n else None,
         "lost_before_reversal": 0,
