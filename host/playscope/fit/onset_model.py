@@ -64,8 +64,10 @@ distance of t_delay from [d_cfg, d_cfg + T / 2] (the Gaussian prior on d_end wit
 and the delay reported is the d_end nearest d_cfg, clip(d_cfg, t_delay - T / 2, t_delay), its
 exposure 2 (t_delay - d_end). Without a configured delay, or with one the record contradicts
 (DELAY_DISAGREE_Z: wrong, so silent on the exposure), nothing splits them: the mean lag is
-reported (the exposure's end is up to T / 2 earlier). Start: the coarse delay (delay_guess) and the configured one, each with the constant
-play width that fits best; the board's plain eq. 1 samples are a third start when given.
+reported (the exposure's end is up to T / 2 earlier).
+
+Start: the coarse delay (delay_guess) and the configured one, each with the constant play width
+that fits best; the board's plain eq. 1 samples are a third start when given.
 
 Terms by evidence: the tip mode and each registration term enter when they lower the record's
 BIC (Schwarz 1978) on the robust objective (2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma),

@@ -74,8 +74,9 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         src = "estimated from the record (record model, the configured delay its prior)"
     agree = None
     if t_delay_cfg is not None and not held:
-        sd = m.prior[1]
-        agree = bool(abs(d - t_delay_cfg) <= OM.DELAY_DISAGREE_Z * np.hypot(se, sd))
+        # the record's delay agrees with the configured one exactly when the configured one split
+        # the mean lag (onset_model.RecordModel.exposure_end: the one test, DELAY_DISAGREE_Z)
+        agree = sm.exposure_s is not None
         if not agree:
             warnings.append(f"t_delay: the record gives {d:.4f} s (95 % {d - 1.96 * se:.4f}..{d + 1.96 * se:.4f} s) "
                             f"against the configured {t_delay_cfg:.4f} s; using the record's (--t-delay-from config "

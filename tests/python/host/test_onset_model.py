@@ -133,6 +133,8 @@ def test_a_wrong_configured_delay_is_a_prior_the_record_overrules_and_config_hol
     assert abs(rob.t_delay_s - 0.18) * r.fps < 0.125
     assert rob.report["t_delay"]["agrees_with_configured"] is False
     assert any("against the configured 0.0800 s" in w for w in rob.warnings)
+    # a configured delay the record contradicts says nothing of the exposure: the mean lag is reported
+    assert rob.report["exposure_s"] is None and rob.t_delay_s == rob.report["image_mean_lag_s"]
     held = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, 0.08, "config", hysteresis=hyst)
     assert held.t_delay_s == 0.08 and held.report["t_delay"]["used"] == "configured"
     with pytest.raises(ValueError, match="t_delay_from"):
@@ -209,6 +211,23 @@ def test_the_noise_scale_comes_from_the_fit_when_the_motion_turns_within_a_few_f
     assert rob.report["terms"]["noise_px"] < 2 * r.noise_px
 
 
+def test_the_delay_prior_is_flat_over_the_exposures_half_frame_and_gaussian_beyond():
+    # module doc, the exposure: the configured delay d_cfg is to the exposure's end, so the mean
+    # lag may lie anywhere in [d_cfg, d_cfg + T/2] at no cost; beyond, the distance in prior sds
+    t = np.arange(0.0, 10.0, 1e-3)
+    q = 1.0 - np.abs(((2.0 * t) % 4.0) - 2.0)
+    rt = np.arange(1.0, 9.5, 1.0)
+    rec = OM.make_record(t, q, rt, np.interp(rt, t, q), np.arange(0.5, 9.5, 0.04), np.zeros((225, 2)), 25.0)
+    m = OM.RecordModel(rec, 1, 6, OM.Terms(), (0.1, 0.01))
+    assert m.prior_residual(0.1) == (0.0, 0.0) and m.prior_residual(0.1 + 0.019) == (0.0, 0.0)
+    assert m.prior_residual(0.08)[0] == pytest.approx(-2.0) and m.prior_residual(0.08)[1] == pytest.approx(100.0)
+    assert m.prior_residual(0.14)[0] == pytest.approx((0.14 - 0.12) / 0.01)
+    # the delay reported: the exposure's end nearest d_cfg, its exposure twice the rest of the lag
+    assert m.exposure_end(0.106, 0.001) == pytest.approx((0.1, 0.012))
+    assert m.exposure_end(0.125, 0.001) == pytest.approx((0.105, 0.04))  # a whole frame, the most it may be
+    assert m.exposure_end(0.2, 0.001) == (0.2, None)  # contradicted: unsplit
+
+
 def test_the_delay_is_to_the_exposures_end_not_the_images_mean_lag():
     # bench/marker_render.py averages each frame over the 12 ms before its capture time, the stamp
     # minus the delay (the stamp marks the exposure's end): the image lags the encoder by
@@ -226,4 +245,7 @@ def test_the_delay_is_to_the_exposures_end_not_the_images_mean_lag():
     obs = np.column_stack([d["u"], d["v"]])
     rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, sc.fps, sc.t_delay_config, "data", hysteresis=hyst)
     assert abs(rob.t_delay_s - sc.t_delay_true) * sc.fps < 0.125
+    # what the record measured (the delay above is the prior wherever the record allows it): the
+    # mean lag, and the exposure it implies
+    assert abs(rob.report["image_mean_lag_s"] - (sc.t_delay_true + 0.5 * sc.exposure)) * sc.fps < 0.125
     assert rob.report["exposure_s"] == pytest.approx(sc.exposure, abs=0.002)
