@@ -108,6 +108,9 @@ WIDTH_AT = ("input", "output")  # where the play's width is read: B(q) or B(z) (
 DELAY_DISAGREE_Z = 3.0  # a configured delay this many combined standard errors from the record's disagrees
                        # with it (a two-sided 0.3 % test: on a right one, a false alarm in 370 records)
 Z_GRID = 4001          # points of the output grid the band's edges are inverted on (B at the output)
+G_PENALTY = 1e-6       # G's second-difference penalty, of its block's mean pivot (`RecordModel.solve`): a
+                       # continuation where no frame reaches; a curvature of 10 px per knot then costs what
+                       # 1e-4 of one frame's squared noise-scale residual does
 N_REG = 3              # the registration's rotation (rad) about the camera's x, y and optical axes (module doc: R)
 
 
@@ -526,9 +529,8 @@ class RecordModel:
         return 2.0 * float(np.sum(huber_rho(ev.resid, sj))) + 2.0 * float(np.sum(np.log(sj / sigma)))
 
     def solve(self, cols: dict) -> tuple[np.ndarray, np.ndarray]:
-        """Weighted least squares of the stacked [u; v] on the columns, by the normal equations
-        (the B-spline and registration columns are well conditioned; a 1e-10 relative ridge keeps
-        an absent column's zero pivot harmless): (beta, residuals (2F,))."""
+        """Weighted least squares of the stacked [u; v] on the columns, by the normal equations, G's
+        coefficients under a small second-difference penalty (G_PENALTY): (beta, residuals (2F,))."""
         o = self.rec.obs
         F = o.shape[0]
         A1 = cols["G"]
@@ -550,7 +552,17 @@ class RecordModel:
             M[2 * p:, :2 * p] = M[:2 * p, 2 * p:].T
             M[2 * p:, 2 * p:] = Ru.T @ (wu[:, None] * Ru) + Rv.T @ (wv[:, None] * Rv)
             rhs[2 * p:] = Ru.T @ (wu * o[:, 0]) + Rv.T @ (wv * o[:, 1])
-        M[np.diag_indices(P)] += 1e-10 * (np.trace(M) / P + 1e-30)
+        # G's coefficients beyond the frames' reach: a second-difference penalty (a P-spline, Eilers &
+        # Marx 1996) continues G linearly there, G_PENALTY of its block's mean pivot, too small to bend it
+        # where frames are. A ridge pulled them towards 0 px instead, scaled by a trace the registration's
+        # columns (px per rad) dominate: at the travel's ends, which few frames reach, G fell tens of px
+        # off them and the Huber reweighting then dropped them for good (the weighted sum of squares rose
+        # with each round).
+        D2 = np.diff(np.eye(p), 2, axis=0)
+        for blk in (slice(0, p), slice(p, 2 * p)):
+            M[blk, blk] += G_PENALTY * (np.trace(M[blk, blk]) / p + 1e-30) * (D2.T @ D2)
+        M[np.diag_indices(P)] *= 1.0 + 1e-12  # scale-free: an absent column's zero pivot stays harmless
+        M[np.diag_indices(P)] += 1e-30
         beta = np.linalg.solve(M, rhs)
         fu = A1 @ beta[:p] + sum(b * r[0] for b, r in zip(beta[2 * p:], ring))
         fv = A1 @ beta[p:2 * p] + sum(b * r[1] for b, r in zip(beta[2 * p:], ring))
