@@ -37,11 +37,21 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
           the two apart where the path curves, and the onsets' timing does the rest.
           A registration that follows the image can switch only once a frame shows the reversal,
           so within one frame period of it; with the switch time unknown and uniform within a
-          lag L, a frame in that window sees the old or the new registration, the new one with
-          probability p (its share of the window): its mean is the expected share p (a linear
-          ramp) and the jump J adds p (1 - p) J^2 to the frame's variance per axis.
+          lag L, a frame in that window shows the old or the new registration, the new one with
+          probability p (its share of the window): a two-point mixture, fitted by EM (Dempster,
+          Laird & Rubin 1977). The E-step gives each frame within a frame period of a window its
+          posterior share gamma = expit(logit p + rho_old - rho_new) (rho: the frame's Huber loss
+          at each level; p clipped into [EPS_SHARE, 1 - EPS_SHARE]). The M-step's least squares:
+          the frame at the expected sign s_prev + gamma (s_new - s_prev), the rotation under the
+          levels' spread sum w (s_new - s_prev)^2 gamma (1 - gamma) (R a)^2 (the two levels'
+          squares, Var = E x^2 - (E x)^2), and one row per frame sign(p - gamma) sqrt(2 KL(gamma
+          || p)): the one place the frame's timing enters, smooth in the onset, the delay and L
+          (the log of a share linear in them is concave, so each switch has one optimum). The
+          BIC scores the frame's marginal likelihood, -2 ln(p e^-rho_new + (1 - p) e^-rho_old).
+          Before a model's first E-step (the start's scoring), the frame has the Gaussian stand-in:
+          the expected share p as its mean (a linear ramp), p (1 - p) J^2 added to its variance.
   e_j     Huber noise (k = 1.345 sigma_j, 95 % efficiency at the Gaussian; Huber 1964), sigma_j^2
-          = sigma^2 (the record's model-free noise) plus the switch's share variance above, by
+          = sigma^2 (the record's model-free noise; plus the stand-in's share variance above), by
           iteratively reweighted least squares.
 
 Fit: variable projection (Golub & Pereyra 1973): G, the gains and the registration offsets are
@@ -67,7 +77,8 @@ exposure 2 (t_delay - d_end). Without a configured delay, or with one the record
 reported (the exposure's end is up to T / 2 earlier).
 
 Start: the coarse delay (delay_guess) and the configured one, each with the constant play width
-that fits best; the board's plain eq. 1 samples are a third start when given.
+that fits best; the board's plain eq. 1 samples are a third start when given. B is fitted coarse to
+fine (`_fit_chain`): a constant width, then each of B_CTRL's sizes from the last one's fit.
 
 Terms by evidence: the tip mode and each registration term enter when they lower the record's
 BIC (Schwarz 1978) on the robust objective (2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma),
@@ -111,6 +122,9 @@ Z_GRID = 4001          # points of the output grid the band's edges are inverted
 G_PENALTY = 1e-6       # G's second-difference penalty, of its block's mean pivot (`RecordModel.solve`): a
                        # continuation where no frame reaches; a curvature of 10 px per knot then costs what
                        # 1e-4 of one frame's squared noise-scale residual does
+EPS_SHARE = 1e-3       # the least share the mixture gives a level (module doc): a frame beside a switch window
+                       # may show the other level at this probability, so a misplaced window costs
+                       # 2 ln(1 / EPS_SHARE) = 14 (a 3.7-sigma residual), not an infinite one, and the fit can move it
 N_REG = 3              # the registration's rotation (rad) about the camera's x, y and optical axes (module doc: R)
 
 
@@ -295,6 +309,7 @@ class RecordModel:
         self.z_lo, self.z_hi = self.q_lo - 0.25 * span, self.q_hi + 0.25 * span
         self.w = np.ones(2 * rec.t_f.size)  # IRLS weights
         self.slope = None  # G' at the frames from the previous round: (F, 2), for the ring's direction
+        self.mix = {}      # the switch mixture's E-step per term ("tip", "motor"): `e_step`
 
     # ---- theta layout: [t_delay, B's coefficients (n_b)[, ring (2)][, lag_tip][, lag_motor]]. The
     # bounded parts enter through logistic maps onto their ranges (a clip would stall the fit on
@@ -471,16 +486,100 @@ class RecordModel:
             s0 = -s_ev[0] if s_ev.size else 1.0
             t_ev, s_ev, r_ev = t_on[ok][keep], s_ev[keep], np.flatnonzero(ok)[keep]
             S = _ramp_sign(tau, t_ev, s_ev, s0, lags["tip"])
+            pv = _share_var(tau, t_ev, lags["tip"])
+            self._mix_columns("tip", S, pv, tau, t_on, lags["tip"], st)
             cols["tip"] = S[:, None, None] * rec.reg_gen
             st["tip"] = (S, t_ev, s_ev, np.r_[s0, s_ev[:-1]], lags["tip"], r_ev)
-            st["pvar_tip"] = _share_var(tau, t_ev, lags["tip"])
+            st["pvar_tip"] = pv
         if self.terms.reg_motor:
             s0 = -rec.s_new[0]
             S = _ramp_sign(tau, rec.rt, rec.s_new, s0, lags["motor"])
+            pv = _share_var(tau, rec.rt, lags["motor"])
+            self._mix_columns("motor", S, pv, tau, rec.rt, lags["motor"], st)
             cols["motor"] = S[:, None, None] * rec.reg_gen
-            st["motor"] = (S, rec.rt, rec.s_new, np.r_[s0, rec.s_new[:-1]], lags["motor"])
-            st["pvar_motor"] = _share_var(tau, rec.rt, lags["motor"])
+            st["motor"] = (S, rec.rt, rec.s_new, np.r_[s0, rec.s_new[:-1]], lags["motor"], np.arange(rec.rt.size))
+            st["pvar_motor"] = pv
         return cols, t_on, z_f, st
+
+    # ---- the switch as a two-point mixture (module doc): an EM whose E-step gives each frame near a
+    # switch its posterior share gamma of the new level and whose M-step is the least squares below
+    def _mix_columns(self, name: str, S: np.ndarray, pvar: np.ndarray, tau: np.ndarray, t_rev: np.ndarray,
+                     L: float, st: dict) -> None:
+        """Apply the E-step's shares to a term's sign S and share variance pvar (F,) in place: a frame
+        with a share gamma has the expected sign s_prev + gamma (s_new - s_prev) and no share variance
+        (its spread is the linear parameters' penalty, `solve`); st[name + "_mix"] gets the frames,
+        their shares gamma, their prior shares p at this theta (clipped into [EPS_SHARE, 1 - EPS_SHARE])
+        and where p is unclipped. t_rev (M,) the term's switch starts per reversal (NaN: none)."""
+        mx = self.mix.get(name)
+        if not mx:
+            return
+        j, g, rev, sp, sn = mx["j"], mx["gamma"], mx["rev"], mx["sp"], mx["sn"]
+        S[j] = sp + g * (sn - sp)
+        pvar[j] = 0.0
+        t0 = t_rev[rev]
+        raw = (tau[j] - t0) / L
+        free = np.isfinite(raw) & (raw > EPS_SHARE) & (raw < 1.0 - EPS_SHARE)
+        p = np.clip(np.nan_to_num(raw, nan=0.0), EPS_SHARE, 1.0 - EPS_SHARE)
+        st[name + "_mix"] = {"j": j, "gamma": g, "p": p, "free": free, "rev": rev, "ds": sn - sp,
+                             "since": np.nan_to_num(tau[j] - t0), "L": L}
+
+    def e_step(self, ev: "Eval", sigma: float) -> None:
+        """The mixture's E-step at an evaluation (module doc): for each switch term, the frames within
+        a frame period of a switch window [t_ev, t_ev + L] get the posterior share of the new level,
+        gamma = expit(logit p + rho_old - rho_new) (p the prior share, clipped into [EPS_SHARE,
+        1 - EPS_SHARE]; rho the Huber loss of the frame's two residuals at the old and the new level,
+        at sigma px). The frames and their switches are then fixed for the M-step."""
+        st = ev.state
+        new = {}
+        T = self.rec.period_s
+        for name in ("tip", "motor"):
+            if name not in st:
+                continue
+            S, t_ev, s_ev, s_prev, L, r_ev = st[name]
+            tau = st["tau"]
+            if t_ev.size == 0:
+                continue
+            e = np.searchsorted(t_ev, tau + T, side="right") - 1
+            e0 = np.maximum(e, 0)
+            near = (e >= 0) & (tau < t_ev[e0] + L + T)
+            j = np.flatnonzero(near)
+            if j.size == 0:
+                continue
+            e = e0[j]
+            du, dv = self.reg_offset(ev, name)
+            F = tau.size
+            ru, rv = ev.resid[j], ev.resid[F + j]
+            rho = {}
+            for lvl, sgn in (("new", s_ev[e]), ("old", s_prev[e])):
+                k = sgn - S[j]
+                rho[lvl] = huber_rho(ru - k * du[j], sigma) + huber_rho(rv - k * dv[j], sigma)
+            p = np.clip((tau[j] - t_ev[e]) / L, EPS_SHARE, 1.0 - EPS_SHARE)
+            g = expit(logit(p) + np.clip(rho["old"] - rho["new"], -50.0, 50.0))
+            keep = ~np.isin(j, new["tip"]["j"]) if "tip" in new else np.ones(j.size, bool)  # one mixture a frame
+            new[name] = {"j": j[keep], "gamma": g[keep], "rev": r_ev[e][keep], "sp": s_prev[e][keep].astype(float),
+                         "sn": s_ev[e][keep].astype(float)}
+        self.mix = new
+
+    def mix_rows(self, ev: "Eval", sigma: float) -> tuple[np.ndarray, np.ndarray]:
+        """The M-step's extra residuals, sigma units: per mixture frame the prior shares' divergence,
+        sign(p - gamma) sqrt(2 KL(gamma || p)), then the levels' spread, sqrt(w (s_new - s_prev)^2
+        gamma (1 - gamma)) times the term's offset at the frame, u then v (`solve`'s penalty), with
+        their weights' square roots (for `jacobian`)."""
+        kl, pen = [], []
+        for name in ("tip", "motor"):
+            mx = ev.state.get(name + "_mix")
+            if mx is None:
+                continue
+            g, p = mx["gamma"], mx["p"]
+            d = g * np.log(np.maximum(g, 1e-300) / p) + (1 - g) * np.log(np.maximum(1 - g, 1e-300) / (1 - p))
+            kl.append(np.sign(p - g) * np.sqrt(2.0 * np.maximum(d, 0.0)))
+            du, dv = self.reg_offset(ev, name)
+            j = mx["j"]
+            c = mx["ds"] ** 2 * g * (1 - g)
+            F = self.rec.t_f.size
+            pen += [-np.sqrt(c * self.w[j]) * du[j] / sigma, -np.sqrt(c * self.w[F + j]) * dv[j] / sigma]
+        cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0))
+        return cat(kl), cat(pen)
 
     def shared_columns(self, cols: dict) -> list:
         """The columns whose coefficient both image axes share, as (u, v) pairs of (F,): the tip
@@ -520,17 +619,54 @@ class RecordModel:
         """IRLS weights (2F,) relative to sigma: Huber's psi(r)/r at each residual's own scale,
         times sigma^2 / sigma_j^2."""
         sj = self.scales(ev, sigma)
-        return huber_weights(ev.resid, sj) * (sigma / sj) ** 2
+        r = ev.resid.copy()
+        F = self.rec.t_f.size
+        for name, j, (nu, nv), (ou, ov) in self._branches(ev):
+            g = ev.state[name + "_mix"]["gamma"]
+            r[j] = np.where(g > 0.5, nu, ou)  # the likelier level's residual sets a mixture frame's weight
+            r[F + j] = np.where(g > 0.5, nv, ov)
+        return huber_weights(r, sj) * (sigma / sj) ** 2
+
+    def _branches(self, ev: "Eval"):
+        """Per switch term with mixture frames: (name, frames j, the residuals (u, v) at the new level,
+        at the old level), from the expected-sign residuals."""
+        F = self.rec.t_f.size
+        out = []
+        for name in ("tip", "motor"):
+            mx = ev.state.get(name + "_mix")
+            if mx is None:
+                continue
+            j, g, ds = mx["j"], mx["gamma"], mx["ds"]
+            du, dv = self.reg_offset(ev, name)
+            ru, rv = ev.resid[j], ev.resid[F + j]
+            out.append((name, j, (ru - (1 - g) * ds * du[j], rv - (1 - g) * ds * dv[j]),
+                        (ru + g * ds * du[j], rv + g * ds * dv[j])))
+        return out
 
     def objective(self, ev: "Eval", sigma: float) -> float:
         """2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma): the robust objective the BIC
         uses (module doc)."""
         sj = self.scales(ev, sigma)
-        return 2.0 * float(np.sum(huber_rho(ev.resid, sj))) + 2.0 * float(np.sum(np.log(sj / sigma)))
+        rho = huber_rho(ev.resid, sj)
+        F = self.rec.t_f.size
+        out = 2.0 * float(np.sum(rho)) + 2.0 * float(np.sum(np.log(sj / sigma)))
+        for name, j, (nu, nv), (ou, ov) in self._branches(ev):
+            # a mixture frame: -2 ln(p e^-rho_new + (1 - p) e^-rho_old) in place of its expected-sign loss
+            p = ev.state[name + "_mix"]["p"]
+            a = np.log(p) - huber_rho(nu, sigma) - huber_rho(nv, sigma)
+            b = np.log1p(-p) - huber_rho(ou, sigma) - huber_rho(ov, sigma)
+            out += float(np.sum(-2.0 * np.logaddexp(a, b) - 2.0 * (rho[j] + rho[F + j])))
+        return out
 
-    def solve(self, cols: dict) -> tuple[np.ndarray, np.ndarray]:
+    def mix_block(self, name: str) -> int:
+        """Where the term name's ("tip", "motor") rotation starts among the shared columns."""
+        return 2 * self.terms.ring + (N_REG if (name == "motor" and self.terms.reg_tip) else 0)
+
+    def solve(self, cols: dict, st: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Weighted least squares of the stacked [u; v] on the columns, by the normal equations, G's
-        coefficients under a small second-difference penalty (G_PENALTY): (beta, residuals (2F,))."""
+        coefficients under a small second-difference penalty (G_PENALTY), each switch's rotation under
+        its mixture frames' spread (st's "<term>_mix": sum w (s_new - s_prev)^2 gamma (1 - gamma)
+        (R a)^2, the M-step's second moment): (beta, residuals (2F,))."""
         o = self.rec.obs
         F = o.shape[0]
         A1 = cols["G"]
@@ -561,6 +697,15 @@ class RecordModel:
         D2 = np.diff(np.eye(p), 2, axis=0)
         for blk in (slice(0, p), slice(p, 2 * p)):
             M[blk, blk] += G_PENALTY * (np.trace(M[blk, blk]) / p + 1e-30) * (D2.T @ D2)
+        for name in ("tip", "motor"):
+            mx = None if st is None else st.get(name + "_mix")
+            if mx is None:
+                continue
+            j = mx["j"]
+            c = mx["ds"] ** 2 * mx["gamma"] * (1 - mx["gamma"])
+            g = self.rec.reg_gen[j]
+            a = slice(2 * p + self.mix_block(name), 2 * p + self.mix_block(name) + N_REG)
+            M[a, a] += g[:, :, 0].T @ ((c * wu[j])[:, None] * g[:, :, 0]) + g[:, :, 1].T @ ((c * wv[j])[:, None] * g[:, :, 1])
         M[np.diag_indices(P)] *= 1.0 + 1e-12  # scale-free: an absent column's zero pivot stays harmless
         M[np.diag_indices(P)] += 1e-30
         beta = np.linalg.solve(M, rhs)
@@ -579,6 +724,7 @@ class RecordModel:
         rhs = [A1.T @ (wu * Gu), A1.T @ (wv * Gv)]
         rhs += [(wu[:, 0] * ru) @ Gu + (wv[:, 0] * rv) @ Gv for ru, rv in ring]
         X = np.linalg.solve(M, np.vstack([np.atleast_2d(r) for r in rhs]))
+        self._X = X
         Au = A1 @ X[:p] + sum(np.outer(ru, X[2 * p + i]) for i, (ru, _) in enumerate(ring))
         Av = A1 @ X[p:2 * p] + sum(np.outer(rv, X[2 * p + i]) for i, (_, rv) in enumerate(ring))
         return Gu - Au, Gv - Av
@@ -642,6 +788,8 @@ class RecordModel:
             e = np.searchsorted(t_ev, tau, side="right") - 1
             e0 = np.maximum(e, 0)
             inr = (e >= 0) & (tau < t_ev[e0] + L)
+            if name + "_mix" in st:  # a mixture frame's sign is the E-step's: its timing is in the KL rows
+                inr[st[name + "_mix"]["j"]] = False
             dS = np.where(inr, (s_ev[e0] - s_prev[e0]) / L, 0.0)     # dS / dtau inside a switch
             Gu[:, 0] -= dS * val[0]
             Gv[:, 0] -= dS * val[1]
@@ -688,11 +836,62 @@ class RecordModel:
             prow = np.zeros((1, th.size))
             prow[0, 0] = self.prior_residual(d)[1]
             J = np.vstack([J, prow])
-        return J
+        return np.vstack([J] + self._mix_jacobian(th, ev, sigma))
+
+    def _mix_jacobian(self, th: np.ndarray, ev: "Eval", sigma: float) -> list:
+        """The rows of `mix_rows` over theta: the divergences through p = (tau - t_switch) / L (the
+        delay moves tau, B the tip's onsets, the lag L), the spread's rows through the rotation's
+        projection (Kaufman's, as `jacobian`)."""
+        rec, st = self.rec, ev.state
+        d, cB, ring, lags = self.unpack(th)
+        lay = self.layout()
+        kl, pen = [], []
+        A1, rcols, M, p = self._lin
+        F = rec.t_f.size
+        for name in ("tip", "motor"):
+            mx = st.get(name + "_mix")
+            if mx is None:
+                continue
+            g, pp, free, L, since = mx["gamma"], mx["p"], mx["free"], mx["L"], mx["since"]
+            dkl = g * np.log(np.maximum(g, 1e-300) / pp) + (1 - g) * np.log(np.maximum(1 - g, 1e-300) / (1 - pp))
+            rr = np.sign(pp - g) * np.sqrt(2.0 * np.maximum(dkl, 0.0))
+            slope = (pp - g) / (pp * (1 - pp))           # d KL / d p
+            big = np.abs(rr) > 1e-6
+            drdp = np.where(big, slope / np.where(big, rr, 1.0), 1.0 / np.sqrt(pp * (1 - pp)))
+            drdp = np.where(free, drdp, 0.0)
+            Jk = np.zeros((g.size, th.size))
+            if self.d_fixed is None:
+                Jk[:, 0] = -drdp / L                      # tau = t_f - d
+            i = lay["lag_" + name].start
+            Jk[:, i] = -drdp * since / L ** 2 * self.lag_map(th[i])[1]
+            if name == "tip":
+                t_on = ev.t_on
+                rev = mx["rev"]
+                ok = np.isfinite(t_on[rev])
+                if ok.any():
+                    z, lo, hi = st["z"], st["lo"], st["hi"]
+                    u_rev, inv = np.unique(rev[ok], return_inverse=True)
+                    dton = self.onset_gradient(cB, z, lo, hi, t_on[u_rev], rec.s_new[u_rev])
+                    sl_b = slice(1, 1 + self.n_b)
+                    Jk[np.flatnonzero(ok), sl_b] = (-drdp[ok] / L)[:, None] * dton[inv]
+            kl.append(Jk)
+            j = mx["j"]
+            c = mx["ds"] ** 2 * g * (1 - g)
+            a = slice(2 * p + self.mix_block(name), 2 * p + self.mix_block(name) + N_REG)
+            Xa = self._X[a]                                # d rotation / d theta = -Xa (Kaufman)
+            gen = rec.reg_gen[j]
+            for ax in range(2):
+                wj = self.w[ax * F + j]
+                pen.append(np.sqrt(c * wj)[:, None] * (gen[:, :, ax] @ Xa) / sigma)
+        rows = kl + pen
+        if self.d_fixed is not None:
+            for r in rows:
+                r[:, 0] = 0.0
+        return rows
 
     def evaluate(self, th: np.ndarray) -> Eval:
         cols, t_on, z_f, st = self.columns(th)
-        beta, r = self.solve(cols)
+        beta, r = self.solve(cols, st)
         return Eval(r, t_on, beta, cols, z_f, st)
 
     def n_linear(self) -> int:
@@ -779,6 +978,8 @@ def _residual_fn(m: RecordModel, sigma: float):
             r = sw * ev.resid / sigma
             if m.prior is not None and m.d_fixed is None:
                 r = np.r_[r, m.prior_residual(m.unpack(th)[0])[0]]
+            kl, pen = m.mix_rows(ev, sigma)
+            r = np.r_[r, kl, pen]
             cache.clear()
             cache[key] = (r, ev)
         return cache[key][0]
@@ -812,6 +1013,8 @@ def _settle(m: RecordModel, th: np.ndarray, sig: float) -> tuple[Eval, float]:
     ev = m.evaluate(th)
     if m.terms.ring:
         m.slope = m.G_slope(ev)
+    m.e_step(ev, sig)
+    ev = m.evaluate(th)
     m.w = m.weights(ev, sig)
     ev = m.evaluate(th)
     cost = 0.5 * m.objective(ev, sig)
@@ -834,6 +1037,8 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
     nfev = 0
     tried = [th.copy()]
     for rnd in range(rounds):
+        m.e_step(ev, sig)
+        ev = m.evaluate(th)
         m.w = m.weights(ev, sig)
         fun = _residual_fn(m, sig)
         free = np.arange(th.size) if m.d_fixed is None else np.arange(1, th.size)
@@ -971,33 +1176,63 @@ def _fit_one(job) -> "Fit":
     """fit_model for one job (model, theta0, sigma, max_nfev, rounds), its IRLS weights first set
     at theta0 (each job independent of the others)."""
     m, th0, sigma, max_nfev, rounds = job
+    m.e_step(m.evaluate(th0), sigma)
     m.w = m.weights(m.evaluate(th0), sigma)
     return fit_model(m, th0, sigma=sigma, max_nfev=max_nfev, rounds=rounds)
 
 
-def _fits_in_child(jobs):
+def _resample_B(m_from: "RecordModel", cB: np.ndarray, m_to: "RecordModel") -> np.ndarray:
+    """B's coefficients for m_to's size from m_from's B(q) (least squares over the travel)."""
+    if m_to.n_b == 1:
+        return np.array([float(np.mean(m_from.B_of(cB, m_from.rec.q)))])
+    qq = np.linspace(m_to.q_lo, m_to.q_hi, 400)
+    return np.linalg.lstsq(_basis(qq, m_to.q_lo, m_to.q_hi, m_to.n_b), m_from.B_of(cB, qq), rcond=None)[0]
+
+
+def _fit_chain(job) -> list:
+    """Coarse to fine in B's size: job (models, theta0 of the first, sigma, max_nfev, rounds), the
+    models alike but for B's size; each is fitted from the last one's fit, its B resampled
+    (`_resample_B`). A width fitted with few coefficients first finds the level, and the finer
+    sizes then only shape it: started at full size from a constant width, the B-spline's many
+    directions meet the switches' onsets and the fit settles in a basin of a wrong B (measured:
+    from 5 constant widths 0.1-0.3 on a 1.5 deg registration record, 5 reach B within 3.7 % this
+    way, 1 from full size). Returns the fits, one per model."""
+    models, th0, sigma, max_nfev, rounds = job
+    out = []
+    for m in models:
+        if out:
+            prev = out[-1]
+            parts = prev.model.parts(prev.theta)
+            parts["B"] = _resample_B(prev.model, prev.model.unpack(prev.theta)[1], m)
+            th0 = m.theta({k: v for k, v in parts.items() if k in m.layout()})
+        out.append(_fit_one((m, th0, sigma, max_nfev, rounds)))
+    return out
+
+
+def _fits_in_child(jobs, fn):
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(1):
-        return [_fit_one(j) for j in jobs]
+        return [fn(j) for j in jobs]
 
 
-def _fit_all(jobs: list) -> list:
+def _fit_all(jobs: list, fn=None) -> list:
     """_fit_one for each job, in order: the first half in a forked child while this process fits
     the rest, when the machine allows it (_can_fork), else one after the other. The fits are
     independent and deterministic, so the result is the same either way (BIC and delay
     bit-identical on three records). Measured on two quiet cores: fit_record on the 3-minute bench
     record 3.7 -> 2.8 s; on two registration records no gain (returning the fits, each with its
     record, costs what the child saves)."""
+    fn = fn or _fit_one
     if len(jobs) < 2 or not _can_fork():
-        return [_fit_one(j) for j in jobs]
+        return [fn(j) for j in jobs]
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     k = len(jobs) // 2
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as ex:
-        child = ex.submit(_fits_in_child, jobs[:k])
-        rest = [_fit_one(j) for j in jobs[k:]]
+        child = ex.submit(_fits_in_child, jobs[:k], fn)
+        rest = [fn(j) for j in jobs[k:]]
         return child.result() + rest
 
 
@@ -1007,12 +1242,19 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
     st, n_g = _start(rec, starts, prior, d_fixed, board_b, sigma)
     d0, b0 = min(st.items(), key=lambda kv: len(kv[0]))[1]  # the base model's own start
     terms = Terms()
+    ladder = _n_b_ladder(rec.rt.size)
+
+    def chain(terms, sizes, width_at):
+        """The models of a coarse-to-fine chain (`_fit_chain`): a constant width, then each size."""
+        return [RecordModel(rec, 1, n_g, terms, prior, d_fixed, "input")] + \
+               [RecordModel(rec, n, n_g, terms, prior, d_fixed, width_at) for n in sizes if n > 1]
+
     jobs = []
-    for n_b in _n_b_ladder(rec.rt.size):  # B's size and where it is read, by the same criterion as the terms
-        for width_at in (WIDTH_AT if n_b > 1 else WIDTH_AT[:1]):  # a constant width is read nowhere
-            m = RecordModel(rec, n_b, n_g, terms, prior, d_fixed, width_at)
-            jobs.append((m, m.theta({"d": np.array([d0]), "B": np.full(n_b, b0)}), sigma, 20, IRLS_ROUNDS))
-    fits = [(f.bic(sigma), f.model.n_b, f.model.width_at, f) for f in _fit_all(jobs)]
+    for width_at in (WIDTH_AT if ladder[-1] > 1 else WIDTH_AT[:1]):  # a constant width is read nowhere
+        ms = chain(terms, ladder, width_at)  # B's size and where it is read, by the same criterion as the terms
+        jobs.append((ms, ms[0].theta({"d": np.array([d0]), "B": np.array([b0])}), sigma, 20, IRLS_ROUNDS))
+    fits = [(f.bic(sigma), f.model.n_b, f.model.width_at, f) for fs in _fit_all(jobs, _fit_chain)
+            for f in (fs[1:] if len(fs) > 1 else fs)]
     bic, n_b, width_at, fit = min(fits, key=lambda x: x[0])
     m = fit.model
     log = [{"B_ctrl": {f"{n} {w}": b for b, n, w, _ in fits}},
@@ -1034,8 +1276,15 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
                 if (name,) in st:  # also from the start profiled with this switch
                     d_s, b_s = st[(name,)]
                     th0s.append(mt.theta({**parts, "d": np.array([d_s]), "B": np.full(n_b, b_s)}))
-            jobs += [(mt, th0, sigma, 8, 1, name) for th0 in th0s]
-        cands = [(f.bic(sigma), job[5], f) for job, f in zip(jobs, _fit_all([j[:5] for j in jobs]))]
+            jobs += [([mt], th0, sigma, 8, 1, name) for th0 in th0s]
+            if name != "ring" and n_b > 1:  # and coarse to fine from the start profiled with it (`_fit_chain`)
+                d_s, b_s = st.get((name,), (starts[-1], b0))
+                ms = chain(terms.with_(name), [n for n in ladder if n < n_b], width_at) + [mt]
+                for mc in ms:
+                    mc.slope = m.slope
+                jobs.append((ms, ms[0].theta({**{k: v for k, v in parts.items() if k in ms[0].layout()},
+                                              "d": np.array([d_s]), "B": np.array([b_s])}), sigma, 20, 2, name))
+        cands = [(f.bic(sigma), job[5], f) for job, f in zip(jobs, (fs[-1] for fs in _fit_all([j[:5] for j in jobs], _fit_chain)))]
         if not cands:
             break
         c_bic, name, f = min(cands, key=lambda c: c[0])
@@ -1046,6 +1295,28 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
         fit = fit_model(m, f.theta, sigma=sigma)  # from the trial, so at worst the trial again
         bic = fit.bic(sigma)
         log.append({"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])})
+    if terms.names() and len(ladder) > 1:
+        # B's size and where it is read once more, now with the terms: chosen on the plain model, a
+        # strong term it lacks (a switch of tens of px) can leave every size alike and the smallest
+        # wins (a 4-coefficient B 17.8 % off a registration record's stras B); each other one is
+        # fitted from the final fit, B resampled (`_resample_B`), and scored by the same BIC
+        jobs = []
+        for n in ladder:
+            for w in WIDTH_AT:
+                if (n, w) == (n_b, width_at):
+                    continue
+                mb = RecordModel(rec, n, n_g, terms, prior, d_fixed, w)
+                mb.slope = fit.model.slope
+                parts = fit.model.parts(fit.theta)
+                parts["B"] = _resample_B(fit.model, fit.model.unpack(fit.theta)[1], mb)
+                jobs.append(([mb], mb.theta(parts), sigma, 20, IRLS_ROUNDS))
+        alts = [fs[-1] for fs in _fit_all(jobs, _fit_chain)]
+        log.append({"B_ctrl_with_terms": {f"{f.model.n_b} {f.model.width_at}": f.bic(sigma) for f in alts}})
+        best = min(alts, key=lambda f: f.bic(sigma))
+        if best.bic(sigma) < bic:
+            fit, bic, n_b, width_at = best, best.bic(sigma), best.model.n_b, best.model.width_at
+            log.append({"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0]), "B_ctrl": n_b,
+                        "B_read_at": width_at})
     return fit, {"steps": log, "sigma_px": sigma, "n_b": n_b, "n_g": n_g, "width_at": width_at}
 
 
