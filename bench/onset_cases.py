@@ -149,6 +149,10 @@ LOCKBOX_SEALED = [r for i, r in enumerate(LOCKBOX_300) if i % 3]
 # the session's time would not hold all 200); LOCKBOX_C, the other 100, stays sealed.
 LOCKBOX_B = LOCKBOX_SEALED[0::2]
 LOCKBOX_C = LOCKBOX_SEALED[1::2]
+# Stop 57 spends LOCKBOX_C. The fourth set-aside group, LOCKBOX4_300 (drawn and committed 2026-11-26
+# with stop 57's code, before any code of a later stop; every row of LOCKBOX_300 is spent by then).
+SEEDS_4 = {"marker": (57101, 570001), "swing": (57202, 570201), "render_c": (57303, 570401)}
+LOCKBOX4_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_4, PLAN, "s4-")]
 
 
 def make(row):
