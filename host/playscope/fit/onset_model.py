@@ -785,6 +785,8 @@ class RecordModel:
         ramps = {}
         for name, val in reg.items():
             t_ev, s_ev, s_prev, L = st[name][1:5]
+            if t_ev.size == 0:  # no switch at this theta (a B no swing takes up): nothing moves with tau
+                continue
             e = np.searchsorted(t_ev, tau, side="right") - 1
             e0 = np.maximum(e, 0)
             inr = (e >= 0) & (tau < t_ev[e0] + L)

@@ -279,3 +279,17 @@ def test_the_linear_solve_is_the_weighted_least_squares_one_where_frames_miss_th
     wss, wss_ls = np.sum(m.w * ev.resid ** 2), np.sum(m.w * r_ls ** 2)
     # measured: 7e-6 above lstsq (the P-spline's continuation); the trace-scaled ridge was 12 % above
     assert wss == pytest.approx(wss_ls, rel=5e-5)
+
+
+def test_the_jacobian_of_a_switch_model_whose_width_no_swing_takes_up_is_finite():
+    # A coarse-to-fine trial can pass through a B wider than every swing: no onset, so no tip switch.
+    # The Jacobian once indexed the empty list of switches (an IndexError on a held-out rendering).
+    r, d, t, q, rt, rq, obs, hyst = _record(reg_deg=1.5, seed=11, duration_s=20.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    m = OM.RecordModel(rec, 1, 10, OM.Terms(reg_tip=True, reg_motor=True), (r.delay_s, 0.01))
+    th = m.theta({"d": np.array([r.delay_s]), "B": np.array([10.0 * np.ptp(q)])})
+    ev = m.evaluate(th)
+    assert np.all(np.isnan(ev.t_on))
+    m.w = m.weights(ev, 0.12)
+    J = m.jacobian(th, m.evaluate(th), 0.12)
+    assert J.shape[1] == th.size and np.all(np.isfinite(J))
