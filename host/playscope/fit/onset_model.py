@@ -570,9 +570,8 @@ class RecordModel:
             mx = ev.state.get(name + "_mix")
             if mx is None:
                 continue
-            g, p = mx["gamma"], mx["p"]
-            d = g * np.log(np.maximum(g, 1e-300) / p) + (1 - g) * np.log(np.maximum(1 - g, 1e-300) / (1 - p))
-            kl.append(np.sign(p - g) * np.sqrt(2.0 * np.maximum(d, 0.0)))
+            kl.append(_kl_row(mx["gamma"], mx["p"]))
+            g = mx["gamma"]
             du, dv = self.reg_offset(ev, name)
             j = mx["j"]
             c = mx["ds"] ** 2 * g * (1 - g)
@@ -598,7 +597,7 @@ class RecordModel:
     def reg_offset(self, ev: "Eval", name: str) -> tuple[np.ndarray, np.ndarray]:
         """The registration term name's ("tip" or "motor") offset at S = +1, (u, v) (F,) px each,
         from an evaluation's beta (its rotation, rad): half the jump a switch makes."""
-        k = 2 * self.n_g + 2 * self.terms.ring + (N_REG if (name == "motor" and self.terms.reg_tip) else 0)
+        k = 2 * self.n_g + self.mix_block(name)
         a = ev.beta[k:k + N_REG]
         g = self.rec.reg_gen
         return g[:, :, 0] @ a, g[:, :, 1] @ a
@@ -855,8 +854,7 @@ class RecordModel:
             if mx is None:
                 continue
             g, pp, free, L, since = mx["gamma"], mx["p"], mx["free"], mx["L"], mx["since"]
-            dkl = g * np.log(np.maximum(g, 1e-300) / pp) + (1 - g) * np.log(np.maximum(1 - g, 1e-300) / (1 - pp))
-            rr = np.sign(pp - g) * np.sqrt(2.0 * np.maximum(dkl, 0.0))
+            rr = _kl_row(g, pp)
             slope = (pp - g) / (pp * (1 - pp))           # d KL / d p
             big = np.abs(rr) > 1e-6
             drdp = np.where(big, slope / np.where(big, rr, 1.0), 1.0 / np.sqrt(pp * (1 - pp)))
@@ -904,6 +902,14 @@ class RecordModel:
         p = self.n_g
         dB = _dbasis(ev.z_f, self.z_lo, self.z_hi, self.n_g)
         return np.column_stack([dB @ ev.beta[:self.n_g], dB @ ev.beta[p:p + self.n_g]])
+
+
+def _kl_row(gamma: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """sign(p - gamma) sqrt(2 KL(gamma || p)) per frame (K,), dimensionless: the mixture's timing row
+    (module doc), gamma the E-step's shares, p the prior shares in (0, 1)."""
+    g = gamma
+    d = g * np.log(np.maximum(g, 1e-300) / p) + (1 - g) * np.log(np.maximum(1 - g, 1e-300) / (1 - p))
+    return np.sign(p - g) * np.sqrt(2.0 * np.maximum(d, 0.0))
 
 
 def huber_weights(r: np.ndarray, sigma: float) -> np.ndarray:

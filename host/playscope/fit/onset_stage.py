@@ -96,7 +96,7 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     for name in ("tip", "motor"):
         if getattr(terms, "reg_" + name):
             du, dv = m.reg_offset(fit.ev, name)
-            k = 2 * m.n_g + 2 * terms.ring + (OM.N_REG if (name == "motor" and terms.reg_tip) else 0)
+            k = 2 * m.n_g + m.mix_block(name)
             reg[name] = {"jump_px": [2 * float(np.median(du)), 2 * float(np.median(dv))],
                          "jump_px_range": [2 * float(np.min(np.hypot(du, dv))), 2 * float(np.max(np.hypot(du, dv)))],
                          "half_switch_deg_about_xyz": [float(np.degrees(a)) for a in beta[k:k + OM.N_REG]],
