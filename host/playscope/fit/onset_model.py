@@ -209,11 +209,16 @@ def _sparse_basis(x: np.ndarray, lo: float, hi: float, n: int):
 
 
 def _dbasis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
-    """Derivative of `_basis` with respect to x, (len(x), n)."""
+    """Derivative of `_basis` with respect to x, (len(x), n), from the quadratic basis on the same
+    knots t: B_i,3' = 3 B_i,2 / (t_i+3 - t_i) - 3 B_i+1,2 / (t_i+4 - t_i+1), a term of zero
+    knot span being 0 (de Boor, A Practical Guide to Splines, 1978, ch. X)."""
     inner = np.linspace(lo, hi, n - 2)
-    knots = np.r_[[lo] * 3, inner, [hi] * 3]
+    t = np.r_[[lo] * 3, inner, [hi] * 3]
     xc = np.clip(x, lo, np.nextafter(hi, -np.inf))
-    return np.column_stack([BSpline(knots, np.eye(n)[i], 3).derivative()(xc) for i in range(n)])
+    B2 = BSpline.design_matrix(xc, t, 2).toarray()  # (len(x), n + 1)
+    span = t[3:n + 4] - t[:n + 1]
+    c = np.where(span > 0, 3.0 / np.where(span > 0, span, 1.0), 0.0)
+    return B2[:, :n] * c[:n] - B2[:, 1:] * c[1:]
 
 
 def _play(lo: np.ndarray, hi: np.ndarray, z0: float) -> np.ndarray:

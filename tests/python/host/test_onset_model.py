@@ -295,3 +295,16 @@ def test_the_jacobian_of_a_switch_model_whose_width_no_swing_takes_up_is_finite(
     m.w = m.weights(ev, 0.12)
     J = m.jacobian(th, m.evaluate(th), 0.12)
     assert J.shape[1] == th.size and np.all(np.isfinite(J))
+
+
+def test_the_basis_derivative_is_scipys_spline_derivative():
+    # _dbasis from the quadratic basis (de Boor's recurrence) against scipy's BSpline.derivative of
+    # each cubic basis function, inside the range and clipped beyond it
+    from scipy.interpolate import BSpline
+
+    x = np.random.default_rng(0).uniform(-1.5, 2.5, 500)
+    for n in (4, 6, 16):
+        t = np.r_[[-1.0] * 3, np.linspace(-1.0, 2.0, n - 2), [2.0] * 3]
+        xc = np.clip(x, -1.0, np.nextafter(2.0, -np.inf))
+        ref = np.column_stack([BSpline(t, np.eye(n)[i], 3).derivative()(xc) for i in range(n)])
+        assert np.allclose(OM._dbasis(x, -1.0, 2.0, n), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
