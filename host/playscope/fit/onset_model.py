@@ -198,14 +198,14 @@ def _basis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
     inner = np.linspace(lo, hi, n - 2)
     knots = np.r_[[lo] * 3, inner, [hi] * 3]
     xc = np.clip(x, lo, np.nextafter(hi, -np.inf))
-    return BSpline.design_matrix(xc, knots, 3).toarray()
+    return BSpline.design_matrix(xc, knots, 3, extrapolate=True).toarray()
 
 
 def _sparse_basis(x: np.ndarray, lo: float, hi: float, n: int):
     """`_basis` as a CSR matrix (4 non-zeros a row): the play's width over the whole grid."""
     inner = np.linspace(lo, hi, n - 2)
     knots = np.r_[[lo] * 3, inner, [hi] * 3]
-    return BSpline.design_matrix(np.clip(x, lo, np.nextafter(hi, -np.inf)), knots, 3).tocsr()
+    return BSpline.design_matrix(np.clip(x, lo, np.nextafter(hi, -np.inf)), knots, 3, extrapolate=True).tocsr()
 
 
 def _dbasis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
@@ -215,7 +215,7 @@ def _dbasis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
     inner = np.linspace(lo, hi, n - 2)
     t = np.r_[[lo] * 3, inner, [hi] * 3]
     xc = np.clip(x, lo, np.nextafter(hi, -np.inf))
-    B2 = BSpline.design_matrix(xc, t, 2).toarray()  # (len(x), n + 1)
+    B2 = BSpline.design_matrix(xc, t, 2, extrapolate=True).toarray()  # (len(x), n + 1)
     span = t[3:n + 4] - t[:n + 1]
     c = np.where(span > 0, 3.0 / np.where(span > 0, span, 1.0), 0.0)
     return B2[:, :n] * c[:n] - B2[:, 1:] * c[1:]
@@ -486,7 +486,8 @@ class RecordModel:
             v = np.diff(z) / rec.dt
             a = np.diff(v) / rec.dt
             stop = a * v[:-1] < 0.0  # slowing the tip down (a stop); the rest starts it
-            st["u"] = [np.where(m, -a, 0.0) for m in (stop, ~stop)]
+            st["mask"] = (stop, ~stop)
+            st["u"] = [np.where(m, -a, 0.0) for m in st["mask"]]
             st["x"] = [_tip_mode(u, ring[0], ring[1], rec.dt) for u in st["u"]]
             cols["ring"] = [np.interp(tau, rec.t[1:-1], x) for x in st["x"]]
         if self.terms.reg_tip:
@@ -770,17 +771,17 @@ class RecordModel:
         dt = rec.dt
         ks = np.flatnonzero(last == np.arange(last.size))  # the drag samples themselves
         Zk = self.edge_gradient(cB, ks, st["z"][ks], side[ks])
-        Zg = Zk[np.searchsorted(ks, last)]                  # (N, n_b): held samples keep their last drag's
-        a = np.diff(Zg, 2, axis=0) / (dt * dt)
+        Zg = np.ascontiguousarray(Zk.T)[:, np.searchsorted(ks, last)]  # (n_b, N): held samples keep their last drag's
+        a = np.diff(Zg, 2, axis=1) / (dt * dt)
         tau = st["tau"]
-        pos = np.clip((tau - rec.t[1]) / dt, 0.0, a.shape[0] - 1.000001)
+        pos = np.clip((tau - rec.t[1]) / dt, 0.0, a.shape[1] - 1.000001)
         i0 = pos.astype(int)
-        wgt = (pos - i0)[:, None]
+        wgt = pos - i0
+        ba = _tip_filter(st["ring"][0], st["ring"][1], dt)
         out = []
-        for u in st["u"]:
-            du = np.where((u != 0.0)[:, None], -a, 0.0)
-            x = lfilter(*_tip_filter(st["ring"][0], st["ring"][1], dt), du, axis=0)
-            out.append(x[i0] * (1.0 - wgt) + x[i0 + 1] * wgt)
+        for mask in st["mask"]:  # each part's drive on its own fixed mask (`columns`)
+            x = lfilter(*ba, np.where(mask, -a, 0.0), axis=1)
+            out.append((x[:, i0] * (1.0 - wgt) + x[:, i0 + 1] * wgt).T)
         return out
 
     def jacobian(self, th: np.ndarray, ev: "Eval", sigma: float) -> np.ndarray:
