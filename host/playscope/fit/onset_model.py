@@ -860,13 +860,14 @@ class RecordModel:
         if self.terms.ring:
             sl = self.slope
             i0 = lay["ring"].start
-            h = 0.01
+            h = 0.01  # central differences: the forward ones' columns were 0.977 / 0.986 (cosine) off the small steps'
             for j in range(2):
-                t2 = th.copy()
-                t2[i0 + j] += h
-                f2 = self.unpack(t2)[2]
+                tp, tm = th.copy(), th.copy()
+                tp[i0 + j] += h
+                tm[i0 + j] -= h
+                fp, fm = self.unpack(tp)[2], self.unpack(tm)[2]
                 for k, u in enumerate(st["u"]):
-                    dx = (np.interp(tau, rec.t[1:-1], _tip_mode(u, f2[0], f2[1], dt)) - ev.cols["ring"][k]) / h
+                    dx = np.interp(tau, rec.t[1:-1], _tip_mode(u, fp[0], fp[1], dt) - _tip_mode(u, fm[0], fm[1], dt)) / (2 * h)
                     Gu[:, i0 + j] += sl[:, 0] * gr[k] * dx
                     Gv[:, i0 + j] += sl[:, 1] * gr[k] * dx
         if self.d_fixed is not None:
