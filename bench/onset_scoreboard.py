@@ -19,6 +19,7 @@ Groups:
   lockbox_c    the last 100 of LOCKBOX_300, the part stop 57 runs.
   lockbox4     bench/onset_cases.py LOCKBOX4_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at stop 57, sealed for a later stop's code.
+  lockbox4_a   its every third row (100), the part stop 58 runs; the other 200 stay sealed.
   development  every group of bench/swing_cases.py (208 renderings of swing_render, the rules of
                the old onset stage were settled on them): judged as bench/swing_bench.py did
                (B over its limit, |t_delay error| over 1/8 frame on every row, or a refusal).
@@ -29,7 +30,7 @@ as it finishes (a rerun skips rows already there; --fresh-start removes them), t
 per category and per renderer, failures / n, the rate and its interval, the median and 95th
 percentile of the B error, the worst row.
 
-Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group fresh|setaside|lockbox|lockbox_a|lockbox_b|lockbox_c|lockbox4|development
+Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group fresh|setaside|lockbox|lockbox_a|lockbox_b|lockbox_c|lockbox4|lockbox4_a|development
        [--jobs 2] [--only NAME ...] [--fresh-start] [--markdown FILE]
 """
 
@@ -53,7 +54,8 @@ OUT = HERE.parent / "build" / "onset_scoreboard"
 FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_150,
               "lockbox": lambda c: c.LOCKBOX_300,
               "lockbox_a": lambda c: c.LOCKBOX_A, "lockbox_b": lambda c: c.LOCKBOX_B,
-              "lockbox_c": lambda c: c.LOCKBOX_C, "lockbox4": lambda c: c.LOCKBOX4_300}
+              "lockbox_c": lambda c: c.LOCKBOX_C, "lockbox4": lambda c: c.LOCKBOX4_300,
+              "lockbox4_a": lambda c: c.LOCKBOX4_A}
 
 
 def _rows(group: str) -> list:
@@ -143,7 +145,8 @@ def table(res: list[dict], key: str) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--group", choices=("fresh", "setaside", "lockbox", "lockbox_a", "lockbox_b", "lockbox_c", "lockbox4", "development"), default="development")
+    ap.add_argument("--group", choices=("fresh", "setaside", "lockbox", "lockbox_a", "lockbox_b", "lockbox_c", "lockbox4", "lockbox4_a", "development"),
+                    default="development")
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--only", nargs="*", help="row names to run (default: all of the group)")
     ap.add_argument("--fresh-start", action="store_true", help="forget the rows already run")
