@@ -56,8 +56,10 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
 
 Fit: variable projection (Golub & Pereyra 1973): G, the gains and the registration offsets are
 linear and solved exactly for each value of the nonlinear parameters theta = (t_delay, B's
-coefficients[, log f, zeta]), which scipy.optimize.least_squares fits (trust-region reflective,
-forward-difference Jacobian). The configured delay enters as a Gaussian prior of sd one frame
+coefficients[, the tip mode's frequency and damping][, the switches' lags]), which
+scipy.optimize.least_squares fits (Levenberg-Marquardt, MINPACK) with Kaufman's variable-projection
+Jacobian (`RecordModel.jacobian`: the play's, the onsets', the switches' and the tip mode's
+derivatives in closed form; the tip mode's frequency and damping by central differences). The configured delay enters as a Gaussian prior of sd one frame
 period / sqrt(12) (a delay measured in whole frames is known to that), not as a value a rule
 overrides.
 
