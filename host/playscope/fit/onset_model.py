@@ -1225,9 +1225,17 @@ def _can_fork() -> bool:
 
 
 def _fit_one(job) -> "Fit":
-    """fit_model for one job (model, theta0, sigma, max_nfev, rounds), its IRLS weights first set
-    at theta0 (each job independent of the others)."""
+    """fit_model for one job (model, theta0, sigma, max_nfev, rounds) on its own copy of the model,
+    its IRLS weights and mixture started afresh and first set at theta0: the fit depends on the
+    job alone, not on which fits ran on the same model before it nor in which process (a term's
+    starts share one model; the weights the last fit left moved the next one's delay by up to
+    0.9 ms on a test record, so a record's result hung on the machine's core count). The returned
+    Fit holds the copy."""
+    import copy
+
     m, th0, sigma, max_nfev, rounds = job
+    m = copy.copy(m)
+    m.w, m.mix = np.ones_like(m.w), {}
     m.e_step(m.evaluate(th0), sigma)
     m.w = m.weights(m.evaluate(th0), sigma)
     return fit_model(m, th0, sigma=sigma, max_nfev=max_nfev, rounds=rounds)
@@ -1261,18 +1269,21 @@ def _fit_chain(job) -> list:
     return out
 
 
-def _fits_in_child(jobs, fn):
+def _fits_in_child(payload: bytes):
+    import pickle
+
     from threadpoolctl import threadpool_limits
 
+    jobs, fn = pickle.loads(payload)
     with threadpool_limits(1):
         return [fn(j) for j in jobs]
 
 
 def _fit_all(jobs: list, fn=None) -> list:
     """_fit_one for each job, in order: the first half in a forked child while this process fits
-    the rest, when the machine allows it (_can_fork), else one after the other. The fits are
-    independent and deterministic, so the result is the same either way (BIC and delay
-    bit-identical on three records). Measured on two quiet cores: fit_record on the 3-minute bench
+    the rest, when the machine allows it (_can_fork), else one after the other. Each fit is on its
+    own copy of its model (`_fit_one`) and the child's jobs are pickled before this process
+    starts on the rest, so the result is the same either way (a test checks it bit for bit). Measured on two quiet cores: fit_record on the 3-minute bench
     record 3.7 -> 2.8 s; on two registration records no gain (returning the fits, each with its
     record, costs what the child saves)."""
     fn = fn or _fit_one
@@ -1281,9 +1292,15 @@ def _fit_all(jobs: list, fn=None) -> list:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
+    import pickle
+
     k = len(jobs) // 2
+    # The child's jobs are pickled here, before this process fits the rest: jobs may share a model
+    # (a term's starts), which those fits change, and the executor's feeder thread pickling them
+    # meanwhile raced them ("dictionary changed size during iteration", once in 113 records).
+    payload = pickle.dumps((jobs[:k], fn))
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as ex:
-        child = ex.submit(_fits_in_child, jobs[:k], fn)
+        child = ex.submit(_fits_in_child, payload)
         rest = [fn(j) for j in jobs[k:]]
         return child.result() + rest
 

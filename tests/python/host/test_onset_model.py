@@ -309,3 +309,27 @@ def test_the_basis_derivative_is_scipys_spline_derivative():
         xc = np.clip(x, -1.0, np.nextafter(2.0, -np.inf))
         ref = np.column_stack([BSpline(t, np.eye(n)[i], 3).derivative()(xc) for i in range(n)])
         assert np.allclose(OM._dbasis(x, -1.0, 2.0, n), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+
+
+def test_fits_in_a_forked_child_equal_the_same_fits_run_in_turn_when_jobs_share_a_model():
+    # _fit_all's child gets its jobs pickled before this process fits the rest, and each job fits its
+    # own copy of the model: the jobs here share one model (as a term's starts do), and before, the
+    # weights one fit left started the next (delays 0.9 ms apart), so the split into processes
+    # changed the result
+    if not OM._can_fork():
+        pytest.skip("no second core to fork a child onto")
+    r, d, t, q, rt, rq, obs, _ = _record(duration_s=20.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    starts = ((0.0, 0.15), (0.01, 0.2), (-0.01, 0.25), (0.005, 0.3))
+
+    def jobs(m):
+        return [(m, m.theta({"d": np.array([r.delay_s + e]), "B": np.array([b])}), 0.1, 6, 1) for e, b in starts]
+
+    def model():
+        return OM.RecordModel(rec, 1, 6, OM.Terms(), (r.delay_s, 0.01))
+
+    par = [f.theta for f in OM._fit_all(jobs(model()))]
+    seq = [OM._fit_one(j).theta for j in jobs(model())]
+    alone = [OM._fit_one(jobs(model())[i]).theta for i in range(len(starts))]  # each on a model of its own
+    for a, b, c in zip(par, seq, alone):
+        assert np.array_equal(a, b) and np.array_equal(b, c)
