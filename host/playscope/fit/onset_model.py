@@ -59,9 +59,9 @@ linear and solved exactly for each value of the nonlinear parameters theta = (t_
 coefficients[, the tip mode's frequency and damping][, the switches' lags]), which
 scipy.optimize.least_squares fits (Levenberg-Marquardt, MINPACK) with Kaufman's variable-projection
 Jacobian (`RecordModel.jacobian`: the play's, the onsets', the switches' and the tip mode's
-derivatives in closed form; the tip mode's frequency and damping by central differences). The configured delay enters as a Gaussian prior of sd one frame
-period / sqrt(12) (a delay measured in whole frames is known to that), not as a value a rule
-overrides.
+derivatives in closed form; the tip mode's frequency and damping by central differences). The
+configured delay enters as a Gaussian prior of sd one frame period / sqrt(12) (a delay measured in
+whole frames is known to that), not as a value a rule overrides.
 
 The exposure. A camera integrates the scene over its exposure e (0 <= e <= T, the frame period),
 so the image's mean lag behind the encoder, the t_delay of the model above, is the delay to the
