@@ -522,7 +522,9 @@ class RecordModel:
         with a share gamma has the expected sign s_prev + gamma (s_new - s_prev) and no share variance
         (its spread is the linear parameters' penalty, `solve`); st[name + "_mix"] gets the frames,
         their shares gamma, their prior shares p at this theta (clipped into [EPS_SHARE, 1 - EPS_SHARE])
-        and where p is unclipped. t_rev (M,) the term's switch starts per reversal (NaN: none)."""
+        and where p is unclipped, and each frame's spread (s_new - s_prev)^2 gamma (1 - gamma), the weight
+        of its penalty on the rotation (`solve`, `mix_rows`). t_rev (M,) the term's switch starts per
+        reversal (NaN: none)."""
         mx = self.mix.get(name)
         if not mx:
             return
@@ -534,7 +536,8 @@ class RecordModel:
         free = np.isfinite(raw) & (raw > EPS_SHARE) & (raw < 1.0 - EPS_SHARE)
         p = np.clip(np.nan_to_num(raw, nan=0.0), EPS_SHARE, 1.0 - EPS_SHARE)
         st[name + "_mix"] = {"j": j, "gamma": g, "p": p, "free": free, "rev": rev, "ds": sn - sp,
-                             "since": np.nan_to_num(tau[j] - t0), "L": L}
+                             "since": np.nan_to_num(tau[j] - t0), "L": L,
+                             "spread": (sn - sp) ** 2 * g * (1 - g)}  # the levels' second moment per frame
 
     def e_step(self, ev: "Eval", sigma: float) -> None:
         """The mixture's E-step at an evaluation (module doc): for each switch term, the frames within
@@ -586,8 +589,7 @@ class RecordModel:
             kl.append(_kl_row(mx["gamma"], mx["p"]))
             g = mx["gamma"]
             du, dv = self.reg_offset(ev, name)
-            j = mx["j"]
-            c = mx["ds"] ** 2 * g * (1 - g)
+            j, c = mx["j"], mx["spread"]
             F = self.rec.t_f.size
             pen += [-np.sqrt(c * self.w[j]) * du[j] / sigma, -np.sqrt(c * self.w[F + j]) * dv[j] / sigma]
         cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0))
@@ -713,8 +715,7 @@ class RecordModel:
             mx = None if st is None else st.get(name + "_mix")
             if mx is None:
                 continue
-            j = mx["j"]
-            c = mx["ds"] ** 2 * mx["gamma"] * (1 - mx["gamma"])
+            j, c = mx["j"], mx["spread"]
             g = self.rec.reg_gen[j]
             a = slice(2 * p + self.mix_block(name), 2 * p + self.mix_block(name) + N_REG)
             M[a, a] += g[:, :, 0].T @ ((c * wu[j])[:, None] * g[:, :, 0]) + g[:, :, 1].T @ ((c * wv[j])[:, None] * g[:, :, 1])
@@ -862,7 +863,9 @@ class RecordModel:
         if self.terms.ring:
             sl = self.slope
             i0 = lay["ring"].start
-            h = 0.01  # central differences: the forward ones' columns were 0.977 / 0.986 (cosine) off the small steps'
+            # central differences: the gradient's cosine to small steps' 0.99997 -> 1.0000; the columns stay
+            # about 0.98 off them away from the optimum, Kaufman's dropped term, not the differencing
+            h = 0.01
             for j in range(2):
                 tp, tm = th.copy(), th.copy()
                 tp[i0 + j] += h
@@ -888,10 +891,10 @@ class RecordModel:
         delay moves tau, B the tip's onsets, the lag L), the spread's rows through the rotation's
         projection (Kaufman's, as `jacobian`)."""
         rec, st = self.rec, ev.state
-        d, cB, ring, lags = self.unpack(th)
+        cB = self.unpack(th)[1]
         lay = self.layout()
         kl, pen = [], []
-        A1, rcols, M, p = self._lin
+        p = self._lin[3]
         F = rec.t_f.size
         for name in ("tip", "motor"):
             mx = st.get(name + "_mix")
@@ -919,8 +922,7 @@ class RecordModel:
                     sl_b = slice(1, 1 + self.n_b)
                     Jk[np.flatnonzero(ok), sl_b] = (-drdp[ok] / L)[:, None] * dton[inv]
             kl.append(Jk)
-            j = mx["j"]
-            c = mx["ds"] ** 2 * g * (1 - g)
+            j, c = mx["j"], mx["spread"]
             a = slice(2 * p + self.mix_block(name), 2 * p + self.mix_block(name) + N_REG)
             Xa = self._X[a]                                # d rotation / d theta = -Xa (Kaufman)
             gen = rec.reg_gen[j]
@@ -1242,7 +1244,9 @@ def _fit_one(job) -> "Fit":
 
 
 def _resample_B(m_from: "RecordModel", cB: np.ndarray, m_to: "RecordModel") -> np.ndarray:
-    """B's coefficients for m_to's size from m_from's B(q) (least squares over the travel)."""
+    """B's coefficients (m_to.n_b,), actuator units, for m_to's size from m_from's B(q) with
+    coefficients cB (least squares on 400 points over the travel; a constant width: B's mean over
+    the record's q)."""
     if m_to.n_b == 1:
         return np.array([float(np.mean(m_from.B_of(cB, m_from.rec.q)))])
     qq = np.linspace(m_to.q_lo, m_to.q_hi, 400)
@@ -1270,6 +1274,7 @@ def _fit_chain(job) -> list:
 
 
 def _fits_in_child(payload: bytes):
+    """In the forked child: fn on each job of the pickled (jobs, fn), on one BLAS thread. Returns the list."""
     import pickle
 
     from threadpoolctl import threadpool_limits
@@ -1280,11 +1285,12 @@ def _fits_in_child(payload: bytes):
 
 
 def _fit_all(jobs: list, fn=None) -> list:
-    """_fit_one for each job, in order: the first half in a forked child while this process fits
-    the rest, when the machine allows it (_can_fork), else one after the other. Each fit is on its
-    own copy of its model (`_fit_one`) and the child's jobs are pickled before this process
-    starts on the rest, so the result is the same either way (a test checks it bit for bit). Measured on two quiet cores: fit_record on the 3-minute bench
-    record 3.7 -> 2.8 s; on two registration records no gain (returning the fits, each with its
+    """fn (default `_fit_one`; `_fit_chain` for chains) on each job, results in the jobs' order: the
+    first half in a forked child while this process fits the rest, when the machine allows it
+    (_can_fork), else one after the other. Each fit is on its own copy of its model (`_fit_one`)
+    and the child's jobs are pickled before this process starts on the rest, so the result is the
+    same either way (a test checks it bit for bit). Measured on two quiet cores: fit_record on the
+    3-minute bench record 3.7 -> 2.8 s; on two registration records no gain (returning the fits, each with its
     record, costs what the child saves)."""
     fn = fn or _fit_one
     if len(jobs) < 2 or not _can_fork():
