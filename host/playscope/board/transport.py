@@ -154,9 +154,11 @@ def find_qemu_image() -> Path | None:
 
 
 class QemuTransport(TcpTransport):
-    """The STM32F405 link firmware under qemu-system-arm (netduinoplus2), USART1 on TCP."""
+    """The STM32F405 link firmware under qemu-system-arm (netduinoplus2), USART1 on TCP.
+    qemu_args: more qemu-system-arm options (tests: `-device loader` filling the table sectors,
+    `-d unimp -D LOG`)."""
 
-    def __init__(self, elf: str | os.PathLike | None = None):
+    def __init__(self, elf: str | os.PathLike | None = None, qemu_args: list[str] | tuple[str, ...] = ()):
         elf = Path(elf) if elf else find_qemu_image()
         if not elf or not elf.is_file():
             raise TransportError("no link firmware image: build the stm32f405 preset "
@@ -164,7 +166,8 @@ class QemuTransport(TcpTransport):
         port = _free_port()
         argv = ["qemu-system-arm", "-M", "netduinoplus2", "-nographic", "-monitor", "none",
                 "-semihosting-config", "enable=on,target=native",
-                "-kernel", str(elf), "-serial", f"tcp:127.0.0.1:{port},server=on,wait=on,nodelay=on"]
+                "-kernel", str(elf), "-serial", f"tcp:127.0.0.1:{port},server=on,wait=on,nodelay=on",
+                *qemu_args]
         try:
             self.proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                          stderr=subprocess.PIPE)

@@ -116,6 +116,9 @@ SIGMA_RERUN = 0.7      # the search runs again at the fit's residual scale when 
                        # the second differences' (a scale 30 % off moves the Huber corner and the weight
                        # of the data in the BIC by as much; the MAD of a few thousand residuals is
                        # itself good to a few %)
+RING_ZETA_STARTS = (0.03, 0.1, 0.3)  # the tip mode's damping ratios a ring start is profiled at: a factor
+                       # of about 3 apart over the lightly damped modes the term is for (above about 0.5 a
+                       # mode barely rings), so LM starts within its reach of the ratio
 TERMS = ("ring", "reg_tip", "reg_motor")
 WIDTH_AT = ("input", "output")  # where the play's width is read: B(q) or B(z) (module doc)
 DELAY_DISAGREE_Z = 3.0  # a configured delay this many combined standard errors from the record's disagrees
@@ -1139,6 +1142,17 @@ def _n_b_ladder(n_rev: int) -> list[int]:
     return [n for n in B_CTRL if n * B_REV_PER_CTRL <= n_rev] or [1]
 
 
+def _start_widths(rec: Record, board_b: np.ndarray | None) -> list[float]:
+    """The constant widths a start is profiled over (actuator units): 12 log-spaced in 2 %..100 %
+    of the median swing between reversals (a play from a trace of one swing to all of it), and
+    the board's median sample when given."""
+    swing = float(np.median(np.abs(np.diff(rec.rq)))) if rec.rq.size > 1 else float(np.ptp(rec.q))
+    widths = list(swing * np.geomspace(0.02, 1.0, 12))
+    if board_b is not None and board_b.size:
+        widths.append(float(np.median(board_b)))
+    return widths
+
+
 def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarray | None,
            sigma: float) -> tuple[dict, int]:
     """The start: for each delay candidate, each constant width (12 log-spaced in 2 %..100 % of
@@ -1148,10 +1162,7 @@ def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarr
     are chosen later, on B(q) as a spline (at a constant width, a tip-registration offset takes
     up B's own variation over the travel); each registration term's own best start is kept for
     when the search tries it. Returns ({term names (tuple): (t_delay, width)}, n_g)."""
-    swing = float(np.median(np.abs(np.diff(rec.rq)))) if rec.rq.size > 1 else float(np.ptp(rec.q))
-    widths = list(swing * np.geomspace(0.02, 1.0, 12))
-    if board_b is not None and board_b.size:
-        widths.append(float(np.median(board_b)))
+    widths = _start_widths(rec, board_b)
     best = {}
     for terms in (Terms(), Terms(reg_tip=True), Terms(reg_motor=True)):
         m = RecordModel(rec, 1, G_CTRL[1], terms, prior, d_fixed)
@@ -1179,6 +1190,34 @@ def _ring_start(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
     m.slope = m.G_slope(m.evaluate(m.theta({**parts, "ring": m.ring_theta(fs[0], 0.1)})))
     costs = [m.objective(m.evaluate(m.theta({**parts, "ring": m.ring_theta(f, 0.1)})), sigma) for f in fs]
     return m.theta({**parts, "ring": m.ring_theta(fs[int(np.argmin(costs))], 0.1)})
+
+
+def _ring_profiled_starts(rec: Record, n_g: int, terms: Terms, prior, d_fixed, parts: dict, f_hz: float,
+                          d_starts: list[float], widths: list[float], slope: np.ndarray, sigma: float) -> list[dict]:
+    """The tip mode's own profiled starts, as `_start` gives each registration term its own: at a
+    constant width with the ring on (and the terms of parts), for each damping ratio of
+    RING_ZETA_STARTS at f_hz, the delay of d_starts and the width of widths with the lowest robust
+    cost. Why: a ring the plain fit lacked drags its width (the stop's swing read as an early
+    onset: a play 10 times too narrow on a development record), and from there no fit reaches the
+    ring's basin; the profile's cost alone does not rank the damping ratios (the constant width's
+    misfit outweighs them), so each distinct start is carried through the chain and the BIC
+    chooses. Returns the distinct starts, parts of the constant-width model."""
+    m = RecordModel(rec, 1, n_g, terms, prior, d_fixed)
+    m.slope = slope
+    keep = {k: v for k, v in parts.items() if k in m.layout() and k not in ("d", "B", "ring")}
+    out = {}
+    for zeta in RING_ZETA_STARTS:
+        best = None
+        for d in d_starts:
+            for b in widths:
+                p = {**keep, "d": np.array([d]), "B": np.array([b]), "ring": m.ring_theta(f_hz, zeta)}
+                c = m.objective(m.evaluate(m.theta(p)), sigma)
+                if best is None or c < best[0]:
+                    best = (c, p)
+        key = (float(best[1]["d"][0]), float(best[1]["B"][0]))
+        if key not in out or best[0] < out[key][0]:
+            out[key] = best
+    return [p for _, p in out.values()]
 
 
 def fit_record(rec: Record, t_delay_cfg: float | None, t_delay_from: str, d_coarse: float,
@@ -1315,6 +1354,7 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
     """The start, B's size and where it is read, then the terms by BIC, all at the scale sigma
     (px): (the final Fit, the search's JSON-ready log)."""
     st, n_g = _start(rec, starts, prior, d_fixed, board_b, sigma)
+    widths = _start_widths(rec, board_b)
     d0, b0 = min(st.items(), key=lambda kv: len(kv[0]))[1]  # the base model's own start
     terms = Terms()
     ladder = _n_b_ladder(rec.rt.size)
@@ -1345,6 +1385,13 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
             bases = [{**parts, "d": np.array([d]), "B": np.full(n_b, b0)} for d in starts]
             if name == "ring":
                 th0s = [_ring_start(mt, p, sigma) for p in [parts] + bases]
+                if n_b > 1:  # and coarse to fine from the starts profiled with it (`_ring_profiled_starts`)
+                    f_hz = mt.unpack(th0s[0])[2][0]
+                    slope = m.G_slope(fit.ev)  # the path's tangent of the fit so far
+                    for p in _ring_profiled_starts(rec, n_g, terms.with_(name), prior, d_fixed, parts, f_hz,
+                                                   starts, widths, slope, sigma):
+                        ms = chain(terms.with_(name), [n for n in ladder if n < n_b], width_at) + [mt]
+                        jobs.append((ms, ms[0].theta(p), sigma, 20, 2, name))
             else:
                 mt.slope = m.slope
                 th0s = [mt.theta(p) for p in [parts] + bases]
