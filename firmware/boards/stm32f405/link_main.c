@@ -8,6 +8,8 @@
 #if PSL_FLASH_HW
 #include "pss_flash_stm32f4.h"
 #else
+#include <string.h>
+
 #include "storage/pss_flash_sim.h"
 #endif
 
@@ -45,6 +47,11 @@ static void read_uid(uint32_t id[3])
 #endif
 }
 
+#if !PSL_FLASH_HW
+/* Linker script symbols (stm32f405.ld): the table sectors 10/11. */
+extern uint8_t __table_slot_a[], __table_slot_b[];
+#endif
+
 int main(void)
 {
     port_init();
@@ -52,15 +59,21 @@ int main(void)
     psl_config_t cfg = psl_default_config(PSL_TICK_HZ);
     read_uid(cfg.board_id);
     cfg.limits = psb_limits();
-#if PSL_FLASH_HW
-    cfg.recover = psb_recovery_requested(); /* the recovery pin held at reset: slots erased */
-#endif
+    /* The recovery pin held at reset: slots erased. QEMU 7.2 models no GPIO (its GPIOA is an
+     * unimplemented-device stub that reads 0), so under QEMU the pin is never seen high. */
+    cfg.recover = psb_recovery_requested();
 #if PSL_FLASH_HW
     const pss_flash_t *flash = pss_stm32f4_flash();
 #else
+    /* The RAM slots start as the first RAM_SLOT_SIZE bytes of sectors 10/11, whatever the
+     * programming port (under QEMU: -device loader) left there: a board booted on an exhausted
+     * counter or on erased sectors boots as the flash image would. Writes stay in RAM (QEMU's
+     * flash is ROM to the guest); sectors nothing was loaded into read 0, no valid record. */
     static uint8_t ram_flash[2 * RAM_SLOT_SIZE];
     static pss_sim_t sim;
-    pss_sim_init(&sim, ram_flash, RAM_SLOT_SIZE, 1);
+    pss_sim_init(&sim, ram_flash, RAM_SLOT_SIZE, 0);
+    memcpy(ram_flash, __table_slot_a, RAM_SLOT_SIZE);
+    memcpy(ram_flash + RAM_SLOT_SIZE, __table_slot_b, RAM_SLOT_SIZE);
     const pss_flash_t *flash = &sim.port;
 #endif
     psl_init(&link, &cfg, flash, uart_write, 0);

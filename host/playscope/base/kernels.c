@@ -20,6 +20,19 @@ void dk_play_on_edges(const double *lo, const double *hi, long n, double z0, dou
     }
 }
 
+void dk_play_ops(const double *x, long n, const double *r, long m, const double *p0, double *out)
+{
+    for (long k = 0; k < n; k++) {
+        const double *prev = k ? out + (k - 1) * m : p0;
+        double *row = out + k * m;
+        for (long i = 0; i < m; i++) {
+            double lo = x[k] - r[i], hi = x[k] + r[i], p = prev[i];
+            double a = (lo > p) ? lo : p;   /* np.maximum(lo, p) */
+            row[i] = (hi < a) ? hi : a;     /* np.minimum(hi, a) */
+        }
+    }
+}
+
 void dk_viscous_play(const double *lo, const double *hi, long n, double z0, double a, double *out)
 {
     double p = z0;

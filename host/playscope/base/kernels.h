@@ -4,6 +4,10 @@
 #define PS_DIAGNOSE_KERNELS_H
 /* Play operator on band edges: p = min(hi[k], max(lo[k], p)), p starting at z0 (eq. 3). */
 void dk_play_on_edges(const double *lo, const double *hi, long n, double z0, double *out);
+/* Classical play operators of m thresholds r over x (transition.play_ops): row k of out (n x m,
+ * row-major) is p_i = minimum(x[k] + r_i, maximum(x[k] - r_i, p_i)), p starting at p0 (m,), with
+ * numpy's tie rule (maximum(a, b) and minimum(a, b) give b on a tie, so signed zeros agree too). */
+void dk_play_ops(const double *x, long n, const double *r, long m, const double *p0, double *out);
 /* Viscous play: p += a (clip(p, lo[k], hi[k]) - p), p starting at z0. */
 void dk_viscous_play(const double *lo, const double *hi, long n, double z0, double a, double *out);
 /* Direction state: st += g (z[k] - z[k-1]) clipped to [-1, 1], from +1; out[0] = out[1]. */

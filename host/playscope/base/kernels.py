@@ -98,6 +98,17 @@ def play_on_edges(z_lo, z_hi, z0: float) -> np.ndarray:
     return out
 
 
+def play_ops(x, r, p0) -> np.ndarray:
+    """transition.play_ops in C: P (N, n), P[k, i] = min(x[k] + r_i, max(x[k] - r_i, P[k-1, i])),
+    P[-1] = p0 (n,), with numpy's tie rule (bit for bit the numpy loop, signed zeros included)."""
+    ffi, lib = _load()
+    xx, rr, pp = _arr(x), _arr(r), _arr(p0)
+    out = np.empty((xx.size, rr.size))
+    lib.dk_play_ops(ffi.from_buffer("double[]", xx), xx.size, ffi.from_buffer("double[]", rr), rr.size,
+                    ffi.from_buffer("double[]", pp), ffi.from_buffer("double[]", out))
+    return out
+
+
 def viscous_play(z_lo, z_hi, z0: float, a: float) -> np.ndarray:
     """fitmodel._viscous_play in C: p[k] = p[k-1] + a (clip(p[k-1], z_lo[k], z_hi[k]) - p[k-1])."""
     ffi, lib = _load()

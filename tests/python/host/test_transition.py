@@ -71,6 +71,40 @@ def test_operators_match_the_reference_loop():
         assert np.array_equal(P[:, i], ref_play(x, ri, x[0]))
 
 
+def test_play_ops_in_c_is_the_numpy_loop_bit_for_bit():
+    """kernels.play_ops (what play_ops runs when the C is compiled) against the numpy reference,
+    signed zeros included: holds (ties with the band), a zero threshold, x through -0.0 and 0.0."""
+    from playscope.base import kernels
+
+    if not kernels.available():
+        pytest.skip("no C compiler for the kernels")
+    rng = np.random.default_rng(5)
+    x = np.cumsum(rng.normal(0, 0.1, 3000))
+    x[100:200] = x[100]
+    x[300:310] = [0.0, -0.0, 0.0, -0.0, -0.0, 0.0, 0.0, -0.0, 0.0, -0.0]
+    r = T.thresholds(16, 0.8)
+    for p0 in (np.full(16, x[0]), rng.normal(0, 1, 16), np.full(16, -0.0)):
+        a, b = kernels.play_ops(x, r, p0), T._play_ops_numpy(x, r, p0.copy())
+        assert np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
+def test_design_matrix_is_scipys_bit_for_bit():
+    """transition._design_matrix against BSpline(t, eye, 3)(x), every bit: both ends, points on
+    knots and just below them, 4 to 14 control points, a tiny range."""
+    from scipy.interpolate import BSpline
+
+    from playscope.fit.bspline import clamped_knots
+
+    rng = np.random.default_rng(6)
+    for lo, hi in ((0.0, 1.0), (-3.7, 12.25), (2.0, 2.0 + 1e-9)):
+        for n in (4, 6, 14):
+            t = clamped_knots(lo, hi, n)
+            x = np.r_[lo, hi, t[3:n + 1], np.nextafter(t[4:n + 1], -np.inf), rng.uniform(lo, hi, 2000)]
+            x = np.clip(x, lo, hi)
+            a, b = T._design_matrix(x, t, n), BSpline(t, np.eye(n), 3)(x)
+            assert np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
 def test_inverse_undoes_the_direct_operator():
     rng = np.random.default_rng(4)
     z = np.cumsum(rng.normal(0, 0.05, 3000))

@@ -4,10 +4,13 @@ no table widens, refuse a table for another instrument, in another unit or beyon
 `flash` (the host checks first with the same C and sends nothing) and through the raw link frames
 (the board's loader); the generation counter is stepped, so 0xFFFFFFFF from a host is refused,
 and a board left at 0xFFFFFFFF (by an older firmware) takes no table until the physical path
-(--recover, the STM32's recovery pin) erases its slots. On the virtual board and under QEMU."""
+(--recover, the STM32's recovery pin) erases its slots. On the virtual board and under QEMU, whose
+image boots on what `-device loader` puts in the table sectors 10/11 (the programming port's
+part); QEMU 7.2 models no GPIO, so the pin's path is the virtual board's alone."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import struct
 
@@ -20,7 +23,8 @@ from playscope.board.table_check import TableFileError
 from playscope.board.transport import QemuTransport, find_qemu_image, open_transport
 from playscope.fit.table_build import builtin_table, set_generation, write_blob
 
-SLOT = 128 * 1024  # ps_vboard's slot (VB_SLOT_SIZE)
+SLOT = 128 * 1024  # ps_vboard's slot (VB_SLOT_SIZE), the STM32F405's sectors 10 and 11
+TABLE_SECTORS = 0x080C0000  # sector 10 (stm32f405.ld __table_slot_a)
 
 
 def _board(*args, flash_file=None) -> Link:
@@ -158,5 +162,46 @@ def test_qemu_board_guards_its_instrument():
         assert link.info()["active_generation"] == 0
         r = flash(link, blob, n_vectors=4, log=lambda s: None)
         assert r["generation"] == 1
+    finally:
+        link.close()
+
+
+def _qemu_board(tmp_path, sectors: bytes, name: str) -> tuple[Link, object]:
+    """The STM32F405 link firmware booted with sectors 10/11 holding sectors (2 x 128 KiB), as
+    the programming port would leave them; QEMU's unimplemented-device accesses logged."""
+    img, log = tmp_path / f"{name}.bin", tmp_path / f"{name}.log"
+    img.write_bytes(sectors)
+    args = ["-device", f"loader,file={img},addr={TABLE_SECTORS:#x}", "-d", "unimp", "-D", str(log)]
+    return Link(QemuTransport(qemu_args=args)), log
+
+
+@pytest.mark.skipif(shutil.which("qemu-system-arm") is None or find_qemu_image() is None,
+                    reason="needs qemu-system-arm and the playscope-link-fw image (stm32f405 preset)")
+def test_qemu_exhausted_generation_recovers_only_by_the_erase(tmp_path):
+    """Booted on sectors an older firmware left at generation 0xFFFFFFFF, the STM32F405 image
+    refuses every commit; booted after the programming port's erase of sectors 10 and 11
+    (`st-flash erase 0x080C0000 0x40000`: all 0xFF) it takes a table as generation 1. The
+    recovery pin cannot be held under QEMU: the log shows its read answered by GPIOA's
+    unimplemented-device stub (always 0)."""
+    blob = builtin_table()
+    _exhausted_image(tmp_path / "exhausted_sectors.bin", blob)
+    link, log = _qemu_board(tmp_path, (tmp_path / "exhausted_sectors.bin").read_bytes(), "exhausted")
+    try:
+        assert link.info()["active_generation"] == 0xFFFFFFFF
+        with pytest.raises(RuntimeError, match="physical path"):
+            flash(link, blob, log=lambda s: None)
+        for gen in (0, 1, 0xFFFFFFFF):
+            assert _refused_raw(link, set_generation(blob, gen)) == 0x80
+        assert link.info()["active_generation"] == 0xFFFFFFFF
+    finally:
+        link.close()
+    # The pin's input register (GPIOA_IDR, offset 0x10) read at boot, by a stub QEMU does not model.
+    assert re.search(r"GPIOA: unimplemented device read\s+\(size 4, offset 0x010\)", log.read_text())
+    link, _ = _qemu_board(tmp_path, b"\xff" * (2 * SLOT), "erased")
+    try:
+        assert link.info()["active_generation"] == 0
+        r = flash(link, blob, n_vectors=4, log=lambda s: None)
+        assert r["generation"] == 1
+        assert link.info()["active_generation"] == 1
     finally:
         link.close()
