@@ -14,6 +14,14 @@ travel between reversals) of each part, the family chosen, each family's judged 
 criterion's pick among the families the choice offers, and the oracle (the family with the lowest judged error: no rule can pick it, it
 is what any rule over these families could reach) against the best row of evaluate-insitu's table.
 
+First pass and re-pass (repass_folds): a fold's test frames are a re-pass when, in its training part,
+frames after q's first reversal moving the same way already covered their q (a branch the fit has
+seen, what the model chosen on the whole calibration part does on a record that goes on over the
+same travel); otherwise a first pass (the fit extrapolates a branch it has only seen on the start's
+virgin curve, or not at all). Two more criteria read the re-pass folds only: the lowest re-pass CV,
+and the product's rule (families.choose: the one-SE rule, from const_play on thin records) on the
+re-pass CVs; "-" when the calibration part has no re-pass fold.
+
 Development files only (the endoscope's set-aside files are never read here).
 
 Usage: PYTHONPATH=host .venv/bin/python bench/choice_regimes.py [--splits 0.5,0.75] [--instruments catheter,endoscope]
@@ -42,6 +50,7 @@ REAL = Path(os.environ.get("PLAYSCOPE_REAL_DATA", ROOT.parent / "shared" / "data
 INSTRUMENTS = {"catheter": (import_catheter, [f"data_2_{i}" for i in range(1, 6)] + ["data_1_1", "data_1_2"]),
                "endoscope": (import_endoscope, ["30", "60", "120", "conf0_60"])}
 BASE = ("onset_play", "const_play", "onset_transition", "pi_const")
+REPASS_SHARE = 0.9  # a fold is a re-pass when this share of its test frames is (repass_folds)
 
 
 def strokes(t, q, t_split):
@@ -77,6 +86,7 @@ def run(reader, path: Path, split: float) -> dict:
     thin = rev < FAM.MIN_REVERSALS_CHOICE
     folds = FAM.swing_splits(ctx) if thin else T.rolling_origins(ctx.data, T.KFOLD)
     folds = [(a, b) for a, b in folds if b.sum() >= FAM.MIN_TEST_FRAMES and a.sum() >= FAM.MIN_TRAIN_FRAMES]
+    rep = repass_folds(ctx, folds)
     tm, cm, _ = IS.judged_samples(s, ts, td)
     fams = [f for f in FAM.FAMILIES if f.name in BASE] + (FAM.THIN_FAMILIES if thin else [])
     out = {}
@@ -92,18 +102,64 @@ def run(reader, path: Path, split: float) -> dict:
         except Exception as e:  # a refused table or a failed fit: that family is out of this file-split
             out[fam.name] = {"error": str(getattr(e, "message", e))}
             continue
+        er = np.asarray(errs)[rep] if errs else np.zeros(0)
         out[fam.name] = {"folds": errs, "cv": float(np.sqrt(np.mean(np.square(errs)))) if errs else float("nan"),
-                         "last": errs[-1] if errs else float("nan"), "in_sample": ins, "judged": judged}
+                         "last": errs[-1] if errs else float("nan"), "in_sample": ins, "judged": judged,
+                         "cv_repass": float(np.sqrt(np.mean(er ** 2))) if er.size else float("nan"),
+                         "se_repass": float(np.std(er, ddof=1) / np.sqrt(er.size)) if er.size > 1 else 0.0}
     # The criteria and the oracle range over the families the choice offers (a thin family not in
     # THIN_OFFERED is shown, not picked).
     ok = {k: v for k, v in out.items() if "error" not in v and (k in BASE or k in FAM.THIN_OFFERED)}
     pick = lambda key: min(ok, key=lambda k: ok[k][key])  # noqa: E731
+    has_rep = bool(rep.any())
     best_row = min(v for v in rm.values() if v is not None)
     cal_min, test_max = strokes(t, q, ts)
     return {"reversals": rev, "thin": thin, "chosen": rows["ours"].params.get("family"), "ours": rm["ours"],
             "best_row": best_row, "best_row_name": min((k for k in rm if rm[k] is not None), key=lambda k: rm[k]),
             "strokes_cal_min": cal_min, "strokes_test_max": test_max, "families": out,
-            "pick": {"cv": pick("cv"), "last_fold": pick("last"), "in_sample": pick("in_sample"), "oracle": pick("judged")}}
+            "repass_folds": rep.tolist(),
+            "pick": {"cv": pick("cv"), "last_fold": pick("last"), "in_sample": pick("in_sample"), "oracle": pick("judged"),
+                     "repass_lowest": pick("cv_repass") if has_rep else None,
+                     "repass_rule": product_rule(ok, thin, "cv_repass", "se_repass") if has_rep else None}}
+
+
+def repass_folds(ctx, folds) -> np.ndarray:
+    """(n_folds,) bool: True where at least REPASS_SHARE of the fold's test frames are a re-pass: their q
+    lies in the travel of a swing after q's first reversal that moves the same way and that the
+    training part holds (from the reversal that starts it to its last training frame, or to the
+    reversal that ends it when the training part holds the whole swing: frames miss the peaks), within
+    the swings' hysteresis (families.SWING_HYSTERESIS of q's span)."""
+    d = ctx.data
+    tol = FAM.SWING_HYSTERESIS * float(np.ptp(d.q_enc)) + 1e-12  # the swings' own resolution in q
+    rt, _, _ = detect_reversals(d.t_enc, d.q_enc, tol)
+    edges = np.r_[d.t_enc[0], rt, d.t_enc[-1]]
+    qe = np.interp(edges, d.t_enc, d.q_enc)
+    qf = ctx.q_frames()
+    sw = np.clip(np.searchsorted(edges, d.t_frame, side="right") - 1, 0, edges.size - 2)
+    way = np.sign(qe[sw + 1] - qe[sw])
+    out = []
+    for tr, te in folds:
+        seen = np.zeros(te.sum(), bool)
+        for j in np.unique(sw[tr & (sw >= 1)]):
+            m = tr & (sw == j)
+            end = qe[j + 1] if np.all(tr[sw == j]) else qf[m][np.argmax(d.t_frame[m])]
+            lo, hi = min(qe[j], end), max(qe[j], end)
+            seen |= (way[te] == way[m][0]) & (qf[te] >= lo - tol) & (qf[te] <= hi + tol)
+        out.append(bool(te.sum()) and seen.mean() >= REPASS_SHARE)
+    return np.array(out, bool)
+
+
+def product_rule(ok: dict, thin: bool, key: str, se_key: str) -> str:
+    """families.choose's rule on the CVs ok[name][key] (SE ok[name][se_key]): the first family in the
+    registry's order (const_play first on thin records) within one SE of the best; on thin records,
+    once const_play is out, the lowest CV."""
+    order = [f.name for f in FAM.FAMILIES if f.name in ok] + [n for n in ok if n not in {f.name for f in FAM.FAMILIES}]
+    if thin:
+        order = sorted(order, key=lambda n: n != FAM.FALLBACK)
+    order = [n for n in order if np.isfinite(ok[n][key])]
+    best = min(order, key=lambda n: ok[n][key])
+    first = next(n for n in order if ok[n][key] <= ok[best][key] + ok[best][se_key])
+    return best if thin and first != FAM.FALLBACK else first
 
 
 def main(argv=None) -> int:
@@ -121,8 +177,10 @@ def main(argv=None) -> int:
                   "pick; the oracle over the families against the best row of evaluate-insitu's table**\n")
             names = None
             lines = []
-            picks = {"cv": 0, "last_fold": 0, "in_sample": 0}
+            picks = {"cv": 0, "last_fold": 0, "in_sample": 0, "repass_lowest": 0, "repass_rule": 0}
             n = shorter = oracle_within = ours_within = 0
+            within_by = {}
+            n_all_rep = n_no_rep = 0
             for stem in stems:
                 r = run(reader, REAL / inst / f"{stem}.txt", fr)
                 res[f"{inst}/{stem}@{fr:g}"] = r
@@ -132,7 +190,7 @@ def main(argv=None) -> int:
                 cells = []
                 for k in fams:
                     v = r["families"][k]
-                    cells.append("refused" if "error" in v else f"{v['judged']:.3f} ({v['cv']:.3f})")
+                    cells.append("refused" if "error" in v else f"{v['judged']:.3f} ({v['cv']:.3f}; {v['cv_repass']:.3f})")
                 o = r["pick"]["oracle"]
                 orc = r["families"][o]["judged"]
                 lines.append((stem, fams, cells, r, o, orc))
@@ -142,20 +200,35 @@ def main(argv=None) -> int:
                 ours_within += r["ours"] <= 1.1 * r["best_row"]
                 for c in picks:
                     picks[c] += r["pick"][c] == o
+                n_all_rep += all(r["repass_folds"])
+                n_no_rep += not any(r["repass_folds"])
+                for c in ("repass_lowest", "repass_rule"):  # no re-pass fold: the product's choice stands
+                    pj = r["families"][r["pick"][c]]["judged"] if r["pick"][c] else r["ours"]
+                    within_by.setdefault(c, 0)
+                    within_by[c] += pj <= 1.1 * r["best_row"]
             print("| file | reversals | strokes: shortest before / longest after the split | chosen | " +
-                  " | ".join(f"{k} judged (CV)" for k in names) +
-                  " | CV picks | last fold picks | in-sample picks | oracle | oracle / best row | ours / best row |")
-            print("|---" * (len(names) + 10) + "|")
+                  " | ".join(f"{k} judged (CV; re-pass CV)" for k in names) +
+                  " | CV picks | last fold picks | in-sample picks | re-pass folds | re-pass CV picks | product's rule on "
+                  "the re-pass CV picks | oracle | oracle / best row | ours / best row |")
+            print("|---" * (len(names) + 13) + "|")
             for stem, fams, cells, r, o, orc in lines:
                 cd = dict(zip(fams, cells))
                 print(f"| {stem} | {r['reversals']} | {r['strokes_cal_min']:.2f} / {r['strokes_test_max']:.2f} | {r['chosen']} | " +
                       " | ".join(cd.get(k, "-") for k in names) +
-                      f" | {r['pick']['cv']} | {r['pick']['last_fold']} | {r['pick']['in_sample']} | {o} | "
+                      f" | {r['pick']['cv']} | {r['pick']['last_fold']} | {r['pick']['in_sample']} | "
+                      f"{sum(r['repass_folds'])} of {len(r['repass_folds'])} | {r['pick']['repass_lowest'] or '-'} | "
+                      f"{r['pick']['repass_rule'] or '-'} | {o} | "
                       f"{orc / r['best_row']:.2f} ({r['best_row_name']}) | {r['ours'] / r['best_row']:.2f} |")
             print(f"\n{inst}, split {fr:g}: judged strokes all shorter than every calibration stroke on {shorter} of {n}; "
                   f"the pick is the oracle's on {picks['cv']} (CV), {picks['last_fold']} (last fold), "
                   f"{picks['in_sample']} (in sample) of {n}; oracle within 1.1 x the best row on {oracle_within} of {n}, "
-                  f"ours on {ours_within} of {n}\n", flush=True)
+                  f"ours on {ours_within} of {n}", flush=True)
+            print(f"{inst}, split {fr:g}, re-pass folds only: {n_all_rep} of {n} file-splits have every fold a re-pass, "
+                  f"{n_no_rep} none; the pick is the oracle's on {picks['repass_lowest']} (re-pass CV), "
+                  f"{picks['repass_rule']} (the product's rule on the re-pass CV) of {n}; within 1.1 x the best row "
+                  f"(the product's choice where no fold is a re-pass): the re-pass CV's pick on "
+                  f"{within_by.get('repass_lowest', 0)} of {n}, the product's rule on the re-pass CV on "
+                  f"{within_by.get('repass_rule', 0)} of {n}\n", flush=True)
     print(f"({time.perf_counter() - t0:.0f} s)")
     if a.json:
         Path(a.json).write_text(json.dumps(res, indent=1, default=float) + "\n")

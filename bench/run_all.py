@@ -477,6 +477,17 @@ def main(argv=None) -> int:
                           f"criteria picking the oracle's family: CV {cv}, last fold {last}, in sample {ins} of {n}; "
                           f"judged strokes all shorter than the calibration part's on {short} of {n}",
                           "bench/choice_regimes.py"))
+        for inst, fr, allr, n, norep, orc_l, orc_r, win_l, win_r in re.findall(
+                r"\n(\w+), split ([\d.]+), re-pass folds only: (\d+) of (\d+) file-splits have every fold a re-pass, "
+                r"(\d+) none; the pick is the oracle's on (\d+) \(re-pass CV\), (\d+) \(the product's rule on the re-pass "
+                r"CV\) of \d+; within 1.1 x the best row \(the product's choice where no fold is a re-pass\): the re-pass "
+                r"CV's pick on (\d+) of \d+, the product's rule on the re-pass CV on (\d+) of \d+", out):
+            table.append((f"{inst} (development files), split {fr}: the choice on the re-pass folds only (branches the "
+                          "fold's training part has passed), within 1.1 x the best row",
+                          f"lowest re-pass CV on {win_l} of {n}; the product's rule on the re-pass CV on {win_r} of {n}",
+                          "every file, or measured why no criterion on the calibration part gets there",
+                          f"every fold a re-pass on {allr} of {n}, none on {norep}; picking the oracle's family: "
+                          f"{orc_l} / {orc_r} of {n}", "bench/choice_regimes.py"))
 
     part("choice across regimes", regimes)
 
