@@ -98,6 +98,16 @@ def _exhausted_image(path, blob: bytes) -> None:
     path.write_bytes(img)
 
 
+def _assert_stuck_at_exhausted(link, blob) -> None:
+    """A board at generation 0xFFFFFFFF: `flash` stops before sending (naming the physical path)
+    and the board itself refuses a commit at any generation (0x80)."""
+    assert link.info()["active_generation"] == 0xFFFFFFFF
+    with pytest.raises(RuntimeError, match="physical path"):
+        flash(link, blob, log=lambda s: None)
+    for gen in (0, 1, 0xFFFFFFFF):
+        assert _refused_raw(link, set_generation(blob, gen)) == 0x80
+
+
 def test_exhausted_generation_recovers_only_by_presence(tmp_path):
     ffi, lib = core()
     blob = builtin_table()
@@ -116,11 +126,7 @@ def test_exhausted_generation_recovers_only_by_presence(tmp_path):
     for _ in range(2):  # a restart alone changes nothing
         link = _board(flash_file=img)
         try:
-            assert link.info()["active_generation"] == 0xFFFFFFFF
-            with pytest.raises(RuntimeError, match="physical path"):
-                flash(link, blob, log=lambda s: None)
-            for gen in (0, 1, 0xFFFFFFFF):
-                assert _refused_raw(link, set_generation(blob, gen)) == 0x80
+            _assert_stuck_at_exhausted(link, blob)
         finally:
             link.close()
     link = _board("--recover", flash_file=img)  # the recovery pin held at reset
@@ -187,11 +193,7 @@ def test_qemu_exhausted_generation_recovers_only_by_the_erase(tmp_path):
     _exhausted_image(tmp_path / "exhausted_sectors.bin", blob)
     link, log = _qemu_board(tmp_path, (tmp_path / "exhausted_sectors.bin").read_bytes(), "exhausted")
     try:
-        assert link.info()["active_generation"] == 0xFFFFFFFF
-        with pytest.raises(RuntimeError, match="physical path"):
-            flash(link, blob, log=lambda s: None)
-        for gen in (0, 1, 0xFFFFFFFF):
-            assert _refused_raw(link, set_generation(blob, gen)) == 0x80
+        _assert_stuck_at_exhausted(link, blob)
         assert link.info()["active_generation"] == 0xFFFFFFFF
     finally:
         link.close()
