@@ -439,38 +439,15 @@ def fit_f(y, c, n_ctrl, smooth=1e-3, sign=None, min_slope: float = 0.0):
 
 
 def _design_matrix(x: np.ndarray, t: np.ndarray, n_ctrl: int) -> np.ndarray:
-    """Dense cubic B-spline design matrix (x.size, n_ctrl) on clamped knots t (clamped_knots),
-    x within [t[3], t[n_ctrl]]. Bit for bit BSpline(t, np.eye(n_ctrl), 3)(x) (and
-    BSpline.design_matrix(x, t, 3).toarray()): the four non-zero basis values of each x by the
-    recurrence scipy evaluates (_deBoor_D, the same operations in the same order), vectorised
-    over x, and the interval as scipy's _find_interval finds it (t[l] <= x < t[l + 1], the last
-    interval for x = t[n_ctrl]). The variable projection builds one per residual evaluation;
-    scipy's spline evaluation multiplied each basis value by every column of the identity."""
-    if not np.all(np.diff(t[3:n_ctrl + 1]) > 0):  # coinciding knots: scipy's zero-width rule
-        from scipy.interpolate import BSpline
+    """Dense cubic B-spline design matrix (x.size, n_ctrl) on knots t: the spline with the
+    identity as coefficients evaluated at x. The same basis values as
+    BSpline.design_matrix(x, t, 3).toarray() (bit for bit: each column is one basis function
+    times 1), without building the sparse matrix first. scipy's own evaluation, not a copy of its
+    recurrence: a vectorised de Boor written here was measured 10-20 % faster on 30,000 points
+    (8 and 16 coefficients), too little to keep a second spline code beside scipy's."""
+    from scipy.interpolate import BSpline
 
-        return BSpline(t, np.eye(n_ctrl), 3)(x)
-    ell = np.searchsorted(t, x, side="right") - 1
-    np.clip(ell, 3, n_ctrl - 1, out=ell)
-    tm2, tm1, t0, t1, t2, t3 = (t[ell + d] for d in (-2, -1, 0, 1, 2, 3))
-    d1, d2, d3 = t1 - x, t2 - x, t3 - x      # xb - x for n = 1, 2, 3
-    e0, em1, em2 = x - t0, x - tm1, x - tm2  # x - xa
-    w = 1.0 / (t1 - t0)                      # degree 1
-    h0, h1 = 0.0 + w * d1, w * e0
-    w = h0 / (t1 - tm1)                      # degree 2
-    g0, g1 = 0.0 + w * d1, w * em1
-    w = h1 / (t2 - t0)
-    g1, g2 = g1 + w * d2, w * e0
-    w = g0 / (t1 - tm2)                      # degree 3
-    h0, h1 = 0.0 + w * d1, w * em2
-    w = g1 / (t2 - tm1)
-    h1, h2 = h1 + w * d2, w * em1
-    w = g2 / (t3 - t0)
-    h2, h3 = h2 + w * d3, w * e0
-    A = np.zeros(x.size * n_ctrl)
-    base = np.arange(0, x.size * n_ctrl, n_ctrl) + (ell - 3)
-    A[base], A[base + 1], A[base + 2], A[base + 3] = h0, h1, h2, h3
-    return A.reshape(x.size, n_ctrl)
+    return BSpline(t, np.eye(n_ctrl), 3)(x)
 
 
 class _SplineProjection:

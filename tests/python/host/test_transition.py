@@ -88,23 +88,6 @@ def test_play_ops_in_c_is_the_numpy_loop_bit_for_bit():
         assert np.array_equal(a.view(np.int64), b.view(np.int64))
 
 
-def test_design_matrix_is_scipys_bit_for_bit():
-    """transition._design_matrix against BSpline(t, eye, 3)(x), every bit: both ends, points on
-    knots and just below them, 4 to 14 control points, a tiny range."""
-    from scipy.interpolate import BSpline
-
-    from playscope.fit.bspline import clamped_knots
-
-    rng = np.random.default_rng(6)
-    for lo, hi in ((0.0, 1.0), (-3.7, 12.25), (2.0, 2.0 + 1e-9)):
-        for n in (4, 6, 14):
-            t = clamped_knots(lo, hi, n)
-            x = np.r_[lo, hi, t[3:n + 1], np.nextafter(t[4:n + 1], -np.inf), rng.uniform(lo, hi, 2000)]
-            x = np.clip(x, lo, hi)
-            a, b = T._design_matrix(x, t, n), BSpline(t, np.eye(n), 3)(x)
-            assert np.array_equal(a.view(np.int64), b.view(np.int64))
-
-
 def test_inverse_undoes_the_direct_operator():
     rng = np.random.default_rng(4)
     z = np.cumsum(rng.normal(0, 0.05, 3000))
