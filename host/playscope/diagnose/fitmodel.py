@@ -22,7 +22,7 @@ from scipy.interpolate import BSpline, CubicSpline
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
-from ..fit.model import play_on_edges
+from ..fit.model import play_edges
 from ..base import kernels
 
 N_KNOTS = 9
@@ -311,12 +311,6 @@ def _viscous_play(z_lo: np.ndarray, z_hi: np.ndarray, z0: float, a: float, nativ
     return np.asarray(out)
 
 
-def _play(z_lo: np.ndarray, z_hi: np.ndarray, z0: float) -> np.ndarray:
-    """The play operator on band edges (model.play_on_edges, eq. 3) through the C kernel when it
-    is compiled (bit for bit the same), else model.play_on_edges itself. (N,) mm."""
-    return kernels.play_on_edges(z_lo, z_hi, z0) if kernels.available() else play_on_edges(z_lo, z_hi, z0)
-
-
 def _bspline_dense(x: np.ndarray, t: np.ndarray, k: int) -> np.ndarray:
     """BSpline.design_matrix(x, t, k).toarray() without the sparse-to-dense pass (the same
     values, scattered from the CSR arrays). x: (N,) inside the base interval; returns (N, len(t) - k - 1)."""
@@ -478,7 +472,7 @@ class Model:
             # down), inverted on the z grid by np.interp (z + B(z)/2 is increasing for |B'| < 2).
             zu = np.interp(q - vh, *self._edge(self.zg, (1 + alpha) * r * Bg / 2))
             zd = np.interp(q + vh, *self._edge(self.zg, -(1 - alpha) * r * Bg / 2))
-            zs.append(_play(zu, zd, z0) if a_c >= 1.0 else _viscous_play(zu, zd, z0, a_c))
+            zs.append(play_edges(zu, zd, z0) if a_c >= 1.0 else _viscous_play(zu, zd, z0, a_c))
         z = zs[0] if len(zs) == 1 else np.mean(zs, axis=0)
         sdir = _direction(z)
         if "handeye_direction" in self.effects:

@@ -130,11 +130,16 @@ def play_operator(q: np.ndarray, B: ArrayFn, z0: float | None = None, b_max: flo
     play centred). q: (N,) actuator units. Returns z (N,); the direct model is c = f(z).
     """
     q = np.asarray(q, float).ravel()
+    return play_edges(z_up(q, B, b_max), z_down(q, B, b_max), float(q[0] if z0 is None else z0))
+
+
+def play_edges(z_lo, z_hi, z0: float) -> np.ndarray:
+    """play_on_edges (eq. 3) through the C kernel when it is compiled (base/kernels.c, bit for bit
+    the same: tests/python/sim/test_diagnose_kernels.py), else play_on_edges itself. The one
+    dispatch the model, the record model and the diagnosis call. z_lo, z_hi: (N,); returns z (N,)."""
     from ..base import kernels
 
-    # The C kernel when it is compiled (bit for bit play_on_edges, tests/python/sim/test_diagnose_kernels.py).
-    run = kernels.play_on_edges if kernels.available() else play_on_edges
-    return run(z_up(q, B, b_max), z_down(q, B, b_max), float(q[0] if z0 is None else z0))
+    return kernels.play_on_edges(z_lo, z_hi, z0) if kernels.available() else play_on_edges(z_lo, z_hi, z0)
 
 
 def play_on_edges(z_lo, z_hi, z0: float) -> np.ndarray:

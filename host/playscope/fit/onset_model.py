@@ -107,6 +107,8 @@ from scipy.optimize import least_squares
 from scipy.special import expit, logit
 from scipy.signal import lfilter
 
+from .model import play_edges
+
 HUBER_K = 1.345        # Huber's tuning constant, in sigma (95 % efficiency at the Gaussian; Huber 1964)
 GRID_HZ_MAX = 1000.0   # the play runs on a uniform grid at the encoder's rate, at most this (1 ms timing)
 RING_HZ_LO = 1.0       # the tip mode searched from this (Hz) ...
@@ -227,16 +229,6 @@ def _dbasis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
     span = t[3:n + 4] - t[:n + 1]
     c = np.where(span > 0, 3.0 / np.where(span > 0, span, 1.0), 0.0)
     return B2[:, :n] * c[:n] - B2[:, 1:] * c[1:]
-
-
-def _play(lo: np.ndarray, hi: np.ndarray, z0: float) -> np.ndarray:
-    from ..base import kernels
-
-    if kernels.available():
-        return kernels.play_on_edges(lo, hi, z0)
-    from .model import play_on_edges
-
-    return play_on_edges(lo, hi, z0)
 
 
 def _tip_filter(f_hz: float, zeta: float, dt: float) -> tuple[list, list]:
@@ -439,7 +431,7 @@ class RecordModel:
     def play(self, cB: np.ndarray, edges: bool = False):
         """z on the grid (N,) for B's coefficients cB; with edges, also (lo, hi) (N,) each."""
         lo, hi = self.edges(cB)
-        z = _play(lo, hi, float(self.rec.q[0]))
+        z = play_edges(lo, hi, float(self.rec.q[0]))
         return (z, lo, hi) if edges else z
 
     def edge_gradient(self, cB: np.ndarray, k: np.ndarray, z: np.ndarray, side: np.ndarray) -> np.ndarray:

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from playscope.diagnose.fitmodel import INTERNAL_HZ, Data, Model, _play
+from playscope.diagnose.fitmodel import INTERNAL_HZ, Data, Model
+from playscope.fit.model import play_edges as _play
 from playscope.diagnose.signatures import signature
 from playscope.fit.model import held_direction
 
