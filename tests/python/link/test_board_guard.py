@@ -172,11 +172,11 @@ def test_qemu_board_guards_its_instrument():
         link.close()
 
 
-def _qemu_board(tmp_path, sectors: bytes, name: str) -> tuple[Link, object]:
-    """The STM32F405 link firmware booted with sectors 10/11 holding sectors (2 x 128 KiB), as
-    the programming port would leave them; QEMU's unimplemented-device accesses logged."""
-    img, log = tmp_path / f"{name}.bin", tmp_path / f"{name}.log"
-    img.write_bytes(sectors)
+def _qemu_board(img) -> tuple[Link, object]:
+    """The STM32F405 link firmware booted with sectors 10/11 holding the file img (2 x 128 KiB), as
+    the programming port would leave them; QEMU's unimplemented-device accesses logged to the
+    returned path."""
+    log = img.with_suffix(".log")
     args = ["-device", f"loader,file={img},addr={TABLE_SECTORS:#x}", "-d", "unimp", "-D", str(log)]
     return Link(QemuTransport(qemu_args=args)), log
 
@@ -190,8 +190,8 @@ def test_qemu_exhausted_generation_recovers_only_by_the_erase(tmp_path):
     recovery pin cannot be held under QEMU: the log shows its read answered by GPIOA's
     unimplemented-device stub (always 0)."""
     blob = builtin_table()
-    _exhausted_image(tmp_path / "exhausted_sectors.bin", blob)
-    link, log = _qemu_board(tmp_path, (tmp_path / "exhausted_sectors.bin").read_bytes(), "exhausted")
+    _exhausted_image(tmp_path / "exhausted.bin", blob)
+    link, log = _qemu_board(tmp_path / "exhausted.bin")
     try:
         _assert_stuck_at_exhausted(link, blob)
         assert link.info()["active_generation"] == 0xFFFFFFFF
@@ -199,7 +199,8 @@ def test_qemu_exhausted_generation_recovers_only_by_the_erase(tmp_path):
         link.close()
     # The pin's input register (GPIOA_IDR, offset 0x10) read at boot, by a stub QEMU does not model.
     assert re.search(r"GPIOA: unimplemented device read\s+\(size 4, offset 0x010\)", log.read_text())
-    link, _ = _qemu_board(tmp_path, b"\xff" * (2 * SLOT), "erased")
+    (tmp_path / "erased.bin").write_bytes(b"\xff" * (2 * SLOT))
+    link, _ = _qemu_board(tmp_path / "erased.bin")
     try:
         assert link.info()["active_generation"] == 0
         r = flash(link, blob, n_vectors=4, log=lambda s: None)
