@@ -511,8 +511,8 @@ def check_camera(cam: Camera, path) -> None:
     if not math.isfinite(r_corner) or r_corner <= 0:
         raise InputError(path, "camera.K puts the principal point at an infinite distance from the image")
     r = np.linspace(0.0, 4.0 * r_corner, 4001)
-    r2 = r * r
-    with np.errstate(all="ignore"):  # absurd coefficients overflow: NaN/inf below count as a fold
+    with np.errstate(all="ignore"):  # absurd coefficients or a principal point ~1e154 px off overflow: NaN/inf below count as a fold
+        r2 = r * r
         rd = r * (1 + k1 * r2 + k2 * r2 ** 2 + k3 * r2 ** 3)
         drd = 1 + 3 * k1 * r2 + 5 * k2 * r2 ** 2 + 7 * k3 * r2 ** 3
     reach = np.nonzero(np.isfinite(rd) & (rd >= r_corner))[0]

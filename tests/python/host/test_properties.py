@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 from playscope.fit.calibration_check import load_calibration
@@ -80,6 +80,7 @@ def test_parse_meta_any_json(d):
 
 @SETTINGS
 @given(st.sampled_from(META_PATHS), JSONISH)
+@example(("camera", "K", 1, 2), 1.2737417533445467e+156)  # found by hypothesis: r * r overflowed in check_camera
 def test_parse_meta_one_field_replaced(path, value):
     try:
         out = parse_meta(_replaced(path, value), "session.json")
