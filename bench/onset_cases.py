@@ -160,6 +160,11 @@ LOCKBOX4_SEALED = [r for i, r in enumerate(LOCKBOX4_300) if i % 3]
 # Stop 59 spends every third row of those 200 (67 rows; fixed here on 2026-11-26 before any of them was
 # run, with the tip mode's profiled starts written and judged on development rows only); 133 stay sealed.
 LOCKBOX4_B = LOCKBOX4_SEALED[0::3]
+# Stop 60 spends the other 133 of those 200 (fixed here on 2026-11-26 before any of them was run). The
+# onset code is LOCKBOX4_B's (fda99f0's numbers: later commits changed only how the play kernel is
+# dispatched, the same values), so B and C together are 200 rows on one code version. After this every
+# row of LOCKBOX4_300 is spent.
+LOCKBOX4_C = [r for i, r in enumerate(LOCKBOX4_SEALED) if i % 3]
 
 
 def make(row):
