@@ -165,6 +165,10 @@ LOCKBOX4_B = LOCKBOX4_SEALED[0::3]
 # dispatched, the same values), so B and C together are 200 rows on one code version. After this every
 # row of LOCKBOX4_300 is spent.
 LOCKBOX4_C = [r for i, r in enumerate(LOCKBOX4_SEALED) if i % 3]
+# The fifth set-aside group, LOCKBOX5_300 (drawn and committed 2026-11-26 at the start of stop 60,
+# before any of that stop's code; every row of LOCKBOX4_300 is spent or being spent by then).
+SEEDS_5 = {"marker": (60101, 600001), "swing": (60202, 600201), "render_c": (60303, 600401)}
+LOCKBOX5_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_5, PLAN, "s5-")]
 
 
 def make(row):

@@ -22,6 +22,8 @@ Groups:
   lockbox4_a   its every third row (100), the part stop 58 runs; the other 200 stay sealed.
   lockbox4_b   every third row of those 200 (67), the part stop 59 runs; 133 stay sealed.
   lockbox4_c   the other 133 of those 200, the part stop 60 runs on lockbox4_b's onset code.
+  lockbox5     bench/onset_cases.py LOCKBOX5_300: 100 more renderings from each renderer (new seeds),
+               drawn and committed at the start of stop 60, sealed for a later code.
   development  every group of bench/swing_cases.py (208 renderings of swing_render, the rules of
                the old onset stage were settled on them): judged as bench/swing_bench.py did
                (B over its limit, |t_delay error| over 1/8 frame on every row, or a refusal).
@@ -32,7 +34,7 @@ as it finishes (a rerun skips rows already there; --fresh-start removes them), t
 per category and per renderer, failures / n, the rate and its interval, the median and 95th
 percentile of the B error, the worst row.
 
-Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group fresh|setaside|lockbox|lockbox_a|lockbox_b|lockbox_c|lockbox4|lockbox4_a|lockbox4_b|lockbox4_c|development
+Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group fresh|setaside|lockbox|lockbox_a|lockbox_b|lockbox_c|lockbox4|lockbox4_a|lockbox4_b|lockbox4_c|lockbox5|development
        [--jobs 2] [--only NAME ...] [--fresh-start] [--markdown FILE]
 """
 
@@ -58,7 +60,7 @@ FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_1
               "lockbox_a": lambda c: c.LOCKBOX_A, "lockbox_b": lambda c: c.LOCKBOX_B,
               "lockbox_c": lambda c: c.LOCKBOX_C, "lockbox4": lambda c: c.LOCKBOX4_300,
               "lockbox4_a": lambda c: c.LOCKBOX4_A, "lockbox4_b": lambda c: c.LOCKBOX4_B,
-              "lockbox4_c": lambda c: c.LOCKBOX4_C}
+              "lockbox4_c": lambda c: c.LOCKBOX4_C, "lockbox5": lambda c: c.LOCKBOX5_300}
 
 
 def _rows(group: str) -> list:
@@ -148,7 +150,7 @@ def table(res: list[dict], key: str) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--group", choices=("fresh", "setaside", "lockbox", "lockbox_a", "lockbox_b", "lockbox_c", "lockbox4", "lockbox4_a", "lockbox4_b", "lockbox4_c", "development"),
+    ap.add_argument("--group", choices=("fresh", "setaside", "lockbox", "lockbox_a", "lockbox_b", "lockbox_c", "lockbox4", "lockbox4_a", "lockbox4_b", "lockbox4_c", "lockbox5", "development"),
                     default="development")
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--only", nargs="*", help="row names to run (default: all of the group)")
