@@ -12,7 +12,7 @@ from scipy.interpolate import BSpline
 from scipy.optimize import lsq_linear
 
 from . import model
-from .bspline import SplineFn, _diff_penalty, clamped_knots, robust_spline
+from .bspline import SplineFn, _diff_penalty, clamped_knots, design_dense, robust_spline
 
 def characteristic(t_enc, q, t_f, c_f, t_delay_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Pairs (q, c) of the characteristic (Fig. 9): each valid frame with the actuator
@@ -56,7 +56,7 @@ def _monotone_pspline(x: np.ndarray, y: np.ndarray, n_ctrl: int, lo: float, hi: 
     from scipy.linalg import cho_factor, solve_triangular
 
     t = clamped_knots(lo, hi, n_ctrl)
-    A = BSpline.design_matrix(np.clip(x, lo, hi), t, 3).toarray()
+    A = design_dense(np.clip(x, lo, hi), t, n_ctrl)
     D = _diff_penalty(n_ctrl)
     AtA = A.T @ A
     lam = smooth * max(np.trace(AtA) / n_ctrl, 1e-12)
