@@ -438,9 +438,6 @@ def fit_f(y, c, n_ctrl, smooth=1e-3, sign=None, min_slope: float = 0.0):
     return SplineFn(spl, lo, hi, linear_ends=True), sign
 
 
-_design_matrix = design_dense  # the inner solve's basis (bspline.design_dense)
-
-
 class _SplineProjection:
     """P-spline least squares of c on y (the inner solve of fit_weights) and its residual's
     Jacobian in the weights by Kaufman's variable-projection approximation (Golub & Pereyra
@@ -460,7 +457,7 @@ class _SplineProjection:
             hi = max(hi, lo + 1e-9)
             t = clamped_knots(lo, hi, self.n_ctrl)
             yc = np.clip(y, lo, hi)
-            A = _design_matrix(yc, t, self.n_ctrl)
+            A = design_dense(yc, t, self.n_ctrl)
             AtA = A.T @ A
             lam = self.smooth * np.trace(AtA) / self.n_ctrl
             # Normal equations of the penalised fit (n_ctrl x n_ctrl, well conditioned by the

@@ -88,3 +88,17 @@ def test_calibrate_fits_f_remain_with_the_chosen_control_points():
     # Measured: 0.060 deg with the chosen N = 8 against 0.037 with 14 (the one-SE rule trades a
     # little accuracy on this record for stiffness); a choice of 4 would give ~0.5.
     assert err(cal) < 1.5 * err(paper) + 0.02
+
+
+def test_the_dense_design_matrix_is_scipys_sparse_one_bit_for_bit():
+    # bspline.design_dense (robust_spline's, the monotone P-spline's and the transition's basis)
+    # against scipy's BSpline.design_matrix, at random points, on the knots and at both ends.
+    from scipy.interpolate import BSpline
+
+    from playscope.fit.bspline import clamped_knots, design_dense
+
+    rng = np.random.default_rng(5)
+    for n in (4, 8, 14, 20):
+        t = clamped_knots(-2.0, 3.0, n)
+        x = np.r_[rng.uniform(-2.0, 3.0, 500), t[3:n + 1], -2.0, 3.0]
+        assert np.array_equal(design_dense(x, t, n), BSpline.design_matrix(x, t, 3).toarray())

@@ -17,6 +17,16 @@ def test_z_up_down_solve_eq2():
     assert np.all(zu <= zd)
 
 
+def test_z_up_down_on_repeated_encoder_counts_equal_the_solve_of_every_sample(monkeypatch):
+    # An encoder's q repeats its counts (1 um steps): z_up / z_down bisect its distinct values
+    # only (model._on_distinct) and scatter them back, bit for bit the solve of every sample.
+    q = np.round(np.sin(np.linspace(0, 40, 20000)) * 4.0, 3)
+    assert np.unique(q).size < q.size // 2  # the distinct-value path is taken
+    fast = [model.z_up(q, true_B), model.z_down(q, true_B)]
+    monkeypatch.setattr(model, "_on_distinct", lambda v, solve: solve(v))
+    assert np.array_equal(fast[0], model.z_up(q, true_B)) and np.array_equal(fast[1], model.z_down(q, true_B))
+
+
 def test_envelopes_are_reindexed_f_eq2():
     # eq. 2: f_{1,2}(q_off) = f(q) with q_off = q -+ B(q)/2 ; in our naming f2 = f(z_up).
     z = np.linspace(-3, 3, 50)
