@@ -25,6 +25,17 @@ from .pacing import pacing
 
 
 
+def along_path_share(du: np.ndarray, dv: np.ndarray, slope: np.ndarray) -> float:
+    """Median over the frames of |cos| between a registration's jump (du, dv) (F,) px each and the
+    image path's tangent slope (F, 2): 1 where the switch moves the image along the path (there a
+    change of B at the image's level), 0 across it. NaN when no frame has both non-zero."""
+    jn, sn = np.hypot(du, dv), np.hypot(slope[:, 0], slope[:, 1])
+    ok = (jn > 0) & (sn > 0)
+    if not ok.any():
+        return float("nan")
+    return float(np.median(np.abs(du[ok] * slope[ok, 0] + dv[ok] * slope[ok, 1]) / (jn[ok] * sn[ok])))
+
+
 def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.ndarray, rq: np.ndarray,
                    t_f: np.ndarray, obs: np.ndarray, fps: float, t_delay_cfg: float | None,
                    t_delay_from: str = "data", board: Onsets | None = None, onset_cfg: dict | None = None,
@@ -93,14 +104,16 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     F = rec.t_f.size
     beta = fit.ev.beta
     reg = {}
+    slope = m.G_slope(fit.ev)  # the image path's tangent at the frames (F, 2)
     for name in ("tip", "motor"):
         if getattr(terms, "reg_" + name):
             du, dv = m.reg_offset(fit.ev, name)
             k = 2 * m.n_g + m.mix_block(name)
+            along = along_path_share(du, dv, slope)
             reg[name] = {"jump_px": [2 * float(np.median(du)), 2 * float(np.median(dv))],
                          "jump_px_range": [2 * float(np.min(np.hypot(du, dv))), 2 * float(np.max(np.hypot(du, dv)))],
                          "half_switch_deg_about_xyz": [float(np.degrees(a)) for a in beta[k:k + OM.N_REG]],
-                         "switch_lag_s": lags[name]}
+                         "switch_lag_s": lags[name], "along_path": along}
     report = {
         "method": "one model of the record (playscope.fit.onset_model)",
         "board_reasons": board.reasons, "board_threshold": rule,

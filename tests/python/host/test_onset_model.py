@@ -161,6 +161,22 @@ def test_a_registration_that_switches_with_the_tip_is_found(registration_record)
     jump = np.hypot(*rob.report["registration"]["tip"]["jump_px"])
     assert 20 < jump < 45  # 2 x 600 px x tan(1.5 deg) = 31 px, less the view's own tilt
     assert abs(rob.t_delay_s - r.delay_s) * r.fps < 0.125
+    # the renderer's registration about the camera's y axis moves the image along u; the path's own
+    # direction from the frames' principal axis (an estimate apart from the model): measured 0.979
+    # against the principal axis' 1.000 (the path curves a little)
+    obs = _record(reg_deg=1.5, seed=11)[6]
+    ax = np.linalg.svd(obs - obs.mean(axis=0), full_matrices=False)[2][0]
+    assert rob.report["registration"]["tip"]["along_path"] == pytest.approx(abs(ax[0]), abs=0.05)
+
+
+def test_the_along_path_share_is_the_cosine_between_the_jump_and_the_paths_tangent():
+    from playscope.fit.onset_stage import along_path_share
+
+    ang = np.radians([0.0, 30.0, 60.0, 90.0, 120.0])  # the path's tangent against a jump along u
+    slope = 3.0 * np.column_stack([np.cos(ang), np.sin(ang)])
+    du, dv = np.full(5, 2.0), np.zeros(5)
+    assert along_path_share(du, dv, slope) == pytest.approx(np.median(np.abs(np.cos(ang))))
+    assert np.isnan(along_path_share(np.zeros(5), np.zeros(5), slope))
 
 
 def test_a_registration_that_switches_with_the_tip_leaves_B_within_5_percent(registration_record):
