@@ -34,7 +34,7 @@ as it finishes (a rerun skips rows already there; --fresh-start removes them), t
 per category and per renderer, failures / n, the rate and its interval, the median and 95th
 percentile of the B error, the worst row.
 
-Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group fresh|setaside|lockbox|lockbox_a|lockbox_b|lockbox_c|lockbox4|lockbox4_a|lockbox4_b|lockbox4_c|lockbox5|development
+Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_scoreboard.py --group GROUP (one of the groups above)
        [--jobs 2] [--only NAME ...] [--fresh-start] [--markdown FILE]
 """
 
@@ -150,7 +150,7 @@ def table(res: list[dict], key: str) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--group", choices=("fresh", "setaside", "lockbox", "lockbox_a", "lockbox_b", "lockbox_c", "lockbox4", "lockbox4_a", "lockbox4_b", "lockbox4_c", "lockbox5", "development"),
+    ap.add_argument("--group", choices=(*FROM_CASES, "development"),
                     default="development")
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--only", nargs="*", help="row names to run (default: all of the group)")

@@ -18,10 +18,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.interpolate import BSpline, CubicSpline
+from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
+from ..fit.bspline import design_dense
 from ..fit.model import play_edges
 from ..base import kernels
 
@@ -311,16 +312,6 @@ def _viscous_play(z_lo: np.ndarray, z_hi: np.ndarray, z0: float, a: float, nativ
     return np.asarray(out)
 
 
-def _bspline_dense(x: np.ndarray, t: np.ndarray, k: int) -> np.ndarray:
-    """BSpline.design_matrix(x, t, k).toarray() without the sparse-to-dense pass (the same
-    values, scattered from the CSR arrays). x: (N,) inside the base interval; returns (N, len(t) - k - 1)."""
-    D = BSpline.design_matrix(x, t, k)
-    nb = t.size - k - 1
-    out = np.zeros((x.size, nb))
-    out.ravel()[np.repeat(np.arange(x.size) * nb, np.diff(D.indptr)) + D.indices] = D.data
-    return out
-
-
 def _direction(z: np.ndarray) -> np.ndarray:
     from ..fit.model import held_direction
 
@@ -518,7 +509,7 @@ class Model:
             n_int = min(int(np.searchsorted(d.t_int, tq.max(), side="right")) + 1, n_int) if tq.size else 2
         t_int = d.t_int[:n_int]
         x = np.clip((z[:n_int] - self.q_mid) / self.q_half, -1.5, 1.5)
-        Phi = _bspline_dense(x, self.ftk, 3)
+        Phi = design_dense(x, self.ftk, self.ftk.size - 4)
         if "cable_elongation" in self.effects:
             kappa = self._get(theta, "cable_elongation", "kappa")
             tau = np.exp(self._get(theta, "cable_elongation", "log_tau"))

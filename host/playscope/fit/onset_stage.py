@@ -104,7 +104,7 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     F = rec.t_f.size
     beta = fit.ev.beta
     reg = {}
-    slope = m.G_slope(fit.ev)  # the image path's tangent at the frames (F, 2)
+    slope = m.G_slope(fit.ev) if (terms.reg_tip or terms.reg_motor) else None  # the path's tangent (F, 2)
     for name in ("tip", "motor"):
         if getattr(terms, "reg_" + name):
             du, dv = m.reg_offset(fit.ev, name)

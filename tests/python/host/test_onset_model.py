@@ -152,11 +152,11 @@ def test_a_wrong_configured_delay_is_a_prior_the_record_overrules_and_config_hol
 @pytest.fixture(scope="module")
 def registration_record():
     r, d, t, q, rt, rq, obs, hyst = _record(reg_deg=1.5, seed=11)
-    return r, record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
+    return r, record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst), obs
 
 
 def test_a_registration_that_switches_with_the_tip_is_found(registration_record):
-    r, rob = registration_record
+    r, rob, obs = registration_record
     assert "reg_tip" in rob.report["terms"]["chosen"]
     jump = np.hypot(*rob.report["registration"]["tip"]["jump_px"])
     assert 20 < jump < 45  # 2 x 600 px x tan(1.5 deg) = 31 px, less the view's own tilt
@@ -164,7 +164,6 @@ def test_a_registration_that_switches_with_the_tip_is_found(registration_record)
     # the renderer's registration about the camera's y axis moves the image along u; the path's own
     # direction from the frames' principal axis (an estimate apart from the model): measured 0.979
     # against the principal axis' 1.000 (the path curves a little)
-    obs = _record(reg_deg=1.5, seed=11)[6]
     ax = np.linalg.svd(obs - obs.mean(axis=0), full_matrices=False)[2][0]
     assert rob.report["registration"]["tip"]["along_path"] == pytest.approx(abs(ax[0]), abs=0.05)
 
@@ -182,7 +181,7 @@ def test_the_along_path_share_is_the_cosine_between_the_jump_and_the_paths_tange
 def test_a_registration_that_switches_with_the_tip_leaves_B_within_5_percent(registration_record):
     # measured 3.6 % (the switch as a two-point mixture, B coarse to fine); 9.2 % with the Gaussian
     # stand-in, 12.7 % with G's ends pulled to 0 px as well
-    r, rob = registration_record
+    r, rob, _ = registration_record
     assert _b_error_pct(r, rob.onsets) < 5.0
 
 

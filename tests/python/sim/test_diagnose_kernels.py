@@ -69,11 +69,11 @@ def test_design_on_rows_is_the_full_design_sliced(effects, side):
         assert np.array_equal(m.design(th, rows), full[rows])
 
 
-def test_bspline_dense_and_lowpass_columns():
+def test_the_dense_basis_and_lowpass_columns():
     x = np.clip(np.random.default_rng(4).uniform(-2, 2, 4000), -1.5, 1.5)
     inner = np.linspace(-1, 1, fitmodel.N_FKNOTS + 2)
     t = np.r_[[-1.5] * 4, inner[1:-1], [1.5] * 4]
-    P = fitmodel._bspline_dense(x, t, 3)
+    P = fitmodel.design_dense(x, t, t.size - 4)  # the basis the diagnosis model builds
     assert np.array_equal(P, BSpline.design_matrix(x, t, 3).toarray())
     L = fitmodel.lowpass(P, 0.3, 50.0)
     assert np.array_equal(L, np.column_stack([fitmodel.lowpass(P[:, j], 0.3, 50.0) for j in range(P.shape[1])]))
