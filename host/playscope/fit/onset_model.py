@@ -104,7 +104,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import BSpline
 from scipy.optimize import least_squares
-from scipy.special import expit, logit
+from scipy.special import expit, log_ndtr, logit
 from scipy.signal import lfilter
 
 from .model import play_edges
@@ -124,7 +124,7 @@ SIGMA_RERUN = 0.7      # the search runs again at the fit's residual scale when 
 RING_ZETA_STARTS = (0.03, 0.1, 0.3)  # the tip mode's damping ratios a ring start is profiled at: a factor
                        # of about 3 apart over the lightly damped modes the term is for (above about 0.5 a
                        # mode barely rings), so LM starts within its reach of the ratio
-TERMS = ("ring", "reg_tip", "reg_motor")
+TERMS = ("ring", "reg_tip", "reg_motor", "slide_tip", "slide_motor")  # a slide_ term needs its reg_ term
 WIDTH_AT = ("input", "output")  # where the play's width is read: B(q) or B(z) (module doc)
 DELAY_DISAGREE_Z = 3.0  # a configured delay this many combined standard errors from the record's disagrees
                        # with it (a two-sided 0.3 % test: on a right one, a false alarm in 370 records)
@@ -268,6 +268,67 @@ def _ramp_sign(tau: np.ndarray, t_ev: np.ndarray, s_ev: np.ndarray, s0: float, T
     return np.interp(tau, tk, vk, left=s0, right=s_ev[-1])
 
 
+def _ramp_int(y: np.ndarray, L: float) -> tuple[np.ndarray, np.ndarray]:
+    """(R(y), dR/dL) (K,): R(y) = the integral of clip(x / L, 0, 1) from -inf to y."""
+    a = np.clip(y, 0.0, L)
+    R = 0.5 * a * a / L + np.maximum(y - L, 0.0)
+    dRdL = np.where(y <= 0.0, 0.0, np.where(y < L, -0.5 * (a / L) ** 2, -0.5))
+    return R, dRdL
+
+
+def _switch_shares(since: np.ndarray, L: float, D: float):
+    """The switch's level shares at frames since s after its window opens (module doc: the switch and
+    the slide): it starts at u ~ U(0, L) and slides for a duration ~ U(0, D) (D = 0: a step). Returns
+    (p_old, p_new, dp_old, dp_new): the shares of frames still at the old level, u >= since, and
+    already at the new one, u + duration <= since ((K,) each; the rest, 1 - p_old - p_new, is mid
+    slide), and their derivatives over (since, L, D), (3, K) each."""
+    since = np.asarray(since, float)
+    inside = (since > 0.0) & (since < L)
+    c = np.clip(since / L, 0.0, 1.0)
+    p_old = 1.0 - c
+    dp_old = np.vstack([np.where(inside, -1.0 / L, 0.0), np.where(inside, since / L ** 2, 0.0), np.zeros(since.size)])
+    if D <= 0.0:
+        return p_old, c, dp_old, -dp_old
+    R1, dR1 = _ramp_int(since, L)
+    R0, dR0 = _ramp_int(since - D, L)
+    p_new = (R1 - R0) / D
+    c0 = np.clip((since - D) / L, 0.0, 1.0)
+    dp_new = np.vstack([(c - c0) / D, (dR1 - dR0) / D, (c0 - p_new) / D])
+    return p_old, p_new, dp_old, dp_new
+
+
+def _log_ndtr_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """ln(Phi(b) - Phi(a)) for a <= b (K,), the standard normal's mass between them, without
+    cancellation in either tail."""
+    flip = a > 0.0  # both in the upper tail: the same mass between -b and -a
+    a, b = np.where(flip, -b, a), np.where(flip, -a, b)
+    la, lb = log_ndtr(a), log_ndtr(b)
+    return lb + np.log1p(-np.exp(np.minimum(la - lb, -1e-300)))
+
+
+def _mid_level(ro_u, ro_v, j_u, j_v, sigma: float):
+    """A frame caught mid slide (module doc: the slide): its level h in [0, 1] between the old (h = 0)
+    and the new (h = 1) one, whose residuals are ro - h J ((K,) each axis; ro at the old level, J the
+    jump, px). Returns (h, ln of the level's likelihood integrated over h in [0, 1]): h the least
+    squares level clipped into [0, 1]; the integral with the Huber loss of the residual across the
+    jump and the Gaussian one along it (its scale sigma / |J| in h)."""
+    jj = np.maximum(j_u * j_u + j_v * j_v, 1e-24)
+    hh = (ro_u * j_u + ro_v * j_v) / jj
+    s_h = sigma / np.sqrt(jj)
+    rho = huber_rho(ro_u - hh * j_u, sigma) + huber_rho(ro_v - hh * j_v, sigma)
+    ln_int = np.log(s_h * np.sqrt(2.0 * np.pi)) + _log_ndtr_diff(-hh / s_h, (1.0 - hh) / s_h) - rho
+    return np.clip(hh, 0.0, 1.0), ln_int
+
+
+def _kl_row_grad(gamma: np.ndarray, p: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(`_kl_row`, its derivative over p) (K,) each; the derivative 0 where p is clipped (not free)."""
+    rr = _kl_row(gamma, p)
+    slope = (p - gamma) / (p * (1 - p))           # d KL / d p
+    big = np.abs(rr) > 1e-6
+    drdp = np.where(big, slope / np.where(big, rr, 1.0), 1.0 / np.sqrt(p * (1 - p)))
+    return rr, np.where(free, drdp, 0.0)
+
+
 @dataclass
 class Terms:
     """Which camera terms a model carries (module doc): the tip mode (ring), a registration
@@ -276,9 +337,19 @@ class Terms:
     ring: bool = False
     reg_tip: bool = False
     reg_motor: bool = False
+    slide_tip: bool = False    # the tip's switch slides rather than steps (module doc: the slide)
+    slide_motor: bool = False
 
     def names(self) -> list[str]:
         return [n for n in TERMS if getattr(self, n)]
+
+    def offered(self) -> list[str]:
+        """The terms the search may add next: those not on, a slide only to its switch."""
+        return [n for n in TERMS if not getattr(self, n) and (not n.startswith("slide_") or getattr(self, "reg" + n[5:]))]
+
+    def slides(self, name: str) -> bool:
+        """Whether the switch name ("tip" or "motor") slides."""
+        return bool(getattr(self, "slide_" + name))
 
     def with_(self, name: str) -> "Terms":
         d = {n: getattr(self, n) for n in TERMS}
@@ -318,6 +389,10 @@ class RecordModel:
             self.Phi_Bz = _sparse_basis(self.z_grid, self.q_lo, self.q_hi, n_b) if n_b > 1 else None
         self.z_lo, self.z_hi = self.q_lo - 0.25 * span, self.q_hi + 0.25 * span
         self.w = np.ones(2 * rec.t_f.size)  # IRLS weights
+        # a slide's longest duration (module doc: the slide): it ends before the next reversal can start
+        # the next switch, so within half the shortest interval between reversals, at least a frame period
+        gaps = np.diff(rec.rt)
+        self.slide_max_s = max(rec.period_s, 0.5 * float(gaps.min())) if gaps.size else rec.period_s
         self.slope = None  # G' at the frames from the previous round: (F, 2), for the ring's direction
         self.mix = {}      # the switch mixture's E-step per term ("tip", "motor"): `e_step`
 
@@ -344,11 +419,23 @@ class RecordModel:
         e = float(expit(x))
         return T / 20 + (T - T / 20) * e, (T - T / 20) * e * (1.0 - e)
 
+    def slide_map(self, x: float) -> tuple[float, float]:
+        """(D s, dD/dx) for a slide's part of theta x: the longest slide D in [T / 20, slide_max_s]."""
+        lo, hi = self.rec.period_s / 20, self.slide_max_s
+        e = float(expit(x))
+        return lo + (hi - lo) * e, (hi - lo) * e * (1.0 - e)
+
+    def slide_x(self, D: float) -> float:
+        """A slide's part of theta for the longest slide D s (the inverse of `slide_map`, clipped)."""
+        lo, hi = self.rec.period_s / 20, self.slide_max_s
+        return float(logit(np.clip((D - lo) / (hi - lo), 1e-3, 1 - 1e-3)))
+
     def layout(self) -> dict[str, slice]:
         """Where each named part of theta sits."""
         out, i = {"d": slice(0, 1), "B": slice(1, 1 + self.n_b)}, 1 + self.n_b
         for name, size, on in (("ring", 2, self.terms.ring), ("lag_tip", 1, self.terms.reg_tip),
-                               ("lag_motor", 1, self.terms.reg_motor)):
+                               ("lag_motor", 1, self.terms.reg_motor), ("slide_tip", 1, self.terms.slide_tip),
+                               ("slide_motor", 1, self.terms.slide_motor)):
             if on:
                 out[name], i = slice(i, i + size), i + size
         return out
@@ -357,10 +444,12 @@ class RecordModel:
         return max(sl.stop for sl in self.layout().values())
 
     def theta(self, parts: dict) -> np.ndarray:
-        """theta from named parts; a part not given starts at the tip mode (3 Hz, zeta 0.1) or a
-        switch lag in the middle of its range."""
+        """theta from named parts; a part not given starts at the tip mode (3 Hz, zeta 0.1), a
+        switch lag in the middle of its range or a slide of up to half a frame period."""
         th = np.empty(self.n_theta())
-        dflt = {"ring": self.ring_theta(3.0, 0.1), "lag_tip": np.zeros(1), "lag_motor": np.zeros(1)}
+        x_slide = np.array([self.slide_x(0.5 * self.rec.period_s)])
+        dflt = {"ring": self.ring_theta(3.0, 0.1), "lag_tip": np.zeros(1), "lag_motor": np.zeros(1),
+                "slide_tip": x_slide, "slide_motor": x_slide}
         for name, sl in self.layout().items():
             th[sl] = parts[name] if name in parts else dflt[name]
         return th
@@ -384,6 +473,11 @@ class RecordModel:
             ring = (float(np.exp(lo + (hi - lo) * a)), float(self.ZETA_LO + (self.ZETA_HI - self.ZETA_LO) * b))
         lags = {n: self.lag_map(th[lay["lag_" + n]][0])[0] for n in ("tip", "motor") if "lag_" + n in lay}
         return float(d), cB, ring, lags
+
+    def slides(self, th: np.ndarray) -> dict:
+        """{"tip": D, "motor": D} s: each switch's longest slide (0: it steps)."""
+        lay = self.layout()
+        return {n: (self.slide_map(th[lay["slide_" + n]][0])[0] if "slide_" + n in lay else 0.0) for n in ("tip", "motor")}
 
     def prior_residual(self, lag: float) -> tuple[float, float]:
         """The configured delay's prior residual (sigma units) at the image's mean lag lag s, and
@@ -474,6 +568,7 @@ class RecordModel:
         "pvar_motor" (F,): each frame's switch-share variance p (1 - p))."""
         rec = self.rec
         d, cB, ring, lags = self.unpack(th)
+        slides = self.slides(th)
         z, lo, hi = self.play(cB, edges=True)
         t_on = self.onsets(z)
         tau = rec.t_f - d
@@ -496,66 +591,75 @@ class RecordModel:
             keep = np.r_[True, s_ev[1:] != s_ev[:-1]][:s_ev.size]  # a direction the tip already moves in is no switch
             s0 = -s_ev[0] if s_ev.size else 1.0
             t_ev, s_ev, r_ev = t_on[ok][keep], s_ev[keep], np.flatnonzero(ok)[keep]
-            S = _ramp_sign(tau, t_ev, s_ev, s0, lags["tip"])
-            pv = _share_var(tau, t_ev, lags["tip"])
-            self._mix_columns("tip", S, pv, tau, t_on, lags["tip"], st)
+            L, D = lags["tip"], slides["tip"]
+            S = _ramp_sign(tau, t_ev, s_ev, s0, L + D)  # the stand-in's window: the whole switch
+            pv = _share_var(tau, t_ev, L + D)
+            self._mix_columns("tip", S, pv, tau, t_on, L, D, st)
             cols["tip"] = S[:, None, None] * rec.reg_gen
-            st["tip"] = (S, t_ev, s_ev, np.r_[s0, s_ev[:-1]], lags["tip"], r_ev)
+            st["tip"] = (S, t_ev, s_ev, np.r_[s0, s_ev[:-1]], L, r_ev, D)
             st["pvar_tip"] = pv
         if self.terms.reg_motor:
             s0 = -rec.s_new[0]
-            S = _ramp_sign(tau, rec.rt, rec.s_new, s0, lags["motor"])
-            pv = _share_var(tau, rec.rt, lags["motor"])
-            self._mix_columns("motor", S, pv, tau, rec.rt, lags["motor"], st)
+            L, D = lags["motor"], slides["motor"]
+            S = _ramp_sign(tau, rec.rt, rec.s_new, s0, L + D)
+            pv = _share_var(tau, rec.rt, L + D)
+            self._mix_columns("motor", S, pv, tau, rec.rt, L, D, st)
             cols["motor"] = S[:, None, None] * rec.reg_gen
-            st["motor"] = (S, rec.rt, rec.s_new, np.r_[s0, rec.s_new[:-1]], lags["motor"], np.arange(rec.rt.size))
+            st["motor"] = (S, rec.rt, rec.s_new, np.r_[s0, rec.s_new[:-1]], L, np.arange(rec.rt.size), D)
             st["pvar_motor"] = pv
         return cols, t_on, z_f, st
 
     # ---- the switch as a two-point mixture (module doc): an EM whose E-step gives each frame near a
     # switch its posterior share gamma of the new level and whose M-step is the least squares below
     def _mix_columns(self, name: str, S: np.ndarray, pvar: np.ndarray, tau: np.ndarray, t_rev: np.ndarray,
-                     L: float, st: dict) -> None:
+                     L: float, D: float, st: dict) -> None:
         """Apply the E-step's shares to a term's sign S and share variance pvar (F,) in place: a frame
-        with a share gamma has the expected sign s_prev + gamma (s_new - s_prev) and no share variance
-        (its spread is the linear parameters' penalty, `solve`); st[name + "_mix"] gets the frames,
-        their shares gamma, their prior shares p at this theta (clipped into [EPS_SHARE, 1 - EPS_SHARE])
-        and where p is unclipped, and each frame's spread (s_new - s_prev)^2 gamma (1 - gamma), the weight
-        of its penalty on the rotation (`solve`, `mix_rows`). t_rev (M,) the term's switch starts per
-        reversal (NaN: none)."""
+        with shares gamma_new, gamma_mid at level h_mid has the expected sign s_prev + h_bar (s_new -
+        s_prev), h_bar = gamma_new + gamma_mid h_mid, and no share variance (its spread is the linear
+        parameters' penalty, `solve`); st[name + "_mix"] gets the frames, their shares, the prior shares
+        at this theta (`_switch_shares`, lag L, longest slide D; clipped into [EPS_SHARE, 1 - EPS_SHARE]),
+        where each is unclipped and their derivatives, and each frame's spread (s_new - s_prev)^2
+        Var(h), the weight of its penalty on the rotation (`solve`, `mix_rows`). t_rev (M,) the term's
+        switch starts per reversal (NaN: none)."""
         mx = self.mix.get(name)
         if not mx:
             return
-        j, g, rev, sp, sn = mx["j"], mx["gamma"], mx["rev"], mx["sp"], mx["sn"]
-        S[j] = sp + g * (sn - sp)
+        j, g, gm, hm, rev, sp, sn = mx["j"], mx["gamma"], mx["gamma_mid"], mx["h_mid"], mx["rev"], mx["sp"], mx["sn"]
+        hbar = g + gm * hm
+        S[j] = sp + hbar * (sn - sp)
         pvar[j] = 0.0
-        t0 = t_rev[rev]
-        raw = (tau[j] - t0) / L
-        free = np.isfinite(raw) & (raw > EPS_SHARE) & (raw < 1.0 - EPS_SHARE)
-        p = np.clip(np.nan_to_num(raw, nan=0.0), EPS_SHARE, 1.0 - EPS_SHARE)
-        st[name + "_mix"] = {"j": j, "gamma": g, "p": p, "free": free, "rev": rev, "ds": sn - sp,
-                             "since": np.nan_to_num(tau[j] - t0), "L": L,
-                             "spread": (sn - sp) ** 2 * g * (1 - g)}  # the levels' second moment per frame
+        since = tau[j] - t_rev[rev]
+        ok = np.isfinite(since)
+        since = np.where(ok, since, -1.0)  # no switch at this theta: the frame is at the old level
+        po, pn, dpo, dpn = _switch_shares(since, L, D)
+        shares = {}
+        for lvl, pr, dp in (("old", po, dpo), ("new", pn, dpn)):
+            shares["p_" + lvl] = np.clip(pr, EPS_SHARE, 1.0 - EPS_SHARE)
+            shares["free_" + lvl] = ok & (pr > EPS_SHARE) & (pr < 1.0 - EPS_SHARE)
+            shares["dp_" + lvl] = dp
+        st[name + "_mix"] = {"j": j, "gamma": g, "gamma_mid": gm, "h_mid": hm, **shares, "rev": rev, "ds": sn - sp,
+                             "L": L, "D": D, "spread": (sn - sp) ** 2 * np.maximum(g + gm * hm * hm - hbar * hbar, 0.0)}
 
     def e_step(self, ev: "Eval", sigma: float) -> None:
         """The mixture's E-step at an evaluation (module doc): for each switch term, the frames within
-        a frame period of a switch window [t_ev, t_ev + L] get the posterior share of the new level,
-        gamma = expit(logit p + rho_old - rho_new) (p the prior share, clipped into [EPS_SHARE,
-        1 - EPS_SHARE]; rho the Huber loss of the frame's two residuals at the old and the new level,
-        at sigma px). The frames and their switches are then fixed for the M-step."""
+        a frame period of a switch window [t_ev, t_ev + L + D] get their posterior shares of the
+        levels, gamma ~ p e^-rho (p the prior shares, `_switch_shares`, clipped into [EPS_SHARE,
+        1 - EPS_SHARE]; rho the Huber loss of the frame's two residuals at each level, at sigma px;
+        mid slide, the level's integrated likelihood, `_mid_level`). The frames and their switches
+        are then fixed for the M-step."""
         st = ev.state
         new = {}
         T = self.rec.period_s
         for name in ("tip", "motor"):
             if name not in st:
                 continue
-            S, t_ev, s_ev, s_prev, L, r_ev = st[name]
+            S, t_ev, s_ev, s_prev, L, r_ev, D = st[name]
             tau = st["tau"]
             if t_ev.size == 0:
                 continue
             e = np.searchsorted(t_ev, tau + T, side="right") - 1
             e0 = np.maximum(e, 0)
-            near = (e >= 0) & (tau < t_ev[e0] + L + T)
+            near = (e >= 0) & (tau < t_ev[e0] + L + D + T)
             j = np.flatnonzero(near)
             if j.size == 0:
                 continue
@@ -567,31 +671,60 @@ class RecordModel:
             for lvl, sgn in (("new", s_ev[e]), ("old", s_prev[e])):
                 k = sgn - S[j]
                 rho[lvl] = huber_rho(ru - k * du[j], sigma) + huber_rho(rv - k * dv[j], sigma)
-            p = np.clip((tau[j] - t_ev[e]) / L, EPS_SHARE, 1.0 - EPS_SHARE)
-            g = expit(logit(p) + np.clip(rho["old"] - rho["new"], -50.0, 50.0))
+            po, pn = (np.clip(x, EPS_SHARE, 1.0 - EPS_SHARE) for x in _switch_shares(tau[j] - t_ev[e], L, D)[:2])
+            if D > 0.0:
+                k = s_prev[e] - S[j]
+                ds = s_ev[e] - s_prev[e]
+                hm, ln_mid = _mid_level(ru - k * du[j], rv - k * dv[j], ds * du[j], ds * dv[j], sigma)
+                lw = np.vstack([np.log(po) - rho["old"], np.log(pn) - rho["new"],
+                                np.log(np.maximum(1.0 - po - pn, 1e-300)) + ln_mid])
+                lw = np.exp(lw - lw.max(axis=0))
+                g, gm = lw[1] / lw.sum(axis=0), lw[2] / lw.sum(axis=0)
+            else:
+                g = expit(logit(pn) + np.clip(rho["old"] - rho["new"], -50.0, 50.0))
+                gm, hm = np.zeros(j.size), np.zeros(j.size)
             keep = ~np.isin(j, new["tip"]["j"]) if "tip" in new else np.ones(j.size, bool)  # one mixture a frame
-            new[name] = {"j": j[keep], "gamma": g[keep], "rev": r_ev[e][keep], "sp": s_prev[e][keep].astype(float),
-                         "sn": s_ev[e][keep].astype(float)}
+            new[name] = {"j": j[keep], "gamma": g[keep], "gamma_mid": gm[keep], "h_mid": hm[keep], "rev": r_ev[e][keep],
+                         "sp": s_prev[e][keep].astype(float), "sn": s_ev[e][keep].astype(float)}
         self.mix = new
 
     def mix_rows(self, ev: "Eval", sigma: float) -> tuple[np.ndarray, np.ndarray]:
-        """The M-step's extra residuals, sigma units: per mixture frame the prior shares' divergence,
-        sign(p - gamma) sqrt(2 KL(gamma || p)), then the levels' spread, sqrt(w (s_new - s_prev)^2
-        gamma (1 - gamma)) times the term's offset at the frame, u then v (`solve`'s penalty), with
-        their weights' square roots (for `jacobian`)."""
+        """The M-step's extra residuals, sigma units: per mixture frame the prior shares' divergence
+        (`_kl_rows`), then the levels' spread, sqrt(w (s_new - s_prev)^2 Var(h)) times the term's
+        offset at the frame, u then v (`solve`'s penalty)."""
         kl, pen = [], []
         for name in ("tip", "motor"):
             mx = ev.state.get(name + "_mix")
             if mx is None:
                 continue
-            kl.append(_kl_row(mx["gamma"], mx["p"]))
-            g = mx["gamma"]
+            kl += [r for r, _ in self._kl_rows(mx)]
             du, dv = self.reg_offset(ev, name)
             j, c = mx["j"], mx["spread"]
             F = self.rec.t_f.size
             pen += [-np.sqrt(c * self.w[j]) * du[j] / sigma, -np.sqrt(c * self.w[F + j]) * dv[j] / sigma]
         cat = (lambda xs: np.concatenate(xs) if xs else np.zeros(0))
         return cat(kl), cat(pen)
+
+    @staticmethod
+    def _kl_rows(mx: dict) -> list:
+        """The timing rows of a term's mixture frames and their derivatives over (since, L, D):
+        [(row (K,), d row / d (since, L, D) (3, K))]. Their squares sum to 2 KL(gamma || p) over the
+        levels, split by the chain rule (new or not; then old or mid slide, weighted by 1 - gamma_new):
+        each a signed square root, smooth through its minimum (module doc)."""
+        g, pn = mx["gamma"], mx["p_new"]
+        r1, d1 = _kl_row_grad(g, pn, mx["free_new"])
+        rows = [(r1, d1 * mx["dp_new"])]
+        if mx["D"] > 0.0:
+            po, rest = mx["p_old"], 1.0 - pn
+            cp_raw = po / rest
+            cp = np.clip(cp_raw, EPS_SHARE, 1.0 - EPS_SHARE)
+            w = np.sqrt(np.maximum(1.0 - g, 0.0))
+            cg = np.clip((1.0 - g - mx["gamma_mid"]) / np.maximum(1.0 - g, 1e-300), 0.0, 1.0)
+            r2, d2 = _kl_row_grad(cg, cp, (cp_raw > EPS_SHARE) & (cp_raw < 1.0 - EPS_SHARE))
+            dcp = (np.where(mx["free_old"], 1.0, 0.0) * mx["dp_old"] * rest
+                   + po * np.where(mx["free_new"], 1.0, 0.0) * mx["dp_new"]) / rest ** 2
+            rows.append((w * r2, w * d2 * dcp))
+        return rows
 
     def shared_columns(self, cols: dict) -> list:
         """The columns whose coefficient both image axes share, as (u, v) pairs of (F,): the tip
@@ -633,26 +766,32 @@ class RecordModel:
         sj = self.scales(ev, sigma)
         r = ev.resid.copy()
         F = self.rec.t_f.size
-        for name, j, (nu, nv), (ou, ov) in self._branches(ev):
-            g = ev.state[name + "_mix"]["gamma"]
-            r[j] = np.where(g > 0.5, nu, ou)  # the likelier level's residual sets a mixture frame's weight
-            r[F + j] = np.where(g > 0.5, nv, ov)
+        for name, j, lv in self._branches(ev):
+            mx = ev.state[name + "_mix"]
+            g, gm = mx["gamma"], mx["gamma_mid"]
+            # the likelier level's residual sets a mixture frame's weight
+            best = np.argmax(np.vstack([1.0 - g - gm, g, gm]), axis=0)
+            for ax in range(2):
+                r[ax * F + j] = np.choose(best, [lv["old"][ax], lv["new"][ax], lv["mid"][ax]])
         return huber_weights(r, sj) * (sigma / sj) ** 2
 
     def _branches(self, ev: "Eval"):
-        """Per switch term with mixture frames: (name, frames j, the residuals (u, v) at the new level,
-        at the old level), from the expected-sign residuals."""
+        """Per switch term with mixture frames: (name, frames j, {"old", "new", "mid": the residuals
+        (u, v) at that level}), from the expected-sign residuals; "mid" at the E-step's h_mid."""
         F = self.rec.t_f.size
         out = []
         for name in ("tip", "motor"):
             mx = ev.state.get(name + "_mix")
             if mx is None:
                 continue
-            j, g, ds = mx["j"], mx["gamma"], mx["ds"]
+            j, ds = mx["j"], mx["ds"]
+            hbar = mx["gamma"] + mx["gamma_mid"] * mx["h_mid"]
             du, dv = self.reg_offset(ev, name)
             ru, rv = ev.resid[j], ev.resid[F + j]
-            out.append((name, j, (ru - (1 - g) * ds * du[j], rv - (1 - g) * ds * dv[j]),
-                        (ru + g * ds * du[j], rv + g * ds * dv[j])))
+            lv = {}
+            for lvl, h in (("new", 1.0), ("old", 0.0), ("mid", mx["h_mid"])):
+                lv[lvl] = (ru - (h - hbar) * ds * du[j], rv - (h - hbar) * ds * dv[j])
+            out.append((name, j, lv))
         return out
 
     def objective(self, ev: "Eval", sigma: float) -> float:
@@ -662,12 +801,17 @@ class RecordModel:
         rho = huber_rho(ev.resid, sj)
         F = self.rec.t_f.size
         out = 2.0 * float(np.sum(rho)) + 2.0 * float(np.sum(np.log(sj / sigma)))
-        for name, j, (nu, nv), (ou, ov) in self._branches(ev):
-            # a mixture frame: -2 ln(p e^-rho_new + (1 - p) e^-rho_old) in place of its expected-sign loss
-            p = ev.state[name + "_mix"]["p"]
-            a = np.log(p) - huber_rho(nu, sigma) - huber_rho(nv, sigma)
-            b = np.log1p(-p) - huber_rho(ou, sigma) - huber_rho(ov, sigma)
-            out += float(np.sum(-2.0 * np.logaddexp(a, b) - 2.0 * (rho[j] + rho[F + j])))
+        for name, j, lv in self._branches(ev):
+            # a mixture frame: -2 ln(sum over levels of p e^-rho) in place of its expected-sign loss
+            mx = ev.state[name + "_mix"]
+            a = [np.log(mx["p_new"]) - huber_rho(lv["new"][0], sigma) - huber_rho(lv["new"][1], sigma),
+                 np.log(mx["p_old"]) - huber_rho(lv["old"][0], sigma) - huber_rho(lv["old"][1], sigma)]
+            if mx["D"] > 0.0:
+                ds = mx["ds"]
+                du, dv = self.reg_offset(ev, name)
+                ln_mid = _mid_level(*lv["old"], ds * du[j], ds * dv[j], sigma)[1]
+                a.append(np.log(np.maximum(1.0 - mx["p_new"] - mx["p_old"], 1e-300)) + ln_mid)
+            out += float(np.sum(-2.0 * np.logaddexp.reduce(np.vstack(a), axis=0) - 2.0 * (rho[j] + rho[F + j])))
         return out
 
     def mix_block(self, name: str) -> int:
@@ -822,20 +966,23 @@ class RecordModel:
         ramps = {}
         for name, val in reg.items():
             t_ev, s_ev, s_prev, L = st[name][1:5]
+            Lw = L + st[name][6]  # the stand-in's window: lag and longest slide
             if t_ev.size == 0:  # no switch at this theta (a B no swing takes up): nothing moves with tau
                 continue
             e = np.searchsorted(t_ev, tau, side="right") - 1
             e0 = np.maximum(e, 0)
-            inr = (e >= 0) & (tau < t_ev[e0] + L)
+            inr = (e >= 0) & (tau < t_ev[e0] + Lw)
             if name + "_mix" in st:  # a mixture frame's sign is the E-step's: its timing is in the KL rows
                 inr[st[name + "_mix"]["j"]] = False
-            dS = np.where(inr, (s_ev[e0] - s_prev[e0]) / L, 0.0)     # dS / dtau inside a switch
+            dS = np.where(inr, (s_ev[e0] - s_prev[e0]) / Lw, 0.0)     # dS / dtau inside a switch
             Gu[:, 0] -= dS * val[0]
             Gv[:, 0] -= dS * val[1]
-            i = lay["lag_" + name].start
-            dL = -dS * np.where(inr, tau - t_ev[e0], 0.0) / L * self.lag_map(th[i])[1]  # dS / d theta_i
-            Gu[:, i] = dL * val[0]
-            Gv[:, i] = dL * val[1]
+            dW = -dS * np.where(inr, tau - t_ev[e0], 0.0) / Lw  # dS / d(the window)
+            for part, dmap in (("lag_", self.lag_map), ("slide_", self.slide_map)):
+                if part + name in lay:
+                    i = lay[part + name].start
+                    Gu[:, i] = dW * dmap(th[i])[1] * val[0]
+                    Gv[:, i] = dW * dmap(th[i])[1] * val[1]
             ramps[name] = (e, inr, dS)
         # B's coefficients: through z at each frame (the last drag), and the tip switch's onsets
         drag = (z == st["lo"]) | (z == st["hi"])
@@ -885,9 +1032,10 @@ class RecordModel:
         return np.vstack([J] + self._mix_jacobian(th, ev, sigma))
 
     def _mix_jacobian(self, th: np.ndarray, ev: "Eval", sigma: float) -> list:
-        """The rows of `mix_rows` over theta: the divergences through p = (tau - t_switch) / L (the
-        delay moves tau, B the tip's onsets, the lag L), the spread's rows through the rotation's
-        projection (Kaufman's, as `jacobian`)."""
+        """The rows of `mix_rows` over theta: the divergences through the shares' time since the
+        switch's window opened (the delay moves tau, B the tip's onsets), the lag L and the longest
+        slide D (`_kl_rows`); the spread's rows through the rotation's projection (Kaufman's, as
+        `jacobian`)."""
         rec, st = self.rec, ev.state
         cB = self.unpack(th)[1]
         lay = self.layout()
@@ -898,28 +1046,26 @@ class RecordModel:
             mx = st.get(name + "_mix")
             if mx is None:
                 continue
-            g, pp, free, L, since = mx["gamma"], mx["p"], mx["free"], mx["L"], mx["since"]
-            rr = _kl_row(g, pp)
-            slope = (pp - g) / (pp * (1 - pp))           # d KL / d p
-            big = np.abs(rr) > 1e-6
-            drdp = np.where(big, slope / np.where(big, rr, 1.0), 1.0 / np.sqrt(pp * (1 - pp)))
-            drdp = np.where(free, drdp, 0.0)
-            Jk = np.zeros((g.size, th.size))
-            if self.d_fixed is None:
-                Jk[:, 0] = -drdp / L                      # tau = t_f - d
-            i = lay["lag_" + name].start
-            Jk[:, i] = -drdp * since / L ** 2 * self.lag_map(th[i])[1]
+            dton = None
             if name == "tip":
                 t_on = ev.t_on
                 rev = mx["rev"]
                 ok = np.isfinite(t_on[rev])
                 if ok.any():
-                    z, lo, hi = st["z"], st["lo"], st["hi"]
                     u_rev, inv = np.unique(rev[ok], return_inverse=True)
-                    dton = self.onset_gradient(cB, z, lo, hi, t_on[u_rev], rec.s_new[u_rev])
-                    sl_b = slice(1, 1 + self.n_b)
-                    Jk[np.flatnonzero(ok), sl_b] = (-drdp[ok] / L)[:, None] * dton[inv]
-            kl.append(Jk)
+                    dton = self.onset_gradient(cB, st["z"], st["lo"], st["hi"], t_on[u_rev], rec.s_new[u_rev])[inv]
+            for _, dr in self._kl_rows(mx):
+                Jk = np.zeros((dr.shape[1], th.size))
+                if self.d_fixed is None:
+                    Jk[:, 0] = -dr[0]                      # since = t_f - d - t_switch
+                i = lay["lag_" + name].start
+                Jk[:, i] = dr[1] * self.lag_map(th[i])[1]
+                if "slide_" + name in lay:
+                    i = lay["slide_" + name].start
+                    Jk[:, i] = dr[2] * self.slide_map(th[i])[1]
+                if dton is not None:                       # the tip's switch starts at its onset
+                    Jk[np.flatnonzero(ok), 1:1 + self.n_b] = -dr[0][ok][:, None] * dton
+                kl.append(Jk)
             j, c = mx["j"], mx["spread"]
             a = slice(2 * p + self.mix_block(name), 2 * p + self.mix_block(name) + N_REG)
             Xa = self._X[a]                                # d rotation / d theta = -Xa (Kaufman)
@@ -1014,7 +1160,7 @@ def _steps(m: RecordModel, th: np.ndarray) -> np.ndarray:
     h = [rec.period_s / 16] + [hb] * m.n_b
     if m.terms.ring:
         h += [0.01, 0.01]
-    h += [0.05] * (m.terms.reg_tip + m.terms.reg_motor)
+    h += [0.05] * (m.terms.reg_tip + m.terms.reg_motor + m.terms.slide_tip + m.terms.slide_motor)
     return np.array(h)
 
 
@@ -1371,7 +1517,7 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
            {"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])}]
     while True:
         jobs = []
-        for name in (n for n in TERMS if not getattr(terms, n)):
+        for name in terms.offered():
             mt = RecordModel(rec, n_b, n_g, terms.with_(name), prior, d_fixed, width_at)
             parts = m.parts(fit.theta)
             # from the fit so far, and from each delay start (the coarse and the configured one) at
@@ -1394,7 +1540,7 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
                     d_s, b_s = st[(name,)]
                     th0s.append(mt.theta({**parts, "d": np.array([d_s]), "B": np.full(n_b, b_s)}))
             jobs += [([mt], th0, sigma, 8, 1, name) for th0 in th0s]
-            if name != "ring" and n_b > 1:  # and coarse to fine from the start profiled with it (`_fit_chain`)
+            if name.startswith("reg_") and n_b > 1:  # and coarse to fine from the start profiled with it (`_fit_chain`)
                 d_s, b_s = st.get((name,), (starts[-1], b0))
                 ms = chain(terms.with_(name), [n for n in ladder if n < n_b], width_at) + [mt]
                 for mc in ms:
