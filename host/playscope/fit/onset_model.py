@@ -50,6 +50,21 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
           BIC scores the frame's marginal likelihood, -2 ln(p e^-rho_new + (1 - p) e^-rho_old).
           Before a model's first E-step (the start's scoring), the frame has the Gaussian stand-in:
           the expected share p as its mean (a linear ramp), p (1 - p) J^2 added to its variance.
+          The slide: a registration that comes from the instrument settling in its channel, or a
+          camera mount that gives way, moves over tens of ms rather than stepping, so a frame can
+          show it mid way, between the two levels, where the two-point mixture can only call it an
+          outlier of both and its timing follows whichever level is nearer (16 % off in B on a
+          channel rendering). A switch term slide_tip / slide_motor (entering, as every term, by the
+          BIC, only onto its switch) lets the switch, started at u ~ U(0, L), slide for a duration
+          ~ U(0, D), D fitted (up to half the shortest interval between reversals: a slide is over
+          before the next reversal can start the next one): the shares of frames still at the old
+          level, u >= since, and already at the new one, u + duration <= since, are closed-form
+          (`_switch_shares`; D = 0 gives the stepped switch's), and the rest are mid slide, at a
+          level h in (0, 1) of their own whose likelihood is integrated over h (`_mid_level`:
+          uniform in h, Gaussian along the jump, the Occam factor that keeps a frame at either
+          level from reading as mid slide). The E-step then shares a frame among three levels, the
+          M-step's expected sign and second moment are the three-level ones, and the timing rows
+          split 2 KL(gamma || p) by the chain rule into new-or-not and old-or-mid (`_kl_rows`).
   e_j     Huber noise (k = 1.345 sigma_j, 95 % efficiency at the Gaussian; Huber 1964), sigma_j^2
           = sigma^2 (the record's model-free noise; plus the stand-in's share variance above), by
           iteratively reweighted least squares.
@@ -418,6 +433,11 @@ class RecordModel:
         T = self.rec.period_s
         e = float(expit(x))
         return T / 20 + (T - T / 20) * e, (T - T / 20) * e * (1.0 - e)
+
+    def lag_x(self, L: float) -> float:
+        """A switch lag's part of theta for the lag L s (the inverse of `lag_map`, clipped)."""
+        T = self.rec.period_s
+        return float(logit(np.clip((L - T / 20) / (T - T / 20), 1e-3, 1 - 1e-3)))
 
     def slide_map(self, x: float) -> tuple[float, float]:
         """(D s, dD/dx) for a slide's part of theta x: the longest slide D in [T / 20, slide_max_s]."""
@@ -1323,6 +1343,28 @@ def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarr
     return {k: v[1:] for k, v in best.items()}, G_CTRL[int(np.argmin(bics))]
 
 
+SLIDE_GRID = ((0.25, 0.5, 1.0), (0.25, 1.0, 2.0))  # a slide's start grid: lags, longest slides (frame periods)
+
+
+def _slide_starts(m: RecordModel, name: str, parts: dict, sigma: float, keep: int = 2) -> list:
+    """Starts (theta) for the switch name's slide ("tip" or "motor") from the fit so far's parts: its
+    lag L and longest slide D on SLIDE_GRID (D within its range), the keep lowest by the settled
+    robust objective. Why a grid: L and D trade against each other (a late start with a short slide
+    against an early one with a long slide), and from the middle of both ranges LM stopped in the
+    wrong one (a 15 s channel rendering: L at its floor, B 4.8 % off, BIC 839; from the renderer's L
+    and D, BIC 673 and B 0.5 % off)."""
+    T = m.rec.period_s
+    out = []
+    for L in SLIDE_GRID[0]:
+        for D in SLIDE_GRID[1]:
+            if D * T > m.slide_max_s:
+                continue
+            th = m.theta({**parts, "lag_" + name: np.array([m.lag_x(L * T)]), "slide_" + name: np.array([m.slide_x(D * T)])})
+            out.append((_settle(m, th, sigma)[1], th))
+    out.sort(key=lambda c: c[0])
+    return [th for _, th in out[:keep]]
+
+
 def _ring_start(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
     """The tip mode's start for model m (with the ring term) from the other parts of theta: the
     frequency (0.25 Hz steps, RING_HZ_LO to RING_NYQUIST fps, damping ratio 0.1) with the lowest
@@ -1533,6 +1575,9 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
                                                    starts, widths, slope, sigma):
                         ms = chain(terms.with_(name), [n for n in ladder if n < n_b], width_at) + [mt]
                         jobs.append((ms, ms[0].theta(p), sigma, 20, 2, name))
+            elif name.startswith("slide_"):
+                mt.slope = m.slope
+                th0s = _slide_starts(mt, name[6:], parts, sigma)
             else:
                 mt.slope = m.slope
                 th0s = [mt.theta(p) for p in [parts] + bases]

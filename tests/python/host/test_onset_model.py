@@ -67,7 +67,8 @@ def test_noise_sigma_recovers_white_noise_on_a_slow_record():
 
 @pytest.mark.parametrize("terms,width_at", [((), "input"), ((), "output"), (("reg_tip", "reg_motor"), "input"),
                                              (("reg_tip", "reg_motor"), "output"), (("ring",), "input"),
-                                             (("reg_tip", "reg_motor", "mix"), "input")])
+                                             (("reg_tip", "reg_motor", "mix"), "input"),
+                                             (("reg_tip", "slide_tip", "reg_motor", "slide_motor", "mix"), "input")])
 def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
     # Kaufman's variable-projection Jacobian against the projected residual's forward differences
     # (which re-solve the linear parameters): the gradient J'r, what the fit follows, and each
@@ -103,6 +104,49 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
         for i in range(1 + m.n_b):
             # measured 0.98..1.0; the ring's B columns 0.989..0.9998 (0.93..0.97 without its drive through B)
             assert cos(Ja[:, i], Jf[:, i]) > (0.975 if terms else 0.95)
+
+
+def test_the_switchs_level_shares_are_those_of_a_uniform_start_and_a_uniform_slide():
+    # Monte Carlo of the switch the shares assume (start u ~ U(0, L), duration ~ U(0, D)), apart from
+    # the closed form: the share still at the old level and the share already at the new one, with
+    # the stepped switch (D = 0) as p = since / L; and their derivatives against central differences
+    rng = np.random.default_rng(5)
+    L, D = 0.03, 0.025
+    u, dur = rng.uniform(0, L, 200_000), rng.uniform(0, D, 200_000)
+    since = np.linspace(-0.0093, 0.0707, 17)  # off the kinks at 0, D, L and L + D
+    p_old, p_new, dp_old, dp_new = OM._switch_shares(since, L, D)
+    mc_old = np.array([(u >= s).mean() for s in since])
+    mc_new = np.array([(u + dur <= s).mean() for s in since])
+    assert np.abs(p_old - mc_old).max() < 4e-3 and np.abs(p_new - mc_new).max() < 4e-3  # MC sd <= 1.1e-3
+    assert np.allclose(OM._switch_shares(since, L, 0.0)[1], np.clip(since / L, 0, 1))
+    h = 1e-6
+    for k, (a, b) in enumerate([((since + h, L, D), (since - h, L, D)), ((since, L + h, D), (since, L - h, D)),
+                                ((since, L, D + h), (since, L, D - h))]):
+        up, dn = OM._switch_shares(*a), OM._switch_shares(*b)
+        for i, dp in ((0, dp_old), (1, dp_new)):
+            assert np.allclose((up[i] - dn[i]) / (2 * h), dp[k], rtol=1e-6, atol=1e-6)
+
+
+def test_the_mid_slide_levels_likelihood_is_the_integral_over_its_level():
+    # ln of the integral over h in [0, 1] of e^-rho(ro - h J), rho Huber per axis, by quadrature. The
+    # level is the least squares one clipped into [0, 1]; along the jump the loss is taken Gaussian,
+    # whose tails are lighter than Huber's linear ones: measured 0.05-0.10 low in ln (5-10 % of the
+    # integral) within the slide, and far lower beyond its end, so a frame past either level never
+    # reads as mid slide more than the Huber loss says
+    from scipy.integrate import quad
+
+    sigma = 0.15
+    J = np.array([30.0, -8.0])
+    for h_true, off in ((0.4, (0.1, 0.2)), (0.0, (0.05, -0.1)), (0.97, (0.0, 0.0)), (1.3, (0.1, 0.1))):
+        ro = h_true * J + np.array(off)
+        h, ln_int = OM._mid_level(np.array([ro[0]]), np.array([ro[1]]), np.array([J[0]]), np.array([J[1]]), sigma)
+        f = lambda x: np.exp(-(OM.huber_rho(ro[0] - x * J[0], sigma) + OM.huber_rho(ro[1] - x * J[1], sigma)))  # noqa: E731
+        ref = quad(f, 0.0, 1.0, points=[min(max(h_true, 0.0), 1.0)], epsabs=0.0, epsrel=1e-10, limit=200)[0]
+        assert h[0] == pytest.approx(np.clip(h_true + np.dot(off, J) / np.dot(J, J), 0.0, 1.0), abs=1e-9)
+        if h_true <= 1.0:
+            assert np.log(ref) - 0.2 < ln_int[0] <= np.log(ref)
+        else:
+            assert ln_int[0] < np.log(ref) - 10.0
 
 
 @pytest.mark.parametrize("width_at", OM.WIDTH_AT)
