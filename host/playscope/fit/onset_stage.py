@@ -74,6 +74,7 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     sm = OM.samples(fit)
     m = fit.model
     lag, _, ring, lags = m.unpack(fit.theta)
+    slides = m.slides(fit.theta)  # each switch's longest slide, s (0: it steps)
     d = sm.t_delay_s  # the delay to the exposure's end (onset_model's doc: the exposure)
     held = m.d_fixed is not None
     se = sm.t_delay_se_s
@@ -113,7 +114,7 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
             reg[name] = {"jump_px": [2 * float(np.median(du)), 2 * float(np.median(dv))],
                          "jump_px_range": [2 * float(np.min(np.hypot(du, dv))), 2 * float(np.max(np.hypot(du, dv)))],
                          "half_switch_deg_about_xyz": [float(np.degrees(a)) for a in beta[k:k + OM.N_REG]],
-                         "switch_lag_s": lags[name], "along_path": along}
+                         "switch_lag_s": lags[name], "slide_s": slides[name], "along_path": along}
     report = {
         "method": "one model of the record (playscope.fit.onset_model)",
         "board_reasons": board.reasons, "board_threshold": rule,

@@ -229,6 +229,36 @@ def test_a_registration_that_switches_with_the_tip_leaves_B_within_5_percent(reg
     assert _b_error_pct(r, rob.onsets) < 5.0
 
 
+def test_a_slide_is_offered_only_onto_its_own_switch():
+    assert OM.Terms().offered() == ["ring", "reg_tip", "reg_motor"]
+    assert OM.Terms(reg_tip=True).offered() == ["ring", "reg_motor", "slide_tip"]
+    assert OM.Terms(reg_tip=True, reg_motor=True, slide_tip=True).offered() == ["ring", "slide_motor"]
+
+
+def test_a_registration_that_slides_is_fitted_as_a_slide_with_its_duration_and_B():
+    # marker_render's `channel` form (written apart from the estimator): the instrument slides in its
+    # channel for U(0, 40 ms) starting U(0, T) after the tip reverses, seen through an 8 ms exposure.
+    # From the stepped switch's fit, the slide's grid start and fit: measured BIC 674 against the
+    # stepped switch's 2250, B 0.64 % off (constant width), the longest slide 50 ms (the renderer's
+    # 40 ms plus its exposure)
+    MR = _bench_module("marker_render")
+    sc = MR.Scene(seed=3, B_kind="fig7", speed=4.0, duration=15.0, fps=25.0, form="channel", size_deg=2.0, noise_px=0.15)
+    d = MR.render(sc)
+    t, q = d["t_enc"], d["q"]
+    rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], np.column_stack([d["u"], d["v"]]), sc.fps, (360.0, 288.0), 600.0)
+    prior = (sc.t_delay_config, rec.period_s / np.sqrt(12))
+    sig = OM.noise_sigma(rec.obs)
+    step = OM.RecordModel(rec, 1, 10, OM.Terms(reg_tip=True), prior)
+    fs = OM.fit_model(step, step.theta({"d": np.array([sc.t_delay_true]), "B": np.array([1.1 * sc.B(0.0)])}), sigma=sig)
+    slide = OM.RecordModel(rec, 1, 10, OM.Terms(reg_tip=True, slide_tip=True), prior)
+    fits = [OM.fit_model(slide, th, sigma=sig) for th in OM._slide_starts(slide, "tip", step.parts(fs.theta), sig)]
+    f = min(fits, key=lambda f: f.bic(sig))
+    assert f.bic(sig) < fs.bic(sig) - 500
+    assert slide.unpack(f.theta)[1][0] == pytest.approx(sc.B(0.0), rel=0.02)
+    assert 0.035 < slide.slides(f.theta)["tip"] < 0.065
+
+
 def test_a_fit_whose_jacobian_goes_non_finite_keeps_a_finite_theta(monkeypatch):
     # A switch's scale gone to 0 once gave a NaN Jacobian, LM a NaN step and the next evaluation
     # a ValueError deep in the B-spline basis; the fit must instead stay where it was.
