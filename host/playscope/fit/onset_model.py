@@ -1603,29 +1603,39 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
         fit = fit_model(m, f.theta, sigma=sigma)  # from the trial, so at worst the trial again
         bic = fit.bic(sigma)
         log.append({"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])})
-    if terms.names() and len(ladder) > 1:
-        # B's size and where it is read once more, now with the terms: chosen on the plain model, a
-        # strong term it lacks (a switch of tens of px) can leave every size alike and the smallest
-        # wins (a 4-coefficient B 17.8 % off a registration record's stras B); each other one is
-        # fitted from the final fit, B resampled (`_resample_B`), and scored by the same BIC
-        jobs = []
-        for n in ladder:
-            for w in WIDTH_AT:
-                if (n, w) == (n_b, width_at):
-                    continue
-                mb = RecordModel(rec, n, n_g, terms, prior, d_fixed, w)
-                mb.slope = fit.model.slope
-                parts = fit.model.parts(fit.theta)
-                parts["B"] = _resample_B(fit.model, fit.model.unpack(fit.theta)[1], mb)
-                jobs.append(([mb], mb.theta(parts), sigma, 20, IRLS_ROUNDS))
-        alts = [fs[-1] for fs in _fit_all(jobs, _fit_chain)]
-        log.append({"B_ctrl_with_terms": {f"{f.model.n_b} {f.model.width_at}": f.bic(sigma) for f in alts}})
-        best = min(alts, key=lambda f: f.bic(sigma))
-        if best.bic(sigma) < bic:
-            fit, bic, n_b, width_at = best, best.bic(sigma), best.model.n_b, best.model.width_at
-            log.append({"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0]), "B_ctrl": n_b,
-                        "B_read_at": width_at})
+        if len(ladder) > 1:
+            fit, bic, n_b, width_at = _resize(fit, bic, ladder, sigma, log)
+            m = fit.model
     return fit, {"steps": log, "sigma_px": sigma, "n_b": n_b, "n_g": n_g, "width_at": width_at}
+
+
+def _resize(fit: Fit, bic: float, ladder: list, sigma: float, log: list) -> tuple:
+    """B's size and where it is read once more, with the terms the search has so far: chosen on the
+    plain model, a strong term it lacks (a switch of tens of px) can leave every size alike and the
+    smallest wins (a 4-coefficient B 17.8 % off a registration record's stras B), and the next terms
+    are then chosen to mend the coarse B (s4-marker-044 of LOCKBOX4_300: a motor switch and two
+    slides at 4 coefficients, BIC 19,913 once resized to 16, where the tip's switch and its slide
+    alone reach 8,347 at 16). So after each term enters, each other size is fitted from the fit so
+    far, B resampled (`_resample_B`), and scored by the same BIC. Returns (fit, bic, n_b, width_at)."""
+    m = fit.model
+    jobs = []
+    for n in ladder:
+        for w in WIDTH_AT:
+            if (n, w) == (m.n_b, m.width_at):
+                continue
+            mb = RecordModel(m.rec, n, m.n_g, m.terms, m.prior, m.d_fixed, w)
+            mb.slope = m.slope
+            parts = m.parts(fit.theta)
+            parts["B"] = _resample_B(m, m.unpack(fit.theta)[1], mb)
+            jobs.append(([mb], mb.theta(parts), sigma, 20, IRLS_ROUNDS))
+    alts = [fs[-1] for fs in _fit_all(jobs, _fit_chain)]
+    log.append({"B_ctrl_with_terms": {f"{f.model.n_b} {f.model.width_at}": f.bic(sigma) for f in alts}})
+    best = min(alts, key=lambda f: f.bic(sigma))
+    if best.bic(sigma) < bic:
+        fit, bic = best, best.bic(sigma)
+        log.append({"terms": fit.model.terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0]),
+                    "B_ctrl": fit.model.n_b, "B_read_at": fit.model.width_at})
+    return fit, bic, fit.model.n_b, fit.model.width_at
 
 
 # --------------------------------------------------------------------------- samples
