@@ -60,7 +60,8 @@ FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_1
               "lockbox_a": lambda c: c.LOCKBOX_A, "lockbox_b": lambda c: c.LOCKBOX_B,
               "lockbox_c": lambda c: c.LOCKBOX_C, "lockbox4": lambda c: c.LOCKBOX4_300,
               "lockbox4_a": lambda c: c.LOCKBOX4_A, "lockbox4_b": lambda c: c.LOCKBOX4_B,
-              "lockbox4_c": lambda c: c.LOCKBOX4_C, "lockbox5": lambda c: c.LOCKBOX5_300}
+              "lockbox4_c": lambda c: c.LOCKBOX4_C, "lockbox5": lambda c: c.LOCKBOX5_300,
+              "lockbox5_a": lambda c: c.LOCKBOX5_A}
 
 
 def _rows(group: str) -> list:
