@@ -152,7 +152,10 @@ def fit_onset_transition(ctx: Context, train=None) -> Member:
     scaled = ch.get("thresholds") == "B-proportional"
     r = T.thresholds(n, span) if n > 1 else np.zeros(1)
     P = ctx.data.ops_at_frames(r, kb, scaled)
-    w, f, sign, _ = T.fit_weights(P[train], ctx.data.c[train], nc, v_max=T.v_max_for_table(ctx.data, kb, n, scaled))
+    # Warm start: the model choice's cross-validation fitted this candidate on these very folds.
+    v0 = T.cv_start(ctx.data, (kb, n, span, nc, scaled), train)
+    w, f, sign, _ = T.fit_weights(P[train], ctx.data.c[train], nc, v0=v0,
+                                  v_max=T.v_max_for_table(ctx.data, kb, n, scaled))
     keep = (w > 0) | (np.arange(n) == 0)
     tmap = ctx.data.threshold_map() if scaled and n > 1 else None
     y = P[train] @ w

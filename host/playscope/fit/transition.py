@@ -445,6 +445,9 @@ class _SplineProjection:
 
     def __init__(self, P: np.ndarray, c: np.ndarray, n_ctrl: int, smooth: float):
         self.P, self.c, self.n_ctrl, self.smooth = P, c, n_ctrl, smooth
+        # dy/dv as one contiguous block: the Jacobian scales it by f'(y) at every step, and the
+        # strided view P[:, 1:] took twice as long for the same products.
+        self.dy_dv = np.ascontiguousarray(P[:, 1:])
         D = np.diff(np.eye(n_ctrl), 2, axis=0)
         self.DtD = D.T @ D
         self._key, self._val = None, None
@@ -472,17 +475,77 @@ class _SplineProjection:
         A, _, coef, _, _ = self._solve(x)
         return A @ coef - self.c
 
-    def jac(self, x):
+    def jac(self, x, out: np.ndarray | None = None):
+        """J (F, n-1) at x; into out (F, n-1), any strides, when given (the same values)."""
         from scipy.interpolate import BSpline
 
-        # f'(y) here, not in _solve: the trust region rejects a third of its trial points, and
-        # those only need the residual.
+        # f'(y) here, not in _solve: a caller that needs only the residual does not pay for it
+        # (fit_weights' _CompressedProjection needs both at every trial point).
         A, cho, coef, t, yc = self._solve(x)
-        slope = BSpline(t, coef, 3).derivative()(yc)
-        G = slope[:, None] * self.P[:, 1:]
+        der = BSpline(t, coef, 3).derivative()
+        # scipy's evaluation in C when compiled (kernels.bspline_eval, bit for bit): 40 % faster
+        # on 38,000 frames, once per trust-region step.
+        slope = kernels.bspline_eval(yc, der.t, der.c, der.k) if kernels.available() else der(yc)
+        G = np.multiply(slope[:, None], self.dy_dv, out=out)
         # cho_solve returns a Fortran-ordered (n_ctrl, n-1) block, and numpy's A @ X does not
         # reach BLAS for that layout (~50x slower at F = 3000 frames: it was half of calibrate).
-        return G - A @ np.ascontiguousarray(cho_solve(cho, A.T @ G))
+        return np.subtract(G, A @ np.ascontiguousarray(cho_solve(cho, A.T @ G)), out=G)
+
+
+# Rows of the first level's blocks in tall_skinny_r: a block of 512 x 16 doubles (64 KiB) stays
+# in cache while its Householder reflectors sweep it.
+TSQR_BLOCK = 512
+
+
+def tall_skinny_r(H: np.ndarray, block: int = TSQR_BLOCK) -> np.ndarray:
+    """R of H = Q R (Householder QR, Q never formed) for a tall-thin H (m, n), m >> n: each block of
+    rows is reduced to its n x n R, then the stacked R's (and the rows left over) once more
+    (Demmel et al. 2012, "Communication-optimal parallel and sequential QR", SIAM J. Sci.
+    Comput. 34(1): the tall-skinny QR). R^T R = H^T H as a QR of the whole H gives it, to
+    rounding, with a QR's backward stability (no Gram matrix is formed); R's rows may differ in
+    sign from another QR's. LAPACK's unblocked QR of a 38,000 x 16 matrix sweeps it from memory
+    once per column: this is 2-3 times faster. Returns R (min(m, n), n), upper triangular."""
+    H = np.asarray(H, float)
+    m, n = H.shape
+    k = m // block
+    if k < 2 or block <= n:
+        return np.linalg.qr(H, mode="r")
+    R1 = np.linalg.qr(H[: k * block].reshape(k, block, n), mode="r")  # (k, n, n), one per block
+    return np.linalg.qr(np.concatenate([R1.reshape(k * n, n), H[k * block:]]), mode="r")
+
+
+class _CompressedProjection:
+    """The variable-projection problem of _SplineProjection handed to the trust region in n + 1
+    rows instead of F (F frames, n weights): at each x, R = tall_skinny_r([J f]) (J (F, n) the
+    Jacobian, f (F,) the residual) gives r = R[:, n] and K = R[:, :n] with
+    K^T K = J^T J, K^T r = J^T f and r^T r = f^T f. Every quantity scipy's bounded trust region
+    ("trf", tr_solver "exact") computes from (f, J) is one of these (the cost, the gradient,
+    the SVD's singular values, right vectors and U^T f, the predicted reduction |J p|^2 +
+    2 g^T p), so its steps and its stopping are those of the F-row problem, in exact arithmetic;
+    in floating point they differ by rounding. What it saves: the SVD of the F x n Jacobian per
+    step (half of a fit's time at F = 20,000-40,000 frames) becomes a QR of F x (n + 1) and an
+    SVD of (n + 1) x n. The price: J is computed at every trial point, rejected ones too
+    (under a tenth of them on the 1-hour log's fits)."""
+
+    def __init__(self, vp: _SplineProjection):
+        self.vp = vp
+        self._key, self._val = None, None
+
+    def _eval(self, x: np.ndarray):
+        key = x.tobytes()
+        if key != self._key:
+            H = np.empty((self.vp.c.size, self.vp.dy_dv.shape[1] + 1))
+            self.vp.jac(x, out=H[:, :-1])
+            H[:, -1] = self.vp.resid(x)
+            R = tall_skinny_r(H)
+            self._key, self._val = key, (np.ascontiguousarray(R[:, -1]), np.ascontiguousarray(R[:, :-1]))
+        return self._val
+
+    def resid(self, x):
+        return self._eval(x)[0]
+
+    def jac(self, x):
+        return self._eval(x)[1]
 
 
 def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 1e-3, robust_f: bool = True,
@@ -516,9 +579,12 @@ def fit_weights(P: np.ndarray, c: np.ndarray, n_ctrl: int = 14, smooth: float = 
         # by more than 1.3e-6 (relative). tr_solver "exact" (an SVD of the F x (n-1) Jacobian per
         # step): "lsmr"'s inexact steps stalled short of the optimum on some folds (RMSE up to
         # 60 % above exact's); exact took 3.1 s CPU for the 111 fits against lsmr's 4.9, on one
-        # BLAS thread. Threaded (2 cores, both busy) the same fits took 6.9 s wall.
+        # BLAS thread. Threaded (2 cores, both busy) the same fits took 6.9 s wall. The exact
+        # solver's SVD is of the (n) x (n-1) compressed problem (_CompressedProjection), not of
+        # the F x (n-1) Jacobian.
         with _blas_controller().limit(limits=1, user_api="blas"):
-            v[1:] = least_squares(vp.resid, x0, jac=vp.jac, bounds=(0.0, v_max), ftol=1e-6, xtol=1e-5,
+            cp = _CompressedProjection(vp)
+            v[1:] = least_squares(cp.resid, x0, jac=cp.jac, bounds=(0.0, v_max), ftol=1e-6, xtol=1e-5,
                                   max_nfev=60, tr_solver="exact").x
     fit_weights.last_v = v[1:].copy()
     w = v / v.sum()
@@ -642,6 +708,7 @@ class _CandidateCV:
         self.kb, self.n, self.span, self.nc, self.scaled = kb, n, float(span), int(nc), bool(scaled)
         self.data, self.splits = data, splits
         self.r = thresholds(n, span) if n > 1 else np.zeros(1)
+        self.key = (self.kb, self.n, self.span, self.nc, self.scaled)
         self.errs: list[float] = []
         self._next, self._v, self._P, self._vm = 0, None, None, None
 
@@ -663,6 +730,7 @@ class _CandidateCV:
             P, c = self._P, self.data.c
             w, f, _, _ = fit_weights(P[tr_m], c[tr_m], self.nc, robust_f=False, v0=self._v, v_max=self._vm)
             self._v = fit_weights.last_v  # warm start of the next fold
+            self.data._cache[_fold_key(self.key, tr_m)] = self._v  # and of the same fit elsewhere (cv_start)
             self.errs.append(float(np.sqrt(np.mean((f(P[te_m] @ w) - c[te_m]) ** 2))))
             return
 
@@ -682,6 +750,23 @@ class _CandidateCV:
         return {"b_scale": self.kb, "n": self.n, "r_span": self.span, "n_ctrl": self.nc, "scaled": self.scaled,
                 "cv_rmse_deg": float(np.sqrt(np.mean(errs ** 2))),
                 "cv_se_deg": float(np.std(errs, ddof=1) / np.sqrt(errs.size)) if errs.size > 1 else 0.0}
+
+
+def _fold_key(cand: tuple, train: np.ndarray) -> tuple:
+    """FitData cache key of a candidate's weights fitted on the frames train (F,) bool."""
+    import hashlib
+
+    return ("cv_v", cand, hashlib.blake2b(np.packbits(train).tobytes(), digest_size=16).digest())
+
+
+def cv_start(data: FitData, cand: tuple, train: np.ndarray) -> np.ndarray | None:
+    """The weights v_1.. (n-1,) that the model choice's cross-validation fitted for candidate
+    cand = (b_scale, n, r_span, n_ctrl, scaled) on exactly the frames train (F,) bool, or None
+    (not fitted there). A fit of the same candidate on the same frames elsewhere (the family
+    choice's onset_transition folds) starts from them: the same least-squares problem, so the
+    trust region starts at its solution and only confirms it (or goes on where the
+    cross-validation's fit stopped at its evaluation limit) instead of repeating the search."""
+    return data._cache.get(_fold_key(cand, np.asarray(train, bool)))
 
 
 def _preference(d) -> tuple:
@@ -762,7 +847,12 @@ class ModelChoice:
             p = self.pick()
             kb, n, span, nc, sc = p["b_scale"], p["n"], p["r_span"], p["n_ctrl"], p["scaled"]
             r = thresholds(n, span) if n > 1 else np.zeros(1)
-            w, f, sign, rms = fit_weights(self.data.ops_at_frames(r, kb, sc), self.data.c, nc,
+            # Started from the candidate's last fold (its weights on the first 7/8 of these
+            # frames), as each fold starts from the one before: the closest solution at hand.
+            # From the default start the 38,000-frame refit of the 1-hour log ran into its
+            # evaluation limit well short of the optimum.
+            cand = next(c for c in self.cands if c.key == (kb, n, float(span), int(nc), bool(sc)))
+            w, f, sign, rms = fit_weights(self.data.ops_at_frames(r, kb, sc), self.data.c, nc, v0=cand._v,
                                           v_max=v_max_for_table(self.data, kb, n, sc))
             keep = (w > 0) | (np.arange(n) == 0)  # operators with zero weight are dropped from the table
             tmap = self.data.threshold_map() if sc and n > 1 else None

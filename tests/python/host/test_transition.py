@@ -286,3 +286,56 @@ def test_rolling_origins_fit_on_the_past_and_judge_the_next_block():
         seen |= te_m
     # The judged blocks tile the second half; the first half (the record's start) is never judged.
     assert np.array_equal(seen, data.t_frame >= np.sort(data.t_frame)[int(round(F * 0.5))])
+
+
+def test_tall_skinny_r_is_the_r_of_a_householder_qr():
+    # Blocks of rows reduced, then the stacked R's: R^T R = H^T H and |R| that of one QR of H
+    # (rows may differ in sign), with and without rows left over, and below two blocks.
+    rng = np.random.default_rng(3)
+    for m in (40, 2 * T.TSQR_BLOCK + 7, 9 * T.TSQR_BLOCK):
+        H = rng.normal(size=(m, 16)) * np.logspace(0, 4, 16)  # columns 4 decades apart
+        R = T.tall_skinny_r(H)
+        R0 = np.linalg.qr(H, mode="r")
+        assert R.shape == (16, 16) and np.allclose(np.tril(R, -1), 0.0)
+        assert np.allclose(np.sign(np.diag(R))[:, None] * R, np.sign(np.diag(R0))[:, None] * R0,
+                           rtol=1e-12, atol=1e-10 * np.abs(R0).max())
+
+
+def test_compressed_projection_gives_the_trust_region_what_the_frames_give():
+    # The (n + 1)-row residual and Jacobian handed to least_squares carry the F-row problem's
+    # cost, gradient and Gauss-Newton matrix, and a tightly converged fit lands on the same weights.
+    from scipy.optimize import least_squares
+
+    data, *_ = ref_session(threshold_rule(ref_session(np.zeros(1), np.ones(1))[0]), np.r_[0.4, np.full(15, 0.6 / 15)])
+    P = data.ops_at_frames(threshold_rule(data))
+    vp = T._SplineProjection(P, data.c, 14, 1e-3)
+    cp = T._CompressedProjection(vp)
+    x = np.random.default_rng(0).uniform(0.0, 0.3, 15)
+    f, J, r, K = vp.resid(x), vp.jac(x), cp.resid(x), cp.jac(x)
+    assert r.shape == (16,) and K.shape == (16, 15)
+    assert r @ r == pytest.approx(f @ f, rel=1e-12)
+    assert np.allclose(K.T @ r, J.T @ f, rtol=1e-9, atol=1e-12 * np.abs(J.T @ f).max())
+    assert np.allclose(K.T @ K, J.T @ J, rtol=1e-9, atol=1e-12 * np.abs(J.T @ J).max())
+    kw = dict(bounds=(0.0, 1e3), ftol=1e-14, xtol=1e-14, gtol=1e-14, max_nfev=500, tr_solver="exact")
+    full = least_squares(vp.resid, np.full(15, 1 / 15), jac=vp.jac, **kw)
+    comp = least_squares(cp.resid, np.full(15, 1 / 15), jac=cp.jac, **kw)
+    assert comp.cost == pytest.approx(full.cost, rel=1e-9)
+    assert np.allclose(comp.x, full.x, atol=1e-6)
+
+
+def test_a_fold_fitted_again_starts_from_the_cross_validations_weights():
+    # transition.cv_start: each scored fold's weights are kept on the FitData under the
+    # candidate and the exact training frames; another mask gets None.
+    data, *_ = ref_session(threshold_rule(ref_session(np.zeros(1), np.ones(1))[0]), np.r_[0.4, np.full(15, 0.6 / 15)])
+    mc = T.ModelChoice(data, "pi")
+    mc.result()
+    cand = mc.cands[0]
+    scored = [(tr, te) for tr, te in T.rolling_origins(data, T.KFOLD) if te.sum() >= 3 and tr.sum() >= 10]
+    assert len(scored) == len(cand.errs) >= 2
+    v_last = T.cv_start(data, cand.key, scored[-1][0])
+    assert v_last is not None and np.array_equal(v_last, cand._v)
+    for tr, _ in scored:
+        assert T.cv_start(data, cand.key, tr).shape == (cand.n - 1,)
+    other = scored[0][0].copy()
+    other[np.flatnonzero(other)[-1]] = False
+    assert T.cv_start(data, cand.key, other) is None
