@@ -483,9 +483,7 @@ class _SplineProjection:
         # (fit_weights' _CompressedProjection needs both at every trial point).
         A, cho, coef, t, yc = self._solve(x)
         der = BSpline(t, coef, 3).derivative()
-        # scipy's evaluation in C when compiled (kernels.bspline_eval, bit for bit): 40 % faster
-        # on 38,000 frames, once per trust-region step.
-        slope = kernels.bspline_eval(yc, der.t, der.c, der.k) if kernels.available() else der(yc)
+        slope = der(yc)
         G = np.multiply(slope[:, None], self.dy_dv, out=out)
         # cho_solve returns a Fortran-ordered (n_ctrl, n-1) block, and numpy's A @ X does not
         # reach BLAS for that layout (~50x slower at F = 3000 frames: it was half of calibrate).
