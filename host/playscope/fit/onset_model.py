@@ -59,8 +59,8 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
           ~ U(0, D), D fitted up to a frame period, as the lag is. Why no longer: a slide the frames
           resolve as a motion runs along the image path wherever the registration does (the
           common case), where it is the plant's own take-up after the play; offered up to half the
-          interval between reversals, it took the main job's transition (a 0.48 s slide, B 18 %
-          low, 0.333 deg against 0.211). The shares of frames still at the old
+          interval between reversals, it took the main job's transition (a 0.48 s slide along
+          the path, 0.333 deg against 0.211). The shares of frames still at the old
           level, u >= since, and already at the new one, u + duration <= since, are closed-form
           (`_switch_shares`; D = 0 gives the stepped switch's), and the rest are mid slide, at a
           level h in (0, 1) of their own whose likelihood is integrated over h (`_mid_level`:
@@ -364,10 +364,6 @@ class Terms:
     def offered(self) -> list[str]:
         """The terms the search may add next: those not on, a slide only to its switch."""
         return [n for n in TERMS if not getattr(self, n) and (not n.startswith("slide_") or getattr(self, "reg" + n[5:]))]
-
-    def slides(self, name: str) -> bool:
-        """Whether the switch name ("tip" or "motor") slides."""
-        return bool(getattr(self, "slide_" + name))
 
     def with_(self, name: str) -> "Terms":
         d = {n: getattr(self, n) for n in TERMS}
@@ -1352,8 +1348,10 @@ def _slide_starts(m: RecordModel, name: str, parts: dict, sigma: float, keep: in
     lag L and longest slide D on SLIDE_GRID (D within its range), the keep lowest by the settled
     robust objective. Why a grid: L and D trade against each other (a late start with a short slide
     against an early one with a long slide), and from the middle of both ranges LM stopped in the
-    wrong one (a 15 s channel rendering: L at its floor, B 4.8 % off, BIC 839; from the renderer's L
-    and D, BIC 673 and B 0.5 % off)."""
+    wrong one (a 15 s channel rendering: L at its floor, B 4.7 % off, BIC 862; from the grid, BIC 676
+    and B 0.6 % off). The fits then begin from the weights and E-step of the grid point scored last
+    (as the search's other starts that share a model do: the objective at a theta depends on that
+    state, docs/host.md)."""
     T = m.rec.period_s
     out = []
     for L in SLIDE_GRID[0]:
@@ -1614,9 +1612,9 @@ def _resize(fit: Fit, bic: float, ladder: list, sigma: float, log: list) -> tupl
     """B's size and where it is read once more, with the terms the search has so far: chosen on the
     plain model, a strong term it lacks (a switch of tens of px) can leave every size alike and the
     smallest wins (a 4-coefficient B 17.8 % off a registration record's stras B), and the next terms
-    are then chosen to mend the coarse B (s4-marker-044 of LOCKBOX4_300: a motor switch and two
-    slides at 4 coefficients, BIC 19,913 once resized to 16, where the tip's switch and its slide
-    alone reach 8,347 at 16). So after each term enters, each other size is fitted from the fit so
+    are then chosen to mend the coarse B (s4-marker-044 of LOCKBOX4_300, with the slide not yet
+    bounded: a motor switch and two slides at 4 coefficients, BIC 19,913 once resized to 16, where
+    the tip's switch and its slide alone reach 8,347 at 16). So after each term enters, each other size is fitted from the fit so
     far, B resampled (`_resample_B`), and scored by the same BIC. Returns (fit, bic, n_b, width_at)."""
     m = fit.model
     jobs = []

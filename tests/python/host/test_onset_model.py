@@ -95,8 +95,12 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
     # measured 0.99999 (none); with the switches 0.970: a frame crossing a switch's
     # ramp edge between the forward steps makes the differences themselves coarse there
     # with the switches' mixture 0.99997: its frames' signs are the E-step's, so no ramp edge is crossed
-    # the ring 0.9996 (0.9981 without the tip mode's drive through B)
+    # the ring 0.9996 (0.9981 without the tip mode's drive through B); with the slides 0.999995
     assert cos(Ja.T @ r0, Jf.T @ r0) > (0.9 if "reg_tip" in terms and "mix" not in terms else 0.999)
+    if "mix" in terms:  # the switches' lags and slides, column by column: measured 0.996..0.99997
+        for name, sl in m.layout().items():
+            if name.startswith(("lag_", "slide_")):
+                assert cos(Ja[:, sl.start], Jf[:, sl.start]) > 0.99
     # column by column where no switch hangs on the onsets (through them, a forward step moves a
     # slow onset across frames; `test_the_onsets_gradient...` checks that part with a small step);
     # with the ring, B's columns carry the tip mode's drive through the onsets (`ring_gradient`)
