@@ -452,7 +452,7 @@ class RecordModel:
         out, i = {"d": slice(0, 1), "B": slice(1, 1 + self.n_b)}, 1 + self.n_b
         for name, size, on in (("ring", 2, self.terms.ring), ("lag_tip", 1, self.terms.reg_tip),
                                ("lag_motor", 1, self.terms.reg_motor), ("slide_tip", 1, self.terms.slide_tip),
-                               ("slide_motor", 1, self.terms.slide_motor)):
+                               ("slide_motor", 1, self.terms.slide_motor), ("z0", 1, True)):
             if on:
                 out[name], i = slice(i, i + size), i + size
         return out
@@ -462,11 +462,12 @@ class RecordModel:
 
     def theta(self, parts: dict) -> np.ndarray:
         """theta from named parts; a part not given starts at the tip mode (3 Hz, zeta 0.1), a
-        switch lag in the middle of its range or a slide of up to half a frame period."""
+        switch lag in the middle of its range, a slide of up to half a frame period or the play's
+        first state in the middle of its band."""
         th = np.empty(self.n_theta())
         x_slide = np.array([self.slide_x(0.5 * self.rec.period_s)])
         dflt = {"ring": self.ring_theta(3.0, 0.1), "lag_tip": np.zeros(1), "lag_motor": np.zeros(1),
-                "slide_tip": x_slide, "slide_motor": x_slide}
+                "slide_tip": x_slide, "slide_motor": x_slide, "z0": np.zeros(1)}
         for name, sl in self.layout().items():
             th[sl] = parts[name] if name in parts else dflt[name]
         return th
@@ -539,11 +540,37 @@ class RecordModel:
         q_dn = np.maximum.accumulate(zg - 0.5 * Bz)  # the upper edge drags z down: q = z - B(z) / 2
         return np.interp(rec.q, q_up, zg), np.interp(rec.q, q_dn, zg)
 
-    def play(self, cB: np.ndarray, edges: bool = False):
-        """z on the grid (N,) for B's coefficients cB; with edges, also (lo, hi) (N,) each."""
+    def play(self, cB: np.ndarray, x0: float = 0.0, edges: bool = False):
+        """z on the grid (N,) for B's coefficients cB and the play's first state x0 (theta's "z0"
+        part: z[-1] = lo + expit(x0) (hi - lo) on the first sample's band, module doc); with edges,
+        also (lo, hi) (N,) each."""
         lo, hi = self.edges(cB)
-        z = play_edges(lo, hi, float(self.rec.q[0]))
+        z = play_edges(lo, hi, float(lo[0] + expit(x0) * (hi[0] - lo[0])))
         return (z, lo, hi) if edges else z
+
+    def z0_of(self, th: np.ndarray) -> float:
+        """The play's first state's part of theta (module doc: z0)."""
+        return float(th[self.layout()["z0"]][0])
+
+    def z_gradient(self, cB: np.ndarray, st: dict, k: np.ndarray, x0: float) -> tuple[np.ndarray, np.ndarray]:
+        """(d z / d (B's coefficients) (len(k), n_b), d z / d x0 (len(k),)) at grid samples k: z moves
+        with the band edge that last dragged it (`edge_gradient`); before the first drag it is the
+        first state, z0 = lo_0 + f (hi_0 - lo_0), f = expit(x0), which moves with both edges of the
+        first sample's band and with x0 by (hi_0 - lo_0) f (1 - f)."""
+        last, side = st["last"][k], st["side"][k]
+        pre = last < 0
+        g = np.zeros((k.size, self.n_b))
+        dx = np.zeros(k.size)
+        if (~pre).any():
+            lk = last[~pre]
+            g[~pre] = self.edge_gradient(cB, lk, st["z"][lk], side[~pre])
+        if pre.any():
+            f = float(expit(x0))
+            lo0, hi0 = float(st["lo"][0]), float(st["hi"][0])
+            e = self.edge_gradient(cB, np.zeros(2, int), np.array([lo0, hi0]), np.array([-0.5, 0.5]))
+            g[pre] = (1.0 - f) * e[0] + f * e[1]
+            dx[pre] = (hi0 - lo0) * f * (1.0 - f)
+        return g, dx
 
     def edge_gradient(self, cB: np.ndarray, k: np.ndarray, z: np.ndarray, side: np.ndarray) -> np.ndarray:
         """d z / d (B's coefficients), (len(k), n_b), where z (len(k),) lies on the band's edge
@@ -586,14 +613,17 @@ class RecordModel:
         rec = self.rec
         d, cB, ring, lags = self.unpack(th)
         slides = self.slides(th)
-        z, lo, hi = self.play(cB, edges=True)
+        z, lo, hi = self.play(cB, self.z0_of(th), edges=True)
         t_on = self.onsets(z)
         tau = rec.t_f - d
         z_f = np.interp(tau, rec.t, z)
         cols = {"G": _basis(z_f, self.z_lo, self.z_hi, self.n_g)}
         zn = (2 * z_f - (self.q_lo + self.q_hi)) / max(self.q_hi - self.q_lo, 1e-12)
         T = rec.period_s
-        st = {"z": z, "lo": lo, "hi": hi, "tau": tau, "zn": zn, "ring": ring}
+        drag = (z == lo) | (z == hi)
+        last = np.maximum.accumulate(np.where(drag, np.arange(z.size), -1))  # the last drag (-1: none yet)
+        side = np.where(z == lo, -0.5, 0.5)[np.maximum(last, 0)]  # the edge that made it
+        st = {"z": z, "lo": lo, "hi": hi, "tau": tau, "zn": zn, "ring": ring, "last": last, "side": side}
         if self.terms.ring:
             v = np.diff(z) / rec.dt
             a = np.diff(v) / rec.dt
@@ -901,26 +931,24 @@ class RecordModel:
         Av = A1 @ X[p:2 * p] + sum(np.outer(rv, X[2 * p + i]) for i, (_, rv) in enumerate(ring))
         return Gu - Au, Gv - Av
 
-    def onset_gradient(self, cB, z, lo, hi, t_on, s_new) -> np.ndarray:
-        """d t_on / d (B's coefficients), (E, n_b) s per actuator unit, for onsets t_on (E,) of the
-        play z on its edges lo, hi (N,) for B's coefficients cB, whose new directions are s_new
-        (E,): the new edge e (side -s / 2) meets the held z within the grid step k where z first
-        moves, t_on = t_k - dt (e_k - z_hold) / (q_k - q_k-1) (`onsets`), so t_on moves by
-        (dz_hold/dc_i - de_k/dc_i) / q'(t_k) (`edge_gradient`); the held z moves with the edge
-        that last dragged it."""
-        rec = self.rec
-        drag = (z == lo) | (z == hi)
-        last = np.maximum.accumulate(np.where(drag, np.arange(z.size), 0))
-        side = np.where(z == lo, -0.5, 0.5)
+    def onset_gradient(self, cB: np.ndarray, st: dict, t_on: np.ndarray, s_new: np.ndarray,
+                       x0: float) -> tuple[np.ndarray, np.ndarray]:
+        """(d t_on / d (B's coefficients) (E, n_b) s per actuator unit, d t_on / d x0 (E,) s) for
+        onsets t_on (E,) of the play in st (`columns`: z, its band and drags) for B's coefficients
+        cB and first state x0, whose new directions are s_new (E,): the new edge e (side -s / 2)
+        meets the held z within the grid step k where z first moves, t_on = t_k - dt (e_k -
+        z_hold) / (q_k - q_k-1) (`onsets`), so t_on moves by (dz_hold/dc_i - de_k/dc_i) / q'(t_k)
+        (`edge_gradient`); the held z moves with the edge that last dragged it, or with the first
+        state before any did (`z_gradient`)."""
+        rec, z = self.rec, st["z"]
         kk = np.clip(np.searchsorted(rec.t, t_on), 1, z.size - 1)
-        lh = last[kk - 1]
-        g_h = self.edge_gradient(cB, lh, z[lh], side[lh])
+        g_h, dx = self.z_gradient(cB, st, kk - 1, x0)
         g_on = self.edge_gradient(cB, kk, z[kk], -0.5 * s_new)  # z[kk]: the new edge, where it caught z
         qdot = (rec.q[kk] - rec.q[kk - 1]) / rec.dt
         qdot = np.where(np.abs(qdot) > 1e-12, qdot, 1e-12)
-        return (g_h - g_on) / qdot[:, None]
+        return (g_h - g_on) / qdot[:, None], dx / qdot
 
-    def ring_gradient(self, cB: np.ndarray, st: dict, last: np.ndarray, side: np.ndarray) -> list:
+    def ring_gradient(self, cB: np.ndarray, st: dict, x0: float) -> list:
         """d x / d (B's coefficients) of each part of the tip mode at the frames, [(F, n_b)] x 2. The
         mode is linear in its drive u = -z'' (on the part's fixed mask, `columns`), so its derivative
         is the mode's response to -(dz/dc)'': dz/dc on the grid is the edge gradient of the drag that
@@ -931,9 +959,10 @@ class RecordModel:
         in a B 25 % low."""
         rec = self.rec
         dt = rec.dt
+        last = st["last"]
         ks = np.flatnonzero(last == np.arange(last.size))  # the drag samples themselves
-        Zk = self.edge_gradient(cB, ks, st["z"][ks], side[ks])
-        Zg = np.ascontiguousarray(Zk.T)[:, np.searchsorted(ks, last)]  # (n_b, N): held samples keep their last drag's
+        Zk = self.z_gradient(cB, st, np.r_[0, ks], x0)[0]  # and the first state's (row 0)
+        Zg = np.ascontiguousarray(Zk.T)[:, np.searchsorted(ks, last) + (last >= 0)]  # (n_b, N): held samples keep their last drag's
         a = np.diff(Zg, 2, axis=1) / (dt * dt)
         tau = st["tau"]
         pos = np.clip((tau - rec.t[1]) / dt, 0.0, a.shape[1] - 1.000001)
@@ -1001,27 +1030,30 @@ class RecordModel:
                     Gu[:, i] = dW * dmap(th[i])[1] * val[0]
                     Gv[:, i] = dW * dmap(th[i])[1] * val[1]
             ramps[name] = (e, inr, dS)
-        # B's coefficients: through z at each frame (the last drag), and the tip switch's onsets
-        drag = (z == st["lo"]) | (z == st["hi"])
-        last = np.maximum.accumulate(np.where(drag, np.arange(z.size), 0))
-        side = np.where(z == st["lo"], -0.5, 0.5)
+        # B's coefficients and the first state: through z at each frame (the last drag, or the
+        # first state before any), and the tip switch's onsets. The tip mode's drive through the
+        # first state (its first start moved in time) is left out: one start of the record's many.
+        x0, i_z0 = self.z0_of(th), lay["z0"].start
         k_f = np.clip(np.searchsorted(rec.t, tau), 0, z.size - 1)
-        lk = last[k_f]
-        Zc = self.edge_gradient(cB, lk, z[lk], side[lk])
+        Zc, Zx = self.z_gradient(cB, st, k_f, x0)
         sl_b = slice(1, 1 + self.n_b)
         Gu[:, sl_b] = dz_u[:, None] * Zc
         Gv[:, sl_b] = dz_v[:, None] * Zc
+        Gu[:, i_z0] = dz_u * Zx
+        Gv[:, i_z0] = dz_v * Zx
         if self.terms.ring:  # the tip mode's drive through B: an onset moves the start it excites
-            for k, dx in enumerate(self.ring_gradient(cB, st, last, side)):
+            for k, dx in enumerate(self.ring_gradient(cB, st, x0)):
                 Gu[:, sl_b] += (self.slope[:, 0] * gr[k])[:, None] * dx
                 Gv[:, sl_b] += (self.slope[:, 1] * gr[k])[:, None] * dx
         if "tip" in ramps:
             e, inr, dS = ramps["tip"]
-            dton = self.onset_gradient(cB, z, st["lo"], st["hi"], st["tip"][1], rec.s_new[st["tip"][5]])  # (E, n_b)
+            dton, dton_x = self.onset_gradient(cB, st, st["tip"][1], rec.s_new[st["tip"][5]], x0)  # (E, n_b), (E,)
             fr = np.flatnonzero(inr)
             val = reg["tip"]
             Gu[fr, sl_b] += (-dS[fr] * val[0][fr])[:, None] * dton[e[fr]]
             Gv[fr, sl_b] += (-dS[fr] * val[1][fr])[:, None] * dton[e[fr]]
+            Gu[fr, i_z0] += -dS[fr] * val[0][fr] * dton_x[e[fr]]
+            Gv[fr, i_z0] += -dS[fr] * val[1][fr] * dton_x[e[fr]]
         if self.terms.ring:
             sl = self.slope
             i0 = lay["ring"].start
@@ -1070,7 +1102,8 @@ class RecordModel:
                 ok = np.isfinite(t_on[rev])
                 if ok.any():
                     u_rev, inv = np.unique(rev[ok], return_inverse=True)
-                    dton = self.onset_gradient(cB, st["z"], st["lo"], st["hi"], t_on[u_rev], rec.s_new[u_rev])[inv]
+                    dton, dton_x = self.onset_gradient(cB, st, t_on[u_rev], rec.s_new[u_rev], self.z0_of(th))
+                    dton, dton_x = dton[inv], dton_x[inv]
             for _, dr in self._kl_rows(mx):
                 Jk = np.zeros((dr.shape[1], th.size))
                 if self.d_fixed is None:
@@ -1082,6 +1115,7 @@ class RecordModel:
                     Jk[:, i] = dr[2] * self.slide_map(th[i])[1]
                 if dton is not None:                       # the tip's switch starts at its onset
                     Jk[np.flatnonzero(ok), 1:1 + self.n_b] = -dr[0][ok][:, None] * dton
+                    Jk[np.flatnonzero(ok), lay["z0"].start] = -dr[0][ok] * dton_x
                 kl.append(Jk)
             j, c = mx["j"], mx["spread"]
             a = slice(2 * p + self.mix_block(name), 2 * p + self.mix_block(name) + N_REG)
@@ -1170,7 +1204,7 @@ class Fit:
 def _steps(m: RecordModel, th: np.ndarray) -> np.ndarray:
     """Forward-difference steps (the reference `jacobian` is checked against): t_delay T/16; B
     coefficients 2 % of the mean width, at least the travel of two grid steps at the record's
-    median speed; the ring's and the lags' (logistic) parts 0.01 and 0.05."""
+    median speed; the ring's and the lags', slides' and first state's (logistic) parts 0.01 and 0.05."""
     rec = m.rec
     v = float(np.median(np.abs(np.diff(rec.q)))) / rec.dt
     hb = max(0.02 * float(np.mean(np.abs(th[1:1 + m.n_b]))), 2 * v * rec.dt, 1e-6)
@@ -1178,7 +1212,7 @@ def _steps(m: RecordModel, th: np.ndarray) -> np.ndarray:
     if m.terms.ring:
         h += [0.01, 0.01]
     h += [0.05] * (m.terms.reg_tip + m.terms.reg_motor + m.terms.slide_tip + m.terms.slide_motor)
-    return np.array(h)
+    return np.array(h + [0.05])  # the first state's (logistic) part
 
 
 def _residual_fn(m: RecordModel, sigma: float):
@@ -1667,7 +1701,7 @@ def samples(fit: Fit) -> ModelSamples:
     m, th = fit.model, fit.theta
     rec = m.rec
     d, cB = m.unpack(th)[:2]
-    z = m.play(cB)
+    z = m.play(cB, m.z0_of(th))
     t_on = m.onsets(z)
     J = fit.jac
     cov = np.linalg.pinv(J.T @ J)
@@ -1675,10 +1709,10 @@ def samples(fit: Fit) -> ModelSamples:
     h = _steps(m, th)
     q_on = np.interp(t_on, rec.t, rec.q)
     grad = np.zeros((rec.rt.size, th.size))
-    for i in range(1, 1 + m.n_b):
+    for i in [*range(1, 1 + m.n_b), m.layout()["z0"].start]:
         t2 = th.copy()
         t2[i] += h[i]
-        on2 = m.onsets(m.play(m.unpack(t2)[1]))
+        on2 = m.onsets(m.play(m.unpack(t2)[1], m.z0_of(t2)))
         grad[:, i] = (np.abs(np.interp(on2, rec.t, rec.q) - rec.rq) - np.abs(q_on - rec.rq)) / h[i]
     var_b = np.einsum("mi,ij,mj->m", np.nan_to_num(grad), cov, np.nan_to_num(grad))
     se_d = float(np.sqrt(max(cov[0, 0], 0.0))) if m.d_fixed is None else 0.0

@@ -154,15 +154,45 @@ def test_the_mid_slide_levels_likelihood_is_the_integral_over_its_level():
 
 
 @pytest.mark.parametrize("width_at", OM.WIDTH_AT)
+def test_the_plays_first_state_moves_the_frames_and_onset_before_its_first_drag(width_at):
+    # eq. 3 needs z[-1]: a record may start with the play anywhere in its band. Two short legs
+    # that turn back before they take the play up: the first state alone sets z up to the first
+    # drag (the hold continues through two reversals), and moves that onset by dz0 / q'. The closed forms against central differences, and nothing after the first drag moves.
+    t = np.arange(0.0, 6.0, 1e-3)
+    q = np.interp(t, np.arange(7.0), [0.5, 0.55, 0.45, 0.8, 0.2, 0.8, 0.2])  # two short legs, then long ones
+    rt, rq, _ = detect_reversals(t, q, 0.01)
+    t_f = np.arange(0.1, 5.9, 0.04)
+    rec = OM.make_record(t, q, rt, rq, t_f, np.zeros((t_f.size, 2)), 25.0)
+    m = OM.RecordModel(rec, 1, 6, OM.Terms(), None, width_at=width_at)
+    cB, x0, h = np.array([0.31]), 0.4, 1e-6
+    st = m.columns(m.theta({"d": np.zeros(1), "B": cB, "z0": np.array([x0])}))[3]
+    t_on = m.onsets(st["z"])
+    first = int(np.flatnonzero(st["last"] >= 0)[0])
+    assert rt[1] < rec.t[first]  # the hold from the first state outlasts the first reversal
+    k = np.arange(0, rec.t.size, 7)
+    dzc, dzx = m.z_gradient(cB, st, k, x0)
+    zp, zm = m.play(cB, x0 + h), m.play(cB, x0 - h)
+    assert np.allclose(dzx, (zp - zm)[k] / (2 * h), atol=1e-7)
+    assert np.all(dzx[k > first] == 0.0) and np.all(dzx[k < first] > 0.0)
+    zb = [m.play(cB + s * h, x0) for s in (1, -1)]
+    assert np.allclose(dzc[:, 0], (zb[0] - zb[1])[k] / (2 * h), atol=1e-6)
+    ok = np.isfinite(t_on)
+    dton_x = m.onset_gradient(cB, st, t_on[ok], rec.s_new[ok], x0)[1]
+    fd = (m.onsets(zp)[ok] - m.onsets(zm)[ok]) / (2 * h)
+    assert np.allclose(dton_x, fd, rtol=1e-3, atol=1e-6) and np.count_nonzero(dton_x) == 1
+
+
+@pytest.mark.parametrize("width_at", OM.WIDTH_AT)
 def test_the_onsets_gradient_over_B_agrees_with_small_differences(width_at):
     r, d, t, q, rt, rq, obs, _ = _record(duration_s=30.0)
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
     m = OM.RecordModel(rec, 4, 10, OM.Terms(), None, width_at=width_at)
     cB = np.array([0.15, 0.25, 0.28, 0.16])
-    z, lo, hi = m.play(cB, edges=True)
-    t_on = m.onsets(z)
+    th = m.theta({"d": np.array([r.delay_s]), "B": cB})
+    st = m.columns(th)[3]
+    t_on = m.onsets(st["z"])
     ok = np.isfinite(t_on)
-    an = m.onset_gradient(cB, z, lo, hi, t_on[ok], rec.s_new[ok])
+    an = m.onset_gradient(cB, st, t_on[ok], rec.s_new[ok], 0.0)[0]
     for i in range(4):
         c2 = cB.copy()
         c2[i] += 1e-4
