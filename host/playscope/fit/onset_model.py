@@ -16,6 +16,14 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
           configuration). They differ by B' B / 2 along each leg, where a narrow bump of B is read
           a fraction of its height low in the wrong form. At the output, eq. 1 is exact:
           |q2 - q1| = B(z_hold) with z_hold = (q1 + q2) / 2.
+  z0      the play's first state (eq. 3's z[-1]): where in its band the output sits when the
+          record starts is unknown (a carrier left anywhere by the last motion), so it is a
+          parameter of every fit, z0 = lo_0 + expit(x0) (hi_0 - lo_0) on the first sample's band
+          (x0 = 0: the middle). It sets z until the first drag, and the first onset when that
+          drag follows a reversal. Held at the motor's position instead, the frames of a first
+          hold off it found no level of the path to sit on, and a tip registration switch was
+          the term that gave them one (render_c, no effect rendered: BIC 7,314 -> 7,274 with the
+          switch, B 5.5 % off; with z0 7,044 and no switch, B 0.4 %).
   x_stop, x_start
           a damped tip mode (frequency f, damping ratio zeta, shared by the record) driven by the
           play output's acceleration (base excitation, x'' + 2 zeta w x' + w^2 x = -z''), split
@@ -74,7 +82,7 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
 
 Fit: variable projection (Golub & Pereyra 1973): G, the gains and the registration offsets are
 linear and solved exactly for each value of the nonlinear parameters theta = (t_delay, B's
-coefficients[, the tip mode's frequency and damping][, the switches' lags]), which
+coefficients[, the tip mode's frequency and damping][, the switches' lags and slides], z0), which
 scipy.optimize.least_squares fits (Levenberg-Marquardt, MINPACK) with Kaufman's variable-projection
 Jacobian (`RecordModel.jacobian`: the play's, the onsets', the switches' and the tip mode's
 derivatives in closed form; the tip mode's frequency and damping by central differences). The
@@ -385,8 +393,7 @@ class Eval:
 
 
 class RecordModel:
-    """The model of one record for given terms, B and G sizes (module doc). theta = [t_delay,
-    B coefficients (n_b)[, log f_hz, zeta]]."""
+    """The model of one record for given terms, B and G sizes (module doc). theta: `layout`."""
 
     def __init__(self, rec: Record, n_b: int, n_g: int, terms: Terms, prior: tuple[float, float] | None,
                  d_fixed: float | None = None, width_at: str = "input"):
@@ -408,10 +415,11 @@ class RecordModel:
         self.slope = None  # G' at the frames from the previous round: (F, 2), for the ring's direction
         self.mix = {}      # the switch mixture's E-step per term ("tip", "motor"): `e_step`
 
-    # ---- theta layout: [t_delay, B's coefficients (n_b)[, ring (2)][, lag_tip][, lag_motor]]. The
-    # bounded parts enter through logistic maps onto their ranges (a clip would stall the fit on
-    # a bound, its slope zero there): the tip mode's log frequency over its band and its damping
-    # ratio over [0.005, 0.7]; a switch lag over [T / 20, T].
+    # ---- theta layout: [t_delay, B's coefficients (n_b)[, ring (2)][, lag_tip][, lag_motor][, slide_tip]
+    # [, slide_motor], z0]. The bounded parts enter through logistic maps onto their ranges (a clip
+    # would stall the fit on a bound, its slope zero there): the tip mode's log frequency over its
+    # band and its damping ratio over [0.005, 0.7]; a switch lag over [T / 20, T]; a slide over
+    # [T / 20, slide_max_s]; the first state over its band.
     ZETA_LO, ZETA_HI = 0.005, 0.7
 
     def ring_band(self) -> tuple[float, float]:
