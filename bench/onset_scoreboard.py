@@ -24,6 +24,8 @@ Groups:
   lockbox4_c   the other 133 of those 200, the part stop 60 runs on lockbox4_b's onset code.
   lockbox5     bench/onset_cases.py LOCKBOX5_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at the start of stop 60, sealed for a later code.
+  lockbox5_a   its every fifth row (60), the part stop 61 runs; the other 240 stay sealed.
+  lockbox5_b   every third row of those 240 (80), the part stop 62 runs; 160 stay sealed.
   development  every group of bench/swing_cases.py (208 renderings of swing_render, the rules of
                the old onset stage were settled on them): judged as bench/swing_bench.py did
                (B over its limit, |t_delay error| over 1/8 frame on every row, or a refusal).
@@ -61,7 +63,7 @@ FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_1
               "lockbox_c": lambda c: c.LOCKBOX_C, "lockbox4": lambda c: c.LOCKBOX4_300,
               "lockbox4_a": lambda c: c.LOCKBOX4_A, "lockbox4_b": lambda c: c.LOCKBOX4_B,
               "lockbox4_c": lambda c: c.LOCKBOX4_C, "lockbox5": lambda c: c.LOCKBOX5_300,
-              "lockbox5_a": lambda c: c.LOCKBOX5_A}
+              "lockbox5_a": lambda c: c.LOCKBOX5_A, "lockbox5_b": lambda c: c.LOCKBOX5_B}
 
 
 def _rows(group: str) -> list:
