@@ -169,7 +169,8 @@ def render(sc: Scene) -> dict:
         for tf in flip_times(sgn, t):
             n = max(1, int(rng.uniform(0, 0.04) * sc.enc_hz))
             i = np.searchsorted(t, tf)
-            slide[i:i + n] = np.linspace(-1, 0, n, endpoint=False) * (sgn[i] - sgn[i - 1])
+            ramp = np.linspace(-1, 0, n, endpoint=False) * (sgn[i] - sgn[i - 1])
+            slide[i:i + n] = ramp[:t.size - i]  # a flip within the slide of the record's end: cut there
         sgn_eff = sgn + slide
     else:
         sgn_eff = sgn
