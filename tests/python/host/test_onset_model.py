@@ -182,6 +182,34 @@ def test_the_plays_first_state_moves_the_frames_and_onset_before_its_first_drag(
     assert np.allclose(dton_x, fd, rtol=1e-3, atol=1e-6) and np.count_nonzero(dton_x) == 1
 
 
+def test_the_jacobians_first_state_column_agrees_with_finite_differences():
+    # The same two short legs seen by a camera (a curved image path of the play's output, 0.1 px
+    # noise, the first state at x0 = 0.8): the variable-projection Jacobian's column of the first
+    # state (the frames of the first hold, through G') against the projected residual's forward
+    # differences, which re-solve G; at the truth, where Kaufman's dropped term is the noise's
+    # (measured cosine 0.9996, norms 1.3 % apart; 0.992 and 3.3 % at x0 = 0.7, 0.74 at x0 = 0,
+    # 0.2 of the band away, where the residuals' dropped term dominates).
+    t = np.arange(0.0, 6.0, 1e-3)
+    q = np.interp(t, np.arange(7.0), [0.5, 0.55, 0.45, 0.8, 0.2, 0.8, 0.2])
+    rt, rq, _ = detect_reversals(t, q, 0.01)
+    t_f = np.arange(0.1, 5.9, 0.04)
+    rec0 = OM.make_record(t, q, rt, rq, t_f, np.zeros((t_f.size, 2)), 25.0)
+    m0 = OM.RecordModel(rec0, 1, 6, OM.Terms(), None)
+    zf = np.interp(t_f, rec0.t, m0.play(np.array([0.31]), 0.8))
+    obs = np.column_stack([300 + 400 * zf, 200 + 300 * zf ** 2]) + np.random.default_rng(2).normal(0, 0.1, (t_f.size, 2))
+    rec = OM.make_record(t, q, rt, rq, t_f, obs, 25.0)
+    m = OM.RecordModel(rec, 1, 6, OM.Terms(), None)
+    th = m.theta({"d": np.zeros(1), "B": np.array([0.31]), "z0": np.array([0.8])})
+    fun = OM._residual_fn(m, 0.1)
+    r0 = fun(th)
+    Ja = m.jacobian(th, m.evaluate(th), 0.1)
+    Jf = OM._jac(m, fun, th, r0)
+    i = m.layout()["z0"].start
+    cos = float(Ja[:, i] @ Jf[:, i] / np.linalg.norm(Ja[:, i]) / np.linalg.norm(Jf[:, i]))
+    assert np.count_nonzero(Jf[:, i]) > 10 and cos > 0.998
+    assert np.linalg.norm(Ja[:, i]) == pytest.approx(np.linalg.norm(Jf[:, i]), rel=0.05)
+
+
 @pytest.mark.parametrize("width_at", OM.WIDTH_AT)
 def test_the_onsets_gradient_over_B_agrees_with_small_differences(width_at):
     r, d, t, q, rt, rq, obs, _ = _record(duration_s=30.0)
