@@ -20,6 +20,42 @@ void dk_play_on_edges(const double *lo, const double *hi, long n, double z0, dou
     }
 }
 
+void dk_play_drags(const double *lo, const double *hi, long n, double z0, double *z, long *last, double *side)
+{
+    double p = z0;
+    long lk = -1;
+    double sk = 0.5;
+    for (long k = 0; k < n; k++) {
+        double m = (p > lo[k]) ? p : lo[k];
+        p = (m < hi[k]) ? m : hi[k];
+        z[k] = p;
+        if (p == lo[k] || p == hi[k]) {  /* a drag: the edge it sits on made it (the lower on a tie) */
+            lk = k;
+            sk = (p == lo[k]) ? -0.5 : 0.5;
+        }
+        last[k] = lk;
+        side[k] = sk;
+    }
+    if (n > 0 && last[0] < 0) {  /* before the first drag: sample 0's edge, as the reference indexes it */
+        double s0 = (z[0] == lo[0]) ? -0.5 : 0.5;
+        for (long k = 0; k < n && last[k] < 0; k++)
+            side[k] = s0;
+    }
+}
+
+void dk_band_input(const double *q, const int *idx, const double *val, long n, long w, const double *c,
+                   double *lo, double *hi)
+{
+    for (long k = 0; k < n; k++) {
+        double b = 0.0;  /* csr_matvec's order: 0 + v0 c0 + v1 c1 + ... */
+        for (long j = 0; j < w; j++)
+            b += val[k * w + j] * c[idx[k * w + j]];
+        b = (b < 0.0) ? 0.0 : b;  /* np.maximum(b, 0): NaN stays NaN */
+        lo[k] = q[k] - 0.5 * b;
+        hi[k] = q[k] + 0.5 * b;
+    }
+}
+
 void dk_play_ops(const double *x, long n, const double *r, long m, const double *p0, double *out)
 {
     for (long k = 0; k < n; k++) {

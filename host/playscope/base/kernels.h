@@ -4,6 +4,15 @@
 #define PS_DIAGNOSE_KERNELS_H
 /* Play operator on band edges: p = min(hi[k], max(lo[k], p)), p starting at z0 (eq. 3). */
 void dk_play_on_edges(const double *lo, const double *hi, long n, double z0, double *out);
+/* The play on band edges with its drags (the record model's columns): z as dk_play_on_edges;
+ * last[k] the latest sample <= k at which z sat on an edge (-1: none yet), side[k] -0.5 when that
+ * edge was the lower (a tie counts as the lower), +0.5 the upper; before the first drag, sample
+ * 0's (the reference's where(z == lo, -0.5, 0.5)[max(last, 0)]). */
+void dk_play_drags(const double *lo, const double *hi, long n, double z0, double *z, long *last, double *side);
+/* The band at the input, q -+ B / 2, B = max(sum_j val[k, j] c[idx[k, j]], 0) over w taps a sample
+ * (the sparse B-spline design's rows, summed in scipy's csr_matvec order: bit for bit). */
+void dk_band_input(const double *q, const int *idx, const double *val, long n, long w, const double *c,
+                   double *lo, double *hi);
 /* Classical play operators of m thresholds r over x (transition.play_ops): row k of out (n x m,
  * row-major) is p_i = minimum(x[k] + r_i, maximum(x[k] - r_i, p_i)), p starting at p0 (m,), with
  * numpy's tie rule (maximum(a, b) and minimum(a, b) give b on a tie, so signed zeros agree too). */

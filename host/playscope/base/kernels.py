@@ -136,3 +136,27 @@ def karnopp(z, w2: float, c2: float, Fs: float, Fc: float, h: float, band: float
     lib.dk_karnopp(ffi.from_buffer("double[]", zz), zz.size, float(w2), float(c2), float(Fs), float(Fc),
                    float(h), float(band), int(substeps), ffi.from_buffer("double[]", out))
     return out
+
+
+def play_drags(z_lo, z_hi, z0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """onset_model.play_drags in C: (z (N,), last (N,) int64, side (N,)) (kernels.h)."""
+    ffi, lib = _load()
+    lo, hi = _arr(z_lo), _arr(z_hi)
+    z, side = np.empty(lo.size), np.empty(lo.size)
+    last = np.empty(lo.size, np.int64)
+    lib.dk_play_drags(ffi.from_buffer("double[]", lo), ffi.from_buffer("double[]", hi), lo.size, float(z0),
+                      ffi.from_buffer("double[]", z), ffi.from_buffer("long[]", last), ffi.from_buffer("double[]", side))
+    return z, last, side
+
+
+def band_input(q, idx, val, c) -> tuple[np.ndarray, np.ndarray]:
+    """onset_model's band at the input in C: (lo, hi) (N,) = q -+ max(B, 0) / 2, B[k] = sum_j
+    val[k, j] c[idx[k, j]] (idx (N, w) int32, val (N, w)), summed as scipy's csr_matvec does."""
+    ffi, lib = _load()
+    qq, vv, cc = _arr(q), _arr(val), _arr(c)
+    ii = np.ascontiguousarray(idx, dtype=np.int32)
+    lo, hi = np.empty(qq.size), np.empty(qq.size)
+    lib.dk_band_input(ffi.from_buffer("double[]", qq), ffi.from_buffer("int[]", ii), ffi.from_buffer("double[]", vv),
+                      qq.size, ii.shape[1], ffi.from_buffer("double[]", cc), ffi.from_buffer("double[]", lo),
+                      ffi.from_buffer("double[]", hi))
+    return lo, hi

@@ -133,6 +133,7 @@ from scipy.optimize import least_squares
 from scipy.special import expit, log_ndtr, logit
 from scipy.signal import lfilter
 
+from ..base import kernels
 from .model import play_edges
 
 HUBER_K = 1.345        # Huber's tuning constant, in sigma (95 % efficiency at the Gaussian; Huber 1964)
@@ -227,6 +228,18 @@ def make_record(t_enc, q, rt, rq, t_f, obs, fps: float, centre_px=None, focal_px
         focal_px = 2.0 * max(float(np.ptp(o, axis=0).max()), 1.0)
     return Record(t, qg, np.asarray(t_f, float)[ok], o, np.asarray(rt, float),
                   np.asarray(rq, float), s_new, i1, 1.0 / fps, registration_generators(o, centre_px, float(focal_px)))
+
+
+def play_drags_ref(lo: np.ndarray, hi: np.ndarray, z0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The play on band edges lo, hi (N,) from z0 (eq. 3) with its drags: (z, last, side) (N,) each,
+    last[k] the latest sample <= k at which z sat on an edge (-1: none yet), side -0.5 when that
+    edge was the lower (a tie: the lower), +0.5 the upper; before the first drag, sample 0's. The
+    reference of base/kernels.c's dk_play_drags (bit for bit: tests/python/sim/test_diagnose_kernels.py)."""
+    z = play_edges(lo, hi, z0)
+    drag = (z == lo) | (z == hi)
+    last = np.maximum.accumulate(np.where(drag, np.arange(z.size), -1))
+    side = np.where(z == lo, -0.5, 0.5)[np.maximum(last, 0)]
+    return z, last, side
 
 
 def _basis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
@@ -405,6 +418,12 @@ class RecordModel:
         self.q_lo, self.q_hi = float(q.min()), float(q.max())
         span = self.q_hi - self.q_lo
         self.Phi_B = _sparse_basis(q, self.q_lo, self.q_hi, n_b) if n_b > 1 else None
+        # B's taps on the grid for the band kernel (base/kernels.c): the design's 4 a row, or the
+        # constant width's one
+        if self.Phi_B is not None and np.all(np.diff(self.Phi_B.indptr) == 4):
+            self._taps = (self.Phi_B.indices.reshape(-1, 4), self.Phi_B.data.reshape(-1, 4))
+        else:
+            self._taps = (np.zeros((q.size, 1), np.int32), np.ones((q.size, 1))) if n_b == 1 else None
         if width_at == "output":  # the play's output grid the edges are inverted on (module doc)
             self.z_grid = np.linspace(self.q_lo - 0.5 * span, self.q_hi + 0.5 * span, Z_GRID)
             self.Phi_Bz = _sparse_basis(self.z_grid, self.q_lo, self.q_hi, n_b) if n_b > 1 else None
@@ -540,6 +559,8 @@ class RecordModel:
         z -> z +- B(z) / 2 on z_grid, kept increasing where B' would pass -+2)."""
         rec = self.rec
         if self.width_at == "input":
+            if self._taps is not None and kernels.available():  # the same sums in one pass (bit for bit)
+                return kernels.band_input(rec.q, self._taps[0], self._taps[1], cB)
             B = np.maximum(self.Phi_B @ cB if self.Phi_B is not None else np.full(rec.q.size, cB[0]), 0.0)
             return rec.q - 0.5 * B, rec.q + 0.5 * B
         zg = self.z_grid
@@ -555,6 +576,15 @@ class RecordModel:
         lo, hi = self.edges(cB)
         z = play_edges(lo, hi, float(lo[0] + expit(x0) * (hi[0] - lo[0])))
         return (z, lo, hi) if edges else z
+
+    def play_drags(self, cB: np.ndarray, x0: float = 0.0):
+        """`play` with its drags: (z, lo, hi, last, side) (N,) each, last[k] the latest sample <= k
+        at which z sat on an edge (-1: none yet) and side the edge's (-0.5 the lower, +0.5 the
+        upper; before the first drag, sample 0's): the bookkeeping of every gradient."""
+        lo, hi = self.edges(cB)
+        z0 = float(lo[0] + expit(x0) * (hi[0] - lo[0]))
+        z, last, side = kernels.play_drags(lo, hi, z0) if kernels.available() else play_drags_ref(lo, hi, z0)
+        return z, lo, hi, last, side
 
     def z0_of(self, th: np.ndarray) -> float:
         """The play's first state's part of theta (module doc: z0)."""
@@ -621,16 +651,13 @@ class RecordModel:
         rec = self.rec
         d, cB, ring, lags = self.unpack(th)
         slides = self.slides(th)
-        z, lo, hi = self.play(cB, self.z0_of(th), edges=True)
+        z, lo, hi, last, side = self.play_drags(cB, self.z0_of(th))
         t_on = self.onsets(z)
         tau = rec.t_f - d
         z_f = np.interp(tau, rec.t, z)
         cols = {"G": _basis(z_f, self.z_lo, self.z_hi, self.n_g)}
         zn = (2 * z_f - (self.q_lo + self.q_hi)) / max(self.q_hi - self.q_lo, 1e-12)
         T = rec.period_s
-        drag = (z == lo) | (z == hi)
-        last = np.maximum.accumulate(np.where(drag, np.arange(z.size), -1))  # the last drag (-1: none yet)
-        side = np.where(z == lo, -0.5, 0.5)[np.maximum(last, 0)]  # the edge that made it
         st = {"z": z, "lo": lo, "hi": hi, "tau": tau, "zn": zn, "ring": ring, "last": last, "side": side}
         if self.terms.ring:
             v = np.diff(z) / rec.dt
@@ -956,10 +983,29 @@ class RecordModel:
         qdot = np.where(np.abs(qdot) > 1e-12, qdot, 1e-12)
         return (g_h - g_on) / qdot[:, None], dx / qdot
 
-    def ring_gradient(self, cB: np.ndarray, st: dict, x0: float) -> list:
-        """d x / d (B's coefficients) of each part of the tip mode at the frames, [(F, n_b)] x 2. The
-        mode is linear in its drive u = -z'' (on the part's fixed mask, `columns`), so its derivative
-        is the mode's response to -(dz/dc)'': dz/dc on the grid is the edge gradient of the drag that
+    def _edge_rows(self, cB: np.ndarray, k: np.ndarray, z: np.ndarray, side: np.ndarray):
+        """`edge_gradient` in sparse form: (cols (len(k), w) int, vals (len(k), w)), row r of the
+        dense gradient holding vals[r] at cols[r] (w = 4, a cubic's non-zeros; 1 for a constant
+        width). For the whole grid at once (`ring_gradient`), where the dense rows cost more than the
+        filtering they feed."""
+        if self.n_b == 1:
+            return np.zeros((k.size, 1), int), side[:, None].astype(float)
+        if self.width_at == "input":
+            ind = self.Phi_B.indices.reshape(-1, 4)[k]
+            return ind, self.Phi_B.data.reshape(-1, 4)[k] * side[:, None]
+        phi = _sparse_basis(z, self.q_lo, self.q_hi, self.n_b)
+        inner = np.linspace(self.q_lo, self.q_hi, self.n_b - 2)
+        knots = np.r_[[self.q_lo] * 3, inner, [self.q_hi] * 3]
+        dB = BSpline(knots, cB, 3).derivative()(np.clip(z, self.q_lo, np.nextafter(self.q_hi, -np.inf)))
+        fac = side / np.maximum(1.0 - side * dB, 0.05)
+        return phi.indices.reshape(-1, 4), phi.data.reshape(-1, 4) * fac[:, None]
+
+    def ring_gradient(self, cB: np.ndarray, st: dict, x0: float, gains: np.ndarray) -> np.ndarray:
+        """d (g_stop x_stop + g_start x_start) / d (B's coefficients) at the frames (F, n_b), gains
+        (g_stop, g_start) the tip mode's two gains. The mode is linear in its drive u = -z'' (each
+        part on its fixed mask, `columns`), so the gains' sum of its derivatives is the mode's
+        response to -(dz/dc)'' weighted by the part's gain at each sample: one filtering of the
+        n_b rows rather than one per part. dz/dc on the grid is the edge gradient of the drag that
         last set z (`edge_gradient`), which jumps at each onset by the new edge's speed times the
         onset's shift, so the response carries the start's shift in time (a dipole through the
         filter). Without it a 10 px ring moved by a millisecond per onset went unseen: the gradient
@@ -968,20 +1014,24 @@ class RecordModel:
         rec = self.rec
         dt = rec.dt
         last = st["last"]
-        ks = np.flatnonzero(last == np.arange(last.size))  # the drag samples themselves
-        Zk = self.z_gradient(cB, st, np.r_[0, ks], x0)[0]  # and the first state's (row 0)
-        Zg = np.ascontiguousarray(Zk.T)[:, np.searchsorted(ks, last) + (last >= 0)]  # (n_b, N): held samples keep their last drag's
-        a = np.diff(Zg, 2, axis=1) / (dt * dt)
-        tau = st["tau"]
-        pos = np.clip((tau - rec.t[1]) / dt, 0.0, a.shape[1] - 1.000001)
+        N = last.size
+        ks = np.flatnonzero(last == np.arange(N))  # the drag samples themselves
+        cols, vals = self._edge_rows(cB, ks, st["z"][ks], st["side"][ks])
+        Zg = np.zeros((self.n_b, N))  # dz/dc on the grid: held samples keep their last drag's
+        held = np.flatnonzero(last >= 0)
+        r = np.searchsorted(ks, last[held])
+        for j in range(cols.shape[1]):  # a row's columns are distinct: plain assignment
+            Zg[cols[r, j], held] = vals[r, j]
+        pre = last < 0  # before the first drag: the first state's (`z_gradient`)
+        if pre.any():
+            Zg[:, pre] = self.z_gradient(cB, st, np.zeros(1, int), x0)[0][0][:, None]
+        stop = st["mask"][0]
+        wd = np.where(stop, -gains[0], -gains[1]) / (dt * dt)  # -u's part gains, the second difference's scale
+        x = lfilter(*_tip_filter(st["ring"][0], st["ring"][1], dt), np.diff(Zg, 2, axis=1) * wd, axis=1)
+        pos = np.clip((st["tau"] - rec.t[1]) / dt, 0.0, x.shape[1] - 1.000001)
         i0 = pos.astype(int)
         wgt = pos - i0
-        ba = _tip_filter(st["ring"][0], st["ring"][1], dt)
-        out = []
-        for mask in st["mask"]:  # each part's drive on its own fixed mask (`columns`)
-            x = lfilter(*ba, np.where(mask, -a, 0.0), axis=1)
-            out.append((x[:, i0] * (1.0 - wgt) + x[:, i0 + 1] * wgt).T)
-        return out
+        return (x[:, i0] * (1.0 - wgt) + x[:, i0 + 1] * wgt).T
 
     def jacobian(self, th: np.ndarray, ev: "Eval", sigma: float) -> np.ndarray:
         """d residual / d theta (2F [+ 1 prior row], n_theta) of `_residual_fn`'s residuals, by
@@ -1011,12 +1061,11 @@ class RecordModel:
         # the delay: tau = t_f - d
         Gu[:, 0] = -dz_u * zdot
         Gv[:, 0] = -dz_v * zdot
-        if self.terms.ring:
+        if self.terms.ring:  # the gains' sum of the two parts, differenced once
             sl = self.slope
-            for k, x in enumerate(st["x"]):
-                xdot = np.interp(tau, rec.t[1:-2] + 0.5 * dt, np.diff(x) / dt)
-                Gu[:, 0] -= sl[:, 0] * gr[k] * xdot
-                Gv[:, 0] -= sl[:, 1] * gr[k] * xdot
+            xdot = np.interp(tau, rec.t[1:-2] + 0.5 * dt, np.diff(gr[0] * st["x"][0] + gr[1] * st["x"][1]) / dt)
+            Gu[:, 0] -= sl[:, 0] * xdot
+            Gv[:, 0] -= sl[:, 1] * xdot
         ramps = {}
         for name, val in reg.items():
             t_ev, s_ev, s_prev, L = st[name][1:5]
@@ -1050,9 +1099,9 @@ class RecordModel:
         Gu[:, i_z0] = dz_u * Zx
         Gv[:, i_z0] = dz_v * Zx
         if self.terms.ring:  # the tip mode's drive through B: an onset moves the start it excites
-            for k, dx in enumerate(self.ring_gradient(cB, st, x0)):
-                Gu[:, sl_b] += (self.slope[:, 0] * gr[k])[:, None] * dx
-                Gv[:, sl_b] += (self.slope[:, 1] * gr[k])[:, None] * dx
+            dx = self.ring_gradient(cB, st, x0, gr[:2])
+            Gu[:, sl_b] += self.slope[:, 0, None] * dx
+            Gv[:, sl_b] += self.slope[:, 1, None] * dx
         if "tip" in ramps:
             e, inr, dS = ramps["tip"]
             dton, dton_x = self.onset_gradient(cB, st, st["tip"][1], rec.s_new[st["tip"][5]], x0)  # (E, n_b), (E,)
@@ -1068,15 +1117,15 @@ class RecordModel:
             # central differences: the gradient's cosine to small steps' 0.99997 -> 1.0000; the columns stay
             # about 0.98 off them away from the optimum, Kaufman's dropped term, not the differencing
             h = 0.01
+            u = gr[0] * st["u"][0] + gr[1] * st["u"][1]  # the gains' sum of the parts' drives (the mode is linear)
             for j in range(2):
                 tp, tm = th.copy(), th.copy()
                 tp[i0 + j] += h
                 tm[i0 + j] -= h
                 fp, fm = self.unpack(tp)[2], self.unpack(tm)[2]
-                for k, u in enumerate(st["u"]):
-                    dx = np.interp(tau, rec.t[1:-1], _tip_mode(u, fp[0], fp[1], dt) - _tip_mode(u, fm[0], fm[1], dt)) / (2 * h)
-                    Gu[:, i0 + j] += sl[:, 0] * gr[k] * dx
-                    Gv[:, i0 + j] += sl[:, 1] * gr[k] * dx
+                dx = np.interp(tau, rec.t[1:-1], _tip_mode(u, fp[0], fp[1], dt) - _tip_mode(u, fm[0], fm[1], dt)) / (2 * h)
+                Gu[:, i0 + j] += sl[:, 0] * dx
+                Gv[:, i0 + j] += sl[:, 1] * dx
         if self.d_fixed is not None:
             Gu[:, 0] = Gv[:, 0] = 0.0
         Pu, Pv = self.project(Gu, Gv)
@@ -1536,42 +1585,102 @@ def _fit_chain(job) -> list:
     return out
 
 
-def _fits_in_child(payload: bytes):
-    """In the forked child: fn on each job of the pickled (jobs, fn), on one BLAS thread. Returns the list."""
-    import pickle
+RING_COST_FACTOR = 5.0  # a ring model's fit against a plain one's (its Jacobian filters the grid once per B
+                        # coefficient; bench record: 1.3-2.0 s against 0.2 s a fit of 8 evaluations)
+
+
+def _job_cost(job) -> float:
+    """A fit job's relative cost, to start the costly ones first (`_fit_all`): its models, one
+    with the tip mode RING_COST_FACTOR times one without."""
+    models = job[0] if isinstance(job[0], list) else [job[0]]
+    return float(sum(RING_COST_FACTOR if m.terms.ring else 1.0 for m in models))
+
+
+def _take(order: list, nxt):
+    """The jobs' indices in order, each taken once between the processes that share the counter nxt."""
+    while True:
+        with nxt.get_lock():
+            k = nxt.value
+            nxt.value += 1
+        if k >= len(order):
+            return
+        yield order[k]
+
+
+def _slim(result):
+    """A job's result (a Fit or a list of Fits) without its evaluations, for the pipe: an evaluation
+    holds the grid's play and drive (35 MB on the bench record, so a chain's took seconds to pass),
+    and the model it came from gives it again bit for bit (`_unslim`: a Fit's evaluation is its
+    model's at theta in the state the fit left, `fit_model`'s last settle)."""
+    for f in (result if isinstance(result, list) else [result]):
+        f.ev = None
+    return result
+
+
+def _unslim(result):
+    """The evaluations `_slim` dropped, from each Fit's model (and with them the model's last linear
+    solve, which the Jacobian reads)."""
+    for f in (result if isinstance(result, list) else [result]):
+        if f.ev is None:
+            f.ev = f.model.evaluate(f.theta)
+    return result
+
+
+def _child_loop(jobs: list, fn, order: list, nxt, conn) -> None:
+    """In the forked child: fn on the jobs it takes (`_take`), on one BLAS thread; sends {index:
+    result}, or the traceback (str) when a fit raised."""
+    import traceback
 
     from threadpoolctl import threadpool_limits
 
-    jobs, fn = pickle.loads(payload)
-    with threadpool_limits(1):
-        return [fn(j) for j in jobs]
+    try:
+        with threadpool_limits(1):
+            done = {i: _slim(fn(jobs[i])) for i in _take(order, nxt)}
+        conn.send(done)
+    except Exception:
+        conn.send(traceback.format_exc())
+    finally:
+        conn.close()
 
 
 def _fit_all(jobs: list, fn=None) -> list:
-    """fn (default `_fit_one`; `_fit_chain` for chains) on each job, results in the jobs' order: the
-    first half in a forked child while this process fits the rest, when the machine allows it
-    (_can_fork), else one after the other. Each fit is on its own copy of its model (`_fit_one`)
-    and the child's jobs are pickled before this process starts on the rest, so the result is the
-    same either way (a test checks it bit for bit). Measured on two quiet cores: fit_record on the
-    3-minute bench record 3.7 -> 2.8 s; on two registration records no gain (returning the fits, each with its
-    record, costs what the child saves)."""
+    """fn (default `_fit_one`; `_fit_chain` for chains) on each job, results in the jobs' order:
+    shared with a forked child when the machine allows it (_can_fork), each process taking the next
+    job, the costly ones first (`_job_cost`), until none is left; else one after the other. Why
+    taken and not split beforehand: the jobs' times are not known in advance (the bench record's
+    term search: 0.2 to 6.7 s a job, the first half 11 of 16 s, so the halves' split saved nothing).
+    The child is forked before this process fits anything and each fit is on its own copy of its
+    model (`_fit_one`), so the result does not depend on which process fitted a job (a test checks
+    it bit for bit). A child that dies leaves its jobs to this process; one whose fit raised
+    raises here."""
     fn = fn or _fit_one
     if len(jobs) < 2 or not _can_fork():
         return [fn(j) for j in jobs]
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
 
-    import pickle
-
-    k = len(jobs) // 2
-    # The child's jobs are pickled here, before this process fits the rest: jobs may share a model
-    # (a term's starts), which those fits change, and the executor's feeder thread pickling them
-    # meanwhile raced them ("dictionary changed size during iteration", once in 113 records).
-    payload = pickle.dumps((jobs[:k], fn))
-    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as ex:
-        child = ex.submit(_fits_in_child, payload)
-        rest = [fn(j) for j in jobs[k:]]
-        return child.result() + rest
+    ctx = multiprocessing.get_context("fork")
+    order = sorted(range(len(jobs)), key=lambda i: -_job_cost(jobs[i]))
+    nxt = ctx.Value("l", 0)
+    recv, send = ctx.Pipe(duplex=False)
+    child = ctx.Process(target=_child_loop, args=(jobs, fn, order, nxt, send), daemon=True)
+    child.start()
+    send.close()
+    out = [None] * len(jobs)
+    try:
+        for i in _take(order, nxt):
+            out[i] = fn(jobs[i])
+        try:
+            done = recv.recv()
+        except EOFError:  # the child died: its jobs are fitted below
+            done = {}
+    finally:
+        recv.close()
+        child.join()
+    if isinstance(done, str):
+        raise RuntimeError(f"a fit in the forked child raised:\n{done}")
+    for i, f in done.items():
+        out[i] = _unslim(f)
+    return [f if f is not None else fn(j) for f, j in zip(out, jobs)]
 
 
 def _search(rec, starts, prior, d_fixed, board_b, sigma):

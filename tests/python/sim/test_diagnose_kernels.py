@@ -34,6 +34,32 @@ def test_play_and_viscous_play_bit_for_bit():
                                   fitmodel._viscous_play(lo, hi, z0, a, native=False))
 
 
+def test_the_record_models_play_with_its_drags_and_its_band_bit_for_bit():
+    # onset_model's bookkeeping (the last drag and its edge) and the band at the input, in C against
+    # their numpy references: a first state inside the band (samples before the first drag), a
+    # zero-width band (z on both edges: the lower counts), a hold, and B-spline widths that go
+    # negative (clipped to 0)
+    from playscope.fit import onset_model as OM
+
+    q, lo, hi = _drive()
+    lo[50] = hi[50] = 0.25
+    for z0 in (0.5 * (lo[0] + hi[0]), lo[0], 5.0):
+        ref = OM.play_drags_ref(lo, hi, z0)
+        got = kernels.play_drags(lo, hi, z0)
+        assert all(np.array_equal(a, b) for a, b in zip(got, ref))
+    assert ref[1][0] == 0 and ref[2][0] == 0.5  # z0 = 5.0: dragged by the upper edge at once
+    assert (OM.play_drags_ref(lo, hi, 0.5 * (lo[0] + hi[0]))[1] < 0).sum() > 0  # a first hold inside the band
+    rec = OM.make_record(np.arange(q.size) / 50.0, q, np.array([1.0, 7.0]), np.array([q[50], q[350]]),
+                         np.arange(0.0, 100.0, 0.04), np.zeros((2500, 2)), 25.0)
+    for n_b in (1, 4, 16):
+        m = OM.RecordModel(rec, n_b, 6, OM.Terms(), None)
+        cB = np.linspace(-0.05, 0.4, n_b)
+        B = np.maximum(m.Phi_B @ cB if m.Phi_B is not None else np.full(rec.q.size, cB[0]), 0.0)
+        lo_c, hi_c = kernels.band_input(rec.q, m._taps[0], m._taps[1], cB)
+        assert np.array_equal(lo_c, rec.q - 0.5 * B) and np.array_equal(hi_c, rec.q + 0.5 * B)
+        assert (n_b == 1) or (B == 0.0).any()
+
+
 def test_switch_bit_for_bit():
     q, _, _ = _drive(seed=1)
     for travel in (1e-3, 0.05, 0.4, 10.0):
