@@ -56,6 +56,69 @@ void dk_band_input(const double *q, const int *idx, const double *val, long n, l
     }
 }
 
+void dk_tip_mode(const double *u, long n, double b1, double a1, double a2, double *y)
+{
+    /* transposed direct form II of b = (0, b1, 0), a = (1, a1, a2), each product and sum in
+     * scipy.signal.lfilter's order, so that the two agree bit for bit */
+    double z0 = 0.0, z1 = 0.0;
+    for (long k = 0; k < n; k++) {
+        double x = u[k];
+        double yk = z0 + 0.0 * x;
+        z0 = (z1 + x * b1) - yk * a1;
+        z1 = x * 0.0 - yk * a2;
+        y[k] = yk;
+    }
+}
+
+/* Row k of the edge gradient on the grid (dk_tip_mode_edges): zero but for its table row's taps. */
+static void edge_row(const int *cols, const double *vals, long w, const long *src, const double *scale,
+                     const double *pre, long R, long k, double *row)
+{
+    if (src[k] < 0) {
+        for (long r = 0; r < R; r++)
+            row[r] = pre[r];
+        return;
+    }
+    for (long r = 0; r < R; r++)
+        row[r] = 0.0;
+    for (long j = 0; j < w; j++)
+        row[cols[src[k] * w + j]] = vals[src[k] * w + j] * scale[k];
+}
+
+void dk_tip_mode_edges(const int *cols, const double *vals, long w, const long *src, const double *scale, long n,
+                       const double *pre, long R, const double *wd, double b1, double a1, double a2,
+                       const long *i0, const double *w_lo, const double *w_hi, long F, double *scratch, double *out)
+{
+    double *za = scratch, *zb = scratch + R, *zc = scratch + 2 * R;      /* rows k, k + 1, k + 2 */
+    double *s0 = scratch + 3 * R, *s1 = scratch + 4 * R;                 /* the filters' delays */
+    double *y_prev = scratch + 5 * R, *y_cur = scratch + 6 * R;
+    long f = 0;
+    if (n < 3)
+        return;
+    for (long r = 0; r < R; r++)
+        s0[r] = s1[r] = y_prev[r] = 0.0;
+    edge_row(cols, vals, w, src, scale, pre, R, 0, za);
+    edge_row(cols, vals, w, src, scale, pre, R, 1, zb);
+    for (long k = 0; k + 2 < n && f < F; k++) {
+        edge_row(cols, vals, w, src, scale, pre, R, k + 2, zc);
+        for (long r = 0; r < R; r++) {
+            /* the drive: numpy's diff twice, times the sample's weight; then lfilter's order */
+            double x = ((zc[r] - zb[r]) - (zb[r] - za[r])) * wd[k];
+            double yk = s0[r] + 0.0 * x;
+            s0[r] = (s1[r] + x * b1) - yk * a1;
+            s1[r] = x * 0.0 - yk * a2;
+            y_cur[r] = yk;
+        }
+        while (f < F && i0[f] + 1 == k) {  /* a frame between output samples k - 1 and k */
+            for (long r = 0; r < R; r++)
+                out[f * R + r] = y_prev[r] * w_lo[f] + y_cur[r] * w_hi[f];
+            f++;
+        }
+        double *t = za; za = zb; zb = zc; zc = t;
+        t = y_prev; y_prev = y_cur; y_cur = t;
+    }
+}
+
 void dk_play_ops(const double *x, long n, const double *r, long m, const double *p0, double *out)
 {
     for (long k = 0; k < n; k++) {

@@ -13,6 +13,17 @@ void dk_play_drags(const double *lo, const double *hi, long n, double z0, double
  * (the sparse B-spline design's rows, summed in scipy's csr_matvec order: bit for bit). */
 void dk_band_input(const double *q, const int *idx, const double *val, long n, long w, const double *c,
                    double *lo, double *hi);
+/* The tip mode's filter (onset_model._tip_filter's b = (0, b1), a = (1, a1, a2)) on u from rest:
+ * scipy.signal.lfilter's transposed direct form II, bit for bit. */
+void dk_tip_mode(const double *u, long n, double b1, double a1, double a2, double *y);
+/* The same filter driven, for each of R coefficients, by the second differences of the edge
+ * gradient on the grid times wd (n - 2): sample k's row is zero but for vals[src[k], j] scale[k]
+ * at cols[src[k], j] (a table of w taps a row), or pre (R) where src[k] < 0; read at F sorted
+ * positions between output samples i0[f] and i0[f] + 1: out[f, r] = y[i0[f]] w_lo[f] +
+ * y[i0[f] + 1] w_hi[f] (F x R, row-major); i0[f] + 1 < n - 2; scratch holds 7 R doubles. */
+void dk_tip_mode_edges(const int *cols, const double *vals, long w, const long *src, const double *scale, long n,
+                       const double *pre, long R, const double *wd, double b1, double a1, double a2,
+                       const long *i0, const double *w_lo, const double *w_hi, long F, double *scratch, double *out);
 /* Classical play operators of m thresholds r over x (transition.play_ops): row k of out (n x m,
  * row-major) is p_i = minimum(x[k] + r_i, maximum(x[k] - r_i, p_i)), p starting at p0 (m,), with
  * numpy's tie rule (maximum(a, b) and minimum(a, b) give b on a tie, so signed zeros agree too). */

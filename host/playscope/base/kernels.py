@@ -1,13 +1,18 @@
 """Sequential kernels in C (kernels.c): the play operator (the onsets' record model and the
-diagnosis use it) and the diagnosis' recursions, loaded through cffi like the firmware core
+diagnosis use it), the record model's grid passes (the play with its drags, the band at the input,
+the tip mode's filter and its B gradient's drive) and the diagnosis' recursions, loaded through
+cffi like the firmware core
 (playscope.base.native): compiled on first use into $PLAYSCOPE_CACHE/diagkernels-<hash of the C, the
 header and this file>, so an edit rebuilds it and a stale build is never loaded.
 
 Why: the play operator, the viscous play, the registration switch and the Karnopp carrier are
 recursions over time that numpy cannot vectorise; in Python they took about half of a diagnosis'
-time (cProfile of a 275-s record, docs/diagnosis.md section 5). The C is a line-for-line
-translation of the Python references in fitmodel.py and fit/model.py and agrees with them bit for
-bit (tests/python/sim/test_diagnose_kernels.py). When no C compiler is available the callers
+time (cProfile of a 275-s record, docs/diagnosis.md section 5). The record model's passes run over
+a 1 kHz grid several times per evaluation; fused in C they took its Jacobian with the tip mode
+from 147 to 19 ms on the 3-minute bench record. The C is a line-for-line
+translation of the Python references in fitmodel.py, fit/model.py and fit/onset_model.py (the
+tip mode: scipy.signal.lfilter's transposed direct form, in its order of operations) and agrees
+with them bit for bit (tests/python/sim/test_diagnose_kernels.py). When no C compiler is available the callers
 fall back to the Python references (``available()`` is False; the same results, slower).
 
 Functions take and return float64 numpy arrays of one length N (mm); shapes (N,).
@@ -160,3 +165,36 @@ def band_input(q, idx, val, c) -> tuple[np.ndarray, np.ndarray]:
                       qq.size, ii.shape[1], ffi.from_buffer("double[]", cc), ffi.from_buffer("double[]", lo),
                       ffi.from_buffer("double[]", hi))
     return lo, hi
+
+
+def tip_mode(u, b1: float, a1: float, a2: float) -> np.ndarray:
+    """scipy.signal.lfilter([0, b1], [1, a1, a2], u) in C, bit for bit (kernels.h)."""
+    ffi, lib = _load()
+    uu = _arr(u)
+    y = np.empty(uu.size)
+    lib.dk_tip_mode(ffi.from_buffer("double[]", uu), uu.size, float(b1), float(a1), float(a2), ffi.from_buffer("double[]", y))
+    return y
+
+
+def tip_mode_edges(cols, vals, src, scale, pre, wd, b1: float, a1: float, a2: float, i0, w_lo, w_hi) -> np.ndarray:
+    """The tip mode's filter driven by the second differences of an edge gradient on the grid,
+    for each of its R coefficients, read at F sorted positions: (F, R) (kernels.h). cols (K, w) int,
+    vals (K, w) a table of rows; src (n,) int the table row of each grid sample (-1: pre (R,)),
+    scale (n,) its multiplier; wd (n - 2,); i0 (F,) int sorted, w_lo, w_hi (F,). Bit for bit the
+    numpy and lfilter pipeline on the dense (R, n) gradient. Errors: ValueError for positions
+    unsorted or past the output."""
+    ffi, lib = _load()
+    cc = np.ascontiguousarray(cols, dtype=np.int32)
+    vv, ss, sc, pp, ww = _arr(vals), np.ascontiguousarray(src, dtype=np.int64), _arr(scale), _arr(pre), _arr(wd)
+    ii = np.ascontiguousarray(i0, dtype=np.int64)
+    n, R = ss.size, pp.size
+    if ii.size and (ii[0] < 0 or ii[-1] + 1 >= n - 2 or np.any(np.diff(ii) < 0)):
+        raise ValueError("tip_mode_edges: positions must be sorted and within the output")
+    out = np.zeros((ii.size, R))
+    scratch = np.empty(7 * R)
+    lib.dk_tip_mode_edges(ffi.from_buffer("int[]", cc), ffi.from_buffer("double[]", vv), cc.shape[1],
+                          ffi.from_buffer("long[]", ss), ffi.from_buffer("double[]", sc), n, ffi.from_buffer("double[]", pp),
+                          R, ffi.from_buffer("double[]", ww), float(b1), float(a1), float(a2), ffi.from_buffer("long[]", ii),
+                          ffi.from_buffer("double[]", _arr(w_lo)), ffi.from_buffer("double[]", _arr(w_hi)), ii.size,
+                          ffi.from_buffer("double[]", scratch), ffi.from_buffer("double[]", out))
+    return out

@@ -280,8 +280,10 @@ def _tip_filter(f_hz: float, zeta: float, dt: float) -> tuple[list, list]:
 
 
 def _tip_mode(u: np.ndarray, f_hz: float, zeta: float, dt: float) -> np.ndarray:
-    """Response x of the tip mode (`_tip_filter`) to u sampled every dt."""
-    return lfilter(*_tip_filter(f_hz, zeta, dt), u)
+    """Response x of the tip mode (`_tip_filter`) to u sampled every dt (in C when compiled: the
+    same bits, base/kernels.c)."""
+    b, a = _tip_filter(f_hz, zeta, dt)
+    return kernels.tip_mode(u, b[1], a[1], a[2]) if kernels.available() else lfilter(b, a, u)
 
 
 def _share_var(tau: np.ndarray, t_ev: np.ndarray, T: float) -> np.ndarray:
@@ -418,12 +420,7 @@ class RecordModel:
         self.q_lo, self.q_hi = float(q.min()), float(q.max())
         span = self.q_hi - self.q_lo
         self.Phi_B = _sparse_basis(q, self.q_lo, self.q_hi, n_b) if n_b > 1 else None
-        # B's taps on the grid for the band kernel (base/kernels.c): the design's 4 a row, or the
-        # constant width's one
-        if self.Phi_B is not None and np.all(np.diff(self.Phi_B.indptr) == 4):
-            self._taps = (self.Phi_B.indices.reshape(-1, 4), self.Phi_B.data.reshape(-1, 4))
-        else:
-            self._taps = (np.zeros((q.size, 1), np.int32), np.ones((q.size, 1))) if n_b == 1 else None
+        self._taps = self._band_taps()
         if width_at == "output":  # the play's output grid the edges are inverted on (module doc)
             self.z_grid = np.linspace(self.q_lo - 0.5 * span, self.q_hi + 0.5 * span, Z_GRID)
             self.Phi_Bz = _sparse_basis(self.z_grid, self.q_lo, self.q_hi, n_b) if n_b > 1 else None
@@ -433,6 +430,7 @@ class RecordModel:
         self.slide_max_s = rec.period_s
         self.slope = None  # G' at the frames from the previous round: (F, 2), for the ring's direction
         self.mix = {}      # the switch mixture's E-step per term ("tip", "motor"): `e_step`
+        self._memo = None  # `_play_part`'s last arguments and result
 
     # ---- theta layout: [t_delay, B's coefficients (n_b)[, ring (2)][, lag_tip][, lag_motor][, slide_tip]
     # [, slide_motor], z0]. The bounded parts enter through logistic maps onto their ranges (a clip
@@ -643,6 +641,47 @@ class RecordModel:
         out[has] = t_on[has]
         return out
 
+    def _play_part(self, d: float, cB: np.ndarray, x0: float) -> tuple:
+        """What `columns` computes from the delay, B and the first state alone: (z, lo, hi, last, side
+        (N,), the onsets (M,), tau, z at the frames (F,), G's columns (F, n_g), and with the tip mode
+        its parts' masks and drives ((N - 2,) x 2 each), else None). Kept for the last arguments:
+        the tip mode's frequency scan, a settle's three evaluations and the fit's repeated ones
+        at one theta change none of them (the arrays are never written in place)."""
+        key = (d, cB.tobytes(), x0)
+        if self._memo is not None and self._memo[0] == key:
+            return self._memo[1]
+        rec = self.rec
+        z, lo, hi, last, side = self.play_drags(cB, x0)
+        tau = rec.t_f - d
+        z_f = np.interp(tau, rec.t, z)
+        drive = None
+        if self.terms.ring:
+            v = np.diff(z) / rec.dt
+            a = np.diff(v) / rec.dt
+            stop = a * v[:-1] < 0.0  # slowing the tip down (a stop); the rest starts it
+            mask = (stop, ~stop)
+            drive = (mask, [np.where(m, -a, 0.0) for m in mask])
+        out = (z, lo, hi, last, side, self.onsets(z), tau, z_f, _basis(z_f, self.z_lo, self.z_hi, self.n_g), drive)
+        self._memo = (key, out)
+        return out
+
+    def _band_taps(self):
+        """B's taps on the grid for the band kernel (base/kernels.c), views of the design: (cols
+        (N, 4), vals (N, 4)), the constant width's (N, 1), or None when a row has other than 4."""
+        if self.Phi_B is not None:
+            ok = np.all(np.diff(self.Phi_B.indptr) == 4)
+            return (self.Phi_B.indices.reshape(-1, 4), self.Phi_B.data.reshape(-1, 4)) if ok else None
+        return (np.zeros((self.rec.q.size, 1), np.int32), np.ones((self.rec.q.size, 1))) if self.n_b == 1 else None
+
+    def __getstate__(self) -> dict:
+        """Pickled without `_play_part`'s memo (the grid's arrays: tens of MB a model) nor the
+        taps (views of the design, which a pickle would copy)."""
+        return {**self.__dict__, "_memo": None, "_taps": None}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._taps = self._band_taps()
+
     def columns(self, th: np.ndarray) -> tuple[dict, np.ndarray, np.ndarray, dict]:
         """The linear model's columns at theta: {"G": (F, n_g), "ring": [(F,) x 2] or absent,
         "tip", "motor": (F, N_REG, 2) each or absent (S times the rigid registration's motions)},
@@ -651,20 +690,13 @@ class RecordModel:
         rec = self.rec
         d, cB, ring, lags = self.unpack(th)
         slides = self.slides(th)
-        z, lo, hi, last, side = self.play_drags(cB, self.z0_of(th))
-        t_on = self.onsets(z)
-        tau = rec.t_f - d
-        z_f = np.interp(tau, rec.t, z)
-        cols = {"G": _basis(z_f, self.z_lo, self.z_hi, self.n_g)}
+        z, lo, hi, last, side, t_on, tau, z_f, G, drive = self._play_part(d, cB, self.z0_of(th))
+        cols = {"G": G}
         zn = (2 * z_f - (self.q_lo + self.q_hi)) / max(self.q_hi - self.q_lo, 1e-12)
         T = rec.period_s
         st = {"z": z, "lo": lo, "hi": hi, "tau": tau, "zn": zn, "ring": ring, "last": last, "side": side}
         if self.terms.ring:
-            v = np.diff(z) / rec.dt
-            a = np.diff(v) / rec.dt
-            stop = a * v[:-1] < 0.0  # slowing the tip down (a stop); the rest starts it
-            st["mask"] = (stop, ~stop)
-            st["u"] = [np.where(m, -a, 0.0) for m in st["mask"]]
+            st["mask"], st["u"] = drive
             st["x"] = [_tip_mode(u, ring[0], ring[1], rec.dt) for u in st["u"]]
             cols["ring"] = [np.interp(tau, rec.t[1:-1], x) for x in st["x"]]
         if self.terms.reg_tip:
@@ -1015,6 +1047,21 @@ class RecordModel:
         dt = rec.dt
         last = st["last"]
         N = last.size
+        pre_row = self.z_gradient(cB, st, np.zeros(1, int), x0)[0][0]  # before the first drag: the first state's
+        wd = np.where(st["mask"][0], -gains[0], -gains[1]) / (dt * dt)  # -u's part gains, the second difference's scale
+        b, a = _tip_filter(st["ring"][0], st["ring"][1], dt)
+        pos = np.clip((st["tau"] - rec.t[1]) / dt, 0.0, N - 2 - 1.000001)
+        i0 = pos.astype(int)
+        wgt = pos - i0
+        if kernels.available() and np.all(np.diff(i0) >= 0):  # in one pass, the gradient built row by row (bit for bit)
+            if self.width_at == "input" and self._taps is not None:  # the band's own taps at the last drag
+                return kernels.tip_mode_edges(self._taps[0], self._taps[1], last, st["side"][np.maximum(last, 0)],
+                                              pre_row, wd, b[1], a[1], a[2], i0, 1.0 - wgt, wgt)
+            drag = last == np.arange(N)
+            ks = np.flatnonzero(drag)
+            cols, vals = self._edge_rows(cB, ks, st["z"][ks], st["side"][ks])
+            src = np.where(last >= 0, np.cumsum(drag) - 1, -1)
+            return kernels.tip_mode_edges(cols, vals, src, np.ones(N), pre_row, wd, b[1], a[1], a[2], i0, 1.0 - wgt, wgt)
         ks = np.flatnonzero(last == np.arange(N))  # the drag samples themselves
         cols, vals = self._edge_rows(cB, ks, st["z"][ks], st["side"][ks])
         Zg = np.zeros((self.n_b, N))  # dz/dc on the grid: held samples keep their last drag's
@@ -1022,15 +1069,8 @@ class RecordModel:
         r = np.searchsorted(ks, last[held])
         for j in range(cols.shape[1]):  # a row's columns are distinct: plain assignment
             Zg[cols[r, j], held] = vals[r, j]
-        pre = last < 0  # before the first drag: the first state's (`z_gradient`)
-        if pre.any():
-            Zg[:, pre] = self.z_gradient(cB, st, np.zeros(1, int), x0)[0][0][:, None]
-        stop = st["mask"][0]
-        wd = np.where(stop, -gains[0], -gains[1]) / (dt * dt)  # -u's part gains, the second difference's scale
-        x = lfilter(*_tip_filter(st["ring"][0], st["ring"][1], dt), np.diff(Zg, 2, axis=1) * wd, axis=1)
-        pos = np.clip((st["tau"] - rec.t[1]) / dt, 0.0, x.shape[1] - 1.000001)
-        i0 = pos.astype(int)
-        wgt = pos - i0
+        Zg[:, last < 0] = pre_row[:, None]
+        x = lfilter(b, a, np.diff(Zg, 2, axis=1) * wd, axis=1)
         return (x[:, i0] * (1.0 - wgt) + x[:, i0 + 1] * wgt).T
 
     def jacobian(self, th: np.ndarray, ev: "Eval", sigma: float) -> np.ndarray:

@@ -103,3 +103,42 @@ def test_the_dense_basis_and_lowpass_columns():
     assert np.array_equal(P, BSpline.design_matrix(x, t, 3).toarray())
     L = fitmodel.lowpass(P, 0.3, 50.0)
     assert np.array_equal(L, np.column_stack([fitmodel.lowpass(P[:, j], 0.3, 50.0) for j in range(P.shape[1])]))
+
+
+def test_the_tip_modes_filter_and_its_gradient_drive_bit_for_bit():
+    # onset_model's tip mode in C against scipy.signal.lfilter, and its B gradient's pass (the edge
+    # gradient built row by row from a table of taps, second differences, the filter, read between
+    # grid samples) against the dense numpy pipeline: held runs (a row kept), samples before any
+    # drag (the first state's row), zero drives and frames sharing a grid step
+    from scipy.signal import lfilter
+
+    from playscope.fit import onset_model as OM
+
+    rng = np.random.default_rng(3)
+    n, R, w = 5000, 6, 4
+    u = rng.normal(size=n)
+    u[100:300] = 0.0
+    b, a = OM._tip_filter(4.3, 0.07, 1e-3)
+    assert np.array_equal(kernels.tip_mode(u, b[1], a[1], a[2]), lfilter(b, a, u))
+    K = 900
+    cols = np.array([rng.choice(R, w, replace=False) for _ in range(K)], np.int32)
+    vals = rng.normal(size=(K, w))
+    src = np.sort(rng.integers(0, K, n))
+    src[:40] = -1                           # before the first drag
+    src[2000:2300] = src[1999]              # a hold keeps its last drag's row
+    scale = rng.choice([-0.5, 0.5], n)
+    pre = rng.normal(size=R)
+    wd = rng.normal(size=n - 2)
+    pos = np.sort(np.r_[rng.uniform(0, n - 3.000001, 200), [17.5, 17.25]])
+    i0 = pos.astype(int)
+    wgt = pos - i0
+    Z = np.zeros((R, n))
+    for j in range(w):
+        Z[cols[np.maximum(src, 0), j], np.arange(n)] = vals[np.maximum(src, 0), j] * scale
+    Z[:, src < 0] = pre[:, None]
+    x = lfilter(b, a, np.diff(Z, 2, axis=1) * wd, axis=1)
+    ref = (x[:, i0] * (1.0 - wgt) + x[:, i0 + 1] * wgt).T
+    got = kernels.tip_mode_edges(cols, vals, src, scale, pre, wd, b[1], a[1], a[2], i0, 1.0 - wgt, wgt)
+    assert np.array_equal(got, ref)
+    with pytest.raises(ValueError):
+        kernels.tip_mode_edges(cols, vals, src, scale, pre, wd, b[1], a[1], a[2], i0[::-1], 1.0 - wgt, wgt)
