@@ -134,6 +134,7 @@ from scipy.special import expit, log_ndtr, logit
 from scipy.signal import lfilter
 
 from ..base import kernels
+from ..base.forkmap import fork_map
 from .model import play_edges
 
 HUBER_K = 1.345        # Huber's tuning constant, in sigma (95 % efficiency at the Gaussian; Huber 1964)
@@ -1566,18 +1567,6 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
     return fit, search
 
 
-def _can_fork() -> bool:
-    """Whether fits may run in a forked child beside this process: on Linux, with two or more
-    cores to run on, and not from a daemonic worker (which may have no children)."""
-    import multiprocessing
-    import os
-    import sys
-
-    if not sys.platform.startswith("linux") or multiprocessing.current_process().daemon:
-        return False
-    return len(os.sched_getaffinity(0)) >= 2
-
-
 def _fit_one(job) -> "Fit":
     """fit_model for one job (model, theta0, sigma, max_nfev, rounds) on its own copy of the model,
     its IRLS weights and mixture started afresh and first set at theta0: the fit depends on the
@@ -1626,7 +1615,7 @@ def _fit_chain(job) -> list:
 
 
 RING_COST_FACTOR = 5.0  # a ring model's fit against a plain one's (its Jacobian filters the grid once per B
-                        # coefficient; bench record: 1.3-2.0 s against 0.2 s a fit of 8 evaluations)
+                        # coefficient: 19 against 4 ms on the bench record, 16 coefficients)
 
 
 def _job_cost(job) -> float:
@@ -1634,17 +1623,6 @@ def _job_cost(job) -> float:
     with the tip mode RING_COST_FACTOR times one without."""
     models = job[0] if isinstance(job[0], list) else [job[0]]
     return float(sum(RING_COST_FACTOR if m.terms.ring else 1.0 for m in models))
-
-
-def _take(order: list, nxt):
-    """The jobs' indices in order, each taken once between the processes that share the counter nxt."""
-    while True:
-        with nxt.get_lock():
-            k = nxt.value
-            nxt.value += 1
-        if k >= len(order):
-            return
-        yield order[k]
 
 
 def _slim(result):
@@ -1666,61 +1644,13 @@ def _unslim(result):
     return result
 
 
-def _child_loop(jobs: list, fn, order: list, nxt, conn) -> None:
-    """In the forked child: fn on the jobs it takes (`_take`), on one BLAS thread; sends {index:
-    result}, or the traceback (str) when a fit raised."""
-    import traceback
-
-    from threadpoolctl import threadpool_limits
-
-    try:
-        with threadpool_limits(1):
-            done = {i: _slim(fn(jobs[i])) for i in _take(order, nxt)}
-        conn.send(done)
-    except Exception:
-        conn.send(traceback.format_exc())
-    finally:
-        conn.close()
-
-
 def _fit_all(jobs: list, fn=None) -> list:
-    """fn (default `_fit_one`; `_fit_chain` for chains) on each job, results in the jobs' order:
-    shared with a forked child when the machine allows it (_can_fork), each process taking the next
-    job, the costly ones first (`_job_cost`), until none is left; else one after the other. Why
-    taken and not split beforehand: the jobs' times are not known in advance (the bench record's
-    term search: 0.2 to 6.7 s a job, the first half 11 of 16 s, so the halves' split saved nothing).
-    The child is forked before this process fits anything and each fit is on its own copy of its
-    model (`_fit_one`), so the result does not depend on which process fitted a job (a test checks
-    it bit for bit). A child that dies leaves its jobs to this process; one whose fit raised
-    raises here."""
-    fn = fn or _fit_one
-    if len(jobs) < 2 or not _can_fork():
-        return [fn(j) for j in jobs]
-    import multiprocessing
-
-    ctx = multiprocessing.get_context("fork")
-    order = sorted(range(len(jobs)), key=lambda i: -_job_cost(jobs[i]))
-    nxt = ctx.Value("l", 0)
-    recv, send = ctx.Pipe(duplex=False)
-    child = ctx.Process(target=_child_loop, args=(jobs, fn, order, nxt, send), daemon=True)
-    child.start()
-    send.close()
-    out = [None] * len(jobs)
-    try:
-        for i in _take(order, nxt):
-            out[i] = fn(jobs[i])
-        try:
-            done = recv.recv()
-        except EOFError:  # the child died: its jobs are fitted below
-            done = {}
-    finally:
-        recv.close()
-        child.join()
-    if isinstance(done, str):
-        raise RuntimeError(f"a fit in the forked child raised:\n{done}")
-    for i, f in done.items():
-        out[i] = _unslim(f)
-    return [f if f is not None else fn(j) for f, j in zip(out, jobs)]
+    """fn (default `_fit_one`; `_fit_chain` for chains) on each job, results in the jobs' order, on
+    two cores when the machine has them (base.forkmap: the costly jobs first, `_job_cost`; the
+    child's fits sent without their evaluations, `_slim`). Each fit is on its own copy of its model
+    (`_fit_one`), so the result does not depend on which process fitted a job (a test checks it bit
+    for bit)."""
+    return fork_map(fn or _fit_one, jobs, cost=_job_cost, pack=_slim, unpack=_unslim)
 
 
 def _search(rec, starts, prior, d_fixed, board_b, sigma):

@@ -121,3 +121,17 @@ def test_real_catheter_in_situ_beats_constant_play(real_catheter_dir):
     m = s.distal["t_s"] >= half
     r = {k: rmse(model.direct_model(s.encoder["q"], *fit[k])[m] - s.distal["c_deg"][m]) for k in ("ours", "const_play")}
     assert r["ours"] <= r["const_play"]
+
+
+def test_the_calibration_is_the_same_bit_for_bit_with_a_second_core_or_without(synth_cal, monkeypatch):
+    # calibrate shares its independent fits with a forked child (base.forkmap: the model choice per
+    # B alternative here); each fit depends on its item alone, so the calibration file is the same
+    # whichever process fitted what
+    from playscope.base import forkmap
+
+    s, cal = synth_cal
+    if not forkmap.can_fork():
+        pytest.skip("needs Linux and two cores")
+    assert len(cal.doc["B_fit"]["model_cv"]) >= 2  # more than one alternative: the map had work to share
+    monkeypatch.setattr(forkmap, "can_fork", lambda: False)
+    assert json.dumps(calibrate(s, fps=25.0).doc) == json.dumps(cal.doc)
