@@ -1712,7 +1712,7 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
                     mc.slope = m.slope
                 jobs.append((ms, ms[0].theta({**{k: v for k, v in parts.items() if k in ms[0].layout()},
                                               "d": np.array([d_s]), "B": np.array([b_s])}), sigma, 20, 2, name))
-        cands = [(f.bic(sigma), job[5], f) for job, f in zip(jobs, (fs[-1] for fs in _fit_all([j[:5] for j in jobs], _fit_chain)))]
+        cands = [(f.bic(sigma), job[5], f) for job, f in zip(jobs, _fit_distinct([j[:5] for j in jobs]))]
         if not cands:
             break
         c_bic, name, f = min(cands, key=lambda c: c[0])
@@ -1727,6 +1727,19 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
             fit, bic, n_b, width_at = _resize(fit, bic, ladder, sigma, log)
             m = fit.model
     return fit, {"steps": log, "sigma_px": sigma, "n_b": n_b, "n_g": n_g, "width_at": width_at}
+
+
+def _fit_distinct(jobs: list) -> list:
+    """The last Fit of each chain job (`_fit_chain`), a job alike another (the same models, start and
+    budget: a start the term's bases repeat, e.g. the coarse delay equal to the configured one)
+    fitted once; its Fit then stands for both (a job's fit depends on the job alone, `_fit_one`)."""
+    key = [(tuple(id(m) for m in j[0]), j[1].tobytes(), j[2], j[3], j[4]) for j in jobs]
+    first = {}
+    for i, k in enumerate(key):
+        first.setdefault(k, i)
+    uniq = sorted(set(first.values()))
+    fits = dict(zip(uniq, (fs[-1] for fs in _fit_all([jobs[i] for i in uniq], _fit_chain))))
+    return [fits[first[k]] for k in key]
 
 
 def _resize(fit: Fit, bic: float, ladder: list, sigma: float, log: list) -> tuple:
