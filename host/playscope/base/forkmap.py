@@ -10,7 +10,8 @@ record gave its first half 11 of 16 s, so the halves' split saved nothing.
 The child is forked before this process computes anything, so an item never sees what another's
 computation left in shared objects (each fn must be a function of its item alone; the callers'
 tests check the result bit for bit against the items run in turn). A child that dies leaves its
-items to this process; an item that raised in the child raises here.
+items to this process; an item that raised in the child raises here; when one raises here, the
+child is stopped rather than awaited.
 """
 
 from __future__ import annotations
@@ -88,6 +89,9 @@ def fork_map(fn: Callable, items: Sequence, cost: Callable | None = None, pack: 
             done = recv.recv()
         except EOFError:  # the child died: its items are computed below
             done = {}
+    except BaseException:  # fn raised here, or an interrupt: the child's work is moot, not awaited
+        child.terminate()
+        raise
     finally:
         recv.close()
         child.join()

@@ -65,3 +65,20 @@ def test_pack_runs_in_the_child_and_unpack_here():
                            unpack=lambda r: r + ["unpacked"])
     assert [r[0] for r in out] == list(range(6))
     assert all(r[1:] in ([], ["packed", "unpacked"]) for r in out) and any(r[1:] for r in out)
+
+
+def test_an_item_that_raises_here_stops_the_child_rather_than_awaiting_it():
+    # the child's items take 3 s each, six of them: awaited, the call would last 9 s or more
+    parent = os.getpid()
+
+    def fn(x):
+        if os.getpid() == parent:
+            time.sleep(0.2)
+            raise KeyError(x)
+        time.sleep(3.0)
+        return x
+
+    t0 = time.monotonic()
+    with pytest.raises(KeyError):
+        forkmap.fork_map(fn, list(range(8)))
+    assert time.monotonic() - t0 < 2.5
