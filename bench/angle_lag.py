@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Does the angle lag the actuator? A diagnosis on the catheter's development files (issue 51).
+"""Does the angle lag the actuator? A diagnosis on the catheter's development files.
 
 The chain takes an angle sensor on the encoder's clock as having no delay (`calibrate`: t_delay 0,
 "angle sensor on the encoder clock"). A tip whose angle follows the tendon with a lag breaks the
