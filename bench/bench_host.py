@@ -1,4 +1,5 @@
-"""Host speed: `calibrate` on a 3-minute 25 Hz image session (1 kHz encoder), and marker tracking
+"""Host speed: `calibrate` on a 3-minute 25 Hz image session (a 1 kHz encoder log, which load_session
+thins to io.session.ENCODER_MAX_HZ as it does every image session's), and marker tracking
 at 720x576 (cv2.setNumThreads(1)): the per-frame tracker on frames already in memory, a lost
 frame's whole-frame search, and `track_video` end to end (MJPEG decode included). Prints a table.
 
@@ -47,7 +48,7 @@ with tempfile.TemporaryDirectory() as d:
         t2 = time.perf_counter()
         runs.append((t1 - t0, t2 - t1))
     ld, cb = np.array(runs).T
-    rows.append(("load 3-min session (1 kHz encoder, 25 Hz marker): load_session", ld))
+    rows.append(("load 3-min session (1 kHz encoder log thinned at load, 25 Hz marker): load_session", ld))
     rows.append((f"calibrate ({cal.n_b_samples} B samples, LM on {s.marker['t_s'].size} frames): calibrate", cb))
     rows.append(("load + calibrate (target < 3 s)", ld + cb))
 print(f"| step | median of {REPEATS} (s) | worst (s) |\n|---|---|---|")
