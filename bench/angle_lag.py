@@ -33,9 +33,10 @@ ROOT = Path(__file__).resolve().parent.parent
 REAL = Path(os.environ.get("PLAYSCOPE_REAL_DATA", ROOT.parent / "shared" / "data" / "real"))
 
 
-def one(path: Path, split: float, tau: float) -> tuple[float, float, float, str]:
-    """(ours' CV on the calibration part, ours judged, best peer judged, its row name), deg."""
-    s = import_catheter(path)
+def one(s, path: Path, split: float, tau: float) -> tuple[float, float, float, str]:
+    """For the session s (read from path; its t_delay_s is set to tau, s, and left so) at the split
+    fraction: (ours' CV on the calibration part, ours judged, the lowest other row judged, that
+    row's name), RMSE in deg. Errors: InputError from evaluate_insitu (a part it cannot calibrate)."""
     s.t_delay_s = tau
     d = evaluate_insitu(s, split, source=str(path))
     rows = d["rows"]
@@ -61,9 +62,10 @@ def main(argv=None) -> int:
         if not path.exists():
             print(f"{path}: not found (set --catheter or PLAYSCOPE_REAL_DATA)", file=sys.stderr)
             return 2
+        s = import_catheter(path)  # read once: evaluate_insitu reads the session, never changes it
         for split in (float(x) for x in a.splits.split(",")):
             for tau in taus:
-                cv, ours, peer, name = one(path, split, tau)
+                cv, ours, peer, name = one(s, path, split, tau)
                 print(f"| {stem} | {split:g} | {tau:.2f} | {cv:.3f} | {ours:.3f} | {peer:.3f} ({name}) |", flush=True)
     print(f"\n({time.time() - t0:.0f} s)")
     return 0
