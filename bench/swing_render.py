@@ -17,8 +17,8 @@ files, as a user's data would be. What it varies is what a bench varies:
               that the largest excursion is about ring_px in the image;
   camera      pinhole looking at the bending plane, frames at fps with each capture time
               jittered uniformly by +-jitter of a frame period (stamps exact: capture time + delay),
-              each frame the mean over a 4 ms exposure centred on its capture time (the
-              true delay is from that centre), Gaussian marker noise per axis;
+              each frame the mean over an exposure of exposure_s (4 ms unless set) centred on
+              its capture time (the true delay is from that centre), Gaussian marker noise per axis;
   registration the camera frame rotated by +-reg_deg about its y axis, the sign following the
               distal direction, flipping a uniform 0..reg_lag frame period after the tip
               reverses (reg_lag 1 by default; 0: at the onset itself).
@@ -64,6 +64,7 @@ class Rendering:
     ring_px: float = 10.0           # largest ringing excursion in the image (approx.)
     reg_deg: float = 0.0
     reg_lag: float = 1.0            # the registration flips uniform 0..reg_lag frame periods late
+    exposure_s: float = 0.004       # each frame the mean of the scene over this, centred on its capture time
     q_per_rad: float = 3.0
     L: float = 20.0
     tip: float = 5.0
@@ -180,7 +181,8 @@ def render(r: Rendering) -> dict:
         sign[j:] = dz[i]
     n = int((t[-1] - 0.5 - 0.2) / T)
     tcap = 0.5 + np.arange(n) * T + rng.uniform(-r.jitter, r.jitter, n) * T
-    sub = np.linspace(-0.002, 0.002, 4)  # a 4 ms exposure centred on the capture time
+    # the exposure centred on the capture time, sampled at least every encoder sample (4 nodes at least)
+    sub = np.linspace(-0.5 * r.exposure_s, 0.5 * r.exposure_s, max(4, int(np.ceil(r.exposure_s * ENC_HZ))))
     tc = tcap[:, None] + sub[None, :]
     u, v = project(np.interp(tc, t, c), np.radians(r.reg_deg) * np.interp(tc, t, sign), r)
     u = u.mean(axis=1) + rng.normal(0.0, r.noise_px, n)

@@ -152,7 +152,12 @@ SIGMA_RERUN = 0.7      # the search runs again at the fit's residual scale when 
 RING_ZETA_STARTS = (0.03, 0.1, 0.3)  # the tip mode's damping ratios a ring start is profiled at: a factor
                        # of about 3 apart over the lightly damped modes the term is for (above about 0.5 a
                        # mode barely rings), so LM starts within its reach of the ratio
-TERMS = ("ring", "reg_tip", "reg_motor", "slide_tip", "slide_motor")  # a slide_ term needs its reg_ term
+TERMS = ("ring", "reg_tip", "reg_motor", "slide_tip", "slide_motor", "expo")  # a slide_ term needs its reg_ term
+EXPO_NODES = 8         # the exposure's average (module doc: the exposure) by the midpoint rule on this many
+                       # nodes: fixed, so the image moves smoothly with e; z is linear between the grid's
+                       # samples and kinks only at a drag's start, where a node misplaced by e / 16 errs by
+                       # that much of one node's share
+EXPO_GRID = (0.25, 0.5, 1.0)  # the exposure term's starts, frame periods (as a slide's: its cost is not convex in e)
 WIDTH_AT = ("input", "output")  # where the play's width is read: B(q) or B(z) (module doc)
 DELAY_DISAGREE_Z = 3.0  # a configured delay this many combined standard errors from the record's disagrees
                        # with it (a two-sided 0.3 % test: on a right one, a false alarm in 370 records)
@@ -381,6 +386,7 @@ class Terms:
     reg_motor: bool = False
     slide_tip: bool = False    # the tip's switch slides rather than steps (module doc: the slide)
     slide_motor: bool = False
+    expo: bool = False         # each frame the mean of the scene over its exposure (module doc: the exposure)
 
     def names(self) -> list[str]:
         return [n for n in TERMS if getattr(self, n)]
@@ -473,12 +479,37 @@ class RecordModel:
         lo, hi = self.rec.period_s / 20, self.slide_max_s
         return float(logit(np.clip((D - lo) / (hi - lo), 1e-3, 1 - 1e-3)))
 
+    def expo_map(self, x: float) -> tuple[float, float]:
+        """(e s, de/dx) for the exposure's part of theta x: e in [T / 20, T] (a blur shorter than T / 20
+        is a grid step or two, nothing the frames tell from none; longer than T, no camera exposes)."""
+        T = self.rec.period_s
+        e = float(expit(x))
+        return T / 20 + (T - T / 20) * e, (T - T / 20) * e * (1.0 - e)
+
+    def expo_x(self, e: float) -> float:
+        """The exposure's part of theta for e s (the inverse of `expo_map`, clipped)."""
+        T = self.rec.period_s
+        return float(logit(np.clip((e - T / 20) / (T - T / 20), 1e-3, 1 - 1e-3)))
+
+    def exposure(self, th: np.ndarray) -> float:
+        """The exposure e s that blurs each frame (0: the term is off, each frame an instant)."""
+        lay = self.layout()
+        return self.expo_map(th[lay["expo"]][0])[0] if "expo" in lay else 0.0
+
+    def expo_offsets(self, e: float) -> np.ndarray:
+        """The exposure's nodes about each frame's scene time (EXPO_NODES,) s: the midpoints of
+        EXPO_NODES equal parts of [-e / 2, e / 2]; (0,) without the term."""
+        if e <= 0.0:
+            return np.zeros(1)
+        return e * ((np.arange(EXPO_NODES) + 0.5) / EXPO_NODES - 0.5)
+
     def layout(self) -> dict[str, slice]:
         """Where each named part of theta sits."""
         out, i = {"d": slice(0, 1), "B": slice(1, 1 + self.n_b)}, 1 + self.n_b
         for name, size, on in (("ring", 2, self.terms.ring), ("lag_tip", 1, self.terms.reg_tip),
                                ("lag_motor", 1, self.terms.reg_motor), ("slide_tip", 1, self.terms.slide_tip),
-                               ("slide_motor", 1, self.terms.slide_motor), ("z0", 1, True)):
+                               ("slide_motor", 1, self.terms.slide_motor), ("expo", 1, self.terms.expo),
+                               ("z0", 1, True)):
             if on:
                 out[name], i = slice(i, i + size), i + size
         return out
@@ -493,7 +524,8 @@ class RecordModel:
         th = np.empty(self.n_theta())
         x_slide = np.array([self.slide_x(0.5 * self.rec.period_s)])
         dflt = {"ring": self.ring_theta(3.0, 0.1), "lag_tip": np.zeros(1), "lag_motor": np.zeros(1),
-                "slide_tip": x_slide, "slide_motor": x_slide, "z0": np.zeros(1)}
+                "slide_tip": x_slide, "slide_motor": x_slide, "expo": np.array([self.expo_x(0.5 * self.rec.period_s)]),
+                "z0": np.zeros(1)}
         for name, sl in self.layout().items():
             th[sl] = parts[name] if name in parts else dflt[name]
         return th
@@ -642,19 +674,20 @@ class RecordModel:
         out[has] = t_on[has]
         return out
 
-    def _play_part(self, d: float, cB: np.ndarray, x0: float) -> tuple:
+    def _play_part(self, d: float, cB: np.ndarray, x0: float, e: float = 0.0) -> tuple:
         """What `columns` computes from the delay, B and the first state alone: (z, lo, hi, last, side
         (N,), the onsets (M,), tau, z at the frames (F,), G's columns (F, n_g), and with the tip mode
         its parts' masks and drives ((N - 2,) x 2 each), else None). Kept for the last arguments:
         the tip mode's frequency scan, a settle's three evaluations and the fit's repeated ones
         at one theta change none of them (the arrays are never written in place)."""
-        key = (d, cB.tobytes(), x0)
+        key = (d, cB.tobytes(), x0, e)
         if self._memo is not None and self._memo[0] == key:
             return self._memo[1]
         rec = self.rec
         z, lo, hi, last, side = self.play_drags(cB, x0)
         tau = rec.t_f - d
-        z_f = np.interp(tau, rec.t, z)
+        # the frame's image of the play: z at its scene time, or its mean over the exposure (module doc)
+        z_f = np.mean([np.interp(tau + o, rec.t, z) for o in self.expo_offsets(e)], axis=0)
         drive = None
         if self.terms.ring:
             v = np.diff(z) / rec.dt
@@ -691,11 +724,12 @@ class RecordModel:
         rec = self.rec
         d, cB, ring, lags = self.unpack(th)
         slides = self.slides(th)
-        z, lo, hi, last, side, t_on, tau, z_f, G, drive = self._play_part(d, cB, self.z0_of(th))
+        e = self.exposure(th)
+        z, lo, hi, last, side, t_on, tau, z_f, G, drive = self._play_part(d, cB, self.z0_of(th), e)
         cols = {"G": G}
         zn = (2 * z_f - (self.q_lo + self.q_hi)) / max(self.q_hi - self.q_lo, 1e-12)
         T = rec.period_s
-        st = {"z": z, "lo": lo, "hi": hi, "tau": tau, "zn": zn, "ring": ring, "last": last, "side": side}
+        st = {"z": z, "lo": lo, "hi": hi, "tau": tau, "zn": zn, "ring": ring, "last": last, "side": side, "expo": e}
         if self.terms.ring:
             st["mask"], st["u"] = drive
             st["x"] = [_tip_mode(u, ring[0], ring[1], rec.dt) for u in st["u"]]
@@ -1096,12 +1130,19 @@ class RecordModel:
         dz_u, dz_v = dBas @ bu[:ng], dBas @ bv[:ng]          # dP/dz at fixed beta
         reg = {name: self.reg_offset(ev, name) for name in ("tip", "motor") if name in st}
         dt = rec.dt
-        zdot = np.interp(tau, rec.t[:-1] + 0.5 * dt, np.diff(z) / dt)
+        offs = self.expo_offsets(st["expo"])
+        zd_nodes = [np.interp(tau + o, rec.t[:-1] + 0.5 * dt, np.diff(z) / dt) for o in offs]
+        zdot = np.mean(zd_nodes, axis=0)  # d z_f / d tau: z's slope averaged over the exposure's nodes
         Gu = np.zeros((F, th.size))
         Gv = np.zeros((F, th.size))
         # the delay: tau = t_f - d
         Gu[:, 0] = -dz_u * zdot
         Gv[:, 0] = -dz_v * zdot
+        if "expo" in lay:  # the nodes sit at e c_k, so d z_f / d e = mean of z'(tau + e c_k) c_k
+            i = lay["expo"].start
+            dzf_de = np.mean([zd * (o / st["expo"]) for zd, o in zip(zd_nodes, offs)], axis=0) * self.expo_map(th[i])[1]
+            Gu[:, i] = dz_u * dzf_de
+            Gv[:, i] = dz_v * dzf_de
         if self.terms.ring:  # the gains' sum of the two parts, differenced once
             sl = self.slope
             xdot = np.interp(tau, rec.t[1:-2] + 0.5 * dt, np.diff(gr[0] * st["x"][0] + gr[1] * st["x"][1]) / dt)
@@ -1132,8 +1173,10 @@ class RecordModel:
         # first state before any), and the tip switch's onsets. The tip mode's drive through the
         # first state (its first start moved in time) is left out: one start of the record's many.
         x0, i_z0 = self.z0_of(th), lay["z0"].start
-        k_f = np.clip(np.searchsorted(rec.t, tau), 0, z.size - 1)
-        Zc, Zx = self.z_gradient(cB, st, k_f, x0)
+        Zc, Zx = 0.0, 0.0
+        for o in offs:  # z_f is the mean of z over the exposure's nodes, and so is its gradient
+            zc, zx = self.z_gradient(cB, st, np.clip(np.searchsorted(rec.t, tau + o), 0, z.size - 1), x0)
+            Zc, Zx = Zc + zc / offs.size, Zx + zx / offs.size
         sl_b = slice(1, 1 + self.n_b)
         Gu[:, sl_b] = dz_u[:, None] * Zc
         Gv[:, sl_b] = dz_v[:, None] * Zc
@@ -1309,7 +1352,7 @@ def _steps(m: RecordModel, th: np.ndarray) -> np.ndarray:
     h = [rec.period_s / 16] + [hb] * m.n_b
     if m.terms.ring:
         h += [0.01, 0.01]
-    h += [0.05] * (m.terms.reg_tip + m.terms.reg_motor + m.terms.slide_tip + m.terms.slide_motor)
+    h += [0.05] * (m.terms.reg_tip + m.terms.reg_motor + m.terms.slide_tip + m.terms.slide_motor + m.terms.expo)
     return np.array(h + [0.05])  # the first state's (logistic) part
 
 
@@ -1698,6 +1741,9 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
             elif name.startswith("slide_"):
                 mt.slope = m.slope
                 th0s = _slide_starts(mt, name[6:], parts, sigma)
+            elif name == "expo":  # from the fit so far, at each exposure of EXPO_GRID
+                mt.slope = m.slope
+                th0s = [mt.theta({**parts, "expo": np.array([mt.expo_x(g * rec.period_s)])}) for g in EXPO_GRID]
             else:
                 mt.slope = m.slope
                 th0s = [mt.theta(p) for p in [parts] + bases]
