@@ -176,7 +176,9 @@ def render(sc: Scene) -> dict:
         sgn_eff = sgn
     # Frames: random camera phase, scene at t_k - t_delay averaged over the exposure.
     tk = np.arange(0.5 + rng.uniform(0, T), t[-1] - 0.1, T)
-    sub = np.linspace(-sc.exposure, 0.0, 5)
+    # 5 nodes over the exposure (its renderings as drawn); a longer exposure one node per encoder sample,
+    # so the frame is the scene's mean over its exposure, not a few flashes of it
+    sub = np.linspace(-sc.exposure, 0.0, 5 if sc.exposure <= 0.008 else int(np.ceil(sc.exposure * sc.enc_hz)) + 1)
     tcap = (tk - sc.t_delay_true)[:, None] + sub[None, :]
     ck = np.interp(tcap, t, c)
     sk = np.interp(tcap, t, sgn_eff)

@@ -177,6 +177,33 @@ LOCKBOX5_SEALED = [r for i, r in enumerate(LOCKBOX5_300) if i % 5]
 # Stop 62 spends every third row of those 240 (80 rows; fixed here on 2026-11-26 before any of them was
 # run, with the play's first state written and judged on development rows only); 160 stay sealed.
 LOCKBOX5_B = LOCKBOX5_SEALED[0::3]
+# Stop 65 spends every other row of the 160 still sealed (80 rows; fixed here on 2026-11-27 before any of
+# them was run, with the exposure's blur (the expo term) written and judged on development rows only);
+# 80 stay sealed.
+LOCKBOX5_REST = [r for i, r in enumerate(LOCKBOX5_SEALED) if i % 3]
+LOCKBOX5_C = LOCKBOX5_REST[0::2]
+
+# A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
+# frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
+# (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
+# rows with the delay configured right, then the exposure: category "exposure", B <= 5 %. Drawn and
+# committed 2026-11-27 before any of it was run; new seeds.
+SEEDS_X = {"marker": (65101, 650001), "swing": (65202, 650201)}
+
+
+def _exposure_rows(renderer: str) -> list:
+    gen_seed, first = SEEDS_X[renderer]
+    g = np.random.default_rng(gen_seed)
+    out = []
+    for i in range(15):
+        kw = DRAW[renderer](g, i, "none", "right", first + i)
+        e = round(float(g.uniform(0.25, 1.0)) / kw["fps"], 4)
+        kw["exposure" if renderer == "marker" else "exposure_s"] = e
+        out.append((renderer, f"x-{renderer}-{i:03d}-exposure", "exposure", 5.0, "right", kw))
+    return out
+
+
+EXPOSURE_30 = _exposure_rows("marker") + _exposure_rows("swing")
 
 
 def make(row):
