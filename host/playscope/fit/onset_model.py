@@ -166,7 +166,9 @@ EXPO_NODES = 8         # the exposure's average (module doc: the exposure) by th
                        # nodes: fixed, so the image moves smoothly with e; z is linear between the grid's
                        # samples and kinks only at a drag's start, where a node misplaced by e / 16 errs by
                        # that much of one node's share
-EXPO_GRID = (0.25, 0.5, 1.0)  # the exposure term's starts, frame periods (as a slide's: its cost is not convex in e)
+EXPO_GRID = (0.25, 0.5, 1.0)  # the exposure term's starts, frame periods, as a slide's lag grid (the settled cost over
+                       # e was unimodal about the truth on two renderings, 20 and 35 ms at 25 fps: one start may
+                       # do, not tried)
 WIDTH_AT = ("input", "output")  # where the play's width is read: B(q) or B(z) (module doc)
 DELAY_DISAGREE_Z = 3.0  # a configured delay this many combined standard errors from the record's disagrees
                        # with it (a two-sided 0.3 % test: on a right one, a false alarm in 370 records)
@@ -353,6 +355,18 @@ def _switch_shares(since: np.ndarray, L: float, D: float):
     return p_old, p_new, dp_old, dp_new
 
 
+def _onto(x: float, lo: float, hi: float) -> tuple[float, float]:
+    """(v, dv/dx): theta's part x mapped onto [lo, hi] by the logistic (a bounded part of theta: a clip
+    would stall LM on the bound, its slope zero there)."""
+    e = float(expit(x))
+    return lo + (hi - lo) * e, (hi - lo) * e * (1.0 - e)
+
+
+def _onto_x(v: float, lo: float, hi: float) -> float:
+    """The inverse of `_onto`, v clipped to within 1e-3 of the range's ends."""
+    return float(logit(np.clip((v - lo) / (hi - lo), 1e-3, 1 - 1e-3)))
+
+
 def _log_ndtr_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """ln(Phi(b) - Phi(a)) for a <= b (K,), the standard normal's mass between them, without
     cancellation in either tail."""
@@ -468,38 +482,29 @@ class RecordModel:
         return np.array([logit(a), logit(b)])
 
     def lag_map(self, x: float) -> tuple[float, float]:
-        """(L s, dL/dx) for a switch lag's part of theta x."""
-        T = self.rec.period_s
-        e = float(expit(x))
-        return T / 20 + (T - T / 20) * e, (T - T / 20) * e * (1.0 - e)
+        """(L s, dL/dx) for a switch lag's part of theta x: L in [T / 20, T]."""
+        return _onto(x, self.rec.period_s / 20, self.rec.period_s)
 
     def lag_x(self, L: float) -> float:
         """A switch lag's part of theta for the lag L s (the inverse of `lag_map`, clipped)."""
-        T = self.rec.period_s
-        return float(logit(np.clip((L - T / 20) / (T - T / 20), 1e-3, 1 - 1e-3)))
+        return _onto_x(L, self.rec.period_s / 20, self.rec.period_s)
 
     def slide_map(self, x: float) -> tuple[float, float]:
         """(D s, dD/dx) for a slide's part of theta x: the longest slide D in [T / 20, slide_max_s]."""
-        lo, hi = self.rec.period_s / 20, self.slide_max_s
-        e = float(expit(x))
-        return lo + (hi - lo) * e, (hi - lo) * e * (1.0 - e)
+        return _onto(x, self.rec.period_s / 20, self.slide_max_s)
 
     def slide_x(self, D: float) -> float:
         """A slide's part of theta for the longest slide D s (the inverse of `slide_map`, clipped)."""
-        lo, hi = self.rec.period_s / 20, self.slide_max_s
-        return float(logit(np.clip((D - lo) / (hi - lo), 1e-3, 1 - 1e-3)))
+        return _onto_x(D, self.rec.period_s / 20, self.slide_max_s)
 
     def expo_map(self, x: float) -> tuple[float, float]:
         """(e s, de/dx) for the exposure's part of theta x: e in [T / 20, T] (a blur shorter than T / 20
         is a grid step or two, nothing the frames tell from none; longer than T, no camera exposes)."""
-        T = self.rec.period_s
-        e = float(expit(x))
-        return T / 20 + (T - T / 20) * e, (T - T / 20) * e * (1.0 - e)
+        return _onto(x, self.rec.period_s / 20, self.rec.period_s)
 
     def expo_x(self, e: float) -> float:
         """The exposure's part of theta for e s (the inverse of `expo_map`, clipped)."""
-        T = self.rec.period_s
-        return float(logit(np.clip((e - T / 20) / (T - T / 20), 1e-3, 1 - 1e-3)))
+        return _onto_x(e, self.rec.period_s / 20, self.rec.period_s)
 
     def exposure(self, th: np.ndarray) -> float:
         """The exposure e s that blurs each frame (0: the term is off, each frame an instant)."""
