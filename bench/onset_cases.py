@@ -192,6 +192,8 @@ SEEDS_X = {"marker": (65101, 650001), "swing": (65202, 650201)}
 
 
 def _exposure_rows(renderer: str) -> list:
+    """EXPOSURE_30's 15 rows of renderer ("marker" or "swing"), as _rows' tuples: each drawn as the
+    renderer's "none" row (delay right), then its exposure uniform in 0.25-1 frame period, s."""
     gen_seed, first = SEEDS_X[renderer]
     g = np.random.default_rng(gen_seed)
     out = []

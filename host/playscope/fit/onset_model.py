@@ -163,9 +163,8 @@ RING_ZETA_STARTS = (0.03, 0.1, 0.3)  # the tip mode's damping ratios a ring star
                        # mode barely rings), so LM starts within its reach of the ratio
 TERMS = ("ring", "reg_tip", "reg_motor", "slide_tip", "slide_motor", "expo")  # a slide_ term needs its reg_ term
 EXPO_NODES = 8         # the exposure's average (module doc: the exposure) by the midpoint rule on this many
-                       # nodes: fixed, so the image moves smoothly with e; z is linear between the grid's
-                       # samples and kinks only at a drag's start, where a node misplaced by e / 16 errs by
-                       # that much of one node's share
+                       # nodes: a fixed count, so the image moves smoothly with e (a count growing with e would
+                       # step it); the rule's own error against the exact mean over the window is not measured
 EXPO_GRID = (0.25, 0.5, 1.0)  # the exposure term's starts, frame periods, as a slide's lag grid (the settled cost over
                        # e was unimodal about the truth on two renderings, 20 and 35 ms at 25 fps: one start may
                        # do, not tried)

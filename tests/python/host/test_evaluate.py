@@ -69,12 +69,11 @@ def test_cli_evaluate_json_and_no_plant(setup):
                  "--json", str(d / "ev.json")]) == 0
     j = json.loads((d / "ev.json").read_text())
     assert j["format"] == "playscope-evaluate/1" and j["distal_kind"] == "image"
-    # the float model with its transition or relaxation is a row of its own when the calibration has
-    # one (on this session the family CV keeps the onset play, or since the record model's exposure
-    # term, that play with the travel-domain relaxation)
-    more = {"f_remain+B+PI"} if (not cal.transition.is_play or cal.relax is not None) else set()
-    fixed = "f_remain+B+PI_fixed" if cal.transition.n > 1 else "f_remain+B_fixed"
-    assert set(j["prediction"]) == {"f_coarse", "f_coarse+B", "f_remain+B", fixed} | more
+    # On this session the family CV keeps the onset play with the travel-domain relaxation (since the
+    # record model's exposure term entered here at its floor; the pure play before): no operator, so
+    # the fixed-point row is the play's, and the float model with its relaxation is a row of its own.
+    assert cal.transition.is_play and cal.relax is not None
+    assert set(j["prediction"]) == {"f_coarse", "f_coarse+B", "f_remain+B", "f_remain+B+PI", "f_remain+B_fixed"}
     for r in j["prediction"].values():
         assert set(r) >= {"Qx_px", "Qy_px", "dist_px"} and set(r["Qx_px"]) == {"mean", "std", "max"}
     # No simulator parameters in this session: no plant, said so, no numbers invented.

@@ -112,7 +112,8 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
         assert cos(Ja[:, i], Jf[:, i]) > 0.99
     if not terms or terms in (("ring",), ("expo",)):
         for i in range(1 + m.n_b):
-            # measured 0.98..1.0; the ring's B columns 0.989..0.9998 (0.93..0.97 without its drive through B)
+            # measured 0.98..1.0; the ring's B columns 0.989..0.9998 (0.93..0.97 without its drive through B);
+            # with the exposure 0.988..0.9998
             assert cos(Ja[:, i], Jf[:, i]) > (0.975 if terms else 0.95)
 
 
