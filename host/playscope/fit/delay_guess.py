@@ -1,6 +1,7 @@
 """First guesses of timing from the record, before any model: when the actuator reached each
 reversal's extremum (`motor_stop_times`) and a coarse image delay from the correlation of
-commanded and observed motion around those stops (`coarse_delay`). The record model
+commanded and observed motion around those stops (`coarse_delay`, and every delay the
+correlation could mean, `coarse_delay_peaks`). The record model
 (onset_model) starts from these; calibrate's command-lag figure for angle sessions uses them too.
 
 Units: t in s, q in actuator units, image points in px.
@@ -58,8 +59,38 @@ def image_direction_of_q(t_f: np.ndarray, obs: np.ndarray, t_enc: np.ndarray, q:
 
 def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np.ndarray, q: np.ndarray,
                  period: float, max_delay: float = 0.5) -> float:
-    """First guess of t_delay (s): cross-correlation of commanded and observed motion around
-    the motor stops. For each reversal the image velocity along the old motion's image
+    """First guess of t_delay (s): the highest peak of `delay_score` (its arguments). Returns s, on
+    the scan's grid in [0, max_delay] (period / SUB steps)."""
+    lags, score = delay_score(t_f, obs, t_stop, t_enc, q, period, max_delay)
+    return float(lags[int(np.argmax(score))])
+
+
+def coarse_delay_peaks(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np.ndarray, q: np.ndarray,
+                       period: float, max_delay: float = 0.5) -> np.ndarray:
+    """Every delay `delay_score` (its arguments) could mean: its highest point (`coarse_delay`'s
+    guess) first, then its other local maxima where the score is positive, highest first, each
+    more than one frame period from every one kept before it. Why more than one: an excitation
+    that repeats (a triangle, regular swings) repeats the score with its period, so an alias one
+    period late scores as high as the delay (on a 60 fps triangle of 0.29 s period, 1.000 against
+    1.000 to three digits, the alias first), and only a model of the whole record tells them apart
+    (its start's BIC, onset_model). Why a frame apart: the frames time a lag no finer than one
+    frame before any model, so maxima closer than that are the score's ripple about one lag.
+    Returns (K,) s, K >= 1."""
+    lags, score = delay_score(t_f, obs, t_stop, t_enc, q, period, max_delay)
+    i0 = int(np.argmax(score))
+    inner = np.arange(1, lags.size - 1)
+    peak = inner[(score[inner] >= score[inner - 1]) & (score[inner] > score[inner + 1]) & (score[inner] > 0.0)]
+    kept = [lags[i0]]
+    for i in peak[np.argsort(-score[peak], kind="stable")]:
+        if np.all(np.abs(lags[i] - np.array(kept)) > period):
+            kept.append(lags[i])
+    return np.array(kept, float)
+
+
+def delay_score(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np.ndarray, q: np.ndarray,
+                period: float, max_delay: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """The cross-correlation of commanded and observed motion around the motor stops, over the
+    lags a delay may take. For each reversal the image velocity along the old motion's image
     direction is multiplied by the sign of the motor's velocity at t - lag (+1 on, -1 back,
     0 held), over 8 frame periods before t_stop + lag and 4 after; the sum over reversals peaks
     at the delay (earlier lags meet the tip still going while the motor is back; later ones meet
@@ -70,8 +101,9 @@ def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np
     into the leg before (legs under 0.5 s plus the delay). A ringing tip keeps going for up to a
     quarter period after the stop, so the guess may be late by that; velocities are clipped at
     3 median so a jump does not count. t_f (F,) s, obs (F, 2) px (rows with NaN, lost frames, are skipped); t_stop (M,)
-    s (`motor_stop_times`); t_enc, q (N,) s and actuator units; period, max_delay s. Returns s,
-    on the scan's grid in [0, max_delay] (period / SUB steps)."""
+    s (`motor_stop_times`); t_enc, q (N,) s and actuator units; period, max_delay s. Returns
+    (lags (L,) s, the scan's grid in [0, max_delay] in period / SUB steps; score (L,), px of image
+    velocity along the motion, summed)."""
     ok = np.all(np.isfinite(obs), axis=1)
     tf, o = t_f[ok], obs[ok]
     P = lambda tt: np.stack([np.interp(tt, tf, o[:, 0]), np.interp(tt, tf, o[:, 1])], axis=-1)  # noqa: E731
@@ -90,4 +122,4 @@ def coarse_delay(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_enc: np
         vm = np.sign(np.interp(tc - lag, tm, dq)) * sgn[:, None]
         lim = 3.0 * np.median(np.abs(vi)) + 1e-12  # a jump is one huge velocity sample: clip it
         score[i] = np.sum(np.clip(vi, -lim, lim) * vm)
-    return float(lags[int(np.argmax(score))])
+    return lags, score

@@ -1515,18 +1515,43 @@ def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarr
         m = RecordModel(rec, 1, G_CTRL[1], terms, prior, d_fixed)
         for d in d_starts:
             for b in widths:
-                ev = m.evaluate(m.theta({"d": np.array([d]), "B": np.array([b])}))
-                c = m.objective(ev, sigma) + m.n_linear() * np.log(ev.resid.size)
+                c = _start_bic(m, d, b, sigma)
                 key = tuple(terms.names())
                 if key not in best or c < best[key][0]:
                     best[key] = (c, d, b)
     _, d, b = min(best.values())
-    bics = []
-    for n_g in G_CTRL:
-        m = RecordModel(rec, 1, n_g, Terms(), prior, d_fixed)
-        ev = m.evaluate(m.theta({"d": np.array([d]), "B": np.array([b])}))
-        bics.append(m.objective(ev, sigma) + m.n_linear() * np.log(ev.resid.size))
+    bics = [_start_bic(RecordModel(rec, 1, n_g, Terms(), prior, d_fixed), d, b, sigma) for n_g in G_CTRL]
     return {k: v[1:] for k, v in best.items()}, G_CTRL[int(np.argmin(bics))]
+
+
+def _start_bic(m: RecordModel, d: float, b: float, sigma: float) -> float:
+    """A start's score: the BIC at sigma (px) of model m (a constant width) at delay d (s) and width
+    b (actuator units), its other nonlinear parameters at their starts and its linear ones solved."""
+    ev = m.evaluate(m.theta({"d": np.array([d]), "B": np.array([b])}))
+    return float(m.objective(ev, sigma) + m.n_linear() * np.log(ev.resid.size))
+
+
+def _coarse_start(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | None, sigma: float) -> float:
+    """The coarse delay the search starts from: of the correlation's candidates cands (K,) s
+    (delay_guess.coarse_delay_peaks, its highest first), the one from which the plain model at a
+    constant width fits best (each from its best width by `_start_bic`, on a term trial's budget:
+    8 evaluations, one reweighting; BIC at sigma; ties keep the earlier). Why a fit and not the start's score alone:
+    on a fast swing a delay and a width trade, so the score's basin in the delay is narrow (+-10 ms
+    on the record below), and the correlation's peaks sit up to a quarter period late
+    (delay_guess.delay_score), outside it. Why more than the highest: an excitation that repeats
+    makes the correlation as high one period late as at the delay, where the record's model is
+    not: on s5-swing-056 (a 60 fps triangle of 0.29 s period, delay 92 ms, configured 179 ms) the
+    correlation's highest point was the alias at 408 ms, from which this fit ends at 385 ms, BIC
+    17,965 (and the search, with every term, 17.8 frames late with B 29 % off); from its other peak,
+    117 ms, at 92.2 ms, BIC 5,318. Costs 0.35 s on the 3-minute bench record (5 candidates)."""
+    m = RecordModel(rec, 1, G_CTRL[1], Terms(), prior, None)
+    widths = _start_widths(rec, board_b)
+    jobs = []
+    for d in cands:
+        b = min(widths, key=lambda b: _start_bic(m, d, b, sigma))
+        jobs.append((m, m.theta({"d": np.array([d]), "B": np.array([b])}), sigma, 8, 1))
+    bics = [f.bic(sigma) for f in _fit_all(jobs)]
+    return float(cands[int(np.argmin(bics))])
 
 
 SLIDE_GRID = ((0.25, 0.5, 1.0), (0.25, 0.5, 1.0))  # a slide's start grid: lags, longest slides (frame periods)
@@ -1591,10 +1616,12 @@ def _ring_profiled_starts(rec: Record, n_g: int, terms: Terms, prior, d_fixed, p
     return [p for _, p in out.values()]
 
 
-def fit_record(rec: Record, t_delay_cfg: float | None, t_delay_from: str, d_coarse: float,
+def fit_record(rec: Record, t_delay_cfg: float | None, t_delay_from: str, d_coarse,
                board_b: np.ndarray | None = None, prior_sd_s: float | None = None) -> tuple[Fit, dict]:
-    """The record's model with its terms chosen by BIC (module doc). Returns (the final Fit,
-    a JSON-ready dict of the term search). Runs its linear algebra on one BLAS thread: the
+    """The record's model with its terms chosen by BIC (module doc). d_coarse: the coarse delay, s,
+    or the correlation's candidates (K,) s, its highest first (delay_guess.coarse_delay_peaks), of
+    which the search starts from the one the record scores best (`_coarse_start`). Returns (the
+    final Fit, a JSON-ready dict of the term search). Runs its linear algebra on one BLAS thread: the
     matrices are small (frames x tens), where threads cost more than they give."""
     from threadpoolctl import threadpool_limits
 
@@ -1607,11 +1634,16 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
     sd = prior_sd_s if prior_sd_s is not None else T / np.sqrt(12.0)
     prior = None if t_delay_cfg is None else (float(t_delay_cfg), float(sd))
     d_fixed = float(t_delay_cfg) if (t_delay_from == "config" and t_delay_cfg is not None) else None
+    sigma = noise_sigma(rec.obs)
+    cands = np.atleast_1d(np.asarray(d_coarse, float))
+    d_coarse = float(cands[0]) if (d_fixed is not None or cands.size == 1) else \
+        _coarse_start(rec, cands, prior, board_b, sigma)
     starts = [d_coarse] + ([] if t_delay_cfg is None else [float(t_delay_cfg)])
     if d_fixed is not None:
         starts = [d_fixed]
-    sigma = noise_sigma(rec.obs)
+    coarse = {"coarse_candidates_s": [float(d) for d in cands], "coarse_start_s": d_coarse}
     fit, search = _search(rec, starts, prior, d_fixed, board_b, sigma)
+    search.update(coarse)
     # The second differences overstate the noise when the motion itself turns within a few frames
     # (a fast triangle: 5.2 px against the renderer's 0.24). The fitted model's residuals bound it
     # too; when they say it is clearly smaller, the search runs again at their scale, once, so that
@@ -1620,6 +1652,7 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
     if s_fit < SIGMA_RERUN * sigma:
         fit2, search2 = _search(rec, starts, prior, d_fixed, board_b, s_fit)
         search2["sigma_second_differences_px"] = sigma
+        search2.update(coarse)
         return fit2, search2
     return fit, search
 

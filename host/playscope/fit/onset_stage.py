@@ -1,7 +1,7 @@
 """The onset stage of `calibrate` for image sessions: eq. 1's B samples and t_delay from the one
 model of the record (onset_model), started from the board's plain eq. 1 onsets.
 
-1. Motor stops and a coarse delay (delay_guess); the board's detector (firmware/core/onset.c via
+1. Motor stops and the coarse delays, the correlation's peaks (delay_guess); the board's detector (firmware/core/onset.c via
    cffi, onsets.run_onsets) at the configured delay, or the coarse one when none is configured,
    with its threshold from the record's still noise (onset_settings.image_onset_settings) unless
    onset_cfg gives one; or the onsets the board itself measured (`board`, run-insitu).
@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import onset_model as OM
-from .delay_guess import coarse_delay, motor_stop_times
+from .delay_guess import coarse_delay_peaks, motor_stop_times
 from .onset_settings import board_onsets
 from .onsets import Onsets, RobustOnsets
 from .pacing import pacing
@@ -53,7 +53,8 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
     period = 1.0 / fps
     tol = max(0.02 * hysteresis, 1e-9 * max(float(np.ptp(q_rev)), 1.0))
     t_stop = motor_stop_times(t_enc, q_rev, rt, rq, tol)
-    d0 = coarse_delay(t_f, obs, t_stop, t_enc, q_rev, period)
+    d_peaks = coarse_delay_peaks(t_f, obs, t_stop, t_enc, q_rev, period)
+    d0 = float(d_peaks[0])  # the correlation's highest point; the model chooses among its peaks
     rule = None
     if board is None:
         board, rule = board_onsets(t_enc, q, rt, rq, t_f, obs, fps, d0 if t_delay_cfg is None else t_delay_cfg, onset_cfg)
@@ -70,7 +71,7 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                   "t_delay": {"configured_s": t_delay_cfg, "coarse_s": d0, "used_s": td}, "lost_before_reversal": 0,
                   "registration": {"found": False}, "ringing": {"found": False}}
         return RobustOnsets(board, td, "configured" if t_delay_cfg is not None else "coarse (record)", report, warnings)
-    fit, search = OM.fit_record(rec, t_delay_cfg, t_delay_from, d0, board.b if board.b.size else None, t_delay_sd_s)
+    fit, search = OM.fit_record(rec, t_delay_cfg, t_delay_from, d_peaks, board.b if board.b.size else None, t_delay_sd_s)
     sm = OM.samples(fit)
     m = fit.model
     lag, _, ring, lags = m.unpack(fit.theta)
@@ -123,7 +124,8 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                     "record_ci95_s": None if held else [d - 1.96 * se, d + 1.96 * se],
                     "prior_sd_s": None if m.prior is None else m.prior[1], "agrees_with_configured": agree,
                     "used_s": d, "used": "configured" if held else "record", "from": t_delay_from, "source": src,
-                    "coarse_s": d0},
+                    "coarse_s": d0, "coarse_candidates_s": search.get("coarse_candidates_s"),
+                    "coarse_start_s": search.get("coarse_start_s")},
         "terms": {"chosen": terms.names(), "search": search["steps"], "criterion": "BIC on the Huber objective",
                   "noise_px": search["sigma_px"], "B_ctrl": search["n_b"], "B_read_at": search["width_at"], "G_ctrl": search["n_g"], "frames": int(F)},
         "ringing": {"found": terms.ring, "freq_hz": ring[0] if ring else None,
