@@ -113,10 +113,12 @@ exposure 2 (t_delay - d_end). Without a configured delay, or with one the record
 (DELAY_DISAGREE_Z: wrong, so silent on the exposure), nothing splits them: the mean lag is
 reported (the exposure's end is up to T / 2 earlier).
 
-Start: the coarse delay (delay_guess) and the configured one, each with the constant play width
-that fits best; the board's plain eq. 1 samples are a third start when given. B is fitted coarse to
-fine (`_fit_chain`): a constant width, then each of B_CTRL's sizes from the last one's fit. A term
-the plain model lacks drags its width, so each term also gets starts profiled with it on (the
+Start: the coarse delay and the configured one, each with the constant play width that fits best.
+The coarse delay is the peak of delay_guess's correlation from which the plain model fits best
+(`_coarse_start`): an excitation that repeats makes the correlation as high one period late.
+The board's plain eq. 1 samples are a third start when given. B is fitted coarse to fine
+(`_fit_chain`): a constant width, then each of B_CTRL's sizes from the last one's fit. A term the
+plain model lacks drags its width, so each term also gets starts profiled with it on (the
 delay and the constant width by the robust cost; the tip mode's at each of RING_ZETA_STARTS at the
 frequency its scan picks), each carried coarse to fine and scored by the BIC.
 

@@ -68,7 +68,8 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         warnings.append(f"onsets: {e}; the board's plain eq. 1 samples are used")
         report = {"method": "the board's eq. 1 detector (the record is too short for the record model)",
                   "board_reasons": board.reasons, "board_threshold": rule,
-                  "t_delay": {"configured_s": t_delay_cfg, "coarse_s": d0, "used_s": td}, "lost_before_reversal": 0,
+                  "t_delay": {"configured_s": t_delay_cfg, "coarse_s": d0, "coarse_candidates_s": None,
+                              "coarse_start_s": None, "used_s": td}, "lost_before_reversal": 0,
                   "registration": {"found": False}, "ringing": {"found": False}}
         return RobustOnsets(board, td, "configured" if t_delay_cfg is not None else "coarse (record)", report, warnings)
     fit, search = OM.fit_record(rec, t_delay_cfg, t_delay_from, d_peaks, board.b if board.b.size else None, t_delay_sd_s)

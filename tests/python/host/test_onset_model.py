@@ -537,3 +537,23 @@ def test_the_tip_modes_profiled_start_undoes_the_width_the_plain_start_was_dragg
     found = OM._ring_profiled_starts(rec, n_g, OM.Terms(ring=True), prior, None, m.parts(plain.theta), f_hz,
                                      starts, OM._start_widths(rec, None), m.G_slope(plain.ev), sig)
     assert min(abs(float(p["B"][0]) / B_true - 1.0) for p in found) < 0.2
+
+
+def test_the_search_starts_from_the_correlations_peak_the_record_fits_not_an_alias_a_period_late():
+    # A 60 fps triangle of 0.29 s period (30 s of lockbox rendering s5-swing-056's settings, delay
+    # 92 ms, configured 179 ms): the correlation of commanded and image motion repeats with the
+    # triangle, and its highest peak is the alias one period late, its other the delay (both about
+    # 25 ms late: delay_guess.delay_score). The start fits the plain model from each and keeps the
+    # one the record fits best.
+    from playscope.fit.delay_guess import coarse_delay_peaks, motor_stop_times
+
+    r, d, t, q, rt, rq, obs, hyst = _record(shape="triangle", fps=60.0, jitter=0.38, noise_px=0.158, delay_s=0.092,
+                                            delay_cfg_s=0.179, b_lo=0.149, b_hi=0.221, b_qc=0.5, b_w=1.47,
+                                            swing_s=0.146, swing_period_s=1.5, seed=3, duration_s=30.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    peaks = coarse_delay_peaks(d["t_f"], obs, motor_stop_times(t, q, rt, rq, 0.02 * hyst), t, q, rec.period_s)
+    assert peaks[0] > r.delay_s + 0.25  # the highest: the alias, a period (0.29 s) late
+    near = [p for p in peaks if abs(p - r.delay_s) < 0.03]
+    assert len(near) == 1
+    d0 = OM._coarse_start(rec, peaks, (r.delay_cfg_s, rec.period_s / np.sqrt(12)), None, OM.noise_sigma(obs))
+    assert d0 == near[0]
