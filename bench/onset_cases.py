@@ -187,6 +187,12 @@ LOCKBOX5_C = LOCKBOX5_REST[0::2]
 # none stays sealed.
 LOCKBOX5_D = LOCKBOX5_REST[1::2]
 
+# The sixth set-aside group, LOCKBOX6_300 (drawn and committed 2026-11-27 during stop 66, after its coarse
+# delay change was written, so sealed for the code of a later stop; the issue's acceptance run: all 300
+# once, on one code).
+SEEDS_6 = {"marker": (66101, 660001), "swing": (66202, 660201), "render_c": (66303, 660401)}
+LOCKBOX6_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_6, PLAN, "s6-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
