@@ -1537,10 +1537,12 @@ def _coarse_start(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | N
     """The coarse delay the search starts from: of the correlation's candidates cands (K,) s
     (delay_guess.coarse_delay_peaks, its highest first), the one from which the plain model at a
     constant width fits best (each from its best width by `_start_bic`, on a term trial's budget:
-    8 evaluations, one reweighting; BIC at sigma; ties keep the earlier). Why a fit and not the start's score alone:
-    on a fast swing a delay and a width trade, so the score's basin in the delay is narrow (+-10 ms
-    on the record below), and the correlation's peaks sit up to a quarter period late
-    (delay_guess.delay_score), outside it. Why more than the highest: an excitation that repeats
+    8 evaluations, one reweighting; BIC at sigma; ties keep the earlier). prior: the configured
+    delay's (mean, sd) s or None; board_b: the board's eq. 1 samples or None (`_start_widths`).
+    Returns s. Why a fit and not the start's score alone: on a fast swing a delay and a width
+    trade, so the score's basin in the delay is narrow (+-10 ms on the record below), and the
+    correlation's peaks sit up to a quarter period late (delay_guess.delay_score), outside it.
+    Why more than the highest: an excitation that repeats
     makes the correlation as high one period late as at the delay, where the record's model is
     not: on s5-swing-056 (a 60 fps triangle of 0.29 s period, delay 92 ms, configured 179 ms) the
     correlation's highest point was the alias at 408 ms, from which this fit ends at 385 ms, BIC

@@ -1,8 +1,9 @@
 """The onset stage of `calibrate` for image sessions: eq. 1's B samples and t_delay from the one
 model of the record (onset_model), started from the board's plain eq. 1 onsets.
 
-1. Motor stops and the coarse delays, the correlation's peaks (delay_guess); the board's detector (firmware/core/onset.c via
-   cffi, onsets.run_onsets) at the configured delay, or the coarse one when none is configured,
+1. Motor stops and the coarse delay's candidates, the correlation's peaks (delay_guess); the
+   board's detector (firmware/core/onset.c via cffi, onsets.run_onsets) at the configured delay,
+   or the correlation's highest peak when none is configured,
    with its threshold from the record's still noise (onset_settings.image_onset_settings) unless
    onset_cfg gives one; or the onsets the board itself measured (`board`, run-insitu).
 2. The record model fitted with its terms chosen by BIC (onset_model.fit_record); the configured
