@@ -1542,9 +1542,8 @@ def _coarse_start(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | N
     Returns s. Why a fit and not the start's score alone: on a fast swing a delay and a width
     trade, so the score's basin in the delay is narrow (+-10 ms on the record below), and the
     correlation's peaks sit up to a quarter period late (delay_guess.delay_score), outside it.
-    Why more than the highest: an excitation that repeats
-    makes the correlation as high one period late as at the delay, where the record's model is
-    not: on s5-swing-056 (a 60 fps triangle of 0.29 s period, delay 92 ms, configured 179 ms) the
+    Why more than the highest: an excitation that repeats makes the correlation as high one period
+    late as at the delay, where the record's model is not: on s5-swing-056 (a 60 fps triangle of 0.29 s period, delay 92 ms, configured 179 ms) the
     correlation's highest point was the alias at 408 ms, from which this fit ends at 385 ms, BIC
     17,965 (and the search, with every term, 17.8 frames late with B 29 % off); from its other peak,
     117 ms, at 92.2 ms, BIC 5,318. Costs 0.35 s on the 3-minute bench record (5 candidates)."""
@@ -1620,7 +1619,7 @@ def _ring_profiled_starts(rec: Record, n_g: int, terms: Terms, prior, d_fixed, p
     return [p for _, p in out.values()]
 
 
-def fit_record(rec: Record, t_delay_cfg: float | None, t_delay_from: str, d_coarse,
+def fit_record(rec: Record, t_delay_cfg: float | None, t_delay_from: str, d_coarse: float | np.ndarray,
                board_b: np.ndarray | None = None, prior_sd_s: float | None = None) -> tuple[Fit, dict]:
     """The record's model with its terms chosen by BIC (module doc). d_coarse: the coarse delay, s,
     or the correlation's candidates (K,) s, its highest first (delay_guess.coarse_delay_peaks), of

@@ -539,7 +539,7 @@ def test_the_tip_modes_profiled_start_undoes_the_width_the_plain_start_was_dragg
     assert min(abs(float(p["B"][0]) / B_true - 1.0) for p in found) < 0.2
 
 
-def test_the_search_starts_from_the_correlations_peak_the_record_fits_not_an_alias_a_period_late():
+def test_the_search_starts_from_the_correlations_peak_the_record_fits_not_an_alias_a_period_late(monkeypatch):
     # A 60 fps triangle of 0.29 s period (30 s of lockbox rendering s5-swing-056's settings, delay
     # 92 ms, configured 179 ms): the correlation of commanded and image motion repeats with the
     # triangle, and its highest peak is the alias one period late, its other the delay (both about
@@ -557,3 +557,33 @@ def test_the_search_starts_from_the_correlations_peak_the_record_fits_not_an_ali
     assert len(near) == 1
     d0 = OM._coarse_start(rec, peaks, (r.delay_cfg_s, rec.period_s / np.sqrt(12)), None, OM.noise_sigma(obs))
     assert d0 == near[0]
+    # and fit_record's search starts from it and the configured delay (the search itself stubbed out);
+    # a held configured delay is the only start, no candidate fitted
+    seen = []
+
+    class Started(Exception):
+        pass
+
+    def search(rec, starts, *a):
+        seen.append(list(starts))
+        raise Started
+
+    monkeypatch.setattr(OM, "_search", search)
+    with pytest.raises(Started):
+        OM.fit_record(rec, r.delay_cfg_s, "data", peaks)
+    assert seen[-1] == [near[0], r.delay_cfg_s]
+    monkeypatch.setattr(OM, "_coarse_start", lambda *a: pytest.fail("a held delay fits no candidate"))
+    with pytest.raises(Started):
+        OM.fit_record(rec, r.delay_cfg_s, "config", peaks)
+    assert seen[-1] == [r.delay_cfg_s]
+    # the onset stage hands fit_record every candidate, not the highest alone
+    got = []
+
+    def fit_record(rec, cfg, how, d_coarse, *a):
+        got.append(np.atleast_1d(d_coarse))
+        raise Started
+
+    monkeypatch.setattr(OM, "fit_record", fit_record)
+    with pytest.raises(Started):
+        record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
+    assert np.array_equal(got[0], peaks)
