@@ -6,9 +6,9 @@ model of the record (onset_model), started from the board's plain eq. 1 onsets.
    or the correlation's highest peak when none is configured,
    with its threshold from the record's still noise (onset_settings.image_onset_settings) unless
    onset_cfg gives one; or the onsets the board itself measured (`board`, run-insitu).
-2. The record model fitted with its terms chosen by BIC (onset_model.fit_record); the configured
+2. The record model fitted with its terms chosen by BIC (onset_search.fit_record); the configured
    delay is its prior (t_delay_from "data", the default) or held (t_delay_from "config").
-3. The samples read off the model (onset_model.samples), with their standard errors.
+3. The samples read off the model (onset_fit.samples), with their standard errors.
 
 A record the model cannot take (fewer than 2 reversals or 20 frames) keeps the board's samples.
 Units: t in s, q in actuator units, image points in px.
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import onset_fit, onset_search
 from . import onset_model as OM
 from .delay_guess import coarse_delay_peaks, motor_stop_times
 from .onset_settings import board_onsets
@@ -73,8 +74,8 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                               "coarse_start_s": None, "used_s": td}, "lost_before_reversal": 0,
                   "registration": {"found": False}, "ringing": {"found": False}}
         return RobustOnsets(board, td, "configured" if t_delay_cfg is not None else "coarse (record)", report, warnings)
-    fit, search = OM.fit_record(rec, t_delay_cfg, t_delay_from, d_peaks, board.b if board.b.size else None, t_delay_sd_s)
-    sm = OM.samples(fit)
+    fit, search = onset_search.fit_record(rec, t_delay_cfg, t_delay_from, d_peaks, board.b if board.b.size else None, t_delay_sd_s)
+    sm = onset_fit.samples(fit)
     m = fit.model
     lag, _, ring, lags = m.unpack(fit.theta)
     slides = m.slides(fit.theta)  # each switch's longest slide, s (0: it steps)

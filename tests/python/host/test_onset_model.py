@@ -1,48 +1,16 @@
-"""The record model of the onsets (playscope.fit.onset_model, onset_stage: calibrate's onset
-stage for image sessions) on short renderings of bench/swing_render.py, a renderer written apart from the estimator: each term against its truth.
-Statistics over many renderings live in bench/onset_scoreboard.py, not here."""
+"""The record model of the onsets (playscope.fit.onset_model): its equations, Jacobian and
+objective against their definitions, finite differences and small renderings."""
 
-import importlib.util
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from playscope.fit import onset_fit as OF
 from playscope.fit import onset_model as OM
-from playscope.fit.onset_stage import record_samples
 from playscope.fit.reversals import detect_reversals
 
-ROOT = Path(__file__).resolve().parents[3]
-
-
-def _bench_module(name: str):
-    """bench/<name>.py, a renderer written apart from the estimator, as a module."""
-    spec = importlib.util.spec_from_file_location(name, ROOT / "bench" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod  # dataclasses look the module up by name
-    spec.loader.exec_module(mod)
-    return mod
-
-
-SR = _bench_module("swing_render")
-
-
-def _record(**kw):
-    """A 40 s rendering (the ramp over half the travel) as the stage takes it."""
-    r = SR.Rendering(kw.pop("name", "t"), kw.pop("seed", 7), duration_s=kw.pop("duration_s", 40.0), **kw)
-    d = SR.render(r)
-    t, q = d["t_enc"], d["q"]
-    hyst = 0.01 * np.ptp(q)
-    rt, rq, _ = detect_reversals(t, q, hyst)
-    return r, d, t, q, rt, rq, np.column_stack([d["u"], d["v"]]), hyst
-
-
-def _b_error_pct(r, on):
-    """Mean |B_model - B_true| at the samples' own q, % of the mean true B: each sample of eq. 1 is
-    |q2 - q1|, the width at take-up, so it is judged against the true width between q1 and q2."""
-    true = 0.5 * (r.B(on.q1) + r.B(on.q2))
-    return 100 * float(np.mean(np.abs(on.b - true)) / np.mean(true))
+from .onset_records import ROOT, record
 
 
 def test_onsets_of_the_play_are_where_q_has_come_back_by_B_eq_1():
@@ -74,7 +42,7 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
     # Kaufman's variable-projection Jacobian against the projected residual's forward differences
     # (which re-solve the linear parameters): the gradient J'r, what the fit follows, and each
     # column of the delay and of B.
-    r, d, t, q, rt, rq, obs, _ = _record(reg_deg=1.5 if terms and terms[0] == "reg_tip" else 0.0,
+    r, d, t, q, rt, rq, obs, _ = record(reg_deg=1.5 if terms and terms[0] == "reg_tip" else 0.0,
                                          ring_hz=3.0 if "ring" in terms else 0.0, duration_s=30.0,
                                          exposure_s=0.025 if "expo" in terms else 0.004)
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
@@ -90,10 +58,10 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
         m.e_step(ev, 0.12)
         assert sum(mx["j"].size for mx in m.mix.values()) > 10
     m.w = OM.huber_weights(m.evaluate(th).resid, 0.12)
-    fun = OM._residual_fn(m, 0.12)
+    fun = OF._residual_fn(m, 0.12)
     r0 = fun(th)
     Ja = m.jacobian(th, m.evaluate(th), 0.12)
-    Jf = OM._jac(m, fun, th, r0)
+    Jf = OF._jac(m, fun, th, r0)
     cos = lambda a, b: float(a @ b / np.linalg.norm(a) / np.linalg.norm(b))  # noqa: E731
     # measured 0.99999 (none); with the switches 0.970: a frame crossing a switch's
     # ramp edge between the forward steps makes the differences themselves coarse there
@@ -207,10 +175,10 @@ def test_the_jacobians_first_state_column_agrees_with_finite_differences():
     rec = OM.make_record(t, q, rt, rq, t_f, obs, 25.0)
     m = OM.RecordModel(rec, 1, 6, OM.Terms(), None)
     th = m.theta({"d": np.zeros(1), "B": np.array([0.31]), "z0": np.array([0.8])})
-    fun = OM._residual_fn(m, 0.1)
+    fun = OF._residual_fn(m, 0.1)
     r0 = fun(th)
     Ja = m.jacobian(th, m.evaluate(th), 0.1)
-    Jf = OM._jac(m, fun, th, r0)
+    Jf = OF._jac(m, fun, th, r0)
     i = m.layout()["z0"].start
     cos = float(Ja[:, i] @ Jf[:, i] / np.linalg.norm(Ja[:, i]) / np.linalg.norm(Jf[:, i]))
     assert np.count_nonzero(Jf[:, i]) > 10 and cos > 0.998
@@ -219,7 +187,7 @@ def test_the_jacobians_first_state_column_agrees_with_finite_differences():
 
 @pytest.mark.parametrize("width_at", OM.WIDTH_AT)
 def test_the_onsets_gradient_over_B_agrees_with_small_differences(width_at):
-    r, d, t, q, rt, rq, obs, _ = _record(duration_s=30.0)
+    r, d, t, q, rt, rq, obs, _ = record(duration_s=30.0)
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
     m = OM.RecordModel(rec, 4, 10, OM.Terms(), None, width_at=width_at)
     cB = np.array([0.15, 0.25, 0.28, 0.16])
@@ -239,60 +207,6 @@ def test_the_onsets_gradient_over_B_agrees_with_small_differences(width_at):
         assert np.median(rel) < (1e-6 if width_at == "input" else 2e-5) and np.mean(rel < 0.1) >= 0.85
 
 
-def test_a_clean_record_gives_B_and_the_delay():
-    r, d, t, q, rt, rq, obs, hyst = _record()
-    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
-    assert rob.report["terms"]["chosen"] == []
-    assert abs(rob.t_delay_s - r.delay_s) * r.fps < 0.125
-    assert _b_error_pct(r, rob.onsets) < 5.0
-    assert np.all(rob.onsets.sigma_b > 0) and np.all(rob.onsets.sigma_b < 0.05 * r.b_hi)
-
-
-def test_an_exposure_of_half_a_frame_is_fitted_as_the_frames_blur():
-    # A frame is the scene's mean over its exposure: at 25 fps a 20 ms exposure rounds each onset by
-    # half a frame. On this 40 s rendering the term enters alone, e 22 ms, B 2.9 % off (3.1 % with
-    # no term offered); on a 90 s one (seed 5), without the term the search took a tip mode, a tip
-    # switch and its slide in its stead, B 7.7 % off, and with it the term alone, B 0.6 % off.
-    r, d, t, q, rt, rq, obs, hyst = _record(exposure_s=0.02)
-    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
-    assert rob.report["terms"]["chosen"] == ["expo"]
-    assert rob.report["exposure_blur_s"] == pytest.approx(0.02, abs=0.005)
-    assert _b_error_pct(r, rob.onsets) < 5.0
-
-
-def test_a_wrong_configured_delay_is_a_prior_the_record_overrules_and_config_holds_it():
-    r, d, t, q, rt, rq, obs, hyst = _record(delay_s=0.18, delay_cfg_s=0.08, duration_s=20.0)  # 13 reversals
-    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, 0.08, "data", hysteresis=hyst)
-    assert abs(rob.t_delay_s - 0.18) * r.fps < 0.125
-    assert rob.report["t_delay"]["agrees_with_configured"] is False
-    assert any("against the configured 0.0800 s" in w for w in rob.warnings)
-    # a configured delay the record contradicts says nothing of the exposure: the mean lag is reported
-    assert rob.report["exposure_s"] is None and rob.t_delay_s == rob.report["image_mean_lag_s"]
-    held = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, 0.08, "config", hysteresis=hyst)
-    assert held.t_delay_s == 0.08 and held.report["t_delay"]["used"] == "configured"
-    with pytest.raises(ValueError, match="t_delay_from"):
-        record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, 0.08, "guess", hysteresis=hyst)
-
-
-@pytest.fixture(scope="module")
-def registration_record():
-    r, d, t, q, rt, rq, obs, hyst = _record(reg_deg=1.5, seed=11)
-    return r, record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst), obs
-
-
-def test_a_registration_that_switches_with_the_tip_is_found(registration_record):
-    r, rob, obs = registration_record
-    assert "reg_tip" in rob.report["terms"]["chosen"]
-    jump = np.hypot(*rob.report["registration"]["tip"]["jump_px"])
-    assert 20 < jump < 45  # 2 x 600 px x tan(1.5 deg) = 31 px, less the view's own tilt
-    assert abs(rob.t_delay_s - r.delay_s) * r.fps < 0.125
-    # the renderer's registration about the camera's y axis moves the image along u; the path's own
-    # direction from the frames' principal axis (an estimate apart from the model): measured 0.979
-    # against the principal axis' 1.000 (the path curves a little)
-    ax = np.linalg.svd(obs - obs.mean(axis=0), full_matrices=False)[2][0]
-    assert rob.report["registration"]["tip"]["along_path"] == pytest.approx(abs(ax[0]), abs=0.05)
-
-
 def test_the_along_path_share_is_the_cosine_between_the_jump_and_the_paths_tangent():
     from playscope.fit.onset_stage import along_path_share
 
@@ -303,69 +217,10 @@ def test_the_along_path_share_is_the_cosine_between_the_jump_and_the_paths_tange
     assert np.isnan(along_path_share(np.zeros(5), np.zeros(5), slope))
 
 
-def test_a_registration_that_switches_with_the_tip_leaves_B_within_5_percent(registration_record):
-    # measured 3.6 % (the switch as a two-point mixture, B coarse to fine); 9.2 % with the Gaussian
-    # stand-in, 12.7 % with G's ends pulled to 0 px as well
-    r, rob, _ = registration_record
-    assert _b_error_pct(r, rob.onsets) < 5.0
-
-
 def test_a_slide_is_offered_only_onto_its_own_switch():
     assert OM.Terms().offered() == ["ring", "reg_tip", "reg_motor", "expo"]
     assert OM.Terms(reg_tip=True).offered() == ["ring", "reg_motor", "slide_tip", "expo"]
     assert OM.Terms(reg_tip=True, reg_motor=True, slide_tip=True).offered() == ["ring", "slide_motor", "expo"]
-
-
-def test_a_registration_that_slides_is_fitted_as_a_slide_with_its_duration_and_B():
-    # marker_render's `channel` form (written apart from the estimator): the instrument slides in its
-    # channel for U(0, 40 ms) starting U(0, T) after the tip reverses, seen through an 8 ms exposure.
-    # From the stepped switch's fit, the slide's grid start and fit: measured BIC 676 against the
-    # stepped switch's 2250, B 0.64 % off (constant width), the longest slide at its bound, a frame
-    # period (40 ms; unbounded it went to 50 ms, the renderer's 40 ms plus its 8 ms exposure)
-    MR = _bench_module("marker_render")
-    sc = MR.Scene(seed=3, B_kind="fig7", speed=4.0, duration=15.0, fps=25.0, form="channel", size_deg=2.0, noise_px=0.15)
-    d = MR.render(sc)
-    t, q = d["t_enc"], d["q"]
-    rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
-    rec = OM.make_record(t, q, rt, rq, d["t_f"], np.column_stack([d["u"], d["v"]]), sc.fps, (360.0, 288.0), 600.0)
-    prior = (sc.t_delay_config, rec.period_s / np.sqrt(12))
-    sig = OM.noise_sigma(rec.obs)
-    step = OM.RecordModel(rec, 1, 10, OM.Terms(reg_tip=True), prior)
-    fs = OM.fit_model(step, step.theta({"d": np.array([sc.t_delay_true]), "B": np.array([1.1 * sc.B(0.0)])}), sigma=sig)
-    slide = OM.RecordModel(rec, 1, 10, OM.Terms(reg_tip=True, slide_tip=True), prior)
-    fits = [OM.fit_model(slide, th, sigma=sig) for th in OM._slide_starts(slide, "tip", step.parts(fs.theta), sig)]
-    f = min(fits, key=lambda f: f.bic(sig))
-    assert f.bic(sig) < fs.bic(sig) - 500
-    assert slide.unpack(f.theta)[1][0] == pytest.approx(sc.B(0.0), rel=0.02)
-    assert 0.03 < slide.slides(f.theta)["tip"] <= rec.period_s
-
-
-def test_a_fit_whose_jacobian_goes_non_finite_keeps_a_finite_theta(monkeypatch):
-    # A switch's scale gone to 0 once gave a NaN Jacobian, LM a NaN step and the next evaluation
-    # a ValueError deep in the B-spline basis; the fit must instead stay where it was.
-    r, d, t, q, rt, rq, obs, hyst = _record(duration_s=20.0)
-    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
-    m = OM.RecordModel(rec, 1, 6, OM.Terms(), None)
-    th0 = m.theta({"d": np.array([r.delay_s]), "B": np.array([0.2])})
-    exact = m.jacobian
-
-    def b_column_infinite(th, ev, sig):
-        J = exact(th, ev, sig).copy()
-        J[:, 1] = np.inf  # B's column; without the guard LM steps to NaN and the basis raises
-        return J
-
-    monkeypatch.setattr(m, "jacobian", b_column_infinite)
-    f = OM.fit_model(m, th0, sigma=OM.noise_sigma(rec.obs), max_nfev=4, rounds=1)
-    assert np.all(np.isfinite(f.theta)) and f.theta[1] == th0[1]
-
-
-def test_a_tip_mode_is_found_at_its_frequency():
-    # 20 s, 13 reversals: measured 3.001 Hz, B 0.25 % off (on 30 s: 3.001 Hz, 0.26 %)
-    r, d, t, q, rt, rq, obs, hyst = _record(ring_hz=3.0, ring_zeta=0.05, seed=5, duration_s=20.0)
-    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
-    ring = rob.report["ringing"]
-    assert ring["found"] and ring["freq_hz"] == pytest.approx(3.0, rel=0.05)
-    assert _b_error_pct(r, rob.onsets) < 10.0
 
 
 @pytest.mark.parametrize("name", ["marker_render.py", "swing_render.py"])
@@ -377,16 +232,6 @@ def test_the_renderers_that_judge_the_onset_stage_import_numpy_and_the_standard_
     mods |= {n.module.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
     assert mods <= {"numpy", "json", "dataclasses", "pathlib", "__future__", "math"} | set(sys.stdlib_module_names)
     assert "playscope" not in mods
-
-
-def test_the_noise_scale_comes_from_the_fit_when_the_motion_turns_within_a_few_frames():
-    # A 25 fps triangle whose legs last 0.13 s (3 frames): the frames' second differences see
-    # the motion's own turns (about 2.6 px here against the renderer's 0.2), so the search runs
-    # again at the fitted residuals' scale (SIGMA_RERUN); measured 0.32 px.
-    r, d, t, q, rt, rq, obs, hyst = _record(shape="triangle", swing_s=0.13, fps=25.0, noise_px=0.2, duration_s=30.0)
-    assert OM.noise_sigma(obs) > 5 * r.noise_px  # the record shows the case
-    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
-    assert rob.report["terms"]["noise_px"] < 2 * r.noise_px
 
 
 def test_the_delay_prior_is_flat_over_the_exposures_half_frame_and_gaussian_beyond():
@@ -406,34 +251,11 @@ def test_the_delay_prior_is_flat_over_the_exposures_half_frame_and_gaussian_beyo
     assert m.exposure_end(0.2, 0.001) == (0.2, None)  # contradicted: unsplit
 
 
-def test_the_delay_is_to_the_exposures_end_not_the_images_mean_lag():
-    # bench/marker_render.py averages each frame over the 12 ms before its capture time, the stamp
-    # minus the delay (the stamp marks the exposure's end): the image lags the encoder by
-    # t_delay + 6 ms on average, a third of a frame at 60 fps. Read as the delay, that mean lag
-    # was +0.36 frame off (measured before the exposure entered the prior); with the configured
-    # delay compared with the exposure's end, it is its prior, and the exposure the rest
-    # (measured 0.000 frame and 11.9 ms).
-    MR = _bench_module("marker_render")
-    sc = MR.Scene(seed=11, fps=60.0, exposure=0.012, t_delay_true=0.1, t_delay_config=0.1, duration=40.0,
-                  speed=2.0, noise_px=0.12)
-    d = MR.render(sc)
-    t, q = d["t_enc"], d["q"]
-    hyst = 0.01 * np.ptp(q)
-    rt, rq, _ = detect_reversals(t, q, hyst)
-    obs = np.column_stack([d["u"], d["v"]])
-    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, sc.fps, sc.t_delay_config, "data", hysteresis=hyst)
-    assert abs(rob.t_delay_s - sc.t_delay_true) * sc.fps < 0.125
-    # what the record measured (the delay above is the prior wherever the record allows it): the
-    # mean lag, and the exposure it implies
-    assert abs(rob.report["image_mean_lag_s"] - (sc.t_delay_true + 0.5 * sc.exposure)) * sc.fps < 0.125
-    assert rob.report["exposure_s"] == pytest.approx(sc.exposure, abs=0.002)
-
-
 def test_the_linear_solve_is_the_weighted_least_squares_one_where_frames_miss_the_paths_ends():
     # G's end coefficients reach beyond the frames; the registration's columns (px per rad) are
     # thousands of times G's. A ridge scaled by the trace once pulled those ends towards 0 px:
     # the weighted sum of squares came out above lstsq's, and each Huber reweighting raised it.
-    r, d, t, q, rt, rq, obs, hyst = _record(reg_deg=1.5, seed=11, duration_s=20.0)
+    r, d, t, q, rt, rq, obs, hyst = record(reg_deg=1.5, seed=11, duration_s=20.0)
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
     m = OM.RecordModel(rec, 4, 10, OM.Terms(reg_tip=True), None)
     th = m.theta({"d": np.array([r.delay_s]), "B": np.full(4, float(np.mean(r.B(q))))})
@@ -457,7 +279,7 @@ def test_the_linear_solve_is_the_weighted_least_squares_one_where_frames_miss_th
 def test_the_jacobian_of_a_switch_model_whose_width_no_swing_takes_up_is_finite():
     # A coarse-to-fine trial can pass through a B wider than every swing: no onset, so no tip switch.
     # The Jacobian once indexed the empty list of switches (an IndexError on a held-out rendering).
-    r, d, t, q, rt, rq, obs, hyst = _record(reg_deg=1.5, seed=11, duration_s=20.0)
+    r, d, t, q, rt, rq, obs, hyst = record(reg_deg=1.5, seed=11, duration_s=20.0)
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
     m = OM.RecordModel(rec, 1, 10, OM.Terms(reg_tip=True, reg_motor=True), (r.delay_s, 0.01))
     th = m.theta({"d": np.array([r.delay_s]), "B": np.array([10.0 * np.ptp(q)])})
@@ -479,136 +301,3 @@ def test_the_basis_derivative_is_scipys_spline_derivative():
         xc = np.clip(x, -1.0, np.nextafter(2.0, -np.inf))
         ref = np.column_stack([BSpline(t, np.eye(n)[i], 3).derivative()(xc) for i in range(n)])
         assert np.allclose(OM._dbasis(x, -1.0, 2.0, n), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
-
-
-def test_fits_in_a_forked_child_equal_the_same_fits_run_in_turn_when_jobs_share_a_model():
-    # _fit_all's child gets its jobs pickled before this process fits the rest, and each job fits its
-    # own copy of the model: the jobs here share one model (as a term's starts do), and before, the
-    # weights one fit left started the next (delays 0.9 ms apart), so the split into processes
-    # changed the result. On one core _fit_all runs them in turn, and the in-turn and alone fits still
-    # differ without the copy.
-    r, d, t, q, rt, rq, obs, _ = _record(duration_s=20.0)
-    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
-    starts = ((0.0, 0.15), (0.01, 0.2), (-0.01, 0.25), (0.005, 0.3))
-
-    def jobs(m):
-        return [(m, m.theta({"d": np.array([r.delay_s + e]), "B": np.array([b])}), 0.1, 6, 1) for e, b in starts]
-
-    def model():
-        return OM.RecordModel(rec, 1, 6, OM.Terms(), (r.delay_s, 0.01))
-
-    par = [f.theta for f in OM._fit_all(jobs(model()))]
-    seq = [OM._fit_one(j).theta for j in jobs(model())]
-    alone = [OM._fit_one(jobs(model())[i]).theta for i in range(len(starts))]  # each on a model of its own
-    for a, b, c in zip(par, seq, alone):
-        assert np.array_equal(a, b) and np.array_equal(b, c)
-
-
-def test_the_tip_modes_profiled_start_undoes_the_width_the_plain_start_was_dragged_to():
-    # A lightly damped 5.5 Hz tip mode on a 60 fps triangle (20 s of development rendering
-    # swing-081's settings), started as the search is, from the coarse delay and the configured
-    # one: the plain model, which lacks the ring, reads the stop's swing as an early onset and
-    # starts at the coarse delay with a width 0.089 of the truth (its spline fit then 0.52). The
-    # ring's profiled starts (`_ring_profiled_starts`, at the frequency its scan picks at the plain
-    # fit) include one at the configured delay with a width 1.08 of the truth: within the width
-    # grid's half step (12 widths over a factor 50, so 1.43 apart: +-20 %). Measured on 30 s of the
-    # same settings, every damping ratio's profile stays at the coarse delay's narrow width (0.078):
-    # the profile is not enough there (issue note).
-    from playscope.fit.delay_guess import coarse_delay, motor_stop_times
-
-    r, d, t, q, rt, rq, obs, hyst = _record(shape="triangle", fps=60.0, jitter=0.18, noise_px=0.176, delay_s=0.083,
-                                            delay_cfg_s=0.083, b_lo=0.105, b_hi=0.309, b_qc=0.24, b_w=1.24,
-                                            swing_s=0.342, ring_hz=5.5, ring_zeta=0.046, ring_px=9.5, seed=3,
-                                            duration_s=20.0)
-    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
-    sig = OM.noise_sigma(obs)
-    prior = (r.delay_cfg_s, rec.period_s / np.sqrt(12))
-    starts = [coarse_delay(d["t_f"], obs, motor_stop_times(t, q, rt, rq, 0.02 * hyst), t, q, rec.period_s),
-              r.delay_cfg_s]
-    st, n_g = OM._start(rec, starts, prior, None, None, sig)
-    qq = np.linspace(q.min(), q.max(), 100)
-    B_true = float(np.mean(r.B(qq)))
-    assert st[()][1] < 0.2 * B_true  # the record shows the drag
-    ms = [OM.RecordModel(rec, n, n_g, OM.Terms(), prior) for n in [1] + [n for n in OM._n_b_ladder(rt.size) if n > 1]]
-    plain = OM._fit_chain((ms, ms[0].theta({"d": np.array([st[()][0]]), "B": np.array([st[()][1]])}), sig, 20, 3))[-1]
-    m = plain.model
-    mt = OM.RecordModel(rec, m.n_b, n_g, OM.Terms(ring=True), prior)
-    freqs = OM._ring_scan(mt, m.parts(plain.theta), sig)
-    found = OM._ring_profiled_starts(rec, n_g, OM.Terms(ring=True), prior, None, m.parts(plain.theta), freqs,
-                                     starts, OM._start_widths(rec, None), m.G_slope(plain.ev), sig)
-    assert min(abs(float(p["B"][0]) / B_true - 1.0) for p in found) < 0.2
-
-
-def test_a_tip_mode_is_found_where_the_scan_at_the_dragged_fit_scores_an_alias_lowest(monkeypatch):
-    # A 5.73 Hz tip mode on a 30 fps triangle of 89 ms legs (20 s of lockbox rendering
-    # s5-render_c-092's settings): at the plain fit, whose width the mode dragged, the ring's
-    # frequency scan scores 13.25 Hz lowest (the frames' alias of the triangle's third harmonic);
-    # from there alone the search took a 13.5 Hz ring and B was 24 % off. The scan's other minima
-    # are profiled too (`_ring_profiled_starts`); measured: 5.736 Hz, damping 0.104 (rendered
-    # 0.11), B 0.26 % off.
-    r, d, t, q, rt, rq, obs, hyst = _record(shape="triangle", fps=30.0, jitter=0.44, noise_px=0.095, delay_s=0.149,
-                                            delay_cfg_s=0.149, b_lo=0.139, b_hi=0.278, swing_mm=0.39, swing_s=0.089,
-                                            ring_hz=5.73, ring_zeta=0.11, ring_px=7.5, seed=3, duration_s=20.0)
-    scans = []
-    profiled = OM._ring_profiled_starts
-
-    def spy(rec, n_g, terms, prior, d_fixed, parts, freqs_hz, *a):
-        scans.append(np.asarray(freqs_hz))
-        return profiled(rec, n_g, terms, prior, d_fixed, parts, freqs_hz, *a)
-
-    monkeypatch.setattr(OM, "_ring_profiled_starts", spy)
-    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
-    assert scans[0][0] > 10.0 and scans[0].size > 1  # the record shows the alias, and other minima
-    ring = rob.report["ringing"]
-    assert ring["found"] and ring["freq_hz"] == pytest.approx(5.73, rel=0.02)
-    assert _b_error_pct(r, rob.onsets) < 1.5
-
-
-def test_the_search_starts_from_the_correlations_peak_the_record_fits_not_an_alias_a_period_late(monkeypatch):
-    # A 60 fps triangle of 0.29 s period (30 s of lockbox rendering s5-swing-056's settings, delay
-    # 92 ms, configured 179 ms): the correlation of commanded and image motion repeats with the
-    # triangle, and its highest peak is the alias one period late, its other the delay (both about
-    # 25 ms late: delay_guess.delay_score). The start fits the plain model from each and keeps the
-    # one the record fits best.
-    from playscope.fit.delay_guess import coarse_delay_peaks, motor_stop_times
-
-    r, d, t, q, rt, rq, obs, hyst = _record(shape="triangle", fps=60.0, jitter=0.38, noise_px=0.158, delay_s=0.092,
-                                            delay_cfg_s=0.179, b_lo=0.149, b_hi=0.221, b_qc=0.5, b_w=1.47,
-                                            swing_s=0.146, swing_period_s=1.5, seed=3, duration_s=30.0)
-    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
-    peaks = coarse_delay_peaks(d["t_f"], obs, motor_stop_times(t, q, rt, rq, 0.02 * hyst), t, q, rec.period_s)
-    assert peaks[0] > r.delay_s + 0.25  # the highest: the alias, a period (0.29 s) late
-    near = [p for p in peaks if abs(p - r.delay_s) < 0.03]
-    assert len(near) == 1
-    d0 = OM._coarse_start(rec, peaks, (r.delay_cfg_s, rec.period_s / np.sqrt(12)), None, OM.noise_sigma(obs))
-    assert d0 == near[0]
-    # and fit_record's search starts from it and the configured delay (the search itself stubbed out);
-    # a held configured delay is the only start, no candidate fitted
-    seen = []
-
-    class Started(Exception):
-        pass
-
-    def search(rec, starts, *a):
-        seen.append(list(starts))
-        raise Started
-
-    monkeypatch.setattr(OM, "_search", search)
-    with pytest.raises(Started):
-        OM.fit_record(rec, r.delay_cfg_s, "data", peaks)
-    assert seen[-1] == [near[0], r.delay_cfg_s]
-    monkeypatch.setattr(OM, "_coarse_start", lambda *a: pytest.fail("a held delay fits no candidate"))
-    with pytest.raises(Started):
-        OM.fit_record(rec, r.delay_cfg_s, "config", peaks)
-    assert seen[-1] == [r.delay_cfg_s]
-    # the onset stage hands fit_record every candidate, not the highest alone
-    got = []
-
-    def fit_record(rec, cfg, how, d_coarse, *a):
-        got.append(np.atleast_1d(d_coarse))
-        raise Started
-
-    monkeypatch.setattr(OM, "fit_record", fit_record)
-    with pytest.raises(Started):
-        record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
-    assert np.array_equal(got[0], peaks)

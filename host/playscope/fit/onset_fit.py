@@ -1,0 +1,326 @@
+"""Fitting one record model (onset_model.RecordModel) and reading eq. 1's samples off the fit.
+
+A model is fitted by iteratively reweighted Huber least squares (`fit_model`: Levenberg-Marquardt,
+scipy.optimize.least_squares, on the model's variable-projection Jacobian); B coarse to fine in its
+size (`_fit_chain`); many fits on two cores, each on its own copy of its model, so that a result
+does not depend on which process fitted it (`_fit_all`). A Fit carries its BIC on the robust
+objective, the criterion every choice of onset_search makes.
+
+Eq. 1's samples are then read off the fitted model: after each reversal (t1, q1), the instant t2
+the play output starts to move, b = |q(t2) - q1|, with its standard error from the fit's
+covariance.
+
+Units: t in s, q and B in actuator units, image points in px.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..base.forkmap import fork_map
+from .onset_model import Eval, RecordModel, _basis, robust_sigma
+
+IRLS_ROUNDS = 3        # reweightings of the Huber fit (the weights settle in 2-3 on every record tried)
+
+
+@dataclass
+class Fit:
+    """A fitted model: theta (model.layout), its evaluation, the noise scale sigma (px) the fit
+    and its BIC use, cost (half the robust objective, plus the delay prior's half square, in
+    sigma^2 units), the weighted Jacobian (2F [+1], n_theta) in sigma units, and fit details."""
+
+    model: RecordModel
+    theta: np.ndarray
+    ev: Eval
+    sigma: float
+    cost: float          # sum of Huber rho at sigma (plus the prior's half square)
+    jac: np.ndarray | None = None
+    info: dict = field(default_factory=dict)
+
+    def bic(self, sigma: float) -> float:
+        """BIC on the robust objective at a common sigma (RecordModel.objective) + k ln n."""
+        m = self.model
+        n = self.ev.resid.size
+        k = m.n_theta() - (1 if m.d_fixed is not None else 0) + m.n_linear()
+        return m.objective(self.ev, sigma) + k * np.log(n)
+
+
+def _steps(m: RecordModel, th: np.ndarray) -> np.ndarray:
+    """Forward-difference steps (the reference `jacobian` is checked against): t_delay T/16; B
+    coefficients 2 % of the mean width, at least the travel of two grid steps at the record's
+    median speed; the ring's and the lags', slides' and first state's (logistic) parts 0.01 and 0.05."""
+    rec = m.rec
+    v = float(np.median(np.abs(np.diff(rec.q)))) / rec.dt
+    hb = max(0.02 * float(np.mean(np.abs(th[1:1 + m.n_b]))), 2 * v * rec.dt, 1e-6)
+    h = [rec.period_s / 16] + [hb] * m.n_b
+    if m.terms.ring:
+        h += [0.01, 0.01]
+    h += [0.05] * (m.terms.reg_tip + m.terms.reg_motor + m.terms.slide_tip + m.terms.slide_motor + m.terms.expo)
+    return np.array(h + [0.05])  # the first state's (logistic) part
+
+
+def _residual_fn(m: RecordModel, sigma: float):
+    """theta -> weighted residuals in sigma units (and the delay prior), for least_squares."""
+    sw = np.sqrt(m.w)
+    cache = {}
+
+    def fun(th):
+        key = th.tobytes()
+        if key not in cache:
+            ev = m.evaluate(th)
+            r = sw * ev.resid / sigma
+            if m.prior is not None and m.d_fixed is None:
+                r = np.r_[r, m.prior_residual(m.unpack(th)[0])[0]]
+            kl, pen = m.mix_rows(ev, sigma)
+            r = np.r_[r, kl, pen]
+            cache.clear()
+            cache[key] = (r, ev)
+        return cache[key][0]
+
+    def evaluation(th):
+        """The model's evaluation at th: the last one fun made when at th (the model's linear
+        solve is still that one's, as the Jacobian needs), else a new one."""
+        hit = cache.get(th.tobytes())
+        return hit[1] if hit is not None else m.evaluate(th)
+
+    fun.evaluation = evaluation
+    return fun
+
+
+def _jac(m: RecordModel, fun, th: np.ndarray, r0: np.ndarray) -> np.ndarray:
+    h = _steps(m, th)
+    J = np.empty((r0.size, th.size))
+    for i in range(th.size):
+        if i == 0 and m.d_fixed is not None:
+            J[:, 0] = 0.0
+            continue
+        t2 = th.copy()
+        t2[i] += h[i]
+        J[:, i] = (fun(t2) - r0) / h[i]
+    return J
+
+
+def _settle(m: RecordModel, th: np.ndarray, sig: float) -> tuple[Eval, float]:
+    """The model at theta with its Huber weights reweighted once from there (the form every fit
+    is scored in): (its evaluation, half the robust objective plus the delay prior's half square)."""
+    ev = m.evaluate(th)
+    if m.terms.ring:
+        m.slope = m.G_slope(ev)
+    m.e_step(ev, sig)
+    ev = m.evaluate(th)
+    m.w = m.weights(ev, sig)
+    ev = m.evaluate(th)
+    cost = 0.5 * m.objective(ev, sig)
+    cost += 0.5 * m.prior_residual(m.unpack(th)[0])[0] ** 2
+    return ev, cost
+
+
+def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_nfev: int = 20,
+              rounds: int = IRLS_ROUNDS) -> Fit:
+    """Huber fit of the model from th0 by IRLS rounds of least_squares (Levenberg-Marquardt,
+    MINPACK; the model clips theta into its admissible region: d >= 0, B >= 0, the tip mode in
+    its band). sigma: the scale (None: from the first round's residuals, 1.4826 MAD). The scales
+    of a switch window follow the fitted jump, so a round need not lower the objective: the best
+    of the start and every round is returned. Returns Fit."""
+    th = np.array(th0, float)
+    ev = m.evaluate(th)
+    if m.terms.ring:
+        m.slope = m.G_slope(ev)
+    sig = sigma if sigma is not None else robust_sigma(ev.resid)
+    nfev = 0
+    tried = [th.copy()]
+    for rnd in range(rounds):
+        m.e_step(ev, sig)
+        ev = m.evaluate(th)
+        m.w = m.weights(ev, sig)
+        fun = _residual_fn(m, sig)
+        free = np.arange(th.size) if m.d_fixed is None else np.arange(1, th.size)
+        full = th.copy()
+
+        r_bad = None
+
+        def f_free(x, full=full, free=free, fun=fun):
+            nonlocal r_bad
+            if not np.all(np.isfinite(x)):  # a step LM took off the finite (a switch's scale gone to 0):
+                return r_bad                # a cost above the start's, so LM shrinks its step
+            full[free] = x
+            r = fun(full)
+            if r_bad is None:
+                r_bad = np.full(r.size, 10.0 * (np.linalg.norm(r) + 1.0) / np.sqrt(r.size))
+            return r
+
+        def j_free(x, full=full, free=free, sig=sig, fun=fun):
+            full[free] = x
+            return np.nan_to_num(m.jacobian(full, fun.evaluation(full), sig)[:, free], nan=0.0, posinf=0.0, neginf=0.0)
+
+        res = least_squares(f_free, th[free], jac=j_free, method="lm", max_nfev=max_nfev, xtol=1e-6, ftol=1e-8)
+        th[free] = res.x
+        nfev += res.nfev
+        tried.append(th.copy())
+        ev = m.evaluate(th)
+        if m.terms.ring:
+            m.slope = m.G_slope(ev)
+            ev = m.evaluate(th)
+        if sigma is None and rnd == 0:
+            sig = robust_sigma(ev.resid)
+    costs = [_settle(m, t, sig)[1] for t in tried]
+    th = tried[int(np.argmin(costs))]
+    ev, cost = _settle(m, th, sig)
+    f = Fit(m, th, ev, sig, cost, info={"nfev": nfev})
+    f.jac = m.jacobian(th, ev, sig)
+    return f
+
+
+def _fit_one(job) -> "Fit":
+    """fit_model for one job (model, theta0, sigma, max_nfev, rounds) on its own copy of the model,
+    its IRLS weights and mixture started afresh and first set at theta0: the fit depends on the
+    job alone, not on which fits ran on the same model before it nor in which process (a term's
+    starts share one model; the weights the last fit left moved the next one's delay by up to
+    0.9 ms on a test record, so a record's result hung on the machine's core count). The returned
+    Fit holds the copy."""
+    import copy
+
+    m, th0, sigma, max_nfev, rounds = job
+    m = copy.copy(m)
+    m.w, m.mix = np.ones_like(m.w), {}
+    m.e_step(m.evaluate(th0), sigma)
+    m.w = m.weights(m.evaluate(th0), sigma)
+    return fit_model(m, th0, sigma=sigma, max_nfev=max_nfev, rounds=rounds)
+
+
+def _resample_B(m_from: "RecordModel", cB: np.ndarray, m_to: "RecordModel") -> np.ndarray:
+    """B's coefficients (m_to.n_b,), actuator units, for m_to's size from m_from's B(q) with
+    coefficients cB (least squares on 400 points over the travel; a constant width: B's mean over
+    the record's q)."""
+    if m_to.n_b == 1:
+        return np.array([float(np.mean(m_from.B_of(cB, m_from.rec.q)))])
+    qq = np.linspace(m_to.q_lo, m_to.q_hi, 400)
+    return np.linalg.lstsq(_basis(qq, m_to.q_lo, m_to.q_hi, m_to.n_b), m_from.B_of(cB, qq), rcond=None)[0]
+
+
+def _fit_chain(job) -> list:
+    """Coarse to fine in B's size: job (models, theta0 of the first, sigma, max_nfev, rounds), the
+    models alike but for B's size; each is fitted from the last one's fit, its B resampled
+    (`_resample_B`). A width fitted with few coefficients first finds the level, and the finer
+    sizes then only shape it: started at full size from a constant width, the B-spline's many
+    directions meet the switches' onsets and the fit settles in a basin of a wrong B (measured:
+    from 5 constant widths 0.1-0.3 on a 1.5 deg registration record, 5 reach B within 3.7 % this
+    way, 1 from full size). Returns the fits, one per model."""
+    models, th0, sigma, max_nfev, rounds = job
+    out = []
+    for m in models:
+        if out:
+            prev = out[-1]
+            parts = prev.model.parts(prev.theta)
+            parts["B"] = _resample_B(prev.model, prev.model.unpack(prev.theta)[1], m)
+            th0 = m.theta({k: v for k, v in parts.items() if k in m.layout()})
+        out.append(_fit_one((m, th0, sigma, max_nfev, rounds)))
+    return out
+
+
+RING_COST_FACTOR = 5.0  # a ring model's fit against a plain one's (its Jacobian filters the grid once per B
+                        # coefficient: 19 against 4 ms on the bench record, 16 coefficients)
+
+
+def _job_cost(job) -> float:
+    """A fit job's relative cost, to start the costly ones first (`_fit_all`): its models, one
+    with the tip mode RING_COST_FACTOR times one without."""
+    models = job[0] if isinstance(job[0], list) else [job[0]]
+    return float(sum(RING_COST_FACTOR if m.terms.ring else 1.0 for m in models))
+
+
+def _slim(result):
+    """A job's result (a Fit or a list of Fits) without its evaluations, for the pipe: an evaluation
+    holds the grid's play and drive (35 MB on the bench record, so a chain's took seconds to pass),
+    and the model it came from gives it again bit for bit (`_unslim`: a Fit's evaluation is its
+    model's at theta in the state the fit left, `fit_model`'s last settle)."""
+    for f in (result if isinstance(result, list) else [result]):
+        f.ev = None
+    return result
+
+
+def _unslim(result):
+    """The evaluations `_slim` dropped, from each Fit's model (and with them the model's last linear
+    solve, which the Jacobian reads)."""
+    for f in (result if isinstance(result, list) else [result]):
+        if f.ev is None:
+            f.ev = f.model.evaluate(f.theta)
+    return result
+
+
+def _fit_all(jobs: list, fn=None) -> list:
+    """fn (default `_fit_one`; `_fit_chain` for chains) on each job, results in the jobs' order, on
+    two cores when the machine has them (base.forkmap: the costly jobs first, `_job_cost`; the
+    child's fits sent without their evaluations, `_slim`). Each fit is on its own copy of its model
+    (`_fit_one`), so the result does not depend on which process fitted a job (a test checks it bit
+    for bit)."""
+    return fork_map(fn or _fit_one, jobs, cost=_job_cost, pack=_slim, unpack=_unslim)
+
+
+def _fit_distinct(jobs: list) -> list:
+    """The last Fit of each chain job (`_fit_chain`), a job alike another (the same models, start and
+    budget: a start the term's bases repeat, e.g. the coarse delay equal to the configured one)
+    fitted once; its Fit then stands for both (a job's fit depends on the job alone, `_fit_one`)."""
+    key = [(tuple(id(m) for m in j[0]), j[1].tobytes(), j[2], j[3], j[4]) for j in jobs]
+    first = {}
+    for i, k in enumerate(key):
+        first.setdefault(k, i)
+    uniq = sorted(set(first.values()))
+    fits = dict(zip(uniq, (fs[-1] for fs in _fit_all([jobs[i] for i in uniq], _fit_chain))))
+    return [fits[first[k]] for k in key]
+
+
+# --------------------------------------------------------------------------- samples
+@dataclass
+class ModelSamples:
+    """Eq. 1's samples read off a fitted model (arrays (K,), one per reversal whose play was
+    taken up within the record's frames): t1_s (scene), t2_s (image clock = scene + t_delay: the
+    stamp of a frame whose exposure ends at the onset), q1, q2, q_mean, b (actuator units), sigma_b;
+    t_delay_s, the delay to the exposure's end, and its standard error (the mean lag's); rev (K,)
+    the reversal indices; exposure_s the exposure that splits the mean lag (None: nothing split it;
+    module doc, the exposure)."""
+
+    t1_s: np.ndarray
+    t2_s: np.ndarray
+    q1: np.ndarray
+    q2: np.ndarray
+    q_mean: np.ndarray
+    b: np.ndarray
+    sigma_b: np.ndarray
+    rev: np.ndarray
+    t_delay_s: float
+    t_delay_se_s: float
+    exposure_s: float | None = None
+
+
+def samples(fit: Fit) -> ModelSamples:
+    """B samples of eq. 1 from the fitted play (module doc), each with its standard error from the
+    fit's covariance sigma^2 (J'J)^-1 (J: the weighted residuals' Jacobian in sigma units, so the
+    covariance is (J'J)^-1)."""
+    m, th = fit.model, fit.theta
+    rec = m.rec
+    d, cB = m.unpack(th)[:2]
+    z = m.play(cB, m.z0_of(th))
+    t_on = m.onsets(z)
+    J = fit.jac
+    cov = np.linalg.pinv(J.T @ J)
+    # b's gradient over theta by the same forward steps
+    h = _steps(m, th)
+    q_on = np.interp(t_on, rec.t, rec.q)
+    grad = np.zeros((rec.rt.size, th.size))
+    for i in [*range(1, 1 + m.n_b), m.layout()["z0"].start]:
+        t2 = th.copy()
+        t2[i] += h[i]
+        on2 = m.onsets(m.play(m.unpack(t2)[1], m.z0_of(t2)))
+        grad[:, i] = (np.abs(np.interp(on2, rec.t, rec.q) - rec.rq) - np.abs(q_on - rec.rq)) / h[i]
+    var_b = np.einsum("mi,ij,mj->m", np.nan_to_num(grad), cov, np.nan_to_num(grad))
+    se_d = float(np.sqrt(max(cov[0, 0], 0.0))) if m.d_fixed is None else 0.0
+    # the onset must fall within the frames' span (a model extrapolated past the video says nothing)
+    ok = np.isfinite(t_on) & (t_on + d > rec.t_f[0] + rec.period_s) & (t_on + d < rec.t_f[-1] - rec.period_s)
+    q2 = q_on[ok]
+    d_end, e = m.exposure_end(d, se_d)
+    return ModelSamples(rec.rt[ok], t_on[ok] + d_end, rec.rq[ok], q2, 0.5 * (rec.rq[ok] + q2), np.abs(q2 - rec.rq[ok]),
+                        np.sqrt(np.maximum(var_b[ok], 0.0)), np.flatnonzero(ok), d_end, se_d, e)

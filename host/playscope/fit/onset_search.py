@@ -1,0 +1,361 @@
+"""Which model of the record (onset_model): the starts, B's size and where it is read, and the terms,
+each chosen by the same BIC (onset_fit.Fit.bic); `fit_record` is the onset stage's estimator.
+
+Start: the coarse delay and the configured one, each with the constant play width that fits best.
+The coarse delay is the peak of delay_guess's correlation from which the plain model fits best
+(`_coarse_start`): an excitation that repeats makes the correlation as high one period late.
+The board's plain eq. 1 samples are a third start when given. B is fitted coarse to fine
+(`_fit_chain`): a constant width, then each of B_CTRL's sizes from the last one's fit. A term the
+plain model lacks drags its width, so each term also gets starts profiled with it on (the
+delay and the constant width by the robust cost; the tip mode's at each of RING_ZETA_STARTS at the
+frequency its scan picks, and at the scan's other local minimum that profiles lower, if one does),
+each carried coarse to fine and scored by the BIC.
+
+Terms by evidence: the tip mode, each registration term and the exposure enter when they lower the record's
+BIC (Schwarz 1978) on the robust objective (2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma),
+the Gaussian's normalisation for the inflated scales), the same criterion for each; the search
+adds the best term, refits, and tries the rest again.
+
+Units: t in s, q and B in actuator units, image points in px.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .onset_fit import IRLS_ROUNDS, Fit, _fit_all, _fit_chain, _fit_distinct, _resample_B, _settle, fit_model
+from .onset_model import WIDTH_AT, Record, RecordModel, Terms, noise_sigma, robust_sigma
+
+G_CTRL = (6, 10, 14)   # the image path's coefficients per axis, chosen by BIC on the start
+B_CTRL = (4, 8, 16)    # B(q)'s coefficients, chosen by BIC on the plain model (a cubic needs 4) ...
+B_REV_PER_CTRL = 1     # ... with at least one reversal (one onset) per coefficient
+SIGMA_RERUN = 0.7      # the search runs again at the fit's residual scale when that is below this share of
+                       # the second differences' (a scale 30 % off moves the Huber corner and the weight
+                       # of the data in the BIC by as much; the MAD of a few thousand residuals is
+                       # itself good to a few %)
+RING_ZETA_STARTS = (0.03, 0.1, 0.3)  # the tip mode's damping ratios a ring start is profiled at: a factor
+                       # of about 3 apart over the lightly damped modes the term is for (above about 0.5 a
+                       # mode barely rings), so LM starts within its reach of the ratio
+EXPO_GRID = (0.25, 0.5, 1.0)  # the exposure term's starts, frame periods, as a slide's lag grid (the settled cost over
+                       # e was unimodal about the truth on two renderings, 20 and 35 ms at 25 fps: one start may
+                       # do, not tried)
+
+
+# --------------------------------------------------------------------------- the start
+def _n_b_ladder(n_rev: int) -> list[int]:
+    """B's sizes the plain model tries for n_rev reversals: those of B_CTRL with at least
+    B_REV_PER_CTRL reversals each; a constant width (1) when none has."""
+    return [n for n in B_CTRL if n * B_REV_PER_CTRL <= n_rev] or [1]
+
+
+def _start_widths(rec: Record, board_b: np.ndarray | None) -> list[float]:
+    """The constant widths a start is profiled over (actuator units): 12 log-spaced in 2 %..100 %
+    of the median swing between reversals (a play from a trace of one swing to all of it), and
+    the board's median sample when given."""
+    swing = float(np.median(np.abs(np.diff(rec.rq)))) if rec.rq.size > 1 else float(np.ptp(rec.q))
+    widths = list(swing * np.geomspace(0.02, 1.0, 12))
+    if board_b is not None and board_b.size:
+        widths.append(float(np.median(board_b)))
+    return widths
+
+
+def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarray | None,
+           sigma: float) -> tuple[dict, int]:
+    """The start: for each delay candidate, each constant width (12 log-spaced in 2 %..100 % of
+    the median swing between reversals, and the board's median sample when given) and each set of
+    the linear registration terms (none, tip, motor: cheap, and a switch left out of the start
+    drags the width), the lowest BIC at sigma; then G's size by BIC there. The terms themselves
+    are chosen later, on B(q) as a spline (at a constant width, a tip-registration offset takes
+    up B's own variation over the travel); each registration term's own best start is kept for
+    when the search tries it. Returns ({term names (tuple): (t_delay, width)}, n_g)."""
+    widths = _start_widths(rec, board_b)
+    best = {}
+    for terms in (Terms(), Terms(reg_tip=True), Terms(reg_motor=True)):
+        m = RecordModel(rec, 1, G_CTRL[1], terms, prior, d_fixed)
+        for d in d_starts:
+            for b in widths:
+                c = _start_bic(m, d, b, sigma)
+                key = tuple(terms.names())
+                if key not in best or c < best[key][0]:
+                    best[key] = (c, d, b)
+    _, d, b = min(best.values())
+    bics = [_start_bic(RecordModel(rec, 1, n_g, Terms(), prior, d_fixed), d, b, sigma) for n_g in G_CTRL]
+    return {k: v[1:] for k, v in best.items()}, G_CTRL[int(np.argmin(bics))]
+
+
+def _start_bic(m: RecordModel, d: float, b: float, sigma: float) -> float:
+    """A start's score: the BIC at sigma (px) of model m (a constant width) at delay d (s) and width
+    b (actuator units), its other nonlinear parameters at their starts and its linear ones solved."""
+    ev = m.evaluate(m.theta({"d": np.array([d]), "B": np.array([b])}))
+    return float(m.objective(ev, sigma) + m.n_linear() * np.log(ev.resid.size))
+
+
+def _coarse_start(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | None, sigma: float) -> float:
+    """The coarse delay the search starts from: of the correlation's candidates cands (K,) s
+    (delay_guess.coarse_delay_peaks, its highest first), the one from which the plain model at a
+    constant width fits best (each from its best width by `_start_bic`, on a term trial's budget:
+    8 evaluations, one reweighting; BIC at sigma; ties keep the earlier). prior: the configured
+    delay's (mean, sd) s or None; board_b: the board's eq. 1 samples or None (`_start_widths`).
+    Returns s. Why a fit and not the start's score alone: on a fast swing a delay and a width
+    trade, so the score's basin in the delay is narrow (+-10 ms on the record below), and the
+    correlation's peaks sit up to a quarter period late (delay_guess.delay_score), outside it.
+    Why more than the highest: an excitation that repeats makes the correlation as high one period
+    late as at the delay, where the record's model is not: on s5-swing-056 (a 60 fps triangle of 0.29 s period, delay 92 ms, configured 179 ms) the
+    correlation's highest point was the alias at 408 ms, from which this fit ends at 385 ms, BIC
+    17,965 (and the search, with every term, 17.8 frames late with B 29 % off); from its other peak,
+    117 ms, at 92.2 ms, BIC 5,318. Costs 0.35 s on the 3-minute bench record (5 candidates)."""
+    m = RecordModel(rec, 1, G_CTRL[1], Terms(), prior, None)
+    widths = _start_widths(rec, board_b)
+    jobs = []
+    for d in cands:
+        b = min(widths, key=lambda b: _start_bic(m, d, b, sigma))
+        jobs.append((m, m.theta({"d": np.array([d]), "B": np.array([b])}), sigma, 8, 1))
+    bics = [f.bic(sigma) for f in _fit_all(jobs)]
+    return float(cands[int(np.argmin(bics))])
+
+
+SLIDE_GRID = ((0.25, 0.5, 1.0), (0.25, 0.5, 1.0))  # a slide's start grid: lags, longest slides (frame periods)
+
+
+def _slide_starts(m: RecordModel, name: str, parts: dict, sigma: float, keep: int = 2) -> list:
+    """Starts (theta) for the switch name's slide ("tip" or "motor") from the fit so far's parts: its
+    lag L and longest slide D on SLIDE_GRID (D within its range), the keep lowest by the settled
+    robust objective. Why a grid: L and D trade against each other (a late start with a short slide
+    against an early one with a long slide), and from the middle of both ranges LM stopped in the
+    wrong one (a 15 s channel rendering: L at its floor, B 4.7 % off, BIC 862; from the grid, BIC 676
+    and B 0.6 % off). The fits then begin from the weights and E-step of the grid point scored last
+    (as the search's other starts that share a model do: the objective at a theta depends on that
+    state, docs/host.md)."""
+    T = m.rec.period_s
+    out = []
+    for L in SLIDE_GRID[0]:
+        for D in SLIDE_GRID[1]:
+            if D * T > m.slide_max_s:
+                continue
+            th = m.theta({**parts, "lag_" + name: np.array([m.lag_x(L * T)]), "slide_" + name: np.array([m.slide_x(D * T)])})
+            out.append((_settle(m, th, sigma)[1], th))
+    out.sort(key=lambda c: c[0])
+    return [th for _, th in out[:keep]]
+
+
+def _ring_scan(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
+    """The tip mode's frequency scan for model m (with the ring term) at the other parts of theta:
+    the robust cost at damping ratio 0.1 on 0.25 Hz steps from RING_HZ_LO to RING_NYQUIST of the
+    frame rate. Returns the scan's local minima (K,) Hz, its lowest first, then the others by cost.
+    Sets m.slope (the path's tangent at the first frequency)."""
+    fs = np.arange(*m.ring_band(), 0.25)
+    m.slope = m.G_slope(m.evaluate(m.theta({**parts, "ring": m.ring_theta(fs[0], 0.1)})))
+    c = np.array([m.objective(m.evaluate(m.theta({**parts, "ring": m.ring_theta(f, 0.1)})), sigma) for f in fs])
+    lo = np.r_[True, c[1:] <= c[:-1]] & np.r_[c[:-1] < c[1:], True]
+    i0 = int(np.argmin(c))
+    others = [i for i in np.flatnonzero(lo)[np.argsort(c[lo], kind="stable")] if i != i0]
+    return fs[[i0] + others]
+
+
+def _ring_start(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
+    """The tip mode's start for model m (with the ring term) from the other parts of theta: the
+    frequency of `_ring_scan` with the lowest robust cost, damping ratio 0.1."""
+    return m.theta({**parts, "ring": m.ring_theta(_ring_scan(m, parts, sigma)[0], 0.1)})
+
+
+def _ring_profiled_starts(rec: Record, n_g: int, terms: Terms, prior, d_fixed, parts: dict, freqs_hz: np.ndarray,
+                          d_starts: list[float], widths: list[float], slope: np.ndarray, sigma: float) -> list[dict]:
+    """The tip mode's own profiled starts, as `_start` gives each registration term its own: at a
+    constant width with the ring on (and the terms of parts), for each damping ratio of
+    RING_ZETA_STARTS, the delay of d_starts and the width of widths with the lowest robust cost, at
+    the scan's frequency freqs_hz[0] and, when another of its local minima freqs_hz[1:] (Hz,
+    `_ring_scan`) profiles lower, at that one too. Why profiled: a ring the plain fit lacked drags
+    its width (the stop's swing read as an early onset: a play 10 times too narrow on a development
+    record), and from there no fit reaches the ring's basin; the profile's cost alone does not rank
+    the damping ratios (the constant width's misfit outweighs them), so each distinct start is
+    carried through the chain and the BIC chooses. Why the scan's other minima: the scan runs at the
+    dragged fit, where an alias can score lowest; on s5-render_c-092 (30 fps triangle, 89 ms legs,
+    a 5.73 Hz mode) it picked 13.25 Hz, the frames' alias of the triangle's third harmonic, from
+    which the search's best ring reached BIC 386; its minimum at 4.75 Hz profiles at cost 380
+    against 13.25's 725, and its chains reach 5.74 Hz, BIC 301. The other minima are ranked at the
+    scan's ratio, 0.1, alone (one profile each, not three). Returns the distinct starts, parts of
+    the constant-width model."""
+    m = RecordModel(rec, 1, n_g, terms, prior, d_fixed)
+    m.slope = slope
+    keep = {k: v for k, v in parts.items() if k in m.layout() and k not in ("d", "B", "ring")}
+
+    memo = {}
+
+    def profile(f_hz, zeta):
+        """(the lowest robust cost, its parts) over d_starts x widths at the mode (f_hz, zeta)."""
+        if (f_hz, zeta) in memo:
+            return memo[f_hz, zeta]
+        best = None
+        for d in d_starts:
+            for b in widths:
+                p = {**keep, "d": np.array([d]), "B": np.array([b]), "ring": m.ring_theta(f_hz, zeta)}
+                c = m.objective(m.evaluate(m.theta(p)), sigma)
+                if best is None or c < best[0]:
+                    best = (c, p)
+        memo[f_hz, zeta] = best
+        return best
+
+    freqs = [float(freqs_hz[0])]
+    if len(freqs_hz) > 1:
+        c0 = profile(freqs[0], 0.1)[0]
+        c_alt, f_alt = min((profile(float(f), 0.1)[0], float(f)) for f in freqs_hz[1:])
+        if c_alt < c0:
+            freqs.append(f_alt)
+    out = {}
+    for f_hz in freqs:
+        for zeta in RING_ZETA_STARTS:
+            best = profile(f_hz, zeta)
+            key = (f_hz, float(best[1]["d"][0]), float(best[1]["B"][0]))
+            if key not in out or best[0] < out[key][0]:
+                out[key] = best
+    return [p for _, p in out.values()]
+
+
+def fit_record(rec: Record, t_delay_cfg: float | None, t_delay_from: str, d_coarse: float | np.ndarray,
+               board_b: np.ndarray | None = None, prior_sd_s: float | None = None) -> tuple[Fit, dict]:
+    """The record's model with its terms chosen by BIC (module doc). d_coarse: the coarse delay, s,
+    or the correlation's candidates (K,) s, its highest first (delay_guess.coarse_delay_peaks), of
+    which the search starts from the one the record scores best (`_coarse_start`). Returns (the
+    final Fit, a JSON-ready dict of the term search). Runs its linear algebra on one BLAS thread: the
+    matrices are small (frames x tens), where threads cost more than they give."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1):
+        return _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s)
+
+
+def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
+    T = rec.period_s
+    sd = prior_sd_s if prior_sd_s is not None else T / np.sqrt(12.0)
+    prior = None if t_delay_cfg is None else (float(t_delay_cfg), float(sd))
+    d_fixed = float(t_delay_cfg) if (t_delay_from == "config" and t_delay_cfg is not None) else None
+    sigma = noise_sigma(rec.obs)
+    cands = np.atleast_1d(np.asarray(d_coarse, float))
+    d_coarse = float(cands[0]) if (d_fixed is not None or cands.size == 1) else \
+        _coarse_start(rec, cands, prior, board_b, sigma)
+    starts = [d_coarse] + ([] if t_delay_cfg is None else [float(t_delay_cfg)])
+    if d_fixed is not None:
+        starts = [d_fixed]
+    coarse = {"coarse_candidates_s": [float(d) for d in cands], "coarse_start_s": d_coarse}
+    fit, search = _search(rec, starts, prior, d_fixed, board_b, sigma)
+    search.update(coarse)
+    # The second differences overstate the noise when the motion itself turns within a few frames
+    # (a fast triangle: 5.2 px against the renderer's 0.24). The fitted model's residuals bound it
+    # too; when they say it is clearly smaller, the search runs again at their scale, once, so that
+    # every fit and every BIC of the record still share one scale.
+    s_fit = robust_sigma(fit.ev.resid)
+    if s_fit < SIGMA_RERUN * sigma:
+        fit2, search2 = _search(rec, starts, prior, d_fixed, board_b, s_fit)
+        search2["sigma_second_differences_px"] = sigma
+        search2.update(coarse)
+        return fit2, search2
+    return fit, search
+
+
+def _search(rec, starts, prior, d_fixed, board_b, sigma):
+    """The start, B's size and where it is read, then the terms by BIC, all at the scale sigma
+    (px): (the final Fit, the search's JSON-ready log)."""
+    st, n_g = _start(rec, starts, prior, d_fixed, board_b, sigma)
+    widths = _start_widths(rec, board_b)
+    d0, b0 = min(st.items(), key=lambda kv: len(kv[0]))[1]  # the base model's own start
+    terms = Terms()
+    ladder = _n_b_ladder(rec.rt.size)
+
+    def chain(terms, sizes, width_at):
+        """The models of a coarse-to-fine chain (`_fit_chain`): a constant width, then each size."""
+        return [RecordModel(rec, 1, n_g, terms, prior, d_fixed, "input")] + \
+               [RecordModel(rec, n, n_g, terms, prior, d_fixed, width_at) for n in sizes if n > 1]
+
+    jobs = []
+    for width_at in (WIDTH_AT if ladder[-1] > 1 else WIDTH_AT[:1]):  # a constant width is read nowhere
+        ms = chain(terms, ladder, width_at)  # B's size and where it is read, by the same criterion as the terms
+        jobs.append((ms, ms[0].theta({"d": np.array([d0]), "B": np.array([b0])}), sigma, 20, IRLS_ROUNDS))
+    fits = [(f.bic(sigma), f.model.n_b, f.model.width_at, f) for fs in _fit_all(jobs, _fit_chain)
+            for f in (fs[1:] if len(fs) > 1 else fs)]
+    bic, n_b, width_at, fit = min(fits, key=lambda x: x[0])
+    m = fit.model
+    log = [{"B_ctrl": {f"{n} {w}": b for b, n, w, _ in fits}},
+           {"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])}]
+    while True:
+        jobs = []
+        for name in terms.offered():
+            mt = RecordModel(rec, n_b, n_g, terms.with_(name), prior, d_fixed, width_at)
+            parts = m.parts(fit.theta)
+            # from the fit so far, and from each delay start (the coarse and the configured one) at
+            # the start's width: a term the fit so far lacked may have dragged its delay and B into
+            # another basin (a ring read as a late onset)
+            bases = [{**parts, "d": np.array([d]), "B": np.full(n_b, b0)} for d in starts]
+            if name == "ring":
+                freqs = _ring_scan(mt, parts, sigma)
+                th0s = [mt.theta({**parts, "ring": mt.ring_theta(freqs[0], 0.1)})] + \
+                       [_ring_start(mt, p, sigma) for p in bases]
+                if n_b > 1:  # and coarse to fine from the starts profiled with it (`_ring_profiled_starts`)
+                    slope = m.G_slope(fit.ev)  # the path's tangent of the fit so far
+                    for p in _ring_profiled_starts(rec, n_g, terms.with_(name), prior, d_fixed, parts, freqs,
+                                                   starts, widths, slope, sigma):
+                        ms = chain(terms.with_(name), [n for n in ladder if n < n_b], width_at) + [mt]
+                        jobs.append((ms, ms[0].theta(p), sigma, 20, 2, name))
+            elif name.startswith("slide_"):
+                mt.slope = m.slope
+                th0s = _slide_starts(mt, name[6:], parts, sigma)
+            elif name == "expo":  # from the fit so far, at each exposure of EXPO_GRID
+                mt.slope = m.slope
+                th0s = [mt.theta({**parts, "expo": np.array([mt.expo_x(g * rec.period_s)])}) for g in EXPO_GRID]
+            else:
+                mt.slope = m.slope
+                th0s = [mt.theta(p) for p in [parts] + bases]
+                if (name,) in st:  # also from the start profiled with this switch
+                    d_s, b_s = st[(name,)]
+                    th0s.append(mt.theta({**parts, "d": np.array([d_s]), "B": np.full(n_b, b_s)}))
+            jobs += [([mt], th0, sigma, 8, 1, name) for th0 in th0s]
+            if name.startswith("reg_") and n_b > 1:  # and coarse to fine from the start profiled with it (`_fit_chain`)
+                d_s, b_s = st.get((name,), (starts[-1], b0))
+                ms = chain(terms.with_(name), [n for n in ladder if n < n_b], width_at) + [mt]
+                for mc in ms:
+                    mc.slope = m.slope
+                jobs.append((ms, ms[0].theta({**{k: v for k, v in parts.items() if k in ms[0].layout()},
+                                              "d": np.array([d_s]), "B": np.array([b_s])}), sigma, 20, 2, name))
+        cands = [(f.bic(sigma), job[5], f) for job, f in zip(jobs, _fit_distinct([j[:5] for j in jobs]))]
+        if not cands:
+            break
+        c_bic, name, f = min(cands, key=lambda c: c[0])
+        log.append({"tried": [(c[1], c[0]) for c in cands]})
+        if c_bic >= bic:
+            break
+        terms, m = terms.with_(name), f.model
+        fit = fit_model(m, f.theta, sigma=sigma)  # from the trial, so at worst the trial again
+        bic = fit.bic(sigma)
+        log.append({"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])})
+        if len(ladder) > 1:
+            fit, bic, n_b, width_at = _resize(fit, bic, ladder, sigma, log)
+            m = fit.model
+    return fit, {"steps": log, "sigma_px": sigma, "n_b": n_b, "n_g": n_g, "width_at": width_at}
+
+
+def _resize(fit: Fit, bic: float, ladder: list, sigma: float, log: list) -> tuple:
+    """B's size and where it is read once more, with the terms the search has so far: chosen on the
+    plain model, a strong term it lacks (a switch of tens of px) can leave every size alike and the
+    smallest wins (a 4-coefficient B 17.8 % off a registration record's stras B), and the next terms
+    are then chosen to mend the coarse B (s4-marker-044 of LOCKBOX4_300, with the slide not yet
+    bounded: a motor switch and two slides at 4 coefficients, BIC 19,913 once resized to 16, where
+    the tip's switch and its slide alone reach 8,347 at 16). So after each term enters, each other size is fitted from the fit so
+    far, B resampled (`_resample_B`), and scored by the same BIC. Returns (fit, bic, n_b, width_at)."""
+    m = fit.model
+    jobs = []
+    for n in ladder:
+        for w in WIDTH_AT:
+            if (n, w) == (m.n_b, m.width_at):
+                continue
+            mb = RecordModel(m.rec, n, m.n_g, m.terms, m.prior, m.d_fixed, w)
+            mb.slope = m.slope
+            parts = m.parts(fit.theta)
+            parts["B"] = _resample_B(m, m.unpack(fit.theta)[1], mb)
+            jobs.append(([mb], mb.theta(parts), sigma, 20, IRLS_ROUNDS))
+    alts = [fs[-1] for fs in _fit_all(jobs, _fit_chain)]
+    log.append({"B_ctrl_with_terms": {f"{f.model.n_b} {f.model.width_at}": f.bic(sigma) for f in alts}})
+    best = min(alts, key=lambda f: f.bic(sigma))
+    if best.bic(sigma) < bic:
+        fit, bic = best, best.bic(sigma)
+        log.append({"terms": fit.model.terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0]),
+                    "B_ctrl": fit.model.n_b, "B_read_at": fit.model.width_at})
+    return fit, bic, fit.model.n_b, fit.model.width_at

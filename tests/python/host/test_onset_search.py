@@ -1,0 +1,142 @@
+"""The onset stage's search (playscope.fit.onset_search): the starts it takes and where they lead, on
+short renderings of bench/swing_render.py. Statistics over many renderings live in
+bench/onset_scoreboard.py, not here."""
+
+import numpy as np
+import pytest
+
+from playscope.fit import onset_fit as OF
+from playscope.fit import onset_model as OM
+from playscope.fit import onset_search as OS
+from playscope.fit.onset_stage import record_samples
+
+from .onset_records import b_error_pct, record
+
+
+def test_a_clean_record_gives_B_and_the_delay():
+    r, d, t, q, rt, rq, obs, hyst = record()
+    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
+    assert rob.report["terms"]["chosen"] == []
+    assert abs(rob.t_delay_s - r.delay_s) * r.fps < 0.125
+    assert b_error_pct(r, rob.onsets) < 5.0
+    assert np.all(rob.onsets.sigma_b > 0) and np.all(rob.onsets.sigma_b < 0.05 * r.b_hi)
+
+
+def test_the_noise_scale_comes_from_the_fit_when_the_motion_turns_within_a_few_frames():
+    # A 25 fps triangle whose legs last 0.13 s (3 frames): the frames' second differences see
+    # the motion's own turns (about 2.6 px here against the renderer's 0.2), so the search runs
+    # again at the fitted residuals' scale (SIGMA_RERUN); measured 0.32 px.
+    r, d, t, q, rt, rq, obs, hyst = record(shape="triangle", swing_s=0.13, fps=25.0, noise_px=0.2, duration_s=30.0)
+    assert OM.noise_sigma(obs) > 5 * r.noise_px  # the record shows the case
+    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
+    assert rob.report["terms"]["noise_px"] < 2 * r.noise_px
+
+
+def test_the_tip_modes_profiled_start_undoes_the_width_the_plain_start_was_dragged_to():
+    # A lightly damped 5.5 Hz tip mode on a 60 fps triangle (20 s of development rendering
+    # swing-081's settings), started as the search is, from the coarse delay and the configured
+    # one: the plain model, which lacks the ring, reads the stop's swing as an early onset and
+    # starts at the coarse delay with a width 0.089 of the truth (its spline fit then 0.52). The
+    # ring's profiled starts (`_ring_profiled_starts`, at the frequency its scan picks at the plain
+    # fit) include one at the configured delay with a width 1.08 of the truth: within the width
+    # grid's half step (12 widths over a factor 50, so 1.43 apart: +-20 %). Measured on 30 s of the
+    # same settings, every damping ratio's profile stays at the coarse delay's narrow width (0.078):
+    # the profile is not enough there (issue note).
+    from playscope.fit.delay_guess import coarse_delay, motor_stop_times
+
+    r, d, t, q, rt, rq, obs, hyst = record(shape="triangle", fps=60.0, jitter=0.18, noise_px=0.176, delay_s=0.083,
+                                            delay_cfg_s=0.083, b_lo=0.105, b_hi=0.309, b_qc=0.24, b_w=1.24,
+                                            swing_s=0.342, ring_hz=5.5, ring_zeta=0.046, ring_px=9.5, seed=3,
+                                            duration_s=20.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    sig = OM.noise_sigma(obs)
+    prior = (r.delay_cfg_s, rec.period_s / np.sqrt(12))
+    starts = [coarse_delay(d["t_f"], obs, motor_stop_times(t, q, rt, rq, 0.02 * hyst), t, q, rec.period_s),
+              r.delay_cfg_s]
+    st, n_g = OS._start(rec, starts, prior, None, None, sig)
+    qq = np.linspace(q.min(), q.max(), 100)
+    B_true = float(np.mean(r.B(qq)))
+    assert st[()][1] < 0.2 * B_true  # the record shows the drag
+    ms = [OM.RecordModel(rec, n, n_g, OM.Terms(), prior) for n in [1] + [n for n in OS._n_b_ladder(rt.size) if n > 1]]
+    plain = OF._fit_chain((ms, ms[0].theta({"d": np.array([st[()][0]]), "B": np.array([st[()][1]])}), sig, 20, 3))[-1]
+    m = plain.model
+    mt = OM.RecordModel(rec, m.n_b, n_g, OM.Terms(ring=True), prior)
+    freqs = OS._ring_scan(mt, m.parts(plain.theta), sig)
+    found = OS._ring_profiled_starts(rec, n_g, OM.Terms(ring=True), prior, None, m.parts(plain.theta), freqs,
+                                     starts, OS._start_widths(rec, None), m.G_slope(plain.ev), sig)
+    assert min(abs(float(p["B"][0]) / B_true - 1.0) for p in found) < 0.2
+
+
+def test_a_tip_mode_is_found_where_the_scan_at_the_dragged_fit_scores_an_alias_lowest(monkeypatch):
+    # A 5.73 Hz tip mode on a 30 fps triangle of 89 ms legs (20 s of lockbox rendering
+    # s5-render_c-092's settings): at the plain fit, whose width the mode dragged, the ring's
+    # frequency scan scores 13.25 Hz lowest (the frames' alias of the triangle's third harmonic);
+    # from there alone the search took a 13.5 Hz ring and B was 24 % off. The scan's other minima
+    # are profiled too (`_ring_profiled_starts`); measured: 5.736 Hz, damping 0.104 (rendered
+    # 0.11), B 0.26 % off.
+    r, d, t, q, rt, rq, obs, hyst = record(shape="triangle", fps=30.0, jitter=0.44, noise_px=0.095, delay_s=0.149,
+                                            delay_cfg_s=0.149, b_lo=0.139, b_hi=0.278, swing_mm=0.39, swing_s=0.089,
+                                            ring_hz=5.73, ring_zeta=0.11, ring_px=7.5, seed=3, duration_s=20.0)
+    scans = []
+    profiled = OS._ring_profiled_starts
+
+    def spy(rec, n_g, terms, prior, d_fixed, parts, freqs_hz, *a):
+        scans.append(np.asarray(freqs_hz))
+        return profiled(rec, n_g, terms, prior, d_fixed, parts, freqs_hz, *a)
+
+    monkeypatch.setattr(OS, "_ring_profiled_starts", spy)
+    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
+    assert scans[0][0] > 10.0 and scans[0].size > 1  # the record shows the alias, and other minima
+    ring = rob.report["ringing"]
+    assert ring["found"] and ring["freq_hz"] == pytest.approx(5.73, rel=0.02)
+    assert b_error_pct(r, rob.onsets) < 1.5
+
+
+def test_the_search_starts_from_the_correlations_peak_the_record_fits_not_an_alias_a_period_late(monkeypatch):
+    # A 60 fps triangle of 0.29 s period (30 s of lockbox rendering s5-swing-056's settings, delay
+    # 92 ms, configured 179 ms): the correlation of commanded and image motion repeats with the
+    # triangle, and its highest peak is the alias one period late, its other the delay (both about
+    # 25 ms late: delay_guess.delay_score). The start fits the plain model from each and keeps the
+    # one the record fits best.
+    from playscope.fit.delay_guess import coarse_delay_peaks, motor_stop_times
+
+    r, d, t, q, rt, rq, obs, hyst = record(shape="triangle", fps=60.0, jitter=0.38, noise_px=0.158, delay_s=0.092,
+                                            delay_cfg_s=0.179, b_lo=0.149, b_hi=0.221, b_qc=0.5, b_w=1.47,
+                                            swing_s=0.146, swing_period_s=1.5, seed=3, duration_s=30.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    peaks = coarse_delay_peaks(d["t_f"], obs, motor_stop_times(t, q, rt, rq, 0.02 * hyst), t, q, rec.period_s)
+    assert peaks[0] > r.delay_s + 0.25  # the highest: the alias, a period (0.29 s) late
+    near = [p for p in peaks if abs(p - r.delay_s) < 0.03]
+    assert len(near) == 1
+    d0 = OS._coarse_start(rec, peaks, (r.delay_cfg_s, rec.period_s / np.sqrt(12)), None, OM.noise_sigma(obs))
+    assert d0 == near[0]
+    # and fit_record's search starts from it and the configured delay (the search itself stubbed out);
+    # a held configured delay is the only start, no candidate fitted
+    seen = []
+
+    class Started(Exception):
+        pass
+
+    def search(rec, starts, *a):
+        seen.append(list(starts))
+        raise Started
+
+    monkeypatch.setattr(OS, "_search", search)
+    with pytest.raises(Started):
+        OS.fit_record(rec, r.delay_cfg_s, "data", peaks)
+    assert seen[-1] == [near[0], r.delay_cfg_s]
+    monkeypatch.setattr(OS, "_coarse_start", lambda *a: pytest.fail("a held delay fits no candidate"))
+    with pytest.raises(Started):
+        OS.fit_record(rec, r.delay_cfg_s, "config", peaks)
+    assert seen[-1] == [r.delay_cfg_s]
+    # the onset stage hands fit_record every candidate, not the highest alone
+    got = []
+
+    def fit_record(rec, cfg, how, d_coarse, *a):
+        got.append(np.atleast_1d(d_coarse))
+        raise Started
+
+    monkeypatch.setattr(OS, "fit_record", fit_record)
+    with pytest.raises(Started):
+        record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
+    assert np.array_equal(got[0], peaks)
