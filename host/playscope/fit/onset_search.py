@@ -21,6 +21,8 @@ Units: t in s, q and B in actuator units, image points in px.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .onset_fit import IRLS_ROUNDS, Fit, _fit_all, _fit_chain, _fit_distinct, _resample_B, _settle, fit_model
@@ -163,28 +165,25 @@ def _ring_profiled_starts(rec: Record, n_g: int, terms: Terms, prior, d_fixed, p
     """The tip mode's own profiled starts, as `_start` gives each registration term its own: at a
     constant width with the ring on (and the terms of parts), for each damping ratio of
     RING_ZETA_STARTS, the delay of d_starts and the width of widths with the lowest robust cost, at
-    the scan's frequency freqs_hz[0] and, when another of its local minima freqs_hz[1:] (Hz,
-    `_ring_scan`) profiles lower, at that one too. Why profiled: a ring the plain fit lacked drags
-    its width (the stop's swing read as an early onset: a play 10 times too narrow on a development
-    record), and from there no fit reaches the ring's basin; the profile's cost alone does not rank
-    the damping ratios (the constant width's misfit outweighs them), so each distinct start is
-    carried through the chain and the BIC chooses. Why the scan's other minima: the scan runs at the
-    dragged fit, where an alias can score lowest; on s5-render_c-092 (30 fps triangle, 89 ms legs,
-    a 5.73 Hz mode) it picked 13.25 Hz, the frames' alias of the triangle's third harmonic, from
-    which the search's best ring reached BIC 386; its minimum at 4.75 Hz profiles at cost 380
-    against 13.25's 725, and its chains reach 5.74 Hz, BIC 301. The other minima are ranked at the
-    scan's ratio, 0.1, alone (one profile each, not three). Returns the distinct starts, parts of
-    the constant-width model."""
+    the one of the scan's local minima freqs_hz (Hz, `_ring_scan`, its lowest first) whose profile
+    at the scan's ratio, 0.1, is lowest (ties keep the earlier). Why profiled: a ring the plain fit
+    lacked drags its width (the stop's swing read as an early onset: a play 10 times too narrow on
+    a development record), and from there no fit reaches the ring's basin; the profile's cost alone
+    does not rank the damping ratios (the constant width's misfit outweighs them), so each distinct
+    start is carried through the chain and the BIC chooses. Why the frequency by the profile, not
+    the scan: the scan runs at the dragged fit, where an alias can score lowest. On s5-render_c-092
+    (30 fps triangle, 89 ms legs, a 5.73 Hz mode) it picked 13.25 Hz, the frames' alias of the
+    triangle's third harmonic, from which the search's best ring reached BIC 386; its minimum at
+    4.75 Hz profiles at cost 380 against 13.25's 725, and its chains reach 5.74 Hz, BIC 301. Each
+    minimum is ranked by one profile (26 evaluations on two delay starts), not three. Returns the
+    distinct starts, parts of the constant-width model."""
     m = RecordModel(rec, 1, n_g, terms, prior, d_fixed)
     m.slope = slope
     keep = {k: v for k, v in parts.items() if k in m.layout() and k not in ("d", "B", "ring")}
 
-    memo = {}
-
+    @functools.lru_cache(maxsize=None)  # the chosen minimum's profile at 0.1 is asked for twice
     def profile(f_hz, zeta):
         """(the lowest robust cost, its parts) over d_starts x widths at the mode (f_hz, zeta)."""
-        if (f_hz, zeta) in memo:
-            return memo[f_hz, zeta]
         best = None
         for d in d_starts:
             for b in widths:
@@ -192,22 +191,17 @@ def _ring_profiled_starts(rec: Record, n_g: int, terms: Terms, prior, d_fixed, p
                 c = m.objective(m.evaluate(m.theta(p)), sigma)
                 if best is None or c < best[0]:
                     best = (c, p)
-        memo[f_hz, zeta] = best
         return best
 
-    freqs = [float(freqs_hz[0])]
+    f_hz = float(freqs_hz[0])
     if len(freqs_hz) > 1:
-        c0 = profile(freqs[0], 0.1)[0]
-        c_alt, f_alt = min((profile(float(f), 0.1)[0], float(f)) for f in freqs_hz[1:])
-        if c_alt < c0:
-            freqs.append(f_alt)
+        f_hz = float(min(freqs_hz, key=lambda f: profile(float(f), 0.1)[0]))
     out = {}
-    for f_hz in freqs:
-        for zeta in RING_ZETA_STARTS:
-            best = profile(f_hz, zeta)
-            key = (f_hz, float(best[1]["d"][0]), float(best[1]["B"][0]))
-            if key not in out or best[0] < out[key][0]:
-                out[key] = best
+    for zeta in RING_ZETA_STARTS:
+        best = profile(f_hz, zeta)
+        key = (float(best[1]["d"][0]), float(best[1]["B"][0]))
+        if key not in out or best[0] < out[key][0]:
+            out[key] = best
     return [p for _, p in out.values()]
 
 
