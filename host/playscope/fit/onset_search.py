@@ -8,8 +8,8 @@ The board's plain eq. 1 samples are a third start when given. B is fitted coarse
 (`_fit_chain`): a constant width, then each of B_CTRL's sizes from the last one's fit. A term the
 plain model lacks drags its width, so each term also gets starts profiled with it on (the
 delay and the constant width by the robust cost; the tip mode's at each of RING_ZETA_STARTS at the
-frequency its scan picks, and at the scan's other local minimum that profiles lower, if one does),
-each carried coarse to fine and scored by the BIC.
+one of its scan's local minima that profiles lowest), each carried coarse to fine and scored by
+the BIC.
 
 Terms by evidence: the tip mode, each registration term and the exposure enter when they lower the record's
 BIC (Schwarz 1978) on the robust objective (2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma),

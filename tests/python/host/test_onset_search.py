@@ -37,8 +37,8 @@ def test_the_tip_modes_profiled_start_undoes_the_width_the_plain_start_was_dragg
     # swing-081's settings), started as the search is, from the coarse delay and the configured
     # one: the plain model, which lacks the ring, reads the stop's swing as an early onset and
     # starts at the coarse delay with a width 0.089 of the truth (its spline fit then 0.52). The
-    # ring's profiled starts (`_ring_profiled_starts`, at the frequency its scan picks at the plain
-    # fit) include one at the configured delay with a width 1.08 of the truth: within the width
+    # ring's profiled starts (`_ring_profiled_starts`, at the scan's minimum at the plain fit that
+    # profiles lowest) include one at the configured delay with a width 1.08 of the truth: within the width
     # grid's half step (12 widths over a factor 50, so 1.43 apart: +-20 %). Measured on 30 s of the
     # same settings, every damping ratio's profile stays at the coarse delay's narrow width (0.078):
     # the profile is not enough there (issue note).
@@ -71,9 +71,9 @@ def test_a_tip_mode_is_found_where_the_scan_at_the_dragged_fit_scores_an_alias_l
     # A 5.73 Hz tip mode on a 30 fps triangle of 89 ms legs (20 s of lockbox rendering
     # s5-render_c-092's settings): at the plain fit, whose width the mode dragged, the ring's
     # frequency scan scores 13.25 Hz lowest (the frames' alias of the triangle's third harmonic);
-    # from there alone the search took a 13.5 Hz ring and B was 24 % off. The scan's other minima
-    # are profiled too (`_ring_profiled_starts`); measured: 5.736 Hz, damping 0.104 (rendered
-    # 0.11), B 0.26 % off.
+    # from there alone the search took a 13.5 Hz ring and B was 24 % off. The profiled starts are
+    # taken at the scan's minimum that profiles lowest (`_ring_profiled_starts`); measured: 5.736
+    # Hz, damping 0.104 (rendered 0.11), B 0.26 % off.
     r, d, t, q, rt, rq, obs, hyst = record(shape="triangle", fps=30.0, jitter=0.44, noise_px=0.095, delay_s=0.149,
                                             delay_cfg_s=0.149, b_lo=0.139, b_hi=0.278, swing_mm=0.39, swing_s=0.089,
                                             ring_hz=5.73, ring_zeta=0.11, ring_px=7.5, seed=3, duration_s=20.0)
