@@ -175,8 +175,10 @@ def _ring_profiled_starts(rec: Record, n_g: int, terms: Terms, prior, d_fixed, p
     (30 fps triangle, 89 ms legs, a 5.73 Hz mode) it picked 13.25 Hz, the frames' alias of the
     triangle's third harmonic, from which the search's best ring reached BIC 386; its minimum at
     4.75 Hz profiles at cost 380 against 13.25's 725, and its chains reach 5.74 Hz, BIC 301. Each
-    minimum is ranked by one profile (26 evaluations on two delay starts), not three. Returns the
-    distinct starts, parts of the constant-width model."""
+    minimum is ranked by one profile, not three (len(d_starts) x len(widths) evaluations: 26 with a
+    configured delay and the board's samples; 0.91 s of the 9 s `calibrate` on the 3-minute bench
+    session, 7 minima, against 0.32-0.38 s for the scan's lowest alone). Returns the distinct
+    starts, parts of the constant-width model."""
     m = RecordModel(rec, 1, n_g, terms, prior, d_fixed)
     m.slope = slope
     keep = {k: v for k, v in parts.items() if k in m.layout() and k not in ("d", "B", "ring")}
