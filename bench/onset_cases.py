@@ -189,7 +189,9 @@ LOCKBOX5_D = LOCKBOX5_REST[1::2]
 
 # The sixth set-aside group, LOCKBOX6_300 (drawn and committed 2026-11-27 during stop 66, after its coarse
 # delay change was written, so sealed for the code of a later stop; the acceptance run: all 300
-# once, on one code).
+# once, on one code). Stop 68 runs all 300 at once (fixed here on 2026-11-27 before any of them was run),
+# on the code of stop 67 unchanged: the tip mode's start at the scan minimum that profiles lowest, written
+# and judged on development rows and the spent LOCKBOX5_D only. None stays sealed after it.
 SEEDS_6 = {"marker": (66101, 660001), "swing": (66202, 660201), "render_c": (66303, 660401)}
 LOCKBOX6_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_6, PLAN, "s6-")]
 
