@@ -195,6 +195,11 @@ LOCKBOX5_D = LOCKBOX5_REST[1::2]
 SEEDS_6 = {"marker": (66101, 660001), "swing": (66202, 660201), "render_c": (66303, 660401)}
 LOCKBOX6_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_6, PLAN, "s6-")]
 
+# The seventh set-aside group, LOCKBOX7_300 (drawn and committed 2026-11-27 at the start of stop 68, while
+# LOCKBOX6_300 ran and before any code of that stop was written: sealed for the code of a later change).
+SEEDS_7 = {"marker": (67101, 670001), "swing": (67202, 670201), "render_c": (67303, 670401)}
+LOCKBOX7_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_7, PLAN, "s7-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
