@@ -111,7 +111,14 @@ distance of t_delay from [d_cfg, d_cfg + T / 2] (the Gaussian prior on d_end wit
 and the delay reported is the d_end nearest d_cfg, clip(d_cfg, t_delay - T / 2, t_delay), its
 exposure 2 (t_delay - d_end). Without a configured delay, or with one the record contradicts
 (DELAY_DISAGREE_Z: wrong, so silent on the exposure), nothing splits them: the mean lag is
-reported (the exposure's end is up to T / 2 earlier).
+reported (the exposure's end is up to T / 2 earlier). The contradiction is judged against the
+exposures the record allows, [0, e_max] (onset_fit.exposure_bound; e_max = T where it allows any):
+a record whose swings take the play up within a frame shows a long exposure's blur at every
+onset, so there a configured delay well short of the mean lag cannot be read as a long exposure.
+The bound only judges: it is a conditional one that can rule out the true exposure (it did on
+3 of 19 renderings exposed 8 ms with a tip mode), so it does not place the exposure's end; and it
+cannot contradict a right configured delay, which lies within T / 2 of the mean lag, less than
+DELAY_DISAGREE_Z prior sds (T / sqrt 12) from any band.
 
 Which terms and which size of B a record takes, and from where each fit starts, is
 onset_search's; fitting one model and reading eq. 1's samples off it, onset_fit's.
@@ -550,18 +557,27 @@ class RecordModel:
         gap = min(gap, 0.0) + max(gap - 0.5 * self.rec.period_s, 0.0)
         return gap / self.prior[1], (1.0 / self.prior[1] if gap != 0.0 else 0.0)
 
-    def exposure_end(self, lag: float, se: float) -> tuple[float, float | None]:
+    def exposure_end(self, lag: float, se: float, e_max: float | None = None) -> tuple[float, float | None]:
         """(d_end s, e s): the delay to the exposure's end and the exposure for the image's mean lag
         lag s, of standard error se s (module doc, the exposure). e None where nothing splits
         them, d_end then the lag: no configured delay, the delay held, or a configured delay the
         record contradicts (more than DELAY_DISAGREE_Z combined standard errors from every d_end
-        the record allows: it is then wrong, and says nothing of the exposure)."""
+        the record allows, [lag - e_max / 2, lag], e_max s the longest exposure it allows, None: a
+        frame period T; the configured delay is then wrong, and says nothing of the exposure)."""
         if self.prior is None or self.d_fixed is not None:
             return float(lag), None
-        d_end = float(np.clip(self.prior[0], lag - 0.5 * self.rec.period_s, lag))
-        if abs(d_end - self.prior[0]) > DELAY_DISAGREE_Z * np.hypot(se, self.prior[1]):
+        T = self.rec.period_s
+        e_max = T if e_max is None else min(float(e_max), T)
+        if abs(np.clip(self.prior[0], lag - 0.5 * e_max, lag) - self.prior[0]) > self.disagree_s(se):
             return float(lag), None
+        d_end = float(np.clip(self.prior[0], lag - 0.5 * T, lag))
         return d_end, 2.0 * (lag - d_end)
+
+    def disagree_s(self, se: float) -> float:
+        """How far s a configured delay may lie from every d_end the record allows before the
+        record contradicts it: DELAY_DISAGREE_Z combined standard errors (the mean lag's se s and
+        the prior's sd)."""
+        return float(DELAY_DISAGREE_Z * np.hypot(se, self.prior[1]))
 
     def B_of(self, cB: np.ndarray, q: np.ndarray) -> np.ndarray:
         if self.n_b == 1:

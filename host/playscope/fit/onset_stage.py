@@ -135,7 +135,7 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
                     "damping_ratio": ring[1] if ring else None,
                     "gains": [float(g) for g in beta[2 * m.n_g:2 * m.n_g + 2]] if ring else None},
         "registration": {"found": bool(reg), **reg},
-        "exposure_s": sm.exposure_s, "image_mean_lag_s": lag,
+        "exposure_s": sm.exposure_s, "exposure_bound_s": sm.exposure_bound_s, "image_mean_lag_s": lag,
         "exposure_blur_s": m.exposure(fit.theta) if terms.expo else None,
         "pacing": pace,
         "sigma_b_median": float(np.median(sm.sigma_b)) if n else None,

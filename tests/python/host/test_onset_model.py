@@ -249,6 +249,11 @@ def test_the_delay_prior_is_flat_over_the_exposures_half_frame_and_gaussian_beyo
     assert m.exposure_end(0.106, 0.001) == pytest.approx((0.1, 0.012))
     assert m.exposure_end(0.125, 0.001) == pytest.approx((0.105, 0.04))  # a whole frame, the most it may be
     assert m.exposure_end(0.2, 0.001) == (0.2, None)  # contradicted: unsplit
+    # the record's bound on the exposure (onset_fit.exposure_bound) judges the configured delay against
+    # [lag - e_max / 2, lag], but does not place the exposure's end
+    assert m.exposure_end(0.14, 0.001, 0.01) == (0.14, None)  # 0.035 from that band: 3.5 sd, contradicted
+    assert m.exposure_end(0.14, 0.001) == pytest.approx((0.12, 0.04))  # 0.02 from [lag - T/2, lag]: 2 sd, split
+    assert m.exposure_end(0.125, 0.001, 0.01) == pytest.approx((0.105, 0.04))  # 2.0 sd: split as without
 
 
 def test_the_linear_solve_is_the_weighted_least_squares_one_where_frames_miss_the_paths_ends():

@@ -38,6 +38,22 @@ def test_a_wrong_configured_delay_is_a_prior_the_record_overrules_and_config_hol
         record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, 0.08, "guess", hysteresis=hyst)
 
 
+def test_a_configured_delay_short_by_more_than_the_blur_the_record_allows_is_overruled():
+    # Swings that take the play up within a frame (25 fps): the configured delay 51 ms short of the
+    # true 161 ms, 1.3 frames. Against an exposure unknown in [0, T] it lay 2.7 prior sd from the
+    # band [d_cfg, d_cfg + T / 2] (under DELAY_DISAGREE_Z), so the split took the exposure as a whole
+    # frame and reported the delay half a frame early (measured -0.503 frame). These onsets rule a
+    # blur of more than a quarter frame out (measured bound 10 ms; the renderer exposes 4 ms), so the
+    # configured delay lies 4 prior sd from what the record allows, is overruled and the mean lag
+    # reported (measured -0.003 frame).
+    r, d, t, q, rt, rq, obs, hyst = record(shape="swings", swing_s=0.174, delay_s=0.161, delay_cfg_s=0.11,
+                                           duration_s=20.0, seed=1108, noise_px=0.172, jitter=0.41)
+    rob = record_samples(t, q, q, rt, rq, d["t_f"], obs, r.fps, r.delay_cfg_s, "data", hysteresis=hyst)
+    assert rob.report["exposure_bound_s"] <= 0.5 / r.fps
+    assert rob.report["t_delay"]["agrees_with_configured"] is False
+    assert abs(rob.t_delay_s - r.delay_s) * r.fps < 0.125
+
+
 @pytest.fixture(scope="module")
 def registration_record():
     r, d, t, q, rt, rq, obs, hyst = record(reg_deg=1.5, seed=11)
