@@ -180,6 +180,16 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
     return f
 
 
+def _fresh(m: RecordModel) -> RecordModel:
+    """A copy of m with its IRLS weights at 1 and no mixture: what it fits or scores next depends on
+    its arguments alone, and m's own state stays as it was."""
+    import copy
+
+    mc = copy.copy(m)
+    mc.w, mc.mix = np.ones_like(m.w), {}
+    return mc
+
+
 def _fit_one(job) -> "Fit":
     """fit_model for one job (model, theta0, sigma, max_nfev, rounds) on its own copy of the model,
     its IRLS weights and mixture started afresh and first set at theta0: the fit depends on the
@@ -187,11 +197,8 @@ def _fit_one(job) -> "Fit":
     starts share one model; the weights the last fit left moved the next one's delay by up to
     0.9 ms on a test record, so a record's result hung on the machine's core count). The returned
     Fit holds the copy."""
-    import copy
-
     m, th0, sigma, max_nfev, rounds = job
-    m = copy.copy(m)
-    m.w, m.mix = np.ones_like(m.w), {}
+    m = _fresh(m)
     m.e_step(m.evaluate(th0), sigma)
     m.w = m.weights(m.evaluate(th0), sigma)
     return fit_model(m, th0, sigma=sigma, max_nfev=max_nfev, rounds=rounds)
@@ -320,8 +327,6 @@ def exposure_bound(fit: Fit) -> float:
     only judges a configured delay (RecordModel.exposure_end), where that error cannot contradict a
     right one. The scan stops at the first e allowed, on the assumption (not tested) that the rise
     grows with e above the fit's own."""
-    import copy
-
     m, sig = fit.model, fit.sigma
     T = m.rec.period_s
     e_fit = m.exposure(fit.theta)
@@ -329,8 +334,8 @@ def exposure_bound(fit: Fit) -> float:
     parts = m.parts(fit.theta)
 
     def score(model, th):
-        mc = copy.copy(model)  # `_settle` sets the weights and the mixture: the fit's own stay as they were
-        mc.w, mc.mix, mc.slope = np.ones_like(m.w), {}, m.slope
+        mc = _fresh(model)  # `_settle` sets the weights and the mixture: the fit's own stay as they were
+        mc.slope = m.slope
         ev, _ = _settle(mc, th, sig)
         return mc.objective(ev, sig)
 
