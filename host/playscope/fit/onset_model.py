@@ -37,12 +37,22 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
           position (principal point c and focal length f from the session's K),
           R = f [a_x (x y, 1 + y^2) + a_y (-(1 + x^2), -x y) + a_z (y, -x)]. Three coefficients
           shared by both image axes, evaluated at the observed point (the offset moves it by a few
-          px: a second-order change). A translation of the instrument in its channel moves the
-          image nearly as a rotation about the perpendicular axis does (to x^2 of it). Why this
-          form and not a free offset per axis: a registration offset along the path is a change of
-          B at the image's level, and a free offset (or one linear along the path) takes up B's
-          own variation wherever the path is straight or a parabola; the rigid form is what tells
-          the two apart where the path curves, and the onsets' timing does the rest.
+          px: a second-order change). Why this form and not a free offset per axis: a
+          registration offset along the path is a change of B at the image's level, and a free
+          offset (or one linear along the path) takes up B's own variation wherever the path is
+          straight or a parabola; the rigid form is what tells the two apart where the path
+          curves, and the onsets' timing does the rest.
+  the shift
+          A translation of the instrument in its channel moves the whole image by one amount; a
+          rotation about the perpendicular axis moves it so only to x^2 of it, and at a jump of
+          tens of px its perspective parts (x^2, x y) are px along the path against a noise of
+          tenths (s6-marker-045 of LOCKBOX6_300, a 2.8 deg channel translation at 25 fps: B
+          5.9 % off with the rotation alone, 2.0 % with the shift). So a switch term's shift_tip /
+          shift_motor adds the image's translation (t_u, t_v) px to its rotation (linear: two
+          coefficients shared by nothing), entering, as every term, by the BIC and only onto its
+          switch. Held on for every switch, its free offset per axis took up B as said above (on
+          the development group's rotations, B's median error 0.6 -> 0.9 %, one record 0.8 ->
+          2.8 %); by evidence it enters where the image's own jump says translation.
           A registration that follows the image can switch only once a frame shows the reversal,
           so within one frame period of it; with the switch time unknown and uniform within a
           lag L, a frame in that window shows the old or the new registration, the new one with
@@ -142,7 +152,8 @@ HUBER_K = 1.345        # Huber's tuning constant, in sigma (95 % efficiency at t
 GRID_HZ_MAX = 1000.0   # the play runs on a uniform grid at the encoder's rate, at most this (1 ms timing)
 RING_HZ_LO = 1.0       # the tip mode searched from this (Hz) ...
 RING_NYQUIST = 0.45    # ... to this share of the frame rate (below Nyquist, with the exposure's margin)
-TERMS = ("ring", "reg_tip", "reg_motor", "slide_tip", "slide_motor", "expo")  # a slide_ term needs its reg_ term
+TERMS = ("ring", "reg_tip", "reg_motor", "slide_tip", "slide_motor", "shift_tip", "shift_motor", "expo")
+                       # a slide_ or shift_ term needs its reg_ term
 EXPO_NODES = 8         # the exposure's average (module doc: the exposure) by the midpoint rule on this many
                        # nodes: a fixed count, so the image moves smoothly with e (a count growing with e would
                        # step it); the rule's own error against the exact mean over the window is not measured
@@ -157,14 +168,16 @@ EPS_SHARE = 1e-3       # the least share the mixture gives a level (module doc):
                        # may show the other level at this probability, so a misplaced window costs
                        # 2 ln(1 / EPS_SHARE) = 14 (a 3.7-sigma residual), not an infinite one, and the fit can move it
 N_REG = 3              # the registration's rotation (rad) about the camera's x, y and optical axes (module doc: R)
+N_SHIFT = 2            # and, with a shift_ term, its translation (px) along the image's u and v (module doc: R)
 
 
 @dataclass
 class Record:
     """What the model sees. t (N,) s uniform scene grid, q (N,) on it; t_f (F,) s frame stamps,
     obs (F, 2) px (finite rows only); rt, rq (M,) reversals, s_new (M,) the motor's new direction
-    (+1 / -1), i1 (M,) their grid index; period_s the frame period; reg_gen (F, N_REG, 2) px per
-    rad, the image motions of the camera's rotations at the observed points (module doc: R)."""
+    (+1 / -1), i1 (M,) their grid index; period_s the frame period; reg_gen (F, N_REG + N_SHIFT, 2)
+    the image motions of the camera's rotations at the observed points (px per rad), then of the
+    image's translations (px per px) (module doc: R)."""
 
     t: np.ndarray
     q: np.ndarray
@@ -183,14 +196,17 @@ class Record:
 
 
 def registration_generators(obs: np.ndarray, centre_px, focal_px: float) -> np.ndarray:
-    """The image motions (F, N_REG, 2) px per rad of small rotations of the camera about its x, y
-    and optical axes at the points obs (F, 2) px, for the principal point centre_px (2,) px and
-    focal length focal_px (module doc: R; Longuet-Higgins & Prazdny 1980, the rotational motion
-    field)."""
+    """The image motions (F, N_REG + N_SHIFT, 2) at the points obs (F, 2) px: of small rotations of
+    the camera about its x, y and optical axes, px per rad, for the principal point centre_px (2,)
+    px and focal length focal_px (module doc: R; Longuet-Higgins & Prazdny 1980, the rotational
+    motion field); then of the image's translations along u and v, px per px (the shift terms)."""
     x = (obs[:, 0] - centre_px[0]) / focal_px
     y = (obs[:, 1] - centre_px[1]) / focal_px
     fields = ((x * y, 1.0 + y * y), (-(1.0 + x * x), -x * y), (y, -x))
-    return focal_px * np.stack([np.column_stack(uv) for uv in fields], axis=1)
+    rot = focal_px * np.stack([np.column_stack(uv) for uv in fields], axis=1)
+    one, zero = np.ones_like(x), np.zeros_like(x)
+    shift = np.stack([np.column_stack((one, zero)), np.column_stack((zero, one))], axis=1)
+    return np.concatenate([rot, shift], axis=1)
 
 
 def make_record(t_enc, q, rt, rq, t_f, obs, fps: float, centre_px=None, focal_px: float | None = None) -> Record:
@@ -387,14 +403,17 @@ class Terms:
     reg_motor: bool = False
     slide_tip: bool = False    # the tip's switch slides rather than steps (module doc: the slide)
     slide_motor: bool = False
+    shift_tip: bool = False    # the tip's switch also translates the image (module doc: R, the shift)
+    shift_motor: bool = False
     expo: bool = False         # each frame the mean of the scene over its exposure (module doc: the exposure)
 
     def names(self) -> list[str]:
         return [n for n in TERMS if getattr(self, n)]
 
     def offered(self) -> list[str]:
-        """The terms the search may add next: those not on, a slide only to its switch."""
-        return [n for n in TERMS if not getattr(self, n) and (not n.startswith("slide_") or getattr(self, "reg" + n[5:]))]
+        """The terms the search may add next: those not on, a slide or a shift only to its switch."""
+        return [n for n in TERMS if not getattr(self, n)
+                and (not n.startswith(("slide_", "shift_")) or getattr(self, "reg_" + n.split("_")[1]))]
 
     def with_(self, name: str) -> "Terms":
         d = {n: getattr(self, n) for n in TERMS}
@@ -719,7 +738,7 @@ class RecordModel:
 
     def columns(self, th: np.ndarray) -> tuple[dict, np.ndarray, np.ndarray, dict]:
         """The linear model's columns at theta: {"G": (F, n_g), "ring": [(F,) x 2] or absent,
-        "tip", "motor": (F, N_REG, 2) each or absent (S times the rigid registration's motions)},
+        "tip", "motor": (F, `n_reg`, 2) each or absent (S times the rigid registration's motions)},
         the onsets t_on (M,), z at the frames (F,) and what `jacobian` needs (a dict; "pvar_tip",
         "pvar_motor" (F,): each frame's switch-share variance p (1 - p))."""
         rec = self.rec
@@ -744,7 +763,7 @@ class RecordModel:
             S = _ramp_sign(tau, t_ev, s_ev, s0, L + D)  # the stand-in's window: the whole switch
             pv = _share_var(tau, t_ev, L + D)
             self._mix_columns("tip", S, pv, tau, t_on, L, D, st)
-            cols["tip"] = S[:, None, None] * rec.reg_gen
+            cols["tip"] = S[:, None, None] * self.generators("tip")
             st["tip"] = (S, t_ev, s_ev, np.r_[s0, s_ev[:-1]], L, r_ev, D)
             st["pvar_tip"] = pv
         if self.terms.reg_motor:
@@ -753,7 +772,7 @@ class RecordModel:
             S = _ramp_sign(tau, rec.rt, rec.s_new, s0, L + D)
             pv = _share_var(tau, rec.rt, L + D)
             self._mix_columns("motor", S, pv, tau, rec.rt, L, D, st)
-            cols["motor"] = S[:, None, None] * rec.reg_gen
+            cols["motor"] = S[:, None, None] * self.generators("motor")
             st["motor"] = (S, rec.rt, rec.s_new, np.r_[s0, rec.s_new[:-1]], L, np.arange(rec.rt.size), D)
             st["pvar_motor"] = pv
         return cols, t_on, z_f, st
@@ -878,7 +897,7 @@ class RecordModel:
     def shared_columns(self, cols: dict) -> list:
         """The columns whose coefficient both image axes share, as (u, v) pairs of (F,): the tip
         mode's two along the path's tangent (from the previous round's G'), then the tip's and the
-        motor's registration (N_REG each). beta = [G_u (n_g), G_v (n_g), these in this order]."""
+        motor's registration (`n_reg` each). beta = [G_u (n_g), G_v (n_g), these in this order]."""
         F = self.rec.obs.shape[0]
         out = []
         if "ring" in cols:
@@ -886,16 +905,25 @@ class RecordModel:
             out += [(sl[:, 0] * x, sl[:, 1] * x) for x in cols["ring"]]
         for k in ("tip", "motor"):
             if k in cols:
-                out += [(cols[k][:, i, 0], cols[k][:, i, 1]) for i in range(N_REG)]
+                out += [(cols[k][:, i, 0], cols[k][:, i, 1]) for i in range(cols[k].shape[1])]
         return out
 
     def reg_offset(self, ev: "Eval", name: str) -> tuple[np.ndarray, np.ndarray]:
         """The registration term name's ("tip" or "motor") offset at S = +1, (u, v) (F,) px each,
         from an evaluation's beta (its rotation, rad): half the jump a switch makes."""
         k = 2 * self.n_g + self.mix_block(name)
-        a = ev.beta[k:k + N_REG]
-        g = self.rec.reg_gen
+        a = ev.beta[k:k + self.n_reg(name)]
+        g = self.generators(name)
         return g[:, :, 0] @ a, g[:, :, 1] @ a
+
+    def n_reg(self, name: str) -> int:
+        """The registration term name's ("tip", "motor") coefficients: its rotation's N_REG, and its
+        translation's N_SHIFT with the shift_ term."""
+        return N_REG + N_SHIFT * bool(getattr(self.terms, "shift_" + name))
+
+    def generators(self, name: str) -> np.ndarray:
+        """The registration term name's image motions (F, `n_reg`, 2) (Record.reg_gen's first ones)."""
+        return self.rec.reg_gen[:, :self.n_reg(name)]
 
     def scales(self, ev: "Eval", sigma: float) -> np.ndarray:
         """Each residual's scale sigma_j (2F,) px: sigma with the switch-share variance added
@@ -965,7 +993,7 @@ class RecordModel:
 
     def mix_block(self, name: str) -> int:
         """Where the term name's ("tip", "motor") rotation starts among the shared columns."""
-        return 2 * self.terms.ring + (N_REG if (name == "motor" and self.terms.reg_tip) else 0)
+        return 2 * self.terms.ring + (self.n_reg("tip") if (name == "motor" and self.terms.reg_tip) else 0)
 
     def solve(self, cols: dict, st: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Weighted least squares of the stacked [u; v] on the columns, by the normal equations, G's
@@ -1007,8 +1035,8 @@ class RecordModel:
             if mx is None:
                 continue
             j, c = mx["j"], mx["spread"]
-            g = self.rec.reg_gen[j]
-            a = slice(2 * p + self.mix_block(name), 2 * p + self.mix_block(name) + N_REG)
+            g = self.generators(name)[j]
+            a = slice(2 * p + self.mix_block(name), 2 * p + self.mix_block(name) + self.n_reg(name))
             M[a, a] += g[:, :, 0].T @ ((c * wu[j])[:, None] * g[:, :, 0]) + g[:, :, 1].T @ ((c * wv[j])[:, None] * g[:, :, 1])
         M[np.diag_indices(P)] *= 1.0 + 1e-12  # scale-free: an absent column's zero pivot stays harmless
         M[np.diag_indices(P)] += 1e-30
@@ -1259,9 +1287,9 @@ class RecordModel:
                     Jk[np.flatnonzero(ok), lay["z0"].start] = -dr[0][ok] * dton_x
                 kl.append(Jk)
             j, c = mx["j"], mx["spread"]
-            a = slice(2 * p + self.mix_block(name), 2 * p + self.mix_block(name) + N_REG)
+            a = slice(2 * p + self.mix_block(name), 2 * p + self.mix_block(name) + self.n_reg(name))
             Xa = self._X[a]                                # d rotation / d theta = -Xa (Kaufman)
-            gen = rec.reg_gen[j]
+            gen = self.generators(name)[j]
             for ax in range(2):
                 wj = self.w[ax * F + j]
                 pen.append(np.sqrt(c * wj)[:, None] * (gen[:, :, ax] @ Xa) / sigma)
@@ -1277,7 +1305,8 @@ class RecordModel:
         return Eval(r, t_on, beta, cols, z_f, st)
 
     def n_linear(self) -> int:
-        return 2 * self.n_g + 2 * self.terms.ring + N_REG * (self.terms.reg_tip + self.terms.reg_motor)
+        return 2 * self.n_g + 2 * self.terms.ring + sum(self.n_reg(n) for n in ("tip", "motor")
+                                                         if getattr(self.terms, "reg_" + n))
 
     def G_slope(self, ev: Eval) -> np.ndarray:
         """G'(z) at the frames (F, 2), px per actuator unit, from an evaluation's beta."""

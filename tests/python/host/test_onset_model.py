@@ -37,6 +37,7 @@ def test_noise_sigma_recovers_white_noise_on_a_slow_record():
                                              (("reg_tip", "reg_motor"), "output"), (("ring",), "input"),
                                              (("reg_tip", "reg_motor", "mix"), "input"),
                                              (("reg_tip", "slide_tip", "reg_motor", "slide_motor", "mix"), "input"),
+                                             (("reg_tip", "shift_tip", "reg_motor", "shift_motor", "mix"), "input"),
                                              (("expo",), "input"), (("expo",), "output")])
 def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
     # Kaufman's variable-projection Jacobian against the projected residual's forward differences
@@ -217,10 +218,11 @@ def test_the_along_path_share_is_the_cosine_between_the_jump_and_the_paths_tange
     assert np.isnan(along_path_share(np.zeros(5), np.zeros(5), slope))
 
 
-def test_a_slide_is_offered_only_onto_its_own_switch():
+def test_a_slide_or_a_shift_is_offered_only_onto_its_own_switch():
     assert OM.Terms().offered() == ["ring", "reg_tip", "reg_motor", "expo"]
-    assert OM.Terms(reg_tip=True).offered() == ["ring", "reg_motor", "slide_tip", "expo"]
-    assert OM.Terms(reg_tip=True, reg_motor=True, slide_tip=True).offered() == ["ring", "slide_motor", "expo"]
+    assert OM.Terms(reg_tip=True).offered() == ["ring", "reg_motor", "slide_tip", "shift_tip", "expo"]
+    assert OM.Terms(reg_tip=True, reg_motor=True, slide_tip=True).offered() == \
+        ["ring", "slide_motor", "shift_tip", "shift_motor", "expo"]
 
 
 @pytest.mark.parametrize("name", ["marker_render.py", "swing_render.py"])
