@@ -22,6 +22,13 @@ virgin curve, or not at all). Two more criteria read the re-pass folds only: the
 and the product's rule (families.choose: the one-SE rule, from const_play on thin records) on the
 re-pass CVs; "-" when the calibration part has no re-pass fold.
 
+Paired folds (rolling-origin file-splits only, where the product's rule uses the SE of the per-fold
+differences from the best, families.one_se_margin): per file-split, for each family against the one
+with the lowest CV, the SE of their per-fold differences over the best's own SE, and whether the
+families' fold errors rise and fall together (every family's per-fold errors correlated with the
+best's, Pearson's r over the folds). A ratio below 1 means fold difficulty shared by the families is
+most of the best's own spread.
+
 Development files only (the endoscope's set-aside files are never read here).
 
 Usage: PYTHONPATH=host .venv/bin/python bench/choice_regimes.py [--splits 0.5,0.75] [--instruments catheter,endoscope]
@@ -103,7 +110,8 @@ def run(reader, path: Path, split: float) -> dict:
             out[fam.name] = {"error": str(getattr(e, "message", e))}
             continue
         er = np.asarray(errs)[rep] if errs else np.zeros(0)
-        out[fam.name] = {"folds": errs, "cv": float(np.sqrt(np.mean(np.square(errs)))) if errs else float("nan"),
+        out[fam.name] = {"folds": errs, "folds_repass": er.tolist(),
+                         "cv": float(np.sqrt(np.mean(np.square(errs)))) if errs else float("nan"),
                          "last": errs[-1] if errs else float("nan"), "in_sample": ins, "judged": judged,
                          "cv_repass": float(np.sqrt(np.mean(er ** 2))) if er.size else float("nan"),
                          "se_repass": float(np.std(er, ddof=1) / np.sqrt(er.size)) if er.size > 1 else 0.0}
@@ -117,7 +125,7 @@ def run(reader, path: Path, split: float) -> dict:
     return {"reversals": rev, "thin": thin, "chosen": rows["ours"].params.get("family"), "ours": rm["ours"],
             "best_row": best_row, "best_row_name": min((k for k in rm if rm[k] is not None), key=lambda k: rm[k]),
             "strokes_cal_min": cal_min, "strokes_test_max": test_max, "families": out,
-            "repass_folds": rep.tolist(),
+            "repass_folds": rep.tolist(), "paired": None if thin else paired_folds(out),
             "pick": {"cv": pick("cv"), "last_fold": pick("last"), "in_sample": pick("in_sample"), "oracle": pick("judged"),
                      "repass_lowest": pick("cv_repass") if has_rep else None,
                      "repass_rule": product_rule(ok, thin, "cv_repass", "se_repass") if has_rep else None}}
@@ -151,15 +159,43 @@ def repass_folds(ctx, folds) -> np.ndarray:
 
 def product_rule(ok: dict, thin: bool, key: str, se_key: str) -> str:
     """families.choose's rule on the CVs ok[name][key] (SE ok[name][se_key]): the first family in the
-    registry's order (const_play first on thin records) within one SE of the best; on thin records,
-    once const_play is out, the lowest CV."""
+    registry's order (const_play first on thin records) within one SE of the best (families.one_se_margin:
+    on rolling origins the SE of the per-fold differences from the best, on thin records the best's own);
+    on thin records, once const_play is out, the lowest CV."""
     order = [f.name for f in FAM.FAMILIES if f.name in ok] + [n for n in ok if n not in {f.name for f in FAM.FAMILIES}]
     if thin:
         order = sorted(order, key=lambda n: n != FAM.FALLBACK)
     order = [n for n in order if np.isfinite(ok[n][key])]
     best = min(order, key=lambda n: ok[n][key])
-    first = next(n for n in order if ok[n][key] <= ok[best][key] + ok[best][se_key])
+    fk = {"cv": "folds", "cv_repass": "folds_repass"}.get(key)  # the per-fold errors the rule pairs
+    row = lambda n: {"cv_se_deg": ok[n][se_key], "fold_rmse_deg": ok[n].get(fk)}  # noqa: E731
+    first = next(n for n in order if ok[n][key] <= ok[best][key] + FAM.one_se_margin(row(n), row(best), not thin))
     return best if thin and first != FAM.FALLBACK else first
+
+
+def paired_folds(fams: dict) -> dict | None:
+    """Per family against the one of lowest CV among fams ({name: {"folds", "cv"}}, families with
+    per-fold errors on the same folds): {"best", "ratio": {name: paired SE / best's own SE},
+    "r": {name: Pearson r of its per-fold errors with the best's}, "z_paired", "z_own": {name: its
+    CV above the best's in paired SEs, in the best's own SEs}}; None with fewer than 3 folds or 2
+    families."""
+    ok = {k: v for k, v in fams.items() if "error" not in v and len(v["folds"]) >= 3}
+    if len(ok) < 2 or len({len(v["folds"]) for v in ok.values()}) != 1:
+        return None
+    best = min(ok, key=lambda k: ok[k]["cv"])
+    eb = np.asarray(ok[best]["folds"])
+    se_b = float(np.std(eb, ddof=1) / np.sqrt(eb.size))
+    out = {"best": best, "ratio": {}, "r": {}, "z_paired": {}, "z_own": {}}
+    for k, v in ok.items():
+        if k == best:
+            continue
+        e = np.asarray(v["folds"])
+        se_p = float(np.std(e - eb, ddof=1) / np.sqrt(e.size))
+        out["ratio"][k] = se_p / max(se_b, 1e-12)
+        out["r"][k] = float(np.corrcoef(e, eb)[0, 1])
+        out["z_paired"][k] = (v["cv"] - ok[best]["cv"]) / max(se_p, 1e-12)
+        out["z_own"][k] = (v["cv"] - ok[best]["cv"]) / max(se_b, 1e-12)
+    return out
 
 
 def main(argv=None) -> int:
@@ -181,6 +217,8 @@ def main(argv=None) -> int:
             n = shorter = oracle_within = ours_within = 0
             within_by = {}
             n_all_rep = n_no_rep = 0
+            pair_n = pair_lt = pair_files = pair_files_all = pair_pos = 0
+            pair_ratios, z_before = [], []  # z: (paired, own) of the families the rule passed over
             for stem in stems:
                 r = run(reader, REAL / inst / f"{stem}.txt", fr)
                 res[f"{inst}/{stem}@{fr:g}"] = r
@@ -200,6 +238,17 @@ def main(argv=None) -> int:
                 ours_within += r["ours"] <= 1.1 * r["best_row"]
                 for c in picks:
                     picks[c] += r["pick"][c] == o
+                if r["paired"]:
+                    ratios, rs = list(r["paired"]["ratio"].values()), list(r["paired"]["r"].values())
+                    pair_files += 1
+                    pair_n += len(ratios)
+                    pair_lt += sum(x < 1 for x in ratios)
+                    pair_pos += sum(x > 0 for x in rs)
+                    pair_files_all += all(x < 1 for x in ratios)
+                    pair_ratios += ratios
+                    order = [f.name for f in FAM.FAMILIES]
+                    z_before += [(r["paired"]["z_paired"][k], r["paired"]["z_own"][k]) for k in r["paired"]["z_paired"]
+                                 if r["chosen"] in order and order.index(k) < order.index(r["chosen"])]
                 n_all_rep += all(r["repass_folds"])
                 n_no_rep += not any(r["repass_folds"])
                 for c in ("repass_lowest", "repass_rule"):  # no re-pass fold: the product's choice stands
@@ -229,6 +278,15 @@ def main(argv=None) -> int:
                   f"(the product's choice where no fold is a re-pass): the re-pass CV's pick on "
                   f"{within_by.get('repass_lowest', 0)} of {n}, the product's rule on the re-pass CV on "
                   f"{within_by.get('repass_rule', 0)} of {n}\n", flush=True)
+            if pair_files:
+                passed = (f"; the families before the one kept (in the rule's order) lie above the best by at least "
+                          f"{min(z[0] for z in z_before):.2f} paired SEs ({min(z[1] for z in z_before):.2f} of the "
+                          "best's own SE)") if z_before else ""
+                print(f"{inst}, split {fr:g}, paired folds (rolling origins, {pair_files} of {n} file-splits): the SE "
+                      f"of the per-fold differences from the best family below the best's own SE for {pair_lt} of "
+                      f"{pair_n} families (every family on {pair_files_all} of {pair_files} file-splits; ratio median "
+                      f"{np.median(pair_ratios):.2f}, largest {max(pair_ratios):.2f}); fold errors correlated with the "
+                      f"best's (r > 0) for {pair_pos} of {pair_n}{passed}\n", flush=True)
     print(f"({time.perf_counter() - t0:.0f} s)")
     if a.json:
         Path(a.json).write_text(json.dumps(res, indent=1, default=float) + "\n")

@@ -64,7 +64,7 @@ from ..fit.calibration import calibrate
 from ..base.errors import InputError
 from ..io.importer import read_record
 from ..fit.peers import GeneralizedPI, IncreasingGPI, ModifiedPI
-from .insitu_split import calibration_frames
+from .insitu_split import INVERTIBLE, calibration_frames
 
 FORMAT = "playscope-transfer/1"
 # Textbook peers calibrated on the same record (its frames, as const_play_ref) and given the same
@@ -75,6 +75,11 @@ PEERS = [
     ("mpi", "modified PI (16 plays + output spline)", lambda q, c: ModifiedPI.fit(q, c)),
     ("mpi_inc", "modified PI, output monotone (invertible: pi_const)", lambda q, c: ModifiedPI.fit(q, c, monotone=True)),
 ]
+# The peers whose model has an inverse a compensator can run: those of PEERS that the in-situ
+# evaluation counts invertible (insitu_split.INVERTIBLE: the forms fitted under the constraint that
+# makes them so). The generalized PI's fitted cubic turns back on every development record
+# (peers.IncreasingGPI), and the modified PI's free output spline may.
+INVERTIBLE_PEERS = tuple(k for k, _, _ in PEERS if k in INVERTIBLE)
 UPDATES = [("", "as is"), ("_offset", "+ offset refresh"), ("_affine", "+ offset and gain refresh"),
            ("_board", "+ the board's offset and gain learner")]
 PEER_ROWS = [f"{k}_ref{u}" for k, _, _ in PEERS for u, _ in UPDATES]
@@ -109,7 +114,7 @@ JSON_KEYS = ("format, calibration {file, reversals, b_samples}, settings {warmup
              "from the file name, null for the catheter), t_split_s, rmse_deg {row: float}, b_samples (learnt on "
              "line), board_f {publishes, a_deg, g} (the transition row's learner at the end)}}, mean {row: float}, "
              "worst {row: float}, peers_vs_ours {update suffix: {ours, ours_mean, peers {row: mean}, best_peer, "
-             "ours_le_every_peer}}")
+             "ours_le_every_peer, invertible_peers [row], best_invertible_peer, ours_le_every_invertible_peer}}")
 
 # Endoscope files: column of the distal angle by file name (README of the data set).
 
@@ -262,16 +267,22 @@ TIE_DEG = 1e-3  # ours <= a peer within this: where the family chosen is pi_cons
 
 
 def peer_comparison(doc: dict) -> dict:
-    """Ours against every peer given the same update, on the mean over the records: {update
-    suffix: {"ours": row, "ours_mean", "peers": {row: mean}, "best_peer", "ours_le_every_peer"
-    (within TIE_DEG)}}."""
+    """Ours against every peer given the same update, on the mean over the records (RMSE, deg):
+    {update suffix: {"ours": row, "ours_mean", "peers": {row: mean}, "best_peer",
+    "ours_le_every_peer", "invertible_peers": [row] (INVERTIBLE_PEERS with that update),
+    "best_invertible_peer", "ours_le_every_invertible_peer"}}, each verdict within TIE_DEG.
+    The invertible verdict is the one a compensator can be held to: a peer without an inverse
+    predicts the angle but cannot be run backwards to command the actuator."""
     out = {}
     for u, _ in UPDATES:
         ours = OURS_BY_UPDATE[u]
         pm = {f"{k}_ref{u}": doc["mean"][f"{k}_ref{u}"] for k, _, _ in PEERS}
-        best = min(pm, key=pm.get)
+        inv = [f"{k}_ref{u}" for k in INVERTIBLE_PEERS]
+        best, best_inv = min(pm, key=pm.get), min(inv, key=pm.get)
         out[u] = {"ours": ours, "ours_mean": doc["mean"][ours], "peers": pm, "best_peer": best,
-                  "ours_le_every_peer": bool(doc["mean"][ours] <= pm[best] + TIE_DEG)}
+                  "ours_le_every_peer": bool(doc["mean"][ours] <= pm[best] + TIE_DEG),
+                  "invertible_peers": inv, "best_invertible_peer": best_inv,
+                  "ours_le_every_invertible_peer": bool(doc["mean"][ours] <= pm[best_inv] + TIE_DEG)}
     return out
 
 
@@ -290,11 +301,16 @@ def format_transfer(doc: dict) -> str:
                      f" | {doc['mean'][k]:.2f} | {doc['worst'][k]:.2f} |")
     lines.append("| B samples learnt on line | " + " | ".join(str(doc["files"][n]["b_samples"]) for n in names) + " | | |")
     lines.append("")
+    name = lambda row: doc["labels"][row].split(" of the calibration record")[0]  # noqa: E731
+    yes = lambda v: "yes" if v else "NO"  # noqa: E731
+    cmp = peer_comparison(doc)  # from the rows, so a document written before the invertible verdict prints it too
     for u, ul in UPDATES:
-        c = doc.get("peers_vs_ours", peer_comparison(doc))[u]
+        c = cmp[u]
         lines.append(f"Ours with the transition {ul}: mean {c['ours_mean']:.3f} deg; best peer given the same, "
-                     f"{doc['labels'][c['best_peer']].split(' of the calibration record')[0]}: "
-                     f"{c['peers'][c['best_peer']]:.3f} deg; ours <= every peer: {'yes' if c['ours_le_every_peer'] else 'NO'}")
+                     f"{name(c['best_peer'])}: {c['peers'][c['best_peer']]:.3f} deg; ours <= every peer: "
+                     f"{yes(c['ours_le_every_peer'])}; best invertible peer ({', '.join(INVERTIBLE_PEERS)}), "
+                     f"{name(c['best_invertible_peer'])}: {c['peers'][c['best_invertible_peer']]:.3f} deg; ours <= every "
+                     f"invertible peer: {yes(c['ours_le_every_invertible_peer'])}")
     return "\n".join(lines + [""])
 
 

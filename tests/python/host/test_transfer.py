@@ -51,6 +51,30 @@ def test_endoscope_reader_conf_files_read_column_5_and_refuse_bad_files(tmp_path
         read_endoscope(tmp_path / "none.txt")
 
 
+def test_peer_verdicts_every_peer_and_every_invertible_peer():
+    # Ours between the generalized PI (no inverse: its cubic turns back) and the invertible peers,
+    # on the means of a planted document: NO against every peer, yes against the invertible ones.
+    from playscope.evaluate.transfer import (INVERTIBLE_PEERS, LABELS, PEERS, TIE_DEG, UPDATES, format_transfer,
+                                             peer_comparison)
+
+    assert INVERTIBLE_PEERS == ("gpi_inc", "mpi_inc")
+    mean = {"gpi": 0.311, "gpi_inc": 0.347, "mpi": 0.3325, "mpi_inc": 0.3325}
+    doc = {"mean": {f"{k}_ref{u}": mean[k] for k, _, _ in PEERS for u, _ in UPDATES}, "labels": LABELS,
+           "files": {}, "order": [], "calibration": {"file": "cal.txt"}, "settings": {"warmup": 0.5}}
+    doc["mean"].update({"static_transition": 0.3225, "transition_offset": 0.3225, "transition_affine": 0.3225,
+                        "transition_board": 0.3325 + 0.5 * TIE_DEG})  # a tie with mpi_inc within TIE_DEG
+    c = peer_comparison(doc)
+    assert c[""]["best_peer"] == "gpi_ref" and not c[""]["ours_le_every_peer"]
+    assert c[""]["invertible_peers"] == ["gpi_inc_ref", "mpi_inc_ref"] and c[""]["best_invertible_peer"] == "mpi_inc_ref"
+    assert c[""]["ours_le_every_invertible_peer"] and c["_board"]["ours_le_every_invertible_peer"]
+    doc["mean"]["transition_board"] = 0.3325 + 2 * TIE_DEG
+    assert not peer_comparison(doc)["_board"]["ours_le_every_invertible_peer"]
+    out = format_transfer(doc)
+    assert ("ours <= every peer: NO; best invertible peer (gpi_inc, mpi_inc), modified PI, output monotone "
+            "(invertible: pi_const): 0.333 deg; ours <= every invertible peer: yes") in out
+    assert out.rstrip().endswith("ours <= every invertible peer: NO")
+
+
 def test_config_angle_from_file_names():
     assert config_angle("x/120.txt") == 120.0 and config_angle("conf90_60.txt") == 90.0
     assert config_angle("data_2_3.txt") is None
@@ -336,3 +360,7 @@ def test_transfer_peers_are_fitted_on_the_reference_frames_and_given_ours_update
     cmp = doc["peers_vs_ours"]
     assert set(cmp) == {u for u, _ in UPDATES} and cmp["_board"]["ours"] == "transition_board"
     assert cmp["_board"]["ours_le_every_peer"] == (doc["mean"]["transition_board"] <= min(cmp["_board"]["peers"].values()) + 1e-3)
+    inv = cmp["_board"]["invertible_peers"]
+    assert inv == ["gpi_inc_ref_board", "mpi_inc_ref_board"]
+    assert cmp["_board"]["ours_le_every_invertible_peer"] == (
+        doc["mean"]["transition_board"] <= min(cmp["_board"]["peers"][k] for k in inv) + 1e-3)
