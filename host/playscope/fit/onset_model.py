@@ -223,6 +223,11 @@ def make_record(t_enc, q, rt, rq, t_f, obs, fps: float, centre_px=None, focal_px
     rate = min(GRID_HZ_MAX, 1.0 / float(np.median(np.diff(t_enc))))
     t = np.arange(t_enc[0], t_enc[-1], 1.0 / rate)
     qg = np.interp(t, t_enc, q)
+    # each reversal's extremum on the grid point nearest it: a sharp reversal between two grid
+    # points is otherwise cut to their interpolation, up to the speed times a grid step below q1,
+    # and eq. 1 measures from q1 (io.session.thin_encoder_by_time keeps the extremum's sample)
+    rt, rq = np.asarray(rt, float), np.asarray(rq, float)
+    qg[np.clip(np.rint((rt - t[0]) * rate).astype(np.int64), 0, t.size - 1)] = rq
     i1 = np.clip(np.searchsorted(t, rt), 1, t.size - 2)
     # the new direction: towards the next reversal's extreme (reversals alternate); not from q
     # just before the reversal, which a motor dwelling at its extreme holds level
