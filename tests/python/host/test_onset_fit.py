@@ -54,20 +54,26 @@ def test_fits_in_a_forked_child_equal_the_same_fits_run_in_turn_when_jobs_share_
         assert np.array_equal(a, b) and np.array_equal(b, c)
 
 
+def _channel_record(**scene):
+    """marker_render's `channel` form (a Fig. 7 robot, 25 fps) with the scene's settings: (the
+    Scene, its Record with the renderer's principal point and focal length, the configured delay's
+    prior, the record's noise scale px)."""
+    MR = bench_module("marker_render")
+    sc = MR.Scene(B_kind="fig7", fps=25.0, form="channel", **scene)
+    d = MR.render(sc)
+    t, q = d["t_enc"], d["q"]
+    rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], np.column_stack([d["u"], d["v"]]), sc.fps, (360.0, 288.0), 600.0)
+    return sc, rec, (sc.t_delay_config, rec.period_s / np.sqrt(12)), OM.noise_sigma(rec.obs)
+
+
 def test_a_registration_that_slides_is_fitted_as_a_slide_with_its_duration_and_B():
     # marker_render's `channel` form (written apart from the estimator): the instrument slides in its
     # channel for U(0, 40 ms) starting U(0, T) after the tip reverses, seen through an 8 ms exposure.
     # From the stepped switch's fit, the slide's grid start and fit: measured BIC 676 against the
     # stepped switch's 2250, B 0.64 % off (constant width), the longest slide at its bound, a frame
     # period (40 ms; unbounded it went to 50 ms, the renderer's 40 ms plus its 8 ms exposure)
-    MR = bench_module("marker_render")
-    sc = MR.Scene(seed=3, B_kind="fig7", speed=4.0, duration=15.0, fps=25.0, form="channel", size_deg=2.0, noise_px=0.15)
-    d = MR.render(sc)
-    t, q = d["t_enc"], d["q"]
-    rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
-    rec = OM.make_record(t, q, rt, rq, d["t_f"], np.column_stack([d["u"], d["v"]]), sc.fps, (360.0, 288.0), 600.0)
-    prior = (sc.t_delay_config, rec.period_s / np.sqrt(12))
-    sig = OM.noise_sigma(rec.obs)
+    sc, rec, prior, sig = _channel_record(seed=3, speed=4.0, duration=15.0, size_deg=2.0, noise_px=0.15)
     step = OM.RecordModel(rec, 1, 10, OM.Terms(reg_tip=True), prior)
     fs = OF.fit_model(step, step.theta({"d": np.array([sc.t_delay_true]), "B": np.array([1.1 * sc.B(0.0)])}), sigma=sig)
     slide = OM.RecordModel(rec, 1, 10, OM.Terms(reg_tip=True, slide_tip=True), prior)
@@ -83,14 +89,7 @@ def test_a_channel_translation_is_fitted_by_the_shift_as_one_offset_of_the_whole
     # the image moves by f tan(size) px along u wherever the marker is, which the rotation alone
     # meets only to x^2 of it. From the switch-and-slide fit, the shift's fit: its half jump along
     # u is the rendered one, the same at every frame, and B closer to the truth.
-    MR = bench_module("marker_render")
-    sc = MR.Scene(seed=5, B_kind="fig7", speed=1.0, duration=20.0, fps=25.0, form="channel", size_deg=2.8, noise_px=0.05)
-    d = MR.render(sc)
-    t, q = d["t_enc"], d["q"]
-    rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
-    rec = OM.make_record(t, q, rt, rq, d["t_f"], np.column_stack([d["u"], d["v"]]), sc.fps, (360.0, 288.0), 600.0)
-    prior = (sc.t_delay_config, rec.period_s / np.sqrt(12))
-    sig = OM.noise_sigma(rec.obs)
+    sc, rec, prior, sig = _channel_record(seed=5, speed=1.0, duration=20.0, size_deg=2.8, noise_px=0.05)
     base = OM.RecordModel(rec, 1, 10, OM.Terms(reg_tip=True, slide_tip=True), prior)
     th = base.theta({"d": np.array([sc.t_delay_true]), "B": np.array([sc.B(0.0)])})
     f0 = OF.fit_model(base, th, sigma=sig)
