@@ -294,13 +294,10 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
             elif name.startswith("slide_"):
                 mt.slope = m.slope
                 th0s = _slide_starts(mt, name[6:], parts, sigma)
-            elif name.startswith("shift_"):  # linear only: from the fit so far and from each delay start
-                mt.slope = m.slope
-                th0s = [mt.theta(p) for p in [parts] + bases]
             elif name == "expo":  # from the fit so far, at each exposure of EXPO_GRID
                 mt.slope = m.slope
                 th0s = [mt.theta({**parts, "expo": np.array([mt.expo_x(g * rec.period_s)])}) for g in EXPO_GRID]
-            else:
+            else:  # a switch, or a switch's shift (linear only): from the fit so far and each delay start
                 mt.slope = m.slope
                 th0s = [mt.theta(p) for p in [parts] + bases]
                 if (name,) in st:  # also from the start profiled with this switch

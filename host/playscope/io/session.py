@@ -711,6 +711,8 @@ def _turns(q: np.ndarray, z: np.ndarray) -> np.ndarray:
         sgn = np.sign(dz[moved])
         i = np.flatnonzero(sgn[1:] != sgn[:-1])
         for a, b in zip((moved[i] + 1).tolist(), (moved[i + 1] + 1).tolist()):
+            # z turns at a and moves again after b - 1: q's extremum of the turn is q[a]; keep
+            # its last sample in [a, b) too, as detect_reversals takes it (a held extremum's end).
             keep[a] = keep[a + int(np.flatnonzero(q[a:b] == q[a])[-1])] = True
     return keep
 
