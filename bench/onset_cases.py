@@ -204,6 +204,13 @@ LOCKBOX7_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEE
 # a term by the BIC; written and judged on development rows and the spent LOCKBOX6_300 only). None stays
 # sealed after it.
 
+# The eighth set-aside group, LOCKBOX8_300 (drawn and committed 2026-11-27 during stop 70, while LOCKBOX7_300
+# ran, after the switch seen through the exposure and the shift's translation form were written on
+# development rows and before any code that any row of LOCKBOX7_300 informed: sealed for the code of a
+# later change).
+SEEDS_8 = {"marker": (68101, 680001), "swing": (68202, 680201), "render_c": (68303, 680401)}
+LOCKBOX8_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_8, PLAN, "s8-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
