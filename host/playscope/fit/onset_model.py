@@ -47,12 +47,14 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
           rotation about the perpendicular axis moves it so only to x^2 of it, and at a jump of
           tens of px its perspective parts (x^2, x y) are px along the path against a noise of
           tenths (s6-marker-045 of LOCKBOX6_300, a 2.8 deg channel translation at 25 fps: B
-          5.9 % off with the rotation alone, 2.0 % with the shift). So a switch term's shift_tip /
-          shift_motor adds the image's translation (t_u, t_v) px to its rotation (linear: two
-          coefficients shared by nothing), entering, as every term, by the BIC and only onto its
-          switch. Held on for every switch, its free offset per axis took up B as said above (on
-          the development group's rotations, B's median error 0.6 -> 0.9 %, one record 0.8 ->
-          2.8 %); by evidence it enters where the image's own jump says translation.
+          5.9 % off with the rotation alone). So a switch term's shift_tip / shift_motor puts the
+          image's translation (t_u, t_v) px in its rotation's place (linear: two coefficients),
+          entering, as every term, by the BIC and only onto its switch (B 0.6 % off there). A
+          translation is as rigid as the rotation, one vector for the whole path, so it is told
+          from B as the rotation is. Why in the rotation's place and not beside it: the two
+          together leave the jump's x^2 part free along the path, which is B's own variation at
+          the image's level (dev-reg0-swings25-fast, a rotation switching at the onset: the BIC
+          admitted the pair and B was 7.1 % off; with the forms exclusive, 4.6 %).
           A registration that follows the image can switch only once a frame shows the reversal,
           so within one frame period of it; with the switch time unknown and uniform within a
           lag L, a frame in that window shows the old or the new registration, the new one with
@@ -110,8 +112,13 @@ rendering. So the blur is a term, expo: each frame's z is its mean over [tau - e
 (the midpoint rule on EXPO_NODES nodes; its gradients the nodes' mean), e in [T / 20, T] fitted,
 entering by the same BIC as every term (with it, that rendering's B is 0.6 % off). Held on for
 every record, an earlier fit of e was drawn to a whole frame by the other terms' misfits on 3 of
-50 development rows; by evidence it enters where the blur is worth its parameter. The tip mode and
-the switches stay read at tau (a switch's own blur is within the slide's reach, up to a frame).
+50 development rows; by evidence it enters where the blur is worth its parameter. The tip mode stays
+read at tau. A switch is blurred as well: a step at u is seen as a ramp from u - e / 2 to
+u + e / 2, so with the term a switch's window opens e / 2 before its reversal or onset and the
+switch takes e plus its slide to cross (`_switch_shares`' E), which places frames part way
+(a registration switching at the onset itself, dev-reg0-swings25-fast: read at tau, the frames a
+few ms before each onset already show part of the new level through their exposure, and the fit
+moved the onsets early, B 8.8 % off; the model held B at the truth 217 worse in the BIC).
 The fitted e is reported; the delay reported stays the split below. Eq. 1's
 t2 - t_delay is the instant a motion starts, and the first frame to show it is the first whose
 exposure ends after it, so the delay a user configures and the board's detector uses is the one
@@ -168,7 +175,7 @@ EPS_SHARE = 1e-3       # the least share the mixture gives a level (module doc):
                        # may show the other level at this probability, so a misplaced window costs
                        # 2 ln(1 / EPS_SHARE) = 14 (a 3.7-sigma residual), not an infinite one, and the fit can move it
 N_REG = 3              # the registration's rotation (rad) about the camera's x, y and optical axes (module doc: R)
-N_SHIFT = 2            # and, with a shift_ term, its translation (px) along the image's u and v (module doc: R)
+N_SHIFT = 2            # or, with a shift_ term, its translation (px) along the image's u and v (module doc: the shift)
 
 
 @dataclass
@@ -332,24 +339,32 @@ def _ramp_int(y: np.ndarray, L: float) -> tuple[np.ndarray, np.ndarray]:
     return R, dRdL
 
 
-def _switch_shares(since: np.ndarray, L: float, D: float):
-    """The switch's level shares at frames since s after its window opens (module doc: the switch and
-    the slide): it starts at u ~ U(0, L) and slides for a duration ~ U(0, D) (D = 0: a step). Returns
-    (p_old, p_new, dp_old, dp_new): the shares of frames still at the old level, u >= since, and
-    already at the new one, u + duration <= since ((K,) each; the rest, 1 - p_old - p_new, is mid
-    slide), and their derivatives over (since, L, D), (3, K) each."""
+def _switch_shares(since: np.ndarray, L: float, D: float, E: float = 0.0):
+    """The switch's level shares at frames since s after its window opens (module doc: the switch, the
+    slide and the exposure): it starts at u ~ U(0, L) and moves for a duration E + U(0, D) (E the
+    exposure, through which a step is seen as a ramp of exactly E; D the longest slide; both 0: a
+    step). Returns (p_old, p_new, dp_old, dp_new): the shares of frames still at the old level,
+    u >= since, and already at the new one, u + duration <= since ((K,) each; the rest,
+    1 - p_old - p_new, is mid way), and their derivatives over (since, L, D, E), (4, K) each."""
     since = np.asarray(since, float)
     inside = (since > 0.0) & (since < L)
     c = np.clip(since / L, 0.0, 1.0)
     p_old = 1.0 - c
-    dp_old = np.vstack([np.where(inside, -1.0 / L, 0.0), np.where(inside, since / L ** 2, 0.0), np.zeros(since.size)])
+    zero = np.zeros(since.size)
+    dp_old = np.vstack([np.where(inside, -1.0 / L, 0.0), np.where(inside, since / L ** 2, 0.0), zero, zero])
+    x = since - E  # the new level is reached E later than a slide alone would reach it
     if D <= 0.0:
-        return p_old, c, dp_old, -dp_old
-    R1, dR1 = _ramp_int(since, L)
-    R0, dR0 = _ramp_int(since - D, L)
+        inx = (x > 0.0) & (x < L)
+        p_new = np.clip(x / L, 0.0, 1.0)
+        dx = np.where(inx, 1.0 / L, 0.0)
+        return p_old, p_new, dp_old, np.vstack([dx, np.where(inx, -x / L ** 2, 0.0), zero, -dx])
+    R1, dR1 = _ramp_int(x, L)
+    R0, dR0 = _ramp_int(x - D, L)
     p_new = (R1 - R0) / D
-    c0 = np.clip((since - D) / L, 0.0, 1.0)
-    dp_new = np.vstack([(c - c0) / D, (dR1 - dR0) / D, (c0 - p_new) / D])
+    c1 = np.clip(x / L, 0.0, 1.0)
+    c0 = np.clip((x - D) / L, 0.0, 1.0)
+    dx = (c1 - c0) / D
+    dp_new = np.vstack([dx, (dR1 - dR0) / D, (c0 - p_new) / D, -dx])
     return p_old, p_new, dp_old, dp_new
 
 
@@ -763,34 +778,37 @@ class RecordModel:
             s_ev = rec.s_new[ok]
             keep = np.r_[True, s_ev[1:] != s_ev[:-1]][:s_ev.size]  # a direction the tip already moves in is no switch
             s0 = -s_ev[0] if s_ev.size else 1.0
-            t_ev, s_ev, r_ev = t_on[ok][keep], s_ev[keep], np.flatnonzero(ok)[keep]
+            # seen through the exposure (module doc: the exposure), a switch's window opens e / 2
+            # before it and its move takes e longer
+            t_ev, s_ev, r_ev = t_on[ok][keep] - 0.5 * e, s_ev[keep], np.flatnonzero(ok)[keep]
             L, D = lags["tip"], slides["tip"]
-            S = _ramp_sign(tau, t_ev, s_ev, s0, L + D)  # the stand-in's window: the whole switch
-            pv = _share_var(tau, t_ev, L + D)
-            self._mix_columns("tip", S, pv, tau, t_on, L, D, st)
+            S = _ramp_sign(tau, t_ev, s_ev, s0, L + D + e)  # the stand-in's window: the whole switch
+            pv = _share_var(tau, t_ev, L + D + e)
+            self._mix_columns("tip", S, pv, tau, t_on - 0.5 * e, L, D, e, st)
             cols["tip"] = S[:, None, None] * self.generators("tip")
-            st["tip"] = (S, t_ev, s_ev, np.r_[s0, s_ev[:-1]], L, r_ev, D)
+            st["tip"] = (S, t_ev, s_ev, np.r_[s0, s_ev[:-1]], L, r_ev, D, e)
             st["pvar_tip"] = pv
         if self.terms.reg_motor:
             s0 = -rec.s_new[0]
             L, D = lags["motor"], slides["motor"]
-            S = _ramp_sign(tau, rec.rt, rec.s_new, s0, L + D)
-            pv = _share_var(tau, rec.rt, L + D)
-            self._mix_columns("motor", S, pv, tau, rec.rt, L, D, st)
+            t_ev = rec.rt - 0.5 * e
+            S = _ramp_sign(tau, t_ev, rec.s_new, s0, L + D + e)
+            pv = _share_var(tau, t_ev, L + D + e)
+            self._mix_columns("motor", S, pv, tau, t_ev, L, D, e, st)
             cols["motor"] = S[:, None, None] * self.generators("motor")
-            st["motor"] = (S, rec.rt, rec.s_new, np.r_[s0, rec.s_new[:-1]], L, np.arange(rec.rt.size), D)
+            st["motor"] = (S, t_ev, rec.s_new, np.r_[s0, rec.s_new[:-1]], L, np.arange(rec.rt.size), D, e)
             st["pvar_motor"] = pv
         return cols, t_on, z_f, st
 
     # ---- the switch as a two-point mixture (module doc): an EM whose E-step gives each frame near a
     # switch its posterior share gamma of the new level and whose M-step is the least squares below
     def _mix_columns(self, name: str, S: np.ndarray, pvar: np.ndarray, tau: np.ndarray, t_rev: np.ndarray,
-                     L: float, D: float, st: dict) -> None:
+                     L: float, D: float, E: float, st: dict) -> None:
         """Apply the E-step's shares to a term's sign S and share variance pvar (F,) in place: a frame
         with shares gamma_new, gamma_mid at level h_mid has the expected sign s_prev + h_bar (s_new -
         s_prev), h_bar = gamma_new + gamma_mid h_mid, and no share variance (its spread is the linear
         parameters' penalty, `solve`); st[name + "_mix"] gets the frames, their shares, the prior shares
-        at this theta (`_switch_shares`, lag L, longest slide D; clipped into [EPS_SHARE, 1 - EPS_SHARE]),
+        at this theta (`_switch_shares`, lag L, longest slide D, exposure E; clipped into [EPS_SHARE, 1 - EPS_SHARE]),
         where each is unclipped and their derivatives, and each frame's spread (s_new - s_prev)^2
         Var(h), the weight of its penalty on the rotation (`solve`, `mix_rows`). t_rev (M,) the term's
         switch starts per reversal (NaN: none)."""
@@ -804,14 +822,14 @@ class RecordModel:
         since = tau[j] - t_rev[rev]
         ok = np.isfinite(since)
         since = np.where(ok, since, -1.0)  # no switch at this theta: the frame is at the old level
-        po, pn, dpo, dpn = _switch_shares(since, L, D)
+        po, pn, dpo, dpn = _switch_shares(since, L, D, E)
         shares = {}
         for lvl, pr, dp in (("old", po, dpo), ("new", pn, dpn)):
             shares["p_" + lvl] = np.clip(pr, EPS_SHARE, 1.0 - EPS_SHARE)
             shares["free_" + lvl] = ok & (pr > EPS_SHARE) & (pr < 1.0 - EPS_SHARE)
             shares["dp_" + lvl] = dp
         st[name + "_mix"] = {"j": j, "gamma": g, "gamma_mid": gm, "h_mid": hm, **shares, "rev": rev, "ds": sn - sp,
-                             "L": L, "D": D, "spread": (sn - sp) ** 2 * np.maximum(g + gm * hm * hm - hbar * hbar, 0.0)}
+                             "L": L, "D": D, "E": E, "spread": (sn - sp) ** 2 * np.maximum(g + gm * hm * hm - hbar * hbar, 0.0)}
 
     def e_step(self, ev: "Eval", sigma: float) -> None:
         """The mixture's E-step at an evaluation (module doc): for each switch term, the frames within
@@ -826,13 +844,13 @@ class RecordModel:
         for name in ("tip", "motor"):
             if name not in st:
                 continue
-            S, t_ev, s_ev, s_prev, L, r_ev, D = st[name]
+            S, t_ev, s_ev, s_prev, L, r_ev, D, E = st[name]
             tau = st["tau"]
             if t_ev.size == 0:
                 continue
             e = np.searchsorted(t_ev, tau + T, side="right") - 1
             e0 = np.maximum(e, 0)
-            near = (e >= 0) & (tau < t_ev[e0] + L + D + T)
+            near = (e >= 0) & (tau < t_ev[e0] + L + D + E + T)
             j = np.flatnonzero(near)
             if j.size == 0:
                 continue
@@ -844,8 +862,8 @@ class RecordModel:
             for lvl, sgn in (("new", s_ev[e]), ("old", s_prev[e])):
                 k = sgn - S[j]
                 rho[lvl] = huber_rho(ru - k * du[j], sigma) + huber_rho(rv - k * dv[j], sigma)
-            po, pn = (np.clip(x, EPS_SHARE, 1.0 - EPS_SHARE) for x in _switch_shares(tau[j] - t_ev[e], L, D)[:2])
-            if D > 0.0:
+            po, pn = (np.clip(x, EPS_SHARE, 1.0 - EPS_SHARE) for x in _switch_shares(tau[j] - t_ev[e], L, D, E)[:2])
+            if D + E > 0.0:
                 k = s_prev[e] - S[j]
                 ds = s_ev[e] - s_prev[e]
                 hm, ln_mid = _mid_level(ru - k * du[j], rv - k * dv[j], ds * du[j], ds * dv[j], sigma)
@@ -880,14 +898,14 @@ class RecordModel:
 
     @staticmethod
     def _kl_rows(mx: dict) -> list:
-        """The timing rows of a term's mixture frames and their derivatives over (since, L, D):
-        [(row (K,), d row / d (since, L, D) (3, K))]. Their squares sum to 2 KL(gamma || p) over the
+        """The timing rows of a term's mixture frames and their derivatives over (since, L, D, E):
+        [(row (K,), d row / d (since, L, D, E) (4, K))]. Their squares sum to 2 KL(gamma || p) over the
         levels, split by the chain rule (new or not; then old or mid slide, weighted by 1 - gamma_new):
         each a signed square root, smooth through its minimum (module doc)."""
         g, pn = mx["gamma"], mx["p_new"]
         r1, d1 = _kl_row_grad(g, pn, mx["free_new"])
         rows = [(r1, d1 * mx["dp_new"])]
-        if mx["D"] > 0.0:
+        if mx["D"] + mx["E"] > 0.0:
             po, rest = mx["p_old"], 1.0 - pn
             cp_raw = po / rest
             cp = np.clip(cp_raw, EPS_SHARE, 1.0 - EPS_SHARE)
@@ -922,13 +940,16 @@ class RecordModel:
         return g[:, :, 0] @ a, g[:, :, 1] @ a
 
     def n_reg(self, name: str) -> int:
-        """The registration term name's ("tip", "motor") coefficients: its rotation's N_REG, and its
-        translation's N_SHIFT with the shift_ term."""
-        return N_REG + N_SHIFT * bool(getattr(self.terms, "shift_" + name))
+        """The registration term name's ("tip", "motor") coefficients: its rotation's N_REG, or with
+        the shift_ term its translation's N_SHIFT in their place (module doc: the shift)."""
+        return N_SHIFT if getattr(self.terms, "shift_" + name) else N_REG
 
     def generators(self, name: str) -> np.ndarray:
-        """The registration term name's image motions (F, `n_reg`, 2) (Record.reg_gen's first ones)."""
-        return self.rec.reg_gen[:, :self.n_reg(name)]
+        """The registration term name's image motions (F, `n_reg`, 2): Record.reg_gen's rotations, or
+        with the shift_ term its translations."""
+        if getattr(self.terms, "shift_" + name):
+            return self.rec.reg_gen[:, N_REG:N_REG + N_SHIFT]
+        return self.rec.reg_gen[:, :N_REG]
 
     def scales(self, ev: "Eval", sigma: float) -> np.ndarray:
         """Each residual's scale sigma_j (2F,) px: sigma with the switch-share variance added
@@ -988,7 +1009,7 @@ class RecordModel:
             mx = ev.state[name + "_mix"]
             a = [np.log(mx["p_new"]) - huber_rho(lv["new"][0], sigma) - huber_rho(lv["new"][1], sigma),
                  np.log(mx["p_old"]) - huber_rho(lv["old"][0], sigma) - huber_rho(lv["old"][1], sigma)]
-            if mx["D"] > 0.0:
+            if mx["D"] + mx["E"] > 0.0:
                 ds = mx["ds"]
                 du, dv = self.reg_offset(ev, name)
                 ln_mid = _mid_level(*lv["old"], ds * du[j], ds * dv[j], sigma)[1]
@@ -1184,7 +1205,7 @@ class RecordModel:
         ramps = {}
         for name, val in reg.items():
             t_ev, s_ev, s_prev, L = st[name][1:5]
-            Lw = L + st[name][6]  # the stand-in's window: lag and longest slide
+            Lw = L + st[name][6] + st[name][7]  # the stand-in's window: lag, longest slide and exposure
             if t_ev.size == 0:  # no switch at this theta (a B no swing takes up): nothing moves with tau
                 continue
             e = np.searchsorted(t_ev, tau, side="right") - 1
@@ -1201,6 +1222,11 @@ class RecordModel:
                     i = lay[part + name].start
                     Gu[:, i] = dW * dmap(th[i])[1] * val[0]
                     Gv[:, i] = dW * dmap(th[i])[1] * val[1]
+            if "expo" in lay:  # the window opens e / 2 earlier and is e longer
+                i = lay["expo"].start
+                dSe = (0.5 * dS + dW) * self.expo_map(th[i])[1]
+                Gu[:, i] += dSe * val[0]
+                Gv[:, i] += dSe * val[1]
             ramps[name] = (e, inr, dS)
         # B's coefficients and the first state: through z at each frame (the last drag, or the
         # first state before any), and the tip switch's onsets. The tip mode's drive through the
@@ -1221,7 +1247,7 @@ class RecordModel:
             Gv[:, sl_b] += self.slope[:, 1, None] * dx
         if "tip" in ramps:
             e, inr, dS = ramps["tip"]
-            dton, dton_x = self.onset_gradient(cB, st, st["tip"][1], rec.s_new[st["tip"][5]], x0)  # (E, n_b), (E,)
+            dton, dton_x = self.onset_gradient(cB, st, st["tip"][1] + 0.5 * st["expo"], rec.s_new[st["tip"][5]], x0)  # (E, n_b), (E,)
             fr = np.flatnonzero(inr)
             val = reg["tip"]
             Gu[fr, sl_b] += (-dS[fr] * val[0][fr])[:, None] * dton[e[fr]]
@@ -1287,6 +1313,9 @@ class RecordModel:
                 if "slide_" + name in lay:
                     i = lay["slide_" + name].start
                     Jk[:, i] = dr[2] * self.slide_map(th[i])[1]
+                if "expo" in lay:                          # the window opens e / 2 earlier: since grows by it
+                    i = lay["expo"].start
+                    Jk[:, i] = (0.5 * dr[0] + dr[3]) * self.expo_map(th[i])[1]
                 if dton is not None:                       # the tip's switch starts at its onset
                     Jk[np.flatnonzero(ok), 1:1 + self.n_b] = -dr[0][ok][:, None] * dton
                     Jk[np.flatnonzero(ok), lay["z0"].start] = -dr[0][ok] * dton_x

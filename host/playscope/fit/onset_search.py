@@ -38,9 +38,11 @@ SIGMA_RERUN = 0.7      # the search runs again at the fit's residual scale when 
 RING_ZETA_STARTS = (0.03, 0.1, 0.3)  # the tip mode's damping ratios a ring start is profiled at: a factor
                        # of about 3 apart over the lightly damped modes the term is for (above about 0.5 a
                        # mode barely rings), so LM starts within its reach of the ratio
-EXPO_GRID = (0.25, 0.5, 1.0)  # the exposure term's starts, frame periods, as a slide's lag grid (the settled cost over
-                       # e was unimodal about the truth on two renderings, 20 and 35 ms at 25 fps: one start may
-                       # do, not tried)
+EXPO_GRID = (0.1, 0.25, 0.5, 1.0)  # the exposure term's starts, frame periods, as a slide's lag grid: at most a
+                       # factor 2.5 apart over its range [T / 20, T] (from 0.25 up, the 4 ms exposure of
+                       # dev-reg0-swings25-fast was out of a trial fit's reach: its best trial 4,999 against
+                       # 4,987 from 0.1; the settled cost over e was unimodal about the truth on two renderings,
+                       # 20 and 35 ms at 25 fps)
 
 
 # --------------------------------------------------------------------------- the start

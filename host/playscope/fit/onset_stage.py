@@ -114,11 +114,13 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         if getattr(terms, "reg_" + name):
             du, dv = m.reg_offset(fit.ev, name)
             k = 2 * m.n_g + m.mix_block(name)
+            shift = getattr(terms, "shift_" + name)
             along = along_path_share(du, dv, slope)
             reg[name] = {"jump_px": [2 * float(np.median(du)), 2 * float(np.median(dv))],
                          "jump_px_range": [2 * float(np.min(np.hypot(du, dv))), 2 * float(np.max(np.hypot(du, dv)))],
-                         "half_switch_deg_about_xyz": [float(np.degrees(a)) for a in beta[k:k + OM.N_REG]],
-                         "half_switch_px_uv": [float(a) for a in beta[k + OM.N_REG:k + m.n_reg(name)]] or None,
+                         # a switch is a camera rotation, or with the shift_ term an image translation
+                         "half_switch_deg_about_xyz": None if shift else [float(np.degrees(a)) for a in beta[k:k + OM.N_REG]],
+                         "half_switch_px_uv": [float(a) for a in beta[k:k + OM.N_SHIFT]] if shift else None,
                          "switch_lag_s": lags[name], "slide_s": slides[name], "along_path": along}
     report = {
         "method": "one model of the record (playscope.fit.onset_model)",

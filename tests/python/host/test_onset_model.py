@@ -38,7 +38,8 @@ def test_noise_sigma_recovers_white_noise_on_a_slow_record():
                                              (("reg_tip", "reg_motor", "mix"), "input"),
                                              (("reg_tip", "slide_tip", "reg_motor", "slide_motor", "mix"), "input"),
                                              (("reg_tip", "shift_tip", "reg_motor", "shift_motor", "mix"), "input"),
-                                             (("expo",), "input"), (("expo",), "output")])
+                                             (("expo",), "input"), (("expo",), "output"),
+                                             (("reg_tip", "reg_motor", "expo", "mix"), "input")])
 def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
     # Kaufman's variable-projection Jacobian against the projected residual's forward differences
     # (which re-solve the linear parameters): the gradient J'r, what the fit follows, and each
@@ -52,7 +53,9 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
     g = np.linspace(rec.q.min(), rec.q.max(), 40)
     cB = np.linalg.lstsq(OM._basis(g, g[0], g[-1], 4), r.B(g), rcond=None)[0]
     th = m.theta({"d": np.array([r.delay_s + 0.003]), "B": 1.03 * cB, "ring": m.ring_theta(3.1, 0.06),
-                  "expo": np.array([m.expo_x(0.022)])})
+                  "expo": np.array([m.expo_x(0.010 if "mix" in terms else 0.022)])})
+    # (with the switches, an exposure shorter than their lag: at 22 ms, as long as the lag, the forward
+    # step of a lag moves two frames across a share's clip and the differences read 0.84 there)
     ev = m.evaluate(th)
     m.slope = m.G_slope(ev)
     if "mix" in terms:  # the switches' mixture rows (an E-step first)
@@ -86,23 +89,30 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
             assert cos(Ja[:, i], Jf[:, i]) > (0.975 if terms else 0.95)
 
 
-def test_the_switchs_level_shares_are_those_of_a_uniform_start_and_a_uniform_slide():
-    # Monte Carlo of the switch the shares assume (start u ~ U(0, L), duration ~ U(0, D)), apart from
-    # the closed form: the share still at the old level and the share already at the new one, with
-    # the stepped switch (D = 0) as p = since / L; and their derivatives against central differences
+@pytest.mark.parametrize("D,E", [(0.025, 0.0), (0.025, 0.011), (0.0, 0.011)])
+def test_the_switchs_level_shares_are_those_of_a_uniform_start_a_uniform_slide_and_the_exposure(D, E):
+    # Monte Carlo of the switch the shares assume (start u ~ U(0, L), duration E + U(0, D): a slide
+    # seen through an exposure E), apart from the closed form: the share still at the old level and
+    # the share already at the new one, with the stepped switch (D = E = 0) as p = since / L; and
+    # their derivatives over (since, L, D, E) against central differences
     rng = np.random.default_rng(5)
-    L, D = 0.03, 0.025
-    u, dur = rng.uniform(0, L, 200_000), rng.uniform(0, D, 200_000)
-    since = np.linspace(-0.0093, 0.0707, 17)  # off the kinks at 0, D, L and L + D
-    p_old, p_new, dp_old, dp_new = OM._switch_shares(since, L, D)
+    L = 0.03
+    u, dur = rng.uniform(0, L, 200_000), E + rng.uniform(0, D, 200_000)
+    since = np.linspace(-0.0093, 0.0807, 17)  # off the kinks at 0, E, D + E, L and L + D + E
+    p_old, p_new, dp_old, dp_new = OM._switch_shares(since, L, D, E)
     mc_old = np.array([(u >= s).mean() for s in since])
     mc_new = np.array([(u + dur <= s).mean() for s in since])
     assert np.abs(p_old - mc_old).max() < 4e-3 and np.abs(p_new - mc_new).max() < 4e-3  # MC sd <= 1.1e-3
     assert np.allclose(OM._switch_shares(since, L, 0.0)[1], np.clip(since / L, 0, 1))
     h = 1e-6
-    for k, (a, b) in enumerate([((since + h, L, D), (since - h, L, D)), ((since, L + h, D), (since, L - h, D)),
-                                ((since, L, D + h), (since, L, D - h))]):
-        up, dn = OM._switch_shares(*a), OM._switch_shares(*b)
+    x = np.array([0.0, L, D, E])
+    for k in range(4):
+        if x[k] == 0.0 and k >= 2:  # a one-sided parameter at its bound
+            continue
+        dx = np.zeros(4)
+        dx[k] = h
+        up = OM._switch_shares(since + dx[0], *(x[1:] + dx[1:]))
+        dn = OM._switch_shares(since - dx[0], *(x[1:] - dx[1:]))
         for i, dp in ((0, dp_old), (1, dp_new)):
             assert np.allclose((up[i] - dn[i]) / (2 * h), dp[k], rtol=1e-6, atol=1e-6)
 
