@@ -69,11 +69,12 @@ def test_cli_evaluate_json_and_no_plant(setup):
                  "--json", str(d / "ev.json")]) == 0
     j = json.loads((d / "ev.json").read_text())
     assert j["format"] == "playscope-evaluate/1" and j["distal_kind"] == "image"
-    # On this session the family CV keeps the onset play with the travel-domain relaxation (since the
-    # record model's exposure term entered here at its floor; the pure play before): no operator, so
-    # the fixed-point row is the play's, and the float model with its relaxation is a row of its own.
-    assert cal.transition.is_play and cal.relax is not None
-    assert set(j["prediction"]) == {"f_coarse", "f_coarse+B", "f_remain+B", "f_remain+B+PI", "f_remain+B_fixed"}
+    # On this session the family CV keeps the pure onset play (with the travel-domain relaxation while
+    # the record model's switches were read at the frame's instant; the pure play before that and
+    # again since a switch is seen through the exposure): no operator and no relaxation, so the
+    # fixed-point row is the play's and no float row of a transition or relaxation is added.
+    assert cal.transition.is_play and cal.relax is None
+    assert set(j["prediction"]) == {"f_coarse", "f_coarse+B", "f_remain+B", "f_remain+B_fixed"}
     for r in j["prediction"].values():
         assert set(r) >= {"Qx_px", "Qy_px", "dist_px"} and set(r["Qx_px"]) == {"mean", "std", "max"}
     # No simulator parameters in this session: no plant, said so, no numbers invented.
