@@ -118,7 +118,8 @@ u + e / 2, so with the term a switch's window opens e / 2 before its reversal or
 switch takes e plus its slide to cross (`_switch_shares`' E), which places frames part way
 (a registration switching at the onset itself, dev-reg0-swings25-fast: read at tau, the frames a
 few ms before each onset already show part of the new level through their exposure, and the fit
-moved the onsets early, B 8.8 % off; the model held B at the truth 217 worse in the BIC).
+moved the onsets early, B 8.8 % off with the shift withheld; with the shift beside the rotation,
+the model held B at the truth 217 worse in the BIC).
 The fitted e is reported; the delay reported stays the split below. Eq. 1's
 t2 - t_delay is the instant a motion starts, and the first frame to show it is the first whose
 exposure ends after it, so the delay a user configures and the board's detector uses is the one
@@ -341,9 +342,9 @@ def _ramp_int(y: np.ndarray, L: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _switch_shares(since: np.ndarray, L: float, D: float, E: float = 0.0):
     """The switch's level shares at frames since s after its window opens (module doc: the switch, the
-    slide and the exposure): it starts at u ~ U(0, L) and moves for a duration E + U(0, D) (E the
-    exposure, through which a step is seen as a ramp of exactly E; D the longest slide; both 0: a
-    step). Returns (p_old, p_new, dp_old, dp_new): the shares of frames still at the old level,
+    slide and the exposure): it starts at u ~ U(0, L) and moves for a duration E + U(0, D) (E s the
+    exposure, through which a step is seen as a ramp of exactly E; D s the longest slide; both 0: a
+    step). since (K,) s; L > 0 s. Returns (p_old, p_new, dp_old, dp_new): the shares of frames still at the old level,
     u >= since, and already at the new one, u + duration <= since ((K,) each; the rest,
     1 - p_old - p_new, is mid way), and their derivatives over (since, L, D, E), (4, K) each."""
     since = np.asarray(since, float)
@@ -786,7 +787,7 @@ class RecordModel:
             pv = _share_var(tau, t_ev, L + D + e)
             self._mix_columns("tip", S, pv, tau, t_on - 0.5 * e, L, D, e, st)
             cols["tip"] = S[:, None, None] * self.generators("tip")
-            st["tip"] = (S, t_ev, s_ev, np.r_[s0, s_ev[:-1]], L, r_ev, D, e)
+            st["tip"] = (S, t_ev, s_ev, np.r_[s0, s_ev[:-1]], L, r_ev, D)
             st["pvar_tip"] = pv
         if self.terms.reg_motor:
             s0 = -rec.s_new[0]
@@ -796,7 +797,7 @@ class RecordModel:
             pv = _share_var(tau, t_ev, L + D + e)
             self._mix_columns("motor", S, pv, tau, t_ev, L, D, e, st)
             cols["motor"] = S[:, None, None] * self.generators("motor")
-            st["motor"] = (S, t_ev, rec.s_new, np.r_[s0, rec.s_new[:-1]], L, np.arange(rec.rt.size), D, e)
+            st["motor"] = (S, t_ev, rec.s_new, np.r_[s0, rec.s_new[:-1]], L, np.arange(rec.rt.size), D)
             st["pvar_motor"] = pv
         return cols, t_on, z_f, st
 
@@ -844,7 +845,8 @@ class RecordModel:
         for name in ("tip", "motor"):
             if name not in st:
                 continue
-            S, t_ev, s_ev, s_prev, L, r_ev, D, E = st[name]
+            S, t_ev, s_ev, s_prev, L, r_ev, D = st[name]
+            E = st["expo"]  # the exposure (0: none), which opened the window t_ev e / 2 early
             tau = st["tau"]
             if t_ev.size == 0:
                 continue
@@ -1205,7 +1207,7 @@ class RecordModel:
         ramps = {}
         for name, val in reg.items():
             t_ev, s_ev, s_prev, L = st[name][1:5]
-            Lw = L + st[name][6] + st[name][7]  # the stand-in's window: lag, longest slide and exposure
+            Lw = L + st[name][6] + st["expo"]  # the stand-in's window: lag, longest slide and exposure
             if t_ev.size == 0:  # no switch at this theta (a B no swing takes up): nothing moves with tau
                 continue
             e = np.searchsorted(t_ev, tau, side="right") - 1
