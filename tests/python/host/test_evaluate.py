@@ -69,10 +69,10 @@ def test_cli_evaluate_json_and_no_plant(setup):
                  "--json", str(d / "ev.json")]) == 0
     j = json.loads((d / "ev.json").read_text())
     assert j["format"] == "playscope-evaluate/1" and j["distal_kind"] == "image"
-    # On this session the family CV keeps the pure onset play (with the travel-domain relaxation while
-    # the record model's switches were read at the frame's instant; the pure play before that and
-    # again since a switch is seen through the exposure): no operator and no relaxation, so the
-    # fixed-point row is the play's and no float row of a transition or relaxation is added.
+    # On this session the family CV keeps the pure onset play (the relaxed onset play on stop 69's
+    # record model; which part of stop 70's record-model change moved it was not isolated): no
+    # operator and no relaxation, so the fixed-point row is the play's and no float row of a
+    # transition or relaxation is added.
     assert cal.transition.is_play and cal.relax is None
     assert set(j["prediction"]) == {"f_coarse", "f_coarse+B", "f_remain+B", "f_remain+B_fixed"}
     for r in j["prediction"].values():
