@@ -210,6 +210,10 @@ LOCKBOX7_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEE
 # later change).
 SEEDS_8 = {"marker": (68101, 680001), "swing": (68202, 680201), "render_c": (68303, 680401)}
 LOCKBOX8_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_8, PLAN, "s8-")]
+# Stop 71 runs all 300 at once (fixed here on 2026-11-27 before any of them was run), on the code of
+# stop 70 unchanged (3c96fd0: the switch seen through the exposure; the shift in the rotation's place;
+# the exposure's starts from T/10; written and judged on development rows and the spent LOCKBOX6_300
+# only). None stays sealed after it.
 
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
