@@ -215,6 +215,12 @@ LOCKBOX8_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEE
 # the exposure's starts from T/10; written and judged on development rows and the spent LOCKBOX6_300
 # only). None stays sealed after it.
 
+# The ninth set-aside group, LOCKBOX9_300 (drawn and committed 2026-11-27 during stop 71, after LOCKBOX8_300
+# ran and after the ring_motor term was written on the spent LOCKBOX7_300's rows; no code is yet informed
+# by any row of LOCKBOX8_300: sealed for the code of a later change).
+SEEDS_9 = {"marker": (69101, 690001), "swing": (69202, 690201), "render_c": (69303, 690401)}
+LOCKBOX9_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_9, PLAN, "s9-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
