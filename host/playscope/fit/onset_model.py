@@ -28,7 +28,18 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
           a damped tip mode (frequency f, damping ratio zeta, shared by the record) driven by the
           play output's acceleration (base excitation, x'' + 2 zeta w x' + w^2 x = -z''), split
           into the part that slows the tip (a stop) and the part that starts it (an onset), each
-          with its own gain; along the path's tangent G'.
+          with its own gain; along the path's tangent G'. Which deceleration drives a stop is a term,
+          ring_motor (entering, as every term, by the BIC, only onto the ring): the play output's
+          (base excitation through the play), or the motor's, its whole velocity change at the
+          reversal (a tip kicked by the same amount at every reversal, whatever the play's width
+          there). Where the width varies along the travel they differ: the output moves at the
+          motor's speed times 1 -+ B'(q) / 2 while dragged (read at the input), so its stops' drives
+          differ by up to B' / 2 of the ring from leg to leg and direction to direction, which B's
+          own slope then takes up. On s7-marker-096 of LOCKBOX7_300 (a constant-speed triangle, a
+          5.65 Hz mode kicked at each reversal by a fixed amount, B' / 2 up to 8 %, the ring building
+          up to 26 px over legs 1.5 of its periods long): with the output's drive B was 13.4 % off;
+          re-rendered with the kick following the output's speed, 3.4 %; with ring_motor on the
+          record as drawn, 2.4 %.
   S_tip, S_motor
           +-1 with the direction the tip (resp. the motor) last moved in: a registration that
           switches with the bending direction. R is the image motion of a small rotation
@@ -160,7 +171,7 @@ HUBER_K = 1.345        # Huber's tuning constant, in sigma (95 % efficiency at t
 GRID_HZ_MAX = 1000.0   # the play runs on a uniform grid at the encoder's rate, at most this (1 ms timing)
 RING_HZ_LO = 1.0       # the tip mode searched from this (Hz) ...
 RING_NYQUIST = 0.45    # ... to this share of the frame rate (below Nyquist, with the exposure's margin)
-TERMS = ("ring", "reg_tip", "reg_motor", "slide_tip", "slide_motor", "shift_tip", "shift_motor", "expo")
+TERMS = ("ring", "ring_motor", "reg_tip", "reg_motor", "slide_tip", "slide_motor", "shift_tip", "shift_motor", "expo")
                        # a slide_ or shift_ term needs its reg_ term
 EXPO_NODES = 8         # the exposure's average (module doc: the exposure) by the midpoint rule on this many
                        # nodes: a fixed count, so the image moves smoothly with e (a count growing with e would
@@ -420,6 +431,7 @@ class Terms:
     slide, and the exposure's blur of each frame (expo)."""
 
     ring: bool = False
+    ring_motor: bool = False   # the tip mode's stops driven by the motor's deceleration (module doc: the tip mode)
     reg_tip: bool = False
     reg_motor: bool = False
     slide_tip: bool = False    # the tip's switch slides rather than steps (module doc: the slide)
@@ -432,9 +444,11 @@ class Terms:
         return [n for n in TERMS if getattr(self, n)]
 
     def offered(self) -> list[str]:
-        """The terms the search may add next: those not on, a slide or a shift only to its switch."""
+        """The terms the search may add next: those not on, a slide or a shift only to its switch, the
+        ring's motor drive only to the ring."""
         return [n for n in TERMS if not getattr(self, n)
-                and (not n.startswith(("slide_", "shift_")) or getattr(self, "reg_" + n.split("_")[1]))]
+                and (not n.startswith(("slide_", "shift_")) or getattr(self, "reg_" + n.split("_")[1]))
+                and (n != "ring_motor" or self.ring)]
 
     def with_(self, name: str) -> "Terms":
         d = {n: getattr(self, n) for n in TERMS}
@@ -476,6 +490,8 @@ class RecordModel:
         self.w = np.ones(2 * rec.t_f.size)  # IRLS weights
         # a slide's longest duration (module doc: the slide): one frame period, as its lag's
         self.slide_max_s = rec.period_s
+        # the motor's acceleration on the grid (N - 2,), the ring_motor term's drive (module doc: the tip mode)
+        self.q_accel = np.diff(q, 2) / (rec.dt * rec.dt)
         self.slope = None  # G' at the frames from the previous round: (F, 2), for the ring's direction
         self.mix = {}      # the switch mixture's E-step per term ("tip", "motor"): `e_step`
         self._memo = None  # `_play_part`'s last arguments and result
@@ -736,6 +752,10 @@ class RecordModel:
             stop = a * v[:-1] < 0.0  # slowing the tip down (a stop); the rest starts it
             mask = (stop, ~stop)
             drive = (mask, [np.where(m, -a, 0.0) for m in mask])
+            if self.terms.ring_motor:  # a stop's drive the motor's deceleration, not the play output's:
+                # over the stop's sample and the next, as a reversal between two grid samples spreads the
+                # motor's second difference over both (the play output stops on the first)
+                drive[1][0] = np.where(stop | np.r_[False, stop[:-1]], -self.q_accel, 0.0)
         out = (z, lo, hi, last, side, self.onsets(z), tau, z_f, _basis(z_f, self.z_lo, self.z_hi, self.n_g), drive)
         self._memo = (key, out)
         return out
@@ -1139,7 +1159,8 @@ class RecordModel:
         last = st["last"]
         N = last.size
         pre_row = self.z_gradient(cB, st, np.zeros(1, int), x0)[0][0]  # before the first drag: the first state's
-        wd = np.where(st["mask"][0], -gains[0], -gains[1]) / (dt * dt)  # -u's part gains, the second difference's scale
+        # -u's part gains, the second difference's scale; a stop driven by the motor does not move with B
+        wd = np.where(st["mask"][0], 0.0 if self.terms.ring_motor else -gains[0], -gains[1]) / (dt * dt)
         b, a = _tip_filter(st["ring"][0], st["ring"][1], dt)
         pos = np.clip((st["tau"] - rec.t[1]) / dt, 0.0, N - 2 - 1.000001)
         i0 = pos.astype(int)

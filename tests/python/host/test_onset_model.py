@@ -27,6 +27,34 @@ def test_onsets_of_the_play_are_where_q_has_come_back_by_B_eq_1():
     assert np.allclose(t_on[1:], rt[1:] + b / speed, atol=1.5e-3)  # one grid step
 
 
+def test_the_tip_modes_stop_is_driven_by_the_play_output_or_by_the_motor():
+    # A triangle at speed v through a play whose width grows along the travel, B(q) = b0 + k q read
+    # at the input: while dragged, z = q -+ B(q) / 2 moves at v (1 -+ k / 2), so each stop's drive
+    # (the velocity change, the area of -z'') is v (1 - k / 2) going up and v (1 + k / 2) going
+    # down; driven by the motor (ring_motor) it is the motor's whole reversal, 2 v, at every stop.
+    dt, v, k = 1e-3, 2.0, 0.2
+    t = np.arange(0.0, 6.0, dt)
+    q = 1.0 - np.abs(((v * t) % 4.0) - 2.0)  # reversals every 1 s, at q = +-1
+    rt = np.arange(1.0, 5.5, 1.0)
+    rec = OM.make_record(t, q, rt, np.interp(rt, t, q), np.arange(0.5, 5.5, 0.04), np.zeros((125, 2)), 25.0)
+    for motor in (False, True):
+        m = OM.RecordModel(rec, 4, 6, OM.Terms(ring=True, ring_motor=motor), None)
+        g = np.linspace(m.q_lo, m.q_hi, 50)
+        cB = np.linalg.lstsq(OM._basis(g, g[0], g[-1], 4), 0.3 + k * g, rcond=None)[0]
+        th = m.theta({"d": np.array([0.0]), "B": cB, "ring": m.ring_theta(3.0, 0.1)})
+        (stop, _), (u_stop, _) = m._play_part(0.0, m.unpack(th)[1], m.z0_of(th), m.exposure(th))[-1]
+        for tr in rt[1:]:  # the first reversal's stop depends on the first state
+            near = np.abs(rec.t[1:-1] - tr) < 0.05
+            area = np.sum(u_stop[near]) * rec.dt
+            going_up = np.interp(tr - 0.1, t, q) < np.interp(tr, t, q)
+            want = 2 * v if motor else v * (1 - k / 2 if going_up else 1 + k / 2)
+            assert area * (1 if going_up else -1) == pytest.approx(want, rel=0.02)
+        # and so the stop's response moves with B only when the play output drives it (`ring_gradient`)
+        st = m.columns(th)[3]
+        dx = m.ring_gradient(m.unpack(th)[1], st, m.z0_of(th), np.array([1.0, 0.0]))
+        assert (np.abs(dx).max() == 0.0) if motor else (np.abs(dx).max() > 1e-3)
+
+
 def test_noise_sigma_recovers_white_noise_on_a_slow_record():
     rng = np.random.default_rng(3)
     x = np.column_stack([np.linspace(0, 50, 4000), np.sin(np.linspace(0, 6, 4000)) * 30])
@@ -35,6 +63,7 @@ def test_noise_sigma_recovers_white_noise_on_a_slow_record():
 
 @pytest.mark.parametrize("terms,width_at", [((), "input"), ((), "output"), (("reg_tip", "reg_motor"), "input"),
                                              (("reg_tip", "reg_motor"), "output"), (("ring",), "input"),
+                                             (("ring", "ring_motor"), "input"),
                                              (("reg_tip", "reg_motor", "mix"), "input"),
                                              (("reg_tip", "slide_tip", "reg_motor", "slide_motor", "mix"), "input"),
                                              (("reg_tip", "shift_tip", "reg_motor", "shift_motor", "mix"), "input"),
@@ -45,7 +74,7 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
     # (which re-solve the linear parameters): the gradient J'r, what the fit follows, and each
     # column of the delay and of B.
     r, d, t, q, rt, rq, obs, _ = record(reg_deg=1.5 if terms and terms[0] == "reg_tip" else 0.0,
-                                         ring_hz=3.0 if "ring" in terms else 0.0, duration_s=30.0,
+                                         ring_hz=3.0 if terms[:1] == ("ring",) else 0.0, duration_s=30.0,
                                          exposure_s=0.025 if "expo" in terms else 0.004)
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
     m = OM.RecordModel(rec, 4, 10, OM.Terms(**{k: True for k in terms if k != "mix"}), (r.delay_s, 0.01),
@@ -82,7 +111,7 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
     if "expo" in terms:  # the exposure's column: measured 0.9996 (both width forms)
         i = m.layout()["expo"].start
         assert cos(Ja[:, i], Jf[:, i]) > 0.99
-    if not terms or terms in (("ring",), ("expo",)):
+    if not terms or terms in (("ring",), ("ring", "ring_motor"), ("expo",)):
         for i in range(1 + m.n_b):
             # measured 0.98..1.0; the ring's B columns 0.989..0.9998 (0.93..0.97 without its drive through B);
             # with the exposure 0.988..0.9998
@@ -230,6 +259,7 @@ def test_the_along_path_share_is_the_cosine_between_the_jump_and_the_paths_tange
 
 def test_a_slide_or_a_shift_is_offered_only_onto_its_own_switch():
     assert OM.Terms().offered() == ["ring", "reg_tip", "reg_motor", "expo"]
+    assert OM.Terms(ring=True).offered() == ["ring_motor", "reg_tip", "reg_motor", "expo"]
     assert OM.Terms(reg_tip=True).offered() == ["ring", "reg_motor", "slide_tip", "shift_tip", "expo"]
     assert OM.Terms(reg_tip=True, reg_motor=True, slide_tip=True).offered() == \
         ["ring", "slide_motor", "shift_tip", "shift_motor", "expo"]
