@@ -38,8 +38,9 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
           own slope then takes up. On s7-marker-096 of LOCKBOX7_300 (a constant-speed triangle, a
           5.65 Hz mode kicked at each reversal by a fixed amount, B' / 2 up to 8 %, the ring building
           up to 26 px over legs 1.5 of its periods long): with the output's drive B was 13.4 % off;
-          re-rendered with the kick following the output's speed, 3.4 %; with ring_motor on the
-          record as drawn, 2.4 %.
+          re-rendered with the kick following the output's speed, 3.4 % (measured beside a change
+          to the ring's direction that was not kept, CHANGELOG.md); with ring_motor on the record as
+          drawn, 2.4 %.
   S_tip, S_motor
           +-1 with the direction the tip (resp. the motor) last moved in: a registration that
           switches with the bending direction. R is the image motion of a small rotation
@@ -172,7 +173,7 @@ GRID_HZ_MAX = 1000.0   # the play runs on a uniform grid at the encoder's rate, 
 RING_HZ_LO = 1.0       # the tip mode searched from this (Hz) ...
 RING_NYQUIST = 0.45    # ... to this share of the frame rate (below Nyquist, with the exposure's margin)
 TERMS = ("ring", "ring_motor", "reg_tip", "reg_motor", "slide_tip", "slide_motor", "shift_tip", "shift_motor", "expo")
-                       # a slide_ or shift_ term needs its reg_ term
+                       # a slide_ or shift_ term needs its reg_ term, ring_motor the ring
 EXPO_NODES = 8         # the exposure's average (module doc: the exposure) by the midpoint rule on this many
                        # nodes: a fixed count, so the image moves smoothly with e (a count growing with e would
                        # step it); the rule's own error against the exact mean over the window is not measured
