@@ -491,8 +491,6 @@ class RecordModel:
         self.w = np.ones(2 * rec.t_f.size)  # IRLS weights
         # a slide's longest duration (module doc: the slide): one frame period, as its lag's
         self.slide_max_s = rec.period_s
-        # the motor's acceleration on the grid (N - 2,), the ring_motor term's drive (module doc: the tip mode)
-        self.q_accel = np.diff(q, 2) / (rec.dt * rec.dt)
         self.slope = None  # G' at the frames from the previous round: (F, 2), for the ring's direction
         self.mix = {}      # the switch mixture's E-step per term ("tip", "motor"): `e_step`
         self._memo = None  # `_play_part`'s last arguments and result
@@ -756,7 +754,8 @@ class RecordModel:
             if self.terms.ring_motor:  # a stop's drive the motor's deceleration, not the play output's:
                 # over the stop's sample and the next, as a reversal between two grid samples spreads the
                 # motor's second difference over both (the play output stops on the first)
-                drive[1][0] = np.where(stop | np.r_[False, stop[:-1]], -self.q_accel, 0.0)
+                q_acc = np.diff(rec.q, 2) / (rec.dt * rec.dt)
+                drive[1][0] = np.where(stop | np.r_[False, stop[:-1]], -q_acc, 0.0)
         out = (z, lo, hi, last, side, self.onsets(z), tau, z_f, _basis(z_f, self.z_lo, self.z_hi, self.n_g), drive)
         self._memo = (key, out)
         return out
@@ -1149,8 +1148,9 @@ class RecordModel:
         (g_stop, g_start) the tip mode's two gains. The mode is linear in its drive u = -z'' (each
         part on its fixed mask, `columns`), so the gains' sum of its derivatives is the mode's
         response to -(dz/dc)'' weighted by the part's gain at each sample: one filtering of the
-        n_b rows rather than one per part. dz/dc on the grid is the edge gradient of the drag that
-        last set z (`edge_gradient`), which jumps at each onset by the new edge's speed times the
+        n_b rows rather than one per part. With ring_motor the stop's part is the motor's, which
+        does not move with B: its gain weighs nothing here. dz/dc on the grid is the edge gradient
+        of the drag that last set z (`edge_gradient`), which jumps at each onset by the new edge's speed times the
         onset's shift, so the response carries the start's shift in time (a dipole through the
         filter). Without it a 10 px ring moved by a millisecond per onset went unseen: the gradient
         over B came out a third of the differences' on a fast 60 fps triangle and the fit stopped

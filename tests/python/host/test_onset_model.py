@@ -32,10 +32,12 @@ def test_the_tip_modes_stop_is_driven_by_the_play_output_or_by_the_motor():
     # at the input: while dragged, z = q -+ B(q) / 2 moves at v (1 -+ k / 2), so each stop's drive
     # (the velocity change, the area of -z'') is v (1 - k / 2) going up and v (1 + k / 2) going
     # down; driven by the motor (ring_motor) it is the motor's whole reversal, 2 v, at every stop.
+    # The reversals fall 0.4 ms before a grid sample, so the motor's second difference spreads over
+    # two samples (the stop's and the next), as on a real record.
     dt, v, k = 1e-3, 2.0, 0.2
     t = np.arange(0.0, 6.0, dt)
-    q = 1.0 - np.abs(((v * t) % 4.0) - 2.0)  # reversals every 1 s, at q = +-1
-    rt = np.arange(1.0, 5.5, 1.0)
+    q = 1.0 - np.abs(((v * (t + 4e-4)) % 4.0) - 2.0)  # reversals every 1 s, at q = +-1
+    rt = np.arange(1.0, 5.5, 1.0) - 4e-4
     rec = OM.make_record(t, q, rt, np.interp(rt, t, q), np.arange(0.5, 5.5, 0.04), np.zeros((125, 2)), 25.0)
     for motor in (False, True):
         m = OM.RecordModel(rec, 4, 6, OM.Terms(ring=True, ring_motor=motor), None)
