@@ -220,6 +220,9 @@ LOCKBOX8_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEE
 # by any row of LOCKBOX8_300: sealed for the code of a later change).
 SEEDS_9 = {"marker": (69101, 690001), "swing": (69202, 690201), "render_c": (69303, 690401)}
 LOCKBOX9_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_9, PLAN, "s9-")]
+# Stop 72 runs all 300 at once (fixed here on 2026-11-28 before any of them was run), on the code of
+# stop 71 unchanged (484077c: the tip mode's stop driven by the motor as a term, ring_motor; written on
+# the spent LOCKBOX7_300's marker ringing rows). None stays sealed after it.
 
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
