@@ -165,47 +165,49 @@ def _ring_start(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
 def _ring_profiled_starts(rec: Record, n_g: int, terms: Terms, prior, d_fixed, parts: dict, freqs_hz: np.ndarray,
                           d_starts: list[float], widths: list[float], slope: np.ndarray, sigma: float) -> list[dict]:
     """The tip mode's own profiled starts, as `_start` gives each registration term its own: at a
-    constant width with the ring on (and the terms of parts), for each damping ratio of
-    RING_ZETA_STARTS, the delay of d_starts and the width of widths with the lowest robust cost, at
-    the one of the scan's local minima freqs_hz (Hz, `_ring_scan`, its lowest first) whose profile
-    at the scan's ratio, 0.1, is lowest (ties keep the earlier). Why profiled: a ring the plain fit
-    lacked drags its width (the stop's swing read as an early onset: a play 10 times too narrow on
-    a development record), and from there no fit reaches the ring's basin; the profile's cost alone
-    does not rank the damping ratios (the constant width's misfit outweighs them), so each distinct
-    start is carried through the chain and the BIC chooses. Why the frequency by the profile, not
-    the scan: the scan runs at the dragged fit, where an alias can score lowest. On s5-render_c-092
-    (30 fps triangle, 89 ms legs, a 5.73 Hz mode) it picked 13.25 Hz, the frames' alias of the
-    triangle's third harmonic, from which the search's best ring reached BIC 386; its minimum at
-    4.75 Hz profiles at cost 380 against 13.25's 725, and its chains reach 5.74 Hz, BIC 301. Each
-    minimum is ranked by one profile, not three (len(d_starts) x len(widths) evaluations: 26 with a
-    configured delay and the board's samples; 0.91 s of the 9 s `calibrate` on the 3-minute bench
-    session, 7 minima, against 0.32-0.38 s for the scan's lowest alone). Returns the distinct
-    starts, parts of the constant-width model."""
+    constant width with the ring on (and the terms of parts), for each delay of d_starts and each
+    damping ratio of RING_ZETA_STARTS, the width of widths with the lowest robust cost, at the one
+    of the scan's local minima freqs_hz (Hz, `_ring_scan`, its lowest first) whose profile at that
+    delay and the scan's ratio, 0.1, is lowest (ties keep the earlier). Why profiled: a ring the
+    plain fit lacked drags its width (the stop's swing read as an early onset: a play 10 times too
+    narrow on a development record), and from there no fit reaches the ring's basin. Why each
+    delay and each damping ratio its own start: the profile's cost ranks neither, since the
+    constant width's misfit outweighs them, so each distinct start is carried through the chain and
+    the BIC chooses. On s8-swing-086 of LOCKBOX8_300 (30 fps triangle, 0.368 s legs, a 7.44 Hz
+    mode, B 0.15..0.28) the configured delay's best width profiled at 57,535 and the coarse delay's
+    (1.2 frames late, a width a tenth of the truth's) at 58,437; kept at the lowest over both
+    delays, only the late start was chained, and the search ended 1.76 frames late with B 72 % off
+    (BIC 12,775); chained from the configured delay, the ring alone reaches BIC 3,315 at the truth.
+    Why the frequency by the profile, not the scan: the scan runs at the dragged fit, where an
+    alias can score lowest. On s5-render_c-092 (30 fps triangle, 89 ms legs, a 5.73 Hz mode) it
+    picked 13.25 Hz, the frames' alias of the triangle's third harmonic, from which the search's
+    best ring reached BIC 386; its minimum at 4.75 Hz profiles at cost 380 against 13.25's 725, and
+    its chains reach 5.74 Hz, BIC 301. Each minimum is ranked by one profile per delay
+    (len(widths) evaluations, 13 with the board's samples). Returns the distinct starts, parts of
+    the constant-width model."""
     m = RecordModel(rec, 1, n_g, terms, prior, d_fixed)
     m.slope = slope
     keep = {k: v for k, v in parts.items() if k in m.layout() and k not in ("d", "B", "ring")}
 
     @functools.lru_cache(maxsize=None)  # the chosen minimum's profile at 0.1 is asked for twice
-    def profile(f_hz, zeta):
-        """(the lowest robust cost, its parts) over d_starts x widths at the mode (f_hz, zeta)."""
+    def profile(f_hz, zeta, d):
+        """(the lowest robust cost, its parts) over widths at the delay d and the mode (f_hz, zeta)."""
         best = None
-        for d in d_starts:
-            for b in widths:
-                p = {**keep, "d": np.array([d]), "B": np.array([b]), "ring": m.ring_theta(f_hz, zeta)}
-                c = m.objective(m.evaluate(m.theta(p)), sigma)
-                if best is None or c < best[0]:
-                    best = (c, p)
+        for b in widths:
+            p = {**keep, "d": np.array([d]), "B": np.array([b]), "ring": m.ring_theta(f_hz, zeta)}
+            c = m.objective(m.evaluate(m.theta(p)), sigma)
+            if best is None or c < best[0]:
+                best = (c, p)
         return best
 
-    f_hz = float(freqs_hz[0])
-    if len(freqs_hz) > 1:
-        f_hz = float(min(freqs_hz, key=lambda f: profile(float(f), 0.1)[0]))
     out = {}
-    for zeta in RING_ZETA_STARTS:
-        best = profile(f_hz, zeta)
-        key = (float(best[1]["d"][0]), float(best[1]["B"][0]))
-        if key not in out or best[0] < out[key][0]:
-            out[key] = best
+    for d in dict.fromkeys(float(d) for d in d_starts):
+        f_hz = float(min(freqs_hz, key=lambda f: profile(float(f), 0.1, d)[0]))
+        for zeta in RING_ZETA_STARTS:
+            best = profile(f_hz, zeta, d)
+            key = (d, float(best[1]["B"][0]))
+            if key not in out or best[0] < out[key][0]:
+                out[key] = best
     return [p for _, p in out.values()]
 
 
