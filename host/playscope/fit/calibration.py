@@ -338,10 +338,15 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     on: the onset samples (onsets.Onsets); bfit: their fit_backlash_auto result; t_enc, q: (N,)
     s, actuator units; t_f, c_f: (F,) s, deg; td: acquisition delay, s; model_kind "auto"|"pi";
     n_ctrl: f's control points for the pure-play candidate (14 from calibrate: the
-    cross-validated f_remain N needs B first); src: file named in errors. c_confounded: the image
-    jumps with the direction of motion (the record model's tip switch: a registration or channel
-    error), so c carries a direction-following offset that a wider or narrower B mimics; the CV
-    on c then has no evidence about B's stiffness and the B-sample CV's own pick is kept.
+    cross-validated f_remain N needs B first); src: file named in errors. c_confounded: c carries
+    an effect the record model measured and no model here has, so the CV on c has no evidence
+    about B's stiffness and the B-sample CV's own pick is kept: the image jumps with the direction
+    of motion (a registration or channel error: a direction-following offset that a wider or
+    narrower B mimics), or the tip rings after each reversal (a mode in time since the reversal,
+    which on legs of one length is a function of q and the direction, so the PI operators take it
+    up with B. On s8-swing-078 of LOCKBOX8_300, a 60 fps triangle with a 2.3 Hz mode of 9.5 px,
+    the onset samples were 0.4 % off the true B; the CV on c put their spline 0.45 deg against
+    the best's 0.32 +- 0.12, and the stiffest spline within that, kept, was 16.8 % off).
     Returns BAndModel (the kept B, its transition, f, sign and choice dict, every alternative's
     row, the kept alternative's FitData)."""
     alts = backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)
@@ -601,9 +606,11 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     model_cv, fit_data = None, None
     if model_kind != "play" and rt.size >= MIN_REVERSALS_TRANSITION:
         # B(q)'s stiffness by the model's own cross-validation on c (see choose_b_and_model).
-        jump = ((refine_doc or {}).get("registration") or {}).get("found", False)
+        # c carries what the record model measured and the angle chain's models lack: a switch
+        # of the image with the direction, or the tip's mode (choose_b_and_model's c_confounded)
+        found = [((refine_doc or {}).get(k) or {}).get("found", False) for k in ("registration", "ringing")]
         stage("B(q) and the model by cross-validation")
-        joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src, c_confounded=jump)
+        joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src, c_confounded=any(found))
         bfit, model_cv, fit_data = joint.bfit, joint.rows, joint.data
         B, w = bfit.B, bfit.weight
     if fit_data is None or fit_data.B is not B:
