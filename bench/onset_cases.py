@@ -223,8 +223,9 @@ LOCKBOX9_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEE
 # Stop 72 runs all 300 at once (fixed here on 2026-11-28 before any of them was run), on the code of
 # stop 71 unchanged (484077c: the tip mode's stop driven by the motor as a term, ring_motor; written on
 # the spent LOCKBOX7_300's marker ringing rows). None stays sealed after it.
-# Stop 72 ran 273 of them before the session ended (rows in bench/scoreboard_rows/lockbox9-stop72.jsonl);
-# the other 27 run next, on the same code, resumed from that file copied to build/onset_scoreboard/lockbox9.jsonl.
+# Stop 72 ran 273 of them before the session ended; the next session ran the other 27 on the same code
+# (484077c's onset code, from 5d3c160), resumed from those rows. All 300 rows are in
+# bench/scoreboard_rows/lockbox9-stop72.jsonl. Spent: development data from then on.
 
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
