@@ -21,7 +21,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..base.forkmap import fork_map
-from .onset_model import Eval, RecordModel, _basis, robust_sigma
+from .onset_model import Eval, Record, RecordModel, _basis, robust_sigma
 
 IRLS_ROUNDS = 3        # reweightings of the Huber fit (the weights settle in 2-3 on every record tried)
 EXPO_BOUND_CHI2 = 3.84  # the robust objective's rise (a -2 ln likelihood) that rules an exposure out: the
@@ -353,14 +353,33 @@ def exposure_bound(fit: Fit) -> float:
     return float(bound)
 
 
+def engaged_at_reversals(rec: Record, last: np.ndarray, side: np.ndarray) -> np.ndarray:
+    """Whether the play was engaged at each reversal (M,) bool: at the reversal's extremum (the
+    grid point make_record put it on) the output sat on the edge the old direction drags, the
+    upper (side +0.5) before a reversal upwards (s_new +1), the lower before one downwards, at that
+    point or the one before. last, side (N,): `RecordModel.play_drags`' bookkeeping."""
+    k = np.clip(np.rint((rec.rt - rec.t[0]) / rec.dt).astype(np.int64), 0, rec.t.size - 1)
+    return (last[k] >= k - 1) & (side[k] == 0.5 * rec.s_new)
+
+
 def samples(fit: Fit) -> ModelSamples:
     """B samples of eq. 1 from the fitted play (module doc), each with its standard error from the
     fit's covariance sigma^2 (J'J)^-1 (J: the weighted residuals' Jacobian in sigma units, so the
-    covariance is (J'J)^-1)."""
+    covariance is (J'J)^-1).
+
+    Only reversals at which the fitted play was engaged give a sample: the output on the edge that
+    the old direction drags (`engaged_at_reversals`). Eq. 1's |q(t2) - q1| is the play's width only
+    when the take-up starts from that edge; at a reversal the play reached from inside its band
+    (the record's first, when the output starts anywhere in the play, or one after a stroke shorter
+    than the play) it is a part of the width, which the model itself says. Such a sample is no
+    evidence about B, and at the end of the travel it pulled B's spline down: on s9-render_c-027
+    of LOCKBOX9_300 the first reversal gave 0.10 mm against a width of 0.31, with a standard error
+    of zero (its onset moves with no parameter the covariance spans), so every other sample near it
+    read as inconsistent and B's spline was 5.7 % off with the model's own B 1.2 % off."""
     m, th = fit.model, fit.theta
     rec = m.rec
     d, cB = m.unpack(th)[:2]
-    z = m.play(cB, m.z0_of(th))
+    z, _, _, last, side = m.play_drags(cB, m.z0_of(th))
     t_on = m.onsets(z)
     J = fit.jac
     cov = np.linalg.pinv(J.T @ J)
@@ -377,6 +396,7 @@ def samples(fit: Fit) -> ModelSamples:
     se_d = float(np.sqrt(max(cov[0, 0], 0.0))) if m.d_fixed is None else 0.0
     # the onset must fall within the frames' span (a model extrapolated past the video says nothing)
     ok = np.isfinite(t_on) & (t_on + d > rec.t_f[0] + rec.period_s) & (t_on + d < rec.t_f[-1] - rec.period_s)
+    ok &= engaged_at_reversals(rec, last, side)
     q2 = q_on[ok]
     # the record's bound on the exposure can change the verdict on the configured delay only where that
     # lies further below the mean lag than the test allows, and not that far below the band [0, T]

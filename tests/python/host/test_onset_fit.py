@@ -105,3 +105,33 @@ def test_a_channel_translation_is_fitted_by_the_shift_as_one_offset_of_the_whole
     assert f1.bic(sig) < f0.bic(sig) - 1000
     assert np.median(np.abs(du)) == pytest.approx(half, rel=0.005) and abs(np.median(dv)) < 0.05
     assert abs(shift.unpack(f1.theta)[1][0] / sc.B(0.0) - 1) < 0.005
+
+
+def _short_first_stroke_record():
+    """A 1 kHz triangle that first rises 0.05 mm, then swings between -1 and +1 mm (reversals at
+    0.05, -1, +1, -1 mm), 25 fps frames: with a play 0.3 mm wide starting mid-band, the first
+    stroke never reaches the play's edge."""
+    t = np.arange(0.0, 4.0, 0.001)
+    knots_t = np.array([0.0, 0.05, 1.1, 2.3, 3.5, 4.0])
+    knots_q = np.array([0.0, 0.05, -1.0, 1.0, -1.0, -0.5])
+    q = np.interp(t, knots_t, knots_q)
+    t_f = np.arange(0.02, 3.98, 0.04)
+    obs = np.column_stack([np.linspace(300, 400, t_f.size), np.full(t_f.size, 250.0)])
+    return OM.make_record(t, q, knots_t[1:5], knots_q[1:5], t_f, obs, 25.0, (360.0, 288.0), 600.0)
+
+
+@pytest.mark.parametrize("x0, first_kept", [(0.0, False), (-30.0, True)])
+def test_eq1_samples_come_only_from_reversals_the_play_was_engaged_at(x0, first_kept):
+    # Eq. 1 measures the width from the reversal only when the output sat on the edge the old
+    # direction drags. Started mid-band (x0 = 0), the first stroke (0.05 mm, under half the 0.3 mm
+    # play) leaves the output inside the band, so the first take-up is 0.20 mm, not the width:
+    # no sample there. Started on the lower edge (x0 -> -inf), the first stroke drags it: a sample.
+    from types import SimpleNamespace
+
+    rec = _short_first_stroke_record()
+    m = OM.RecordModel(rec, 1, 6, OM.Terms(), None)
+    th = m.theta({"d": np.array([0.0]), "B": np.array([0.3]), "z0": np.array([x0])})
+    sm = OF.samples(SimpleNamespace(model=m, theta=th, jac=np.eye(th.size), sigma=1.0))
+    assert list(sm.rev) == ([0, 1, 2, 3] if first_kept else [1, 2, 3])
+    # every kept sample is the width, to the 1 ms grid at 1.8 mm/s (and the q at the onset's interpolation)
+    np.testing.assert_allclose(sm.b, 0.3, atol=0.003)
