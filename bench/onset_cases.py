@@ -227,6 +227,14 @@ LOCKBOX9_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEE
 # (484077c's onset code, from 5d3c160), resumed from those rows. All 300 rows are in
 # bench/scoreboard_rows/lockbox9-stop72.jsonl. Spent: development data from then on.
 
+# The tenth set-aside group, LOCKBOX10_300 (drawn and committed 2026-11-28 at the start of stop 74, before
+# any code of that stop; sealed for the code of 23b1908: stop 72's ring starts per delay and the tip mode
+# keeping the samples' B stiffness, and stop 73's eq. 1 samples only from engaged reversals, each written
+# on development rows and the spent LOCKBOX8_300 and LOCKBOX9_300 rows). Run all 300 on that code,
+# resumed across sessions from its rows if need be, fixed here before any of them is run.
+SEEDS_10 = {"marker": (70101, 700001), "swing": (70202, 700201), "render_c": (70303, 700401)}
+LOCKBOX10_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_10, PLAN, "s10-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
