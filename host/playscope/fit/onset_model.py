@@ -88,7 +88,9 @@ The marker at frame j, stamped t_j on the encoder's clock, shows the scene at ta
           outlier of both and its timing follows whichever level is nearer (16 % off in B on a
           channel rendering). A switch term slide_tip / slide_motor (entering, as every term, by the
           BIC, only onto its switch) lets the switch, started at u ~ U(0, L), slide for a duration
-          ~ U(0, D), D fitted up to a frame period, as the lag is. Why no longer: a slide the frames
+          ~ U(0, D), D fitted up to SLIDE_MAX_S (or a frame period if longer: a settling is time,
+          and at 60 fps a one-frame bound took a 40 ms channel slide only in part, B 5-6 % off on
+          three rows of marker_render). Why no longer: a slide the frames
           resolve as a motion runs along the image path wherever the registration does (the
           common case), where it is the plant's own take-up after the play; offered up to half the
           interval between reversals, it took the main job's transition (a 0.48 s slide along
@@ -187,6 +189,9 @@ G_PENALTY = 1e-6       # G's second-difference penalty, of its block's mean pivo
 EPS_SHARE = 1e-3       # the least share the mixture gives a level (module doc): a frame beside a switch window
                        # may show the other level at this probability, so a misplaced window costs
                        # 2 ln(1 / EPS_SHARE) = 14 (a 3.7-sigma residual), not an infinite one, and the fit can move it
+SLIDE_MAX_S = 0.1      # a slide's longest duration at least this, s (module doc: the slide): a settling of
+                       # tens of ms is physical time, not frames; a tenth of a second stays well below the
+                       # plant's take-up that a half-interval bound took (0.48 s on the main job)
 N_REG = 3              # the registration's rotation (rad) about the camera's x, y and optical axes (module doc: R)
 N_SHIFT = 2            # or, with a shift_ term, its translation (px) along the image's u and v (module doc: the shift)
 
@@ -489,8 +494,8 @@ class RecordModel:
             self.Phi_Bz = _sparse_basis(self.z_grid, self.q_lo, self.q_hi, n_b) if n_b > 1 else None
         self.z_lo, self.z_hi = self.q_lo - 0.25 * span, self.q_hi + 0.25 * span
         self.w = np.ones(2 * rec.t_f.size)  # IRLS weights
-        # a slide's longest duration (module doc: the slide): one frame period, as its lag's
-        self.slide_max_s = rec.period_s
+        # a slide's longest duration (module doc: the slide): a frame period, and at least SLIDE_MAX_S
+        self.slide_max_s = max(rec.period_s, SLIDE_MAX_S)
         self.slope = None  # G' at the frames from the previous round: (F, 2), for the ring's direction
         self.mix = {}      # the switch mixture's E-step per term ("tip", "motor"): `e_step`
         self._memo = None  # `_play_part`'s last arguments and result
