@@ -123,7 +123,7 @@ SLIDE_GRID = ((0.25, 0.5, 1.0), (0.25, 0.5, 1.0))  # a slide's start grid: lags,
 
 def _slide_starts(m: RecordModel, name: str, parts: dict, sigma: float, keep: int = 2) -> list:
     """Starts (theta) for the switch name's slide ("tip" or "motor") from the fit so far's parts: its
-    lag L and longest slide D on SLIDE_GRID (D within its range), the keep lowest by the settled
+    lag L and longest slide D on SLIDE_GRID, the keep lowest by the settled
     robust objective. Why a grid: L and D trade against each other (a late start with a short slide
     against an early one with a long slide), and from the middle of both ranges LM stopped in the
     wrong one (a 15 s channel rendering: L at its floor, B 4.7 % off, BIC 862; from the grid, BIC 676
@@ -133,9 +133,7 @@ def _slide_starts(m: RecordModel, name: str, parts: dict, sigma: float, keep: in
     T = m.rec.period_s
     out = []
     for L in SLIDE_GRID[0]:
-        for D in SLIDE_GRID[1]:
-            if D * T > m.slide_max_s:
-                continue
+        for D in SLIDE_GRID[1]:  # at most a frame period, within every slide bound (`slide_max_s` >= T)
             th = m.theta({**parts, "lag_" + name: np.array([m.lag_x(L * T)]), "slide_" + name: np.array([m.slide_x(D * T)])})
             out.append((_settle(m, th, sigma)[1], th))
     out.sort(key=lambda c: c[0])
