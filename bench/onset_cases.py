@@ -240,6 +240,13 @@ LOCKBOX10_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # already run are development data for any later code (the slide's time bound, b88ffb2, was written on
 # two of them).
 
+# The eleventh set-aside group, LOCKBOX11_300 (drawn and committed 2026-11-28 at the start of stop 75, before
+# any code of that stop; sealed for the code of 5ae768c: stop 74's slide bounded in time, SLIDE_MAX_S, written
+# on development rows and on LOCKBOX10 rows already run). Run all 300 on that onset code, resumed across
+# sessions from its rows if need be, fixed here before any of them is run.
+SEEDS_11 = {"marker": (71101, 710001), "swing": (71202, 710201), "render_c": (71303, 710401)}
+LOCKBOX11_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_11, PLAN, "s11-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
