@@ -110,6 +110,36 @@ def test_a_channel_translation_is_fitted_by_the_shift_as_one_offset_of_the_whole
     assert abs(shift.unpack(f1.theta)[1][0] / sc.B(0.0) - 1) < 0.005
 
 
+def test_a_shifts_trial_is_scored_after_a_whole_fits_reweightings():
+    # The shift takes the rotation's place, so at its trial's start the switch frames are the
+    # translation's misfit to the rotation's jump and the weights set there are not the fit so far's.
+    # A 20 s channel rendering at the size of s9-marker-032 of LOCKBOX9_300 (2.63 deg, 60 fps, stras B,
+    # 8 coefficients): from the rotation's fit (BIC measured 4,976), the shift's trial after one
+    # reweighting, the budget of a trial that adds to the fit so far, scored 5,859 and lost; after
+    # the search's rounds for a shift, 4,169.
+    MR = bench_module("marker_render")
+    sc = MR.Scene(seed=690033, B_kind="stras", fps=60.0, form="channel", speed=5.739, duration=20.0, size_deg=2.63,
+                  noise_px=0.079, t_delay_true=0.195, t_delay_config=0.195)
+    d = MR.render(sc)
+    t, q = d["t_enc"], d["q"]
+    rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], np.column_stack([d["u"], d["v"]]), sc.fps, (360.0, 288.0), 600.0)
+    prior, sig = (sc.t_delay_config, rec.period_s / np.sqrt(12)), OM.noise_sigma(rec.obs)
+    terms = dict(reg_tip=True, slide_tip=True, expo=True)
+    rot = OM.RecordModel(rec, 8, 14, OM.Terms(**terms), prior, None, "input")
+    qq = np.linspace(rot.q_lo, rot.q_hi, 400)
+    cB = np.linalg.lstsq(OM._basis(qq, rot.q_lo, rot.q_hi, 8), sc.B(qq), rcond=None)[0]
+    f0 = OF._fit_one((rot, rot.theta({"d": np.array([sc.t_delay_true]), "B": cB}), sig, 20, OF.IRLS_ROUNDS))
+    shift = OM.RecordModel(rec, 8, 14, OM.Terms(**terms, shift_tip=True), prior, None, "input")
+    shift.slope = f0.model.slope
+
+    def trial(rounds):
+        return OF._fit_one((shift, shift.theta(f0.model.parts(f0.theta)), sig, 8, rounds)).bic(sig)
+
+    assert trial(OS._trial_rounds("shift_tip")) < f0.bic(sig) - 400
+    assert trial(OS.TRIAL_ROUNDS) > f0.bic(sig)
+
+
 def _short_first_stroke_record():
     """A 1 kHz triangle that first rises 0.05 mm, then swings between -1 and +1 mm (reversals at
     0.05, -1, +1, -1 mm), 25 fps frames: with a play 0.3 mm wide starting mid-band, the first
