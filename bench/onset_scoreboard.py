@@ -197,10 +197,14 @@ def main(argv=None) -> int:
             done[d["name"]] = d
     todo = [r for r in rows if r[1] not in done]
     print(f"group {a.group}: {len(rows)} renderings, {len(todo)} to run, {a.jobs} jobs; rows to {path}", flush=True)
-    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import ProcessPoolExecutor, as_completed
 
+    # each row written as it finishes, not in the group's order: a run stopped part way keeps every
+    # row that finished (the tables below are in the group's order whatever the file's)
     with ProcessPoolExecutor(a.jobs) as ex, open(path, "a") as f:
-        for i, d in enumerate(ex.map(run_row, [(a.group, r) for r in todo])):
+        futures = [ex.submit(run_row, (a.group, r)) for r in todo]
+        for i, fut in enumerate(as_completed(futures)):
+            d = fut.result()
             f.write(json.dumps(d) + "\n")
             f.flush()
             done[d["name"]] = d
