@@ -234,11 +234,9 @@ LOCKBOX9_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEE
 # resumed across sessions from its rows if need be, fixed here before any of them is run.
 SEEDS_10 = {"marker": (70101, 700001), "swing": (70202, 700201), "render_c": (70303, 700401)}
 LOCKBOX10_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_10, PLAN, "s10-")]
-# Stop 74 ran 215 of the 300 on c27b13d's onset code (2 fail) (worktree at c27b13d); its rows are in
-# bench/scoreboard_rows/lockbox10-stop74.jsonl. To resume on the same code: a worktree at c27b13d, that file
-# copied to its build/onset_scoreboard/lockbox10.jsonl, then onset_scoreboard.py --group lockbox10. The rows
-# already run are development data for any later code (the slide's time bound, b88ffb2, was written on
-# two of them).
+# Stop 74 ran 218 of the 300 on c27b13d's onset code (worktree at c27b13d) and stop 75 the other 82 on the
+# same code, resumed from those rows: 2 / 300 fail. All 300 rows are in bench/scoreboard_rows/lockbox10-stop74.jsonl.
+# Spent: development data from then on (the slide's time bound, b88ffb2, was written on two of them).
 
 # The eleventh set-aside group, LOCKBOX11_300 (drawn and committed 2026-11-28 at the start of stop 75, before
 # any code of that stop; sealed for the code of 5ae768c: stop 74's slide bounded in time, SLIDE_MAX_S, written
