@@ -244,6 +244,10 @@ LOCKBOX10_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # sessions from its rows if need be, fixed here before any of them is run.
 SEEDS_11 = {"marker": (71101, 710001), "swing": (71202, 710201), "render_c": (71303, 710401)}
 LOCKBOX11_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_11, PLAN, "s11-")]
+# Stop 75 ran 146 of the 300 on that code (worktree at 1b28d59: 5ae768c's onset code and this group), 0 fail; its
+# rows are in bench/scoreboard_rows/lockbox11-stop75.jsonl. To resume on the same code: a worktree at 1b28d59, that
+# file copied to its build/onset_scoreboard/lockbox11.jsonl, then onset_scoreboard.py --group lockbox11 --jobs 2.
+# It does not check stop 75's shift trial rounds (4ae09b2), written after it was sealed.
 
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
