@@ -54,12 +54,12 @@ def test_fits_in_a_forked_child_equal_the_same_fits_run_in_turn_when_jobs_share_
         assert np.array_equal(a, b) and np.array_equal(b, c)
 
 
-def _channel_record(fps=25.0, **scene):
-    """marker_render's `channel` form (a Fig. 7 robot, 25 fps unless said) with the scene's settings:
+def _channel_record(fps=25.0, B_kind="fig7", **scene):
+    """marker_render's `channel` form (a Fig. 7 robot's B and 25 fps unless said) with the scene's settings:
     (the Scene, its Record with the renderer's principal point and focal length, the configured
     delay's prior, the record's noise scale px)."""
     MR = bench_module("marker_render")
-    sc = MR.Scene(B_kind="fig7", fps=fps, form="channel", **scene)
+    sc = MR.Scene(B_kind=B_kind, fps=fps, form="channel", **scene)
     d = MR.render(sc)
     t, q = d["t_enc"], d["q"]
     rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
@@ -117,14 +117,8 @@ def test_a_shifts_trial_is_scored_after_a_whole_fits_reweightings():
     # 8 coefficients): from the rotation's fit (BIC measured 4,976), the shift's trial after one
     # reweighting, the budget of a trial that adds to the fit so far, scored 5,859 and lost; after
     # the search's rounds for a shift, 4,169.
-    MR = bench_module("marker_render")
-    sc = MR.Scene(seed=690033, B_kind="stras", fps=60.0, form="channel", speed=5.739, duration=20.0, size_deg=2.63,
-                  noise_px=0.079, t_delay_true=0.195, t_delay_config=0.195)
-    d = MR.render(sc)
-    t, q = d["t_enc"], d["q"]
-    rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
-    rec = OM.make_record(t, q, rt, rq, d["t_f"], np.column_stack([d["u"], d["v"]]), sc.fps, (360.0, 288.0), 600.0)
-    prior, sig = (sc.t_delay_config, rec.period_s / np.sqrt(12)), OM.noise_sigma(rec.obs)
+    sc, rec, prior, sig = _channel_record(fps=60.0, B_kind="stras", seed=690033, speed=5.739, duration=20.0,
+                                          size_deg=2.63, noise_px=0.079, t_delay_true=0.195, t_delay_config=0.195)
     terms = dict(reg_tip=True, slide_tip=True, expo=True)
     rot = OM.RecordModel(rec, 8, 14, OM.Terms(**terms), prior, None, "input")
     qq = np.linspace(rot.q_lo, rot.q_hi, 400)
