@@ -249,6 +249,13 @@ LOCKBOX11_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # file copied to its build/onset_scoreboard/lockbox11.jsonl, then onset_scoreboard.py --group lockbox11 --jobs 2.
 # It does not check stop 75's shift trial rounds (4ae09b2), written after it was sealed.
 
+# The twelfth set-aside group, LOCKBOX12_300 (drawn and committed 2026-11-28 at the start of stop 76, before
+# any code of that stop; sealed for the onset code of 221fffb: stop 75's shift trials scored after a whole
+# fit's reweightings, 4ae09b2, written on development rows and on the spent LOCKBOX10 rows). Run all 300 on
+# that onset code, resumed across sessions from its rows if need be, fixed here before any of them is run.
+SEEDS_12 = {"marker": (72101, 720001), "swing": (72202, 720201), "render_c": (72303, 720401)}
+LOCKBOX12_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_12, PLAN, "s12-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
