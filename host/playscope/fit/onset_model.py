@@ -160,6 +160,7 @@ Units: t in s, q and B in actuator units, image points in px.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -282,12 +283,22 @@ def play_drags_ref(lo: np.ndarray, hi: np.ndarray, z0: float) -> tuple[np.ndarra
     return z, last, side
 
 
-def _basis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
-    """Cubic clamped B-spline basis (len(x), n) on [lo, hi] (dense; x clipped into the range)."""
+@functools.lru_cache(maxsize=64)
+def _basis_splines(lo: float, hi: float, n: int) -> tuple[BSpline, BSpline]:
+    """The n cubic clamped B-splines on [lo, hi] as one vector-valued BSpline (identity coefficients),
+    and its derivative: evaluated at x they give `_basis`' and `_dbasis`' rows. Why not
+    BSpline.design_matrix: it builds a sparse matrix per call, which on the fits' few hundred frames
+    cost twice the evaluation (the same values bit for bit: a row is the same de Boor sum, plus
+    exact zeros; a test checks it)."""
     inner = np.linspace(lo, hi, n - 2)
     knots = np.r_[[lo] * 3, inner, [hi] * 3]
-    xc = np.clip(x, lo, np.nextafter(hi, -np.inf))
-    return BSpline.design_matrix(xc, knots, 3, extrapolate=True).toarray()
+    spl = BSpline(knots, np.eye(n), 3, extrapolate=True)
+    return spl, spl.derivative()
+
+
+def _basis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
+    """Cubic clamped B-spline basis (len(x), n) on [lo, hi] (dense; x clipped into the range)."""
+    return _basis_splines(lo, hi, n)[0](np.clip(x, lo, np.nextafter(hi, -np.inf)))
 
 
 def _sparse_basis(x: np.ndarray, lo: float, hi: float, n: int):
@@ -298,16 +309,10 @@ def _sparse_basis(x: np.ndarray, lo: float, hi: float, n: int):
 
 
 def _dbasis(x: np.ndarray, lo: float, hi: float, n: int) -> np.ndarray:
-    """Derivative of `_basis` with respect to x, (len(x), n), from the quadratic basis on the same
-    knots t: B_i,3' = 3 B_i,2 / (t_i+3 - t_i) - 3 B_i+1,2 / (t_i+4 - t_i+1), a term of zero
-    knot span being 0 (de Boor, A Practical Guide to Splines, 1978, ch. X)."""
-    inner = np.linspace(lo, hi, n - 2)
-    t = np.r_[[lo] * 3, inner, [hi] * 3]
-    xc = np.clip(x, lo, np.nextafter(hi, -np.inf))
-    B2 = BSpline.design_matrix(xc, t, 2, extrapolate=True).toarray()  # (len(x), n + 1)
-    span = t[3:n + 4] - t[:n + 1]
-    c = np.where(span > 0, 3.0 / np.where(span > 0, span, 1.0), 0.0)
-    return B2[:, :n] * c[:n] - B2[:, 1:] * c[1:]
+    """Derivative of `_basis` with respect to x, (len(x), n): the quadratic basis on the same knots t,
+    B_i,3' = 3 B_i,2 / (t_i+3 - t_i) - 3 B_i+1,2 / (t_i+4 - t_i+1), a term of zero knot span being 0
+    (de Boor, A Practical Guide to Splines, 1978, ch. X), as scipy's BSpline.derivative evaluates it."""
+    return _basis_splines(lo, hi, n)[1](np.clip(x, lo, np.nextafter(hi, -np.inf)))
 
 
 def _tip_filter(f_hz: float, zeta: float, dt: float) -> tuple[list, list]:
@@ -707,7 +712,15 @@ class RecordModel:
         side (-0.5 the lower, +0.5 the upper) at grid samples k: z = q + side B(q) at the input,
         so side phi_i(q); z = q + side B(z) at the output, so side phi_i(z) / (1 - side B'(z))."""
         if self.width_at == "input":
-            phi = self.Phi_B[k].toarray() if self.Phi_B is not None else np.ones((k.size, 1))
+            if self.Phi_B is None:
+                return np.ones((k.size, 1)) * side[:, None]
+            if self._taps is None:
+                return self.Phi_B[k].toarray() * side[:, None]
+            # the design's rows from its taps: a sparse matrix's row indexing cost more than the rest of
+            # the gradient (the same values: a row's 4 columns are distinct)
+            cols, vals = self._taps
+            phi = np.zeros((k.size, self.n_b))
+            phi[np.arange(k.size)[:, None], cols[k]] = vals[k]
             return phi * side[:, None]
         if self.n_b == 1:  # a constant width: B' = 0, phi = 1
             return side[:, None].astype(float)

@@ -339,14 +339,34 @@ def test_the_jacobian_of_a_switch_model_whose_width_no_swing_takes_up_is_finite(
     assert J.shape[1] == th.size and np.all(np.isfinite(J))
 
 
-def test_the_basis_derivative_is_scipys_spline_derivative():
-    # _dbasis from the quadratic basis (de Boor's recurrence) against scipy's BSpline.derivative of
-    # each cubic basis function, inside the range and clipped beyond it
+def test_the_basis_and_its_derivative_are_the_design_matrix_and_de_boors_recurrence_bit_for_bit():
+    # _basis and _dbasis evaluate one vector-valued spline (identity coefficients) for speed; they
+    # must give what the definitions give, to the bit (a fit's path depends on every bit): the
+    # basis as scipy's sparse design matrix, the derivative by de Boor's recurrence from the
+    # quadratic basis on the same knots (A Practical Guide to Splines, 1978, ch. X), B_i,3' =
+    # 3 B_i,2 / (t_i+3 - t_i) - 3 B_i+1,2 / (t_i+4 - t_i+1), a zero span's term 0. At random
+    # points, the knots themselves and the range's ends, inside the range and clipped beyond it.
     from scipy.interpolate import BSpline
 
-    x = np.random.default_rng(0).uniform(-1.5, 2.5, 500)
-    for n in (4, 6, 16):
-        t = np.r_[[-1.0] * 3, np.linspace(-1.0, 2.0, n - 2), [2.0] * 3]
-        xc = np.clip(x, -1.0, np.nextafter(2.0, -np.inf))
-        ref = np.column_stack([BSpline(t, np.eye(n)[i], 3).derivative()(xc) for i in range(n)])
-        assert np.allclose(OM._dbasis(x, -1.0, 2.0, n), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    rng = np.random.default_rng(0)
+    for n in (4, 5, 6, 10, 16):
+        lo, hi = float(rng.uniform(-2, 0)), float(rng.uniform(0.5, 3))
+        inner = np.linspace(lo, hi, n - 2)
+        t = np.r_[[lo] * 3, inner, [hi] * 3]
+        x = np.r_[rng.uniform(lo - 1, hi + 1, 400), inner, np.nextafter(hi, -np.inf)]
+        xc = np.clip(x, lo, np.nextafter(hi, -np.inf))
+        assert np.array_equal(OM._basis(x, lo, hi, n), BSpline.design_matrix(xc, t, 3, extrapolate=True).toarray())
+        B2 = BSpline.design_matrix(xc, t, 2, extrapolate=True).toarray()
+        span = t[3:n + 4] - t[:n + 1]
+        c = np.where(span > 0, 3.0 / np.where(span > 0, span, 1.0), 0.0)
+        assert np.array_equal(OM._dbasis(x, lo, hi, n), B2[:, :n] * c[:n] - B2[:, 1:] * c[1:])
+
+
+def test_the_plays_edge_gradient_at_the_input_is_the_designs_rows():
+    # edge_gradient reads B's design rows from its taps (fast); they are the sparse design's rows
+    r, d, t, q, rt, rq, obs, hyst = record(duration_s=6.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    m = OM.RecordModel(rec, 8, 6, OM.Terms(), None)
+    k = np.random.default_rng(1).integers(0, rec.q.size, 300)
+    side = np.where(np.arange(300) % 2 == 0, -0.5, 0.5)
+    assert np.array_equal(m.edge_gradient(np.full(8, 0.2), k, rec.q[k], side), m.Phi_B[k].toarray() * side[:, None])
