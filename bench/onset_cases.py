@@ -244,10 +244,10 @@ LOCKBOX10_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # sessions from its rows if need be, fixed here before any of them is run.
 SEEDS_11 = {"marker": (71101, 710001), "swing": (71202, 710201), "render_c": (71303, 710401)}
 LOCKBOX11_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_11, PLAN, "s11-")]
-# Stop 75 ran 146 of the 300 on that code (worktree at 1b28d59: 5ae768c's onset code and this group), 0 fail; its
-# rows are in bench/scoreboard_rows/lockbox11-stop75.jsonl. To resume on the same code: a worktree at 1b28d59, that
-# file copied to its build/onset_scoreboard/lockbox11.jsonl, then onset_scoreboard.py --group lockbox11 --jobs 2.
-# It does not check stop 75's shift trial rounds (4ae09b2), written after it was sealed.
+# Stop 75 ran 146 of the 300 on that code (worktree at 1b28d59: 5ae768c's onset code and this group) and stop 76
+# the other 154 on the same code, resumed from those rows: 1 / 300 fail. All 300 rows are in
+# bench/scoreboard_rows/lockbox11-stop75.jsonl. Spent: development data from then on. It does not check stop 75's
+# shift trial rounds (4ae09b2), written after it was sealed.
 
 # The twelfth set-aside group, LOCKBOX12_300 (drawn and committed 2026-11-28 at the start of stop 76, before
 # any code of that stop; sealed for the onset code of 221fffb: stop 75's shift trials scored after a whole
