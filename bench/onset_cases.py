@@ -256,6 +256,13 @@ LOCKBOX11_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 SEEDS_12 = {"marker": (72101, 720001), "swing": (72202, 720201), "render_c": (72303, 720401)}
 LOCKBOX12_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_12, PLAN, "s12-")]
 
+# The thirteenth set-aside group, LOCKBOX13_300 (drawn and committed 2026-11-29 at the start of stop 77, before
+# any code of that stop; sealed for the onset code of a later change: the coarse start's profile over the
+# frame below each correlation peak, written on development rows, among them the spent LOCKBOX11's
+# s11-swing-066). Run all 300 on that onset code, resumed across sessions from its rows if need be.
+SEEDS_13 = {"marker": (73101, 730001), "swing": (73202, 730201), "render_c": (73303, 730401)}
+LOCKBOX13_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_13, PLAN, "s13-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
