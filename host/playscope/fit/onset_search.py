@@ -2,8 +2,9 @@
 each chosen by the same BIC (onset_fit.Fit.bic); `fit_record` is the onset stage's estimator.
 
 Start: the coarse delay and the configured one, each with the constant play width that fits best.
-The coarse delay is the peak of delay_guess's correlation from which the plain model fits best
-(`_coarse_start`): an excitation that repeats makes the correlation as high one period late.
+The coarse delay is the peak of delay_guess's correlation, profiled over the frame before it, from
+which the plain model fits best (`_coarse_start`): an excitation that repeats makes the correlation as
+high one period late, and a peak sits late by up to the play's take-up.
 The board's plain eq. 1 samples are a third start when given. B is fitted coarse to fine
 (`_fit_chain`): a constant width, then each of B_CTRL's sizes from the last one's fit. A term the
 plain model lacks drags its width, so each term also gets starts profiled with it on (the
@@ -25,6 +26,7 @@ import functools
 
 import numpy as np
 
+from .delay_guess import SUB
 from .onset_fit import IRLS_ROUNDS, Fit, _fit_all, _fit_chain, _fit_distinct, _resample_B, _settle, fit_model
 from .onset_model import WIDTH_AT, Record, RecordModel, Terms, noise_sigma, robust_sigma
 
@@ -110,28 +112,59 @@ def _start_bic(m: RecordModel, d: float, b: float, sigma: float) -> float:
     return float(m.objective(ev, sigma) + m.n_linear() * np.log(ev.resid.size))
 
 
+def _profiled_start(m: RecordModel, d: float, widths: list[float], sigma: float, step: float) -> tuple[float, float, float]:
+    """The start a correlation peak at d (s) means: over the delays d, d - step, ..., d - SUB * step
+    (one frame period back on the correlation's own grid, step = period / SUB), the delay and
+    constant width of lowest `_start_bic` (model m, a constant width; sigma px). widths (W,)
+    ascending, actuator units: all are scored at d, and from there the width only grows as the
+    delay shrinks (the onset after a reversal comes at delay + width / speed, so an earlier delay
+    needs a wider play to place it), each step trying the next wider while it scores lower.
+    Returns (BIC, delay s, width)."""
+    score = lambda dd, k: _start_bic(m, dd, widths[k], sigma)  # noqa: E731
+    c = [score(d, k) for k in range(len(widths))]
+    k = int(np.argmin(c))
+    best = (c[k], d, widths[k])
+    for dd in d - step * np.arange(1, SUB + 1):
+        if dd < 0.0:
+            break
+        ck = score(dd, k)
+        while k + 1 < len(widths):
+            cn = score(dd, k + 1)
+            if cn >= ck:
+                break
+            k, ck = k + 1, cn
+        if ck < best[0]:
+            best = (ck, float(dd), widths[k])
+    return best
+
+
 def _coarse_start(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | None, sigma: float) -> float:
     """The coarse delay the search starts from: of the correlation's candidates cands (K,) s
-    (delay_guess.coarse_delay_peaks, its highest first), the one from which the plain model at a
-    constant width fits best (each from its best width by `_start_bic`, on a term trial's budget:
-    8 evaluations, one reweighting; BIC at sigma; ties keep the earlier). prior: the configured
-    delay's (mean, sd) s or None; board_b: the board's eq. 1 samples or None (`_start_widths`).
-    Returns s. Why a fit and not the start's score alone: on a fast swing a delay and a width
-    trade, so the score's basin in the delay is narrow (+-10 ms on the record below), and the
-    correlation's peaks sit up to a quarter period late (delay_guess.delay_score), outside it.
+    (delay_guess.coarse_delay_peaks, its highest first), each profiled over the frame period before
+    it (`_profiled_start`: the plain model at a constant width, BIC at sigma), the profiled start of
+    lowest BIC (ties keep the earlier). prior: the configured delay's (mean, sd) s or None; board_b:
+    the board's eq. 1 samples or None (`_start_widths`). Returns s.
+
+    Why a profile a frame back: the correlation is flat from the delay to where the play is taken
+    up (delay_guess.delay_score), so its peak sits up to that much late, and the frames time it to
+    about a frame. On a fast swing a delay and a width trade, so the start's basin in the delay is
+    narrow (+-5 ms), and neither the score at the peak nor a fit from it reaches the delay: on
+    s11-swing-066 (a 25 fps triangle of 0.376 s period, delay 50 ms, none configured) the peak near
+    the delay was at 75 ms, where the best width was the grid's narrowest (BIC 5,958), and an
+    8-evaluation fit from there ended at 72 ms, BIC 4,518, above the alias one period late (3,447);
+    the search from the alias was 10 frames late, B 11.6 % off. Profiled, that peak starts at 50 ms,
+    BIC 1,952, the alias at 425 ms, 3,341.
     Why more than the highest: an excitation that repeats makes the correlation as high one period
-    late as at the delay, where the record's model is not: on s5-swing-056 (a 60 fps triangle of 0.29 s period, delay 92 ms, configured 179 ms) the
-    correlation's highest point was the alias at 408 ms, from which this fit ends at 385 ms, BIC
-    17,965 (and the search, with every term, 17.8 frames late with B 29 % off); from its other peak,
-    117 ms, at 92.2 ms, BIC 5,318. Costs 0.35 s on the 3-minute bench record (5 candidates)."""
+    late as at the delay, where the record's model is not: on s5-swing-056 (a 60 fps triangle of
+    0.29 s period, delay 92 ms, configured 179 ms) the correlation's highest point was the alias at
+    408 ms (the search from there 17.8 frames late with B 29 % off), its other peak at 117 ms.
+    The start's B is a constant width, so where B varies over the travel its score is biased in the
+    delay (on the 3-minute bench record, delay 80 ms, it is lowest at 40 ms): it only has to tell a
+    peak from an alias, and the search's B(q) takes the rest back."""
     m = RecordModel(rec, 1, G_CTRL[1], Terms(), prior, None)
-    widths = _start_widths(rec, board_b)
-    jobs = []
-    for d in cands:
-        b = min(widths, key=lambda b: _start_bic(m, d, b, sigma))
-        jobs.append((m, m.theta({"d": np.array([d]), "B": np.array([b])}), sigma, 8, 1))
-    bics = [f.bic(sigma) for f in _fit_all(jobs)]
-    return float(cands[int(np.argmin(bics))])
+    widths = sorted(_start_widths(rec, board_b))
+    starts = [_profiled_start(m, float(d), widths, sigma, rec.period_s / SUB) for d in cands]
+    return min(starts, key=lambda s: s[0])[1]  # min keeps the first of equal scores
 
 
 SLIDE_GRID = ((0.25, 0.5, 1.0), (0.25, 0.5, 1.0))  # a slide's start grid: lags, longest slides (frame periods)
@@ -245,8 +278,7 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
     d_fixed = float(t_delay_cfg) if (t_delay_from == "config" and t_delay_cfg is not None) else None
     sigma = noise_sigma(rec.obs)
     cands = np.atleast_1d(np.asarray(d_coarse, float))
-    d_coarse = float(cands[0]) if (d_fixed is not None or cands.size == 1) else \
-        _coarse_start(rec, cands, prior, board_b, sigma)
+    d_coarse = float(cands[0]) if d_fixed is not None else _coarse_start(rec, cands, prior, board_b, sigma)
     starts = [d_coarse] + ([] if t_delay_cfg is None else [float(t_delay_cfg)])
     if d_fixed is not None:
         starts = [d_fixed]
