@@ -260,7 +260,7 @@ LOCKBOX12_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # 300 rows are in bench/scoreboard_rows/lockbox12-stop77.jsonl. Spent: development data from then on.
 
 # The thirteenth set-aside group, LOCKBOX13_300 (drawn and committed 2026-11-29 at the start of stop 77, before
-# any code of that stop; sealed for the onset code of a later change: the coarse start's profile over the
+# any code of that stop; sealed for the onset code of 1f06283: the coarse start's profile over the
 # frame below each correlation peak, written on development rows, among them the spent LOCKBOX11's
 # s11-swing-066). Run all 300 on that onset code, resumed across sessions from its rows if need be.
 SEEDS_13 = {"marker": (73101, 730001), "swing": (73202, 730201), "render_c": (73303, 730401)}
