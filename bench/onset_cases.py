@@ -265,6 +265,9 @@ LOCKBOX12_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # s11-swing-066). Run all 300 on that onset code, resumed across sessions from its rows if need be.
 SEEDS_13 = {"marker": (73101, 730001), "swing": (73202, 730201), "render_c": (73303, 730401)}
 LOCKBOX13_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_13, PLAN, "s13-")]
+# Stop 77 started it in a worktree at dc9404c (1f06283's onset code) in its last minutes: 78 of 300 rows ran,
+# 0 failed, kept in bench/scoreboard_rows/lockbox13-stop77-partial.jsonl (partial). To resume on the same code:
+# that file copied to build/onset_scoreboard/lockbox13.jsonl of a worktree at dc9404c, --group lockbox13.
 
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
