@@ -2,9 +2,9 @@
 each chosen by the same BIC (onset_fit.Fit.bic); `fit_record` is the onset stage's estimator.
 
 Start: the coarse delay and the configured one, each with the constant play width that fits best.
-The coarse delay is the peak of delay_guess's correlation, profiled over the frame before it, from
-which the plain model fits best (`_coarse_start`): an excitation that repeats makes the correlation as
-high one period late, and a peak sits late by up to the play's take-up.
+The coarse delay is the peak of delay_guess's correlation, profiled over the frame before it, whose
+profiled start the plain model scores best (`_coarse_start`): an excitation that repeats makes the
+correlation as high one period late, and a peak sits late by up to the play's take-up.
 The board's plain eq. 1 samples are a third start when given. B is fitted coarse to fine
 (`_fit_chain`): a constant width, then each of B_CTRL's sizes from the last one's fit. A term the
 plain model lacks drags its width, so each term also gets starts profiled with it on (the
@@ -152,7 +152,7 @@ def _coarse_start(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | N
     s11-swing-066 (a 25 fps triangle of 0.376 s period, delay 50 ms, none configured) the peak near
     the delay was at 75 ms, where the best width was the grid's narrowest (BIC 5,958), and an
     8-evaluation fit from there ended at 72 ms, BIC 4,518, above the alias one period late (3,447);
-    the search from the alias was 10 frames late, B 11.6 % off. Profiled, that peak starts at 50 ms,
+    the search from the alias was 9.1 frames late, B 11.6 % off. Profiled, that peak starts at 50 ms,
     BIC 1,952, the alias at 425 ms, 3,341.
     Why more than the highest: an excitation that repeats makes the correlation as high one period
     late as at the delay, where the record's model is not: on s5-swing-056 (a 60 fps triangle of
