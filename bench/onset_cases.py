@@ -269,6 +269,12 @@ LOCKBOX13_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # 0 failed, kept in bench/scoreboard_rows/lockbox13-stop77-partial.jsonl (partial). To resume on the same code:
 # that file copied to build/onset_scoreboard/lockbox13.jsonl of a worktree at dc9404c, --group lockbox13.
 
+# The fourteenth set-aside group, LOCKBOX14_300 (drawn and committed 2026-11-29 at the start of stop 78, before
+# any code of that stop; sealed for the onset code of a later change). Run all 300 on that onset code, resumed
+# across sessions from its rows if need be.
+SEEDS_14 = {"marker": (74101, 740001), "swing": (74202, 740201), "render_c": (74303, 740401)}
+LOCKBOX14_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_14, PLAN, "s14-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
