@@ -265,9 +265,9 @@ LOCKBOX12_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # s11-swing-066). Run all 300 on that onset code, resumed across sessions from its rows if need be.
 SEEDS_13 = {"marker": (73101, 730001), "swing": (73202, 730201), "render_c": (73303, 730401)}
 LOCKBOX13_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_13, PLAN, "s13-")]
-# Stop 77 started it in a worktree at dc9404c (1f06283's onset code) in its last minutes: 78 of 300 rows ran,
-# 0 failed, kept in bench/scoreboard_rows/lockbox13-stop77-partial.jsonl (partial). To resume on the same code:
-# that file copied to build/onset_scoreboard/lockbox13.jsonl of a worktree at dc9404c, --group lockbox13.
+# Stop 77 ran 78 rows of it in a worktree at dc9404c (1f06283's onset code), stop 78 the other 222 on the same
+# worktree, resumed from those rows: 0 / 300 fail. All 300 rows are in bench/scoreboard_rows/lockbox13-stop78.jsonl.
+# Spent: development data from then on.
 
 # The fourteenth set-aside group, LOCKBOX14_300 (drawn and committed 2026-11-29 at the start of stop 78, before
 # any code of that stop; sealed for the onset code of a later change). Run all 300 on that onset code, resumed
