@@ -270,8 +270,8 @@ LOCKBOX13_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # Spent: development data from then on.
 
 # The fourteenth set-aside group, LOCKBOX14_300 (drawn and committed 2026-11-29 at the start of stop 78, before
-# any code of that stop; sealed for the onset code of a later change). Run all 300 on that onset code, resumed
-# across sessions from its rows if need be.
+# any code of that stop). No onset code was written after it was drawn, so it was given to the same onset code as
+# LOCKBOX13 (1f06283's): a second group for one estimator, its failure rate over 600. Run all 300 on that code.
 SEEDS_14 = {"marker": (74101, 740001), "swing": (74202, 740201), "render_c": (74303, 740401)}
 LOCKBOX14_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_14, PLAN, "s14-")]
 

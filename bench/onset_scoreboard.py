@@ -45,7 +45,7 @@ Groups:
   lockbox13    bench/onset_cases.py LOCKBOX13_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at the start of stop 77, sealed for 1f06283's onset code.
   lockbox14    bench/onset_cases.py LOCKBOX14_300: 100 more renderings from each renderer (new seeds),
-               drawn and committed at the start of stop 78, sealed for a later onset code.
+               drawn and committed at the start of stop 78, run on 1f06283's onset code (as lockbox13).
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
                with the exposure 0.25-1 frame period (the other groups' renderers expose 2-8 ms),
                judged as fresh (category "exposure", B <= 5 %).
