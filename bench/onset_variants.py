@@ -18,6 +18,7 @@ The parameter names are the renderer's: marker_render.Scene, swing_render.Render
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -27,6 +28,24 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import onset_scoreboard as SB  # noqa: E402
 
 from playscope.fit import onset_search  # noqa: E402
+
+
+@contextlib.contextmanager
+def captured_fit_record():
+    """onset_search.fit_record wrapped for the block: yields a dict whose "fit" receives what the
+    onset stage's call returned (the final Fit, the search's log), the last call's when several."""
+    captured = {}
+    fit_record = onset_search.fit_record
+
+    def capture(*a, **k):
+        captured["fit"] = fit_record(*a, **k)
+        return captured["fit"]
+
+    onset_search.fit_record = capture  # onset_stage calls it through the module
+    try:
+        yield captured
+    finally:
+        onset_search.fit_record = fit_record
 
 
 def run_variant(group: str, row: tuple, change: dict) -> dict:
@@ -40,18 +59,8 @@ def run_variant(group: str, row: tuple, change: dict) -> dict:
         kw = dataclasses.replace(kw, **change)
     else:
         kw = {**kw, **change}
-    captured = {}
-    fit_record = onset_search.fit_record
-
-    def capture(*a, **k):
-        captured["fit"] = fit_record(*a, **k)
-        return captured["fit"]
-
-    onset_search.fit_record = capture  # onset_stage calls it through the module
-    try:
+    with captured_fit_record() as captured:
         d = SB.run_row((group, (renderer, name, cat, limit, status, kw)))
-    finally:
-        onset_search.fit_record = fit_record
     out = {"change": change, **{k: d.get(k) for k in ("err_pct", "limit_pct", "td_err_frames", "terms", "fail", "refused")}}
     if "fit" in captured:
         fit = captured["fit"][0]
