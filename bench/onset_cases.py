@@ -272,6 +272,8 @@ LOCKBOX13_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # The fourteenth set-aside group, LOCKBOX14_300 (drawn and committed 2026-11-29 at the start of stop 78, before
 # any code of that stop). No onset code was written after it was drawn, so it was given to the same onset code as
 # LOCKBOX13 (1f06283's): a second group for one estimator, its failure rate over 600. Run all 300 on that code.
+# Stop 78 ran all 300 in a worktree at 6bc8fe7 (onset code 1f06283's but for docstrings): 2 / 300 fail. All 300
+# rows are in bench/scoreboard_rows/lockbox14-stop78.jsonl. Spent: development data from then on.
 SEEDS_14 = {"marker": (74101, 740001), "swing": (74202, 740201), "render_c": (74303, 740401)}
 LOCKBOX14_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_14, PLAN, "s14-")]
 
