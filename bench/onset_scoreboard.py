@@ -112,20 +112,33 @@ def _rows(group: str) -> list:
     return out
 
 
+def row_objects(group: str, row: tuple) -> tuple:
+    """A row's renderer object and truth: (obj, write(obj, folder), true_B(q) callable (actuator
+    units), true delay s, configured delay s or None)."""
+    if group in FROM_CASES:
+        import onset_cases
+
+        return onset_cases.make(row)
+    import swing_render
+
+    kw = row[5]
+    return kw, swing_render.write, kw.B, kw.delay_s, kw.delay_cfg_s
+
+
+def true_mean_lag(renderer: str, obj, d_true: float) -> float:
+    """The image's true mean lag behind the encoder, s: marker_render averages each frame over the
+    exposure that ends at its capture instant (so its delay is to the exposure's end, the mean lag
+    e / 2 longer); swing_render and render_c centre the exposure on it."""
+    return d_true + (0.5 * obj.exposure if renderer == "marker" else 0.0)
+
+
 def run_row(args) -> dict:
     """Render, write, calibrate one row; its figures (a JSON-ready dict)."""
     group, row = args
     import b_score
 
     renderer, name, cat, limit, status, kw = row
-    if group in FROM_CASES:
-        import onset_cases
-
-        obj, write, true_B, d_true, d_cfg = onset_cases.make(row)
-    else:
-        import swing_render
-
-        obj, write, true_B, d_true, d_cfg = kw, swing_render.write, kw.B, kw.delay_s, kw.delay_cfg_s
+    obj, write, true_B, d_true, d_cfg = row_objects(group, row)
     fps = float(getattr(obj, "fps"))
     t0 = time.time()
     sc = b_score.score(lambda d: write(obj, d), true_B)
@@ -139,12 +152,10 @@ def run_row(args) -> dict:
         ref = cal.onset_refine or {}
         check_td = status == "right" if group in FROM_CASES else True
         fail = bool(sc["err_pct"] > limit or (check_td and abs(td_err) > 0.125))
-        # The image's mean lag behind the encoder, against the renderer's: marker_render averages each
-        # frame over the exposure that ends at its capture instant (so its delay is to the exposure's
-        # end, the mean lag e/2 longer); swing_render and render_c centre the exposure on it. Not a
+        # The image's mean lag behind the encoder, against the renderer's (`true_mean_lag`). Not a
         # failure criterion (fixed before): with a right configured delay, t_delay is the configured
         # one wherever the record's mean lag allows it, so this column is what the record measured.
-        lag_true = d_true + (0.5 * obj.exposure if renderer == "marker" else 0.0)
+        lag_true = true_mean_lag(renderer, obj, d_true)
         lag = ref.get("image_mean_lag_s")
         out.update(lag_err_frames=None if lag is None else (lag - lag_true) * fps)
         out.update(err_pct=sc["err_pct"], t_delay_s=cal.t_delay_s, td_err_frames=td_err, td_checked=check_td,

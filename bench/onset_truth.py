@@ -6,10 +6,10 @@ the delay from its true mean lag, the other nonlinear parameters (switch lags, s
 mode) from the search's fit or as given. Both fits are scored by the search's own criterion (the
 BIC at the search's scale, onset_fit.Fit.bic).
 
-  - from the truth lower than the search's: the model holds the truth and scores it better; the
-    search never reached it (a start or basin problem, not a missing term);
-  - from the truth not lower: the record prefers something other than the truth under this model,
-    so a term is missing or wrong (bench/onset_variants.py then says which effect of the rendering).
+  - from the truth clearly lower than the search's: the model holds the truth and scores it better;
+    the search never reached it (a start or basin problem, not a missing term);
+  - from the truth higher: the record prefers something other than the truth under this model, so a
+    term is missing or wrong (bench/onset_variants.py then says which effect of the rendering).
 
 Prints one JSON line: the search's BIC and B error %, the truth start's BIC (one evaluation) and
 the fit from it (BIC, B error %, and its switch lags, slides, exposure in s), and the search's BIC
@@ -17,8 +17,9 @@ minus the truth's fit's (positive: the truth scores lower). A BIC difference of 
 the fits' own stopping tolerance: a passing no-effect row gave 0.002; s12-swing-048-registration, 100.
 
 The delay: the model's is the image's mean lag behind the encoder (onset_model's module doc, the
-exposure): the true delay plus half the exposure for marker_render, whose exposure ends at the
-capture instant; the true delay for swing_render and render_c, which centre it.
+exposure), taken as the scoreboard takes it (onset_scoreboard.true_mean_lag). B error % here is over
+the model's own travel (`b_error_pct`), not over the B samples' range as the scoreboard's, so the two
+differ a little (10.54 against 10.32 % on s12-swing-048-registration).
 
 Run a row only once it has been judged: a set-aside row examined before its group's run is spent.
 
@@ -50,21 +51,6 @@ SETTERS = {"lag_tip": "lag_x", "lag_motor": "lag_x", "slide_tip": "slide_x", "sl
            "expo": "expo_x"}
 
 
-def _renderer_objects(group: str, row: tuple):
-    """(renderer's object, write(obj, folder), true_B(q), the true mean lag s) for a row."""
-    renderer, name, cat, limit, status, kw = row
-    if group in SB.FROM_CASES:
-        import onset_cases
-
-        obj, write, true_B, d_true, _ = onset_cases.make(row)
-    else:
-        import swing_render
-
-        obj, write, true_B, d_true = kw, swing_render.write, kw.B, kw.delay_s
-    lag = d_true + (0.5 * obj.exposure if renderer == "marker" else 0.0)
-    return obj, write, true_B, lag
-
-
 def b_error_pct(fit, true_B) -> float:
     """Mean |B_fit - B_true| over the model's travel, % of the mean true B (400 points)."""
     m = fit.model
@@ -85,7 +71,8 @@ def compare(group: str, row: tuple, given: dict) -> dict:
     """The row calibrated, then its chosen model refitted from the truth (module doc). given: {part
     name: s} for SETTERS' parts. Returns a JSON-ready dict. Errors: ValueError naming a given part
     the chosen model lacks or SETTERS does not know."""
-    obj, write, true_B, lag = _renderer_objects(group, row)
+    obj, write, true_B, d_true, _ = SB.row_objects(group, row)
+    lag = SB.true_mean_lag(row[0], obj, d_true)
     with captured_fit_record() as captured, tempfile.TemporaryDirectory() as d:
         write(obj, Path(d))
         calibrate(load_session(d))
