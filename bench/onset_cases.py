@@ -277,6 +277,12 @@ LOCKBOX13_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 SEEDS_14 = {"marker": (74101, 740001), "swing": (74202, 740201), "render_c": (74303, 740401)}
 LOCKBOX14_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_14, PLAN, "s14-")]
 
+# The fifteenth set-aside group, LOCKBOX15_300 (drawn and committed 2026-11-29 at the start of stop 79, before
+# any code of that stop; sealed for the onset code of a later change). Run all 300 on that onset code, resumed
+# across sessions from its rows if need be.
+SEEDS_15 = {"marker": (75101, 750001), "swing": (75202, 750201), "render_c": (75303, 750401)}
+LOCKBOX15_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_15, PLAN, "s15-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"

@@ -46,6 +46,8 @@ Groups:
                drawn and committed at the start of stop 77, sealed for 1f06283's onset code.
   lockbox14    bench/onset_cases.py LOCKBOX14_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at the start of stop 78, run on 1f06283's onset code (as lockbox13).
+  lockbox15    bench/onset_cases.py LOCKBOX15_300: 100 more renderings from each renderer (new seeds),
+               drawn and committed at the start of stop 79, sealed for a later onset code.
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
                with the exposure 0.25-1 frame period (the other groups' renderers expose 2-8 ms),
                judged as fresh (category "exposure", B <= 5 %).
@@ -92,7 +94,7 @@ FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_1
               "lockbox7": lambda c: c.LOCKBOX7_300, "lockbox8": lambda c: c.LOCKBOX8_300, "lockbox9": lambda c: c.LOCKBOX9_300,
               "lockbox10": lambda c: c.LOCKBOX10_300, "lockbox11": lambda c: c.LOCKBOX11_300,
               "lockbox12": lambda c: c.LOCKBOX12_300, "lockbox13": lambda c: c.LOCKBOX13_300,
-              "lockbox14": lambda c: c.LOCKBOX14_300,
+              "lockbox14": lambda c: c.LOCKBOX14_300, "lockbox15": lambda c: c.LOCKBOX15_300,
               "exposure": lambda c: c.EXPOSURE_30}
 
 
