@@ -23,9 +23,12 @@ differ a little (10.54 against 10.32 % on s12-swing-048-registration).
 
 Run a row only once it has been judged: a set-aside row examined before its group's run is spent.
 
-Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_truth.py GROUP ROW ['{"lag_tip": 0.005}']
+Usage: PYTHONPATH=host:bench .venv/bin/python bench/onset_truth.py GROUP ROW ['{"lag_tip": 0.005}'] [--terms T,...]
   The optional JSON object sets the start of named nonlinear parts from the truth, in s: lag_tip,
-  lag_motor, slide_tip, slide_motor, expo (only parts of the chosen model).
+  lag_motor, slide_tip, slide_motor, expo (only parts of the model refitted).
+  --terms refits the truth under other terms than the search chose (e.g. the rendering's own:
+  reg_tip,slide_tip,expo; "" for the plain model), at the search's B and path sizes; parts the
+  search's fit lacks start at the model's defaults. The search's fit is scored as it was.
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ from onset_variants import captured_fit_record  # noqa: E402
 
 from playscope.fit.calibration import calibrate  # noqa: E402
 from playscope.fit.onset_fit import IRLS_ROUNDS, _basis, _fit_one  # noqa: E402
+from playscope.fit.onset_model import TERMS, RecordModel, Terms  # noqa: E402
 from playscope.io.session import load_session  # noqa: E402
 
 SETTERS = {"lag_tip": "lag_x", "lag_motor": "lag_x", "slide_tip": "slide_x", "slide_motor": "slide_x",
@@ -67,10 +71,11 @@ def _switches(fit) -> dict:
     return out
 
 
-def compare(group: str, row: tuple, given: dict) -> dict:
-    """The row calibrated, then its chosen model refitted from the truth (module doc). given: {part
-    name: s} for SETTERS' parts. Returns a JSON-ready dict. Errors: ValueError naming a given part
-    the chosen model lacks or SETTERS does not know."""
+def compare(group: str, row: tuple, given: dict, terms: list[str] | None = None) -> dict:
+    """The row calibrated, then its chosen model (or the model with `terms`, onset_model.TERMS'
+    names) refitted from the truth (module doc). given: {part name: s} for SETTERS' parts. Returns a
+    JSON-ready dict. Errors: ValueError naming a given part the refitted model lacks or SETTERS does
+    not know, or a term onset_model does not know."""
     obj, write, true_B, d_true, _ = SB.row_objects(group, row)
     lag = SB.true_mean_lag(row[0], obj, d_true)
     with captured_fit_record() as captured, tempfile.TemporaryDirectory() as d:
@@ -79,6 +84,14 @@ def compare(group: str, row: tuple, given: dict) -> dict:
     fit, search = captured["fit"]
     m, sigma = fit.model, float(search["sigma_px"])
     parts = m.parts(fit.theta)
+    if terms is not None:
+        unknown = sorted(set(terms) - set(TERMS))
+        if unknown:
+            raise ValueError(f"unknown terms {unknown}: onset_model's are {list(TERMS)}")
+        mt = RecordModel(m.rec, m.n_b, m.n_g, Terms(**{n: True for n in terms}), m.prior, m.d_fixed, m.width_at)
+        mt.slope = m.slope
+        parts = {k: v for k, v in parts.items() if k in mt.layout()}
+        m = mt
     qq = np.linspace(m.q_lo, m.q_hi, 400)
     if m.n_b == 1:
         parts["B"] = np.array([float(np.mean(true_B(qq)))])
@@ -86,13 +99,13 @@ def compare(group: str, row: tuple, given: dict) -> dict:
         parts["B"] = np.linalg.lstsq(_basis(qq, m.q_lo, m.q_hi, m.n_b), np.asarray(true_B(qq), float), rcond=None)[0]
     parts["d"] = np.array([lag])
     for name, s in given.items():
-        if name not in SETTERS or name not in parts:
-            raise ValueError(f"part {name!r} is not one of the chosen model's {sorted(set(SETTERS) & set(parts))}")
+        if name not in SETTERS or name not in m.layout():
+            raise ValueError(f"part {name!r} is not one of the refitted model's {sorted(set(SETTERS) & set(m.layout()))}")
         parts[name] = np.array([getattr(m, SETTERS[name])(float(s))])
     th = m.theta(parts)
     at = _fit_one((m, th, sigma, 1, 1))
     refit = _fit_one((m, th, sigma, 20, IRLS_ROUNDS))
-    return {"row": row[1], "terms": m.terms.names(), "B_ctrl": m.n_b, "B_read_at": m.width_at, "sigma_px": sigma,
+    return {"row": row[1], "terms": m.terms.names(), "search_terms": fit.model.terms.names(), "B_ctrl": m.n_b, "B_read_at": m.width_at, "sigma_px": sigma,
             "search": {"bic": fit.bic(sigma), "B_err_pct": b_error_pct(fit, true_B), "t_delay_s": float(fit.theta[0]),
                        **_switches(fit)},
             "truth_start_bic": at.bic(sigma),
@@ -106,6 +119,8 @@ def main(argv=None) -> int:
     ap.add_argument("group", choices=(*SB.FROM_CASES, "development"))
     ap.add_argument("row", help="the row's name, as the scoreboard prints it")
     ap.add_argument("given", nargs="?", default="{}", help="JSON object {part: s}, e.g. '{\"expo\": 0.004}'")
+    ap.add_argument("--terms", help="comma-separated terms to refit the truth under instead of the search's "
+                    "(e.g. reg_tip,slide_tip,expo; '' for the plain model)")
     a = ap.parse_args(argv)
     rows = {r[1]: r for r in SB._rows(a.group)}
     if a.row not in rows:
@@ -119,7 +134,10 @@ def main(argv=None) -> int:
     unknown = sorted(set(given) - set(SETTERS))
     if unknown:
         ap.error(f"unknown parts {unknown}: the parts that can be given are {sorted(SETTERS)}")
-    print(json.dumps(compare(a.group, rows[a.row], given)), flush=True)
+    terms = None if a.terms is None else [t for t in a.terms.split(",") if t]
+    if terms is not None and sorted(set(terms) - set(TERMS)):
+        ap.error(f"unknown terms {sorted(set(terms) - set(TERMS))}: the terms are {list(TERMS)}")
+    print(json.dumps(compare(a.group, rows[a.row], given, terms)), flush=True)
     return 0
 
 
