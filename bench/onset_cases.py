@@ -283,6 +283,12 @@ LOCKBOX14_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 SEEDS_15 = {"marker": (75101, 750001), "swing": (75202, 750201), "render_c": (75303, 750401)}
 LOCKBOX15_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_15, PLAN, "s15-")]
 
+# The sixteenth set-aside group, LOCKBOX16_300 (drawn and committed 2026-11-29 during stop 79, while LOCKBOX15
+# ran and before any onset code written after c2cc458; sealed for the onset code of a later change). Run all
+# 300 on that onset code, resumed across sessions from its rows if need be.
+SEEDS_16 = {"marker": (76101, 760001), "swing": (76202, 760201), "render_c": (76303, 760401)}
+LOCKBOX16_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_16, PLAN, "s16-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"

@@ -48,6 +48,8 @@ Groups:
                drawn and committed at the start of stop 78, run on 1f06283's onset code (as lockbox13).
   lockbox15    bench/onset_cases.py LOCKBOX15_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at the start of stop 79, sealed for a later onset code.
+  lockbox16    bench/onset_cases.py LOCKBOX16_300: 100 more renderings from each renderer (new seeds),
+               drawn and committed during stop 79 (after c2cc458's onset code), sealed for a later one.
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
                with the exposure 0.25-1 frame period (the other groups' renderers expose 2-8 ms),
                judged as fresh (category "exposure", B <= 5 %).
@@ -95,6 +97,7 @@ FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_1
               "lockbox10": lambda c: c.LOCKBOX10_300, "lockbox11": lambda c: c.LOCKBOX11_300,
               "lockbox12": lambda c: c.LOCKBOX12_300, "lockbox13": lambda c: c.LOCKBOX13_300,
               "lockbox14": lambda c: c.LOCKBOX14_300, "lockbox15": lambda c: c.LOCKBOX15_300,
+              "lockbox16": lambda c: c.LOCKBOX16_300,
               "exposure": lambda c: c.EXPOSURE_30}
 
 
