@@ -278,8 +278,8 @@ SEEDS_14 = {"marker": (74101, 740001), "swing": (74202, 740201), "render_c": (74
 LOCKBOX14_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_14, PLAN, "s14-")]
 
 # The fifteenth set-aside group, LOCKBOX15_300 (drawn and committed 2026-11-29 at the start of stop 79, before
-# any code of that stop; sealed for the onset code of a later change). Run all 300 on that onset code, resumed
-# across sessions from its rows if need be.
+# any code of that stop). Run whole on c2cc458's onset code (the B-level profile): 2 / 300 fail, rows in
+# bench/scoreboard_rows/lockbox15-stop79.jsonl. Spent: development data from then on.
 SEEDS_15 = {"marker": (75101, 750001), "swing": (75202, 750201), "render_c": (75303, 750401)}
 LOCKBOX15_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_15, PLAN, "s15-")]
 

@@ -47,7 +47,7 @@ Groups:
   lockbox14    bench/onset_cases.py LOCKBOX14_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at the start of stop 78, run on 1f06283's onset code (as lockbox13).
   lockbox15    bench/onset_cases.py LOCKBOX15_300: 100 more renderings from each renderer (new seeds),
-               drawn and committed at the start of stop 79, sealed for a later onset code.
+               drawn and committed at the start of stop 79, run on c2cc458's onset code.
   lockbox16    bench/onset_cases.py LOCKBOX16_300: 100 more renderings from each renderer (new seeds),
                drawn and committed during stop 79 (after c2cc458's onset code), sealed for a later one.
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
