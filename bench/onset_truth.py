@@ -71,11 +71,19 @@ def _switches(fit) -> dict:
     return out
 
 
+def check_terms(terms: list[str] | None) -> None:
+    """Errors: ValueError naming the terms onset_model does not know (its TERMS)."""
+    unknown = sorted(set(terms or ()) - set(TERMS))
+    if unknown:
+        raise ValueError(f"unknown terms {unknown}: onset_model's are {list(TERMS)}")
+
+
 def compare(group: str, row: tuple, given: dict, terms: list[str] | None = None) -> dict:
     """The row calibrated, then its chosen model (or the model with `terms`, onset_model.TERMS'
     names) refitted from the truth (module doc). given: {part name: s} for SETTERS' parts. Returns a
     JSON-ready dict. Errors: ValueError naming a given part the refitted model lacks or SETTERS does
     not know, or a term onset_model does not know."""
+    check_terms(terms)  # before the calibration's minutes
     obj, write, true_B, d_true, _ = SB.row_objects(group, row)
     lag = SB.true_mean_lag(row[0], obj, d_true)
     with captured_fit_record() as captured, tempfile.TemporaryDirectory() as d:
@@ -85,9 +93,6 @@ def compare(group: str, row: tuple, given: dict, terms: list[str] | None = None)
     m, sigma = fit.model, float(search["sigma_px"])
     parts = m.parts(fit.theta)
     if terms is not None:
-        unknown = sorted(set(terms) - set(TERMS))
-        if unknown:
-            raise ValueError(f"unknown terms {unknown}: onset_model's are {list(TERMS)}")
         mt = RecordModel(m.rec, m.n_b, m.n_g, Terms(**{n: True for n in terms}), m.prior, m.d_fixed, m.width_at)
         mt.slope = m.slope
         parts = {k: v for k, v in parts.items() if k in mt.layout()}
@@ -135,8 +140,10 @@ def main(argv=None) -> int:
     if unknown:
         ap.error(f"unknown parts {unknown}: the parts that can be given are {sorted(SETTERS)}")
     terms = None if a.terms is None else [t for t in a.terms.split(",") if t]
-    if terms is not None and sorted(set(terms) - set(TERMS)):
-        ap.error(f"unknown terms {sorted(set(terms) - set(TERMS))}: the terms are {list(TERMS)}")
+    try:
+        check_terms(terms)
+    except ValueError as e:
+        ap.error(str(e))
     print(json.dumps(compare(a.group, rows[a.row], given, terms)), flush=True)
     return 0
 

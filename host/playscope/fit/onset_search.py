@@ -382,13 +382,14 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
 
 B_LEVELS = tuple(1.05 ** k for k in (-4, -3, -2, -1, 1, 2, 3, 4))  # B's levels the final model is refitted
                        # from (`_level_profile`): steps of 5 %, the B limit of a fresh rendering, so one of them
-                       # starts within 2.5 % of any level in range; +-22 %, twice the largest level error of
-                       # a search-side failure seen (s12-swing-048 of LOCKBOX12_300, 10.5 %)
+                       # starts within 2.5 % of any level in range; -18 % to +22 %: up to twice the largest level
+                       # error of a search-side failure seen (s12-swing-048 of LOCKBOX12_300, B 10.5 % short)
 
 
 def _level_profile(fit: Fit, bic: float, sigma: float, log: list) -> tuple:
     """The final model refitted from its B scaled by each of B_LEVELS (a trial fit each, as a term's),
-    the best trial carried to a full fit and kept when its BIC is lower: (fit, bic).
+    the best trial carried to a full fit and kept when its BIC is lower: (fit, bic). bic: the fit's BIC
+    at sigma (px), the search's scale; log: the search's step list, appended to. No errors of its own.
 
     Why: with a switch or a slide on, B's level trades against the switch's lag, the slide and the
     exposure (each moves the onsets a few ms), and the search's fits start from one level and stay
@@ -399,11 +400,8 @@ def _level_profile(fit: Fit, bic: float, sigma: float, log: list) -> tuple:
     (the profile likelihood's use: Venzon & Moolgavkar 1988, Appl. Statist. 37(1)) crosses the barrier
     with the other parts settling at each level. Same BIC, so it can only lower it."""
     m = fit.model
-    jobs = []
-    for s in B_LEVELS:
-        parts = m.parts(fit.theta)
-        parts["B"] = parts["B"] * s
-        jobs.append(([m], m.theta(parts), sigma, 8, TRIAL_ROUNDS))
+    parts = m.parts(fit.theta)
+    jobs = [([m], m.theta({**parts, "B": parts["B"] * s}), sigma, 8, TRIAL_ROUNDS) for s in B_LEVELS]
     trials = [fs[-1] for fs in _fit_all(jobs, _fit_chain)]
     best = min(trials, key=lambda f: f.bic(sigma))
     log.append({"B_levels": {f"{s:.3f}": f.bic(sigma) for s, f in zip(B_LEVELS, trials)}})

@@ -166,7 +166,6 @@ def test_a_correlation_peak_a_fraction_of_a_frame_late_starts_at_the_delay_it_me
     assert abs(d0 - r.delay_s) * r.fps < 0.125
 
 
-
 def test_the_level_profile_reaches_the_level_a_dense_scan_finds_where_a_local_fit_stalls():
     # `_level_profile` against a brute-force reference: the constant-width plain model of a clean
     # 20 s rendering, fitted in full from 17 widths over 0.20-0.28 mm, the lowest BIC taken (measured
