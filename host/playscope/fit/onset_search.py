@@ -15,8 +15,9 @@ the BIC.
 Terms by evidence: the tip mode, each registration term and the exposure enter when they lower the record's
 BIC (Schwarz 1978) on the robust objective (2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma),
 the Gaussian's normalisation for the inflated scales), the same criterion for each; the search
-adds the best term, refits, and tries the rest again. Last, B's level is profiled (`_level_profile`): the
-final model refitted from B scaled up and down, kept where the BIC is lower.
+adds the best term, refits, and tries the rest again. Last, the final model is restarted along the
+directions its parts trade in (`_trade_profile`): B's level scaled up and down, each switch's lag
+crossed with the exposure; the best kept where the BIC is lower.
 
 Units: t in s, q and B in actuator units, image points in px.
 """
@@ -376,42 +377,81 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
         if len(ladder) > 1:
             fit, bic, n_b, width_at = _resize(fit, bic, ladder, sigma, log)
             m = fit.model
-    fit, bic = _level_profile(fit, bic, sigma, log)
+    fit, bic = _trade_profile(fit, bic, sigma, log)
     return fit, {"steps": log, "sigma_px": sigma, "n_b": fit.model.n_b, "n_g": n_g, "width_at": fit.model.width_at}
 
 
 B_LEVELS = tuple(1.05 ** k for k in (-4, -3, -2, -1, 1, 2, 3, 4))  # B's levels the final model is refitted
-                       # from (`_level_profile`): steps of 5 %, the B limit of a fresh rendering, so one of them
+                       # from (`_trade_profile`): steps of 5 %, the B limit of a fresh rendering, so one of them
                        # starts within 2.5 % of any level in range; -18 % to +22 %: up to twice the largest level
                        # error of a search-side failure seen (s12-swing-048 of LOCKBOX12_300, B 10.5 % short)
 
 
-def _level_profile(fit: Fit, bic: float, sigma: float, log: list) -> tuple:
-    """The final model refitted from its B scaled by each of B_LEVELS (a trial fit each, as a term's),
-    the best trial carried to a full fit and kept when its BIC is lower: (fit, bic). bic: the fit's BIC
+LAG_GRID = (0.05, 0.25, 0.5, 1.0)  # a switch lag's restarts (`_trade_profile`), frame periods: over its range
+                       # [T / 20, T], each at most a factor 5 from the next, as coarse as EXPO_GRID's
+                       # from the floor (the lag's logistic map is flat near its ends, so a fit there moves
+                       # it slowly: s15-marker-037 of LOCKBOX15_300 settled at the floor, the truth T)
+
+
+def _trade_starts(m: RecordModel, parts: dict) -> list[tuple[str, dict]]:
+    """The final model's restarts along the directions its parts trade in (`_trade_profile`), as
+    (label, parts): B scaled by each of B_LEVELS; each switch's lag at each of LAG_GRID, crossed
+    with the exposure at the fit's own and each of EXPO_GRID when the exposure is on, a motor
+    switch's with the delay moved to keep its window's middle d + L / 2 (the encoder fixes the motor's
+    reversal, so the frames see the switch over [d, d + L] after it, and the record fixes that
+    window's middle, not d or L); the exposure alone at each of EXPO_GRID. m: the final model;
+    parts: its fit's `RecordModel.parts`. Up to 8 + 2 x 4 x 5 + 4 = 52 starts, 8 without a switch."""
+    T, lay = m.rec.period_s, m.layout()
+    out = [(f"B x{s:.3f}", {**parts, "B": parts["B"] * s}) for s in B_LEVELS]
+    expos = [("own", parts.get("expo"))]
+    if "expo" in lay:
+        expos += [(f"{g}T", np.array([m.expo_x(g * T)])) for g in EXPO_GRID]
+    for n in ("tip", "motor"):
+        if "lag_" + n not in lay:
+            continue
+        L_fit = m.lag_map(parts["lag_" + n][0])[0]
+        for g in LAG_GRID:
+            for e_label, e in expos:
+                p = {**parts, "lag_" + n: np.array([m.lag_x(g * T)])}
+                if e is not None:
+                    p["expo"] = e
+                if n == "motor":
+                    p["d"] = np.array([float(parts["d"][0]) + 0.5 * (L_fit - g * T)])
+                out.append((f"lag_{n} {g}T expo {e_label}", p))
+    out += [(f"expo {label}", {**parts, "expo": e}) for label, e in expos[1:]]
+    return out
+
+
+def _trade_profile(fit: Fit, bic: float, sigma: float, log: list) -> tuple:
+    """The final model refitted from each of `_trade_starts` (a trial fit each, as a term's), the
+    best trial carried to a full fit and kept when its BIC is lower: (fit, bic). bic: the fit's BIC
     at sigma (px), the search's scale; log: the search's step list, appended to. No errors of its own.
 
-    Why: with a switch or a slide on, B's level trades against the switch's lag, the slide and the
-    exposure (each moves the onsets a few ms), and the search's fits start from one level and stay
-    near it. On s12-swing-048 of LOCKBOX12_300 the search settled with every onset 2.4 ms early and B
-    9.4 % short, the slide doing the exposure's work; at its switch lags the settled cost rose
-    2,076 -> 3,291 with B x 1.1, so no local fit crossed to the model's own best (BIC 4,528 against
-    4,429 from the truth; bench/onset_truth.py). A profile over the one parameter the failure is in
-    (the profile likelihood's use: Venzon & Moolgavkar 1988, Appl. Statist. 37(1)) crosses the barrier
-    with the other parts settling at each level. Same BIC, so it can only lower it."""
+    Why: with a switch, a slide or the exposure on, B's level trades against the switch's lag, the
+    slide and the exposure (each moves the onsets a few ms), and the search's fits start from one
+    level and stay near it. On s12-swing-048 of LOCKBOX12_300 the search settled with every onset
+    2.4 ms early and B 9.4 % short, the slide doing the exposure's work; at its switch lags the
+    settled cost rose 2,076 -> 3,291 with B x 1.1, so no local fit crossed to the model's own best
+    (BIC 4,528 against 4,429 from the truth; bench/onset_truth.py). A switch's lag trades against
+    the exposure, and a motor switch's against the delay, the same way: on s15-marker-037 of
+    LOCKBOX15_300 the search settled with the motor switch's lag at its floor T / 20, the exposure
+    at its bound T and the mean lag 0.41 frame late (BIC 10,083; from the truth 10,050, the lag T).
+    Restarts along each of these directions (a coarse profile: the profile likelihood's use, Venzon &
+    Moolgavkar 1988, Appl. Statist. 37(1)) cross such barriers with the other parts settling at each.
+    Same BIC, so it can only lower it. Cost: a trial fit per start (8 evaluations each)."""
     m = fit.model
-    parts = m.parts(fit.theta)
-    jobs = [([m], m.theta({**parts, "B": parts["B"] * s}), sigma, 8, TRIAL_ROUNDS) for s in B_LEVELS]
+    starts = _trade_starts(m, m.parts(fit.theta))
+    jobs = [([m], m.theta(p), sigma, 8, TRIAL_ROUNDS) for _, p in starts]
     trials = [fs[-1] for fs in _fit_all(jobs, _fit_chain)]
     best = min(trials, key=lambda f: f.bic(sigma))
-    log.append({"B_levels": {f"{s:.3f}": f.bic(sigma) for s, f in zip(B_LEVELS, trials)}})
+    log.append({"trade_starts": {label: f.bic(sigma) for (label, _), f in zip(starts, trials)}})
     if best.bic(sigma) >= bic:
         return fit, bic
     full = fit_model(best.model, best.theta, sigma=sigma)
     if full.bic(sigma) >= bic:
         return fit, bic
     log.append({"terms": full.model.terms.names(), "bic": full.bic(sigma), "t_delay_s": float(full.theta[0]),
-                "B_level": True})
+                "trade_profile": True})
     return full, full.bic(sigma)
 
 

@@ -166,8 +166,8 @@ def test_a_correlation_peak_a_fraction_of_a_frame_late_starts_at_the_delay_it_me
     assert abs(d0 - r.delay_s) * r.fps < 0.125
 
 
-def test_the_level_profile_reaches_the_level_a_dense_scan_finds_where_a_local_fit_stalls():
-    # `_level_profile` against a brute-force reference: the constant-width plain model of a clean
+def test_the_trade_profile_reaches_the_level_a_dense_scan_finds_where_a_local_fit_stalls():
+    # `_trade_profile` against a brute-force reference: the constant-width plain model of a clean
     # 20 s rendering, fitted in full from 17 widths over 0.20-0.28 mm, the lowest BIC taken (measured
     # 8,794 at 0.250 mm). The model's cost in B's level is rugged (each onset moves a frame at a
     # time), so a full local fit from a width 18 % short stalls (measured 9,521 at 0.231 mm); the
@@ -190,9 +190,39 @@ def test_the_level_profile_reaches_the_level_a_dense_scan_finds_where_a_local_fi
 
     log = []
     start = fit_from(off, max_nfev=1, rounds=1)  # the short width, unfitted
-    back, bic = OS._level_profile(start, start.bic(sig), sig, log)
-    assert bic < scan.bic(sig) + 30 and log[-1].get("B_level")
+    back, bic = OS._trade_profile(start, start.bic(sig), sig, log)
+    assert bic < scan.bic(sig) + 30 and log[-1].get("trade_profile")
     assert width(back) == pytest.approx(width(scan), rel=0.025)
 
-    kept, bic_kept = OS._level_profile(scan, scan.bic(sig), sig, [])
+    kept, bic_kept = OS._trade_profile(scan, scan.bic(sig), sig, [])
     assert bic_kept <= scan.bic(sig) and width(kept) == pytest.approx(width(scan), rel=0.025)
+
+
+def test_the_trade_profile_restarts_a_switch_lag_stalled_at_its_floor_with_the_exposure_doing_its_work():
+    # `_trade_profile` along the lag-exposure trade: a 30 s rendering whose registration flips by
+    # 2 deg with the tip (a uniform 0..T late) and whose frames each expose 30 ms. The model with
+    # that switch and the exposure, fitted in full from the rendering's own lag and exposure,
+    # scores 1,289 (lag T, exposure 30.8 ms). From the lag at its floor T / 20 and the exposure at
+    # its bound T, the full fit stalls with the lag at the floor (measured 2,013): the exposure
+    # spreads each switch over its frame in the lag's place. B's level alone cannot leave that
+    # basin (its restarts kept 2,013); the lag's restarts reach 1,289, lag T, exposure 31.0 ms.
+    r, d, t, q, rt, rq, obs, hyst = record(duration_s=30.0, reg_deg=2.0, exposure_s=0.03, b_lo=0.25, b_hi=0.25)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    sig, T = OM.noise_sigma(obs), rec.period_s
+    m = OM.RecordModel(rec, 1, 10, OM.Terms(reg_tip=True, expo=True), (r.delay_cfg_s, T / np.sqrt(12)))
+
+    def fit_from(lag_s, expo_s):
+        return OF.fit_model(m, m.theta({"d": np.array([r.delay_cfg_s]), "B": np.array([0.25]),
+                                        "lag_tip": np.array([m.lag_x(lag_s)]), "expo": np.array([m.expo_x(expo_s)])}),
+                            sigma=sig)
+
+    ref = fit_from(0.5 * T, r.exposure_s)
+    stalled = fit_from(T / 20, T)
+    assert stalled.bic(sig) > ref.bic(sig) + 300  # the record shows the stall
+
+    log = []
+    back, bic = OS._trade_profile(stalled, stalled.bic(sig), sig, log)
+    assert bic < ref.bic(sig) + 30 and log[-1].get("trade_profile")
+    assert m.unpack(back.theta)[3]["tip"] > 0.5 * T
+    assert m.exposure(back.theta) == pytest.approx(r.exposure_s, rel=0.1)
+    assert float(m.parts(back.theta)["B"][0]) == pytest.approx(0.25, rel=0.025)
