@@ -289,6 +289,13 @@ LOCKBOX15_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 SEEDS_16 = {"marker": (76101, 760001), "swing": (76202, 760201), "render_c": (76303, 760401)}
 LOCKBOX16_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_16, PLAN, "s16-")]
 
+# The seventeenth set-aside group, LOCKBOX17_300 (drawn and committed 2026-11-29 at the start of stop 80, while
+# the development group ran on the trade restarts (835a9a4) and after the fitted start's prototype was written on
+# s15-render_c-055 alone, before it met any other row; sealed for the onset code of a later change). Run all 300
+# on that onset code, resumed across sessions from its rows if need be.
+SEEDS_17 = {"marker": (77101, 770001), "swing": (77202, 770201), "render_c": (77303, 770401)}
+LOCKBOX17_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_17, PLAN, "s17-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
