@@ -387,10 +387,10 @@ B_LEVELS = tuple(1.05 ** k for k in (-4, -3, -2, -1, 1, 2, 3, 4))  # B's levels 
                        # error of a search-side failure seen (s12-swing-048 of LOCKBOX12_300, B 10.5 % short)
 
 
-LAG_GRID = (0.05, 0.25, 0.5, 1.0)  # a switch lag's restarts (`_trade_profile`), frame periods: over its range
-                       # [T / 20, T], each at most a factor 5 from the next, as coarse as EXPO_GRID's
-                       # from the floor (the lag's logistic map is flat near its ends, so a fit there moves
-                       # it slowly: s15-marker-037 of LOCKBOX15_300 settled at the floor, the truth T)
+LAG_GRID = (0.05, 0.25, 0.5, 1.0)  # a switch lag's restarts (`_trade_profile`), frame periods: both ends of its
+                       # range [T / 20, T] (the lag's logistic map is flat near them, so a fit that reaches
+                       # one moves away slowly: s15-marker-037 of LOCKBOX15_300 settled at the floor, the
+                       # truth at T) and between them a factor 2 apart, as EXPO_GRID's upper points
 
 
 def _trade_starts(m: RecordModel, parts: dict) -> list[tuple[str, dict]]:
