@@ -284,8 +284,8 @@ SEEDS_15 = {"marker": (75101, 750001), "swing": (75202, 750201), "render_c": (75
 LOCKBOX15_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_15, PLAN, "s15-")]
 
 # The sixteenth set-aside group, LOCKBOX16_300 (drawn and committed 2026-11-29 during stop 79, while LOCKBOX15
-# ran and before any onset code written after c2cc458; sealed for the onset code of a later change). Run all
-# 300 on that onset code, resumed across sessions from its rows if need be.
+# ran and before any onset code written after c2cc458). Run whole on 835a9a4's onset code (the trade restarts):
+# 0 / 300 fail, rows in bench/scoreboard_rows/lockbox16-stop80.jsonl. Spent: development data from then on.
 SEEDS_16 = {"marker": (76101, 760001), "swing": (76202, 760201), "render_c": (76303, 760401)}
 LOCKBOX16_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_16, PLAN, "s16-")]
 

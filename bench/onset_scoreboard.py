@@ -49,7 +49,7 @@ Groups:
   lockbox15    bench/onset_cases.py LOCKBOX15_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at the start of stop 79, run on c2cc458's onset code.
   lockbox16    bench/onset_cases.py LOCKBOX16_300: 100 more renderings from each renderer (new seeds),
-               drawn and committed during stop 79 (after c2cc458's onset code), sealed for a later one.
+               drawn and committed during stop 79 (after c2cc458's onset code), run on 835a9a4's.
   lockbox17    bench/onset_cases.py LOCKBOX17_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at the start of stop 80, sealed for a later onset code.
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
