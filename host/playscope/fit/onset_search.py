@@ -400,7 +400,8 @@ def _trade_starts(m: RecordModel, parts: dict) -> list[tuple[str, dict]]:
     switch's with the delay moved to keep its window's middle d + L / 2 (the encoder fixes the motor's
     reversal, so the frames see the switch over [d, d + L] after it, and the record fixes that
     window's middle, not d or L); the exposure alone at each of EXPO_GRID. m: the final model;
-    parts: its fit's `RecordModel.parts`. Up to 8 + 2 x 4 x 5 + 4 = 52 starts, 8 without a switch."""
+    parts: its fit's `RecordModel.parts`. 8 starts with neither a switch nor the exposure, 12 with
+    one of them, 32 with one switch and the exposure, up to 8 + 2 x 4 x 5 + 4 = 52."""
     T, lay = m.rec.period_s, m.layout()
     out = [(f"B x{s:.3f}", {**parts, "B": parts["B"] * s}) for s in B_LEVELS]
     expos = [("own", parts.get("expo"))]

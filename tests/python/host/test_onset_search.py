@@ -201,8 +201,8 @@ def test_the_trade_profile_reaches_the_level_a_dense_scan_finds_where_a_local_fi
 def test_the_trade_profile_restarts_a_switch_lag_stalled_at_its_floor_with_the_exposure_doing_its_work():
     # `_trade_profile` along the lag-exposure trade: a 30 s rendering whose registration flips by
     # 2 deg with the tip (a uniform 0..T late) and whose frames each expose 30 ms. The model with
-    # that switch and the exposure, fitted in full from the rendering's own lag and exposure,
-    # scores 1,289 (lag T, exposure 30.8 ms). From the lag at its floor T / 20 and the exposure at
+    # that switch and the exposure, fitted in full from the rendering's mean lag (T / 2) and its
+    # exposure, scores 1,289 (lag T, exposure 30.8 ms). From the lag at its floor T / 20 and the exposure at
     # its bound T, the full fit stalls with the lag at the floor (measured 2,013): the exposure
     # spreads each switch over its frame in the lag's place. B's level alone cannot leave that
     # basin (its restarts kept 2,013); the lag's restarts reach 1,289, lag T, exposure 31.0 ms.
