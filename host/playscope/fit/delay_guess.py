@@ -73,7 +73,7 @@ def coarse_delay_peaks(t_f: np.ndarray, obs: np.ndarray, t_stop: np.ndarray, t_e
     that repeats (a triangle, regular swings) repeats the score with its period, so an alias one
     period late scores as high as the delay (on a 60 fps triangle of 0.29 s period, 1.000 against
     1.000 to three digits, the alias first), and only a model of the whole record tells them apart
-    (a fit from each, onset_search._coarse_start). Why a frame apart: the frames time a lag no finer than one
+    (a fit from each, onset_search._fitted_start). Why a frame apart: the frames time a lag no finer than one
     frame before any model, so maxima closer than that are the score's ripple about one lag.
     Returns (K,) s, K >= 1."""
     lags, score = delay_score(t_f, obs, t_stop, t_enc, q, period, max_delay)

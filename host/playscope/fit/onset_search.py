@@ -3,8 +3,11 @@ each chosen by the same BIC (onset_fit.Fit.bic); `fit_record` is the onset stage
 
 Start: the coarse delay and the configured one, each with the constant play width that fits best.
 The coarse delay is the peak of delay_guess's correlation, profiled over the frame before it, whose
-profiled start the plain model scores best (`_coarse_start`): an excitation that repeats makes the
-correlation as high one period late, and a peak sits late by up to the play's take-up.
+profiled start the plain model scores best (`_coarse_starts`): an excitation that repeats makes the
+correlation as high one period late, and a peak sits late by up to the play's take-up. The plain
+model's own start is then the one, of every profiled peak and the configured delay, whose
+constant-width fit scores the lowest BIC (`_fitted_start`): the profiled score alone can rank an
+alias first where B varies over the travel.
 The board's plain eq. 1 samples are a third start when given. B is fitted coarse to fine
 (`_fit_chain`): a constant width, then each of B_CTRL's sizes from the last one's fit. A term the
 plain model lacks drags its width, so each term also gets starts profiled with it on (the
@@ -140,12 +143,13 @@ def _profiled_start(m: RecordModel, d: float, widths: list[float], sigma: float,
     return best
 
 
-def _coarse_start(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | None, sigma: float) -> float:
-    """The coarse delay the search starts from: of the correlation's candidates cands (K,) s
+def _coarse_starts(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | None, sigma: float) -> list[float]:
+    """The coarse delays the search may start from: the correlation's candidates cands (K,) s
     (delay_guess.coarse_delay_peaks, its highest first), each profiled over the frame period before
-    it (`_profiled_start`: the plain model at a constant width, BIC at sigma), the profiled start of
-    lowest BIC (ties keep the earlier). prior: the configured delay's (mean, sd) s or None; board_b:
-    the board's eq. 1 samples or None (`_start_widths`). Returns s.
+    it (`_profiled_start`: the plain model at a constant width, BIC at sigma), lowest BIC first
+    (ties keep the earlier). prior: the configured delay's (mean, sd) s or None; board_b: the
+    board's eq. 1 samples or None (`_start_widths`). Returns (K,) s; the first is the coarse start,
+    and all are offered to `_fitted_start`.
 
     Why a profile a frame back: the correlation is flat from the delay to where the play is taken
     up (delay_guess.delay_score), so its peak sits up to that much late, and the frames time it to
@@ -166,7 +170,7 @@ def _coarse_start(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | N
     m = RecordModel(rec, 1, G_CTRL[1], Terms(), prior, None)
     widths = sorted(_start_widths(rec, board_b))
     starts = [_profiled_start(m, float(d), widths, sigma, rec.period_s / SUB) for d in cands]
-    return min(starts, key=lambda s: s[0])[1]  # min keeps the first of equal scores
+    return [s[1] for s in sorted(starts, key=lambda s: s[0])]  # sorted keeps the first of equal scores
 
 
 SLIDE_GRID = ((0.25, 0.5, 1.0), (0.25, 0.5, 1.0))  # a slide's start grid: lags, longest slides (frame periods)
@@ -264,7 +268,7 @@ def fit_record(rec: Record, t_delay_cfg: float | None, t_delay_from: str, d_coar
                board_b: np.ndarray | None = None, prior_sd_s: float | None = None) -> tuple[Fit, dict]:
     """The record's model with its terms chosen by BIC (module doc). d_coarse: the coarse delay, s,
     or the correlation's candidates (K,) s, its highest first (delay_guess.coarse_delay_peaks), of
-    which the search starts from the one the record scores best (`_coarse_start`). Returns (the
+    which the search starts from the one the record scores best (`_coarse_starts`, `_fitted_start`). Returns (the
     final Fit, a JSON-ready dict of the term search). Runs its linear algebra on one BLAS thread: the
     matrices are small (frames x tens), where threads cost more than they give."""
     from threadpoolctl import threadpool_limits
@@ -280,12 +284,13 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
     d_fixed = float(t_delay_cfg) if (t_delay_from == "config" and t_delay_cfg is not None) else None
     sigma = noise_sigma(rec.obs)
     cands = np.atleast_1d(np.asarray(d_coarse, float))
-    d_coarse = float(cands[0]) if d_fixed is not None else _coarse_start(rec, cands, prior, board_b, sigma)
+    peaks = [float(cands[0])] if d_fixed is not None else _coarse_starts(rec, cands, prior, board_b, sigma)
+    d_coarse = peaks[0]
     starts = [d_coarse] + ([] if t_delay_cfg is None else [float(t_delay_cfg)])
     if d_fixed is not None:
         starts = [d_fixed]
     coarse = {"coarse_candidates_s": [float(d) for d in cands], "coarse_start_s": d_coarse}
-    fit, search = _search(rec, starts, prior, d_fixed, board_b, sigma)
+    fit, search = _search(rec, starts, prior, d_fixed, board_b, sigma, peaks)
     search.update(coarse)
     # The second differences overstate the noise when the motion itself turns within a few frames
     # (a fast triangle: 5.2 px against the renderer's 0.24). The fitted model's residuals bound it
@@ -293,19 +298,51 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
     # every fit and every BIC of the record still share one scale.
     s_fit = robust_sigma(fit.ev.resid)
     if s_fit < SIGMA_RERUN * sigma:
-        fit2, search2 = _search(rec, starts, prior, d_fixed, board_b, s_fit)
+        fit2, search2 = _search(rec, starts, prior, d_fixed, board_b, s_fit, peaks)
         search2["sigma_second_differences_px"] = sigma
         search2.update(coarse)
         return fit2, search2
     return fit, search
 
 
-def _search(rec, starts, prior, d_fixed, board_b, sigma):
+def _fitted_start(rec: Record, n_g: int, delays: list[float], widths: list[float], prior,
+                  sigma: float) -> tuple[tuple[float, float], dict]:
+    """The plain model's start: of the delays (s; the start's own, every profiled correlation peak
+    and the configured delay), each at its constant width of widths (actuator units) of lowest
+    `_start_bic`, the one whose constant-width plain fit (20 evaluations, as the chain's first link)
+    scores the lowest BIC at sigma (px). Returns ((delay s, width), {delay: BIC} for the log).
+
+    Why a fit, not the start's score: the start's score is the model at one delay and width, its
+    other parts unsettled, and where B varies over the travel its ranking of a peak against an alias
+    a period late can invert. On s15-render_c-055 of LOCKBOX15_300 (a 25 fps triangle of 98 ms legs,
+    delay 87 ms, configured 175 ms, B 0.144-0.253) the peaks profiled at 0.09 s (BIC 652) and at the
+    alias 0.285 s (623); the search started from the alias and ended there, 4.9 frames late, its
+    model 5,050 above the truth's, with a tip mode, a switch and a slide taking up the misfit. Fitted
+    from each, the delay's start scores 435 and the alias's 514; the configured delay's fit also
+    reaches 87 ms (436)."""
+    m = RecordModel(rec, 1, n_g, Terms(), prior, None, "input")
+    cands = []
+    for d in dict.fromkeys(float(d) for d in delays):
+        cands.append((d, min(widths, key=lambda b: _start_bic(m, d, b, sigma))))
+    jobs = [([RecordModel(rec, 1, n_g, Terms(), prior, None, "input")], m.theta({"d": np.array([d]), "B": np.array([b])}),
+             sigma, 20, IRLS_ROUNDS) for d, b in cands]
+    bics = [fs[-1].bic(sigma) for fs in _fit_all(jobs, _fit_chain)]
+    return cands[int(np.argmin(bics))], {f"{d:.4f}": b for (d, _), b in zip(cands, bics)}
+
+
+def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
     """The start, B's size and where it is read, then the terms by BIC, all at the scale sigma
-    (px): (the final Fit, the search's JSON-ready log)."""
+    (px): (the final Fit, the search's JSON-ready log). starts: the delay starts (s; the coarse,
+    then the configured); peaks: every profiled correlation peak (s, `_coarse_starts`), offered
+    to `_fitted_start` beside them."""
     st, n_g = _start(rec, starts, prior, d_fixed, board_b, sigma)
     widths = _start_widths(rec, board_b)
     d0, b0 = min(st.items(), key=lambda kv: len(kv[0]))[1]  # the base model's own start
+    fitted_log = None
+    if d_fixed is None:
+        (d0, b0), fitted_log = _fitted_start(rec, n_g, [d0, *peaks, *starts], widths, prior, sigma)
+        starts = list(dict.fromkeys([d0, *starts[1:]]))  # the winner in the coarse start's place, so
+        # the terms' trials start from it and the configured delay, as before from the coarse start
     terms = Terms()
     ladder = _n_b_ladder(rec.rt.size)
 
@@ -322,7 +359,7 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma):
             for f in (fs[1:] if len(fs) > 1 else fs)]
     bic, n_b, width_at, fit = min(fits, key=lambda x: x[0])
     m = fit.model
-    log = [{"B_ctrl": {f"{n} {w}": b for b, n, w, _ in fits}},
+    log = [{"fitted_start": fitted_log}, {"B_ctrl": {f"{n} {w}": b for b, n, w, _ in fits}},
            {"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])}]
     while True:
         jobs = []

@@ -10,7 +10,7 @@ from playscope.fit import onset_model as OM
 from playscope.fit import onset_search as OS
 from playscope.fit.onset_stage import record_samples
 
-from .onset_records import b_error_pct, record
+from .onset_records import b_error_pct, bench_module, record
 
 
 def test_a_clean_record_gives_B_and_the_delay():
@@ -110,7 +110,7 @@ def test_the_search_starts_from_the_correlations_peak_the_record_fits_not_an_ali
     assert peaks[0] > r.delay_s + 0.25  # the highest: the alias, a period (0.29 s) late
     near = [p for p in peaks if abs(p - r.delay_s) < 0.03]
     assert len(near) == 1
-    d0 = OS._coarse_start(rec, peaks, (r.delay_cfg_s, rec.period_s / np.sqrt(12)), None, OM.noise_sigma(obs))
+    d0 = OS._coarse_starts(rec, peaks, (r.delay_cfg_s, rec.period_s / np.sqrt(12)), None, OM.noise_sigma(obs))[0]
     assert near[0] - rec.period_s <= d0 <= near[0]  # that peak, profiled over the frame before it
     assert abs(d0 - r.delay_s) < abs(near[0] - r.delay_s)
     # and fit_record's search starts from it and the configured delay (the search itself stubbed out);
@@ -128,7 +128,7 @@ def test_the_search_starts_from_the_correlations_peak_the_record_fits_not_an_ali
     with pytest.raises(Started):
         OS.fit_record(rec, r.delay_cfg_s, "data", peaks)
     assert seen[-1] == [d0, r.delay_cfg_s]
-    monkeypatch.setattr(OS, "_coarse_start", lambda *a: pytest.fail("a held delay fits no candidate"))
+    monkeypatch.setattr(OS, "_coarse_starts", lambda *a: pytest.fail("a held delay fits no candidate"))
     with pytest.raises(Started):
         OS.fit_record(rec, r.delay_cfg_s, "config", peaks)
     assert seen[-1] == [r.delay_cfg_s]
@@ -162,7 +162,7 @@ def test_a_correlation_peak_a_fraction_of_a_frame_late_starts_at_the_delay_it_me
     peaks = coarse_delay_peaks(d["t_f"], obs, motor_stop_times(t, q, rt, rq, 0.02 * hyst), t, q, rec.period_s)
     near = [p for p in peaks if abs(p - r.delay_s) < rec.period_s]
     assert len(near) == 1 and near[0] - r.delay_s > 0.4 * rec.period_s  # the record shows a late peak
-    d0 = OS._coarse_start(rec, peaks, None, None, OM.noise_sigma(obs))
+    d0 = OS._coarse_starts(rec, peaks, None, None, OM.noise_sigma(obs))[0]
     assert abs(d0 - r.delay_s) * r.fps < 0.125
 
 
@@ -226,3 +226,34 @@ def test_the_trade_profile_restarts_a_switch_lag_stalled_at_its_floor_with_the_e
     assert m.unpack(back.theta)[3]["tip"] > 0.5 * T
     assert m.exposure(back.theta) == pytest.approx(r.exposure_s, rel=0.1)
     assert float(m.parts(back.theta)["B"][0]) == pytest.approx(0.25, rel=0.025)
+
+
+def test_the_plain_models_start_is_the_peak_whose_fit_scores_lowest_where_the_unfitted_score_ranks_an_alias():
+    # s15-render_c-055 of the spent LOCKBOX15_300, from render_c (a renderer written apart): a 25 fps
+    # triangle of 98 ms legs over 137 s, delay 87 ms, configured 175 ms, B 0.144-0.253 over the travel.
+    # The correlation's peaks lie a triangle period (196 ms) apart. Profiled at a constant width,
+    # unfitted, the alias 0.285 s scores lowest (measured 623 against 652 at 0.09 s; cut to 100 s the
+    # rendering ranks the delay first), and the search that started there ended 4.9 frames late. A
+    # constant-width fit from each (`_fitted_start`) scores the delay's start lowest (measured 436
+    # against 514 for the alias and for the configured delay, 748 for the next alias).
+    from playscope.fit.delay_guess import coarse_delay_peaks, motor_stop_times
+    from playscope.fit.reversals import detect_reversals
+
+    rc = bench_module("render_c")
+    sp = rc.Spec(name="s15-render_c-055", seed=750456, fps=25.0, jitter_frac=0.25, excitation="triangle",
+                 swing_mm=0.367, swing_time_s=0.098, swing_period_s=1.5, duration_s=137.2, noise_px=0.089,
+                 delay_s=0.087, delay_cfg_s=0.175, b_min_mm=0.144, b_max_mm=0.253)
+    d = rc.render(sp)
+    t, q = d["t_enc"], d["q"]
+    hyst = 0.01 * np.ptp(q)
+    rt, rq, _ = detect_reversals(t, q, hyst)
+    obs = np.column_stack([d["u"], d["v"]])
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, sp.fps)
+    T, sig, prior = rec.period_s, OM.noise_sigma(obs), (sp.delay_cfg_s, rec.period_s / np.sqrt(12))
+    peaks = coarse_delay_peaks(d["t_f"], obs, motor_stop_times(t, q, rt, rq, 0.02 * hyst), t, q, T)
+    ranked = OS._coarse_starts(rec, peaks, prior, None, sig)
+    assert abs(ranked[0] - sp.delay_s) > 0.5 * sp.swing_time_s  # the record shows the inversion: an alias first
+    st, n_g = OS._start(rec, [ranked[0], sp.delay_cfg_s], prior, None, None, sig)
+    (d0, _), bics = OS._fitted_start(rec, n_g, [st[()][0], *ranked, sp.delay_cfg_s], OS._start_widths(rec, None), prior, sig)
+    assert abs(d0 - sp.delay_s) < 0.125 * T
+    assert min(b for k, b in bics.items() if abs(float(k) - sp.delay_s) > T) > bics[f"{d0:.4f}"] + 30
