@@ -296,6 +296,13 @@ LOCKBOX16_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 SEEDS_17 = {"marker": (77101, 770001), "swing": (77202, 770201), "render_c": (77303, 770401)}
 LOCKBOX17_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_17, PLAN, "s17-")]
 
+# The eighteenth set-aside group, LOCKBOX18_300 (drawn and committed 2026-11-29 at the start of stop 81, after
+# the fitted start (46c09cb) was landed and before LOCKBOX17 ran on it or any later onset code was written;
+# sealed for the onset code of a change after 46c09cb). Run all 300 on that onset code, resumed across
+# sessions from its rows if need be.
+SEEDS_18 = {"marker": (78101, 780001), "swing": (78202, 780201), "render_c": (78303, 780401)}
+LOCKBOX18_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_18, PLAN, "s18-")]
+
 # A group for an effect the plans above never vary: the camera's exposure as a sizeable part of the
 # frame (0.25 to 1 frame period; the plans' renderers expose 2-8 ms). 15 rows each of marker_render
 # (the exposure ending at the capture instant) and swing_render (centred on it), drawn as their "none"
