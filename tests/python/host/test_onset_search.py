@@ -257,3 +257,29 @@ def test_the_plain_models_start_is_the_peak_whose_fit_scores_lowest_where_the_un
     (d0, _), bics = OS._fitted_start(rec, n_g, [st[()][0], *ranked, sp.delay_cfg_s], OS._start_widths(rec, None), prior, sig)
     assert abs(d0 - sp.delay_s) < 0.125 * T
     assert min(b for k, b in bics.items() if abs(float(k) - sp.delay_s) > T) > bics[f"{d0:.4f}"] + 30
+
+
+def test_the_trade_starts_move_a_motor_switchs_delay_to_keep_its_windows_middle():
+    # `_trade_starts`' contract along the lag-delay trade: the encoder fixes the motor's reversal, so
+    # the frames see a motor switch over [d, d + L] after it and the record fixes d + L / 2, not d or
+    # L. Each motor lag restart moves the delay to keep that middle; a tip switch's (timed from the
+    # play's own onset) leaves it. With one switch and the exposure: 8 + 4 x 5 + 4 = 32 starts.
+    r, d, t, q, rt, rq, obs, hyst = record(duration_s=10.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    T = rec.period_s
+    for name in ("motor", "tip"):
+        m = OM.RecordModel(rec, 1, 10, OM.Terms(**{"reg_" + name: True}, expo=True), None)
+        L_fit, d_fit = 0.37 * T, 0.081
+        parts = m.parts(m.theta({"d": np.array([d_fit]), "B": np.array([0.25]), "lag_" + name: np.array([m.lag_x(L_fit)]),
+                                 "expo": np.array([m.expo_x(0.3 * T)])}))
+        starts = OS._trade_starts(m, parts)
+        assert len(starts) == len(OS.B_LEVELS) + len(OS.LAG_GRID) * (1 + len(OS.EXPO_GRID)) + len(OS.EXPO_GRID)
+        lagged = [(lab, p) for lab, p in starts if lab.startswith("lag_")]
+        assert {round(m.lag_map(p["lag_" + name][0])[0] / T, 2) for _, p in lagged} == set(OS.LAG_GRID)
+        L_fit = m.lag_map(parts["lag_" + name][0])[0]
+        for lab, p in lagged:
+            g = float(lab.split()[1].rstrip("T"))
+            if name == "motor":
+                assert float(p["d"][0]) + 0.5 * g * T == pytest.approx(d_fit + 0.5 * L_fit, abs=1e-12)
+            else:
+                assert float(p["d"][0]) == d_fit
