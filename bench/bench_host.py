@@ -6,32 +6,17 @@ frame's whole-frame search, and `track_video` end to end (MJPEG decode included)
 Usage: .venv/bin/python bench/bench_host.py
 """
 
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
-from host.synth import ROBOT, excitation, image_model_parts, true_B, true_f  # noqa: E402
+from bench_session import image_session
 
-from playscope.fit import model  # noqa: E402
-from playscope.fit.calibration import calibrate  # noqa: E402
-from playscope.base.native import core  # noqa: E402
-from playscope.io.session import Session, load_session, write_session  # noqa: E402
-
-
-def image_session(duration_s=180.0):
-    t, q, _ = excitation(v=0.4, rate_hz=1000.0)
-    t, q = t[t < duration_s], q[t < duration_s]
-    cam, he = image_model_parts()
-    c = model.direct_model(q, true_B, true_f)
-    tf = np.arange(0.0, t[-1], 1 / 25.0)
-    im = model.ImageModel(ROBOT, cam, he)
-    Q = im(np.interp(tf - 0.08, t, c)) + np.random.default_rng(0).normal(0, 0.05, (tf.size, 2))
-    return Session("mm", "image", ROBOT, {"t_s": t, "q": q}, cam, he, 0.08,
-                   marker={"t_s": tf, "u_px": Q[:, 0], "v_px": Q[:, 1]})
+from playscope.fit.calibration import calibrate
+from playscope.base.native import core
+from playscope.io.session import load_session, write_session
 
 
 core()
