@@ -291,8 +291,8 @@ LOCKBOX16_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 
 # The seventeenth set-aside group, LOCKBOX17_300 (drawn and committed 2026-11-29 at the start of stop 80, while
 # the development group ran on the trade restarts (835a9a4) and after the fitted start's prototype was written on
-# s15-render_c-055 alone, before it met any other row; sealed for the onset code of a later change). Run all 300
-# on that onset code, resumed across sessions from its rows if need be.
+# s15-render_c-055 alone, before it met any other row). Run whole on 46c09cb's onset code (the fitted start):
+# 0 / 300 fail, rows in bench/scoreboard_rows/lockbox17-stop81.jsonl. Spent: development data from then on.
 SEEDS_17 = {"marker": (77101, 770001), "swing": (77202, 770201), "render_c": (77303, 770401)}
 LOCKBOX17_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_17, PLAN, "s17-")]
 

@@ -51,7 +51,7 @@ Groups:
   lockbox16    bench/onset_cases.py LOCKBOX16_300: 100 more renderings from each renderer (new seeds),
                drawn and committed during stop 79 (after c2cc458's onset code), run on 835a9a4's.
   lockbox17    bench/onset_cases.py LOCKBOX17_300: 100 more renderings from each renderer (new seeds),
-               drawn and committed at the start of stop 80, sealed for a later onset code.
+               drawn and committed at the start of stop 80, run on 46c09cb's onset code.
   lockbox18    bench/onset_cases.py LOCKBOX18_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at the start of stop 81, sealed for an onset code after 46c09cb.
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
