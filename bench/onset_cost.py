@@ -7,8 +7,9 @@ Why counts: `calibrate`'s time on that session is mostly the onset stage's model
 their number is set by the search alone (the same on any machine and under any load), where the
 wall time is not. The steps are the search's own functions; each row's counts include the steps
 nested in it (a step is named by its path, e.g. `_search/_fit_distinct`), and "the rest of
-`_search`" is what `_search` spends outside its nested steps (the full fits after a term enters,
-`fit_model`). The fits run in this one process (`onset_fit.fork_map` made serial, whose results
+`_search`" is what `_search` spends outside its nested steps (the chains that choose B's size and
+where it is read, and the full fit after each term enters, `fit_model`). The seconds include the
+counters' own overhead (a clock read per counted call). The fits run in this one process (`onset_fit.fork_map` made serial, whose results
 are the same bit for bit, docs/host.md "Speed"), so the wall times add up to the stage's time on one
 core; they depend on the machine's load, the counts do not. A second table splits the same counts
 by the terms of the model evaluated (the plain model, each term's trial models), with the time spent

@@ -259,6 +259,37 @@ def test_the_plain_models_start_is_the_peak_whose_fit_scores_lowest_where_the_un
     assert min(b for k, b in bics.items() if abs(float(k) - sp.delay_s) > T) > bics[f"{d0:.4f}"] + 30
 
 
+def test_the_search_fits_its_plain_model_from_the_fitted_start_and_a_held_delay_skips_it(monkeypatch):
+    # The wiring of `_fitted_start` into `_search`: B's size chains start from the delay and width it
+    # returns (here a stand-in, 0.123 s and 0.2), the terms' delay starts put it in the coarse start's
+    # place, and a held configured delay is fitted from as it is, no start chosen.
+    r, d, t, q, rt, rq, obs, hyst = record(duration_s=10.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    prior, sig = (r.delay_cfg_s, rec.period_s / np.sqrt(12)), OM.noise_sigma(obs)
+    offered = []
+
+    def fitted(rec, n_g, delays, widths, prior, sigma):
+        offered.append(list(delays))
+        return (0.123, 0.2), {}
+
+    class Chained(Exception):
+        pass
+
+    def fit_all(jobs, fn=None):
+        m, th = jobs[0][0][0], jobs[0][1]
+        raise Chained(float(th[0]), float(m.parts(th)["B"][0]))
+
+    monkeypatch.setattr(OS, "_fitted_start", fitted)
+    monkeypatch.setattr(OS, "_fit_all", fit_all)
+    with pytest.raises(Chained) as e:
+        OS._search(rec, [0.05, r.delay_cfg_s], prior, None, None, sig, [0.05, 0.3])
+    assert e.value.args == (0.123, 0.2)
+    assert {0.05, 0.3, r.delay_cfg_s} <= set(offered[-1])  # every peak and the configured delay offered
+    with pytest.raises(Chained) as e:
+        OS._search(rec, [r.delay_cfg_s], prior, r.delay_cfg_s, None, sig, [r.delay_cfg_s])
+    assert len(offered) == 1 and e.value.args[0] == pytest.approx(r.delay_cfg_s)
+
+
 def test_the_trade_starts_move_a_motor_switchs_delay_to_keep_its_windows_middle():
     # `_trade_starts`' contract along the lag-delay trade: the encoder fixes the motor's reversal, so
     # the frames see a motor switch over [d, d + L] after it and the record fixes d + L / 2, not d or
@@ -269,14 +300,14 @@ def test_the_trade_starts_move_a_motor_switchs_delay_to_keep_its_windows_middle(
     T = rec.period_s
     for name in ("motor", "tip"):
         m = OM.RecordModel(rec, 1, 10, OM.Terms(**{"reg_" + name: True}, expo=True), None)
-        L_fit, d_fit = 0.37 * T, 0.081
-        parts = m.parts(m.theta({"d": np.array([d_fit]), "B": np.array([0.25]), "lag_" + name: np.array([m.lag_x(L_fit)]),
+        d_fit = 0.081
+        parts = m.parts(m.theta({"d": np.array([d_fit]), "B": np.array([0.25]), "lag_" + name: np.array([m.lag_x(0.37 * T)]),
                                  "expo": np.array([m.expo_x(0.3 * T)])}))
         starts = OS._trade_starts(m, parts)
         assert len(starts) == len(OS.B_LEVELS) + len(OS.LAG_GRID) * (1 + len(OS.EXPO_GRID)) + len(OS.EXPO_GRID)
         lagged = [(lab, p) for lab, p in starts if lab.startswith("lag_")]
         assert {round(m.lag_map(p["lag_" + name][0])[0] / T, 2) for _, p in lagged} == set(OS.LAG_GRID)
-        L_fit = m.lag_map(parts["lag_" + name][0])[0]
+        L_fit = m.lag_map(parts["lag_" + name][0])[0]  # the fit's lag, as _trade_starts reads it back
         for lab, p in lagged:
             g = float(lab.split()[1].rstrip("T"))
             if name == "motor":
