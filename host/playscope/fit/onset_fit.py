@@ -15,6 +15,7 @@ Units: t in s, q and B in actuator units, image points in px.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,15 +37,31 @@ EXPO_BOUND_GRID = (1.0, 0.5, 0.25, 0.125)  # the exposures the bound is read at,
 class Fit:
     """A fitted model: theta (model.layout), its evaluation, the noise scale sigma (px) the fit
     and its BIC use, cost (half the robust objective, plus the delay prior's half square, in
-    sigma^2 units), the weighted Jacobian (2F [+1], n_theta) in sigma units, and fit details."""
+    sigma^2 units), fit details, the model's state the fit left (its IRLS weights, mixture and
+    tangent: what its evaluations depend on beside theta), and, on demand, the weighted Jacobian
+    (2F [+1], n_theta) in sigma units (`jac`)."""
 
     model: RecordModel
     theta: np.ndarray
     ev: Eval
     sigma: float
     cost: float          # sum of Huber rho at sigma (plus the prior's half square)
-    jac: np.ndarray | None = None
     info: dict = field(default_factory=dict)
+    state: tuple | None = field(default=None, repr=False)  # (w, mix, slope) as the fit left them
+    _jac: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    @property
+    def jac(self) -> np.ndarray:
+        """The weighted Jacobian at theta (2F [+1], n_theta), sigma units, in the state the fit left
+        (on a copy of the model, so the model's own state is not touched). Computed when first
+        asked for: of the search's many fits only the final one's is read (`samples`' covariance),
+        and a Jacobian costs about two evaluations. The same bits as one taken when the fit ended:
+        the model's evaluation, and with it its linear solve, is a function of theta and that state."""
+        if self._jac is None:
+            m = copy.copy(self.model)
+            m.w, m.mix, m.slope = self.state
+            self._jac = m.jacobian(self.theta, m.evaluate(self.theta), self.sigma)
+        return self._jac
 
     def bic(self, sigma: float) -> float:
         """BIC on the robust objective at a common sigma (RecordModel.objective) + k ln n."""
@@ -113,10 +130,10 @@ def _settle(m: RecordModel, th: np.ndarray, sig: float) -> tuple[Eval, float]:
     """The model at theta with its Huber weights reweighted once from there (the form every fit
     is scored in): (its evaluation, half the robust objective plus the delay prior's half square)."""
     ev = m.evaluate(th)
-    if m.terms.ring:
+    if m.terms.ring:  # a new tangent changes the ring's columns: ev is stale whatever the E-step does
         m.slope = m.G_slope(ev)
-    m.e_step(ev, sig)
-    ev = m.evaluate(th)
+    if m.e_step(ev, sig) or m.terms.ring:
+        ev = m.evaluate(th)
     m.w = m.weights(ev, sig)
     ev = m.evaluate(th)
     cost = 0.5 * m.objective(ev, sig)
@@ -138,9 +155,11 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
     sig = sigma if sigma is not None else robust_sigma(ev.resid)
     nfev = 0
     tried = [th.copy()]
+    stale = bool(m.terms.ring)  # ev was evaluated before the tangent was set (below, after every round, it is not)
     for rnd in range(rounds):
-        m.e_step(ev, sig)
-        ev = m.evaluate(th)
+        if m.e_step(ev, sig) or stale:  # else ev is the model's evaluation at th as it stands, bit for bit
+            ev = m.evaluate(th)
+        stale = False
         m.w = m.weights(ev, sig)
         fun = _residual_fn(m, sig)
         free = np.arange(th.size) if m.d_fixed is None else np.arange(1, th.size)
@@ -166,7 +185,7 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
         th[free] = res.x
         nfev += res.nfev
         tried.append(th.copy())
-        ev = m.evaluate(th)
+        ev = fun.evaluation(th)  # LM's own when its last step was kept (the state has not changed since)
         if m.terms.ring:
             m.slope = m.G_slope(ev)
             ev = m.evaluate(th)
@@ -175,16 +194,12 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
     costs = [_settle(m, t, sig)[1] for t in tried]
     th = tried[int(np.argmin(costs))]
     ev, cost = _settle(m, th, sig)
-    f = Fit(m, th, ev, sig, cost, info={"nfev": nfev})
-    f.jac = m.jacobian(th, ev, sig)
-    return f
+    return Fit(m, th, ev, sig, cost, info={"nfev": nfev}, state=(m.w, m.mix, m.slope))
 
 
 def _fresh(m: RecordModel) -> RecordModel:
     """A copy of m with its IRLS weights at 1 and no mixture: what it fits or scores next depends on
     its arguments alone, and m's own state stays as it was."""
-    import copy
-
     mc = copy.copy(m)
     mc.w, mc.mix = np.ones_like(m.w), {}
     return mc
@@ -199,8 +214,10 @@ def _fit_one(job) -> "Fit":
     Fit holds the copy."""
     m, th0, sigma, max_nfev, rounds = job
     m = _fresh(m)
-    m.e_step(m.evaluate(th0), sigma)
-    m.w = m.weights(m.evaluate(th0), sigma)
+    ev = m.evaluate(th0)
+    if m.e_step(ev, sigma):  # else ev stands (no mixture before or after)
+        ev = m.evaluate(th0)
+    m.w = m.weights(ev, sigma)
     return fit_model(m, th0, sigma=sigma, max_nfev=max_nfev, rounds=rounds)
 
 

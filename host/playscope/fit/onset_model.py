@@ -870,13 +870,15 @@ class RecordModel:
         st[name + "_mix"] = {"j": j, "gamma": g, "gamma_mid": gm, "h_mid": hm, **shares, "rev": rev, "ds": sn - sp,
                              "L": L, "D": D, "E": E, "spread": (sn - sp) ** 2 * np.maximum(g + gm * hm * hm - hbar * hbar, 0.0)}
 
-    def e_step(self, ev: "Eval", sigma: float) -> None:
+    def e_step(self, ev: "Eval", sigma: float) -> bool:
         """The mixture's E-step at an evaluation (module doc): for each switch term, the frames within
         a frame period of a switch window [t_ev, t_ev + L + D] get their posterior shares of the
         levels, gamma ~ p e^-rho (p the prior shares, `_switch_shares`, clipped into [EPS_SHARE,
         1 - EPS_SHARE]; rho the Huber loss of the frame's two residuals at each level, at sigma px;
         mid slide, the level's integrated likelihood, `_mid_level`). The frames and their switches
-        are then fixed for the M-step."""
+        are then fixed for the M-step. Returns False when the model had no mixture and still has none
+        (no switch term, or no frame near a switch): its evaluations are then what they were, bit for
+        bit, and a caller need not evaluate it again."""
         st = ev.state
         new = {}
         T = self.rec.period_s
@@ -917,7 +919,9 @@ class RecordModel:
             keep = ~np.isin(j, new["tip"]["j"]) if "tip" in new else np.ones(j.size, bool)  # one mixture a frame
             new[name] = {"j": j[keep], "gamma": g[keep], "gamma_mid": gm[keep], "h_mid": hm[keep], "rev": r_ev[e][keep],
                          "sp": s_prev[e][keep].astype(float), "sn": s_ev[e][keep].astype(float)}
+        changed = bool(new) or bool(self.mix)
         self.mix = new
+        return changed
 
     def mix_rows(self, ev: "Eval", sigma: float) -> tuple[np.ndarray, np.ndarray]:
         """The M-step's extra residuals, sigma units: per mixture frame the prior shares' divergence

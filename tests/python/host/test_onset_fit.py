@@ -54,6 +54,33 @@ def test_fits_in_a_forked_child_equal_the_same_fits_run_in_turn_when_jobs_share_
         assert np.array_equal(a, b) and np.array_equal(b, c)
 
 
+@pytest.mark.parametrize("terms", [OM.Terms(), OM.Terms(ring=True), OM.Terms(reg_tip=True)], ids=["plain", "ring", "reg_tip"])
+def test_a_fit_skips_no_evaluation_that_would_change_a_bit_and_its_jacobian_is_the_one_its_end_state_gives(terms, monkeypatch):
+    # The fits re-evaluate the model after each E-step only when the mixture changed (no switch term:
+    # it never does), and a Fit's Jacobian is computed when asked for, on the model's state the fit
+    # left. Against the fits that always re-evaluate and the Jacobian taken as the fit ended: the same
+    # bits, even after the model's state has since moved (as a term's later fit moves its model's).
+    r, d, t, q, rt, rq, obs, _ = record(duration_s=20.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    sigma = OM.noise_sigma(rec.obs)
+
+    def fit():
+        m = OM.RecordModel(rec, 4, 6, terms, (r.delay_s, 0.01))
+        th0 = m.theta({"d": np.array([r.delay_s + 0.004]), "B": np.full(4, 0.2)})
+        return OF._fit_chain(([m], th0, sigma, 6, 2))[-1]
+
+    f = fit()
+    assert f.model.e_step(f.ev, sigma) == terms.reg_tip  # a switch has frames near its windows; else no mixture
+    f = fit()
+    at_end = f.model.jacobian(f.theta, f.ev, f.sigma)  # as fit_model took it, in the state it left
+    OF._settle(f.model, f.theta + 0.01, sigma)  # the model's weights, mixture and solve move on
+    moved = f.model.w
+    assert np.array_equal(f.jac, at_end) and f.model.w is moved
+    monkeypatch.setattr(OM.RecordModel, "e_step", lambda self, ev, s, _e=OM.RecordModel.e_step: _e(self, ev, s) or True)
+    g = fit()  # every E-step followed by an evaluation, as before the skip
+    assert np.array_equal(g.theta, f.theta) and g.cost == f.cost and np.array_equal(g.jac, f.jac)
+
+
 def _channel_record(fps=25.0, B_kind="fig7", **scene):
     """marker_render's `channel` form (a Fig. 7 robot's B and 25 fps unless said) with the scene's settings:
     (the Scene, its Record with the renderer's principal point and focal length, the configured
