@@ -13,7 +13,7 @@ The board's plain eq. 1 samples are a third start when given. B is fitted coarse
 plain model lacks drags its width, so each term also gets starts profiled with it on (the
 delay and the constant width by the robust cost; the tip mode's at each of RING_ZETA_STARTS at the
 one of its scan's local minima that profiles lowest), each carried coarse to fine and scored by
-the BIC.
+the BIC, once one of the term's trial fits lowers the BIC (those chains are a round's costly part).
 
 Terms by evidence: the tip mode, each registration term and the exposure enter when they lower the record's
 BIC (Schwarz 1978) on the robust objective (2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma),

@@ -290,6 +290,39 @@ def test_the_search_fits_its_plain_model_from_the_fitted_start_and_a_held_delay_
     assert len(offered) == 1 and e.value.args[0] == pytest.approx(r.delay_cfg_s)
 
 
+@pytest.mark.parametrize("evident", ["ring", "reg_tip"])
+def test_a_terms_chains_run_only_once_one_of_its_trials_lowers_the_bic(monkeypatch, evident):
+    # A round's chains (a term's profiled starts carried coarse to fine: four full fits each) run for
+    # the terms one of whose trial fits lowers the record's BIC, and for no other. The trials are
+    # stood in for: the evident term's score far below the fit so far's, every other term's far above.
+    from types import SimpleNamespace
+
+    r, d, t, q, rt, rq, obs, hyst = record(duration_s=10.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    prior, sig = (r.delay_cfg_s, rec.period_s / np.sqrt(12)), OM.noise_sigma(obs)
+    rounds, profiled = [], []
+
+    class Chains(Exception):
+        pass
+
+    def fit_distinct(jobs):
+        terms = [tuple(j[0][0].terms.names()) for j in jobs]
+        if rounds:  # the chains' call: what was asked for is the test's answer
+            raise Chains(terms, [len(j[0]) for j in jobs])
+        rounds.append(terms)
+        return [SimpleNamespace(bic=lambda s, k=k: -1e12 if evident in k else 1e12) for k in terms]
+
+    real = OS._ring_profiled_starts
+    monkeypatch.setattr(OS, "_fit_distinct", fit_distinct)
+    monkeypatch.setattr(OS, "_ring_profiled_starts", lambda *a: profiled.append(1) or real(*a))
+    with pytest.raises(Chains) as e:
+        OS._search(rec, [r.delay_cfg_s], prior, None, None, sig, [r.delay_cfg_s])
+    terms, sizes = e.value.args
+    assert {("ring",), ("reg_tip",), ("reg_motor",), ("expo",)} <= set(rounds[0])  # every term had its trials
+    assert terms and all(k == (evident,) for k in terms) and all(n > 1 for n in sizes)  # its chains, no other's
+    assert bool(profiled) == (evident == "ring")  # the ring's profiled starts are built only when they run
+
+
 def test_the_trade_starts_move_a_motor_switchs_delay_to_keep_its_windows_middle():
     # `_trade_starts`' contract along the lag-delay trade: the encoder fixes the motor's reversal, so
     # the frames see a motor switch over [d, d + L] after it and the record fixes d + L / 2, not d or
