@@ -274,7 +274,9 @@ def fit_record(rec: Record, t_delay_cfg: float | None, t_delay_from: str, d_coar
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(1):
-        return _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s)
+        fit, search = _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s)
+        fit.jac  # the final fit's Jacobian (computed when first asked for, onset_fit.Fit) on one thread too
+        return fit, search
 
 
 def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
