@@ -298,8 +298,8 @@ LOCKBOX17_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 
 # The eighteenth set-aside group, LOCKBOX18_300 (drawn and committed 2026-11-29 at the start of stop 81, after
 # the fitted start (46c09cb) was landed and before LOCKBOX17 ran on it or any later onset code was written;
-# sealed for the onset code of a change after 46c09cb). Run all 300 on that onset code, resumed across
-# sessions from its rows if need be.
+# for the onset code of a change after 46c09cb). Run whole on ae31109's onset code (a term's chains only on
+# evidence): 0 / 300 fail, rows in bench/scoreboard_rows/lockbox18-stop82.jsonl. Spent: development data from then on.
 SEEDS_18 = {"marker": (78101, 780001), "swing": (78202, 780201), "render_c": (78303, 780401)}
 LOCKBOX18_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_18, PLAN, "s18-")]
 
@@ -346,3 +346,9 @@ def make(row):
 
     sp = C.Spec(name=name, **kw)
     return sp, C.write, sp.B, sp.delay_s, sp.delay_cfg_s
+
+# The nineteenth set-aside group, LOCKBOX19_300 (drawn and committed 2026-11-29 during stop 82, after LOCKBOX18 ran
+# on ae31109's onset code and before any later onset code was written; sealed for the onset code of a change after
+# ae31109). Run all 300 on that onset code, resumed across sessions from its rows if need be.
+SEEDS_19 = {"marker": (79101, 790001), "swing": (79202, 790201), "render_c": (79303, 790401)}
+LOCKBOX19_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_19, PLAN, "s19-")]
