@@ -29,7 +29,7 @@ from playscope.base.native import core
 from playscope.fit import onset_fit, onset_model, onset_search
 from playscope.fit.calibration import calibrate
 
-STEPS = ("_fit_record", "_coarse_starts", "_search", "_start", "_fitted_start", "_ring_scan", "_ring_profiled_starts",
+STEPS = ("fit_record", "_coarse_starts", "_search", "_start", "_fitted_start", "_ring_scan", "_ring_profiled_starts",
          "_slide_starts", "_fit_distinct", "_resize", "_trade_profile")  # onset_search's steps, as named there
 COUNTED = ("evaluate", "jacobian")  # RecordModel's methods counted
 
@@ -82,17 +82,17 @@ def main() -> None:
     t0 = time.perf_counter()
     calibrate(s)
     total = time.perf_counter() - t0
-    search = table.get("_fit_record/_search")
+    search = table.get("fit_record/_search")
     print("| step of the onset search (onset_search) | calls | evaluations | Jacobians | wall s (this run, one core) |")
     print("|---|---|---|---|---|")
     for path, (n, ev, jac, sec) in table.items():
         print(f"| `{path}` | {n} | {ev:,} | {jac:,} | {sec:.2f} |")
     if search:
-        nested = [r for p, r in table.items() if p.startswith("_fit_record/_search/") and p.count("/") == 2]
+        nested = [r for p, r in table.items() if p.startswith("fit_record/_search/") and p.count("/") == 2]
         rest = [search[k] - sum(r[k] for r in nested) for k in (1, 2, 3)]
         print(f"| the rest of `_search` (B's size chains; the full fit after a term enters) | | {rest[0]:,} | {rest[1]:,} "
               f"| {rest[2]:.2f} |")
-    stage = table.get("_fit_record", [0, 0, 0, 0.0])
+    stage = table.get("fit_record", [0, 0, 0, 0.0])
     print(f"| `calibrate` outside the onset stage | | {count['evaluate'] - stage[1]:,} | {count['jacobian'] - stage[2]:,} "
           f"| {total - stage[3]:.2f} |")
     print(f"| all of `calibrate` | 1 | {count['evaluate']:,} | {count['jacobian']:,} | {total:.2f} |")

@@ -47,7 +47,7 @@ class Fit:
     sigma: float
     cost: float          # sum of Huber rho at sigma (plus the prior's half square)
     info: dict = field(default_factory=dict)
-    state: tuple | None = field(default=None, repr=False)  # (w, mix, slope) as the fit left them
+    state: tuple | None = field(default=None, repr=False)  # (w, mix, slope) as the fit left them; fit_model sets it, `jac` needs it
     _jac: np.ndarray | None = field(default=None, init=False, repr=False)
 
     @property
