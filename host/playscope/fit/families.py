@@ -56,6 +56,7 @@ Units: q, B, z in actuator units (mm or deg of command), c in deg, t in s.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Callable
 
@@ -582,6 +583,38 @@ def swing_splits(ctx: Context) -> list[tuple[np.ndarray, np.ndarray]]:
     return out
 
 
+def _independent_work(ctx: Context, fams: list[Family], splits, source=None) -> dict:
+    """What `choose` computes for each family before its rule reads the rows, on two cores
+    (base.forkmap; the relaxed members' searches first, the costliest: 0.4 of the bench session's
+    0.7 s): {family name: its score row (`score`), or for a relaxed member the search's result
+    (with_relaxation's search(ctx, None)) or, when that raised one of the errors `choose` records,
+    its message}. Families whose row is their twin's (ctx's transition is a pure play) are left out.
+    Each item is a function of ctx and the family alone, so the values are those of a run in turn."""
+    from ..base.errors import InputError
+    from ..base.forkmap import fork_map
+
+    names = [f.name for f in fams]
+    work = [f for f in fams if not (ctx.onset_tr.is_play and TWIN.get(f.name) in names)]
+
+    def run(f: Family):
+        if f.name not in RELAXED:
+            return score(ctx, f, splits, source)
+        try:
+            return f.fit.search(ctx, None)
+        except (InputError, OverflowError, ValueError, np.linalg.LinAlgError) as e:
+            return str(getattr(e, "message", e))
+
+    out = dict(zip((f.name for f in work), fork_map(run, work, cost=lambda f: float(f.name in RELAXED))))
+    for name, r in out.items():
+        if name in RELAXED and not isinstance(r, str) and r[0].B is not ctx.data.B:
+            # A search from the child comes through the pipe with a copy of its member's B. The
+            # relaxed members' bases are onset families, whose B is ctx.data.B itself, and the
+            # relaxed fit reads the play cached on the data only on that identity (with_relaxation;
+            # with a copy it runs the play again, the same values at 0.5 s on the bench session).
+            out[name] = (dataclasses.replace(r[0], B=ctx.data.B), *r[1:])
+    return out
+
+
 def choose(ctx: Context, reversals: int, families: list[Family] | None = None, source=None) -> tuple[Member, dict]:
     """Score every family (score) and fit the chosen one on every calibration frame.
 
@@ -606,6 +639,7 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
     # One BLAS thread: the fits are small (frames x 6..16), and threads spinning for a core the
     # other processes hold cost more than they give (as transition.fit_weights).
     with T._blas_controller().limit(limits=1, user_api="blas"):
+        done = _independent_work(ctx, fams, splits, source)
         rows = []
         full = {}
         for f in fams:
@@ -626,7 +660,9 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
                 row = {"family": f.name, "label": f.label, "cv_rmse_deg": None, "cv_se_deg": None,
                        "fold_rmse_deg": None, "folds": 0, "refused": None}
                 try:
-                    searched = f.fit.search(ctx, None)
+                    searched = done[f.name]
+                    if isinstance(searched, str):
+                        raise ValueError(searched)
                     rf = searched[1]
                     base = next((r for r in rows if r["family"] == RELAXED[f.name]), None)
                     gain = rf.rmse_without_deg - rf.rmse_deg
@@ -649,7 +685,7 @@ def choose(ctx: Context, reversals: int, families: list[Family] | None = None, s
                 if skip:
                     rows.append({**row, "skipped": skip})
                     continue
-            rows.append(score(ctx, f, splits, source))
+            rows.append(score(ctx, f, splits, source) if f.name in RELAXED else done[f.name])
     scored = [r for r in rows if r["cv_rmse_deg"] is not None]
     if thin:
         # The model fitted by hand goes first: another family is kept only when its swing-fold

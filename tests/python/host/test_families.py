@@ -7,6 +7,7 @@ block-sampled by np.interp."""
 
 from __future__ import annotations
 
+import json
 import os
 import types
 from pathlib import Path
@@ -166,6 +167,35 @@ def test_calibration_round_trip_writes_the_same_table(tmp_path, auto_cal):
     a = build_table(cal.B_model, cal.f, *cal.q_range, "mm", transition=cal.transition).blob
     b = build_table(back.B_model, back.f, *back.q_range, "mm", transition=back.transition).blob
     assert a == b
+
+
+def through_the_pipe(fn, items, cost=None, pack=lambda r: r, unpack=lambda r: r):
+    """base.forkmap.fork_map as if the forked child had computed every item: each result packed,
+    pickled, unpickled and unpacked, as the pipe hands a child's result back."""
+    import pickle
+
+    return [unpack(pickle.loads(pickle.dumps(pack(fn(x))))) for x in items]
+
+
+@pytest.mark.parametrize("record", [pi_record, relaxed_record])
+def test_the_calibration_is_the_same_whichever_process_fitted_each_item(record, auto_cal, relaxed_cal, monkeypatch):
+    # calibrate shares its independent items with a forked child (the model choice per B
+    # alternative, the families' scores and the relaxation's search); what comes back through the
+    # pipe is a copy, and the calibration must go on from it exactly as from the item fitted here.
+    # The PI record's kept model choice carries the folds' weights the family choice's onset
+    # transition starts from (transition.cv_start: with the copy's B the calibration once started
+    # afresh, and its result hung on which process had fitted the kept alternative); the relaxed
+    # record's relaxation is searched in one process and its member fitted in full in the other.
+    from playscope.base import forkmap
+    from playscope.fit import calibration as C
+
+    cal = relaxed_cal if record is relaxed_record else auto_cal(record)[0]
+    assert cal.doc["transition"]["model"] == "pi" if record is pi_record else cal.family == "onset_play_relax"
+    monkeypatch.setattr(forkmap, "can_fork", lambda: False)
+    here = calibrate(record(), model_kind="auto").doc  # every item fitted in this process, in turn
+    monkeypatch.setattr(C, "fork_map", through_the_pipe)
+    monkeypatch.setattr(forkmap, "fork_map", through_the_pipe)
+    assert json.dumps(calibrate(record(), model_kind="auto").doc) == json.dumps(here)
 
 
 # --------------------------------------------------------------------------- the relaxation as a family
