@@ -232,16 +232,18 @@ def _resample_B(m_from: "RecordModel", cB: np.ndarray, m_to: "RecordModel") -> n
 
 
 def _fit_chain(job) -> list:
-    """Coarse to fine in B's size: job (models, theta0 of the first, sigma, max_nfev, rounds), the
-    models alike but for B's size; each is fitted from the last one's fit, its B resampled
-    (`_resample_B`). A width fitted with few coefficients first finds the level, and the finer
-    sizes then only shape it: started at full size from a constant width, the B-spline's many
-    directions meet the switches' onsets and the fit settles in a basin of a wrong B (measured:
-    from 5 constant widths 0.1-0.3 on a 1.5 deg registration record, 5 reach B within 3.7 % this
-    way, 1 from full size). Returns the fits, one per model."""
-    models, th0, sigma, max_nfev, rounds = job
-    out = []
-    for m in models:
+    """Coarse to fine in B's size: job (models, theta0 of the first, sigma, max_nfev, rounds[, the
+    first model's Fit]), the models alike but for B's size; each is fitted from the last one's fit,
+    its B resampled (`_resample_B`). A width fitted with few coefficients first finds the level,
+    and the finer sizes then only shape it: started at full size from a constant width, the
+    B-spline's many directions meet the switches' onsets and the fit settles in a basin of a wrong
+    B (measured: from 5 constant widths 0.1-0.3 on a 1.5 deg registration record, 5 reach B within
+    3.7 % this way, 1 from full size). The first model's Fit, when given, is that fit done already
+    (the same job fitted elsewhere: a fit depends on its job alone, `_fit_one`), and the chain
+    starts from it. Returns the fits, one per model."""
+    models, th0, sigma, max_nfev, rounds, *done = job
+    out = list(done[:1])
+    for m in models[len(out):]:
         if out:
             prev = out[-1]
             parts = prev.model.parts(prev.theta)

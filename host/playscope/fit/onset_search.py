@@ -308,11 +308,12 @@ def _fit_record(rec, t_delay_cfg, t_delay_from, d_coarse, board_b, prior_sd_s):
 
 
 def _fitted_start(rec: Record, n_g: int, delays: list[float], widths: list[float], prior,
-                  sigma: float) -> tuple[tuple[float, float], dict]:
+                  sigma: float) -> tuple[tuple[float, float], dict, Fit]:
     """The plain model's start: of the delays (s; the start's own, every profiled correlation peak
     and the configured delay), each at its constant width of widths (actuator units) of lowest
     `_start_bic`, the one whose constant-width plain fit (20 evaluations, as the chain's first link)
-    scores the lowest BIC at sigma (px). Returns ((delay s, width), {delay: BIC} for the log).
+    scores the lowest BIC at sigma (px). Returns ((delay s, width), {delay: BIC} for the log, that
+    fit: B's size chains start from it, being their first link's job).
 
     Why a fit, not the start's score: the start's score is the model at one delay and width, its
     other parts unsettled, and where B varies over the travel its ranking of a peak against an alias
@@ -328,8 +329,10 @@ def _fitted_start(rec: Record, n_g: int, delays: list[float], widths: list[float
         cands.append((d, min(widths, key=lambda b: _start_bic(m, d, b, sigma))))
     jobs = [([RecordModel(rec, 1, n_g, Terms(), prior, None, "input")], m.theta({"d": np.array([d]), "B": np.array([b])}),
              sigma, 20, IRLS_ROUNDS) for d, b in cands]
-    bics = [fs[-1].bic(sigma) for fs in _fit_all(jobs, _fit_chain)]
-    return cands[int(np.argmin(bics))], {f"{d:.4f}": b for (d, _), b in zip(cands, bics)}
+    fits = [fs[-1] for fs in _fit_all(jobs, _fit_chain)]
+    bics = [f.bic(sigma) for f in fits]
+    k = int(np.argmin(bics))
+    return cands[k], {f"{d:.4f}": b for (d, _), b in zip(cands, bics)}, fits[k]
 
 
 def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
@@ -340,9 +343,10 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
     st, n_g = _start(rec, starts, prior, d_fixed, board_b, sigma)
     widths = _start_widths(rec, board_b)
     d0, b0 = min(st.items(), key=lambda kv: len(kv[0]))[1]  # the base model's own start
-    fitted_log = None
+    fitted_log, first = None, ()
     if d_fixed is None:
-        (d0, b0), fitted_log = _fitted_start(rec, n_g, [d0, *peaks, *starts], widths, prior, sigma)
+        (d0, b0), fitted_log, fs = _fitted_start(rec, n_g, [d0, *peaks, *starts], widths, prior, sigma)
+        first = (fs,)  # the size chains' first link: the same job (below)
         starts = list(dict.fromkeys([d0, *starts[1:]]))  # the winner in the coarse start's place, so
         # the terms' trials start from it and the configured delay, as before from the coarse start
     terms = Terms()
@@ -356,7 +360,7 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
     jobs = []
     for width_at in (WIDTH_AT if ladder[-1] > 1 else WIDTH_AT[:1]):  # a constant width is read nowhere
         ms = chain(terms, ladder, width_at)  # B's size and where it is read, by the same criterion as the terms
-        jobs.append((ms, ms[0].theta({"d": np.array([d0]), "B": np.array([b0])}), sigma, 20, IRLS_ROUNDS))
+        jobs.append((ms, ms[0].theta({"d": np.array([d0]), "B": np.array([b0])}), sigma, 20, IRLS_ROUNDS, *first))
     fits = [(f.bic(sigma), f.model.n_b, f.model.width_at, f) for fs in _fit_all(jobs, _fit_chain)
             for f in (fs[1:] if len(fs) > 1 else fs)]
     bic, n_b, width_at, fit = min(fits, key=lambda x: x[0])

@@ -54,6 +54,26 @@ def test_fits_in_a_forked_child_equal_the_same_fits_run_in_turn_when_jobs_share_
         assert np.array_equal(a, b) and np.array_equal(b, c)
 
 
+def test_a_chain_given_its_first_fit_goes_on_from_it_as_from_its_own():
+    # B's size chains start from the fitted start's winning fit, which is their first link's job
+    # (onset_search._search): handed that fit, the chain does not refit its first model, and its
+    # later links are the same bits as the chain that fitted it itself.
+    r, d, t, q, rt, rq, obs, _ = record(duration_s=20.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    sigma = OM.noise_sigma(rec.obs)
+
+    def job():
+        ms = [OM.RecordModel(rec, n, 6, OM.Terms(), (r.delay_s, 0.01)) for n in (1, 4)]
+        return ms, ms[0].theta({"d": np.array([r.delay_s + 0.004]), "B": np.array([0.2])}), sigma, 6, 2
+
+    own = OF._fit_chain(job())
+    ms, th0, sig, nfev, rounds = job()
+    first = OF._fit_one((ms[0], th0, sig, nfev, rounds))  # the first link's job, fitted elsewhere
+    given = OF._fit_chain((ms, th0, sig, nfev, rounds, first))
+    assert given[0] is first and np.array_equal(first.theta, own[0].theta)
+    assert np.array_equal(given[1].theta, own[1].theta) and given[1].cost == own[1].cost
+
+
 @pytest.mark.parametrize("terms", [OM.Terms(), OM.Terms(ring=True), OM.Terms(reg_tip=True)], ids=["plain", "ring", "reg_tip"])
 def test_a_fit_skips_no_evaluation_that_would_change_a_bit_and_its_jacobian_is_the_one_its_end_state_gives(terms, monkeypatch):
     # The fits re-evaluate the model after each E-step only when the mixture changed (no switch term:

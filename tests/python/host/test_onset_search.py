@@ -254,40 +254,41 @@ def test_the_plain_models_start_is_the_peak_whose_fit_scores_lowest_where_the_un
     ranked = OS._coarse_starts(rec, peaks, prior, None, sig)
     assert abs(ranked[0] - sp.delay_s) > 0.5 * sp.swing_time_s  # the record shows the inversion: an alias first
     st, n_g = OS._start(rec, [ranked[0], sp.delay_cfg_s], prior, None, None, sig)
-    (d0, _), bics = OS._fitted_start(rec, n_g, [st[()][0], *ranked, sp.delay_cfg_s], OS._start_widths(rec, None), prior, sig)
+    (d0, _), bics, _ = OS._fitted_start(rec, n_g, [st[()][0], *ranked, sp.delay_cfg_s], OS._start_widths(rec, None), prior, sig)
     assert abs(d0 - sp.delay_s) < 0.125 * T
     assert min(b for k, b in bics.items() if abs(float(k) - sp.delay_s) > T) > bics[f"{d0:.4f}"] + 30
 
 
 def test_the_search_fits_its_plain_model_from_the_fitted_start_and_a_held_delay_skips_it(monkeypatch):
     # The wiring of `_fitted_start` into `_search`: B's size chains start from the delay and width it
-    # returns (here a stand-in, 0.123 s and 0.2), the terms' delay starts put it in the coarse start's
-    # place, and a held configured delay is fitted from as it is, no start chosen.
+    # returns (here a stand-in, 0.123 s and 0.2) and go on from its fit (their first link's job), the
+    # terms' delay starts put it in the coarse start's place, and a held configured delay is fitted
+    # from as it is, no start chosen.
     r, d, t, q, rt, rq, obs, hyst = record(duration_s=10.0)
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
     prior, sig = (r.delay_cfg_s, rec.period_s / np.sqrt(12)), OM.noise_sigma(obs)
-    offered = []
+    offered, first = [], object()  # the stand-in's fit
 
     def fitted(rec, n_g, delays, widths, prior, sigma):
         offered.append(list(delays))
-        return (0.123, 0.2), {}
+        return (0.123, 0.2), {}, first
 
     class Chained(Exception):
         pass
 
     def fit_all(jobs, fn=None):
         m, th = jobs[0][0][0], jobs[0][1]
-        raise Chained(float(th[0]), float(m.parts(th)["B"][0]))
+        raise Chained(float(th[0]), float(m.parts(th)["B"][0]), {j[5:] for j in jobs})
 
     monkeypatch.setattr(OS, "_fitted_start", fitted)
     monkeypatch.setattr(OS, "_fit_all", fit_all)
     with pytest.raises(Chained) as e:
         OS._search(rec, [0.05, r.delay_cfg_s], prior, None, None, sig, [0.05, 0.3])
-    assert e.value.args == (0.123, 0.2)
+    assert e.value.args == (0.123, 0.2, {(first,)})
     assert {0.05, 0.3, r.delay_cfg_s} <= set(offered[-1])  # every peak and the configured delay offered
     with pytest.raises(Chained) as e:
         OS._search(rec, [r.delay_cfg_s], prior, r.delay_cfg_s, None, sig, [r.delay_cfg_s])
-    assert len(offered) == 1 and e.value.args[0] == pytest.approx(r.delay_cfg_s)
+    assert len(offered) == 1 and e.value.args[0] == pytest.approx(r.delay_cfg_s) and e.value.args[2] == {()}
 
 
 @pytest.mark.parametrize("evident", ["ring", "reg_tip"])
