@@ -352,3 +352,36 @@ def make(row):
 # ae31109). Run all 300 on that onset code, resumed across sessions from its rows if need be.
 SEEDS_19 = {"marker": (79101, 790001), "swing": (79202, 790201), "render_c": (79303, 790401)}
 LOCKBOX19_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_19, PLAN, "s19-")]
+
+# Two groups for a plant effect the plans above never render: a smooth transition after each reversal
+# (a Prandtl-Ishlinskii spread of play widths: the bending driven by the mean of plays of widths
+# B(q) (1 + s u), u uniform in [-1, 1], s the spread; the renderers' `spread`, B their centre width).
+# The tip first moves once (1 - s) B is taken up and joins the envelope at (1 + s) B, so the onset no
+# longer marks one width; B is judged against the centre width (as mainjob.b_error_vs_truth), with the
+# limit of the issue's effects that move the onset off the play's edge (a wrong delay, a ringing tip):
+# 10 %. The delay is configured right (t_delay within 1/8 frame). Rows are drawn as each renderer's
+# "none" rows, then the spread uniform in 0.2-0.7 (the product's simulator's main job: 0.5). swing_render
+# and render_c only (marker_render has no such plant). Drawn and committed 2026-11-29 during stop 83,
+# after bench/record_terms_transition.py measured the record model's camera terms entering on the
+# simulator's smooth-transition plants, and before any onset code for that was written:
+#   TRANSITION_DEV_40        20 rows per renderer: development data (the term is written on them);
+#   TRANSITION_LOCKBOX_100   50 rows per renderer: sealed for the onset code of that change, run once.
+SEEDS_T = {"swing": (83202, 830201), "render_c": (83303, 830401)}
+SEEDS_TL = {"swing": (84202, 840201), "render_c": (84303, 840401)}
+
+
+def _transition_rows(renderer: str, seeds: dict, n: int, tag: str) -> list:
+    """n rows of renderer ("swing" or "render_c"), as _rows' tuples: each drawn as the renderer's
+    "none" row (delay right), then its spread uniform in 0.2-0.7."""
+    gen_seed, first = seeds[renderer]
+    g = np.random.default_rng(gen_seed)
+    out = []
+    for i in range(n):
+        kw = DRAW[renderer](g, i, "none", "right", first + i)
+        kw["spread"] = round(float(g.uniform(0.2, 0.7)), 3)
+        out.append((renderer, f"{tag}{renderer}-{i:03d}-transition", "transition", 10.0, "right", kw))
+    return out
+
+
+TRANSITION_DEV_40 = [r for k in ("swing", "render_c") for r in _transition_rows(k, SEEDS_T, 20, "t-")]
+TRANSITION_LOCKBOX_100 = [r for k in ("swing", "render_c") for r in _transition_rows(k, SEEDS_TL, 50, "tl-")]

@@ -59,6 +59,14 @@ Groups:
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
                with the exposure 0.25-1 frame period (the other groups' renderers expose 2-8 ms),
                judged as fresh (category "exposure", B <= 5 %).
+  transition_dev
+               bench/onset_cases.py TRANSITION_DEV_40: 20 renderings each of swing_render and render_c
+               with a smooth transition after each reversal (a spread of play widths, 0.2-0.7), no camera
+               effect, the delay configured right: category "transition", B against the centre width
+               <= 10 %. Development data.
+  transition_lockbox
+               bench/onset_cases.py TRANSITION_LOCKBOX_100: 50 more of each (new seeds), drawn and
+               committed with it, sealed for the onset code that models the transition; run once.
   development  every group of bench/swing_cases.py (208 renderings of swing_render, the rules of
                the old onset stage were settled on them): judged as bench/swing_bench.py did
                (B over its limit, |t_delay error| over 1/8 frame on every row, or a refusal).
@@ -105,7 +113,8 @@ FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_1
               "lockbox14": lambda c: c.LOCKBOX14_300, "lockbox15": lambda c: c.LOCKBOX15_300,
               "lockbox16": lambda c: c.LOCKBOX16_300, "lockbox17": lambda c: c.LOCKBOX17_300,
               "lockbox18": lambda c: c.LOCKBOX18_300, "lockbox19": lambda c: c.LOCKBOX19_300,
-              "exposure": lambda c: c.EXPOSURE_30}
+              "exposure": lambda c: c.EXPOSURE_30, "transition_dev": lambda c: c.TRANSITION_DEV_40,
+              "transition_lockbox": lambda c: c.TRANSITION_LOCKBOX_100}
 
 
 def _rows(group: str) -> list:
