@@ -14,6 +14,13 @@ jittered capture times, Gaussian pixel noise and a true delay between capture an
 written robot/hand-eye description is the nominal (coarse) one, not the truth. The truth it
 exposes: `Spec.B(q)` (the play width in mm at actuator position q), `Spec.delay_s` (stamp minus
 capture time), and, in the dict `write` returns, the carrier, angle, flip times and capture times.
+
+Optional transition after each reversal (`Spec.spread` = s in [0, 0.9]; 0, the default, is the
+single play above, bit for bit): a Prandtl-Ishlinskii spread of play widths. The carrier x is
+then the mean of 41 plays of total widths B(q) (1 + s u), u = linspace(-1, 1, 41), equal weights,
+each starting where the single play starts; after a reversal x starts moving once q has travelled
+(1 - s) B and is fully dragged after (1 + s) B. `Spec.B` (and the returned `B_q`) stays the centre
+width B; the returned dict carries `spread`.
 """
 
 from __future__ import annotations
@@ -33,6 +40,7 @@ Q_PER_RAD_NOM = 3.0       # written f_coarse, mm/rad
 BEND_NOM, TIP_NOM = 20.0, 5.0
 WIDTH, HEIGHT = 720, 576
 TRAVEL = 2.0              # q stays within about +-TRAVEL mm
+SPREAD_NODES = np.linspace(-1.0, 1.0, 41)   # play widths B (1 + spread u), equal weights
 
 
 @functools.lru_cache(maxsize=256)
@@ -80,6 +88,7 @@ class Spec:
     tip_px: float = 6.0
     reg_axis: str = "y"
     reg_deg: float = 0.0
+    spread: float = 0.0           # transition after a reversal: play widths B (1 + spread u), u in [-1, 1]
 
     def B(self, q):
         """True play width (mm, total) at actuator position q (mm); constant beyond +-2 mm."""
@@ -206,6 +215,25 @@ def _play(q, b):
     return np.asarray(out)
 
 
+def _play_spread(q, b, spread, x0, block=4096):
+    """The plays of half widths b (1 + spread u), u on SPREAD_NODES, all starting at x0 (as
+    `_play` with x0 prepended at zero width): node states (N, 41), one loop over time, numpy
+    over the nodes."""
+    f = 1.0 + spread * SPREAD_NODES
+    out = np.empty((len(q), f.size))
+    xn = np.full(f.size, float(x0))
+    for a in range(0, len(q), block):
+        e = min(a + block, len(q))
+        h = b[a:e, None] * f[None, :]
+        lo = q[a:e, None] - h
+        hi = q[a:e, None] + h
+        for i in range(e - a):
+            np.maximum(xn, lo[i], out=xn)
+            np.minimum(xn, hi[i], out=xn)
+            out[a + i] = xn
+    return out
+
+
 def _fftconv(a, h):
     n = len(a) + len(h) - 1
     m = 1 << (n - 1).bit_length()
@@ -219,6 +247,8 @@ def render(sp: Spec) -> dict:
         raise ValueError(f"reg_axis must be x, y or z, not {sp.reg_axis!r}")
     if sp.delay_s < 0 or not (0 <= sp.jitter_frac < 0.5) or sp.fps <= 0:
         raise ValueError("delay_s >= 0, 0 <= jitter_frac < 0.5 and fps > 0 are required")
+    if not 0.0 <= sp.spread <= 0.9:
+        raise ValueError(f"spread must be in [0, 0.9], not {sp.spread!r}")
     g = np.random.default_rng(int(sp.seed))
     _draw_shape(g)                                    # same draws as Spec.B
     # --- fixed-order draws, whatever the options (so switching an effect keeps the rest)
@@ -252,7 +282,12 @@ def render(sp: Spec) -> dict:
     q = qf(t_enc)
     bh = 0.5 * sp.B(q)
     x0 = q[0] + x_start * float(bh[0])               # the carrier starts anywhere in the play
-    x = _play(np.concatenate([[x0], q]), np.concatenate([[0.0], bh]))[1:]
+    if sp.spread == 0:
+        xn = None
+        x = _play(np.concatenate([[x0], q]), np.concatenate([[0.0], bh]))[1:]
+    else:                                             # the spread's plays, x their mean
+        xn = _play_spread(q, bh, float(sp.spread), x0)
+        x = xn.mean(axis=1)
 
     def c_of_x(xx):
         z = (xx - x_zero) / k_true
@@ -316,7 +351,12 @@ def render(sp: Spec) -> dict:
     k = np.clip(np.floor(ts / ENC_DT).astype(np.int64), 0, n_enc - 1)
     qs = qf(ts)
     bs = 0.5 * sp.B(qs)
-    xs = np.clip(x[k], qs - bs, qs + bs)              # exact play output within the encoder period
+    if xn is None:
+        xs = np.clip(x[k], qs - bs, qs + bs)          # exact play output within the encoder period
+    else:                                             # the same, per play of the spread
+        hs = bs[..., None] * (1.0 + float(sp.spread) * SPREAD_NODES)
+        xs = np.clip(xn[k], qs[..., None] - hs, qs[..., None] + hs).mean(axis=-1)
+        del xn
     frac = ts / ENC_DT - k
     k1 = np.minimum(k + 1, n_enc - 1)
     cs = c_of_x(xs) + eta[k] + (eta[k1] - eta[k]) * frac
@@ -334,7 +374,7 @@ def render(sp: Spec) -> dict:
                 B_q=2.0 * bh, t_rev=t_rev + t_origin, t_flip=t_flip + t_origin, dir0=dir0,
                 exposure_s=exposure, tip_gain=gain, delay_s=sp.delay_s, K=K, R_true=R_true,
                 t_true=t_true, R_he=R_he, t_he=t_he, k_true=k_true, x_zero=x_zero, kappa=kappa,
-                bend_length_mm=L, tip_length_mm=Lt)
+                bend_length_mm=L, tip_length_mm=Lt, spread=float(sp.spread))
 
 
 def _fmt_t(t):

@@ -15,6 +15,12 @@ files, as a user's data would be. What it varies is what a bench varies:
               tip ringing: a second-order tip mode x'' + 2 zeta w x' + w^2 x = -g c''
               (base excitation), integrated exactly per sample, added to c, the gain g set so
               that the largest excursion is about ring_px in the image;
+  transition  optional (spread s in [0, 0.9], 0 by default: the single play above, bit for bit):
+              a smooth take-up after each reversal, a Prandtl-Ishlinskii spread of play widths.
+              The bending is driven by the mean of the centres of 41 plays of widths
+              B(q) (1 + s u), u = linspace(-1, 1, 41), equal weights, each starting where the
+              single play starts; after a reversal the mean starts moving once q has travelled
+              (1 - s) B and is fully dragged after (1 + s) B. B(q) stays the centre width;
   camera      pinhole looking at the bending plane, frames at fps with each capture time
               jittered uniformly by +-jitter of a frame period (stamps exact: capture time + delay),
               each frame the mean over an exposure of exposure_s (4 ms unless set) centred on
@@ -23,7 +29,8 @@ files, as a user's data would be. What it varies is what a bench varies:
               distal direction, flipping a uniform 0..reg_lag frame period after the tip
               reverses (reg_lag 1 by default; 0: at the onset itself).
 
-Truth: B(q) callable, the true delay, and per reversal the scene-clock stop and onset.
+Truth: B(q) callable (the centre width), the true delay, and per reversal the scene-clock stop
+and onset; render() also returns the driving play centre z and the spread.
 """
 
 from __future__ import annotations
@@ -35,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 ENC_HZ = 1000.0
+SPREAD_NODES = np.linspace(-1.0, 1.0, 41)   # play widths B (1 + spread u), equal weights
 
 
 @dataclass
@@ -70,6 +78,7 @@ class Rendering:
     tip: float = 5.0
     depth: float = 45.0
     focal: float = 600.0
+    spread: float = 0.0             # transition after a reversal: play widths B (1 + spread u), u in [-1, 1]
 
     def B(self, q):
         """True play width at actuator position q (mm)."""
@@ -122,6 +131,27 @@ def play(q: np.ndarray, width: np.ndarray) -> np.ndarray:
     return z
 
 
+def play_spread(q: np.ndarray, width: np.ndarray, spread: float, block: int = 4096) -> np.ndarray:
+    """Mean of the centres of plays of widths width * (1 + spread u), u on SPREAD_NODES, each
+    starting at q[0] as play() does: one loop over time, numpy over the nodes."""
+    f = 1.0 + spread * SPREAD_NODES
+    out = np.empty(q.size)
+    zn = np.full(f.size, float(q[0]))
+    for a in range(0, q.size, block):
+        b = min(a + block, q.size)
+        h = 0.5 * width[a:b, None] * f[None, :]
+        lo = q[a:b, None] - h
+        hi = q[a:b, None] + h
+        Z = np.empty((b - a, f.size))
+        for i in range(b - a):
+            if a + i > 0:  # the first sample is the start state, as in play()
+                np.maximum(zn, lo[i], out=zn)
+                np.minimum(zn, hi[i], out=zn)
+            Z[i] = zn
+        out[a:b] = Z.mean(axis=1)
+    return out
+
+
 def ringing(c: np.ndarray, r: Rendering) -> np.ndarray:
     """Tip mode driven by the bending's acceleration (base excitation); rad, (N,). Exact
     discretisation of the 2nd-order system with the acceleration held over each sample."""
@@ -166,10 +196,16 @@ def project(c: np.ndarray, rot_rad: np.ndarray, r: Rendering) -> tuple[np.ndarra
 
 def render(r: Rendering) -> dict:
     """Everything: encoder t, q; frame stamps t_f (encoder clock) and u, v px; the truth
-    (t_stop, t_onset on the scene clock, per reversal of z)."""
+    (t_stop, t_onset on the scene clock, per reversal of z); z the driving play centre (the
+    mean over the spread's plays when spread > 0)."""
+    if not 0.0 <= r.spread <= 0.9:
+        raise ValueError(f"spread must be in [0, 0.9], not {r.spread!r}")
     rng = np.random.default_rng(r.seed)
     t, q = actuator(r)
-    z = play(q, r.B(q))
+    if r.spread == 0:
+        z = play(q, r.B(q))
+    else:
+        z = play_spread(q, r.B(q), float(r.spread))
     c = z / r.q_per_rad
     c = c + ringing(c, r)
     dz = direction(z)
@@ -187,7 +223,8 @@ def render(r: Rendering) -> dict:
     u, v = project(np.interp(tc, t, c), np.radians(r.reg_deg) * np.interp(tc, t, sign), r)
     u = u.mean(axis=1) + rng.normal(0.0, r.noise_px, n)
     v = v.mean(axis=1) + rng.normal(0.0, r.noise_px, n)
-    return {"t_enc": t, "q": q, "t_f": tcap + r.delay_s, "u": u, "v": v, "t_onset": t[flips]}
+    return {"t_enc": t, "q": q, "t_f": tcap + r.delay_s, "u": u, "v": v, "t_onset": t[flips],
+            "z": z, "spread": float(r.spread)}
 
 
 def write(r: Rendering, folder: Path) -> dict:
@@ -202,6 +239,8 @@ def write(r: Rendering, folder: Path) -> dict:
                        "K": [[r.focal, 0.0, 360.0], [0.0, r.focal, 288.0], [0.0, 0.0, 1.0]], "dist": [0.0] * 5},
             "hand_eye": {"R": [[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]], "t_mm": [0.0, 15.0, r.depth]},
             "source": "bench/swing_render.py", "rendering": asdict(r)}
+    if r.spread == 0:  # no spread: the session.json of before the option, byte for byte
+        del meta["rendering"]["spread"]
     if r.delay_cfg_s is not None:
         meta["t_delay_s"] = r.delay_cfg_s
     (folder / "session.json").write_text(json.dumps(meta, indent=1))
