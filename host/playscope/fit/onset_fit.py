@@ -81,7 +81,8 @@ def _steps(m: RecordModel, th: np.ndarray) -> np.ndarray:
     h = [rec.period_s / 16] + [hb] * m.n_b
     if m.terms.ring:
         h += [0.01, 0.01]
-    h += [0.05] * (m.terms.reg_tip + m.terms.reg_motor + m.terms.slide_tip + m.terms.slide_motor + m.terms.expo)
+    h += [0.05] * (m.terms.reg_tip + m.terms.reg_motor + m.terms.slide_tip + m.terms.slide_motor + m.terms.expo
+                   + m.terms.spread)
     return np.array(h + [0.05])  # the first state's (logistic) part
 
 

@@ -152,6 +152,21 @@ The bound only judges: it is a conditional one that can rule out the true exposu
 cannot contradict a right configured delay, which lies within T / 2 of the mean lag, less than
 DELAY_DISAGREE_Z prior sds (T / sqrt 12) from any band.
 
+The spread. A tendon-sheath plant often takes its play up smoothly: after a reversal the tip first
+moves once the narrowest of its strands' plays is taken up and creeps to the full drag once the
+widest is (a Prandtl-Ishlinskii operator of play widths spread about B). One play has no such creep,
+and the camera terms took it up in its stead: on the main job's session (the product's simulator,
+widths spread by half of B, no camera effect) the search took a tip mode, both switches, their
+slides and the exposure, and B came out 20 % short of the centre width. So the spread is a term,
+spread: z is the mean of the plays of widths m B, m = 1 + s u, u the midpoints of SPREAD_NODES equal
+parts of [-1, 1] (equal weights: a uniform spread), all from the same first state, s in
+[0, SPREAD_MAX] fitted, entering by the same BIC as every term (on that session it enters alone but
+for a small exposure, B within 1 % of the centre width). B is the centre width. The onsets that
+time a switch which follows the tip are the narrowest play's, the tip's first motion; eq. 1's
+samples are read off the centre width's play (onset_fit.samples), as without the term. Each node's
+play is B's coefficients times m (B is linear in them), so its gradients are the single play's at
+m cB: over cB the nodes' mean of m g, over s the mean of u g cB.
+
 Which terms and which size of B a record takes, and from where each fit starts, is
 onset_search's; fitting one model and reading eq. 1's samples off it, onset_fit's.
 
@@ -175,7 +190,8 @@ HUBER_K = 1.345        # Huber's tuning constant, in sigma (95 % efficiency at t
 GRID_HZ_MAX = 1000.0   # the play runs on a uniform grid at the encoder's rate, at most this (1 ms timing)
 RING_HZ_LO = 1.0       # the tip mode searched from this (Hz) ...
 RING_NYQUIST = 0.45    # ... to this share of the frame rate (below Nyquist, with the exposure's margin)
-TERMS = ("ring", "ring_motor", "reg_tip", "reg_motor", "slide_tip", "slide_motor", "shift_tip", "shift_motor", "expo")
+TERMS = ("ring", "ring_motor", "reg_tip", "reg_motor", "slide_tip", "slide_motor", "shift_tip", "shift_motor", "expo",
+         "spread")
                        # a slide_ or shift_ term needs its reg_ term, ring_motor the ring
 EXPO_NODES = 8         # the exposure's average (module doc: the exposure) by the midpoint rule on this many
                        # nodes: a fixed count, so the image moves smoothly with e (a count growing with e would
@@ -193,6 +209,9 @@ EPS_SHARE = 1e-3       # the least share the mixture gives a level (module doc):
 SLIDE_MAX_S = 0.1      # a slide's longest duration at least this, s (module doc: the slide): a settling of
                        # tens of ms is physical time, not frames; a tenth of a second stays well below the
                        # plant's take-up that a half-interval bound took (0.48 s on the main job)
+SPREAD_NODES = 8       # the spread's mean over its widths (module doc: the spread) by the midpoint rule on this many
+                       # nodes, as the exposure's: a fixed count, so the output moves smoothly with s
+SPREAD_MAX = 0.9       # the spread's largest s: the narrowest width (1 - s) B stays above a tenth of B
 N_REG = 3              # the registration's rotation (rad) about the camera's x, y and optical axes (module doc: R)
 N_SHIFT = 2            # or, with a shift_ term, its translation (px) along the image's u and v (module doc: the shift)
 
@@ -450,6 +469,7 @@ class Terms:
     shift_tip: bool = False    # the tip's switch also translates the image (module doc: R, the shift)
     shift_motor: bool = False
     expo: bool = False         # each frame the mean of the scene over its exposure (module doc: the exposure)
+    spread: bool = False       # the plant's widths spread about B: a smooth take-up (module doc: the spread)
 
     def names(self) -> list[str]:
         return [n for n in TERMS if getattr(self, n)]
@@ -548,6 +568,27 @@ class RecordModel:
         """The exposure's part of theta for e s (the inverse of `expo_map`, clipped)."""
         return _onto_x(e, self.rec.period_s / 20, self.rec.period_s)
 
+    def spread_map(self, x: float) -> tuple[float, float]:
+        """(s, ds/dx) for the spread's part of theta x: s in [0, SPREAD_MAX] (module doc: the spread)."""
+        return _onto(x, 0.0, SPREAD_MAX)
+
+    def spread_x(self, s: float) -> float:
+        """The spread's part of theta for s (the inverse of `spread_map`, clipped)."""
+        return _onto_x(s, 0.0, SPREAD_MAX)
+
+    def spread(self, th: np.ndarray) -> float:
+        """The spread s of the plant's widths about B (0: the term is off, one play)."""
+        lay = self.layout()
+        return self.spread_map(th[lay["spread"]][0])[0] if "spread" in lay else 0.0
+
+    def spread_factors(self, s: float) -> tuple[np.ndarray, np.ndarray]:
+        """The spread's nodes: (width factors m (K,) = 1 + s u, u (K,)), u the midpoints of SPREAD_NODES
+        equal parts of [-1, 1]; ((1,), (0,)) without the term."""
+        if s <= 0.0 and not self.terms.spread:
+            return np.ones(1), np.zeros(1)
+        u = 2.0 * (np.arange(SPREAD_NODES) + 0.5) / SPREAD_NODES - 1.0
+        return 1.0 + s * u, u
+
     def exposure(self, th: np.ndarray) -> float:
         """The exposure e s that blurs each frame (0: the term is off, each frame an instant)."""
         lay = self.layout()
@@ -566,7 +607,7 @@ class RecordModel:
         for name, size, on in (("ring", 2, self.terms.ring), ("lag_tip", 1, self.terms.reg_tip),
                                ("lag_motor", 1, self.terms.reg_motor), ("slide_tip", 1, self.terms.slide_tip),
                                ("slide_motor", 1, self.terms.slide_motor), ("expo", 1, self.terms.expo),
-                               ("z0", 1, True)):
+                               ("spread", 1, self.terms.spread), ("z0", 1, True)):
             if on:
                 out[name], i = slice(i, i + size), i + size
         return out
@@ -582,7 +623,7 @@ class RecordModel:
         x_slide = np.array([self.slide_x(0.5 * self.rec.period_s)])
         dflt = {"ring": self.ring_theta(3.0, 0.1), "lag_tip": np.zeros(1), "lag_motor": np.zeros(1),
                 "slide_tip": x_slide, "slide_motor": x_slide, "expo": np.array([self.expo_x(0.5 * self.rec.period_s)]),
-                "z0": np.zeros(1)}
+                "spread": np.array([self.spread_x(0.3)]), "z0": np.zeros(1)}
         for name, sl in self.layout().items():
             th[sl] = parts[name] if name in parts else dflt[name]
         return th
@@ -707,6 +748,23 @@ class RecordModel:
             dx[pre] = (hi0 - lo0) * f * (1.0 - f)
         return g, dx
 
+    def spread_gradient(self, cB: np.ndarray, st: dict, k: np.ndarray, x0: float):
+        """`z_gradient` of the frames' z with the spread (module doc: the spread): (d z / d (B's
+        coefficients) (len(k), n_b), d z / d x0 (len(k),), d z / d s (len(k),) or None without the
+        term). z is the mean of the nodes' plays, node j the play of B's coefficients m_j cB (B is
+        linear in them), m_j = 1 + s u_j: with g_j its gradient over those coefficients, dz/dcB is
+        the mean of m_j g_j and dz/ds the mean of u_j g_j cB."""
+        nodes = st.get("nodes")
+        if not nodes:
+            g, dx = self.z_gradient(cB, st, k, x0)
+            return g, dx, None
+        G, X, S = 0.0, 0.0, 0.0
+        for m, u, nst in nodes:
+            g, dx = self.z_gradient(m * cB, nst, k, x0)
+            G, X, S = G + m * g, X + dx, S + u * (g @ cB)
+        n = len(nodes)
+        return G / n, X / n, S / n
+
     def edge_gradient(self, cB: np.ndarray, k: np.ndarray, z: np.ndarray, side: np.ndarray) -> np.ndarray:
         """d z / d (B's coefficients), (len(k), n_b), where z (len(k),) lies on the band's edge
         side (-0.5 the lower, +0.5 the upper) at grid samples k: z = q + side B(q) at the input,
@@ -748,17 +806,28 @@ class RecordModel:
         out[has] = t_on[has]
         return out
 
-    def _play_part(self, d: float, cB: np.ndarray, x0: float, e: float = 0.0) -> tuple:
-        """What `columns` computes from the delay, B and the first state alone: (z, lo, hi, last, side
-        (N,), the onsets (M,), tau, z at the frames (F,), G's columns (F, n_g), and with the tip mode
-        its parts' masks and drives ((N - 2,) x 2 each), else None). Kept for the last arguments:
-        the tip mode's frequency scan, a settle's three evaluations and the fit's repeated ones
-        at one theta change none of them (the arrays are never written in place)."""
-        key = (d, cB.tobytes(), x0, e)
+    def _play_part(self, d: float, cB: np.ndarray, x0: float, e: float = 0.0, s: float = 0.0) -> tuple:
+        """What `columns` computes from the delay, B, the first state, the exposure and the spread
+        alone: (z, lo, hi, last, side (N,), the onsets (M,), tau, z at the frames (F,), G's columns
+        (F, n_g), with the tip mode its parts' masks and drives ((N - 2,) x 2 each), else None, and
+        with the spread its nodes [(m, u, {"z", "lo", "hi", "last", "side"})], else None: z is then
+        their mean and the onsets the narrowest's, the tip's first motion). Kept for the last
+        arguments: the tip mode's frequency scan, a settle's three evaluations and the fit's
+        repeated ones at one theta change none of them (the arrays are never written in place)."""
+        key = (d, cB.tobytes(), x0, e, s)
         if self._memo is not None and self._memo[0] == key:
             return self._memo[1]
         rec = self.rec
-        z, lo, hi, last, side = self.play_drags(cB, x0)
+        nodes = None
+        if self.terms.spread:  # module doc: the spread; each node a play of width m B from the same first state
+            nodes = []
+            for m, u in zip(*self.spread_factors(s)):
+                zk, lok, hik, lastk, sidek = self.play_drags(m * cB, x0)
+                nodes.append((float(m), float(u), {"z": zk, "lo": lok, "hi": hik, "last": lastk, "side": sidek}))
+            z = np.mean([n[2]["z"] for n in nodes], axis=0)
+            lo, hi, last, side = (nodes[0][2][k] for k in ("lo", "hi", "last", "side"))
+        else:
+            z, lo, hi, last, side = self.play_drags(cB, x0)
         tau = rec.t_f - d
         # the frame's image of the play: z at its scene time, or its mean over the exposure (module doc)
         z_f = np.mean([np.interp(tau + o, rec.t, z) for o in self.expo_offsets(e)], axis=0)
@@ -774,7 +843,8 @@ class RecordModel:
                 # motor's second difference over both (the play output stops on the first)
                 q_acc = np.diff(rec.q, 2) / (rec.dt * rec.dt)
                 drive[1][0] = np.where(stop | np.r_[False, stop[:-1]], -q_acc, 0.0)
-        out = (z, lo, hi, last, side, self.onsets(z), tau, z_f, _basis(z_f, self.z_lo, self.z_hi, self.n_g), drive)
+        t_on = self.onsets(z if nodes is None else nodes[0][2]["z"])
+        out = (z, lo, hi, last, side, t_on, tau, z_f, _basis(z_f, self.z_lo, self.z_hi, self.n_g), drive, nodes)
         self._memo = (key, out)
         return out
 
@@ -804,10 +874,11 @@ class RecordModel:
         d, cB, ring, lags = self.unpack(th)
         slides = self.slides(th)
         e = self.exposure(th)
-        z, lo, hi, last, side, t_on, tau, z_f, G, drive = self._play_part(d, cB, self.z0_of(th), e)
+        z, lo, hi, last, side, t_on, tau, z_f, G, drive, nodes = self._play_part(d, cB, self.z0_of(th), e, self.spread(th))
         cols = {"G": G}
         zn = (2 * z_f - (self.q_lo + self.q_hi)) / max(self.q_hi - self.q_lo, 1e-12)
-        st = {"z": z, "lo": lo, "hi": hi, "tau": tau, "zn": zn, "ring": ring, "last": last, "side": side, "expo": e}
+        st = {"z": z, "lo": lo, "hi": hi, "tau": tau, "zn": zn, "ring": ring, "last": last, "side": side, "expo": e,
+              "nodes": nodes}
         if self.terms.ring:
             st["mask"], st["u"] = drive
             st["x"] = [_tip_mode(u, ring[0], ring[1], rec.dt) for u in st["u"]]
@@ -1278,28 +1349,53 @@ class RecordModel:
         # first state before any), and the tip switch's onsets. The tip mode's drive through the
         # first state (its first start moved in time) is left out: one start of the record's many.
         x0, i_z0 = self.z0_of(th), lay["z0"].start
-        Zc, Zx = 0.0, 0.0
+        nodes = st.get("nodes")
+        i_s = lay["spread"].start if nodes else None
+        ds_dx = self.spread_map(th[i_s])[1] if nodes else 0.0
+        Zc, Zx, Zs = 0.0, 0.0, 0.0
         for o in offs:  # z_f is the mean of z over the exposure's nodes, and so is its gradient
-            zc, zx = self.z_gradient(cB, st, np.clip(np.searchsorted(rec.t, tau + o), 0, z.size - 1), x0)
+            zc, zx, zs = self.spread_gradient(cB, st, np.clip(np.searchsorted(rec.t, tau + o), 0, z.size - 1), x0)
             Zc, Zx = Zc + zc / offs.size, Zx + zx / offs.size
+            if zs is not None:
+                Zs = Zs + zs / offs.size
         sl_b = slice(1, 1 + self.n_b)
         Gu[:, sl_b] = dz_u[:, None] * Zc
         Gv[:, sl_b] = dz_v[:, None] * Zc
         Gu[:, i_z0] = dz_u * Zx
         Gv[:, i_z0] = dz_v * Zx
+        if nodes:
+            Gu[:, i_s] = dz_u * Zs * ds_dx
+            Gv[:, i_s] = dz_v * Zs * ds_dx
         if self.terms.ring:  # the tip mode's drive through B: an onset moves the start it excites
-            dx = self.ring_gradient(cB, st, x0, gr[:2])
+            if nodes:  # each node's play drives the mode by its share (the mode is linear in its drive)
+                dx, dxs = 0.0, 0.0
+                for m, u, nst in nodes:
+                    r = self.ring_gradient(m * cB, {**st, **nst}, x0, gr[:2])
+                    dx, dxs = dx + m * r / len(nodes), dxs + u * (r @ cB) / len(nodes)
+                Gu[:, i_s] += self.slope[:, 0] * dxs * ds_dx
+                Gv[:, i_s] += self.slope[:, 1] * dxs * ds_dx
+            else:
+                dx = self.ring_gradient(cB, st, x0, gr[:2])
             Gu[:, sl_b] += self.slope[:, 0, None] * dx
             Gv[:, sl_b] += self.slope[:, 1, None] * dx
         if "tip" in ramps:
             e, inr, dS = ramps["tip"]
-            dton, dton_x = self.onset_gradient(cB, st, st["tip"][1] + 0.5 * st["expo"], rec.s_new[st["tip"][5]], x0)  # (E, n_b), (E,)
+            t_tip = st["tip"][1] + 0.5 * st["expo"]
+            if nodes:  # the tip's onset is the narrowest node's first motion
+                m0, u0, nst0 = nodes[0]
+                g0, dton_x = self.onset_gradient(m0 * cB, {**st, **nst0}, t_tip, rec.s_new[st["tip"][5]], x0)
+                dton, dton_s = m0 * g0, u0 * (g0 @ cB)
+            else:
+                dton, dton_x = self.onset_gradient(cB, st, t_tip, rec.s_new[st["tip"][5]], x0)  # (E, n_b), (E,)
             fr = np.flatnonzero(inr)
             val = reg["tip"]
             Gu[fr, sl_b] += (-dS[fr] * val[0][fr])[:, None] * dton[e[fr]]
             Gv[fr, sl_b] += (-dS[fr] * val[1][fr])[:, None] * dton[e[fr]]
             Gu[fr, i_z0] += -dS[fr] * val[0][fr] * dton_x[e[fr]]
             Gv[fr, i_z0] += -dS[fr] * val[1][fr] * dton_x[e[fr]]
+            if nodes:
+                Gu[fr, i_s] += -dS[fr] * val[0][fr] * dton_s[e[fr]] * ds_dx
+                Gv[fr, i_s] += -dS[fr] * val[1][fr] * dton_s[e[fr]] * ds_dx
         if self.terms.ring:
             sl = self.slope
             i0 = lay["ring"].start
@@ -1348,7 +1444,13 @@ class RecordModel:
                 ok = np.isfinite(t_on[rev])
                 if ok.any():
                     u_rev, inv = np.unique(rev[ok], return_inverse=True)
-                    dton, dton_x = self.onset_gradient(cB, st, t_on[u_rev], rec.s_new[u_rev], self.z0_of(th))
+                    if st.get("nodes"):  # the tip's onset is the narrowest node's first motion
+                        m0, u0, nst0 = st["nodes"][0]
+                        g0, dton_x = self.onset_gradient(m0 * cB, {**st, **nst0}, t_on[u_rev], rec.s_new[u_rev],
+                                                         self.z0_of(th))
+                        dton, dton_s = m0 * g0, (u0 * (g0 @ cB))[inv]
+                    else:
+                        dton, dton_x = self.onset_gradient(cB, st, t_on[u_rev], rec.s_new[u_rev], self.z0_of(th))
                     dton, dton_x = dton[inv], dton_x[inv]
             for _, dr in self._kl_rows(mx):
                 Jk = np.zeros((dr.shape[1], th.size))
@@ -1365,6 +1467,9 @@ class RecordModel:
                 if dton is not None:                       # the tip's switch starts at its onset
                     Jk[np.flatnonzero(ok), 1:1 + self.n_b] = -dr[0][ok][:, None] * dton
                     Jk[np.flatnonzero(ok), lay["z0"].start] = -dr[0][ok] * dton_x
+                    if "spread" in lay:
+                        i = lay["spread"].start
+                        Jk[np.flatnonzero(ok), i] = -dr[0][ok] * dton_s * self.spread_map(th[i])[1]
                 kl.append(Jk)
             j, c = mx["j"], mx["spread"]
             a = slice(2 * p + self.mix_block(name), 2 * p + self.mix_block(name) + self.n_reg(name))

@@ -50,6 +50,8 @@ EXPO_GRID = (0.1, 0.25, 0.5, 1.0)  # the exposure term's starts, frame periods, 
                        # dev-reg0-swings25-fast was out of a trial fit's reach: its best trial 4,999 against
                        # 4,987 from 0.1; the settled cost over e was unimodal about the truth on two renderings,
                        # 20 and 35 ms at 25 fps)
+SPREAD_GRID = (0.2, 0.5, 0.8)  # the spread term's starts (onset_model's module doc: the spread): over its range
+                       # [0, SPREAD_MAX], from a take-up a fifth of B wide to most of it
 
 
 TRIAL_ROUNDS = 1       # a term's trial fit (8 evaluations): one reweighting, since a term that adds to the fit so
@@ -395,6 +397,9 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
             elif name == "expo":  # from the fit so far, at each exposure of EXPO_GRID
                 mt.slope = m.slope
                 th0s = [mt.theta({**parts, "expo": np.array([mt.expo_x(g * rec.period_s)])}) for g in EXPO_GRID]
+            elif name == "spread":  # from the fit so far, at each spread of SPREAD_GRID
+                mt.slope = m.slope
+                th0s = [mt.theta({**parts, "spread": np.array([mt.spread_x(g)])}) for g in SPREAD_GRID]
             else:  # a switch, or a switch's shift (linear only): from the fit so far and each delay start
                 mt.slope = m.slope
                 th0s = [mt.theta(p) for p in [parts] + bases]

@@ -141,6 +141,9 @@ def record_samples(t_enc: np.ndarray, q: np.ndarray, q_rev: np.ndarray, rt: np.n
         "registration": {"found": bool(reg), **reg},
         "exposure_s": sm.exposure_s, "exposure_bound_s": sm.exposure_bound_s, "image_mean_lag_s": lag,
         "exposure_blur_s": m.exposure(fit.theta) if terms.expo else None,
+        # the plant's take-up spread over widths (1 -+ s) B about B (onset_model: the spread); B and the
+        # samples are the centre width's
+        "take_up_spread": m.spread(fit.theta) if terms.spread else None,
         "pacing": pace,
         "sigma_b_median": float(np.median(sm.sigma_b)) if n else None,
         "lost_before_reversal": 0,
