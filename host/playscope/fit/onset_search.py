@@ -15,7 +15,8 @@ delay and the constant width by the robust cost; the tip mode's at each of RING_
 one of its scan's local minima that profiles lowest), each carried coarse to fine and scored by
 the BIC, once one of the term's trial fits lowers the BIC (those chains are a round's costly part).
 
-Terms by evidence: the tip mode, each registration term and the exposure enter when they lower the record's
+Terms by evidence: the tip mode, each registration term, the exposure and the plant's spread of widths
+enter when they lower the record's
 BIC (Schwarz 1978) on the robust objective (2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma),
 the Gaussian's normalisation for the inflated scales), the same criterion for each; the search
 adds the best term, refits, and tries the rest again. Last, the final model is restarted along the
