@@ -70,21 +70,26 @@ def test_noise_sigma_recovers_white_noise_on_a_slow_record():
                                              (("reg_tip", "slide_tip", "reg_motor", "slide_motor", "mix"), "input"),
                                              (("reg_tip", "shift_tip", "reg_motor", "shift_motor", "mix"), "input"),
                                              (("expo",), "input"), (("expo",), "output"),
-                                             (("reg_tip", "reg_motor", "expo", "mix"), "input")])
+                                             (("reg_tip", "reg_motor", "expo", "mix"), "input"),
+                                             (("spread",), "input"), (("spread",), "output"),
+                                             (("ring", "spread"), "input"), (("expo", "spread"), "input")])
 def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
     # Kaufman's variable-projection Jacobian against the projected residual's forward differences
     # (which re-solve the linear parameters): the gradient J'r, what the fit follows, and each
-    # column of the delay and of B.
+    # column of the delay and of B. With the spread (module doc: its gradients the nodes' single-play
+    # ones at m cB), on a rendering whose widths spread by 0.4 of B (swing_render's 41 plays, not the
+    # model's 8), and its own column too.
     r, d, t, q, rt, rq, obs, _ = record(reg_deg=1.5 if terms and terms[0] == "reg_tip" else 0.0,
                                          ring_hz=3.0 if terms[:1] == ("ring",) else 0.0, duration_s=30.0,
-                                         exposure_s=0.025 if "expo" in terms else 0.004)
+                                         exposure_s=0.025 if "expo" in terms else 0.004,
+                                         spread=0.4 if "spread" in terms else 0.0)
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
     m = OM.RecordModel(rec, 4, 10, OM.Terms(**{k: True for k in terms if k != "mix"}), (r.delay_s, 0.01),
                        width_at=width_at)
     g = np.linspace(rec.q.min(), rec.q.max(), 40)
     cB = np.linalg.lstsq(OM._basis(g, g[0], g[-1], 4), r.B(g), rcond=None)[0]
     th = m.theta({"d": np.array([r.delay_s + 0.003]), "B": 1.03 * cB, "ring": m.ring_theta(3.1, 0.06),
-                  "expo": np.array([m.expo_x(0.010 if "mix" in terms else 0.022)])})
+                  "expo": np.array([m.expo_x(0.010 if "mix" in terms else 0.022)]), "spread": np.array([m.spread_x(0.35)])})
     # (with the switches, an exposure shorter than their lag: at 22 ms, as long as the lag, the forward
     # step of a lag moves two frames across a share's clip and the differences read 0.84 there)
     ev = m.evaluate(th)
@@ -113,39 +118,14 @@ def test_the_analytic_jacobian_agrees_with_finite_differences(terms, width_at):
     if "expo" in terms:  # the exposure's column: measured 0.9996 (both width forms)
         i = m.layout()["expo"].start
         assert cos(Ja[:, i], Jf[:, i]) > 0.99
+    if "spread" in terms:  # measured: s's column 0.998-0.9991, B's 0.998-0.9999, the delay's 0.995-0.9997
+        for i in [0, *range(1, 1 + m.n_b), m.layout()["spread"].start]:
+            assert cos(Ja[:, i], Jf[:, i]) > 0.99, i
     if not terms or terms in (("ring",), ("ring", "ring_motor"), ("expo",)):
         for i in range(1 + m.n_b):
             # measured 0.98..1.0; the ring's B columns 0.989..0.9998 (0.93..0.97 without its drive through B);
             # with the exposure 0.988..0.9998
             assert cos(Ja[:, i], Jf[:, i]) > (0.975 if terms else 0.95)
-
-
-@pytest.mark.parametrize("terms,width_at", [(("spread",), "input"), (("spread",), "output"),
-                                             (("ring", "spread"), "input"), (("expo", "spread"), "input")])
-def test_the_spreads_jacobian_agrees_with_finite_differences(terms, width_at):
-    # The spread (module doc): z the mean of plays of widths m B, m = 1 + s u; its gradients the nodes'
-    # single-play ones at m cB, over cB their mean of m g and over s of u g cB. Against the projected
-    # residual's forward differences on a rendering whose widths spread by 0.4 of B (swing_render's 41
-    # plays, not the model's 8): measured the gradient 0.9997-1.0, s's column 0.998-0.9991, B's columns
-    # 0.998-0.9999, the delay's 0.995-0.9997.
-    r, d, t, q, rt, rq, obs, _ = record(duration_s=30.0, spread=0.4, ring_hz=3.0 if "ring" in terms else 0.0,
-                                         exposure_s=0.022 if "expo" in terms else 0.004)
-    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
-    m = OM.RecordModel(rec, 4, 10, OM.Terms(**{k: True for k in terms}), (r.delay_s, 0.01), width_at=width_at)
-    g = np.linspace(rec.q.min(), rec.q.max(), 40)
-    cB = np.linalg.lstsq(OM._basis(g, g[0], g[-1], 4), r.B(g), rcond=None)[0]
-    th = m.theta({"d": np.array([r.delay_s + 0.003]), "B": 1.03 * cB, "ring": m.ring_theta(3.1, 0.06),
-                  "expo": np.array([m.expo_x(0.022)]), "spread": np.array([m.spread_x(0.35)])})
-    m.slope = m.G_slope(m.evaluate(th))
-    m.w = OM.huber_weights(m.evaluate(th).resid, 0.12)
-    fun = OF._residual_fn(m, 0.12)
-    r0 = fun(th)
-    Ja = m.jacobian(th, m.evaluate(th), 0.12)
-    Jf = OF._jac(m, fun, th, r0)
-    cos = lambda a, b: float(a @ b / np.linalg.norm(a) / np.linalg.norm(b))  # noqa: E731
-    assert cos(Ja.T @ r0, Jf.T @ r0) > 0.999
-    for i in [0, *range(1, 1 + m.n_b), m.layout()["spread"].start]:
-        assert cos(Ja[:, i], Jf[:, i]) > 0.99, i
 
 
 def test_the_spreads_output_is_the_mean_of_its_widths_plays_and_its_onsets_the_narrowests():
