@@ -584,7 +584,7 @@ class RecordModel:
     def spread_factors(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """The spread's nodes: (width factors m (K,) = 1 + s u, u (K,)), u the midpoints of SPREAD_NODES
         equal parts of [-1, 1]; ((1,), (0,)) without the term."""
-        if s <= 0.0 and not self.terms.spread:
+        if not self.terms.spread:
             return np.ones(1), np.zeros(1)
         u = 2.0 * (np.arange(SPREAD_NODES) + 0.5) / SPREAD_NODES - 1.0
         return 1.0 + s * u, u
