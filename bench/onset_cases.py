@@ -352,6 +352,11 @@ def make(row):
 # ae31109). Run all 300 on that onset code, resumed across sessions from its rows if need be.
 SEEDS_19 = {"marker": (79101, 790001), "swing": (79202, 790201), "render_c": (79303, 790401)}
 LOCKBOX19_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_19, PLAN, "s19-")]
+# The twentieth set-aside group, LOCKBOX20_300 (drawn and committed 2026-11-29 during stop 83, while LOCKBOX19 ran
+# on 3cf5173's onset code (the spread term) and before any later onset code was written; sealed for the onset
+# code of a change after 3cf5173).
+SEEDS_20 = {"marker": (80101, 800001), "swing": (80202, 800201), "render_c": (80303, 800401)}
+LOCKBOX20_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_20, PLAN, "s20-")]
 
 # Two groups for a plant effect the plans above never render: a smooth transition after each reversal
 # (a Prandtl-Ishlinskii spread of play widths: the bending driven by the mean of plays of widths

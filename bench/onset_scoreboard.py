@@ -56,6 +56,8 @@ Groups:
                drawn and committed at the start of stop 81, run on ae31109's onset code.
   lockbox19    bench/onset_cases.py LOCKBOX19_300: 100 more renderings from each renderer (new seeds),
                drawn and committed during stop 82, sealed for an onset code after ae31109.
+  lockbox20    bench/onset_cases.py LOCKBOX20_300: 100 more renderings from each renderer (new seeds),
+               drawn and committed during stop 83, sealed for an onset code after 3cf5173.
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
                with the exposure 0.25-1 frame period (the other groups' renderers expose 2-8 ms),
                judged as fresh (category "exposure", B <= 5 %).
@@ -113,6 +115,7 @@ FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_1
               "lockbox14": lambda c: c.LOCKBOX14_300, "lockbox15": lambda c: c.LOCKBOX15_300,
               "lockbox16": lambda c: c.LOCKBOX16_300, "lockbox17": lambda c: c.LOCKBOX17_300,
               "lockbox18": lambda c: c.LOCKBOX18_300, "lockbox19": lambda c: c.LOCKBOX19_300,
+              "lockbox20": lambda c: c.LOCKBOX20_300,
               "exposure": lambda c: c.EXPOSURE_30, "transition_dev": lambda c: c.TRANSITION_DEV_40,
               "transition_lockbox": lambda c: c.TRANSITION_LOCKBOX_100}
 
