@@ -349,7 +349,8 @@ def make(row):
 
 # The nineteenth set-aside group, LOCKBOX19_300 (drawn and committed 2026-11-29 during stop 82, after LOCKBOX18 ran
 # on ae31109's onset code and before any later onset code was written; sealed for the onset code of a change after
-# ae31109). Run all 300 on that onset code, resumed across sessions from its rows if need be.
+# ae31109). Run whole on 3cf5173's onset code (the spread term): 0 / 300 fail, rows in
+# bench/scoreboard_rows/lockbox19-stop83.jsonl. Spent: development data from then on.
 SEEDS_19 = {"marker": (79101, 790001), "swing": (79202, 790201), "render_c": (79303, 790401)}
 LOCKBOX19_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_19, PLAN, "s19-")]
 # The twentieth set-aside group, LOCKBOX20_300 (drawn and committed 2026-11-29 during stop 83, while LOCKBOX19 ran
@@ -370,7 +371,10 @@ LOCKBOX20_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # after bench/record_terms_transition.py measured the record model's camera terms entering on the
 # simulator's smooth-transition plants, and before any onset code for that was written:
 #   TRANSITION_DEV_40        20 rows per renderer: development data (the term is written on them);
-#   TRANSITION_LOCKBOX_100   50 rows per renderer: sealed for the onset code of that change, run once.
+#   TRANSITION_LOCKBOX_100   50 rows per renderer: sealed for the onset code of that change, run once. Started
+#                            on 3cf5173's onset code at stop 83 and stopped after 11 rows (all passing) for
+#                            time; to be resumed on that onset code (bench/scoreboard_rows/
+#                            transition_lockbox-partial-stop83.jsonl) before any other onset code.
 SEEDS_T = {"swing": (83202, 830201), "render_c": (83303, 830401)}
 SEEDS_TL = {"swing": (84202, 840201), "render_c": (84303, 840401)}
 

@@ -55,7 +55,7 @@ Groups:
   lockbox18    bench/onset_cases.py LOCKBOX18_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at the start of stop 81, run on ae31109's onset code.
   lockbox19    bench/onset_cases.py LOCKBOX19_300: 100 more renderings from each renderer (new seeds),
-               drawn and committed during stop 82, sealed for an onset code after ae31109.
+               drawn and committed during stop 82, run on 3cf5173's onset code (0 / 300).
   lockbox20    bench/onset_cases.py LOCKBOX20_300: 100 more renderings from each renderer (new seeds),
                drawn and committed during stop 83, sealed for an onset code after 3cf5173.
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
