@@ -371,14 +371,6 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     # the alternatives are independent: on two cores (base.forkmap; 7 on the bench session, 0.2-0.8 s
     # each), the own pick first (it completes its candidates, above)
     choices = fork_map(choice, alts, cost=lambda alt: 1.0 if alt[0] == bfit.smooth else 0.0)
-    for (_, bf), mc in zip(alts, choices):
-        # A choice from the child comes through the pipe with a copy of its B. The calibration
-        # goes on with the kept choice's data (its operator outputs and the folds' weights, which
-        # the family choice's onset transition starts from: transition.cv_start) only when its B
-        # is the kept B itself; with a copy it started afresh, so the result hung on which process
-        # had fitted the kept alternative (on data_2_1 calibrated on its first half, the family
-        # CV's onset_transition row differed in the fourth digit between one core and two).
-        mc.data.B = bf.B
     rows = []
     for (sm, _), mc in zip(alts, choices):
         pick, (tr, _, _, _) = mc.pick(), mc.refit()
@@ -628,7 +620,14 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src, c_confounded=any(found))
         bfit, model_cv, fit_data = joint.bfit, joint.rows, joint.data
         B, w = bfit.B, bfit.weight
-    if fit_data is None or fit_data.B is not B:
+    if fit_data is None:
+        # The kept choice's data is B's by construction (choose_b_and_model), and the calibration goes
+        # on with it: its operator outputs and the folds' weights, which the family choice's onset
+        # transition starts from (transition.cv_start). Not by B's identity: a choice fitted in the
+        # forked child comes through the pipe with a copy of B, and an identity test then started the
+        # data afresh, so the result hung on which process had fitted the kept alternative (on data_2_1
+        # calibrated on its first half, the family CV's onset_transition row differed in the fourth
+        # digit between one core and two).
         fit_data = T.FitData.from_session(t_enc, q, B, t_f, c_f, td)
     # One FitData for B from here on: the model choice, the PI's f refit and the family choice
     # read the same play centres and operator outputs (cached on it), computed once.

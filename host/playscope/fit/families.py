@@ -56,7 +56,6 @@ Units: q, B, z in actuator units (mm or deg of command), c in deg, t in s.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Callable
 
@@ -396,10 +395,12 @@ def with_relaxation(base: Callable[[Context, np.ndarray | None], Member], name: 
             return Member(name, m.B, m.transition, m.f, m.sign, m.refit_f, nc)
         d, sel = ctx.data, _all(ctx, train)
         t_f, c, t_enc = d.t_frame[sel], d.c[sel], d.t_enc[:n]
-        if m.B is d.B:
+        if m.family in ONSET_FAMILIES:
             # The onset play's centre at the encoder rate is cached on the data (FitData.z_enc) and
             # causal, so every fold and both relaxed families read the one run from the record's
-            # start (the play's bisections on B were 0.5 s a run on the 3-minute bench session).
+            # start (the play's bisections on B were 0.5 s a run on the 3-minute bench session). An
+            # onset family's B is the data's (fit_onset_play, fit_onset_transition); by its family, not
+            # by B's identity, which a member searched in the forked child (choose) does not keep.
             y = m.transition.direct(d.z_enc(m.transition.b_scale)[:n])
         else:
             y = R.transition_output(d.q_enc[:n], m.B, m.transition)
@@ -604,15 +605,7 @@ def _independent_work(ctx: Context, fams: list[Family], splits, source=None) -> 
         except (InputError, OverflowError, ValueError, np.linalg.LinAlgError) as e:
             return str(getattr(e, "message", e))
 
-    out = dict(zip((f.name for f in work), fork_map(run, work, cost=lambda f: float(f.name in RELAXED))))
-    for name, r in out.items():
-        if name in RELAXED and not isinstance(r, str) and r[0].B is not ctx.data.B:
-            # A search from the child comes through the pipe with a copy of its member's B. The
-            # relaxed members' bases are onset families, whose B is ctx.data.B itself, and the
-            # relaxed fit reads the play cached on the data only on that identity (with_relaxation;
-            # with a copy it runs the play again, the same values at 0.5 s on the bench session).
-            out[name] = (dataclasses.replace(r[0], B=ctx.data.B), *r[1:])
-    return out
+    return dict(zip((f.name for f in work), fork_map(run, work, cost=lambda f: float(f.name in RELAXED))))
 
 
 def choose(ctx: Context, reversals: int, families: list[Family] | None = None, source=None) -> tuple[Member, dict]:

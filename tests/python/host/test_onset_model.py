@@ -138,7 +138,8 @@ def test_the_spreads_output_is_the_mean_of_its_widths_plays_and_its_onsets_the_n
     m = OM.RecordModel(rec, 1, 10, OM.Terms(spread=True), None)
     s, b = 0.5, 0.2
     th = m.theta({"d": np.array([r.delay_s]), "B": np.array([b]), "spread": np.array([m.spread_x(s)])})
-    z, t_on = m.columns(th)[3]["z"], m.columns(th)[1]
+    _, t_on, _, st = m.columns(th)
+    z = st["z"]
     mk, _ = m.spread_factors(m.spread(th))
     assert m.spread(th) == pytest.approx(s)
     assert np.allclose(z, np.mean([m.play(mm * np.array([b]), 0.0) for mm in mk], axis=0), atol=1e-12)
