@@ -371,10 +371,10 @@ LOCKBOX20_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # after bench/record_terms_transition.py measured the record model's camera terms entering on the
 # simulator's smooth-transition plants, and before any onset code for that was written:
 #   TRANSITION_DEV_40        20 rows per renderer: development data (the term is written on them);
-#   TRANSITION_LOCKBOX_100   50 rows per renderer: sealed for the onset code of that change, run once. Started
-#                            on 3cf5173's onset code at stop 83 and stopped after 11 rows (all passing) for
-#                            time; to be resumed on that onset code (bench/scoreboard_rows/
-#                            transition_lockbox-partial-stop83.jsonl) before any other onset code.
+#   TRANSITION_LOCKBOX_100   50 rows per renderer: sealed for the onset code of that change, run once. Run on
+#                            3cf5173's onset code (11 rows at stop 83, the other 89 at stop 84 on c66c9e7, whose
+#                            onset results are 3cf5173's): 0 / 100 fail, rows in bench/scoreboard_rows/
+#                            transition_lockbox-stop84.jsonl. Spent: development data from then on.
 SEEDS_T = {"swing": (83202, 830201), "render_c": (83303, 830401)}
 SEEDS_TL = {"swing": (84202, 840201), "render_c": (84303, 840401)}
 
