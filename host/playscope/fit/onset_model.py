@@ -1220,6 +1220,20 @@ class RecordModel:
         qdot = np.where(np.abs(qdot) > 1e-12, qdot, 1e-12)
         return (g_h - g_on) / qdot[:, None], dx / qdot
 
+    def tip_onset_gradient(self, cB: np.ndarray, st: dict, t_on: np.ndarray, s_new: np.ndarray,
+                           x0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """`onset_gradient` of the onsets t_on (E,) s at which a switch that follows the tip starts: (d t_on
+        / d (B's coefficients) (E, n_b) s per actuator unit, d t_on / d x0 (E,) s, d t_on / d s (E,) s, or
+        None without the spread). With the spread they are the narrowest node's first motions (module
+        doc: the spread), its play that of m_0 cB: with g its gradient there, m_0 g over cB and u_0 g cB
+        over s."""
+        nodes = st.get("nodes")
+        if not nodes:
+            return (*self.onset_gradient(cB, st, t_on, s_new, x0), None)
+        m0, u0, nst0 = nodes[0]
+        g0, dx = self.onset_gradient(m0 * cB, {**st, **nst0}, t_on, s_new, x0)
+        return m0 * g0, dx, u0 * (g0 @ cB)
+
     def _edge_rows(self, cB: np.ndarray, k: np.ndarray, z: np.ndarray, side: np.ndarray):
         """`edge_gradient` in sparse form: (cols (len(k), w) int, vals (len(k), w)), row r of the
         dense gradient holding vals[r] at cols[r] (w = 4, a cubic's non-zeros; 1 for a constant
@@ -1381,13 +1395,8 @@ class RecordModel:
             Gv[:, sl_b] += self.slope[:, 1, None] * dx
         if "tip" in ramps:
             e, inr, dS = ramps["tip"]
-            t_tip = st["tip"][1] + 0.5 * st["expo"]
-            if nodes:  # the tip's onset is the narrowest node's first motion
-                m0, u0, nst0 = nodes[0]
-                g0, dton_x = self.onset_gradient(m0 * cB, {**st, **nst0}, t_tip, rec.s_new[st["tip"][5]], x0)
-                dton, dton_s = m0 * g0, u0 * (g0 @ cB)
-            else:
-                dton, dton_x = self.onset_gradient(cB, st, t_tip, rec.s_new[st["tip"][5]], x0)  # (E, n_b), (E,)
+            dton, dton_x, dton_s = self.tip_onset_gradient(cB, st, st["tip"][1] + 0.5 * st["expo"],
+                                                           rec.s_new[st["tip"][5]], x0)
             fr = np.flatnonzero(inr)
             val = reg["tip"]
             Gu[fr, sl_b] += (-dS[fr] * val[0][fr])[:, None] * dton[e[fr]]
@@ -1445,14 +1454,9 @@ class RecordModel:
                 ok = np.isfinite(t_on[rev])
                 if ok.any():
                     u_rev, inv = np.unique(rev[ok], return_inverse=True)
-                    if st.get("nodes"):  # the tip's onset is the narrowest node's first motion
-                        m0, u0, nst0 = st["nodes"][0]
-                        g0, dton_x = self.onset_gradient(m0 * cB, {**st, **nst0}, t_on[u_rev], rec.s_new[u_rev],
-                                                         self.z0_of(th))
-                        dton, dton_s = m0 * g0, (u0 * (g0 @ cB))[inv]
-                    else:
-                        dton, dton_x = self.onset_gradient(cB, st, t_on[u_rev], rec.s_new[u_rev], self.z0_of(th))
+                    dton, dton_x, dton_s = self.tip_onset_gradient(cB, st, t_on[u_rev], rec.s_new[u_rev], self.z0_of(th))
                     dton, dton_x = dton[inv], dton_x[inv]
+                    dton_s = None if dton_s is None else dton_s[inv]
             for _, dr in self._kl_rows(mx):
                 Jk = np.zeros((dr.shape[1], th.size))
                 if self.d_fixed is None:
