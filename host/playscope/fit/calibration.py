@@ -315,8 +315,7 @@ class BAndModel:
     data: T.FitData
 
 
-def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src,
-                       c_confounded: bool = False) -> BAndModel:
+def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src) -> BAndModel:
     """B(q)'s stiffness and the model chosen together by the model choice's own cross-
     validation on c (transition.choose_model: rolling origin, state from the record's start).
 
@@ -329,27 +328,22 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     one standard error of the best (no evidence against the measured B); otherwise the pick is
     the stiffest B whose chosen model's CV RMSE is within one standard error of the best (the
     one-standard-error rule of both CVs).
-    Each alternative's model choice is transition.ModelChoice: pick() fits only the folds that
-    can decide its pick (the rows here need its pick and refit alone), and only the alternative
-    kept completes every candidate for the choice dict: the same results as a full
-    transition.choose_model per alternative, in fewer fits. The alternatives themselves cannot
-    be cut short: the B rule's limit is the best alternative's CV + SE, and every alternative's
-    row is part of the calibration file (B_fit.model_cv).
-    on: the onset samples (onsets.Onsets); bfit: their fit_backlash_auto result; t_enc, q: (N,)
-    s, actuator units; t_f, c_f: (F,) s, deg; td: acquisition delay, s; model_kind "auto"|"pi";
-    n_ctrl: f's control points for the pure-play candidate (14 from calibrate: the
-    cross-validated f_remain N needs B first); src: file named in errors. c_confounded: c carries
-    an effect the record model measured and no model here has, so the CV on c has no evidence
-    about B's stiffness and the B-sample CV's own pick is kept: the image jumps with the direction
-    of motion (a registration or channel error: a direction-following offset that a wider or
-    narrower B mimics), or the tip rings after each reversal (a mode in time since the reversal,
-    which on legs of one length is a function of q and the direction, so the PI operators take it
-    up with B. On s8-swing-078 of LOCKBOX8_300, a 60 fps triangle with a 2.3 Hz mode of 9.5 px,
-    the onset samples were 0.4 % off the true B; the CV on c put their spline 0.45 deg against
-    the best's 0.32 +- 0.12, and the stiffest spline within that, kept, was 16.8 % off).
+    Samples read off the record model (image sessions: onset_stage.record_samples, each with its
+    standard error sigma_b) are not a detector's threshold crossings: each is where the fitted
+    play starts to move (with the spread term, the centre width that B is), so the threshold's
+    bias that the CV on c was for is not in them, and their own CV, weighted by sigma_b, is the
+    judge of the stiffness. Their B-sample CV's pick is then the one alternative. The CV on c
+    has no evidence about the stiffness of such a B that the samples lack, and where c carries
+    an effect the record model measured and no model on c has, it has evidence against it: a
+    registration switch (a direction-following offset that a wider or narrower B mimics) or a
+    tip mode (on legs of one length a function of q and the direction, which the PI operators
+    take up with a stiffer B: on s8-swing-078 of LOCKBOX8_300, a 60 fps triangle with a 2.3 Hz
+    mode of 9.5 px, the samples' spline was 0.4 % off the true B and the CV on c's pick 16.8 %).
+    It is still the CV that chooses the model for that B (transition.ModelChoice).
     Returns BAndModel (the kept B, its transition, f, sign and choice dict, every alternative's
-    row, the kept alternative's FitData)."""
-    alts = backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)
+    row (one for the record model's samples), the kept alternative's FitData)."""
+    alts = [(bfit.smooth, bfit)] if on.sigma_b is not None else \
+        backlash_alternatives(on.q_mean, on.b, bfit, src, sigma=on.sigma_b)
     base = T.FitData.from_session(t_enc, q, alts[0][1].B, t_f, c_f, td)
 
     def choice(alt) -> T.ModelChoice:
@@ -385,7 +379,7 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     # error of the best: B is the anchor measured by eq. 1, and a CV on c that cannot tell the
     # stiffnesses apart has no evidence to move it. Beyond, the stiffest B within one SE of the
     # best (rows are stiffest first).
-    i = own if c_confounded or rows[own]["cv_rmse_deg"] <= limit else \
+    i = own if rows[own]["cv_rmse_deg"] <= limit else \
         next(i for i, d in enumerate(rows) if d["cv_rmse_deg"] <= limit)
     tr, f, sign, ch = choices[i].result()
     return BAndModel(alts[i][1], tr, f, sign, ch, rows, choices[i].data)
@@ -612,12 +606,10 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         model_kind = "play"  # no onset B to anchor the transition on
     model_cv, fit_data = None, None
     if model_kind != "play" and rt.size >= MIN_REVERSALS_TRANSITION:
-        # B(q)'s stiffness by the model's own cross-validation on c (see choose_b_and_model).
-        # c carries what the record model measured and the angle chain's models lack: a switch
-        # of the image with the direction, or the tip's mode (choose_b_and_model's c_confounded)
-        found = [((refine_doc or {}).get(k) or {}).get("found", False) for k in ("registration", "ringing")]
+        # B(q)'s stiffness by the model's own cross-validation on c where the samples are a
+        # detector's; the record model's samples keep their own (see choose_b_and_model).
         stage("B(q) and the model by cross-validation")
-        joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src, c_confounded=any(found))
+        joint = choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src)
         bfit, model_cv, fit_data = joint.bfit, joint.rows, joint.data
         B, w = bfit.B, bfit.weight
     if fit_data is None:

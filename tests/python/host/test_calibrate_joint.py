@@ -110,7 +110,7 @@ def test_a_tip_mode_keeps_the_onset_samples_B(tmp_path):
     # 0.117 s legs, a 2.3 Hz tip mode of 9.5 px): on legs of one length the ring is a function of q
     # and the direction, so the PI operators take it up, and the CV on c ranked a stiffer spline
     # than the onset samples' (measured 0.288 +- 0.022 deg against 0.373). The record model found
-    # the mode, so c has no evidence about B's stiffness (calibrate's c_confounded) and the samples'
+    # the mode; the record model's samples keep their own stiffness (choose_b_and_model), so the samples'
     # spline is kept: B 0.55 % off the truth; with the CV on c's spline, 2.79 %.
     from playscope.io.session import load_session
 
@@ -124,6 +124,7 @@ def test_a_tip_mode_keeps_the_onset_samples_B(tmp_path):
     assert cal.doc["onset"]["refine"]["ringing"]["found"]
     fit = cal.doc["B_fit"]
     assert fit["smooth"] == fit["cv"]["choice"]
+    assert [r["b_sample_pick"] for r in fit["model_cv"]] == [True]  # the one alternative: the samples' own
     qm = np.asarray(cal.b_samples["q_mean"], float)
     g = np.linspace(qm.min(), qm.max(), 400)
     assert 100 * np.mean(np.abs(cal.B(g) - r.B(g))) / np.mean(r.B(g)) < 1.5
