@@ -352,14 +352,14 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
         measured (transition.threshold_kinds)."""
         bf = alt[1]
         mc = T.ModelChoice(base.with_B(bf.B), model_kind, n_ctrl, kinds=T.threshold_kinds(bf.kind, on.b.size, bf.n_ctrl))
-        mc.pick()
-        mc.refit()
         if alt[0] == bfit.smooth:
             # The B-sample CV's own pick is the one kept unless the CV on c puts it beyond one SE
-            # (below), so its every candidate is completed here, beside the other alternatives,
-            # rather than after them on one core (0.3 s of the bench session's 1.9). The same fits
-            # in the same order as result() after the choice: nothing else changes.
+            # (below), so its every candidate is completed (result: on two cores when it is the one
+            # alternative), beside the other alternatives, rather than after them on one core. The
+            # pick from the complete table is the lazy pick's (ModelChoice.pick): nothing else changes.
             mc.result()
+        mc.pick()
+        mc.refit()
         return mc
 
     # the alternatives are independent: on two cores (base.forkmap; 7 on the bench session, 0.2-0.8 s

@@ -709,6 +709,7 @@ class _CandidateCV:
         self.key = (self.kb, self.n, self.span, self.nc, self.scaled)
         self.errs: list[float] = []
         self._next, self._v, self._P, self._vm = 0, None, None, None
+        self._folds: list[tuple] = []  # the FitData cache keys of the folds' weights it stored
 
     @property
     def done(self) -> bool:
@@ -728,7 +729,8 @@ class _CandidateCV:
             P, c = self._P, self.data.c
             w, f, _, _ = fit_weights(P[tr_m], c[tr_m], self.nc, robust_f=False, v0=self._v, v_max=self._vm)
             self._v = fit_weights.last_v  # warm start of the next fold
-            self.data._cache[_fold_key(self.key, tr_m)] = self._v  # and of the same fit elsewhere (cv_start)
+            self._folds.append(_fold_key(self.key, tr_m))
+            self.data._cache[self._folds[-1]] = self._v  # and of the same fit elsewhere (cv_start)
             self.errs.append(float(np.sqrt(np.mean((f(P[te_m] @ w) - c[te_m]) ** 2))))
             return
 
@@ -736,6 +738,20 @@ class _CandidateCV:
         while not self.done:
             self.step()
         return self
+
+    def state(self) -> dict:
+        """What the folds so far left: their errors, the next fold, the last weights and the folds'
+        weights stored for cv_start ({cache key: (n-1,)}); small, for a pipe (ModelChoice.complete_all)."""
+        return {"errs": list(self.errs), "next": self._next, "v": self._v,
+                "folds": {k: self.data._cache[k] for k in self._folds}}
+
+    def resume(self, st: dict) -> None:
+        """Take up state() of the same candidate on the same data, computed in another process: the
+        numbers are those of the folds run here (each fold depends only on this candidate's
+        earlier ones), and the folds' weights join this data's cache as if fitted here."""
+        self.errs, self._next, self._v = list(st["errs"]), st["next"], st["v"]
+        self.data._cache.update(st["folds"])
+        self._folds = list(st["folds"])
 
     def lower_bound(self, k_scored: int) -> float:
         """A lower bound of the final CV RMSE from the folds scored so far: the folds still to
@@ -857,10 +873,21 @@ class ModelChoice:
             self._refit = (Transition(r[keep], w[keep] / w[keep].sum(), kb, tmap), f, sign, rms)
         return self._refit
 
-    def result(self, progress=lambda it, **kw: it) -> tuple[Transition, "SplineFn", int, dict]:
-        """choose_model's return value: every candidate's CV complete."""
-        for c in progress(self.cands, desc="model choice"):
-            c.complete()
+    def complete_all(self) -> None:
+        """Every candidate's CV completed, the open candidates shared with a forked child
+        (base.forkmap), the most operators first: a candidate's folds are the same fits in the same
+        order in either process, and one that the child completed comes back as its state
+        (_CandidateCV.state) with the folds' weights it stored, so the choice is the same bit for bit
+        whichever process completed what (tests: test_the_model_choice_is_the_same_through_the_pipe)."""
+        from ..base.forkmap import fork_map  # looked up at the call: the tests stand in for it
+
+        todo = [c for c in self.cands if not c.done]
+        for c, st in zip(todo, fork_map(lambda c: c.complete().state(), todo, cost=lambda c: float(c.n))):
+            c.resume(st)
+
+    def result(self) -> tuple[Transition, "SplineFn", int, dict]:
+        """choose_model's return value: every candidate's CV complete (complete_all)."""
+        self.complete_all()
         p = self.pick()
         tr, f, sign, rms = self.refit()
         choice = {"model": "play" if tr.is_play else "pi", "n": int(tr.n), "n_tried": int(p["n"]),
@@ -884,7 +911,7 @@ def picked_candidate(choice: dict) -> dict | None:
 
 
 def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: int = KFOLD,
-                 progress=lambda it, **kw: it, kinds: tuple[bool, ...] | None = None) -> tuple[Transition, "SplineFn", int, dict]:
+                 kinds: tuple[bool, ...] | None = None) -> tuple[Transition, "SplineFn", int, dict]:
     """Pick play vs PI, the play width and f's stiffness by cross-validation on the
     calibration frames, then refit the choice on all of them (module docstring for the rule;
     ModelChoice computes it).
@@ -895,4 +922,4 @@ def choose_model(data: FitData, model_kind: str = "auto", n_ctrl: int = 14, k: i
     "r_span", "n_ctrl", "fit_rmse_deg", "rule", "folds", "b_median", "candidates": [{"b_scale",
     "n", "r_span", "n_ctrl", "cv_rmse_deg", "cv_se_deg"}]}). Errors: ValueError for an
     unknown model_kind."""
-    return ModelChoice(data, model_kind, n_ctrl, k, kinds).result(progress)
+    return ModelChoice(data, model_kind, n_ctrl, k, kinds).result()

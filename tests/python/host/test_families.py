@@ -23,6 +23,8 @@ from playscope.fit.model import play_operator
 from playscope.io.session import Robot, Session
 from playscope.fit.table_build import CalibTable, TableError, build_table
 
+from .forkpipe import through_the_pipe
+
 # As tests/python/conftest.py: $PLAYSCOPE_REAL_DATA, else ../shared/data/real (read in place).
 ENDOSCOPE = Path(os.environ.get("PLAYSCOPE_REAL_DATA", Path(__file__).resolve().parents[3].parent / "shared" / "data"
                                 / "real")) / "endoscope"
@@ -167,14 +169,6 @@ def test_calibration_round_trip_writes_the_same_table(tmp_path, auto_cal):
     a = build_table(cal.B_model, cal.f, *cal.q_range, "mm", transition=cal.transition).blob
     b = build_table(back.B_model, back.f, *back.q_range, "mm", transition=back.transition).blob
     assert a == b
-
-
-def through_the_pipe(fn, items, cost=None, pack=lambda r: r, unpack=lambda r: r):
-    """base.forkmap.fork_map as if the forked child had computed every item: each result packed,
-    pickled, unpickled and unpacked, as the pipe hands a child's result back."""
-    import pickle
-
-    return [unpack(pickle.loads(pickle.dumps(pack(fn(x))))) for x in items]
 
 
 @pytest.mark.parametrize("record", [pi_record, relaxed_record])

@@ -3,6 +3,8 @@
 Data come from an independent double-precision generator written here (scalar loops of the
 play and the PI operator, no code shared with playscope.fit.transition or playscope.fit.model)."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -154,6 +156,32 @@ def test_lazy_model_choice_picks_what_the_full_table_picks(kind):
     assert pick == min(within, key=lambda d: (d["n"], -d["b_scale"], d["n_ctrl"]))
     assert folds_lazy < sum(len(c.errs) for c in eager.cands)  # it did stop something
     assert lazy.result()[3]["candidates"] == rows
+
+
+def test_the_model_choice_is_the_same_through_the_pipe(monkeypatch):
+    # ModelChoice.complete_all shares the open candidates with a forked child, and one the child
+    # completed comes back as its state. Every open candidate completed in a child must give the
+    # choice of every candidate completed here, and the same folds' weights for cv_start (the
+    # family choice's onset transition starts from them), bit for bit.
+    from playscope.base import forkmap
+
+    from .forkpipe import in_a_child
+
+    r = threshold_rule(ref_session(np.zeros(1), np.ones(1))[0])
+
+    def run():
+        data, *_ = ref_session(r, np.r_[0.4, np.full(15, 0.6 / 15)], seed=1)
+        _, f, _, ch = T.ModelChoice(data, "auto").result()  # as calibrate's kept alternative: the pick after
+        folds = {k: v for k, v in data._cache.items() if k[0] == "cv_v"}
+        return ch, f(np.linspace(-1.0, 1.0, 7)), folds
+
+    monkeypatch.setattr(forkmap, "can_fork", lambda: False)
+    here = run()
+    monkeypatch.setattr(forkmap, "fork_map", in_a_child)
+    piped = run()
+    assert json.dumps(piped[0]) == json.dumps(here[0]) and np.array_equal(piped[1], here[1])
+    assert piped[2].keys() == here[2].keys() and len(here[2]) > 9  # every candidate's scored folds
+    assert all(np.array_equal(piped[2][k], here[2][k]) for k in here[2])
 
 
 def test_table_f_is_the_f_the_weights_were_fitted_with():
