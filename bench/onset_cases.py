@@ -358,6 +358,11 @@ LOCKBOX19_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # code of a change after 3cf5173).
 SEEDS_20 = {"marker": (80101, 800001), "swing": (80202, 800201), "render_c": (80303, 800401)}
 LOCKBOX20_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_20, PLAN, "s20-")]
+# The twenty-first set-aside group, LOCKBOX21_300 (drawn and committed 2026-11-29 at the start of stop 85, before
+# LOCKBOX20 ran on this stop's calibration code and before any later onset code was written; sealed for the onset
+# code of a change after this stop's).
+SEEDS_21 = {"marker": (81101, 810001), "swing": (81202, 810201), "render_c": (81303, 810401)}
+LOCKBOX21_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_21, PLAN, "s21-")]
 
 # Two groups for a plant effect the plans above never render: a smooth transition after each reversal
 # (a Prandtl-Ishlinskii spread of play widths: the bending driven by the mean of plays of widths

@@ -58,6 +58,8 @@ Groups:
                drawn and committed during stop 82, run on 3cf5173's onset code (0 / 300).
   lockbox20    bench/onset_cases.py LOCKBOX20_300: 100 more renderings from each renderer (new seeds),
                drawn and committed during stop 83, sealed for an onset code after 3cf5173.
+  lockbox21    bench/onset_cases.py LOCKBOX21_300: 100 more renderings from each renderer (new seeds),
+               drawn and committed at the start of stop 85, sealed for an onset code after stop 85's.
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
                with the exposure 0.25-1 frame period (the other groups' renderers expose 2-8 ms),
                judged as fresh (category "exposure", B <= 5 %).
@@ -116,6 +118,7 @@ FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_1
               "lockbox16": lambda c: c.LOCKBOX16_300, "lockbox17": lambda c: c.LOCKBOX17_300,
               "lockbox18": lambda c: c.LOCKBOX18_300, "lockbox19": lambda c: c.LOCKBOX19_300,
               "lockbox20": lambda c: c.LOCKBOX20_300,
+              "lockbox21": lambda c: c.LOCKBOX21_300,
               "exposure": lambda c: c.EXPOSURE_30, "transition_dev": lambda c: c.TRANSITION_DEV_40,
               "transition_lockbox": lambda c: c.TRANSITION_LOCKBOX_100}
 
