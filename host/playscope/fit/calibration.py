@@ -340,6 +340,17 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     take up with a stiffer B: on s8-swing-078 of LOCKBOX8_300, a 60 fps triangle with a 2.3 Hz
     mode of 9.5 px, the samples' spline was 0.4 % off the true B and the CV on c's pick 16.8 %).
     It is still the CV that chooses the model for that B (transition.ModelChoice).
+    Each alternative's model choice is transition.ModelChoice: pick() fits only the folds that
+    can decide its pick (the rows here need its pick and refit alone), and only the B-sample CV's
+    own pick completes every candidate for the choice dict: the same results as a full
+    transition.choose_model per alternative, in fewer fits. The alternatives themselves cannot
+    be cut short: the B rule's limit is the best alternative's CV + SE, and every alternative's
+    row is part of the calibration file (B_fit.model_cv).
+    on: the onset samples (onsets.Onsets; sigma_b None for a detector's); bfit: their
+    fit_backlash_auto result; t_enc, q: (N,) s, actuator units; t_f, c_f: (F,) s, deg; td:
+    acquisition delay, s; model_kind "auto"|"pi"; n_ctrl: f's control points for the pure-play
+    candidate (14 from calibrate: the cross-validated f_remain N needs B first); src: file named
+    in errors.
     Returns BAndModel (the kept B, its transition, f, sign and choice dict, every alternative's
     row (one for the record model's samples), the kept alternative's FitData)."""
     alts = [(bfit.smooth, bfit)] if on.sigma_b is not None else \
