@@ -187,7 +187,7 @@ def _model_summary(cal: Calibration) -> dict:
     bf = cal.doc.get("B_fit") or {}
     return {"model": "play" if tr.is_play else "pi", "operators": tr.n, "r_max": float(tr.r[-1]),
             "thresholds": "B-proportional" if tr.tmap is not None else "constant",
-            "b_scale": tr.b_scale, "b_smooth": bf.get("smooth"), "b_smooth_by": "model CV" if bf.get("model_cv") else
+            "b_scale": tr.b_scale, "b_smooth": bf.get("smooth"), "b_smooth_by": "model CV" if len(bf.get("model_cv") or []) > 1 else
             "B-sample CV", "image_offset_px": (cal.doc.get("pose_estimation") or {}).get("image_offset_px"),
             "cv_rmse_deg": {"play": play, "chosen": pick}}
 
