@@ -32,7 +32,6 @@ import functools
 
 import numpy as np
 
-from ..base.forkmap import fork_map
 from .delay_guess import SUB
 from .onset_fit import IRLS_ROUNDS, Fit, _fit_all, _fit_chain, _fit_distinct, _resample_B, _settle, fit_model
 from .onset_model import WIDTH_AT, Record, RecordModel, Terms, noise_sigma, robust_sigma
@@ -100,22 +99,15 @@ def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarr
     up B's own variation over the travel); each registration term's own best start is kept for
     when the search tries it. Returns ({term names (tuple): (t_delay, width)}, n_g)."""
     widths = _start_widths(rec, board_b)
-
-    def best_of(terms: Terms) -> tuple:
-        """(BIC, delay, width) of the lowest score for one set of terms, the first of equal ones. In
-        turn within the set: a switch's mixture is where its last score left it (RecordModel.e_step)."""
+    best = {}
+    for terms in (Terms(), Terms(reg_tip=True), Terms(reg_motor=True)):
         m = RecordModel(rec, 1, G_CTRL[1], terms, prior, d_fixed)
-        out = None
         for d in d_starts:
             for b in widths:
                 c = _start_bic(m, d, b, sigma)
-                if out is None or c < out[0]:
-                    out = (c, d, b)
-        return out
-
-    # the sets are independent (each its own model): on two cores (base.forkmap), the switches first
-    sets = (Terms(), Terms(reg_tip=True), Terms(reg_motor=True))
-    best = {tuple(t.names()): v for t, v in zip(sets, fork_map(best_of, sets, cost=lambda t: len(t.names())))}
+                key = tuple(terms.names())
+                if key not in best or c < best[key][0]:
+                    best[key] = (c, d, b)
     _, d, b = min(best.values())
     bics = [_start_bic(RecordModel(rec, 1, n_g, Terms(), prior, d_fixed), d, b, sigma) for n_g in G_CTRL]
     return {k: v[1:] for k, v in best.items()}, G_CTRL[int(np.argmin(bics))]
@@ -180,9 +172,7 @@ def _coarse_starts(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | 
     peak from an alias, and the search's B(q) takes the rest back."""
     m = RecordModel(rec, 1, G_CTRL[1], Terms(), prior, None)
     widths = sorted(_start_widths(rec, board_b))
-    # each peak's profile on two cores (base.forkmap): the plain model has no state that one score
-    # leaves for the next (no switch mixture, unit weights), so a profile is a function of its peak
-    starts = fork_map(lambda d: _profiled_start(m, float(d), widths, sigma, rec.period_s / SUB), list(cands))
+    starts = [_profiled_start(m, float(d), widths, sigma, rec.period_s / SUB) for d in cands]
     return [s[1] for s in sorted(starts, key=lambda s: s[0])]  # sorted keeps the first of equal scores
 
 
