@@ -332,14 +332,19 @@ def choose_b_and_model(on, bfit, t_enc, q, t_f, c_f, td, model_kind, n_ctrl, src
     standard error sigma_b) are not a detector's threshold crossings: each is where the fitted
     play starts to move (with the spread term, the centre width that B is), so the threshold's
     bias that the CV on c was for is not in them, and their own CV, weighted by sigma_b, is the
-    judge of the stiffness. Their B-sample CV's pick is then the one alternative. The CV on c
-    has no evidence about the stiffness of such a B that the samples lack, and where c carries
-    an effect the record model measured and no model on c has, it has evidence against it: a
-    registration switch (a direction-following offset that a wider or narrower B mimics) or a
-    tip mode (on legs of one length a function of q and the direction, which the PI operators
-    take up with a stiffer B: on s8-swing-078 of LOCKBOX8_300, a 60 fps triangle with a 2.3 Hz
-    mode of 9.5 px, the samples' spline was 0.4 % off the true B and the CV on c's pick 16.8 %).
-    It is still the CV that chooses the model for that B (transition.ModelChoice).
+    judge of the stiffness. Their B-sample CV's pick is then the one alternative. Where c carries
+    an effect the record model measured and no model on c has, the CV on c has evidence against
+    the measured B: a registration switch (a direction-following offset that a wider or narrower
+    B mimics) or a tip mode (on legs of one length a function of q and the direction, which the PI
+    operators take up with a stiffer B: on s8-swing-078 of LOCKBOX8_300, a 60 fps triangle with a
+    2.3 Hz mode of 9.5 px, the samples' spline was 0.4 % off the true B and the CV on c's pick
+    16.8 %). What the samples' own pick gives up, measured on the 220 development renderings: the
+    CV on c had moved the stiffness on 4 (fast 25 fps swings, no other effect or a wrong delay),
+    where the samples' one-SE rule kept a spline a step stiffer than their best CV's and the CV on
+    c took a softer one: B 0.41-0.64 % off the truth with it, 0.53-0.88 % without; the other 216
+    the same. What it saves: all but one of the model choices (on the bench session the stage took
+    1.8 s of calibrate's 5.5). It is still the CV on c that chooses the model for that B
+    (transition.ModelChoice).
     Each alternative's model choice is transition.ModelChoice: pick() fits only the folds that
     can decide its pick (the rows here need its pick and refit alone), and only the B-sample CV's
     own pick completes every candidate for the choice dict: the same results as a full
