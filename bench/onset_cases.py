@@ -355,7 +355,9 @@ SEEDS_19 = {"marker": (79101, 790001), "swing": (79202, 790201), "render_c": (79
 LOCKBOX19_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_19, PLAN, "s19-")]
 # The twentieth set-aside group, LOCKBOX20_300 (drawn and committed 2026-11-29 during stop 83, while LOCKBOX19 ran
 # on 3cf5173's onset code (the spread term) and before any later onset code was written; sealed for the onset
-# code of a change after 3cf5173).
+# code of a change after 3cf5173). Run whole at stop 85 on a2fe723 (the record model's samples keeping their own
+# stiffness): 1 / 300 fail (s20-render_c-032-registration, B 5.67 %, the same on 6954c4e), rows in
+# bench/scoreboard_rows/lockbox20-stop85.jsonl. Spent: development data from then on.
 SEEDS_20 = {"marker": (80101, 800001), "swing": (80202, 800201), "render_c": (80303, 800401)}
 LOCKBOX20_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_20, PLAN, "s20-")]
 # The twenty-first set-aside group, LOCKBOX21_300 (drawn and committed 2026-11-29 at the start of stop 85, before

@@ -57,7 +57,7 @@ Groups:
   lockbox19    bench/onset_cases.py LOCKBOX19_300: 100 more renderings from each renderer (new seeds),
                drawn and committed during stop 82, run on 3cf5173's onset code (0 / 300).
   lockbox20    bench/onset_cases.py LOCKBOX20_300: 100 more renderings from each renderer (new seeds),
-               drawn and committed during stop 83, sealed for an onset code after 3cf5173.
+               drawn and committed during stop 83, run on a2fe723's calibration code (1 / 300).
   lockbox21    bench/onset_cases.py LOCKBOX21_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at the start of stop 85, sealed for an onset code after stop 85's.
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
