@@ -1,5 +1,6 @@
 """Host speed: `calibrate` on a 3-minute 25 Hz image session (a 1 kHz encoder log, which load_session
-thins to io.session.ENCODER_MAX_HZ as it does every image session's), and marker tracking
+thins to io.session.ENCODER_MAX_HZ as it does every image session's; on two cores, its independent
+fits shared with a forked child, playscope.base.forkmap), and marker tracking
 at 720x576 (cv2.setNumThreads(1)): the per-frame tracker on frames already in memory, a lost
 frame's whole-frame search, and `track_video` end to end (MJPEG decode included). Prints a table.
 
