@@ -96,7 +96,10 @@ class Onsets:
     q_mean: np.ndarray
     b: np.ndarray
     reasons: dict[str, int] = field(default_factory=dict)
-    sigma_b: np.ndarray | None = None  # (M,) standard error of each b (host refinement), None: unknown
+    # (M,) standard error of each b, actuator units: given only by the record model (onset_stage), whose
+    # samples therefore keep their own stiffness in calibration.choose_b_and_model; None: a detector's
+    # samples (the board's or run_onsets'), their error unknown
+    sigma_b: np.ndarray | None = None
 
 
 def run_onsets(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.ndarray,
