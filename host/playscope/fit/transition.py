@@ -878,7 +878,9 @@ class ModelChoice:
         (base.forkmap), the most operators first: a candidate's folds are the same fits in the same
         order in either process, and one that the child completed comes back as its state
         (_CandidateCV.state) with the folds' weights it stored, so the choice is the same bit for bit
-        whichever process completed what (tests: test_the_model_choice_is_the_same_through_the_pipe)."""
+        whichever process completed what (tests: test_the_model_choice_is_the_same_through_the_pipe).
+        Errors: a fit's own error when it raised here; RuntimeError with the child's traceback when it
+        raised there (base.forkmap)."""
         from ..base.forkmap import fork_map  # looked up at the call: the tests stand in for it
 
         todo = [c for c in self.cands if not c.done]
