@@ -46,12 +46,14 @@ SIGMA_RERUN = 0.7      # the search runs again at the fit's residual scale when 
 RING_ZETA_STARTS = (0.03, 0.1, 0.3)  # the tip mode's damping ratios a ring start is profiled at: a factor
                        # of about 3 apart over the lightly damped modes the term is for (above about 0.5 a
                        # mode barely rings), so LM starts within its reach of the ratio
-EXPO_GRID = (0.1, 0.25, 0.5, 1.0)  # the exposure term's starts, frame periods, as a slide's lag grid: at most a
+EXPO_GRID = (0.1, 0.25, 0.5, 1.0)  # the exposure term's start grid, frame periods (its trial starts at the point
+                       # whose settled cost is lowest, `_lowest_settled`), as a slide's lag grid: at most a
                        # factor 2.5 apart over its range [T / 20, T] (from 0.25 up, the 4 ms exposure of
                        # dev-reg0-swings25-fast was out of a trial fit's reach: its best trial 4,999 against
                        # 4,987 from 0.1; the settled cost over e was unimodal about the truth on two renderings,
                        # 20 and 35 ms at 25 fps)
-SPREAD_GRID = (0.2, 0.5, 0.8)  # the spread term's starts (onset_model's module doc: the spread): over its range
+SPREAD_GRID = (0.2, 0.5, 0.8)  # the spread term's start grid (onset_model's module doc: the spread; its trial starts
+                       # at the point whose settled cost is lowest, as the exposure's): over its range
                        # [0, SPREAD_MAX], from a take-up a fifth of B wide to most of it
 
 
@@ -179,23 +181,27 @@ def _coarse_starts(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | 
 SLIDE_GRID = ((0.25, 0.5, 1.0), (0.25, 0.5, 1.0))  # a slide's start grid: lags, longest slides (frame periods)
 
 
+def _lowest_settled(m: RecordModel, th0s: list, sigma: float, keep: int) -> list:
+    """The keep of the starts th0s (thetas of model m) with the lowest settled robust objective
+    (`_settle`, at sigma px), lowest first (ties keep the earlier). The fits then begin from the
+    weights and E-step of the start scored last (as the search's other starts that share a model do:
+    the objective at a theta depends on that state, docs/host.md)."""
+    out = [(_settle(m, th, sigma)[1], i, th) for i, th in enumerate(th0s)]
+    out.sort(key=lambda c: c[:2])
+    return [th for _, _, th in out[:keep]]
+
+
 def _slide_starts(m: RecordModel, name: str, parts: dict, sigma: float, keep: int = 2) -> list:
     """Starts (theta) for the switch name's slide ("tip" or "motor") from the fit so far's parts: its
-    lag L and longest slide D on SLIDE_GRID, the keep lowest by the settled
-    robust objective. Why a grid: L and D trade against each other (a late start with a short slide
+    lag L and longest slide D on SLIDE_GRID, the keep lowest by the settled robust objective
+    (`_lowest_settled`). Why a grid: L and D trade against each other (a late start with a short slide
     against an early one with a long slide), and from the middle of both ranges LM stopped in the
     wrong one (a 15 s channel rendering: L at its floor, B 4.7 % off, BIC 862; from the grid, BIC 676
-    and B 0.6 % off). The fits then begin from the weights and E-step of the grid point scored last
-    (as the search's other starts that share a model do: the objective at a theta depends on that
-    state, docs/host.md)."""
+    and B 0.6 % off). Why two kept: the two trade, so the settled cost has a ridge, not one minimum."""
     T = m.rec.period_s
-    out = []
-    for L in SLIDE_GRID[0]:
-        for D in SLIDE_GRID[1]:  # at most a frame period, within every slide bound (`slide_max_s` >= T)
-            th = m.theta({**parts, "lag_" + name: np.array([m.lag_x(L * T)]), "slide_" + name: np.array([m.slide_x(D * T)])})
-            out.append((_settle(m, th, sigma)[1], th))
-    out.sort(key=lambda c: c[0])
-    return [th for _, th in out[:keep]]
+    th0s = [m.theta({**parts, "lag_" + name: np.array([m.lag_x(L * T)]), "slide_" + name: np.array([m.slide_x(D * T)])})
+            for L in SLIDE_GRID[0] for D in SLIDE_GRID[1]]  # at most a frame period, within every slide bound (`slide_max_s` >= T)
+    return _lowest_settled(m, th0s, sigma, keep)
 
 
 def _ring_scan(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
@@ -212,10 +218,14 @@ def _ring_scan(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
     return fs[[i0] + others]
 
 
-def _ring_start(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
-    """The tip mode's start for model m (with the ring term) from the other parts of theta: the
-    frequency of `_ring_scan` with the lowest robust cost, damping ratio 0.1."""
-    return m.theta({**parts, "ring": m.ring_theta(_ring_scan(m, parts, sigma)[0], 0.1)})
+def _ring_start(m: RecordModel, parts: dict, freqs_hz: np.ndarray, sigma: float) -> np.ndarray:
+    """The tip mode's start for model m (with the ring term) from the other parts of theta: of the
+    scan's local minima freqs_hz (Hz, `_ring_scan` at the fit so far), the one with the lowest robust
+    cost at these parts, damping ratio 0.1 (ties keep the earlier). The minima, not a scan of their
+    own: the parts (a delay start) move the onsets, not the mode the frames ring at, and a scan at a
+    dragged fit can rank an alias lowest (`_ring_profiled_starts`)."""
+    cost = [m.objective(m.evaluate(m.theta({**parts, "ring": m.ring_theta(float(f), 0.1)})), sigma) for f in freqs_hz]
+    return m.theta({**parts, "ring": m.ring_theta(float(freqs_hz[int(np.argmin(cost))]), 0.1)})
 
 
 def _ring_profiled_starts(rec: Record, n_g: int, terms: Terms, prior, d_fixed, parts: dict, freqs_hz: np.ndarray,
@@ -382,7 +392,7 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
             if name == "ring":
                 freqs = _ring_scan(mt, parts, sigma)
                 th0s = [mt.theta({**parts, "ring": mt.ring_theta(freqs[0], 0.1)})] + \
-                       [_ring_start(mt, p, sigma) for p in bases]
+                       [_ring_start(mt, p, freqs, sigma) for p in bases]
                 if n_b > 1:  # and coarse to fine from the starts profiled with it (`_ring_profiled_starts`)
                     def ring_chains(name=name, mt=mt, parts=parts, freqs=freqs, slope=m.G_slope(fit.ev)):
                         out = []  # slope: the path's tangent of the fit so far
@@ -395,12 +405,14 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
             elif name.startswith("slide_"):
                 mt.slope = m.slope
                 th0s = _slide_starts(mt, name[6:], parts, sigma)
-            elif name == "expo":  # from the fit so far, at each exposure of EXPO_GRID
+            elif name == "expo":  # from the fit so far, at the exposure of EXPO_GRID that settles lowest
                 mt.slope = m.slope
-                th0s = [mt.theta({**parts, "expo": np.array([mt.expo_x(g * rec.period_s)])}) for g in EXPO_GRID]
-            elif name == "spread":  # from the fit so far, at each spread of SPREAD_GRID
+                th0s = _lowest_settled(mt, [mt.theta({**parts, "expo": np.array([mt.expo_x(g * rec.period_s)])})
+                                            for g in EXPO_GRID], sigma, 1)
+            elif name == "spread":  # from the fit so far, at the spread of SPREAD_GRID that settles lowest
                 mt.slope = m.slope
-                th0s = [mt.theta({**parts, "spread": np.array([mt.spread_x(g)])}) for g in SPREAD_GRID]
+                th0s = _lowest_settled(mt, [mt.theta({**parts, "spread": np.array([mt.spread_x(g)])})
+                                            for g in SPREAD_GRID], sigma, 1)
             else:  # a switch, or a switch's shift (linear only): from the fit so far and each delay start
                 mt.slope = m.slope
                 th0s = [mt.theta(p) for p in [parts] + bases]
