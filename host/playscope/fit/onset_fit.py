@@ -148,7 +148,8 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
     MINPACK; the model clips theta into its admissible region: d >= 0, B >= 0, the tip mode in
     its band). sigma: the scale (None: from the first round's residuals, 1.4826 MAD). The scales
     of a switch window follow the fitted jump, so a round need not lower the objective: the best
-    of the start and every round is returned. Returns Fit."""
+    of the start and every round is returned, as it was scored (`_settle`: the one reweighting the
+    score and the returned weights share). Returns Fit."""
     th = np.array(th0, float)
     ev = m.evaluate(th)
     if m.terms.ring:
@@ -192,10 +193,16 @@ def fit_model(m: RecordModel, th0: np.ndarray, sigma: float | None = None, max_n
             ev = m.evaluate(th)
         if sigma is None and rnd == 0:
             sig = robust_sigma(ev.resid)
-    costs = [_settle(m, t, sig)[1] for t in tried]
-    th = tried[int(np.argmin(costs))]
-    ev, cost = _settle(m, th, sig)
-    return Fit(m, th, ev, sig, cost, info={"nfev": nfev}, state=(m.w, m.mix, m.slope))
+    settled = []  # each tried theta in the form a fit is scored in, with the state it was scored in
+    for t in tried:
+        ev, cost = _settle(m, t, sig)
+        settled.append((cost, ev, (m.w, m.mix, m.slope)))
+    k = int(np.argmin([c for c, _, _ in settled]))
+    cost, ev, state = settled[k]
+    if k != len(tried) - 1:  # the model's last evaluation is to be the returned one's (its linear solve,
+        m.w, m.mix, m.slope = state  # which `jacobian` and `project` read): the same bits in the same state
+        ev = m.evaluate(tried[k])
+    return Fit(m, tried[k], ev, sig, cost, info={"nfev": nfev}, state=state)
 
 
 def _fresh(m: RecordModel) -> RecordModel:
