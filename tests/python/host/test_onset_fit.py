@@ -101,6 +101,45 @@ def test_a_fit_skips_no_evaluation_that_would_change_a_bit_and_its_jacobian_is_t
     assert np.array_equal(g.theta, f.theta) and g.cost == f.cost and np.array_equal(g.jac, f.jac)
 
 
+def test_a_fit_whose_last_round_scores_worse_returns_an_earlier_round_as_it_was_scored(monkeypatch):
+    # fit_model keeps the best of its tried thetas by their settled cost (`_settle`) and returns it in
+    # the state that cost was scored in, without settling it again. Forced here: the last round's LM
+    # result is moved off by 10 % of B, so an earlier round is best. The returned Fit must then be that
+    # round's score and state: its cost the settled one, its evaluation the model's in its state bit
+    # for bit, and the model's own last evaluation (the linear solve `jacobian` reads) that theta's.
+    r, d, t, q, rt, rq, obs, _ = record(duration_s=20.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    sigma = OM.noise_sigma(rec.obs)
+    m = OM.RecordModel(rec, 4, 6, OM.Terms(reg_tip=True), (r.delay_s, 0.01))
+    th0 = m.theta({"d": np.array([r.delay_s + 0.004]), "B": np.full(4, 0.2)})
+    calls, costs = [], []
+    real_lsq, real_settle = OF.least_squares, OF._settle
+
+    def lsq(*a, **k):
+        res = real_lsq(*a, **k)
+        calls.append(res.x.copy())
+        if len(calls) == 3:
+            res.x = res.x.copy()
+            res.x[1:1 + m.n_b] *= 0.5  # B's coefficients (the delay is free, so x is theta)
+        return res
+
+    def settle(model, th, sig):
+        out = real_settle(model, th, sig)
+        costs.append(out[1])
+        return out
+
+    monkeypatch.setattr(OF, "least_squares", lsq)
+    monkeypatch.setattr(OF, "_settle", settle)
+    f = OF._fit_one((m, th0, sigma, 6, 3))
+    assert len(costs) == 4 and int(np.argmin(costs)) == 2  # the start and three rounds, the second round best
+    assert np.array_equal(f.theta, calls[1]) and f.cost == costs[2]
+    mc = OM.RecordModel.__new__(OM.RecordModel)
+    mc.__dict__.update(f.model.__dict__)
+    mc.w, mc.mix, mc.slope = f.state
+    assert np.array_equal(mc.evaluate(f.theta).resid, f.ev.resid)
+    assert np.array_equal(f.model.jacobian(f.theta, f.ev, sigma), f.jac)
+
+
 def _channel_record(fps=25.0, B_kind="fig7", **scene):
     """marker_render's `channel` form (a Fig. 7 robot's B and 25 fps unless said) with the scene's settings:
     (the Scene, its Record with the renderer's principal point and focal length, the configured
