@@ -365,6 +365,11 @@ LOCKBOX20_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # code of a change after this stop's).
 SEEDS_21 = {"marker": (81101, 810001), "swing": (81202, 810201), "render_c": (81303, 810401)}
 LOCKBOX21_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_21, PLAN, "s21-")]
+# The twenty-second set-aside group, LOCKBOX22_300 (drawn and committed 2026-11-30 during stop 86, before LOCKBOX21
+# ran on this stop's onset code and before any later onset code was written; sealed for the onset code of a change
+# after this stop's).
+SEEDS_22 = {"marker": (82101, 820001), "swing": (82202, 820201), "render_c": (82303, 820401)}
+LOCKBOX22_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_22, PLAN, "s22-")]
 
 # Two groups for a plant effect the plans above never render: a smooth transition after each reversal
 # (a Prandtl-Ishlinskii spread of play widths: the bending driven by the mean of plays of widths

@@ -60,6 +60,8 @@ Groups:
                drawn and committed during stop 83, run on a2fe723's calibration code (1 / 300).
   lockbox21    bench/onset_cases.py LOCKBOX21_300: 100 more renderings from each renderer (new seeds),
                drawn and committed at the start of stop 85, sealed for an onset code after stop 85's.
+  lockbox22    bench/onset_cases.py LOCKBOX22_300: 100 more renderings from each renderer (new seeds),
+               drawn and committed during stop 86, sealed for an onset code after stop 86's.
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
                with the exposure 0.25-1 frame period (the other groups' renderers expose 2-8 ms),
                judged as fresh (category "exposure", B <= 5 %).
@@ -119,6 +121,7 @@ FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_1
               "lockbox18": lambda c: c.LOCKBOX18_300, "lockbox19": lambda c: c.LOCKBOX19_300,
               "lockbox20": lambda c: c.LOCKBOX20_300,
               "lockbox21": lambda c: c.LOCKBOX21_300,
+              "lockbox22": lambda c: c.LOCKBOX22_300,
               "exposure": lambda c: c.EXPOSURE_30, "transition_dev": lambda c: c.TRANSITION_DEV_40,
               "transition_lockbox": lambda c: c.TRANSITION_LOCKBOX_100}
 
