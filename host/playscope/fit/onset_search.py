@@ -6,7 +6,7 @@ The coarse delay is the peak of delay_guess's correlation, profiled over the fra
 profiled start the plain model scores best (`_coarse_starts`): an excitation that repeats makes the
 correlation as high one period late, and a peak sits late by up to the play's take-up. The plain
 model's own start is then the one, of every profiled peak and the configured delay, whose
-constant-width fit scores the lowest BIC (`_fitted_start`): the profiled score alone can rank an
+constant-width trial fit scores the lowest BIC (`_fitted_start`): the profiled score alone can rank an
 alias first where B varies over the travel.
 The board's plain eq. 1 samples are a third start when given. B is fitted coarse to fine
 (`_fit_chain`): a constant width, then each of B_CTRL's sizes from the last one's fit. A term the
@@ -324,9 +324,10 @@ def _fitted_start(rec: Record, n_g: int, delays: list[float], widths: list[float
                   sigma: float) -> tuple[tuple[float, float], dict, Fit]:
     """The plain model's start: of the delays (s; the start's own, every profiled correlation peak
     and the configured delay), each at its constant width of widths (actuator units) of lowest
-    `_start_bic`, the one whose constant-width plain fit (20 evaluations, as the chain's first link)
-    scores the lowest BIC at sigma (px). Returns ((delay s, width), {delay: BIC} for the log, that
-    fit: B's size chains start from it, being their first link's job).
+    `_start_bic`, the one whose constant-width plain trial fit (20 evaluations, TRIAL_ROUNDS
+    reweightings: a ranking, as a term's trials rank its starts) scores the lowest BIC at sigma (px).
+    Returns ((delay s, width), {delay: BIC} for the log, that trial fit: B's size chains start from
+    its theta, their first link a full fit from there).
 
     Why a fit, not the start's score: the start's score is the model at one delay and width, its
     other parts unsettled, and where B varies over the travel its ranking of a peak against an alias
@@ -335,13 +336,13 @@ def _fitted_start(rec: Record, n_g: int, delays: list[float], widths: list[float
     alias 0.285 s (623); the search started from the alias and ended there, 4.9 frames late, its
     model 5,050 above the truth's, with a tip mode, a switch and a slide taking up the misfit. Fitted
     from each, the delay's start scores 435 and the alias's 514; the configured delay's fit also
-    reaches 87 ms (436)."""
+    reaches 87 ms (436) (each a full fit, 3 reweightings; their trial fits, one, rank them the same)."""
     m = RecordModel(rec, 1, n_g, Terms(), prior, None, "input")
     cands = []
     for d in dict.fromkeys(float(d) for d in delays):
         cands.append((d, min(widths, key=lambda b: _start_bic(m, d, b, sigma))))
     jobs = [([RecordModel(rec, 1, n_g, Terms(), prior, None, "input")], m.theta({"d": np.array([d]), "B": np.array([b])}),
-             sigma, 20, IRLS_ROUNDS) for d, b in cands]
+             sigma, 20, TRIAL_ROUNDS) for d, b in cands]
     fits = [fs[-1] for fs in _fit_all(jobs, _fit_chain)]
     bics = [f.bic(sigma) for f in fits]
     k = int(np.argmin(bics))
@@ -356,10 +357,10 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
     st, n_g = _start(rec, starts, prior, d_fixed, board_b, sigma)
     widths = _start_widths(rec, board_b)
     d0, b0 = min(st.items(), key=lambda kv: len(kv[0]))[1]  # the base model's own start
-    fitted_log, first = None, ()
+    fitted_log, th_first = None, None
     if d_fixed is None:
         (d0, b0), fitted_log, fs = _fitted_start(rec, n_g, [d0, *peaks, *starts], widths, prior, sigma)
-        first = (fs,)  # the size chains' first link: the same job (below)
+        th_first = fs.theta  # the size chains' first link starts from its trial fit (below)
         starts = list(dict.fromkeys([d0, *starts[1:]]))  # the winner in the coarse start's place, so
         # the terms' trials start from it and the configured delay, as before from the coarse start
     terms = Terms()
@@ -373,7 +374,8 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
     jobs = []
     for width_at in (WIDTH_AT if ladder[-1] > 1 else WIDTH_AT[:1]):  # a constant width is read nowhere
         ms = chain(terms, ladder, width_at)  # B's size and where it is read, by the same criterion as the terms
-        jobs.append((ms, ms[0].theta({"d": np.array([d0]), "B": np.array([b0])}), sigma, 20, IRLS_ROUNDS, *first))
+        th0 = ms[0].theta({"d": np.array([d0]), "B": np.array([b0])}) if th_first is None else th_first
+        jobs.append((ms, th0, sigma, 20, IRLS_ROUNDS))
     fits = [(f.bic(sigma), f.model.n_b, f.model.width_at, f) for fs in _fit_all(jobs, _fit_chain)
             for f in (fs[1:] if len(fs) > 1 else fs)]
     bic, n_b, width_at, fit = min(fits, key=lambda x: x[0])

@@ -235,7 +235,8 @@ def test_the_plain_models_start_is_the_peak_whose_fit_scores_lowest_where_the_un
     # unfitted, the alias 0.285 s scores lowest (measured 623 against 652 at 0.09 s; cut to 100 s the
     # rendering ranks the delay first), and the search that started there ended 4.9 frames late. A
     # constant-width fit from each (`_fitted_start`) scores the delay's start lowest (measured 436
-    # against 514 for the alias and for the configured delay, 748 for the next alias).
+    # against 514 for the alias and for the configured delay, 748 for the next alias; as trial fits,
+    # one reweighting each, the same to 1.3).
     from playscope.fit.delay_guess import coarse_delay_peaks, motor_stop_times
     from playscope.fit.reversals import detect_reversals
 
@@ -260,18 +261,20 @@ def test_the_plain_models_start_is_the_peak_whose_fit_scores_lowest_where_the_un
 
 
 def test_the_search_fits_its_plain_model_from_the_fitted_start_and_a_held_delay_skips_it(monkeypatch):
-    # The wiring of `_fitted_start` into `_search`: B's size chains start from the delay and width it
-    # returns (here a stand-in, 0.123 s and 0.2) and go on from its fit (their first link's job), the
-    # terms' delay starts put it in the coarse start's place, and a held configured delay is fitted
-    # from as it is, no start chosen.
+    # The wiring of `_fitted_start` into `_search`: B's size chains start from the theta of the trial
+    # fit it returns (here a stand-in's, at 0.123 s and 0.2), their first link a full fit from there,
+    # the terms' delay starts put its delay in the coarse start's place, and a held configured delay
+    # is fitted from as it is, no start chosen.
     r, d, t, q, rt, rq, obs, hyst = record(duration_s=10.0)
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
     prior, sig = (r.delay_cfg_s, rec.period_s / np.sqrt(12)), OM.noise_sigma(obs)
-    offered, first = [], object()  # the stand-in's fit
+    offered = []
 
     def fitted(rec, n_g, delays, widths, prior, sigma):
         offered.append(list(delays))
-        return (0.123, 0.2), {}, first
+        m = OM.RecordModel(rec, 1, 6, OM.Terms(), prior, None, "input")
+        th = m.theta({"d": np.array([0.123]), "B": np.array([0.2])})
+        return (0.1, 0.15), {}, OF.Fit(m, th, None, sigma, 0.0)  # a start (d, b) and its trial fit, elsewhere
 
     class Chained(Exception):
         pass
@@ -284,7 +287,7 @@ def test_the_search_fits_its_plain_model_from_the_fitted_start_and_a_held_delay_
     monkeypatch.setattr(OS, "_fit_all", fit_all)
     with pytest.raises(Chained) as e:
         OS._search(rec, [0.05, r.delay_cfg_s], prior, None, None, sig, [0.05, 0.3])
-    assert e.value.args == (0.123, 0.2, {(first,)})
+    assert e.value.args == (0.123, 0.2, {()})
     assert {0.05, 0.3, r.delay_cfg_s} <= set(offered[-1])  # every peak and the configured delay offered
     with pytest.raises(Chained) as e:
         OS._search(rec, [r.delay_cfg_s], prior, r.delay_cfg_s, None, sig, [r.delay_cfg_s])
