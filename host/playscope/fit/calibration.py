@@ -227,6 +227,18 @@ MIN_REVERSALS_TRANSITION = T.KFOLD
 STILL_SPAN_NOISE = 20
 
 
+def b_beyond_board(B, q_range: tuple[float, float], n: int = 2001) -> tuple[float, float] | None:
+    """(B's largest width over q_range on n points, the board's limit) in actuator units when B is
+    wider somewhere than the loader accepts for that travel (common/ps_table.h's plausibility rule:
+    the instrument's largest play within (0, travel / PST_PLAUS_B_TRAVEL_DIV], a play of half the
+    travel leaving no motion), else None. B: callable on (n,) q."""
+    from ..base.native import constant
+
+    lim = (q_range[1] - q_range[0]) / constant("PST_PLAUS_B_TRAVEL_DIV")
+    b_max = float(np.max(B(np.linspace(q_range[0], q_range[1], n))))
+    return (b_max, lim) if b_max > lim else None
+
+
 def loadable_f(refit, f, sign, B, q_range, unit: str, transition=None, source=None):
     """f as fitted when the board loads its table; else f refitted with the smallest slope floor
     of F_SLOPE_FLOORS at which it does.
@@ -493,6 +505,9 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
       a B(q) spline of min(n_ctrl, samples) control points with its stiffness by cross-validation
       (backlash.fit_backlash_auto); angle sessions take their frame rate and onset threshold from
       the record (onset_settings.angle_onset_settings); each fallback is a line in doc["warnings"].
+      A measured B wider somewhere than the board's tables allow for the record's travel
+      (`b_beyond_board`) is no table's play: with model_kind "auto" the play is then fitted on c, as
+      for a record without any onset (families.FAMILIES_FROM_C).
     f_ctrl: f_remain's control points; None (default): chosen by rolling-origin cross-validation on
       the calibration frames (f_remain.choose_f_ctrl, the fewest within one standard error of the
       best); the choice and its scores are in doc["f_fit"]. The pure play's f in the transition's
@@ -577,6 +592,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
             raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset "
                              f"({why}); check that the distal end moves after each reversal and the back-and-forth "
                              "exceeds the play")
+        no_b = f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset ({why})"
         # The families that fit their play from c alone still hold (families.FAMILIES_FROM_C); B
         # (set below from the frames) is then the constant play's width, not a measurement.
         warnings.append(f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset ({why}): "
@@ -584,6 +600,17 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         bfit = BacklashFit(None, np.zeros(0), np.zeros(0), np.zeros(0, bool), 0.0, kind="fitted on c", n_ctrl=4)
     else:
         bfit = fit_backlash_auto(on.q_mean, on.b, n_ctrl, source=src, sigma=on.sigma_b)
+        wide = b_beyond_board(bfit.B, (float(q.min()), float(q.max())))
+        if wide is not None and across_families:
+            # No table carrying this B loads (the loader's plausibility rule), so no onset family can
+            # be the product's; the families that fit their play on c may still give one that does.
+            warnings.append(f"the measured play reaches {wide[0]:.3g} {s.actuator_unit}, more than the board accepts "
+                            f"for this record's travel ({wide[1]:.3g}, half of it): the play's width is fitted on c "
+                            "alone (constant play), the onset families are not offered; a record over more of the "
+                            "travel measures B for a table")
+            no_onset = True
+            no_b = f"the measured play ({wide[0]:.3g} {s.actuator_unit}) is wider than the board accepts for this record's travel"
+            bfit = BacklashFit(None, np.zeros(0), np.zeros(0), np.zeros(0, bool), 0.0, kind="fitted on c", n_ctrl=4)
     B, w = bfit.B, bfit.weight
     if bfit.kind == "constant" and not no_onset:
         ci = "unknown (one sample without an uncertainty)" if bfit.ci95 is None else \
@@ -615,8 +642,7 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
         if c_ok.size < 3 or np.ptp(c_ok) <= STILL_SPAN_NOISE * noise:
             # A tip whose span is within its own noise has not followed q at all: nothing to fit
             # a play on.
-            raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset "
-                             f"({why}), and the distal end spans only {np.ptp(c_ok) if c_ok.size else 0:.3g} deg; "
+            raise InputError(src, f"{no_b}, and the distal end spans only {np.ptp(c_ok) if c_ok.size else 0:.3g} deg; "
                              "check that it moves after each reversal and the back-and-forth exceeds the play")
         B = bfit.B = constant_spline(constant_play_lsq(q_c0, c_c0)[0], float(q.min()), float(q.max()))
         model_kind = "play"  # no onset B to anchor the transition on

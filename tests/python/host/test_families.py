@@ -483,6 +483,35 @@ def test_record_without_any_onset_keeps_a_play_fitted_on_c():
     assert np.sqrt(np.mean(e * e)) < 0.1
 
 
+def test_a_measured_play_wider_than_the_board_accepts_leaves_the_families_fitted_on_c():
+    # B samples (here given, as a board's) of 4.5 mm on a record whose travel is 7.6 mm: no table
+    # carrying that B loads (the loader's plausibility rule, a play within half the travel), so the
+    # onset families cannot be the product's. With the families offered, the play is fitted on c
+    # (the generating 0.8 mm) and the table loads; with the pure play asked for, the loader's refusal.
+    from playscope.fit.calibration import b_beyond_board
+    from playscope.fit.onsets import Onsets
+    from playscope.fit.reversals import detect_reversals
+
+    s = play_record()
+    t, q = s.encoder["t_s"], s.encoder["q"]
+    rt, rq, _ = detect_reversals(t, q, 0.01 * np.ptp(q))
+    sgn = np.sign(np.interp(rt + 0.05, t, q) - rq)  # each reversal's new direction
+    q2 = rq + 4.5 * sgn
+    wide = Onsets(rt, rt + 0.5, rq, q2, 0.5 * (rq + q2), np.full(rt.size, 4.5), reasons={"given": int(rt.size)})
+    assert b_beyond_board(lambda x: np.full(x.size, 4.5), (float(q.min()), float(q.max()))) == \
+        pytest.approx((4.5, 0.5 * np.ptp(q)))
+    assert b_beyond_board(lambda x: np.full(x.size, 3.7), (float(q.min()), float(q.max()))) is None
+    with pytest.raises(TableError, match="travel / 2"):
+        calibrate(s, model_kind="play", onsets=wide)
+    cal = calibrate(s, model_kind="auto", onsets=wide)
+    assert cal.family in {f.name for f in FAM.FAMILIES_FROM_C}
+    assert any("more than the board accepts" in w for w in cal.warnings)
+    assert cal.B_model(np.array([0.0]))[0] == pytest.approx(0.8, rel=0.1) or cal.family == "pi_const"
+    c_hat = cal.predict(q)
+    e = np.interp(s.distal["t_s"], t, c_hat) - s.distal["c_deg"]
+    assert np.sqrt(np.mean(e * e)) < 0.1
+
+
 def test_evaluation_without_any_onset_refuses_the_onset_rows_and_scores_ours(monkeypatch):
     from playscope.fit.onsets import Onsets
 
