@@ -59,7 +59,7 @@ Groups:
   lockbox20    bench/onset_cases.py LOCKBOX20_300: 100 more renderings from each renderer (new seeds),
                drawn and committed during stop 83, run on a2fe723's calibration code (1 / 300).
   lockbox21    bench/onset_cases.py LOCKBOX21_300: 100 more renderings from each renderer (new seeds),
-               drawn and committed at the start of stop 85, sealed for an onset code after stop 85's.
+               drawn and committed at the start of stop 85, run on dcd538d's onset code (1 / 300).
   lockbox22    bench/onset_cases.py LOCKBOX22_300: 100 more renderings from each renderer (new seeds),
                drawn and committed during stop 86, sealed for an onset code after stop 86's.
   exposure     bench/onset_cases.py EXPOSURE_30: 15 renderings each of marker_render and swing_render
