@@ -183,9 +183,9 @@ SLIDE_GRID = ((0.25, 0.5, 1.0), (0.25, 0.5, 1.0))  # a slide's start grid: lags,
 
 def _lowest_settled(m: RecordModel, th0s: list, sigma: float, keep: int) -> list:
     """The keep of the starts th0s (thetas of model m) with the lowest settled robust objective
-    (`_settle`, at sigma px), lowest first (ties keep the earlier). The fits then begin from the
-    weights and E-step of the start scored last (as the search's other starts that share a model do:
-    the objective at a theta depends on that state, docs/host.md)."""
+    (`_settle`, at sigma px), lowest first (ties keep the earlier). Scoring leaves m's weights and
+    mixture (and, with the tip mode, its tangent) as the last start's settle set them; a trial fit
+    from a kept start resets the weights and mixture (`_fit_one`) but not the tangent."""
     out = [(_settle(m, th, sigma)[1], i, th) for i, th in enumerate(th0s)]
     out.sort(key=lambda c: c[:2])
     return [th for _, _, th in out[:keep]]
@@ -531,7 +531,6 @@ def _trade_profile(fit: Fit, bic: float, sigma: float, log: list) -> tuple:
     def settled(p):
         """A start's settled cost, on a fresh copy of m (as its trial fit would begin, `_fit_one`)."""
         mc = _fresh(m)
-        mc.slope = m.slope
         return _settle(mc, mc.theta(p), sigma)[1]
 
     costs = [settled(p) for _, p in starts]
