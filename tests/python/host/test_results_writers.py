@@ -230,3 +230,29 @@ def test_swing_rows_per_category_and_failures():
     assert rows[2][1] == "3 of 9" and "/t_delay error/" in rows[2][0]  # no bar left in a name
     with pytest.raises(ValueError, match="renderings failing"):
         rd.swing_rows("| swings | 2 | 1.50 (2.29) | 0.000 (0.000) |\n", "development", "x")
+
+
+def test_run_all_stamps_the_commit_and_only_a_changed_tracked_file_as_uncommitted(tmp_path, monkeypatch):
+    # `run_all.commit()`, the stamp docs/results.md carries: HEAD's short hash, with "+ uncommitted
+    # changes" when a tracked file differs from it, not for an untracked one (a run's own scratch). On
+    # a throwaway repository. (That main() takes it before any part writes docs/img is not tested here.)
+    spec = importlib.util.spec_from_file_location("run_all", ROOT / "bench" / "run_all.py")
+    ra = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(ra)
+
+    def git(*args):
+        return subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *args], cwd=tmp_path,
+                              capture_output=True, text=True, check=True).stdout.strip()
+
+    git("init", "-q")
+    (tmp_path / "a.txt").write_text("one\n")
+    git("add", "a.txt")
+    git("commit", "-q", "-m", "first")
+    head = git("rev-parse", "--short", "HEAD")
+    monkeypatch.setattr(ra, "ROOT", tmp_path)
+    (tmp_path / "scratch.txt").write_text("untracked\n")
+    assert ra.commit() == head
+    (tmp_path / "a.txt").write_text("two\n")
+    assert ra.commit() == f"{head} + uncommitted changes"
+    monkeypatch.setattr(ra, "ROOT", tmp_path / "nowhere")
+    assert ra.commit().startswith("unknown")
