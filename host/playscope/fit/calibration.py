@@ -231,7 +231,9 @@ def b_beyond_board(B, q_range: tuple[float, float], n: int = 2001) -> tuple[floa
     """(B's largest width over q_range on n points, the board's limit) in actuator units when B is
     wider somewhere than the loader accepts for that travel (common/ps_table.h's plausibility rule:
     the instrument's largest play within (0, travel / PST_PLAUS_B_TRAVEL_DIV], a play of half the
-    travel leaving no motion), else None. B: callable on (n,) q."""
+    travel leaving no motion), else None. B: callable on (n,) q. A mirror of the C rule for deciding
+    early, on B alone; the loader (calib_load_guarded) stays the judge of every table. Errors: the
+    native core's build errors (base.native.constant)."""
     from ..base.native import constant
 
     lim = (q_range[1] - q_range[0]) / constant("PST_PLAUS_B_TRAVEL_DIV")
@@ -583,34 +585,31 @@ def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | 
     else:
         on = onsets if onsets is not None else run_onsets(t_enc, q, rt, rq, t_f, obs, s.distal_kind, cfg)
     no_onset = on.b.size == 0
+    no_b = None  # why B is fitted on c rather than measured (None: it is measured)
     if no_onset:
         why = ", ".join(f"{k} {v}" for k, v in on.reasons.items() if v) or "none reached"
         if (refine_doc or {}).get("lost_before_reversal"):
             why += (f"; on {refine_doc['lost_before_reversal']} of them every onset lay before the reversal at the "
                     f"t_delay used, {td:.4f} s: check the delay (session.json's t_delay, --t-delay-from config)")
-        if not across_families:
-            raise InputError(src, f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset "
-                             f"({why}); check that the distal end moves after each reversal and the back-and-forth "
-                             "exceeds the play")
         no_b = f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset ({why})"
-        # The families that fit their play from c alone still hold (families.FAMILIES_FROM_C); B
-        # (set below from the frames) is then the constant play's width, not a measurement.
-        warnings.append(f"no usable reversal: none of the {rt.size} direction reversals gave a motion onset ({why}): "
-                        "the play's width is fitted on c alone (constant play), the onset families are not offered")
-        bfit = BacklashFit(None, np.zeros(0), np.zeros(0), np.zeros(0, bool), 0.0, kind="fitted on c", n_ctrl=4)
+        if not across_families:
+            raise InputError(src, f"{no_b}; check that the distal end moves after each reversal and the "
+                             "back-and-forth exceeds the play")
     else:
         bfit = fit_backlash_auto(on.q_mean, on.b, n_ctrl, source=src, sigma=on.sigma_b)
-        wide = b_beyond_board(bfit.B, (float(q.min()), float(q.max())))
-        if wide is not None and across_families:
-            # No table carrying this B loads (the loader's plausibility rule), so no onset family can
-            # be the product's; the families that fit their play on c may still give one that does.
-            warnings.append(f"the measured play reaches {wide[0]:.3g} {s.actuator_unit}, more than the board accepts "
-                            f"for this record's travel ({wide[1]:.3g}, half of it): the play's width is fitted on c "
-                            "alone (constant play), the onset families are not offered; a record over more of the "
-                            "travel measures B for a table")
+        # A B that no table carries (the loader's plausibility rule) leaves no onset family to be the
+        # product's; the families that fit their play on c may still give one that loads.
+        wide = b_beyond_board(bfit.B, (float(q.min()), float(q.max()))) if across_families else None
+        if wide is not None:
             no_onset = True
-            no_b = f"the measured play ({wide[0]:.3g} {s.actuator_unit}) is wider than the board accepts for this record's travel"
-            bfit = BacklashFit(None, np.zeros(0), np.zeros(0), np.zeros(0, bool), 0.0, kind="fitted on c", n_ctrl=4)
+            no_b = (f"the measured play reaches {wide[0]:.3g} {s.actuator_unit}, more than the board accepts for this "
+                    f"record's travel ({wide[1]:.3g}, half of it; a record over more of the travel measures B for a table)")
+    if no_b is not None:
+        # The families that fit their play from c alone still hold (families.FAMILIES_FROM_C); B
+        # (set below from the frames) is then the constant play's width, not a measurement.
+        warnings.append(f"{no_b}: the play's width is fitted on c alone (constant play), the onset families are "
+                        "not offered")
+        bfit = BacklashFit(None, np.zeros(0), np.zeros(0), np.zeros(0, bool), 0.0, kind="fitted on c", n_ctrl=4)
     B, w = bfit.B, bfit.weight
     if bfit.kind == "constant" and not no_onset:
         ci = "unknown (one sample without an uncertainty)" if bfit.ci95 is None else \
