@@ -181,14 +181,15 @@ def _coarse_starts(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | 
 SLIDE_GRID = ((0.25, 0.5, 1.0), (0.25, 0.5, 1.0))  # a slide's start grid: lags, longest slides (frame periods)
 
 
-def _lowest_settled(m: RecordModel, th0s: list, sigma: float, keep: int) -> list:
-    """The keep of the starts th0s (thetas of model m) with the lowest settled robust objective
-    (`_settle`, at sigma px), lowest first (ties keep the earlier). Scoring leaves m's weights and
-    mixture (and, with the tip mode, its tangent) as the last start's settle set them; a trial fit
-    from a kept start resets the weights and mixture (`_fit_one`) but not the tangent."""
-    out = [(_settle(m, th, sigma)[1], i, th) for i, th in enumerate(th0s)]
-    out.sort(key=lambda c: c[:2])
-    return [th for _, _, th in out[:keep]]
+def _lowest_settled(m: RecordModel, th0s: list, sigma: float, keep: int, fresh: bool = False) -> tuple[list, list]:
+    """(the indices of the keep of the starts th0s (thetas of model m) with the lowest settled robust
+    objective (`_settle`, at sigma px), lowest first, ties keeping the earlier; every start's cost).
+    fresh False: the starts are settled on m in turn, which leaves m's weights and mixture (and,
+    with the tip mode, its tangent) as the last start's settle set them; a trial fit from a kept start
+    resets the weights and mixture (`_fit_one`) but not the tangent. fresh True: each on its own fresh
+    copy of m (`_fresh`), as its trial fit would begin, so a start's cost depends on it alone."""
+    costs = [_settle(_fresh(m) if fresh else m, th, sigma)[1] for th in th0s]
+    return sorted(range(len(th0s)), key=lambda i: (costs[i], i))[:keep], costs
 
 
 def _slide_starts(m: RecordModel, name: str, parts: dict, sigma: float, keep: int = 2) -> list:
@@ -201,7 +202,7 @@ def _slide_starts(m: RecordModel, name: str, parts: dict, sigma: float, keep: in
     T = m.rec.period_s
     th0s = [m.theta({**parts, "lag_" + name: np.array([m.lag_x(L * T)]), "slide_" + name: np.array([m.slide_x(D * T)])})
             for L in SLIDE_GRID[0] for D in SLIDE_GRID[1]]  # at most a frame period, within every slide bound (`slide_max_s` >= T)
-    return _lowest_settled(m, th0s, sigma, keep)
+    return [th0s[i] for i in _lowest_settled(m, th0s, sigma, keep)[0]]
 
 
 def _ring_scan(m: RecordModel, parts: dict, sigma: float) -> np.ndarray:
@@ -409,12 +410,12 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
                 th0s = _slide_starts(mt, name[6:], parts, sigma)
             elif name == "expo":  # from the fit so far, at the exposure of EXPO_GRID that settles lowest
                 mt.slope = m.slope
-                th0s = _lowest_settled(mt, [mt.theta({**parts, "expo": np.array([mt.expo_x(g * rec.period_s)])})
-                                            for g in EXPO_GRID], sigma, 1)
+                grid = [mt.theta({**parts, "expo": np.array([mt.expo_x(g * rec.period_s)])}) for g in EXPO_GRID]
+                th0s = [grid[i] for i in _lowest_settled(mt, grid, sigma, 1)[0]]
             elif name == "spread":  # from the fit so far, at the spread of SPREAD_GRID that settles lowest
                 mt.slope = m.slope
-                th0s = _lowest_settled(mt, [mt.theta({**parts, "spread": np.array([mt.spread_x(g)])})
-                                            for g in SPREAD_GRID], sigma, 1)
+                grid = [mt.theta({**parts, "spread": np.array([mt.spread_x(g)])}) for g in SPREAD_GRID]
+                th0s = [grid[i] for i in _lowest_settled(mt, grid, sigma, 1)[0]]
             else:  # a switch, or a switch's shift (linear only): from the fit so far and each delay start
                 mt.slope = m.slope
                 th0s = [mt.theta(p) for p in [parts] + bases]
@@ -527,14 +528,7 @@ def _trade_profile(fit: Fit, bic: float, sigma: float, log: list) -> tuple:
     copy of the model), and a trial fit (8 evaluations) from each of the TRADE_KEEP lowest."""
     m = fit.model
     starts = _trade_starts(m, m.parts(fit.theta))
-
-    def settled(p):
-        """A start's settled cost, on a fresh copy of m (as its trial fit would begin, `_fit_one`)."""
-        mc = _fresh(m)
-        return _settle(mc, mc.theta(p), sigma)[1]
-
-    costs = [settled(p) for _, p in starts]
-    kept = sorted(range(len(starts)), key=lambda i: (costs[i], i))[:TRADE_KEEP]
+    kept, costs = _lowest_settled(m, [m.theta(p) for _, p in starts], sigma, TRADE_KEEP, fresh=True)
     jobs = [([m], m.theta(starts[i][1]), sigma, 8, TRIAL_ROUNDS) for i in kept]
     trials = [fs[-1] for fs in _fit_all(jobs, _fit_chain)]
     best = min(trials, key=lambda f: f.bic(sigma))

@@ -385,5 +385,6 @@ def test_the_exposures_trial_starts_at_the_grid_point_nearest_the_blur(exposure_
     mt = OM.RecordModel(rec, 8, 10, OM.Terms(expo=True), m.prior)
     mt.slope = plain.model.slope
     grid = [mt.theta({**m.parts(plain.theta), "expo": np.array([mt.expo_x(g * rec.period_s)])}) for g in OS.EXPO_GRID]
-    (chosen,) = OS._lowest_settled(mt, grid, sig, 1)
+    (k,), _ = OS._lowest_settled(mt, grid, sig, 1)
+    chosen = grid[k]
     assert mt.exposure(chosen) == pytest.approx(exposure_frames * rec.period_s)
