@@ -57,6 +57,15 @@ SPREAD_GRID = (0.2, 0.5, 0.8)  # the spread term's start grid (onset_model's mod
                        # [0, SPREAD_MAX], from a take-up a fifth of B wide to most of it
 
 
+TRIAL_OTHER_STARTS = 1  # a switch's trial starts besides the fit so far (`_trial_starts`): the lowest by their settled
+                       # cost of its other starts (each delay start, its profiled start). Over the development
+                       # rendering traced (a 25 fps registration triangle, four rounds of two searches), the
+                       # lowest settled of a switch's starts was its best trial's in each round, and the fit so
+                       # far's start is always tried. Not the tip mode's: there the settled cost at a start
+                       # (its frequency from the scan) ranked the best trial's last twice, and on the alias test
+                       # (`_ring_profiled_starts`) the mode was lost (5.45 Hz for 5.73)
+
+
 TRIAL_ROUNDS = 1       # a term's trial fit (8 evaluations): one reweighting, since a term that adds to the fit so
                        # far starts from that fit, its own linear gains solved there, so the weights set at
                        # the start are near that fit's settled ones; a shift is the exception (`_trial_rounds`)
@@ -190,6 +199,20 @@ def _lowest_settled(m: RecordModel, th0s: list, sigma: float, keep: int, fresh: 
     copy of m (`_fresh`), as its trial fit would begin, so a start's cost depends on it alone."""
     costs = [_settle(_fresh(m) if fresh else m, th, sigma)[1] for th in th0s]
     return sorted(range(len(th0s)), key=lambda i: (costs[i], i))[:keep], costs
+
+
+def _trial_starts(m: RecordModel, th0s: list, sigma: float) -> list:
+    """A term's trial starts (thetas of its model m) from its candidates th0s, the fit so far's first:
+    that one, and the TRIAL_OTHER_STARTS of the rest with the lowest settled robust objective at sigma
+    px (`_lowest_settled`, each on a fresh copy of m, as its trial fit begins). Why not a trial from
+    each: the other starts (each delay start at the start's width, a switch's profiled start) are
+    there for a fit so far dragged into another basin by the term's absence, where the start nearest
+    the term's own basin settles lowest, and each trial is 8 evaluations with their Jacobians against
+    a settle's 3 evaluations: on the 3-minute bench record, 12 trials became 8."""
+    if len(th0s) <= 1 + TRIAL_OTHER_STARTS:
+        return th0s
+    kept, _ = _lowest_settled(m, th0s[1:], sigma, TRIAL_OTHER_STARTS, fresh=True)
+    return [th0s[0]] + [th0s[1 + i] for i in kept]
 
 
 def _slide_starts(m: RecordModel, name: str, parts: dict, sigma: float, keep: int = 2) -> list:
@@ -422,6 +445,7 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
                 if (name,) in st:  # also from the start profiled with this switch
                     d_s, b_s = st[(name,)]
                     th0s.append(mt.theta({**parts, "d": np.array([d_s]), "B": np.full(n_b, b_s)}))
+                th0s = _trial_starts(mt, th0s, sigma)
             jobs += [([mt], th0, sigma, 8, _trial_rounds(name), name) for th0 in th0s]
             if name.startswith("reg_") and n_b > 1:  # and coarse to fine from the start profiled with it (`_fit_chain`)
                 def reg_chain(name=name, mt=mt, parts=parts, slope=m.slope):
@@ -433,11 +457,18 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
                                               "d": np.array([d_s]), "B": np.array([b_s])}), sigma, 20, 2, name)]
                 chains[name] = reg_chain
         trials = [(f.bic(sigma), job[5], f) for job, f in zip(jobs, _fit_distinct([j[:5] for j in jobs]))]
-        # A term's chains run once one of its trials lowers the record's BIC: they carry the term's own
-        # profiled start coarse to fine, to reach its best basin where the fit so far was dragged by
-        # its absence, and a term that no start lowers the BIC from is not in evidence by the same
-        # criterion. On the bench session (no term) the chains were 3.4 of the stage's 8.3 s on one core.
-        jobs = [j for n in chains if any(c[0] < bic and c[1] == n for c in trials) for j in chains[n]()]
+        # The chains run for the term whose trial leads the round (the lowest BIC), once that trial
+        # lowers the record's BIC: they carry the term's own profiled start coarse to fine, to reach its
+        # best basin where the fit so far was dragged by its absence, and a term that no start lowers
+        # the BIC from is not in evidence by the same criterion. A term whose trials trail another's
+        # is offered again in the next round, from the fit with the leader in, with its chains if it
+        # then leads. Why not every term whose trial lowers the BIC: the chains are the round's costly
+        # part (four full fits a profiled start, the tip mode's Jacobian filtering the grid per B
+        # coefficient), and on a registration record every term's trial lowers the plain model's BIC:
+        # on a 25 fps registration triangle of the development group the tip mode's chains, which
+        # trailed the switch's trial by a factor 20 in BIC, were 19.6 of calibrate's 57 s on one core.
+        lead = min(trials, key=lambda c: c[0]) if trials else None
+        jobs = [j for n in chains if lead is not None and lead[1] == n and lead[0] < bic for j in chains[n]()]
         chained = [(f.bic(sigma), job[5], f) for job, f in zip(jobs, _fit_distinct([j[:5] for j in jobs]))]
         cands = [c for n in terms.offered()  # by term, as they were built: the ring's chains first, a switch's last
                  for c in (chained + trials if n == "ring" else trials + chained) if c[1] == n]
