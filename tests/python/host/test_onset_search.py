@@ -294,11 +294,13 @@ def test_the_search_fits_its_plain_model_from_the_fitted_start_and_a_held_delay_
     assert len(offered) == 1 and e.value.args[0] == pytest.approx(r.delay_cfg_s) and e.value.args[2] == {()}
 
 
-@pytest.mark.parametrize("evident", ["ring", "reg_tip"])
-def test_a_terms_chains_run_only_once_one_of_its_trials_lowers_the_bic(monkeypatch, evident):
+@pytest.mark.parametrize("evident, runner_up", [("ring", "reg_tip"), ("reg_tip", "ring")])
+def test_a_rounds_chains_run_for_the_term_whose_trial_leads_it(monkeypatch, evident, runner_up):
     # A round's chains (a term's profiled starts carried coarse to fine: four full fits each) run for
-    # the terms one of whose trial fits lowers the record's BIC, and for no other. The trials are
-    # stood in for: the evident term's score far below the fit so far's, every other term's far above.
+    # the term whose trial fit leads the round, once it lowers the record's BIC, and for no other: not
+    # for a runner-up whose trial lowers the BIC too (it is offered again in the next round). The
+    # trials are stood in for: the evident term's score far below the fit so far's, the runner-up's
+    # below it by less, every other term's far above.
     from types import SimpleNamespace
 
     r, d, t, q, rt, rq, obs, hyst = record(duration_s=10.0)
@@ -314,7 +316,8 @@ def test_a_terms_chains_run_only_once_one_of_its_trials_lowers_the_bic(monkeypat
         if rounds:  # the chains' call: what was asked for is the test's answer
             raise Chains(terms, [len(j[0]) for j in jobs])
         rounds.append(terms)
-        return [SimpleNamespace(bic=lambda s, k=k: -1e12 if evident in k else 1e12) for k in terms]
+        return [SimpleNamespace(bic=lambda s, k=k: -1e12 if evident in k else (-1e11 if runner_up in k else 1e12))
+                for k in terms]
 
     real = OS._ring_profiled_starts
     monkeypatch.setattr(OS, "_fit_distinct", fit_distinct)
@@ -388,3 +391,43 @@ def test_the_exposures_trial_starts_at_the_grid_point_nearest_the_blur(exposure_
     (k,), _ = OS._lowest_settled(mt, grid, sig, 1)
     chosen = grid[k]
     assert mt.exposure(chosen) == pytest.approx(exposure_frames * rec.period_s)
+
+
+def test_a_switchs_trial_from_its_lowest_settled_other_start_is_its_best_other_trial(monkeypatch):
+    # A switch's trial fits start at the fit so far's theta and at the one of its other starts (each
+    # delay start at the start's width, its profiled start) whose settled cost is lowest
+    # (`_trial_starts`), not at each: that rests on the lowest settled of those starts being the one
+    # whose trial ends lowest. Checked in the first round on a 20 s rendering with a 2 deg
+    # registration switching with the tip's direction (25 fps triangle): the starts are taken as the
+    # search builds them, and every other start is given its trial fit. Measured: the other starts (the
+    # delay start, the profiled one) settle at 4,603 and 1,003, their trials end at BIC 1,372 and 477.
+    r, d, t, q, rt, rq, obs, hyst = record(shape="triangle", swing_s=0.3, fps=25.0, reg_deg=2.0, reg_lag=0.5,
+                                            duration_s=20.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    prior, sig = (r.delay_cfg_s, rec.period_s / np.sqrt(12)), OM.noise_sigma(obs)
+    seen = {}
+    real = OS._trial_starts
+
+    class Built(Exception):
+        pass
+
+    def spy(m, th0s, sigma):
+        kept = real(m, th0s, sigma)
+        seen.setdefault(tuple(m.terms.names()), (m, th0s, sigma, kept))
+        return kept
+
+    def fit_distinct(jobs):
+        raise Built  # the first round's starts are built: what the test asks about
+
+    monkeypatch.setattr(OS, "_trial_starts", spy)
+    monkeypatch.setattr(OS, "_fit_distinct", fit_distinct)
+    with pytest.raises(Built):
+        OS._search(rec, [r.delay_cfg_s], prior, None, None, sig, [r.delay_cfg_s])
+    m, th0s, sigma, kept = seen[("reg_tip",)]
+    assert len(th0s) >= 3 and len(kept) == 1 + OS.TRIAL_OTHER_STARTS and kept[0] is th0s[0]
+    others = th0s[1:]
+    k = next(i for i, th in enumerate(others) if th is kept[1])
+    _, costs = OS._lowest_settled(m, others, sigma, len(others), fresh=True)
+    assert costs[k] == min(costs)  # the contract: the lowest settled of the others
+    bics = [f.bic(sigma) for f in OF._fit_all([(m, th, sigma, 8, OS.TRIAL_ROUNDS) for th in others])]
+    assert bics[k] == min(bics)  # the premise: its trial ends lowest of theirs
