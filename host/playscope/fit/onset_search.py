@@ -13,7 +13,9 @@ The board's plain eq. 1 samples are a third start when given. B is fitted coarse
 plain model lacks drags its width, so each term also gets starts profiled with it on (the
 delay and the constant width by the robust cost; the tip mode's at each of RING_ZETA_STARTS at the
 one of its scan's local minima that profiles lowest), each carried coarse to fine and scored by
-the BIC, once one of the term's trial fits lowers the BIC (those chains are a round's costly part).
+the BIC, for the term whose trial fit leads the round once it lowers the BIC (those chains are a
+round's costly part). A switch's trials start from the fit so far and from the one of its other
+starts whose settled cost is lowest (`_trial_starts`).
 
 Terms by evidence: the tip mode, each registration term, the exposure and the plant's spread of widths
 enter when they lower the record's
