@@ -210,7 +210,7 @@ def _trial_starts(m: RecordModel, th0s: list, sigma: float) -> list:
     each: the other starts (each delay start at the start's width, a switch's profiled start) are
     there for a fit so far dragged into another basin by the term's absence, where the start nearest
     the term's own basin settles lowest, and each trial is 8 evaluations with their Jacobians against
-    a settle's 3 evaluations: on the 3-minute bench record, 12 trials became 8."""
+    a settle's 3 evaluations: on the 3-minute bench record, 12 trials became 9."""
     if len(th0s) <= 1 + TRIAL_OTHER_STARTS:
         return th0s
     kept, _ = _lowest_settled(m, th0s[1:], sigma, TRIAL_OTHER_STARTS, fresh=True)
