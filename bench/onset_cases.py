@@ -370,6 +370,11 @@ LOCKBOX21_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # after this stop's).
 SEEDS_22 = {"marker": (82101, 820001), "swing": (82202, 820201), "render_c": (82303, 820401)}
 LOCKBOX22_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_22, PLAN, "s22-")]
+# The twenty-third set-aside group, LOCKBOX23_300 (drawn and committed 2026-11-30 during stop 87, while LOCKBOX22
+# ran on this stop's onset code and before any later onset code was written; sealed for the onset code of a change
+# after this stop's).
+SEEDS_23 = {"marker": (83101, 830001), "swing": (83202, 830201), "render_c": (83303, 830401)}
+LOCKBOX23_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_23, PLAN, "s23-")]
 
 # Two groups for a plant effect the plans above never render: a smooth transition after each reversal
 # (a Prandtl-Ishlinskii spread of play widths: the bending driven by the mean of plays of widths
