@@ -367,7 +367,8 @@ SEEDS_21 = {"marker": (81101, 810001), "swing": (81202, 810201), "render_c": (81
 LOCKBOX21_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_21, PLAN, "s21-")]
 # The twenty-second set-aside group, LOCKBOX22_300 (drawn and committed 2026-11-30 during stop 86, before LOCKBOX21
 # ran on this stop's onset code and before any later onset code was written; sealed for the onset code of a change
-# after this stop's).
+# after this stop's). Spent at stop 87 on b815b41 (a switch's trial starts, the leader's chains): 1 / 300 fail
+# (s22-swing-035-registration, B 6.12 %, the same on 0d7604c), rows in bench/scoreboard_rows/lockbox22-stop87.jsonl.
 SEEDS_22 = {"marker": (82101, 820001), "swing": (82202, 820201), "render_c": (82303, 820401)}
 LOCKBOX22_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_22, PLAN, "s22-")]
 # The twenty-third set-aside group, LOCKBOX23_300 (drawn and committed 2026-11-30 during stop 87, while LOCKBOX22
