@@ -61,9 +61,11 @@ SPREAD_GRID = (0.2, 0.5, 0.8)  # the spread term's start grid (onset_model's mod
 
 TRIAL_OTHER_STARTS = 1  # a switch's trial starts besides the fit so far (`_trial_starts`): the lowest by their settled
                        # cost of its other starts (each delay start, its profiled start). Over the development
-                       # rendering traced (a 25 fps registration triangle, four rounds of two searches), the
-                       # lowest settled of a switch's starts was its best trial's in each round, and the fit so
-                       # far's start is always tried. Not the tip mode's: there the settled cost at a start
+                       # rendering traced (fifteenth-registration-triangle25: 12 switch or shift trials over two
+                       # searches, every other start given its trial), the lowest settled of a switch's other
+                       # starts was its best other trial's in 11 of 12; the miss, a motor switch, ended at BIC
+                       # 303,841 against 290,874 in a round the tip switch led at 27,971. The fit so far's start
+                       # is always tried. Not the tip mode's: there the settled cost at a start
                        # (its frequency from the scan) ranked the best trial's last twice, and on the alias test
                        # (`_ring_profiled_starts`) the mode was lost (5.45 Hz for 5.73)
 
@@ -204,9 +206,10 @@ def _lowest_settled(m: RecordModel, th0s: list, sigma: float, keep: int, fresh: 
 
 
 def _trial_starts(m: RecordModel, th0s: list, sigma: float) -> list:
-    """A term's trial starts (thetas of its model m) from its candidates th0s, the fit so far's first:
-    that one, and the TRIAL_OTHER_STARTS of the rest with the lowest settled robust objective at sigma
-    px (`_lowest_settled`, each on a fresh copy of m, as its trial fit begins). Why not a trial from
+    """A switch's trial starts (thetas (n_theta,) of its model m) from its candidates th0s, the fit so
+    far's first: that one, and the TRIAL_OTHER_STARTS of the rest with the lowest settled robust
+    objective at sigma px (`_lowest_settled`, each on a fresh copy of m, as its trial fit begins).
+    Returns a sublist of th0s (th0s itself when it holds no more than that); no errors of its own. Why not a trial from
     each: the other starts (each delay start at the start's width, a switch's profiled start) are
     there for a fit so far dragged into another basin by the term's absence, where the start nearest
     the term's own basin settles lowest, and each trial is 8 evaluations with their Jacobians against
