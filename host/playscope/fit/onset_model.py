@@ -486,6 +486,16 @@ class Terms:
         d[name] = True
         return Terms(**d)
 
+    def without_(self, name: str) -> "Terms | None":
+        """These terms with name off, or None when another term on needs it (a switch's slide or
+        shift, the ring's motor drive)."""
+        d = {n: getattr(self, n) for n in TERMS}
+        d[name] = False
+        t = Terms(**d)
+        needs = {"reg_" + k.split("_")[1] for k in t.names() if k.startswith(("slide_", "shift_"))}
+        needs |= {"ring"} if t.ring_motor else set()
+        return None if needs - set(t.names()) else t
+
 
 @dataclass
 class Eval:
