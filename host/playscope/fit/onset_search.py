@@ -31,6 +31,7 @@ Units: t in s, q and B in actuator units, image points in px.
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -378,6 +379,89 @@ def _fitted_start(rec: Record, n_g: int, delays: list[float], widths: list[float
     return cands[k], {f"{d:.4f}": b for (d, _), b in zip(cands, bics)}, fits[k]
 
 
+@dataclass
+class _Search:
+    """What a search builds its term trials from (`_term_trials`), fixed once its start is chosen:
+    the record, G's size, the delay's prior (mean, sd) s or None and the held delay s or None, the
+    delay starts s (the coarse, then the configured), the constant widths of the start's profile and
+    the start's own (actuator units), each registration term's profiled start ({(name,): (delay s,
+    width)}, `_start`), B's sizes (`_n_b_ladder`) and the scale sigma px."""
+
+    rec: Record
+    n_g: int
+    prior: tuple | None
+    d_fixed: float | None
+    starts: list
+    widths: list
+    b0: float
+    st: dict
+    ladder: list
+    sigma: float
+
+    def chain(self, terms: Terms, sizes: list, width_at: str) -> list:
+        """The models of a coarse-to-fine chain (`_fit_chain`): a constant width, then each size."""
+        return [RecordModel(self.rec, 1, self.n_g, terms, self.prior, self.d_fixed, "input")] + \
+               [RecordModel(self.rec, n, self.n_g, terms, self.prior, self.d_fixed, width_at) for n in sizes if n > 1]
+
+
+def _term_trials(s: "_Search", name: str, base: Terms, fit: Fit) -> tuple[list, object]:
+    """The term name's trial jobs onto the terms base (a Terms without it) from the Fit fit (its
+    model's parts the start, those base's model lacks dropped; B's size and where it is read the
+    fit's), and its chains' builder (a function giving their jobs) or None: (jobs [(models, theta0,
+    sigma, max_nfev, rounds, name)], builder). s: the search's context (`_Search`)."""
+    rec, n_g, prior, d_fixed, starts, widths, b0, st, ladder, sigma = \
+        s.rec, s.n_g, s.prior, s.d_fixed, s.starts, s.widths, s.b0, s.st, s.ladder, s.sigma
+    chain = s.chain
+    m, n_b, width_at = fit.model, fit.model.n_b, fit.model.width_at
+    mt = RecordModel(rec, n_b, n_g, base.with_(name), prior, d_fixed, width_at)
+    parts = {k: v for k, v in m.parts(fit.theta).items() if k in mt.layout()}
+    # from the fit so far, and from each delay start (the coarse and the configured one) at
+    # the start's width: a term the fit so far lacked may have dragged its delay and B into
+    # another basin (a ring read as a late onset)
+    bases = [{**parts, "d": np.array([d]), "B": np.full(n_b, b0)} for d in starts]
+    builder = None
+    if name == "ring":
+        freqs = _ring_scan(mt, parts, sigma)
+        th0s = [mt.theta({**parts, "ring": mt.ring_theta(freqs[0], 0.1)})] + \
+               [_ring_start(mt, p, freqs, sigma) for p in bases]
+        if n_b > 1:  # and coarse to fine from the starts profiled with it (`_ring_profiled_starts`)
+            def builder(mt=mt, parts=parts, freqs=freqs, slope=m.G_slope(fit.ev)):
+                out = []  # slope: the path's tangent of the fit so far
+                for p in _ring_profiled_starts(rec, n_g, base.with_(name), prior, d_fixed, parts, freqs,
+                                               starts, widths, slope, sigma):
+                    ms = chain(base.with_(name), [n for n in ladder if n < n_b], width_at) + [mt]
+                    out.append((ms, ms[0].theta(p), sigma, 20, 2, name))
+                return out
+    elif name.startswith("slide_"):
+        mt.slope = m.slope
+        th0s = _slide_starts(mt, name[6:], parts, sigma)
+    elif name == "expo":  # from the fit so far, at the exposure of EXPO_GRID that settles lowest
+        mt.slope = m.slope
+        grid = [mt.theta({**parts, "expo": np.array([mt.expo_x(g * rec.period_s)])}) for g in EXPO_GRID]
+        th0s = [grid[i] for i in _lowest_settled(mt, grid, sigma, 1)[0]]
+    elif name == "spread":  # from the fit so far, at the spread of SPREAD_GRID that settles lowest
+        mt.slope = m.slope
+        grid = [mt.theta({**parts, "spread": np.array([mt.spread_x(g)])}) for g in SPREAD_GRID]
+        th0s = [grid[i] for i in _lowest_settled(mt, grid, sigma, 1)[0]]
+    else:  # a switch, or a switch's shift (linear only): from the fit so far and each delay start
+        mt.slope = m.slope
+        th0s = [mt.theta(p) for p in [parts] + bases]
+        if (name,) in st:  # also from the start profiled with this switch
+            d_s, b_s = st[(name,)]
+            th0s.append(mt.theta({**parts, "d": np.array([d_s]), "B": np.full(n_b, b_s)}))
+        th0s = _trial_starts(mt, th0s, sigma)
+    jobs = [([mt], th0, sigma, 8, _trial_rounds(name), name) for th0 in th0s]
+    if name.startswith("reg_") and n_b > 1:  # and coarse to fine from the start profiled with it (`_fit_chain`)
+        def builder(mt=mt, parts=parts, slope=m.slope):
+            d_s, b_s = st.get((name,), (starts[-1], b0))
+            ms = chain(base.with_(name), [n for n in ladder if n < n_b], width_at) + [mt]
+            for mc in ms:
+                mc.slope = slope
+            return [(ms, ms[0].theta({**{k: v for k, v in parts.items() if k in ms[0].layout()},
+                                      "d": np.array([d_s]), "B": np.array([b_s])}), sigma, 20, 2, name)]
+    return jobs, builder
+
+
 def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
     """The start, B's size and where it is read, then the terms by BIC, all at the scale sigma
     (px): (the final Fit, the search's JSON-ready log). starts: the delay starts (s; the coarse,
@@ -395,14 +479,11 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
     terms = Terms()
     ladder = _n_b_ladder(rec.rt.size)
 
-    def chain(terms, sizes, width_at):
-        """The models of a coarse-to-fine chain (`_fit_chain`): a constant width, then each size."""
-        return [RecordModel(rec, 1, n_g, terms, prior, d_fixed, "input")] + \
-               [RecordModel(rec, n, n_g, terms, prior, d_fixed, width_at) for n in sizes if n > 1]
+    ctx = _Search(rec, n_g, prior, d_fixed, starts, widths, b0, st, ladder, sigma)
 
     jobs = []
     for width_at in (WIDTH_AT if ladder[-1] > 1 else WIDTH_AT[:1]):  # a constant width is read nowhere
-        ms = chain(terms, ladder, width_at)  # B's size and where it is read, by the same criterion as the terms
+        ms = ctx.chain(terms, ladder, width_at)  # B's size and where it is read, by the same criterion as the terms
         th0 = ms[0].theta({"d": np.array([d0]), "B": np.array([b0])}) if th_first is None else th_first
         jobs.append((ms, th0, sigma, 20, IRLS_ROUNDS))
     fits = [(f.bic(sigma), f.model.n_b, f.model.width_at, f) for fs in _fit_all(jobs, _fit_chain)
@@ -411,64 +492,11 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
     m = fit.model
     log = [{"fitted_start": fitted_log}, {"B_ctrl": {f"{n} {w}": b for b, n, w, _ in fits}},
            {"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])}]
-    def term_trials(name, base, fit):
-        """The term name's trial jobs onto the terms base from the Fit fit (its model's parts the
-        start; those base lacks dropped), and its chains' builder (a function giving their jobs) or
-        None: (jobs [(models, theta0, sigma, max_nfev, rounds, name)], builder)."""
-        m, n_b, width_at = fit.model, fit.model.n_b, fit.model.width_at
-        mt = RecordModel(rec, n_b, n_g, base.with_(name), prior, d_fixed, width_at)
-        parts = {k: v for k, v in m.parts(fit.theta).items() if k in mt.layout()}
-        # from the fit so far, and from each delay start (the coarse and the configured one) at
-        # the start's width: a term the fit so far lacked may have dragged its delay and B into
-        # another basin (a ring read as a late onset)
-        bases = [{**parts, "d": np.array([d]), "B": np.full(n_b, b0)} for d in starts]
-        builder = None
-        if name == "ring":
-            freqs = _ring_scan(mt, parts, sigma)
-            th0s = [mt.theta({**parts, "ring": mt.ring_theta(freqs[0], 0.1)})] + \
-                   [_ring_start(mt, p, freqs, sigma) for p in bases]
-            if n_b > 1:  # and coarse to fine from the starts profiled with it (`_ring_profiled_starts`)
-                def builder(mt=mt, parts=parts, freqs=freqs, slope=m.G_slope(fit.ev)):
-                    out = []  # slope: the path's tangent of the fit so far
-                    for p in _ring_profiled_starts(rec, n_g, base.with_(name), prior, d_fixed, parts, freqs,
-                                                   starts, widths, slope, sigma):
-                        ms = chain(base.with_(name), [n for n in ladder if n < n_b], width_at) + [mt]
-                        out.append((ms, ms[0].theta(p), sigma, 20, 2, name))
-                    return out
-        elif name.startswith("slide_"):
-            mt.slope = m.slope
-            th0s = _slide_starts(mt, name[6:], parts, sigma)
-        elif name == "expo":  # from the fit so far, at the exposure of EXPO_GRID that settles lowest
-            mt.slope = m.slope
-            grid = [mt.theta({**parts, "expo": np.array([mt.expo_x(g * rec.period_s)])}) for g in EXPO_GRID]
-            th0s = [grid[i] for i in _lowest_settled(mt, grid, sigma, 1)[0]]
-        elif name == "spread":  # from the fit so far, at the spread of SPREAD_GRID that settles lowest
-            mt.slope = m.slope
-            grid = [mt.theta({**parts, "spread": np.array([mt.spread_x(g)])}) for g in SPREAD_GRID]
-            th0s = [grid[i] for i in _lowest_settled(mt, grid, sigma, 1)[0]]
-        else:  # a switch, or a switch's shift (linear only): from the fit so far and each delay start
-            mt.slope = m.slope
-            th0s = [mt.theta(p) for p in [parts] + bases]
-            if (name,) in st:  # also from the start profiled with this switch
-                d_s, b_s = st[(name,)]
-                th0s.append(mt.theta({**parts, "d": np.array([d_s]), "B": np.full(n_b, b_s)}))
-            th0s = _trial_starts(mt, th0s, sigma)
-        jobs = [([mt], th0, sigma, 8, _trial_rounds(name), name) for th0 in th0s]
-        if name.startswith("reg_") and n_b > 1:  # and coarse to fine from the start profiled with it (`_fit_chain`)
-            def builder(mt=mt, parts=parts, slope=m.slope):
-                d_s, b_s = st.get((name,), (starts[-1], b0))
-                ms = chain(base.with_(name), [n for n in ladder if n < n_b], width_at) + [mt]
-                for mc in ms:
-                    mc.slope = slope
-                return [(ms, ms[0].theta({**{k: v for k, v in parts.items() if k in ms[0].layout()},
-                                          "d": np.array([d_s]), "B": np.array([b_s])}), sigma, 20, 2, name)]
-        return jobs, builder
-
     near = {}  # each entered term's runner-ups in its round, within Occam's window (`_exchange`)
     while True:
         jobs, chains = [], {}  # the terms' trials; each term's chains, built when they are to run (below)
         for name in terms.offered():
-            tj, builder = term_trials(name, terms, fit)
+            tj, builder = _term_trials(ctx, name, terms, fit)
             jobs += tj
             if builder is not None:
                 chains[name] = builder
@@ -502,7 +530,7 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
         if len(ladder) > 1:
             fit, bic, n_b, width_at = _resize(fit, bic, ladder, sigma, log)
             m = fit.model
-    fit, bic = _exchange(fit, bic, near, term_trials, ladder, sigma, log)
+    fit, bic = _exchange(ctx, fit, bic, near, log)
     fit, bic = _trade_profile(fit, bic, sigma, log)
     return fit, {"steps": log, "sigma_px": sigma, "n_b": fit.model.n_b, "n_g": n_g, "width_at": fit.model.width_at}
 
@@ -523,12 +551,12 @@ def _runner_ups(cands: list, name: str, c_bic: float) -> list[str]:
     return sorted(best, key=lambda n: (best[n], n))
 
 
-def _exchange(fit: Fit, bic: float, near: dict, term_trials, ladder: list, sigma: float, log: list) -> tuple:
+def _exchange(s: _Search, fit: Fit, bic: float, near: dict, log: list) -> tuple:
     """The search's last move: each entered term X that no other term needs (a switch with its slide
     or shift on, the ring with its motor drive, stays) exchanged for each of its round's runner-ups Y
     (near: {X: [Y, ...]}, `_runner_ups`) that the other terms admit; Y's trial fits start from the
-    final fit with X's parts dropped (term_trials(Y, terms without X, fit): Y's own starts, no
-    chains). The best trial, when it lowers the BIC, is carried to a full fit and kept, with B's size
+    final fit with X's parts dropped (`_term_trials`(s, Y, terms without X, fit): Y's own starts,
+    no chains; s the search's context). The best trial, when it lowers the BIC, is carried to a full fit and kept, with B's size
     and where it is read once more (`_resize`). Returns (fit, bic); log (the search's step list)
     gets the trials' BICs.
 
@@ -555,8 +583,9 @@ def _exchange(fit: Fit, bic: float, near: dict, term_trials, ladder: list, sigma
         return fit, bic
     jobs = []
     for x, y in pairs:
-        jobs += [(j, f"{x}->{y}") for j in term_trials(y, terms.without_(x), fit)[0]]
+        jobs += [(j, f"{x}->{y}") for j in _term_trials(s, y, terms.without_(x), fit)[0]]
     fits = _fit_distinct([j[:5] for j, _ in jobs])
+    sigma = s.sigma
     trials = [(f.bic(sigma), label, f) for (_, label), f in zip(jobs, fits)]
     log.append({"exchange": [(label, b) for b, label, _ in trials]})
     c_bic, label, f = min(trials, key=lambda c: c[0])
@@ -565,8 +594,8 @@ def _exchange(fit: Fit, bic: float, near: dict, term_trials, ladder: list, sigma
     full = fit_model(f.model, f.theta, sigma=sigma)  # from the trial, so at worst the trial again
     fit, bic = full, full.bic(sigma)
     log.append({"terms": fit.model.terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0]), "exchanged": label})
-    if len(ladder) > 1:
-        fit, bic, _, _ = _resize(fit, bic, ladder, sigma, log)
+    if len(s.ladder) > 1:
+        fit, bic, _, _ = _resize(fit, bic, s.ladder, sigma, log)
     return fit, bic
 
 
