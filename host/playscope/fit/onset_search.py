@@ -21,9 +21,10 @@ Terms by evidence: the tip mode, each registration term, the exposure and the pl
 enter when they lower the record's
 BIC (Schwarz 1978) on the robust objective (2 sum rho(r_j / sigma_j) + 2 sum ln(sigma_j / sigma),
 the Gaussian's normalisation for the inflated scales), the same criterion for each; the search
-adds the best term, refits, and tries the rest again. Last, the final model is restarted along the
-directions its parts trade in (`_trade_profile`): B's level scaled up and down, each switch's lag
-crossed with the exposure; the best kept where the BIC is lower.
+adds the best term, refits, and tries the rest again. Then each entered term is offered in exchange
+for its round's near rivals (`_exchange`: runner-ups within Occam's window, OCCAM_BIC). Last, the
+final model is restarted along the directions its parts trade in (`_trade_profile`): B's level
+scaled up and down, each switch's lag crossed with the exposure; the best kept where the BIC is lower.
 
 Units: t in s, q and B in actuator units, image points in px.
 """
