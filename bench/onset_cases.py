@@ -374,8 +374,16 @@ LOCKBOX22_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SE
 # The twenty-third set-aside group, LOCKBOX23_300 (drawn and committed 2026-11-30 during stop 87, while LOCKBOX22
 # ran on this stop's onset code and before any later onset code was written; sealed for the onset code of a change
 # after this stop's).
+# Its swing and render_c seeds are SEEDS_T's (below, drawn at stop 83): its rows 000 of those renderers share
+# their draw and noise seed with t-swing-000-transition and t-render_c-000-transition, development rows that add
+# a spread of widths (the later rows share a noise seed with different parameters). Found at stop 88 before it ran.
 SEEDS_23 = {"marker": (83101, 830001), "swing": (83202, 830201), "render_c": (83303, 830401)}
 LOCKBOX23_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_23, PLAN, "s23-")]
+# The twenty-fourth set-aside group, LOCKBOX24_300 (drawn and committed 2026-11-30 during stop 88, before LOCKBOX23
+# ran on this stop's onset code and before any later onset code was written; sealed for the onset code of a change
+# after this stop's). Seeds no other group uses.
+SEEDS_24 = {"marker": (88101, 880001), "swing": (88202, 880201), "render_c": (88303, 880401)}
+LOCKBOX24_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_24, PLAN, "s24-")]
 
 # Two groups for a plant effect the plans above never render: a smooth transition after each reversal
 # (a Prandtl-Ishlinskii spread of play widths: the bending driven by the mean of plays of widths

@@ -122,7 +122,7 @@ FROM_CASES = {"fresh": lambda c: c.FRESH_300, "setaside": lambda c: c.SETASIDE_1
               "lockbox20": lambda c: c.LOCKBOX20_300,
               "lockbox21": lambda c: c.LOCKBOX21_300,
               "lockbox22": lambda c: c.LOCKBOX22_300,
-              "lockbox23": lambda c: c.LOCKBOX23_300,
+              "lockbox23": lambda c: c.LOCKBOX23_300, "lockbox24": lambda c: c.LOCKBOX24_300,
               "exposure": lambda c: c.EXPOSURE_30, "transition_dev": lambda c: c.TRANSITION_DEV_40,
               "transition_lockbox": lambda c: c.TRANSITION_LOCKBOX_100}
 
