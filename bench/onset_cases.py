@@ -373,7 +373,8 @@ SEEDS_22 = {"marker": (82101, 820001), "swing": (82202, 820201), "render_c": (82
 LOCKBOX22_300 = [r for k in ("marker", "swing", "render_c") for r in _rows(k, SEEDS_22, PLAN, "s22-")]
 # The twenty-third set-aside group, LOCKBOX23_300 (drawn and committed 2026-11-30 during stop 87, while LOCKBOX22
 # ran on this stop's onset code and before any later onset code was written; sealed for the onset code of a change
-# after this stop's).
+# after this stop's). Spent at stop 88 on 0d8ac82 (the exchange move): 0 / 300 fail, rows in
+# bench/scoreboard_rows/lockbox23-stop88.jsonl.
 # Its swing and render_c seeds are SEEDS_T's (below, drawn at stop 83): its rows 000 of those renderers share
 # their draw and noise seed with t-swing-000-transition and t-render_c-000-transition, development rows that add
 # a spread of widths (the later rows share a noise seed with different parameters). Found at stop 88 before it ran.
