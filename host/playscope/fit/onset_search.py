@@ -32,6 +32,7 @@ Units: t in s, q and B in actuator units, image points in px.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -405,7 +406,7 @@ class _Search:
                [RecordModel(self.rec, n, self.n_g, terms, self.prior, self.d_fixed, width_at) for n in sizes if n > 1]
 
 
-def _term_trials(s: "_Search", name: str, base: Terms, fit: Fit) -> tuple[list, object]:
+def _term_trials(s: "_Search", name: str, base: Terms, fit: Fit) -> tuple[list, Callable[[], list] | None]:
     """The term name's trial jobs onto the terms base (a Terms without it) from the Fit fit (its
     model's parts the start, those base's model lacks dropped; B's size and where it is read the
     fit's), and its chains' builder (a function giving their jobs) or None: (jobs [(models, theta0,
@@ -572,19 +573,15 @@ def _exchange(s: _Search, fit: Fit, bic: float, near: dict, log: list) -> tuple:
     Only a round's runner-ups within Occam's window are exchanged: a term trailing by more is not
     a rival by the same criterion, and a record without a near tie (the bench session's, with no
     term) costs nothing."""
-    m = fit.model
-    terms = m.terms
-    pairs = []
+    terms = fit.model.terms
+    pairs = []  # (x, terms without x, y)
     for x in terms.names():
         base = terms.without_(x)
-        if base is None:
-            continue
-        pairs += [(x, y) for y in near.get(x, []) if y in base.offered() and not getattr(terms, y)]
+        if base is not None:
+            pairs += [(x, base, y) for y in near.get(x, []) if y in base.offered() and not getattr(terms, y)]
     if not pairs:
         return fit, bic
-    jobs = []
-    for x, y in pairs:
-        jobs += [(j, f"{x}->{y}") for j in _term_trials(s, y, terms.without_(x), fit)[0]]
+    jobs = [(j, f"{x}->{y}") for x, base, y in pairs for j in _term_trials(s, y, base, fit)[0]]
     fits = _fit_distinct([j[:5] for j, _ in jobs])
     sigma = s.sigma
     trials = [(f.bic(sigma), label, f) for (_, label), f in zip(jobs, fits)]
