@@ -300,16 +300,18 @@ def _fit_all(jobs: list, fn=None) -> list:
     return fork_map(fn or _fit_one, jobs, cost=_job_cost, pack=_slim, unpack=_unslim)
 
 
-def _fit_distinct(jobs: list) -> list:
+def _fit_distinct(jobs: list, here: bool = False) -> list:
     """The last Fit of each chain job (`_fit_chain`), a job alike another (the same models, start and
     budget: a start the term's bases repeat, e.g. the coarse delay equal to the configured one)
-    fitted once; its Fit then stands for both (a job's fit depends on the job alone, `_fit_one`)."""
+    fitted once; its Fit then stands for both (a job's fit depends on the job alone, `_fit_one`).
+    here: in this process, in turn (for a caller that is itself one item of a fork_map)."""
     key = [(tuple(id(m) for m in j[0]), j[1].tobytes(), j[2], j[3], j[4]) for j in jobs]
     first = {}
     for i, k in enumerate(key):
         first.setdefault(k, i)
     uniq = sorted(set(first.values()))
-    fits = dict(zip(uniq, (fs[-1] for fs in _fit_all([jobs[i] for i in uniq], _fit_chain))))
+    todo = [jobs[i] for i in uniq]
+    fits = dict(zip(uniq, (fs[-1] for fs in ([_fit_chain(j) for j in todo] if here else _fit_all(todo, _fit_chain)))))
     return [fits[first[k]] for k in key]
 
 

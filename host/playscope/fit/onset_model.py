@@ -176,7 +176,7 @@ Units: t in s, q and B in actuator units, image points in px.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import BSpline
@@ -234,10 +234,39 @@ class Record:
     i1: np.ndarray
     period_s: float
     reg_gen: np.ndarray
+    _bases: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
     def dt(self) -> float:
         return float(self.t[1] - self.t[0])
+
+    def width_basis(self, n: int, at: str = "grid"):
+        """B's design, n cubic B-splines on q's range, as a CSR matrix (`_sparse_basis`), at the grid's q
+        (at "grid": (N, n)) or on the output's z grid (at "z": (Z_GRID, n), `RecordModel.edges`); built
+        once a record and shared by every model of that size, which only read it. Why: a model's own
+        was 5.7 ms to build on the bench record's 86,250 samples, and 4.5 MB of each model pickled
+        between the processes (`__getstate__`)."""
+        key = (n, at)
+        if key not in self._bases:
+            lo, hi = float(self.q.min()), float(self.q.max())
+            x = self.q if at == "grid" else output_grid(lo, hi)
+            self._bases[key] = _sparse_basis(x, lo, hi, n)
+        return self._bases[key]
+
+    def __getstate__(self) -> dict:
+        """Pickled without its designs (`width_basis`), which the receiving process builds again."""
+        return {k: v for k, v in self.__dict__.items() if k != "_bases"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._bases = {}
+
+
+def output_grid(q_lo: float, q_hi: float) -> np.ndarray:
+    """The play output's grid (Z_GRID,) the edges are inverted on when B is read at the output
+    (module doc): q's range [q_lo, q_hi] widened by half its span at each end."""
+    span = q_hi - q_lo
+    return np.linspace(q_lo - 0.5 * span, q_hi + 0.5 * span, Z_GRID)
 
 
 def registration_generators(obs: np.ndarray, centre_px, focal_px: float) -> np.ndarray:
@@ -522,11 +551,11 @@ class RecordModel:
         q = rec.q
         self.q_lo, self.q_hi = float(q.min()), float(q.max())
         span = self.q_hi - self.q_lo
-        self.Phi_B = _sparse_basis(q, self.q_lo, self.q_hi, n_b) if n_b > 1 else None
+        self.Phi_B = rec.width_basis(n_b) if n_b > 1 else None
         self._taps = self._band_taps()
         if width_at == "output":  # the play's output grid the edges are inverted on (module doc)
-            self.z_grid = np.linspace(self.q_lo - 0.5 * span, self.q_hi + 0.5 * span, Z_GRID)
-            self.Phi_Bz = _sparse_basis(self.z_grid, self.q_lo, self.q_hi, n_b) if n_b > 1 else None
+            self.z_grid = output_grid(self.q_lo, self.q_hi)
+            self.Phi_Bz = rec.width_basis(n_b, "z") if n_b > 1 else None
         self.z_lo, self.z_hi = self.q_lo - 0.25 * span, self.q_hi + 0.25 * span
         self.w = np.ones(2 * rec.t_f.size)  # IRLS weights
         # a slide's longest duration (module doc: the slide): a frame period, and at least SLIDE_MAX_S
@@ -868,12 +897,19 @@ class RecordModel:
         return (np.zeros((self.rec.q.size, 1), np.int32), np.ones((self.rec.q.size, 1))) if self.n_b == 1 else None
 
     def __getstate__(self) -> dict:
-        """Pickled without `_play_part`'s memo (the grid's arrays: tens of MB a model) nor the
-        taps (views of the design, which a pickle would copy)."""
-        return {**self.__dict__, "_memo": None, "_taps": None}
+        """Pickled without `_play_part`'s memo (the grid's arrays: tens of MB a model), the taps (views
+        of the design, which a pickle would copy), B's designs (the record's, `Record.width_basis`:
+        4.5 MB a model on the bench record) nor the last linear solve (`solve`; a model that comes
+        through the pipe is evaluated again before its Jacobian is read, onset_fit._unslim)."""
+        return {**self.__dict__, "_memo": None, "_taps": None, "_lin": None, "Phi_B": None,
+                **({"Phi_Bz": None} if "Phi_Bz" in self.__dict__ else {})}
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
+        if self.n_b > 1:
+            self.Phi_B = self.rec.width_basis(self.n_b)
+            if self.width_at == "output":
+                self.Phi_Bz = self.rec.width_basis(self.n_b, "z")
         self._taps = self._band_taps()
 
     def columns(self, th: np.ndarray) -> tuple[dict, np.ndarray, np.ndarray, dict]:

@@ -38,7 +38,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .delay_guess import SUB
-from .onset_fit import IRLS_ROUNDS, Fit, _fit_all, _fit_chain, _fit_distinct, _fresh, _resample_B, _settle, fit_model
+from ..base.forkmap import fork_map
+from .onset_fit import (IRLS_ROUNDS, RING_COST_FACTOR, Fit, _fit_all, _fit_chain, _fit_distinct, _fresh,
+                        _resample_B, _settle, _slim, _unslim, fit_model)
 from .onset_model import WIDTH_AT, Record, RecordModel, Terms, noise_sigma, robust_sigma
 
 G_CTRL = (6, 10, 14)   # the image path's coefficients per axis, chosen by BIC on the start
@@ -190,7 +192,9 @@ def _coarse_starts(rec: Record, cands: np.ndarray, prior, board_b: np.ndarray | 
     peak from an alias, and the search's B(q) takes the rest back."""
     m = RecordModel(rec, 1, G_CTRL[1], Terms(), prior, None)
     widths = sorted(_start_widths(rec, board_b))
-    starts = [_profiled_start(m, float(d), widths, sigma, rec.period_s / SUB) for d in cands]
+    # each peak's profile on two cores (base.forkmap): m's weights stay at 1, so a score is a function of
+    # its delay and width alone, whichever process computes it
+    starts = fork_map(lambda d: _profiled_start(m, float(d), widths, sigma, rec.period_s / SUB), list(cands))
     return [s[1] for s in sorted(starts, key=lambda s: s[0])]  # sorted keeps the first of equal scores
 
 
@@ -370,12 +374,20 @@ def _fitted_start(rec: Record, n_g: int, delays: list[float], widths: list[float
     from each, the delay's start scores 435 and the alias's 514; the configured delay's fit also
     reaches 87 ms (436) (each a full fit, 3 reweightings; their trial fits, one, rank them the same)."""
     m = RecordModel(rec, 1, n_g, Terms(), prior, None, "input")
-    cands = []
-    for d in dict.fromkeys(float(d) for d in delays):
-        cands.append((d, min(widths, key=lambda b: _start_bic(m, d, b, sigma))))
-    jobs = [([RecordModel(rec, 1, n_g, Terms(), prior, None, "input")], m.theta({"d": np.array([d]), "B": np.array([b])}),
-             sigma, 20, TRIAL_ROUNDS) for d, b in cands]
-    fits = [fs[-1] for fs in _fit_all(jobs, _fit_chain)]
+
+    def start(d: float) -> tuple[float, Fit]:
+        """The delay d's width (of lowest `_start_bic`) and its trial fit: one item on two cores
+        (base.forkmap; m's weights stay at 1, so a score depends on its delay and width alone, and a
+        fit on its job alone, `_fit_one`)."""
+        b = min(widths, key=lambda b: _start_bic(m, d, b, sigma))
+        job = ([RecordModel(rec, 1, n_g, Terms(), prior, None, "input")], m.theta({"d": np.array([d]), "B": np.array([b])}),
+               sigma, 20, TRIAL_ROUNDS)
+        return b, _fit_chain(job)[-1]
+
+    ds = list(dict.fromkeys(float(d) for d in delays))
+    done = fork_map(start, ds, pack=lambda r: (r[0], _slim(r[1])), unpack=lambda r: (r[0], _unslim(r[1])))
+    cands = [(d, b) for d, (b, _) in zip(ds, done)]
+    fits = [f for _, f in done]
     bics = [f.bic(sigma) for f in fits]
     k = int(np.argmin(bics))
     return cands[k], {f"{d:.4f}": b for (d, _), b in zip(cands, bics)}, fits[k]
@@ -426,7 +438,7 @@ def _term_trials(s: "_Search", name: str, base: Terms, fit: Fit) -> tuple[list, 
         freqs = _ring_scan(mt, parts, sigma)
         th0s = [mt.theta({**parts, "ring": mt.ring_theta(freqs[0], 0.1)})] + \
                [_ring_start(mt, p, freqs, sigma) for p in bases]
-        if n_b > 1:  # and coarse to fine from the starts profiled with it (`_ring_profiled_starts`)
+        if _has_chains(name, n_b):  # and coarse to fine from the starts profiled with it (`_ring_profiled_starts`)
             def builder(mt=mt, parts=parts, freqs=freqs, slope=m.G_slope(fit.ev)):
                 out = []  # slope: the path's tangent of the fit so far
                 for p in _ring_profiled_starts(rec, n_g, base.with_(name), prior, d_fixed, parts, freqs,
@@ -453,7 +465,7 @@ def _term_trials(s: "_Search", name: str, base: Terms, fit: Fit) -> tuple[list, 
             th0s.append(mt.theta({**parts, "d": np.array([d_s]), "B": np.full(n_b, b_s)}))
         th0s = _trial_starts(mt, th0s, sigma)
     jobs = [([mt], th0, sigma, 8, _trial_rounds(name), name) for th0 in th0s]
-    if name.startswith("reg_") and n_b > 1:  # and coarse to fine from the start profiled with it (`_fit_chain`)
+    if _has_chains(name, n_b) and name.startswith("reg_"):  # and coarse to fine from the start profiled with it (`_fit_chain`)
         def builder(mt=mt, parts=parts, slope=m.slope):
             d_s, b_s = st.get((name,), (starts[-1], b0))
             ms = chain(base.with_(name), [n for n in ladder if n < n_b], width_at) + [mt]
@@ -462,6 +474,33 @@ def _term_trials(s: "_Search", name: str, base: Terms, fit: Fit) -> tuple[list, 
             return [(ms, ms[0].theta({**{k: v for k, v in parts.items() if k in ms[0].layout()},
                                       "d": np.array([d_s]), "B": np.array([b_s])}), sigma, 20, 2, name)]
     return jobs, builder
+
+
+def _has_chains(name: str, n_b: int) -> bool:
+    """Whether the term name's trials come with chains (`_term_trials`' builder) at B's size n_b: the
+    tip mode's and a registration switch's, when B has more than one coefficient to carry them to."""
+    return n_b > 1 and (name == "ring" or name.startswith("reg_"))
+
+
+def _trial_fits(s: _Search, offers: list, fit: Fit) -> list:
+    """The trial fits of each offer (term name, the Terms it goes onto) from the Fit fit: per offer,
+    the last Fit of each of `_term_trials`' jobs, in their order (a job alike another fitted once,
+    `_fit_distinct`). One offer is one item on two cores (base.forkmap; the tip mode's first, its fits
+    RING_COST_FACTOR times a plain one's), its starts built there beside its fits. s: the search's
+    context (`_Search`).
+
+    Why the offer, not the fit, an item: a term's starts (the tip mode's frequency scan and its
+    starts at each delay, the settles that rank a switch's, a slide's, the exposure's and the spread's
+    starts) are evaluations too, a quarter of a round (0.25 of the bench record's 1.1 s), and built
+    in turn before the fits they ran on one core. The fits are those of the starts built in the
+    parent (a fit depends on its job alone, `_fit_one`, and a term's starts on the fit so far and
+    the context alone); a test checks a round bit for bit against its offers run in turn."""
+
+    def item(offer):
+        name, base = offer
+        return _fit_distinct([j[:5] for j in _term_trials(s, name, base, fit)[0]], here=True)
+
+    return fork_map(item, offers, cost=lambda o: RING_COST_FACTOR if o[0] == "ring" else 1.0, pack=_slim, unpack=_unslim)
 
 
 def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
@@ -496,13 +535,9 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
            {"terms": terms.names(), "bic": bic, "t_delay_s": float(fit.theta[0])}]
     near = {}  # each entered term's runner-ups in its round, within Occam's window (`_exchange`)
     while True:
-        jobs, chains = [], {}  # the terms' trials; each term's chains, built when they are to run (below)
-        for name in terms.offered():
-            tj, builder = _term_trials(ctx, name, terms, fit)
-            jobs += tj
-            if builder is not None:
-                chains[name] = builder
-        trials = [(f.bic(sigma), job[5], f) for job, f in zip(jobs, _fit_distinct([j[:5] for j in jobs]))]
+        offered = terms.offered()
+        trials = [(f.bic(sigma), name, f) for name, fs in zip(offered, _trial_fits(ctx, [(n, terms) for n in offered], fit))
+                  for f in fs]
         # The chains run for the term whose trial leads the round (the lowest BIC), once that trial
         # lowers the record's BIC: they carry the term's own profiled start coarse to fine, to reach its
         # best basin where the fit so far was dragged by its absence, and a term that no start lowers
@@ -513,10 +548,14 @@ def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):
         # coefficient), and on a registration record every term's trial lowers the plain model's BIC:
         # on a 25 fps registration triangle of the development group the tip mode's chains, which
         # trailed the switch's trial by a factor 20 in BIC, were 19.6 of calibrate's 57 s on one core.
+        # The lead's chains are built here, its starts once more (`_trial_fits` built them in an item):
+        # the builder carries the models its starts were ranked on, which do not come back through the pipe.
         lead = min(trials, key=lambda c: c[0]) if trials else None
-        jobs = [j for n in chains if lead is not None and lead[1] == n and lead[0] < bic for j in chains[n]()]
+        jobs = []
+        if lead is not None and lead[0] < bic and _has_chains(lead[1], fit.model.n_b):
+            jobs = _term_trials(ctx, lead[1], terms, fit)[1]()
         chained = [(f.bic(sigma), job[5], f) for job, f in zip(jobs, _fit_distinct([j[:5] for j in jobs]))]
-        cands = [c for n in terms.offered()  # by term, as they were built: the ring's chains first, a switch's last
+        cands = [c for n in offered  # by term, as they were built: the ring's chains first, a switch's last
                  for c in (chained + trials if n == "ring" else trials + chained) if c[1] == n]
         if not cands:
             break
@@ -581,10 +620,9 @@ def _exchange(s: _Search, fit: Fit, bic: float, near: dict, log: list) -> tuple:
             pairs += [(x, base, y) for y in near.get(x, []) if y in base.offered() and not getattr(terms, y)]
     if not pairs:
         return fit, bic
-    jobs = [(j, f"{x}->{y}") for x, base, y in pairs for j in _term_trials(s, y, base, fit)[0]]
-    fits = _fit_distinct([j[:5] for j, _ in jobs])
     sigma = s.sigma
-    trials = [(f.bic(sigma), label, f) for (_, label), f in zip(jobs, fits)]
+    trials = [(f.bic(sigma), f"{x}->{y}", f) for (x, _, y), fs in zip(pairs, _trial_fits(s, [(y, base) for _, base, y in pairs], fit))
+              for f in fs]
     log.append({"exchange": [(label, b) for b, label, _ in trials]})
     c_bic, label, f = min(trials, key=lambda c: c[0])
     if c_bic >= bic:

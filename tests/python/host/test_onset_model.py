@@ -421,3 +421,22 @@ def test_the_plays_edge_gradient_at_the_input_is_the_designs_rows():
     k = np.random.default_rng(1).integers(0, rec.q.size, 300)
     side = np.where(np.arange(300) % 2 == 0, -0.5, 0.5)
     assert np.array_equal(m.edge_gradient(np.full(8, 0.2), k, rec.q[k], side), m.Phi_B[k].toarray() * side[:, None])
+
+
+def test_models_of_a_size_share_their_records_design_and_a_pickled_one_rebuilds_it():
+    # B's design on the grid is the record's (Record.width_basis), one per size, shared by every model
+    # of that size; a model pickled (a forked child's fit coming back) leaves it out, and the one that
+    # comes back builds it from its record again: the same design, and the same evaluation bit for bit.
+    import pickle
+
+    r, d, t, q, rt, rq, obs, _ = record(duration_s=10.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    a, b = (OM.RecordModel(rec, 8, 6, OM.Terms(reg_tip=True), None, None, w) for w in ("input", "output"))
+    assert a.Phi_B is b.Phi_B and a.Phi_B is rec.width_basis(8) and b.Phi_Bz is rec.width_basis(8, "z")
+    for m in (a, b):
+        th = m.theta({"d": np.array([r.delay_s]), "B": np.full(8, 0.2)})
+        want = m.evaluate(th).resid
+        blob = pickle.dumps(m)
+        assert len(blob) < len(pickle.dumps(rec)) + 2 * m.w.nbytes + 200_000  # the record and the weights, no design
+        back = pickle.loads(blob)
+        assert (back.Phi_B != m.Phi_B).nnz == 0 and np.array_equal(back.evaluate(th).resid, want)

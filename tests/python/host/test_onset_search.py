@@ -311,15 +311,16 @@ def test_a_rounds_chains_run_for_the_term_whose_trial_leads_it(monkeypatch, evid
     class Chains(Exception):
         pass
 
-    def fit_distinct(jobs):
-        terms = [tuple(j[0][0].terms.names()) for j in jobs]
-        if rounds:  # the chains' call: what was asked for is the test's answer
-            raise Chains(terms, [len(j[0]) for j in jobs])
-        rounds.append(terms)
-        return [SimpleNamespace(bic=lambda s, k=k: -1e12 if evident in k else (-1e11 if runner_up in k else 1e12))
-                for k in terms]
+    def trial_fits(s, offers, fit):  # the round's trials, one stand-in fit a term
+        rounds.append([(name,) for name, _ in offers])
+        return [[SimpleNamespace(bic=lambda s, k=name: -1e12 if evident == k else (-1e11 if runner_up == k else 1e12))]
+                for name, _ in offers]
+
+    def fit_distinct(jobs, here=False):  # the chains' call: what was asked for is the test's answer
+        raise Chains([tuple(j[0][0].terms.names()) for j in jobs], [len(j[0]) for j in jobs])
 
     real = OS._ring_profiled_starts
+    monkeypatch.setattr(OS, "_trial_fits", trial_fits)
     monkeypatch.setattr(OS, "_fit_distinct", fit_distinct)
     monkeypatch.setattr(OS, "_ring_profiled_starts", lambda *a: profiled.append(1) or real(*a))
     with pytest.raises(Chains) as e:
@@ -416,11 +417,13 @@ def test_a_switchs_trial_from_its_lowest_settled_other_start_is_its_best_other_t
         seen.setdefault(tuple(m.terms.names()), (m, th0s, sigma, kept))
         return kept
 
-    def fit_distinct(jobs):
-        raise Built  # the first round's starts are built: what the test asks about
+    def trial_fits(s, offers, fit):  # the first round's starts, built here in turn: what the test asks about
+        for name, base in offers:
+            OS._term_trials(s, name, base, fit)
+        raise Built
 
     monkeypatch.setattr(OS, "_trial_starts", spy)
-    monkeypatch.setattr(OS, "_fit_distinct", fit_distinct)
+    monkeypatch.setattr(OS, "_trial_fits", trial_fits)
     with pytest.raises(Built):
         OS._search(rec, [r.delay_cfg_s], prior, None, None, sig, [r.delay_cfg_s])
     m, th0s, sigma, kept = seen[("reg_tip",)]
@@ -477,3 +480,31 @@ def test_the_exchange_puts_a_near_rival_in_an_entered_terms_place_only_where_it_
     fit, bic = OS._exchange(ctx, expo, expo.bic(sig), {"expo": ["slide_tip"]}, log)
     assert fit is expo and bic == expo.bic(sig)
     assert min(b for _, b in log[-1]["exchange"]) >= expo.bic(sig)  # tried, and kept out
+
+
+@pytest.mark.parametrize("through", ["fork", "pipe"])
+def test_a_rounds_trials_built_and_fitted_in_their_items_are_the_offers_built_and_fitted_in_turn(monkeypatch, through):
+    # `_trial_fits` builds each offer's starts beside its fits, an offer an item on two cores
+    # (base.forkmap; "pipe": every item as a forked child hands it back, forkpipe). The fits are
+    # those of each offer's starts built and fitted in turn here, bit for bit: a term's starts depend
+    # on the fit so far and the search's context alone.
+    from .forkpipe import through_the_pipe
+
+    r, d, t, q, rt, rq, obs, hyst = record(duration_s=10.0)
+    rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
+    prior, sig = (r.delay_cfg_s, rec.period_s / np.sqrt(12)), OM.noise_sigma(obs)
+    st, n_g = OS._start(rec, [r.delay_cfg_s], prior, None, None, sig)
+    b0 = float(np.mean(r.B(q)))
+    m = OM.RecordModel(rec, 4, n_g, OM.Terms(), prior)
+    fit = OF.fit_model(m, m.theta({"d": np.array([r.delay_cfg_s]), "B": np.full(4, b0)}), sigma=sig, max_nfev=6, rounds=1)
+    ctx = OS._Search(rec, n_g, prior, None, [r.delay_cfg_s], OS._start_widths(rec, None), b0, st, [1, 4], sig)
+    offers = [(name, OM.Terms()) for name in ("ring", "reg_tip", "expo")]
+    if through == "pipe":
+        monkeypatch.setattr(OS, "fork_map", through_the_pipe)
+    got = OS._trial_fits(ctx, offers, fit)
+    want = [OF._fit_distinct([j[:5] for j in OS._term_trials(ctx, name, base, fit)[0]], here=True) for name, base in offers]
+    assert [len(fs) for fs in got] == [len(fs) for fs in want] and min(len(fs) for fs in want) >= 1
+    for fs_got, fs_want in zip(got, want):
+        for a, b in zip(fs_got, fs_want):
+            assert np.array_equal(a.theta, b.theta) and a.bic(sig) == b.bic(sig)
+            assert np.array_equal(a.ev.resid, b.ev.resid)  # its evaluation too (from the model when it came through the pipe)
