@@ -12,12 +12,22 @@ computation left in shared objects (each fn must be a function of its item alone
 tests check the result bit for bit against the items run in turn). A child that dies leaves its
 items to this process; an item that raised in the child raises here; when one raises here, the
 child is stopped rather than awaited.
+
+Within `lockstep` (the calibration's), the child is forked once, for the whole block, rather than
+once a map: both processes run the block's code, each item of a map is computed by the one that
+takes it, and at the map's end each hands the other its results, so both go on from the same
+results. Why: a fork costs more than its system call. The child's first evaluations after it run
+2-6 times slower (its copy of the parent's pages is written one page at a time, and its core was
+idle), which on the bench session was 50-90 ms of the child's first item in every map, 0.1-0.2 s
+of a map's 0.2-0.9 s wall; a fork and its exit are another 20 ms.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
+import signal
 import sys
 import traceback
 from typing import Callable, Sequence
@@ -61,20 +71,33 @@ def _same(x):
     return x
 
 
-def fork_map(fn: Callable, items: Sequence, cost: Callable | None = None, pack: Callable = _same,
-             unpack: Callable = _same) -> list:
-    """[fn(x) for x in items], in the items' order, shared with a forked child when `can_fork`
-    (else in turn). cost(item): a relative cost, the costly items taken first (None: in order);
-    pack(result) in the child before the pipe and unpack(result) here after it, for results whose
-    bulk is cheaper to recompute than to send. Errors: RuntimeError with the child's traceback
-    when fn raised there; fn's own errors here."""
-    if len(items) < 2 or not can_fork():
-        return [fn(x) for x in items]
-    ctx = multiprocessing.get_context("fork")
+def _order(items: Sequence, cost: Callable | None) -> list:
+    """The items' indices, the costly first by cost(item) (ties, and cost None: in order)."""
     order = list(range(len(items)))
     if cost is not None:
         c = [cost(x) for x in items]
         order.sort(key=lambda i: -c[i])
+    return order
+
+
+def fork_map(fn: Callable, items: Sequence, cost: Callable | None = None, pack: Callable = _same,
+             unpack: Callable = _same) -> list:
+    """[fn(x) for x in items], in the items' order, shared with a forked child when `can_fork`
+    (else in turn); within `lockstep`, with its child. cost(item): a relative cost, the costly
+    items taken first (None: in order); pack(result) before the pipe (in the process that computed
+    it; it must not change the result itself, which that process keeps within `lockstep`) and
+    unpack(result) after it, for results whose bulk is cheaper to recompute than to send. Errors:
+    RuntimeError with the child's traceback when fn raised there; fn's own errors here."""
+    global _IN_ITEM
+    peer = _PEER
+    if _IN_ITEM or len(items) < 2:
+        return [fn(x) for x in items]  # an item's own map, in the process computing it; or one item (in both sides)
+    if peer is not None and peer.alive:
+        return peer.map(fn, items, cost, pack, unpack)
+    if not can_fork():
+        return [fn(x) for x in items]
+    ctx = multiprocessing.get_context("fork")
+    order = _order(items, cost)
     nxt = ctx.Value("l", 0)
     recv, send = ctx.Pipe(duplex=False)
     child = ctx.Process(target=_child, args=(fn, items, order, nxt, pack, send), daemon=True)
@@ -83,8 +106,12 @@ def fork_map(fn: Callable, items: Sequence, cost: Callable | None = None, pack: 
     out: list = [None] * len(items)
     got = [False] * len(items)
     try:
-        for i in _take(order, nxt):
-            out[i], got[i] = fn(items[i]), True
+        _IN_ITEM = True
+        try:
+            for i in _take(order, nxt):
+                out[i], got[i] = fn(items[i]), True
+        finally:
+            _IN_ITEM = False
         try:
             done = recv.recv()
         except EOFError:  # the child died: its items are computed below
@@ -100,3 +127,140 @@ def fork_map(fn: Callable, items: Sequence, cost: Callable | None = None, pack: 
     for i, r in done.items():
         out[i], got[i] = unpack(r), True
     return [r if ok else fn(x) for r, ok, x in zip(out, got, items)]
+
+
+# --------------------------------------------------------------------------- lockstep
+_SLOTS = 4096  # the maps a lockstep block shares (a counter each); later maps run in turn in both processes
+_PEER: "_Peer | None" = None  # this process's side of the lockstep block it is in, if any
+_IN_ITEM = False  # this process is computing an item of a map: a map within it runs in turn (not a third process)
+
+
+class _Peer:
+    """One side of a `lockstep` block: role "parent" or "child", the duplex pipe to the other side,
+    the per-map counters (shared memory) and their lock, the maps so far, whether the other side is
+    still there, and the child's pid (the parent's side)."""
+
+    def __init__(self, role: str, conn, counts, lock, pid: int = 0):
+        self.role, self.conn, self.counts, self.lock, self.pid = role, conn, counts, lock, pid
+        self.maps, self.alive = 0, True
+
+    def _take(self, slot: int, order: list):
+        while True:
+            with self.lock:
+                k = self.counts[slot]
+                self.counts[slot] = k + 1
+            if k >= len(order):
+                return
+            yield order[k]
+
+    def map(self, fn, items, cost, pack, unpack) -> list:
+        """fork_map within the block: each item computed by the side that takes it, the results swapped."""
+        k = self.maps
+        self.maps += 1
+        if k >= _SLOTS:
+            return [fn(x) for x in items]
+        global _IN_ITEM
+        mine = {}
+        _IN_ITEM = True
+        try:
+            for i in self._take(k, _order(items, cost)):
+                mine[i] = fn(items[i])
+        except BaseException:
+            self.leave()  # the child leaves; the parent stops it and raises as fn did
+            raise
+        finally:
+            _IN_ITEM = False
+        theirs = self._swap((k, len(items), getattr(fn, "__qualname__", "")), {i: pack(r) for i, r in mine.items()})
+        out = [None] * len(items)
+        got = [False] * len(items)
+        for i, r in mine.items():
+            out[i], got[i] = r, True
+        for i, r in theirs.items():
+            out[i], got[i] = unpack(r), True
+        return [r if ok else fn(x) for r, ok, x in zip(out, got, items)]  # what the other side took and never sent
+
+    def _swap(self, tag: tuple, payload: dict) -> dict:
+        """Hand the other side this map's results and take its own: {index: packed result}; {} when
+        it is gone or its map was not this one (tag: the map's number, size and function), after which
+        the parent goes on alone and the child leaves."""
+        try:
+            if self.role == "child":
+                self.conn.send((tag, payload))
+                got = self.conn.recv()
+            else:
+                got = self.conn.recv()
+        except Exception:  # EOF: the other side is gone (or a result that does not pickle)
+            self.leave()
+            return {}
+        if got[0] != tag:
+            self.leave()
+            return {}
+        if self.role == "parent":
+            try:
+                self.conn.send((tag, payload))
+            except Exception:  # a result of this side's that does not pickle: the child leaves, its own kept
+                self.leave()
+        return got[1]
+
+    def leave(self) -> None:
+        """The child exits at once; the parent stops and reaps it and goes on alone (its maps then
+        forked each, as outside the block)."""
+        if self.role == "child":
+            os._exit(0)
+        if self.alive:
+            self.alive = False
+            self.conn.close()
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.pid, signal.SIGKILL)
+            with contextlib.suppress(ChildProcessError):
+                os.waitpid(self.pid, 0)
+
+
+@contextlib.contextmanager
+def lockstep():
+    """Run the block in this process and in one forked child at once, its fork_maps shared between
+    the two (module doc): the child is forked on entry, runs the block's code as this process does,
+    with no output of its own (its stdout and stderr to /dev/null, no stage sink, no warnings), and
+    exits where the block ends; this process stops it there. A no-op when `can_fork` says no or
+    within another block.
+
+    The block's code must be a function of its inputs and of the maps' results alone, as a map's
+    items must be of their item alone: the two sides then reach the same maps with the same items.
+    A side that reaches another map (its number, size or function differ) or finds the other gone is
+    left: the parent computes what the child took, and goes on alone. An item that raises ends the
+    child; in the parent it raises as fn's own error."""
+    global _PEER
+    if _PEER is not None or not can_fork():
+        yield
+        return
+    ctx = multiprocessing.get_context("fork")
+    here, there = ctx.Pipe(duplex=True)
+    counts, lock = ctx.RawArray("q", _SLOTS), ctx.Lock()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:  # the child: the block, quietly, then out
+        code = 1
+        try:
+            here.close()
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, 1)
+            os.dup2(null, 2)
+            sys.stdout = sys.stderr = open(os.devnull, "w")  # also where these had been set elsewhere
+            import warnings
+
+            from .stage import _SINK
+            warnings.simplefilter("ignore")
+            _SINK.set(None)
+            _PEER = _Peer("child", there, counts, lock)
+            yield
+            code = 0
+        finally:
+            os._exit(code)
+    there.close()
+    _PEER = peer = _Peer("parent", here, counts, lock, pid)
+    try:
+        yield
+    finally:
+        _PEER = None
+        peer.leave()

@@ -479,7 +479,21 @@ def _one_blas_thread(fn):
     return run
 
 
+def _in_lockstep(fn):
+    """fn run within base.forkmap.lockstep: its fits shared with one child forked for the whole call,
+    not one a map (that module's doc: why)."""
+    @functools.wraps(fn)
+    def run(*args, **kw):
+        from ..base.forkmap import lockstep
+
+        with lockstep():
+            return fn(*args, **kw)
+
+    return run
+
+
 @_one_blas_thread
+@_in_lockstep
 def calibrate(s: Session, n_ctrl: int = 14, f_method: str = "lsq", fps: float | None = None,
               t_delay_s: float | None = None, hysteresis: float | None = None,
               onset_cfg: dict | None = None, source: str | None = None,

@@ -276,10 +276,12 @@ def _slim(result):
     """A job's result (a Fit or a list of Fits) without its evaluations, for the pipe: an evaluation
     holds the grid's play and drive (35 MB on the bench record, so a chain's took seconds to pass),
     and the model it came from gives it again bit for bit (`_unslim`: a Fit's evaluation is its
-    model's at theta in the state the fit left, `fit_model`'s last settle)."""
-    for f in (result if isinstance(result, list) else [result]):
+    model's at theta in the state the fit left, `fit_model`'s last settle). Copies (shallow): the
+    process that fitted them keeps its own Fits whole (base.forkmap.lockstep)."""
+    out = [copy.copy(f) for f in (result if isinstance(result, list) else [result])]
+    for f in out:
         f.ev = None
-    return result
+    return out if isinstance(result, list) else out[0]
 
 
 def _unslim(result):

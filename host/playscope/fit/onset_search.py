@@ -39,7 +39,7 @@ import numpy as np
 
 from .delay_guess import SUB
 from ..base.forkmap import fork_map
-from .onset_fit import (IRLS_ROUNDS, RING_COST_FACTOR, Fit, _fit_all, _fit_chain, _fit_distinct, _fresh,
+from .onset_fit import (IRLS_ROUNDS, Fit, _fit_all, _fit_chain, _fit_distinct, _fresh,
                         _resample_B, _settle, _slim, _unslim, fit_model)
 from .onset_model import WIDTH_AT, Record, RecordModel, Terms, noise_sigma, robust_sigma
 
@@ -119,15 +119,21 @@ def _start(rec: Record, d_starts: list[float], prior, d_fixed, board_b: np.ndarr
     up B's own variation over the travel); each registration term's own best start is kept for
     when the search tries it. Returns ({term names (tuple): (t_delay, width)}, n_g)."""
     widths = _start_widths(rec, board_b)
-    best = {}
-    for terms in (Terms(), Terms(reg_tip=True), Terms(reg_motor=True)):
+
+    def lowest(terms: Terms) -> tuple[float, float, float]:
+        """(BIC, delay, width) of the lowest of terms' profile, the first of equal scores: a set of terms
+        an item on two cores (base.forkmap; a score depends on its delay and width alone)."""
         m = RecordModel(rec, 1, G_CTRL[1], terms, prior, d_fixed)
+        best = None
         for d in d_starts:
             for b in widths:
                 c = _start_bic(m, d, b, sigma)
-                key = tuple(terms.names())
-                if key not in best or c < best[key][0]:
-                    best[key] = (c, d, b)
+                if best is None or c < best[0]:
+                    best = (c, d, b)
+        return best
+
+    sets = [Terms(), Terms(reg_tip=True), Terms(reg_motor=True)]
+    best = {tuple(t.names()): v for t, v in zip(sets, fork_map(lowest, sets))}
     _, d, b = min(best.values())
     bics = [_start_bic(RecordModel(rec, 1, n_g, Terms(), prior, d_fixed), d, b, sigma) for n_g in G_CTRL]
     return {k: v[1:] for k, v in best.items()}, G_CTRL[int(np.argmin(bics))]
@@ -208,7 +214,10 @@ def _lowest_settled(m: RecordModel, th0s: list, sigma: float, keep: int, fresh: 
     with the tip mode, its tangent) as the last start's settle set them; a trial fit from a kept start
     resets the weights and mixture (`_fit_one`) but not the tangent. fresh True: each on its own fresh
     copy of m (`_fresh`), as its trial fit would begin, so a start's cost depends on it alone."""
-    costs = [_settle(_fresh(m) if fresh else m, th, sigma)[1] for th in th0s]
+    if fresh:  # each on its own copy: on two cores (base.forkmap; in turn within another map's item)
+        costs = fork_map(lambda th: _settle(_fresh(m), th, sigma)[1], th0s)
+    else:
+        costs = [_settle(m, th, sigma)[1] for th in th0s]
     return sorted(range(len(th0s)), key=lambda i: (costs[i], i))[:keep], costs
 
 
@@ -485,22 +494,28 @@ def _has_chains(name: str, n_b: int) -> bool:
 def _trial_fits(s: _Search, offers: list, fit: Fit) -> list:
     """The trial fits of each offer (term name, the Terms it goes onto) from the Fit fit: per offer,
     the last Fit of each of `_term_trials`' jobs, in their order (a job alike another fitted once,
-    `_fit_distinct`). One offer is one item on two cores (base.forkmap; the tip mode's first, its fits
-    RING_COST_FACTOR times a plain one's), its starts built there beside its fits. s: the search's
-    context (`_Search`).
+    `_fit_distinct`). One offer is one item on two cores (base.forkmap; the costly first,
+    OFFER_COST), its starts built there beside its fits. s: the search's context (`_Search`).
 
     Why the offer, not the fit, an item: a term's starts (the tip mode's frequency scan and its
     starts at each delay, the settles that rank a switch's, a slide's, the exposure's and the spread's
     starts) are evaluations too, a quarter of a round (0.25 of the bench record's 1.1 s), and built
-    in turn before the fits they ran on one core. The fits are those of the starts built in the
-    parent (a fit depends on its job alone, `_fit_one`, and a term's starts on the fit so far and
-    the context alone); a test checks a round bit for bit against its offers run in turn."""
+    in turn before the fits they ran on one core. The fits are the same whichever process builds
+    and fits an offer (a fit depends on its job alone, `_fit_one`, and a term's starts on the fit so
+    far and the context alone); a test checks a round bit for bit against its offers run in turn."""
 
     def item(offer):
         name, base = offer
         return _fit_distinct([j[:5] for j in _term_trials(s, name, base, fit)[0]], here=True)
 
-    return fork_map(item, offers, cost=lambda o: RING_COST_FACTOR if o[0] == "ring" else 1.0, pack=_slim, unpack=_unslim)
+    return fork_map(item, offers, cost=lambda o: OFFER_COST.get(o[0].split("_")[0], 1.0), pack=_slim, unpack=_unslim)
+
+
+OFFER_COST = {"ring": 6.0, "spread": 3.0, "reg": 2.0, "slide": 2.0, "shift": 2.0}  # an offer's relative cost in a
+                       # round (`_trial_fits`; the exposure's 1), so the costly are taken first and the two cores
+                       # end together: its starts' building and trial fits on the bench record, alone on one core,
+                       # tip mode 0.60, spread 0.25, motor switch 0.23, tip switch 0.19, exposure 0.08 s. A schedule
+                       # only: the fits are the same in any order
 
 
 def _search(rec, starts, prior, d_fixed, board_b, sigma, peaks=()):

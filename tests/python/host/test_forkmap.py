@@ -82,3 +82,84 @@ def test_an_item_that_raises_here_stops_the_child_rather_than_awaiting_it():
     with pytest.raises(KeyError):
         forkmap.fork_map(fn, list(range(8)))
     assert time.monotonic() - t0 < 2.5
+
+
+# --------------------------------------------------------------------------- lockstep
+def _child_pid(out) -> set:
+    return {p for _, p in out} - {os.getpid()}
+
+
+def test_within_lockstep_both_sides_go_on_from_a_maps_results_to_the_next_one():
+    # the second map's items are made from the first map's results: the child, which computed some
+    # of each, must hold every result of the first to reach the same second map
+    parent = os.getpid()
+
+    def square(x):
+        _slow_here(parent, 0.02)
+        return x * x, os.getpid()
+
+    with forkmap.lockstep():
+        first = forkmap.fork_map(square, list(range(8)))
+        second = forkmap.fork_map(square, [r + 1 for r, _ in first])
+        if os.getpid() == parent:
+            got = (first, second)
+    first, second = got
+    assert [r for r, _ in first] == [x * x for x in range(8)]
+    assert [r for r, _ in second] == [(x * x + 1) ** 2 for x in range(8)]
+    assert _child_pid(first) and _child_pid(second) and _child_pid(first) == _child_pid(second)  # one child, both maps
+
+
+def test_a_lockstep_child_prints_nothing_and_is_gone_when_the_block_ends(capfd):
+    parent = os.getpid()
+    with forkmap.lockstep():
+        print("in the block", flush=True)
+        out = forkmap.fork_map(lambda x: (_slow_here(parent, 0.05), os.getpid())[1], list(range(6)))
+    child = set(out) - {parent}
+    assert len(child) == 1 and capfd.readouterr().out.count("in the block") == 1
+    with pytest.raises(ChildProcessError):  # stopped and reaped
+        os.waitpid(child.pop(), os.WNOHANG)
+
+
+def test_a_lockstep_side_that_reaches_another_map_is_left_and_the_parent_computes_what_it_took():
+    parent = os.getpid()
+
+    def fn(x):
+        _slow_here(parent, 0.05)
+        return x + 1
+
+    with forkmap.lockstep():
+        items = list(range(6)) if os.getpid() == parent else list(range(7))  # the child goes astray
+        out = forkmap.fork_map(fn, items)
+        again = forkmap.fork_map(fn, items)  # alone now, or forked as outside the block
+    assert out == again == [x + 1 for x in range(6)]
+
+
+def test_a_lockstep_item_that_raises_in_the_child_is_computed_here():
+    parent = os.getpid()
+
+    def fn(x):
+        _slow_here(parent, 0.05)
+        if os.getpid() != parent:
+            raise ArithmeticError("only in the child")
+        return 2 * x
+
+    with forkmap.lockstep():
+        out = forkmap.fork_map(fn, list(range(6)))
+    assert out == [2 * x for x in range(6)]
+
+
+def test_a_lockstep_item_that_raises_here_raises_and_stops_the_child():
+    parent = os.getpid()
+
+    def fn(x):
+        if os.getpid() == parent:
+            time.sleep(0.2)
+            raise KeyError(x)
+        time.sleep(3.0)
+        return x
+
+    t0 = time.monotonic()
+    with pytest.raises(KeyError):
+        with forkmap.lockstep():
+            forkmap.fork_map(fn, list(range(8)))
+    assert time.monotonic() - t0 < 2.5
