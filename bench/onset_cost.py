@@ -9,7 +9,7 @@ wall time is not. The steps are the search's own functions; each row's counts in
 nested in it (a step is named by its path, e.g. `_search/_fit_distinct`), and "the rest of
 `_search`" is what `_search` spends outside its nested steps (the chains that choose B's size and
 where it is read, and the full fit after each term enters, `fit_model`). The seconds include the
-counters' own overhead (a clock read per counted call). The fits run in this one process (`onset_fit.fork_map` made serial, whose results
+counters' own overhead (a clock read per counted call). The fits run in this one process (base.forkmap's second core turned off, whose results
 are the same bit for bit, docs/host.md "Speed"), so the wall times add up to the stage's time on one
 core; they depend on the machine's load, the counts do not. A second table splits the same counts
 by the terms of the model evaluated (the plain model, each term's trial models), with the time spent
@@ -26,7 +26,7 @@ import time
 from bench_session import loaded_session
 
 from playscope.base.native import core
-from playscope.fit import onset_fit, onset_model, onset_search
+from playscope.fit import onset_model, onset_search
 from playscope.fit.calibration import calibrate
 
 STEPS = ("fit_record", "_coarse_starts", "_search", "_start", "_fitted_start", "_ring_scan", "_ring_profiled_starts",
@@ -42,7 +42,9 @@ def instrument() -> tuple[dict, dict, dict]:
     count = dict.fromkeys(COUNTED, 0)
     table: dict[str, list] = {}
     stack: list[str] = []
-    onset_fit.fork_map = lambda fn, jobs, **_: [fn(j) for j in jobs]
+    from playscope.base import forkmap
+
+    forkmap.can_fork = lambda: False  # every map in this process, in turn (no lockstep child either)
     by_terms: dict[str, list] = {}
     for k, name in enumerate(COUNTED):
         def counted(self, *a, _f=getattr(onset_model.RecordModel, name), _n=name, _k=k):

@@ -221,8 +221,8 @@ def lockstep():
     """Run the block in this process and in one forked child at once, its fork_maps shared between
     the two (module doc): the child is forked on entry, runs the block's code as this process does,
     with no output of its own (its stdout and stderr to /dev/null, no stage sink, no warnings), and
-    exits where the block ends; this process stops it there. A no-op when `can_fork` says no or
-    within another block.
+    exits where the block ends; this process stops it there. A no-op when `can_fork` says no, within
+    another block, or within a map's item (whose own maps run in turn).
 
     The block's code must be a function of its inputs and of the maps' results alone, as a map's
     items must be of their item alone: the two sides then reach the same maps with the same items.
@@ -230,7 +230,7 @@ def lockstep():
     left: the parent computes what the child took, and goes on alone. An item that raises ends the
     child; in the parent it raises as fn's own error."""
     global _PEER
-    if _PEER is not None or not can_fork():
+    if _PEER is not None or _IN_ITEM or not can_fork():
         yield
         return
     ctx = multiprocessing.get_context("fork")
