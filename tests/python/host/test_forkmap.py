@@ -159,3 +159,39 @@ def test_lockstep_within_a_maps_item_forks_no_third_process():
             return forkmap._PEER is None
 
     assert all(forkmap.fork_map(fn, [1, 2, 3]))
+
+
+def test_a_lockstep_child_dies_with_its_parent():
+    # a calibration killed without a word leaves no child computing on: the block's child is
+    # killed with its parent (here a forked stand-in for the calibrating process, killed mid-block)
+    import signal
+
+    r, w = os.pipe()
+    stand_in = os.fork()
+    if stand_in == 0:
+        try:
+            os.close(r)
+            with forkmap.lockstep():
+                if forkmap._PEER.role == "parent":
+                    os.write(w, str(forkmap._PEER.pid).encode())
+                time.sleep(30)
+        finally:
+            os._exit(0)
+    os.close(w)
+    child = int(os.read(r, 32))
+    os.kill(stand_in, signal.SIGKILL)
+    os.waitpid(stand_in, 0)
+    def gone() -> bool:  # dead: reaped, or a zombie its new parent has not reaped yet
+        try:
+            with open(f"/proc/{child}/stat") as f:
+                return f.read().rsplit(")", 1)[1].split()[0] in "ZX"
+        except FileNotFoundError:
+            return True
+
+    for _ in range(100):
+        if gone():
+            break
+        time.sleep(0.05)
+    else:
+        os.kill(child, signal.SIGKILL)
+        pytest.fail(f"the block's child {child} outlived its parent")
