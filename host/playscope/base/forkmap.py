@@ -233,7 +233,8 @@ def lockstep():
     """Run the block in this process and in one forked child at once, its fork_maps shared between
     the two (module doc): the child is forked on entry, runs the block's code as this process does,
     with no output of its own (its stdout and stderr to /dev/null, no stage sink, no warnings), and
-    exits where the block ends; this process stops it there. A no-op when `can_fork` says no, within
+    exits where the block ends; this process stops it there (and were this process killed, the child
+    dies with it, `_die_with`). A no-op when `can_fork` says no, within
     another block, or within a map's item (whose own maps run in turn).
 
     The block's code must be a function of its inputs and of the maps' results alone, as a map's
