@@ -135,3 +135,22 @@ def test_the_calibration_is_the_same_bit_for_bit_with_a_second_core_or_without(s
     assert len(cal.doc["B_fit"]["model_cv"]) >= 2  # more than one alternative: the map had work to share
     monkeypatch.setattr(forkmap, "can_fork", lambda: False)
     assert json.dumps(calibrate(s, fps=25.0).doc) == json.dumps(cal.doc)
+
+
+def test_an_image_calibration_is_the_same_bit_for_bit_in_lockstep_and_on_one_core(tmp_path, monkeypatch):
+    # calibrate's lockstep child (base.forkmap.lockstep) runs the same chain and takes items of every
+    # map, the record model's term rounds among them (a registration record: rounds with offers); the
+    # file must be the one a single process writes
+    from playscope.base import forkmap
+    from playscope.io.session import load_session
+
+    from .onset_records import SR
+
+    if not forkmap.can_fork():
+        pytest.skip("needs Linux and two cores")
+    SR.write(SR.Rendering("lockstep", 7, duration_s=5.0, reg_deg=1.5), tmp_path / "s")
+    two = calibrate(load_session(tmp_path / "s")).doc
+    assert two["onset"]["refine"]["terms"]["chosen"]  # a term entered: the rounds had work to share
+    monkeypatch.setattr(forkmap, "can_fork", lambda: False)
+    one = calibrate(load_session(tmp_path / "s")).doc
+    assert json.dumps(two) == json.dumps(one)
