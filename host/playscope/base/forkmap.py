@@ -16,10 +16,11 @@ child is stopped rather than awaited.
 Within `lockstep` (the calibration's), the child is forked once, for the whole block, rather than
 once a map: both processes run the block's code, each item of a map is computed by the one that
 takes it, and at the map's end each hands the other its results, so both go on from the same
-results. Why: a fork costs more than its system call. The child's first evaluations after it run
-2-6 times slower (its copy of the parent's pages is written one page at a time, and its core was
-idle), which on the bench session was 50-90 ms of the child's first item in every map, 0.1-0.2 s
-of a map's 0.2-0.9 s wall; a fork and its exit are another 20 ms.
+results. Why: a fork costs more than its system call. The child's first evaluations after it ran
+2-6 times slower (8.3 and 4.5 ms, then 1.5 ms, on the bench record; the copy-on-write of the pages
+it writes and its idle core are the likely causes, not measured apart), which on the bench session
+was 50-90 ms more in the child's first item of every map; a fork_map of items that do nothing took
+35-40 ms.
 """
 
 from __future__ import annotations

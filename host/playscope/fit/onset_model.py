@@ -245,7 +245,9 @@ class Record:
         (at "grid": (N, n)) or on the output's z grid (at "z": (Z_GRID, n), `RecordModel.edges`); built
         once a record and shared by every model of that size, which only read it. Why: a model's own
         was 5.7 ms to build on the bench record's 86,250 samples, and 4.5 MB of each model pickled
-        between the processes (`__getstate__`)."""
+        between the processes (`__getstate__`). Errors: ValueError for another at."""
+        if at not in ("grid", "z"):
+            raise ValueError(f"at must be 'grid' or 'z', not {at!r}")
         key = (n, at)
         if key not in self._bases:
             lo, hi = float(self.q.min()), float(self.q.max())

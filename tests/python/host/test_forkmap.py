@@ -132,7 +132,8 @@ def test_a_lockstep_side_that_reaches_another_map_is_left_and_the_parent_compute
         return x + 1
 
     with forkmap.lockstep():
-        items = list(range(6)) if os.getpid() == parent else list(range(7))  # the child goes astray
+        # the child goes astray: another map, whose results taken for this one's would be 100 off
+        items = list(range(6)) if os.getpid() == parent else [x + 100 for x in range(7)]
         out = forkmap.fork_map(fn, items)
         again = forkmap.fork_map(fn, items)  # alone now, or forked as outside the block
     assert out == again == [x + 1 for x in range(6)]

@@ -433,6 +433,8 @@ def test_models_of_a_size_share_their_records_design_and_a_pickled_one_rebuilds_
     rec = OM.make_record(t, q, rt, rq, d["t_f"], obs, r.fps)
     a, b = (OM.RecordModel(rec, 8, 6, OM.Terms(reg_tip=True), None, None, w) for w in ("input", "output"))
     assert a.Phi_B is b.Phi_B and a.Phi_B is rec.width_basis(8) and b.Phi_Bz is rec.width_basis(8, "z")
+    with pytest.raises(ValueError, match="'grid' or 'z'"):
+        rec.width_basis(8, "output")
     for m in (a, b):
         th = m.theta({"d": np.array([r.delay_s]), "B": np.full(8, 0.2)})
         want = m.evaluate(th).resid
