@@ -43,6 +43,21 @@ void dk_play_drags(const double *lo, const double *hi, long n, double z0, double
     }
 }
 
+void dk_first_moves(const double *z, long n, const long *from, const long *to, long m, long *out)
+{
+    for (long j = 0; j < m; j++) {
+        long k = (from[j] < 1) ? 1 : from[j];
+        long e = (to[j] < n) ? to[j] : n;
+        out[j] = -1;
+        for (; k < e; k++) {
+            if (z[k] != z[k - 1]) {  /* NaN moves, as numpy's != says */
+                out[j] = k;
+                break;
+            }
+        }
+    }
+}
+
 void dk_band_input(const double *q, const int *idx, const double *val, long n, long w, const double *c,
                    double *lo, double *hi)
 {

@@ -9,6 +9,9 @@ void dk_play_on_edges(const double *lo, const double *hi, long n, double z0, dou
  * edge was the lower (a tie counts as the lower), +0.5 the upper; before the first drag, sample
  * 0's (the reference's where(z == lo, -0.5, 0.5)[max(last, 0)]). */
 void dk_play_drags(const double *lo, const double *hi, long n, double z0, double *z, long *last, double *side);
+/* The first sample k in [from[j], to[j]) at which z moves (z[k] != z[k - 1], k >= 1), or -1, for
+ * each of m spans: the record model's onsets (onset_model._first_moves_ref, the same comparisons). */
+void dk_first_moves(const double *z, long n, const long *from, const long *to, long m, long *out);
 /* The band at the input, q -+ B / 2, B = max(sum_j val[k, j] c[idx[k, j]], 0) over w taps a sample
  * (the sparse B-spline design's rows, summed in scipy's csr_matvec order: bit for bit). */
 void dk_band_input(const double *q, const int *idx, const double *val, long n, long w, const double *c,

@@ -154,6 +154,22 @@ def play_drags(z_lo, z_hi, z0: float) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return z, last, side
 
 
+def first_moves(z, start, stop) -> np.ndarray:
+    """onset_model._first_moves_ref in C: for each span j, the first grid sample k in [start[j],
+    stop[j]) at which z moves (z[k] != z[k - 1], k >= 1), else -1; (M,) int64. z (N,); start, stop
+    (M,) int. Why: the reference compares all N samples per call to find M onsets, 0.3 of the
+    bench record's 2 ms evaluation; a span's scan ends at its first move."""
+    ffi, lib = _load()
+    zz = _arr(z)
+    a, b = np.ascontiguousarray(start, dtype=np.int64), np.ascontiguousarray(stop, dtype=np.int64)
+    if a.shape != b.shape:
+        raise ValueError("first_moves: start and stop must have one shape")
+    out = np.empty(a.size, np.int64)
+    lib.dk_first_moves(ffi.from_buffer("double[]", zz), zz.size, ffi.from_buffer("long[]", a),
+                       ffi.from_buffer("long[]", b), a.size, ffi.from_buffer("long[]", out))
+    return out
+
+
 def band_input(q, idx, val, c) -> tuple[np.ndarray, np.ndarray]:
     """onset_model's band at the input in C: (lo, hi) (N,) = q -+ max(B, 0) / 2, B[k] = sum_j
     val[k, j] c[idx[k, j]] (idx (N, w) int32, val (N, w)), summed as scipy's csr_matvec does."""

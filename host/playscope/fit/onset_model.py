@@ -321,6 +321,17 @@ def make_record(t_enc, q, rt, rq, t_f, obs, fps: float, centre_px=None, focal_px
                   np.asarray(rq, float), s_new, i1, 1.0 / fps, registration_generators(o, centre_px, float(focal_px)))
 
 
+def _first_moves_ref(z: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+    """For each span j, the first grid sample k in [start[j], stop[j]) at which z (N,) moves (z[k] !=
+    z[k - 1], k >= 1), else -1: (M,) int64 (the reference of base.kernels.first_moves)."""
+    mv = np.flatnonzero(z[1:] != z[:-1]) + 1
+    if mv.size == 0:
+        return np.full(np.shape(start), -1, np.int64)
+    k = np.searchsorted(mv, np.maximum(start, 1))
+    kk = mv[np.minimum(k, mv.size - 1)]
+    return np.where((k < mv.size) & (kk < stop), kk, -1).astype(np.int64)
+
+
 def play_drags_ref(lo: np.ndarray, hi: np.ndarray, z0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The play on band edges lo, hi (N,) from z0 (eq. 3) with its drags: (z, last, side) (N,) each,
     last[k] the latest sample <= k at which z sat on an edge (-1: none yet), side -0.5 when that
@@ -831,20 +842,15 @@ class RecordModel:
         """Scene time (M,) at which z starts to move after each reversal (linear within the grid
         step), NaN when it does not before the next reversal."""
         rec = self.rec
-        mv = np.flatnonzero(z[1:] != z[:-1]) + 1
+        # the hold starts at the reversal; the first move after the grid point past it, before the next
+        start, stop = rec.i1 + 1, np.r_[rec.i1[1:], rec.t.size]
+        kk = kernels.first_moves(z, start, stop) if kernels.available() else _first_moves_ref(z, start, stop)
         out = np.full(rec.rt.size, np.nan)
-        if mv.size == 0:
-            return out
-        nxt = np.r_[rec.i1[1:], rec.t.size]
-        # the hold starts at the reversal; the first move after the grid point past it
-        k = np.searchsorted(mv, rec.i1 + 1)
-        has = k < mv.size
-        kk = mv[np.minimum(k, mv.size - 1)]
-        has &= kk < nxt
+        has = kk >= 0
+        kk = kk[has]
         dz = np.abs(z[kk] - z[kk - 1])
         dq = np.maximum(np.abs(rec.q[kk] - rec.q[kk - 1]), 1e-15)
-        t_on = rec.t[kk] - rec.dt * np.clip(dz / dq, 0.0, 1.0)
-        out[has] = t_on[has]
+        out[has] = rec.t[kk] - rec.dt * np.clip(dz / dq, 0.0, 1.0)
         return out
 
     def _play_part(self, d: float, cB: np.ndarray, x0: float, e: float = 0.0, s: float = 0.0) -> tuple:
@@ -1217,9 +1223,9 @@ class RecordModel:
         # columns (px per rad) dominate: at the travel's ends, which few frames reach, G fell tens of px
         # off them and the Huber reweighting then dropped them for good (the weighted sum of squares rose
         # with each round).
-        D2 = np.diff(np.eye(p), 2, axis=0)
+        DtD = _second_difference_gram(p)
         for blk in (slice(0, p), slice(p, 2 * p)):
-            M[blk, blk] += G_PENALTY * (np.trace(M[blk, blk]) / p + 1e-30) * (D2.T @ D2)
+            M[blk, blk] += G_PENALTY * (np.trace(M[blk, blk]) / p + 1e-30) * DtD
         for name in ("tip", "motor"):
             mx = None if st is None else st.get(name + "_mix")
             if mx is None:
@@ -1472,13 +1478,24 @@ class RecordModel:
         if self.d_fixed is not None:
             Gu[:, 0] = Gv[:, 0] = 0.0
         Pu, Pv = self.project(Gu, Gv)
-        sw = np.sqrt(self.w)
-        J = -sw[:, None] * np.vstack([Pu, Pv]) / sigma
-        if self.prior is not None and self.d_fixed is None:
-            prow = np.zeros((1, th.size))
-            prow[0, 0] = self.prior_residual(d)[1]
-            J = np.vstack([J, prow])
-        return np.vstack([J] + self._mix_jacobian(th, ev, sigma))
+        # the rows stacked as `_residual_fn` stacks the residuals: the frames' u then v (weighted, in
+        # sigma units), the prior's row, the mixture's rows; filled in place rather than stacked (each
+        # stacking copied the 2F rows again: 0.5 of the bench record's 3.4 ms a Jacobian), the same bits
+        mix = self._mix_jacobian(th, ev, sigma)
+        prior = self.prior is not None and self.d_fixed is None
+        J = np.empty((2 * F + prior + sum(r.shape[0] for r in mix), th.size))
+        msw = -np.sqrt(self.w)
+        for rows, P in ((slice(0, F), Pu), (slice(F, 2 * F), Pv)):
+            np.multiply(msw[rows, None], P, out=J[rows])
+            J[rows] /= sigma
+        if prior:
+            J[2 * F] = 0.0
+            J[2 * F, 0] = self.prior_residual(d)[1]
+        i = 2 * F + prior
+        for r in mix:
+            J[i:i + r.shape[0]] = r
+            i += r.shape[0]
+        return J
 
     def _mix_jacobian(self, th: np.ndarray, ev: "Eval", sigma: float) -> list:
         """The rows of `mix_rows` over theta: the divergences through the shares' time since the
@@ -1551,6 +1568,16 @@ class RecordModel:
         p = self.n_g
         dB = _dbasis(ev.z_f, self.z_lo, self.z_hi, self.n_g)
         return np.column_stack([dB @ ev.beta[:self.n_g], dB @ ev.beta[p:p + self.n_g]])
+
+
+@functools.lru_cache(maxsize=None)
+def _second_difference_gram(p: int) -> np.ndarray:
+    """D2' D2 (p, p), D2 the second differences of p coefficients ((p - 2, p)): `solve`'s penalty,
+    built once a size (read-only)."""
+    D2 = np.diff(np.eye(p), 2, axis=0)
+    out = D2.T @ D2
+    out.flags.writeable = False
+    return out
 
 
 def _kl_row(gamma: np.ndarray, p: np.ndarray) -> np.ndarray:

@@ -60,6 +60,30 @@ def test_the_record_models_play_with_its_drags_and_its_band_bit_for_bit():
         assert (n_b == 1) or (B == 0.0).any()
 
 
+def test_the_record_models_first_moves_are_its_references():
+    # onset_model.onsets' search, in C against the numpy reference: a span whose first move is at its
+    # start, one with none (held to the next span), one starting at sample 0 (no move can be there),
+    # one past the grid, a NaN (it moves: NaN != NaN) and a span that ends where a move begins
+    from playscope.fit import onset_model as OM
+
+    q, lo, hi = _drive()
+    z = OM.play_drags_ref(lo, hi, 0.5 * (lo[0] + hi[0]))[0]
+    z[3000] = np.nan
+    start = np.array([0, 10, 1000, 1100, 2990, 2999, 3001, 5990, 7000])
+    stop = np.array([5, 400, 1150, 1300, 3000, 3001, 3010, 6100, 8000])
+    got, ref = kernels.first_moves(z, start, stop), OM._first_moves_ref(z, start, stop)
+    assert np.array_equal(got, ref) and got.dtype == ref.dtype == np.int64
+    assert ref[2] == -1 and ref[5] == 3000 and ref[-1] == -1  # the hold, the NaN, past the grid
+    rng = np.random.default_rng(3)
+    a = np.sort(rng.integers(0, z.size, 200))
+    b = a + rng.integers(0, 300, 200)
+    assert np.array_equal(kernels.first_moves(z, a, b), OM._first_moves_ref(z, a, b))
+    held = np.full(50, 2.0)  # no move anywhere
+    assert np.array_equal(kernels.first_moves(held, [1, 10], [20, 60]), OM._first_moves_ref(held, np.array([1, 10]), np.array([20, 60])))
+    with pytest.raises(ValueError):
+        kernels.first_moves(z, [1, 2], [3])
+
+
 def test_switch_bit_for_bit():
     q, _, _ = _drive(seed=1)
     for travel in (1e-3, 0.05, 0.4, 10.0):
