@@ -1,6 +1,6 @@
 """Sequential kernels in C (kernels.c): the play operator (the onsets' record model and the
 diagnosis use it), the record model's grid passes (the play with its drags, the band at the input,
-the tip mode's filter and its B gradient's drive) and the diagnosis' recursions, loaded through
+the onsets' first moves, the tip mode's filter and its B gradient's drive) and the diagnosis' recursions, loaded through
 cffi like the firmware core
 (playscope.base.native): compiled on first use into $PLAYSCOPE_CACHE/diagkernels-<hash of the C, the
 header and this file>, so an edit rebuilds it and a stale build is never loaded.
