@@ -71,6 +71,41 @@ void dk_band_input(const double *q, const int *idx, const double *val, long n, l
     }
 }
 
+void dk_band_play_drags(const double *q, const int *idx, const double *val, long n, long w, const double *c,
+                        double f, double *z, long *last, double *side, double *band0)
+{
+    double p = 0.0;
+    long lk = -1;
+    double sk = 0.5;
+    band0[0] = band0[1] = 0.0;
+    for (long k = 0; k < n; k++) {
+        double b = 0.0;  /* dk_band_input's sum and clip */
+        for (long j = 0; j < w; j++)
+            b += val[k * w + j] * c[idx[k * w + j]];
+        b = (b < 0.0) ? 0.0 : b;
+        double lo = q[k] - 0.5 * b, hi = q[k] + 0.5 * b;
+        if (k == 0) {  /* the first state on the first sample's band (onset_model.RecordModel.play_drags) */
+            band0[0] = lo;
+            band0[1] = hi;
+            p = lo + f * (hi - lo);
+        }
+        double m = (p > lo) ? p : lo;  /* dk_play_drags' step */
+        p = (m < hi) ? m : hi;
+        z[k] = p;
+        if (p == lo || p == hi) {
+            lk = k;
+            sk = (p == lo) ? -0.5 : 0.5;
+        }
+        last[k] = lk;
+        side[k] = sk;
+    }
+    if (n > 0 && last[0] < 0) {
+        double s0 = (z[0] == band0[0]) ? -0.5 : 0.5;
+        for (long k = 0; k < n && last[k] < 0; k++)
+            side[k] = s0;
+    }
+}
+
 void dk_tip_mode(const double *u, long n, double b1, double a1, double a2, double *y)
 {
     /* transposed direct form II of b = (0, b1, 0), a = (1, a1, a2), each product and sum in

@@ -16,6 +16,10 @@ void dk_first_moves(const double *z, long n, const long *from, const long *to, l
  * (the sparse B-spline design's rows, summed in scipy's csr_matvec order: bit for bit). */
 void dk_band_input(const double *q, const int *idx, const double *val, long n, long w, const double *c,
                    double *lo, double *hi);
+/* dk_band_input and dk_play_drags in one pass, the band never stored: the play starts at
+ * z0 = lo[0] + f (hi[0] - lo[0]) (f in [0, 1]); band0 gets (lo[0], hi[0]). The same bits as the two. */
+void dk_band_play_drags(const double *q, const int *idx, const double *val, long n, long w, const double *c,
+                        double f, double *z, long *last, double *side, double *band0);
 /* The tip mode's filter (onset_model._tip_filter's b = (0, b1), a = (1, a1, a2)) on u from rest:
  * scipy.signal.lfilter's transposed direct form II, bit for bit. */
 void dk_tip_mode(const double *u, long n, double b1, double a1, double a2, double *y);

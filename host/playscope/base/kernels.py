@@ -1,6 +1,6 @@
 """Sequential kernels in C (kernels.c): the play operator (the onsets' record model and the
 diagnosis use it), the record model's grid passes (the play with its drags, the band at the input,
-the onsets' first moves, the tip mode's filter and its B gradient's drive) and the diagnosis' recursions, loaded through
+the two in one pass, the onsets' first moves, the tip mode's filter and its B gradient's drive) and the diagnosis' recursions, loaded through
 cffi like the firmware core
 (playscope.base.native): compiled on first use into $PLAYSCOPE_CACHE/diagkernels-<hash of the C, the
 header and this file>, so an edit rebuilds it and a stale build is never loaded.
@@ -181,6 +181,23 @@ def band_input(q, idx, val, c) -> tuple[np.ndarray, np.ndarray]:
                       qq.size, ii.shape[1], ffi.from_buffer("double[]", cc), ffi.from_buffer("double[]", lo),
                       ffi.from_buffer("double[]", hi))
     return lo, hi
+
+
+def band_play_drags(q, idx, val, c, f: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+    """`band_input` then `play_drags` in one pass, from z0 = lo[0] + f (hi[0] - lo[0]): (z (N,), last
+    (N,) int64, side (N,), lo[0], hi[0]), the same bits as the two (kernels.h). Why: the band's two
+    grid arrays were a third of the play's time on the bench record, and every gradient reads the
+    band at its first sample only."""
+    ffi, lib = _load()
+    qq, vv, cc = _arr(q), _arr(val), _arr(c)
+    ii = np.ascontiguousarray(idx, dtype=np.int32)
+    z, side = np.empty(qq.size), np.empty(qq.size)
+    last = np.empty(qq.size, np.int64)
+    band0 = np.empty(2)
+    lib.dk_band_play_drags(ffi.from_buffer("double[]", qq), ffi.from_buffer("int[]", ii), ffi.from_buffer("double[]", vv),
+                           qq.size, ii.shape[1], ffi.from_buffer("double[]", cc), float(f), ffi.from_buffer("double[]", z),
+                           ffi.from_buffer("long[]", last), ffi.from_buffer("double[]", side), ffi.from_buffer("double[]", band0))
+    return z, last, side, float(band0[0]), float(band0[1])
 
 
 def tip_mode(u, b1: float, a1: float, a2: float) -> np.ndarray:

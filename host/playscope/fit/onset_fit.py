@@ -410,7 +410,7 @@ def samples(fit: Fit) -> ModelSamples:
     m, th = fit.model, fit.theta
     rec = m.rec
     d, cB = m.unpack(th)[:2]
-    z, _, _, last, side = m.play_drags(cB, m.z0_of(th))
+    z, _, last, side = m.play_drags(cB, m.z0_of(th))
     t_on = m.onsets(z)
     J = fit.jac
     cov = np.linalg.pinv(J.T @ J)

@@ -768,13 +768,20 @@ class RecordModel:
         return (z, lo, hi) if edges else z
 
     def play_drags(self, cB: np.ndarray, x0: float = 0.0):
-        """`play` with its drags: (z, lo, hi, last, side) (N,) each, last[k] the latest sample <= k
-        at which z sat on an edge (-1: none yet) and side the edge's (-0.5 the lower, +0.5 the
-        upper; before the first drag, sample 0's): the bookkeeping of every gradient."""
+        """`play` with its drags: (z (N,), the band's first sample (lo_0, hi_0), last (N,), side (N,)),
+        last[k] the latest sample <= k at which z sat on an edge (-1: none yet) and side the edge's
+        (-0.5 the lower, +0.5 the upper; before the first drag, sample 0's): the bookkeeping of every
+        gradient, which reads the band itself at its first sample only (`z_gradient`). B at the input
+        with its taps: the band and the play in one pass (base.kernels.band_play_drags, the same
+        bits as `edges` then the play), so the band's two grid arrays are never built."""
+        f = expit(x0)
+        if self.width_at == "input" and self._taps is not None and kernels.available():
+            z, last, side, lo0, hi0 = kernels.band_play_drags(self.rec.q, self._taps[0], self._taps[1], cB, float(f))
+            return z, (lo0, hi0), last, side
         lo, hi = self.edges(cB)
-        z0 = float(lo[0] + expit(x0) * (hi[0] - lo[0]))
+        z0 = float(lo[0] + f * (hi[0] - lo[0]))
         z, last, side = kernels.play_drags(lo, hi, z0) if kernels.available() else play_drags_ref(lo, hi, z0)
-        return z, lo, hi, last, side
+        return z, (float(lo[0]), float(hi[0])), last, side
 
     def z0_of(self, th: np.ndarray) -> float:
         """The play's first state's part of theta (module doc: z0)."""
@@ -794,7 +801,7 @@ class RecordModel:
             g[~pre] = self.edge_gradient(cB, lk, st["z"][lk], side[~pre])
         if pre.any():
             f = float(expit(x0))
-            lo0, hi0 = float(st["lo"][0]), float(st["hi"][0])
+            lo0, hi0 = st["band0"]
             e = self.edge_gradient(cB, np.zeros(2, int), np.array([lo0, hi0]), np.array([-0.5, 0.5]))
             g[pre] = (1.0 - f) * e[0] + f * e[1]
             dx[pre] = (hi0 - lo0) * f * (1.0 - f)
@@ -855,10 +862,11 @@ class RecordModel:
 
     def _play_part(self, d: float, cB: np.ndarray, x0: float, e: float = 0.0, s: float = 0.0) -> tuple:
         """What `columns` computes from the delay, B, the first state, the exposure and the spread
-        alone: (z, lo, hi, last, side (N,), the onsets (M,), tau, z at the frames (F,), G's columns
-        (F, n_g), with the tip mode its parts' masks and drives ((N - 2,) x 2 each), else None, and
-        with the spread its nodes [(m, u, {"z", "lo", "hi", "last", "side"})], else None: z is then
-        their mean, and lo, hi, last, side and the onsets the narrowest node's, the tip's first
+        alone: (z (N,), the band's first sample (lo_0, hi_0), last, side (N,), the onsets (M,), tau, z
+        at the frames (F,), G's columns (F, n_g), with the tip mode its parts' masks and drives
+        ((N - 2,) x 2 each), else None, and with the spread its nodes [(m, u, {"z", "band0", "last",
+        "side"})], else None: z is then their mean, and the band, last, side and the onsets the
+        narrowest node's, the tip's first
         motion; the gradients read each node's own, `spread_gradient`). Kept for the last
         arguments: the tip mode's frequency scan, a settle's three evaluations and the fit's
         repeated ones at one theta change none of them (the arrays are never written in place)."""
@@ -870,12 +878,12 @@ class RecordModel:
         if self.terms.spread:  # module doc: the spread; each node a play of width m B from the same first state
             nodes = []
             for m, u in zip(*self.spread_factors(s)):
-                zk, lok, hik, lastk, sidek = self.play_drags(m * cB, x0)
-                nodes.append((float(m), float(u), {"z": zk, "lo": lok, "hi": hik, "last": lastk, "side": sidek}))
+                zk, bk, lastk, sidek = self.play_drags(m * cB, x0)
+                nodes.append((float(m), float(u), {"z": zk, "band0": bk, "last": lastk, "side": sidek}))
             z = np.mean([n[2]["z"] for n in nodes], axis=0)
-            lo, hi, last, side = (nodes[0][2][k] for k in ("lo", "hi", "last", "side"))
+            band0, last, side = (nodes[0][2][k] for k in ("band0", "last", "side"))
         else:
-            z, lo, hi, last, side = self.play_drags(cB, x0)
+            z, band0, last, side = self.play_drags(cB, x0)
         tau = rec.t_f - d
         # the frame's image of the play: z at its scene time, or its mean over the exposure (module doc)
         z_f = np.mean([np.interp(tau + o, rec.t, z) for o in self.expo_offsets(e)], axis=0)
@@ -892,7 +900,7 @@ class RecordModel:
                 q_acc = np.diff(rec.q, 2) / (rec.dt * rec.dt)
                 drive[1][0] = np.where(stop | np.r_[False, stop[:-1]], -q_acc, 0.0)
         t_on = self.onsets(z if nodes is None else nodes[0][2]["z"])
-        out = (z, lo, hi, last, side, t_on, tau, z_f, _basis(z_f, self.z_lo, self.z_hi, self.n_g), drive, nodes)
+        out = (z, band0, last, side, t_on, tau, z_f, _basis(z_f, self.z_lo, self.z_hi, self.n_g), drive, nodes)
         self._memo = (key, out)
         return out
 
@@ -929,10 +937,10 @@ class RecordModel:
         d, cB, ring, lags = self.unpack(th)
         slides = self.slides(th)
         e = self.exposure(th)
-        z, lo, hi, last, side, t_on, tau, z_f, G, drive, nodes = self._play_part(d, cB, self.z0_of(th), e, self.spread(th))
+        z, band0, last, side, t_on, tau, z_f, G, drive, nodes = self._play_part(d, cB, self.z0_of(th), e, self.spread(th))
         cols = {"G": G}
         zn = (2 * z_f - (self.q_lo + self.q_hi)) / max(self.q_hi - self.q_lo, 1e-12)
-        st = {"z": z, "lo": lo, "hi": hi, "tau": tau, "zn": zn, "ring": ring, "last": last, "side": side, "expo": e,
+        st = {"z": z, "band0": band0, "tau": tau, "zn": zn, "ring": ring, "last": last, "side": side, "expo": e,
               "nodes": nodes}
         if self.terms.ring:
             st["mask"], st["u"] = drive

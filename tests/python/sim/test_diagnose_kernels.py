@@ -58,6 +58,20 @@ def test_the_record_models_play_with_its_drags_and_its_band_bit_for_bit():
         lo_c, hi_c = kernels.band_input(rec.q, m._taps[0], m._taps[1], cB)
         assert np.array_equal(lo_c, rec.q - 0.5 * B) and np.array_equal(hi_c, rec.q + 0.5 * B)
         assert (n_b == 1) or (B == 0.0).any()
+        for f in (0.0, 0.3, 1.0):  # the band and the play in one pass: the same bits as the two
+            z0 = float(lo_c[0] + f * (hi_c[0] - lo_c[0]))
+            z, last, side, lo0, hi0 = kernels.band_play_drags(rec.q, m._taps[0], m._taps[1], cB, f)
+            want = kernels.play_drags(lo_c, hi_c, z0)
+            assert all(np.array_equal(a, b) for a, b in zip((z, last, side), want))
+            assert (lo0, hi0) == (lo_c[0], hi_c[0])
+        for x0 in (-3.0, 0.0, 2.5):  # the model's play through it: the band's edges then the reference play
+            from scipy.special import expit
+
+            lo_e, hi_e = m.edges(cB)
+            got = m.play_drags(cB, x0)
+            want = OM.play_drags_ref(lo_e, hi_e, float(lo_e[0] + expit(x0) * (hi_e[0] - lo_e[0])))
+            assert all(np.array_equal(a, b) for a, b in zip((got[0], got[2], got[3]), want))
+            assert got[1] == (lo_e[0], hi_e[0])
 
 
 def test_the_record_models_first_moves_are_its_references():
