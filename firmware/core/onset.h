@@ -141,6 +141,21 @@ bool onset_observe_px(onset_t *o, uint32_t t_us, int32_t u_q16, int32_t v_q16, b
 /* Same with a direct angle measurement c (deg) from an external sensor. */
 bool onset_observe_deg(onset_t *o, uint32_t t_us, int32_t c_q16, bool valid, onset_event_t *ev);
 
+/* What one entry of a recorded stream is (onset_feed). */
+typedef enum {
+    ONSET_FEED_TICK = 0,         /* an encoder sample: a = q (Q16) */
+    ONSET_FEED_REVERSAL = 1,     /* a commanded reversal: a = q1 (Q16) */
+    ONSET_FEED_FRAME = 2,        /* a camera frame: a = u or c, b = v (Q16), valid */
+} onset_feed_kind_t;
+
+/* A recorded stream of n entries fed in its order, each as onset_tick, onset_reversal or
+ * onset_observe_px / _deg (input) would take it live (t_us[i], kind[i], a[i], b[i], valid[i]):
+ * the same calls, so the same outcomes. Each outcome (the detector returned true) is copied to
+ * out while fewer than cap are there; returns how many there were (more than cap: the rest were
+ * dropped). For replays on the host (onset_feed.c); not a board path. */
+long onset_feed(onset_t *o, const uint32_t *t_us, const uint8_t *kind, const int32_t *a, const int32_t *b,
+                const uint8_t *valid, long n, onset_input_t input, onset_event_t *out, long cap);
+
 /* Current threshold T^2 in (px or deg per frame)^2, Q32: fixed, or from the still noise. */
 int64_t onset_threshold2_q32(const onset_t *o);
 

@@ -54,9 +54,51 @@ static double q_of_t(const bench_t *b, double t)
     return q + dir * b->v_mm_s * (t - tp);
 }
 
-/* Run the bench through the detector; reversals are announced at t_rev exactly. */
-static void run_bench(const bench_t *b, const onset_config_t *cfg, double t_end_s, events_t *out,
-                      uint64_t seed)
+/* A second detector fed what run_bench feeds the first, through onset_feed in chunks of FEED_CHUNK
+ * entries (the stream's state carries from chunk to chunk as from call to call): its outcomes. */
+#define FEED_CHUNK 64
+typedef struct {
+    uint32_t t_us[FEED_CHUNK];
+    uint8_t kind[FEED_CHUNK];
+    int32_t a[FEED_CHUNK], b[FEED_CHUNK];
+    uint8_t valid[FEED_CHUNK];
+    long n;
+    onset_input_t input;
+    onset_t o;
+    events_t got;
+} feeder_t;
+
+static void feeder_flush(feeder_t *f)
+{
+    static onset_t copy;
+    onset_event_t ev[4], none[1];
+    copy = f->o;  /* without room: every outcome counted, none written */
+    long n0 = onset_feed(&copy, f->t_us, f->kind, f->a, f->b, f->valid, f->n, f->input, none, 0);
+    long n = onset_feed(&f->o, f->t_us, f->kind, f->a, f->b, f->valid, f->n, f->input, ev, 4);
+    assert_int_equal(n0, n);
+    assert_true(n <= 4 && f->got.n + n <= 16);
+    for (long i = 0; i < n; i++)
+        f->got.ev[f->got.n++] = ev[i];
+    f->n = 0;
+}
+
+static void feed_entry(feeder_t *f, uint32_t t, uint8_t kind, int32_t a, int32_t b, bool valid)
+{
+    if (f == NULL)
+        return;
+    f->t_us[f->n] = t;
+    f->kind[f->n] = kind;
+    f->a[f->n] = a;
+    f->b[f->n] = b;
+    f->valid[f->n] = valid;
+    if (++f->n == FEED_CHUNK)
+        feeder_flush(f);
+}
+
+/* Run the bench through the detector; reversals are announced at t_rev exactly. With f, each call's
+ * arguments are also fed, in order, to f's detector (initialised by the caller). */
+static void run_bench_feed(const bench_t *b, const onset_config_t *cfg, double t_end_s, events_t *out,
+                           uint64_t seed, feeder_t *f)
 {
     static onset_t o;
     onset_init(&o, cfg);
@@ -82,10 +124,12 @@ static void run_bench(const bench_t *b, const onset_config_t *cfg, double t_end_
                 tip_dir = z > z_prev ? 1 : -1;
         }
         if (next_rev < b->n_rev && ts >= b->t_rev_s[next_rev]) {
+            feed_entry(f, t, ONSET_FEED_REVERSAL, Q16(q), 0, true);
             if (onset_reversal(&o, t, Q16(q), &ev))
                 out->ev[out->n++] = ev;
             next_rev++;
         }
+        feed_entry(f, t, ONSET_FEED_TICK, Q16(q), 0, true);
         if (onset_tick(&o, t, Q16(q), &ev))
             out->ev[out->n++] = ev;
         if (t >= next_frame_capture) {
@@ -103,6 +147,8 @@ static void run_bench(const bench_t *b, const onset_config_t *cfg, double t_end_
             next_frame_capture += b->frame_us;
         }
         while (np > 0 && t >= pending[0].t_obs + b->late_us) {
+            feed_entry(f, pending[0].t_obs, ONSET_FEED_FRAME, Q16(pending[0].u),
+                       b->angle_mode ? 0 : Q16(pending[0].v), pending[0].valid);
             bool got = b->angle_mode
                            ? onset_observe_deg(&o, pending[0].t_obs, Q16(pending[0].u), pending[0].valid, &ev)
                            : onset_observe_px(&o, pending[0].t_obs, Q16(pending[0].u), Q16(pending[0].v),
@@ -113,6 +159,12 @@ static void run_bench(const bench_t *b, const onset_config_t *cfg, double t_end_
             np--;
         }
     }
+}
+
+static void run_bench(const bench_t *b, const onset_config_t *cfg, double t_end_s, events_t *out,
+                      uint64_t seed)
+{
+    run_bench_feed(b, cfg, t_end_s, out, seed, NULL);
 }
 
 static bench_t paper_bench(void)
@@ -134,6 +186,39 @@ static onset_config_t cfg_for(const bench_t *b)
 
 /* eq. 1 on clean-ish data: every reversal gives B within a small fraction of one frame of
  * travel (v * T_frame = 0.01 mm), and q_mean is the middle of the dead band. */
+/* onset_feed, in chunks, on what a bench fed the detector call by call gives the same outcomes in
+ * the same order, field by field (pixels with lost frames, and an angle sensor); without room it
+ * counts them all (feeder_flush). */
+static void test_feed_is_the_calls_in_turn(void **state)
+{
+    (void)state;
+    static feeder_t f;
+    for (int angle = 0; angle <= 1; angle++) {
+        bench_t b = paper_bench();
+        b.angle_mode = angle;
+        b.lost_from = angle ? -1 : 140;
+        b.lost_to = angle ? -1 : 143;
+        onset_config_t cfg = cfg_for(&b);
+        events_t want;
+        memset(&f, 0, sizeof f);
+        f.input = angle ? ONSET_INPUT_DEG : ONSET_INPUT_PX;
+        onset_init(&f.o, &cfg);
+        run_bench_feed(&b, &cfg, 16.0, &want, 5, &f);
+        feeder_flush(&f);
+        assert_int_equal(want.n, 3);
+        assert_int_equal(f.got.n, want.n);
+        for (int i = 0; i < want.n; i++) {
+            assert_int_equal(f.got.ev[i].reason, want.ev[i].reason);
+            assert_int_equal(f.got.ev[i].t1_us, want.ev[i].t1_us);
+            assert_int_equal(f.got.ev[i].t2_us, want.ev[i].t2_us);
+            assert_int_equal(f.got.ev[i].q1_q16, want.ev[i].q1_q16);
+            assert_int_equal(f.got.ev[i].q2_q16, want.ev[i].q2_q16);
+            assert_int_equal(f.got.ev[i].q_mean_q16, want.ev[i].q_mean_q16);
+            assert_int_equal(f.got.ev[i].b_q16, want.ev[i].b_q16);
+        }
+    }
+}
+
 static void test_b_from_eq1(void **state)
 {
     (void)state;
@@ -415,6 +500,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_b_from_eq1),
+        cmocka_unit_test(test_feed_is_the_calls_in_turn),
         cmocka_unit_test(test_refinement_beats_frame_quantisation),
         cmocka_unit_test(test_jump_at_onset),
         cmocka_unit_test(test_lost_frames_short_and_long),
