@@ -866,8 +866,8 @@ class RecordModel:
         at the frames (F,), G's columns (F, n_g), with the tip mode its parts' masks and drives
         ((N - 2,) x 2 each), else None, and with the spread its nodes [(m, u, {"z", "band0", "last",
         "side"})], else None: z is then their mean, and the band, last, side and the onsets the
-        narrowest node's, the tip's first
-        motion; the gradients read each node's own, `spread_gradient`). Kept for the last
+        narrowest node's, the tip's first motion; the gradients read each node's own,
+        `spread_gradient`). Kept for the last
         arguments: the tip mode's frequency scan, a settle's three evaluations and the fit's
         repeated ones at one theta change none of them (the arrays are never written in place)."""
         key = (d, cB.tobytes(), x0, e, s)

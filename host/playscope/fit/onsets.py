@@ -108,9 +108,10 @@ def run_onsets(t_enc: np.ndarray, q: np.ndarray, rev_t: np.ndarray, rev_q: np.nd
 
     Per encoder sample onset_tick(), at each reversal onset_reversal(), per frame
     onset_observe_px() / onset_observe_deg() (kind "image" / "angle"), exactly as the
-    board does on-line (the merged stream in one C call, `feed`). obs: (F, 2) px, or deg in column 0; NaN = lost. Every encoder
-    sample goes in, as on the board: the detector's history keeps one per
-    onset_history_span_us() / ENC_HIST_LEN whatever the rate (firmware/core/enc_hist.h).
+    board does on-line (the merged stream in one C call, `feed`). obs: (F, 2) px, or deg
+    in column 0; NaN = lost. Every encoder sample goes in, as on the board: the detector's
+    history keeps one per onset_history_span_us() / ENC_HIST_LEN whatever the rate
+    (firmware/core/enc_hist.h).
     Times become uint32 microseconds from the first sample.
     """
     ffi, lib = core()
