@@ -106,6 +106,24 @@ void dk_band_play_drags(const double *q, const int *idx, const double *val, long
     }
 }
 
+void dk_drag_gradient(const int *cols, const double *vals, long w, const long *last, const double *side, long K,
+                      long nb, double *out)
+{
+    for (long i = 0; i < K; i++) {
+        double *row = out + i * nb;
+        if (last[i] < 0) {
+            for (long c = 0; c < nb; c++)
+                row[c] = 0.0;
+            continue;
+        }
+        double zero = 0.0 * side[i];  /* numpy's 0 * side: -0 on the lower edge */
+        for (long c = 0; c < nb; c++)
+            row[c] = zero;
+        for (long j = 0; j < w; j++)
+            row[cols[last[i] * w + j]] = vals[last[i] * w + j] * side[i];
+    }
+}
+
 void dk_tip_mode(const double *u, long n, double b1, double a1, double a2, double *y)
 {
     /* transposed direct form II of b = (0, b1, 0), a = (1, a1, a2), each product and sum in

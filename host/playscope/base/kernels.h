@@ -20,6 +20,11 @@ void dk_band_input(const double *q, const int *idx, const double *val, long n, l
  * z0 = lo[0] + f (hi[0] - lo[0]) (f in [0, 1]); band0 gets (lo[0], hi[0]). The same bits as the two. */
 void dk_band_play_drags(const double *q, const int *idx, const double *val, long n, long w, const double *c,
                         double f, double *z, long *last, double *side, double *band0);
+/* The play's gradient over B's coefficients at K grid samples (onset_model.RecordModel.z_gradient):
+ * row i (nb wide) is 0 * side[i] but for vals[last[i], j] side[i] at cols[last[i], j] (w taps, distinct
+ * columns), or all +0 where last[i] < 0 (no drag yet): numpy's rows of the design times side, bit for bit. */
+void dk_drag_gradient(const int *cols, const double *vals, long w, const long *last, const double *side, long K,
+                      long nb, double *out);
 /* The tip mode's filter (onset_model._tip_filter's b = (0, b1), a = (1, a1, a2)) on u from rest:
  * scipy.signal.lfilter's transposed direct form II, bit for bit. */
 void dk_tip_mode(const double *u, long n, double b1, double a1, double a2, double *y);

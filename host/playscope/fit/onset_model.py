@@ -794,11 +794,15 @@ class RecordModel:
         first sample's band and with x0 by (hi_0 - lo_0) f (1 - f)."""
         last, side = st["last"][k], st["side"][k]
         pre = last < 0
-        g = np.zeros((k.size, self.n_b))
         dx = np.zeros(k.size)
-        if (~pre).any():
-            lk = last[~pre]
-            g[~pre] = self.edge_gradient(cB, lk, st["z"][lk], side[~pre])
+        if self.width_at == "input" and self._taps is not None and kernels.available():
+            # `edge_gradient`'s rows at the input, written in place in C (the same bits)
+            g = kernels.drag_gradient(self._taps[0], self._taps[1], last, side, self.n_b)
+        else:
+            g = np.zeros((k.size, self.n_b))
+            if (~pre).any():
+                lk = last[~pre]
+                g[~pre] = self.edge_gradient(cB, lk, st["z"][lk], side[~pre])
         if pre.any():
             f = float(expit(x0))
             lo0, hi0 = st["band0"]

@@ -51,6 +51,7 @@ def test_the_record_models_play_with_its_drags_and_its_band_bit_for_bit():
     assert (OM.play_drags_ref(lo, hi, 0.5 * (lo[0] + hi[0]))[1] < 0).sum() > 0  # a first hold inside the band
     rec = OM.make_record(np.arange(q.size) / 50.0, q, np.array([1.0, 7.0]), np.array([q[50], q[350]]),
                          np.arange(0.0, 100.0, 0.04), np.zeros((2500, 2)), 25.0)
+    cases = set()
     for n_b in (1, 4, 16):
         m = OM.RecordModel(rec, n_b, 6, OM.Terms(), None)
         cB = np.linspace(-0.05, 0.4, n_b)
@@ -64,6 +65,24 @@ def test_the_record_models_play_with_its_drags_and_its_band_bit_for_bit():
             want = kernels.play_drags(lo_c, hi_c, z0)
             assert all(np.array_equal(a, b) for a, b in zip((z, last, side), want))
             assert (lo0, hi0) == (lo_c[0], hi_c[0])
+        # the play's gradient over B at grid samples, some before the first drag (last < 0): the rows of
+        # edge_gradient times the edge's side, bit for bit (the zeros' signs too), and z_gradient with it
+        z, band0, last, side = m.play_drags(cB, 0.0)
+        k = np.r_[0, 1, 2, np.arange(3, q.size, 37)]
+        lk, sk = last[k], side[k]
+        ref = np.zeros((k.size, n_b))
+        ok = lk >= 0
+        ref[ok] = m.edge_gradient(cB, lk[ok], z[lk[ok]], sk[ok])
+        got = kernels.drag_gradient(m._taps[0], m._taps[1], lk, sk, n_b)
+        assert np.array_equal(got.view(np.int64), ref.view(np.int64))
+        cases |= {"before the first drag"} if (~ok).any() else set()
+        cases |= {"lower edge"} if ((sk < 0) & ok).any() else set()
+        st = {"z": z, "band0": band0, "last": last, "side": side}
+        with pytest.MonkeyPatch.context() as mp:
+            want = m.z_gradient(cB, st, k, 0.0)
+            mp.setattr(kernels, "available", lambda: False)
+            ref_g = m.z_gradient(cB, st, k, 0.0)
+        assert all(np.array_equal(a.view(np.int64), b.view(np.int64)) for a, b in zip(want, ref_g))
         for x0 in (-3.0, 0.0, 2.5):  # the model's play through it: the band's edges then the reference play
             from scipy.special import expit
 
@@ -72,6 +91,16 @@ def test_the_record_models_play_with_its_drags_and_its_band_bit_for_bit():
             want = OM.play_drags_ref(lo_e, hi_e, float(lo_e[0] + expit(x0) * (hi_e[0] - lo_e[0])))
             assert all(np.array_equal(a, b) for a, b in zip((got[0], got[2], got[3]), want))
             assert got[1] == (lo_e[0], hi_e[0])
+    assert cases == {"before the first drag", "lower edge"}
+
+
+def test_the_drag_gradient_refuses_a_sample_past_its_table():
+    cols, vals = np.zeros((5, 1), np.int32), np.ones((5, 1))
+    assert kernels.drag_gradient(cols, vals, np.array([-1, 4]), np.array([0.5, -0.5]), 1).tolist() == [[0.0], [-0.5]]
+    with pytest.raises(ValueError):
+        kernels.drag_gradient(cols, vals, np.array([5]), np.array([0.5]), 1)
+    with pytest.raises(ValueError):
+        kernels.drag_gradient(cols + 1, vals, np.array([0]), np.array([0.5]), 1)
 
 
 def test_the_record_models_first_moves_are_its_references():
