@@ -212,8 +212,11 @@ def drag_gradient(cols, vals, last, side, nb: int) -> np.ndarray:
     ll = np.ascontiguousarray(last, dtype=np.int64)
     if ll.shape != ss.shape or cc.shape != vv.shape or cc.ndim != 2:
         raise ValueError("drag_gradient: last and side of one shape, cols and vals (N, w) alike")
-    if ll.size and (ll.max() >= cc.shape[0] or (cc.size and (cc.min() < 0 or cc.max() >= nb))):
-        raise ValueError("drag_gradient: a sample past the taps' table, or a tap past nb")
+    if ll.size and ll.max() >= cc.shape[0]:
+        raise ValueError("drag_gradient: a sample past the taps' table")
+    used = cc[ll[ll >= 0]]  # the rows read (not the whole table: it is the grid's, N x w)
+    if used.size and (used.min() < 0 or used.max() >= nb):
+        raise ValueError("drag_gradient: a tap past nb")
     out = np.empty((ll.size, int(nb)))
     lib.dk_drag_gradient(ffi.from_buffer("int[]", cc), ffi.from_buffer("double[]", vv), cc.shape[1],
                          ffi.from_buffer("long[]", ll), ffi.from_buffer("double[]", ss), ll.size, int(nb),
