@@ -1,7 +1,8 @@
-/* Sequential kernels of the diagnosis' model (playscope/diagnose/fitmodel.py), in double
- * precision. Each is the line-for-line translation of the Python reference kept beside it in
- * fitmodel.py (same operations in the same order, compiled with -ffp-contract=off), so the two
- * agree bit for bit; tests/python/sim/test_diagnose_kernels.py checks that.
+/* Sequential kernels of the diagnosis' model (playscope/diagnose/fitmodel.py) and of the onsets'
+ * record model (playscope/fit/onset_model.py), in double precision. Each is the line-for-line
+ * translation of the Python reference kept beside it (fitmodel.py, fit/model.py, fit/onset_model.py:
+ * same operations in the same order, compiled with -ffp-contract=off), so the two agree bit for
+ * bit; tests/python/sim/test_diagnose_kernels.py checks that.
  * Why C: these recursions are sequential over time (each sample depends on the previous one),
  * so numpy cannot vectorise them, and they were most of a diagnosis' time in Python. */
 
@@ -9,13 +10,48 @@
 
 #include <math.h>
 
+/* The play's step, p = min(hi, max(lo, p)) as Python's min/max: the first argument on ties. */
+static inline double play_step(double p, double lo, double hi)
+{
+    double m = (p > lo) ? p : lo;
+    return (m < hi) ? m : hi;
+}
+
+/* The drag bookkeeping after a step to p at sample k: a drag when p sits on an edge, made by that
+ * edge (the lower on a tie). */
+static inline void drag_mark(double p, double lo, double hi, long k, long *lk, double *sk)
+{
+    if (p == lo || p == hi) {
+        *lk = k;
+        *sk = (p == lo) ? -0.5 : 0.5;
+    }
+}
+
+/* Before the first drag (last < 0): sample 0's edge, as the reference indexes it. */
+static void side_before_first_drag(const double *z, double lo0, long n, const long *last, double *side)
+{
+    if (n > 0 && last[0] < 0) {
+        double s0 = (z[0] == lo0) ? -0.5 : 0.5;
+        for (long k = 0; k < n && last[k] < 0; k++)
+            side[k] = s0;
+    }
+}
+
+/* B at sample k from its w taps, in csr_matvec's order (0 + v0 c0 + v1 c1 + ...), then
+ * np.maximum(B, 0) (NaN stays NaN). */
+static inline double band_width(const int *idx, const double *val, long w, const double *c, long k)
+{
+    double b = 0.0;
+    for (long j = 0; j < w; j++)
+        b += val[k * w + j] * c[idx[k * w + j]];
+    return (b < 0.0) ? 0.0 : b;
+}
+
 void dk_play_on_edges(const double *lo, const double *hi, long n, double z0, double *out)
 {
     double p = z0;
     for (long k = 0; k < n; k++) {
-        /* p = min(hi, max(lo, p)) as Python's min/max: the first argument on ties */
-        double m = (p > lo[k]) ? p : lo[k];
-        p = (m < hi[k]) ? m : hi[k];
+        p = play_step(p, lo[k], hi[k]);
         out[k] = p;
     }
 }
@@ -26,21 +62,13 @@ void dk_play_drags(const double *lo, const double *hi, long n, double z0, double
     long lk = -1;
     double sk = 0.5;
     for (long k = 0; k < n; k++) {
-        double m = (p > lo[k]) ? p : lo[k];
-        p = (m < hi[k]) ? m : hi[k];
+        p = play_step(p, lo[k], hi[k]);
         z[k] = p;
-        if (p == lo[k] || p == hi[k]) {  /* a drag: the edge it sits on made it (the lower on a tie) */
-            lk = k;
-            sk = (p == lo[k]) ? -0.5 : 0.5;
-        }
+        drag_mark(p, lo[k], hi[k], k, &lk, &sk);
         last[k] = lk;
         side[k] = sk;
     }
-    if (n > 0 && last[0] < 0) {  /* before the first drag: sample 0's edge, as the reference indexes it */
-        double s0 = (z[0] == lo[0]) ? -0.5 : 0.5;
-        for (long k = 0; k < n && last[k] < 0; k++)
-            side[k] = s0;
-    }
+    side_before_first_drag(z, n > 0 ? lo[0] : 0.0, n, last, side);
 }
 
 void dk_first_moves(const double *z, long n, const long *from, const long *to, long m, long *out)
@@ -62,10 +90,7 @@ void dk_band_input(const double *q, const int *idx, const double *val, long n, l
                    double *lo, double *hi)
 {
     for (long k = 0; k < n; k++) {
-        double b = 0.0;  /* csr_matvec's order: 0 + v0 c0 + v1 c1 + ... */
-        for (long j = 0; j < w; j++)
-            b += val[k * w + j] * c[idx[k * w + j]];
-        b = (b < 0.0) ? 0.0 : b;  /* np.maximum(b, 0): NaN stays NaN */
+        double b = band_width(idx, val, w, c, k);
         lo[k] = q[k] - 0.5 * b;
         hi[k] = q[k] + 0.5 * b;
     }
@@ -79,31 +104,20 @@ void dk_band_play_drags(const double *q, const int *idx, const double *val, long
     double sk = 0.5;
     band0[0] = band0[1] = 0.0;
     for (long k = 0; k < n; k++) {
-        double b = 0.0;  /* dk_band_input's sum and clip */
-        for (long j = 0; j < w; j++)
-            b += val[k * w + j] * c[idx[k * w + j]];
-        b = (b < 0.0) ? 0.0 : b;
+        double b = band_width(idx, val, w, c, k);
         double lo = q[k] - 0.5 * b, hi = q[k] + 0.5 * b;
         if (k == 0) {  /* the first state on the first sample's band (onset_model.RecordModel.play_drags) */
             band0[0] = lo;
             band0[1] = hi;
             p = lo + f * (hi - lo);
         }
-        double m = (p > lo) ? p : lo;  /* dk_play_drags' step */
-        p = (m < hi) ? m : hi;
+        p = play_step(p, lo, hi);
         z[k] = p;
-        if (p == lo || p == hi) {
-            lk = k;
-            sk = (p == lo) ? -0.5 : 0.5;
-        }
+        drag_mark(p, lo, hi, k, &lk, &sk);
         last[k] = lk;
         side[k] = sk;
     }
-    if (n > 0 && last[0] < 0) {
-        double s0 = (z[0] == band0[0]) ? -0.5 : 0.5;
-        for (long k = 0; k < n && last[k] < 0; k++)
-            side[k] = s0;
-    }
+    side_before_first_drag(z, band0[0], n, last, side);
 }
 
 void dk_drag_gradient(const int *cols, const double *vals, long w, const long *last, const double *side, long K,

@@ -157,8 +157,9 @@ def play_drags(z_lo, z_hi, z0: float) -> tuple[np.ndarray, np.ndarray, np.ndarra
 def first_moves(z, start, stop) -> np.ndarray:
     """onset_model._first_moves_ref in C: for each span j, the first grid sample k in [start[j],
     stop[j]) at which z moves (z[k] != z[k - 1], k >= 1), else -1; (M,) int64. z (N,); start, stop
-    (M,) int. Why: the reference compares all N samples per call to find M onsets, 0.3 of the
-    bench record's 2 ms evaluation; a span's scan ends at its first move."""
+    (M,) int grid indices (a span past the grid finds none). Why: the reference compares all N
+    samples per call to find M onsets; a span's scan ends at its first move. Errors: ValueError
+    when start and stop differ in shape."""
     ffi, lib = _load()
     zz = _arr(z)
     a, b = np.ascontiguousarray(start, dtype=np.int64), np.ascontiguousarray(stop, dtype=np.int64)
@@ -185,9 +186,9 @@ def band_input(q, idx, val, c) -> tuple[np.ndarray, np.ndarray]:
 
 def band_play_drags(q, idx, val, c, f: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     """`band_input` then `play_drags` in one pass, from z0 = lo[0] + f (hi[0] - lo[0]): (z (N,), last
-    (N,) int64, side (N,), lo[0], hi[0]), the same bits as the two (kernels.h). Why: the band's two
-    grid arrays were a third of the play's time on the bench record, and every gradient reads the
-    band at its first sample only."""
+    (N,) int64, side (N,), lo[0], hi[0]), the same bits as the two (kernels.h); q (N,) actuator units,
+    idx, val (N, w), c (n_b,), f in [0, 1]. Why: every gradient reads the band at its first sample
+    only, so its two grid arrays need not be built. No errors of its own (the taps are the model's)."""
     ffi, lib = _load()
     qq, vv, cc = _arr(q), _arr(val), _arr(c)
     ii = np.ascontiguousarray(idx, dtype=np.int32)
@@ -203,9 +204,9 @@ def band_play_drags(q, idx, val, c, f: float) -> tuple[np.ndarray, np.ndarray, n
 def drag_gradient(cols, vals, last, side, nb: int) -> np.ndarray:
     """The play's gradient over B's nb coefficients at K grid samples (K, nb) (kernels.h): row i is
     the design's row at last[i] (its taps cols (N, w) int, vals (N, w)) times side[i], or zeros
-    where last[i] < 0. Bit for bit onset_model's numpy rows (their zeros' signs included). Why: the
-    rows built by fancy indexing and a boolean mask took 1.1 ms of a 4 ms Jacobian on the bench
-    record. Errors: ValueError for a last past the table or a tap past nb."""
+    where last[i] < 0. Bit for bit onset_model's numpy rows (their zeros' signs included). Why:
+    z_gradient built these rows by fancy indexing and a boolean mask, 72 % of its time on the bench
+    record (under a line profiler). Errors: ValueError for a last past the table or a tap past nb."""
     ffi, lib = _load()
     cc = np.ascontiguousarray(cols, dtype=np.int32)
     vv, ss = _arr(vals), _arr(side)

@@ -160,7 +160,8 @@ def feed(o, stream: tuple, input_kind: int, cap: int = 64) -> list[tuple]:
     _REVERSAL, _FRAME), a (n,) int32 Q16 (q, q1, u or c), b (n,) int32 Q16 (v), valid (n,) uint8);
     input_kind ONSET_INPUT_PX or ONSET_INPUT_DEG. Returns the outcomes in order, each a tuple of
     EVENT_FIELDS. cap: the room first given for outcomes; a stream with more is fed again from o's
-    state on entry, with room for all (the same calls, so the same outcomes)."""
+    state on entry, with room for all (the same calls, so the same outcomes). Errors: TypeError for
+    columns of other dtypes, ValueError for columns not 1-D or of different lengths."""
     ffi, lib = core()
     t, k, a, b, v = (np.ascontiguousarray(x) for x in stream)
     if not (t.dtype == np.uint32 and k.dtype == v.dtype == np.uint8 and a.dtype == b.dtype == np.int32):
